@@ -1,0 +1,524 @@
+"""MotionDB: many motions on the canonical skeleton, concatenated on disk.
+
+Layout of a MotionDB directory (format version 1)::
+
+    manifest.json                  format, version, generation, frame count, joints, file names
+    positions.g<G>.npy             (N, 24, 3) float32, cm, y up -- all frames of all documents
+    quaternions.g<G>.npy           (N, 24, 4) float32 local rotations (w, x, y, z); NaN where none
+    documents.g<G>.parquet         one row per document: doc_id, name, path, start, n_frames, fps, labels, ...
+
+Every write produces the files of a new generation G under their final names and then replaces
+``manifest.json`` atomically (``os.replace``); readers only follow the manifest. A write that fails or is
+killed therefore leaves the previous generation, and the database, exactly as they were.
+
+Ingest reads each file in an independent task (:func:`read_document`), so that a scheduler (a process pool
+here, Dask later) can run them anywhere; the commit is done by the caller, in input order.
+"""
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import glob
+import hashlib
+import json
+import os
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from tqdm.auto import tqdm
+
+from .errors import MocapFormatError, MotionDBError, SkeletonMappingError
+from .io import FORMATS, find_asf, load
+from .labels import labels_for, read_labels_tsv
+from .motion import Motion
+from .skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
+
+FORMAT = "mocapviz.MotionDB"
+VERSION = 1
+_ARRAYS = {"positions": 3, "quaternions": 4}
+_BASE_COLUMNS = ["doc_id", "name", "path", "format", "start", "n_frames", "fps", "source_fps", "sha256", "label"]
+
+
+def expand_paths(paths) -> list[Path]:
+    """Motion files named by ``paths``: files, folders (searched recursively) and glob patterns.
+
+    Returns the absolute paths of the ``.amc`` / ``.bvh`` files, folders' contents sorted, duplicates removed.
+
+    Raises
+    ------
+    FileNotFoundError
+        A path or pattern that names nothing.
+    """
+    if isinstance(paths, (str, os.PathLike)):
+        paths = [paths]
+    out: list[Path] = []
+    for p in paths:
+        p = os.fspath(p)
+        if os.path.isdir(p):
+            found = sorted(f for f in Path(p).rglob("*") if f.suffix.lower() in FORMATS and f.is_file())
+        elif os.path.isfile(p):
+            found = [Path(p)]
+        else:
+            found = sorted(Path(f) for f in glob.glob(p, recursive=True) if Path(f).suffix.lower() in FORMATS)
+        if not found:
+            raise FileNotFoundError(f"{p}: no .amc or .bvh files there")
+        out += [f.resolve() for f in found]
+    return list(dict.fromkeys(out))
+
+
+def file_checksum(path) -> str:
+    """sha256 of a motion file's bytes (an AMC together with its ASF skeleton)."""
+    h = hashlib.sha256()
+    parts = [Path(path)]
+    if Path(path).suffix.lower() == ".amc":
+        parts.append(find_asf(path))
+    for part in parts:
+        with open(part, "rb") as fh:
+            for chunk in iter(lambda: fh.read(1 << 20), b""):
+                h.update(chunk)
+    return h.hexdigest()
+
+
+def read_document(path, fps: float | None = None, labels: dict | None = None, mapping: dict | None = None,
+                  **load_options) -> tuple[Motion, dict]:
+    """One ingest task: read a file, map it to the canonical skeleton, resample, describe it.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    fps : float, optional
+        Target frame rate; default: keep the file's.
+    labels : dict, optional
+        Labels of this file; default :func:`mocapviz.labels.labels_for` (label tables beside the data).
+    mapping : dict, optional
+        Canonical joint -> joint name, overriding the automatic mapping.
+    **load_options
+        Passed to :func:`mocapviz.load`.
+
+    Returns
+    -------
+    motion : Motion
+        Canonical joints, at ``fps``.
+    meta : dict
+        name, path, format, n_frames, fps, source_fps, sha256 and the labels.
+    """
+    path = Path(path)
+    motion = load(path, **load_options)
+    source_fps = motion.fps
+    motion = motion.canonical(mapping)
+    if fps is not None:
+        motion = motion.resample(fps)
+    labels = labels_for(path) if labels is None else dict(labels)
+    meta = {
+        "name": path.stem,
+        "path": str(path),
+        "format": path.suffix.lower().lstrip("."),
+        "n_frames": motion.n_frames,
+        "fps": motion.fps,
+        "source_fps": source_fps,
+        "sha256": file_checksum(path),
+        "label": labels.pop("label", None),
+        **{k: v for k, v in labels.items() if k not in _BASE_COLUMNS},
+    }
+    return motion, meta
+
+
+def _read_task(args):
+    path, fps, labels, mapping, load_options, skip_bad = args
+    try:
+        return read_document(path, fps, labels, mapping, **load_options)
+    except (MocapFormatError, SkeletonMappingError) as exc:
+        if not skip_bad:
+            raise
+        return exc
+
+
+def _labels_table(labels) -> dict[str, dict] | None:
+    """Labels given to ingest -> {absolute path or file name: {column: value}}."""
+    if labels is None:
+        return None
+    if isinstance(labels, dict):
+        return {str(k): dict(v) for k, v in labels.items()}
+    if isinstance(labels, (str, os.PathLike)):
+        p = Path(labels)
+        if not p.is_file():
+            raise FileNotFoundError(f"{p}: no such label table")
+        table = read_labels_tsv(p) if p.suffix.lower() in (".tsv", ".txt") else pd.read_csv(p)
+        if "path" not in table:
+            table["path"] = [str((p.parent / f).resolve()) for f in table["file"]]
+    else:
+        table = pd.DataFrame(labels)
+    if "file" not in table and "path" not in table:
+        raise ValueError("a label table needs a 'file' or 'path' column")
+    out = {}
+    for row in table.to_dict("records"):
+        key = row.pop("path", None) or row.get("file")
+        row.pop("file", None)
+        row = {k: v for k, v in row.items() if not (isinstance(v, float) and np.isnan(v))}
+        out[str(Path(key).resolve()) if os.path.isabs(str(key)) else str(key)] = row
+        out.setdefault(Path(str(key)).name, row)
+    return out
+
+
+class MotionDB:
+    """A motion database on disk (see the module docstring for the layout).
+
+    Open one with :meth:`open`, build or extend one with :meth:`ingest`.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+    documents : pandas.DataFrame
+        One row per document: ``doc_id``, ``name``, ``path``, ``format``, ``start`` (first frame in the
+        concatenated arrays), ``n_frames``, ``fps``, ``source_fps``, ``sha256``, ``label`` and the label
+        columns of the sources (HDM05 ``actor``/``class``/``take``/``split``, CMU ``description``..., Bandai
+        ``content``/``style``).
+    positions : np.ndarray [shape=(N, 24, 3)], float32 memory map, cm, canonical joints
+    quaternions : np.ndarray [shape=(N, 24, 4)], float32 memory map, NaN for documents without rotations
+    """
+
+    def __init__(self, path, manifest: dict, documents: pd.DataFrame, arrays: dict):
+        self.path = Path(path)
+        self.manifest = manifest
+        self.documents = documents
+        self.positions = arrays["positions"]
+        self.quaternions = arrays["quaternions"]
+
+    # ------------------------------------------------------------------ reading
+    @classmethod
+    def open(cls, path) -> "MotionDB":
+        """Open a MotionDB directory.
+
+        Raises
+        ------
+        MotionDBError
+            Not a MotionDB, another format version, or files missing or inconsistent with the manifest.
+        """
+        path = Path(path)
+        manifest = _read_manifest(path)
+        n = manifest["n_frames"]
+        arrays = {}
+        for name, width in _ARRAYS.items():
+            f = path / manifest["arrays"][name]
+            try:
+                arr = np.load(f, mmap_mode="r") if n else np.zeros((0, len(CANONICAL_JOINTS), width), np.float32)
+            except (OSError, ValueError) as exc:
+                raise MotionDBError(f"{f}: cannot read ({exc})") from None
+            if arr.shape != (n, len(CANONICAL_JOINTS), width) or arr.dtype != np.float32:
+                raise MotionDBError(f"{f}: shape {arr.shape} {arr.dtype}, the manifest says ({n}, 24, {width}) float32")
+            arrays[name] = arr
+        try:
+            documents = pd.read_parquet(path / manifest["documents"])
+        except (OSError, ValueError) as exc:
+            raise MotionDBError(f"{path / manifest['documents']}: cannot read ({exc})") from None
+        if int(documents["n_frames"].sum()) != n:
+            raise MotionDBError(f"{path}: documents cover {documents['n_frames'].sum()} frames, the arrays {n}")
+        return cls(path, manifest, documents, arrays)
+
+    @property
+    def n_frames(self) -> int:
+        return self.positions.shape[0]
+
+    @property
+    def fps(self) -> float | None:
+        """The frame rate shared by all documents, or None if they differ (or the DB is empty)."""
+        rates = self.documents["fps"].unique()
+        return float(rates[0]) if len(rates) == 1 else None
+
+    def __len__(self) -> int:
+        return len(self.documents)
+
+    def __repr__(self) -> str:
+        fps = f"{self.fps:g} fps" if self.fps else "mixed fps"
+        return f"MotionDB({str(self.path)!r}: {len(self)} documents, {self.n_frames} frames, {fps})"
+
+    def _row(self, doc_id: int) -> pd.Series:
+        rows = self.documents[self.documents["doc_id"] == doc_id]
+        if rows.empty:
+            raise KeyError(f"{self.path}: no document {doc_id} (ids {self.documents['doc_id'].min()}..{self.documents['doc_id'].max()})")
+        return rows.iloc[0]
+
+    def frames(self, doc_id: int) -> slice:
+        """The slice of the concatenated arrays that holds document ``doc_id``."""
+        row = self._row(doc_id)
+        return slice(int(row["start"]), int(row["start"] + row["n_frames"]))
+
+    def motion(self, doc_id: int) -> Motion:
+        """Document ``doc_id`` as a canonical Motion (arrays are views of the memory maps)."""
+        row = self._row(doc_id)
+        sl = self.frames(doc_id)
+        quat = self.quaternions[sl]
+        label_cols = [c for c in self.documents.columns if c not in _BASE_COLUMNS]
+        labels = {"label": row["label"], **{c: row[c] for c in label_cols if not pd.isna(row[c])}}
+        return Motion(
+            positions=self.positions[sl],
+            fps=float(row["fps"]),
+            joint_names=CANONICAL_JOINTS,
+            parents=CANONICAL_PARENTS,
+            quaternions=None if quat.shape[0] and np.isnan(quat[0, 0, 0]) else quat,
+            source=row["path"],
+            labels=labels,
+        )
+
+    def document_of(self, frames) -> np.ndarray:
+        """Document id of each frame index (array in, array out)."""
+        starts = self.documents["start"].to_numpy()
+        idx = np.searchsorted(starts, np.asarray(frames), side="right") - 1
+        return self.documents["doc_id"].to_numpy()[idx]
+
+    def select(self, **criteria) -> pd.DataFrame:
+        """Documents whose columns match: ``db.select(label="kickLFront1Reps", actor=["bd", "mm"])``.
+
+        A value may be a scalar or a list of accepted values.
+
+        Raises
+        ------
+        KeyError
+            A column the documents table does not have.
+        """
+        mask = np.ones(len(self.documents), dtype=bool)
+        for col, want in criteria.items():
+            if col not in self.documents:
+                raise KeyError(f"no column {col!r}; the documents have {', '.join(self.documents.columns)}")
+            values = want if isinstance(want, (list, tuple, set, np.ndarray, pd.Index)) else [want]
+            mask &= self.documents[col].isin(list(values)).to_numpy()
+        return self.documents[mask]
+
+    def summary(self) -> pd.DataFrame:
+        """Documents, frames and minutes per label (and a total row)."""
+        d = self.documents.assign(minutes=self.documents["n_frames"] / self.documents["fps"] / 60.0)
+        per = d.groupby(d["label"].fillna("(none)")).agg(documents=("doc_id", "size"), frames=("n_frames", "sum"),
+                                                         minutes=("minutes", "sum"))
+        per.loc["total"] = [len(d), int(d["n_frames"].sum()), float(d["minutes"].sum())]
+        return per
+
+    # ------------------------------------------------------------------ writing
+    @classmethod
+    def create(cls, path) -> "MotionDB":
+        """An empty MotionDB at ``path`` (which must not exist or be an empty directory)."""
+        path = Path(path)
+        if path.exists() and (not path.is_dir() or any(path.iterdir())):
+            raise MotionDBError(f"{path}: exists and is not an empty directory")
+        path.mkdir(parents=True, exist_ok=True)
+        with _locked(path):
+            _commit(path, None, [], [], [])
+        return cls.open(path)
+
+    @classmethod
+    def ingest(cls, paths, out, fps: float | None = None, labels=None, mapping: dict | None = None,
+               skip_bad: bool = False, n_jobs: int = 1, progress: bool = True, **load_options) -> "MotionDB":
+        """Read motion files into the MotionDB at ``out``, creating it or appending to it.
+
+        Files already in the database (same sha256) are skipped, so re-running an interrupted ingest
+        continues where it stopped. Nothing is written until every file has been read; then the new
+        documents are committed at once (atomically).
+
+        Parameters
+        ----------
+        paths : str, os.PathLike or list of them
+            Files, folders (searched recursively for .amc / .bvh) or glob patterns.
+        out : str or os.PathLike
+            The database directory.
+        fps : float, optional
+            Resample every document to this rate (e.g. 120 for relational indexing, 30 for kNN).
+        labels : path, DataFrame or dict, optional
+            A label table (``file`` or ``path`` column plus label columns; TSV or CSV) or
+            {path or file name: {column: value}}. Default: the label tables found beside the data
+            (``labels.tsv``, Bandai Namco ``.json``), see :func:`mocapviz.labels.labels_for`.
+        mapping : dict, optional
+            Canonical joint -> joint name for rigs the automatic rules cannot map.
+        skip_bad : bool
+            Skip files that fail to read (with a warning) instead of stopping.
+        n_jobs : int
+            Worker processes for reading (1: in this process).
+        progress : bool
+            Show a progress bar.
+        **load_options
+            Passed to :func:`mocapviz.load` (``asf``, ``up``, ``scale``).
+
+        Returns
+        -------
+        MotionDB
+
+        Raises
+        ------
+        MocapFormatError, SkeletonMappingError
+            A file fails to read and ``skip_bad`` is false; the database is left as it was.
+        MotionDBError
+            ``out`` exists but is not a MotionDB, or its frame rate differs from ``fps``.
+        """
+        out = Path(out)
+        files = expand_paths(paths)
+        created = not (out / "manifest.json").exists()
+        db = cls.create(out) if created else cls.open(out)
+        try:
+            return db.append(files, fps=fps, labels=labels, mapping=mapping, skip_bad=skip_bad, n_jobs=n_jobs,
+                             progress=progress, **load_options)
+        except BaseException:
+            if created:
+                _remove_db(out)
+            raise
+
+    def append(self, paths, fps: float | None = None, labels=None, mapping: dict | None = None,
+               skip_bad: bool = False, n_jobs: int = 1, progress: bool = True, **load_options) -> "MotionDB":
+        """Add motion files to this database; see :meth:`ingest`. Returns the reopened database."""
+        if fps is not None and len(self) and self.fps != float(fps):
+            raise MotionDBError(f"{self.path}: documents are at {self.fps} fps; cannot append at {fps} fps")
+        if fps is None and self.fps is not None and len(self):
+            fps = self.fps
+        table = _labels_table(labels)
+        known = set(self.documents["sha256"])
+        todo = []
+        for f in expand_paths(paths):
+            if file_checksum(f) in known:
+                continue
+            lab = None if table is None else table.get(str(f), table.get(f.name, {}))
+            todo.append((str(f), fps, lab, mapping, load_options, skip_bad))
+        results = []
+        with contextlib.ExitStack() as stack:
+            if n_jobs > 1 and len(todo) > 1:
+                pool = stack.enter_context(ProcessPoolExecutor(n_jobs))
+                it = pool.map(_read_task, todo, chunksize=max(1, len(todo) // (8 * n_jobs)))
+            else:
+                it = map(_read_task, todo)
+            for res in tqdm(it, total=len(todo), desc="ingest", unit="file", disable=not progress or not todo):
+                results.append(res)
+        motions, metas = [], []
+        for (path, *_), res in zip(todo, results):
+            if isinstance(res, Exception):
+                warnings.warn(f"skipped {res}", stacklevel=2)
+                continue
+            motions.append(res[0])
+            metas.append(res[1])
+        if motions:
+            with _locked(self.path):
+                _commit(self.path, _read_manifest(self.path), [m.positions for m in motions],
+                        [m.quaternions for m in motions], metas)
+        return MotionDB.open(self.path)
+
+
+# ---------------------------------------------------------------------- storage helpers
+@contextlib.contextmanager
+def _locked(path: Path):
+    """Hold an exclusive lock on the database directory (one writer at a time)."""
+    with open(path / ".lock", "a") as fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise MotionDBError(f"{path}: another process is writing to this database") from None
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _read_manifest(path: Path) -> dict:
+    f = path / "manifest.json"
+    if not f.is_file():
+        raise MotionDBError(f"{path}: not a MotionDB (no manifest.json)")
+    try:
+        manifest = json.loads(f.read_text())
+    except (OSError, ValueError) as exc:
+        raise MotionDBError(f"{f}: unreadable ({exc})") from None
+    if manifest.get("format") != FORMAT:
+        raise MotionDBError(f"{path}: not a MotionDB (format {manifest.get('format')!r})")
+    if manifest.get("version") != VERSION:
+        raise MotionDBError(
+            f"{path}: MotionDB format version {manifest.get('version')}; this mocapviz reads version {VERSION}"
+        )
+    return manifest
+
+
+def _fsync_write(target: Path, data: bytes) -> None:
+    tmp = target.with_name(target.name + ".tmp")
+    with open(tmp, "wb") as fh:
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, target)
+
+
+def _write_grown(old: Path | None, n_old: int, new: list[np.ndarray], width: int, target: Path) -> None:
+    """Write ``target`` = the first n_old frames of ``old`` followed by ``new``, as one .npy file."""
+    n_new = sum(a.shape[0] for a in new)
+    tmp = target.with_name(target.name + ".tmp")
+    arr = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.float32, shape=(n_old + n_new, len(CANONICAL_JOINTS), width))
+    if n_old:
+        src = np.load(old, mmap_mode="r")
+        for s in range(0, n_old, 1 << 18):
+            arr[s : min(s + (1 << 18), n_old)] = src[s : min(s + (1 << 18), n_old)]
+    at = n_old
+    for a in new:
+        arr[at : at + a.shape[0]] = a
+        at += a.shape[0]
+    arr.flush()
+    del arr
+    with open(tmp, "rb+") as fh:
+        os.fsync(fh.fileno())
+    os.replace(tmp, target)
+
+
+def _commit(path: Path, manifest: dict | None, positions: list, quaternions: list, metas: list[dict]) -> None:
+    """Write generation g+1 with the new documents appended, then switch the manifest to it."""
+    gen = 0 if manifest is None else manifest["generation"] + 1
+    n_old = 0 if manifest is None else manifest["n_frames"]
+    old_docs = pd.read_parquet(path / manifest["documents"]) if manifest else pd.DataFrame(columns=_BASE_COLUMNS)
+    quaternions = [
+        np.full(p.shape[:2] + (4,), np.nan, np.float32) if q is None else q for p, q in zip(positions, quaternions)
+    ]
+    files = {}
+    for name, width in _ARRAYS.items():
+        target = path / f"{name}.g{gen}.npy"
+        old = None if manifest is None else path / manifest["arrays"][name]
+        _write_grown(old, n_old, positions if name == "positions" else quaternions, width, target)
+        files[name] = target.name
+    new_docs = pd.DataFrame(metas)
+    if len(new_docs):
+        new_docs.insert(0, "doc_id", np.arange(len(new_docs)) + (int(old_docs["doc_id"].max()) + 1 if len(old_docs) else 0))
+        new_docs["start"] = n_old + np.concatenate([[0], np.cumsum(new_docs["n_frames"].to_numpy())[:-1]])
+    docs = pd.concat([old_docs, new_docs], ignore_index=True) if len(old_docs) else new_docs
+    if docs.empty:
+        docs = pd.DataFrame({c: pd.Series(dtype="int64" if c in ("doc_id", "start", "n_frames") else "float64" if "fps" in c else "object") for c in _BASE_COLUMNS})
+    docs = docs[_BASE_COLUMNS + [c for c in docs.columns if c not in _BASE_COLUMNS]]
+    for c in ("doc_id", "start", "n_frames"):
+        docs[c] = docs[c].astype("int64")
+    for c in docs.columns:
+        if docs[c].dtype == object:
+            docs[c] = docs[c].astype("string")
+    doc_file = path / f"documents.g{gen}.parquet"
+    tmp = doc_file.with_name(doc_file.name + ".tmp")
+    docs.to_parquet(tmp, index=False)
+    os.replace(tmp, doc_file)
+    new_manifest = {
+        "format": FORMAT,
+        "version": VERSION,
+        "generation": gen,
+        "n_frames": n_old + sum(p.shape[0] for p in positions),
+        "joint_names": list(CANONICAL_JOINTS),
+        "arrays": files,
+        "documents": doc_file.name,
+        "written_by": f"mocapviz {_version()}",
+    }
+    _fsync_write(path / "manifest.json", json.dumps(new_manifest, indent=2).encode())
+    keep = set(files.values()) | {doc_file.name, "manifest.json", ".lock"}
+    for f in path.iterdir():
+        if f.name not in keep and (f.name.endswith((".npy", ".parquet", ".tmp"))):
+            f.unlink()
+
+
+def _remove_db(path: Path) -> None:
+    """Delete a database directory this process created (only files a MotionDB holds)."""
+    for f in path.iterdir():
+        if f.name == "manifest.json" or f.name == ".lock" or f.name.endswith((".npy", ".parquet", ".tmp")):
+            f.unlink()
+    with contextlib.suppress(OSError):
+        path.rmdir()
+
+
+def _version() -> str:
+    from . import __version__
+
+    return __version__

@@ -1,0 +1,39 @@
+"""Typed errors of mocapviz.
+
+Every error a user can cause by passing bad input is one of these, raised with one sentence that names the
+file (and line or frame where there is one) and says what is wrong.
+"""
+from __future__ import annotations
+
+import os
+
+
+class MocapFormatError(ValueError):
+    """A motion file is malformed: truncated, wrong channel count, unknown bone, non-finite value, ...
+
+    Attributes
+    ----------
+    path : str or None
+        The file that failed.
+    line : int or None
+        1-based line number in that file where the problem was found, if it has one.
+    reason : str
+        What is wrong, in words.
+    """
+
+    def __init__(self, path: str | os.PathLike | None, reason: str, line: int | None = None):
+        self.path = None if path is None else os.fspath(path)
+        self.line = line
+        self.reason = reason
+        where = self.path or "<input>"
+        if line is not None:
+            where = f"{where}, line {line}"
+        super().__init__(f"{where}: {reason}")
+
+
+class SkeletonMappingError(ValueError):
+    """A skeleton's joints could not be mapped to the canonical joints (``mocapviz.skeleton``)."""
+
+
+class MotionDBError(ValueError):
+    """A MotionDB on disk is missing, of another format version, or inconsistent."""

@@ -1,0 +1,91 @@
+"""Readers: one entry point, :func:`load`, for every supported motion file.
+
+load          path -> Motion (ASF/AMC, BVH), dispatching on the file extension.
+find_asf      the ASF skeleton of an AMC file, by the CMU and HDM05 folder conventions.
+read_asf, read_amc, read_bvh   the format readers (``asfamc``, ``bvh`` modules).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from ..errors import MocapFormatError
+from ..motion import Motion
+from .asfamc import AsfSkeleton, read_amc, read_asf
+from .bvh import read_bvh
+
+FORMATS = (".amc", ".bvh")
+
+
+def find_asf(amc_path) -> Path:
+    """Locate the ASF skeleton of an AMC file.
+
+    Tried in order, in the AMC's folder, its ancestors (up to three levels) and their ``asf/`` subfolders:
+    a file named after the AMC's stem, then after its stem cut at each ``_`` from the right
+    (``HDM_bd_kick_001_120`` -> ``HDM_bd``, ``131_01`` -> ``131``), then after the AMC's folder
+    (``amc/mjackson/131_01.amc`` -> ``asf/mjackson.asf``); last, the only ``.asf`` in the AMC's folder.
+
+    Raises
+    ------
+    MocapFormatError
+        No skeleton found; the message says to pass ``asf=``.
+    """
+    amc = Path(amc_path).resolve()
+    stem = amc.stem
+    candidates = [stem]
+    while "_" in stem:
+        stem = stem.rsplit("_", 1)[0]
+        candidates.append(stem)
+    candidates.append(amc.parent.name)
+    folders = []
+    for up in [amc.parent, *list(amc.parents)[1:4]]:
+        folders += [up, up / "asf"]
+    for name in candidates:
+        for folder in folders:
+            for suffix in (".asf", ".ASF"):
+                f = folder / (name + suffix)
+                if f.is_file():
+                    return f
+    only = sorted(amc.parent.glob("*.asf")) + sorted(amc.parent.glob("*.ASF"))
+    if len(only) == 1:
+        return only[0]
+    raise MocapFormatError(amc_path, "no ASF skeleton found beside it; pass asf=PATH")
+
+
+def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: float | None = None) -> Motion:
+    """Read a motion file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An ``.amc`` (with its ASF skeleton) or ``.bvh`` file.
+    asf : str or os.PathLike, optional
+        The ASF skeleton of an AMC file; default :func:`find_asf`.
+    fps : float, optional
+        AMC: the capture rate (default 120, as CMU and HDM05). BVH: ignored (the file states it).
+    up, scale : BVH only, see :func:`mocapviz.io.bvh.read_bvh`.
+
+    Returns
+    -------
+    Motion
+        Source joints, positions in cm, y up, local quaternions. ``Motion.canonical()`` maps it to the
+        24 canonical joints.
+
+    Raises
+    ------
+    MocapFormatError
+        Unsupported extension, unreadable or malformed file (naming the file and line).
+    """
+    path = os.fspath(path)
+    ext = os.path.splitext(path)[1].lower()
+    if not os.path.isfile(path):
+        raise MocapFormatError(path, "no such file")
+    if ext == ".amc":
+        skeleton = read_asf(asf if asf is not None else find_asf(path))
+        return read_amc(path, skeleton, fps=120.0 if fps is None else fps)
+    if ext == ".bvh":
+        return read_bvh(path, up=up, scale=scale)
+    raise MocapFormatError(path, f"unsupported file type {ext or '(none)'!r}; supported: {', '.join(FORMATS)}")
+
+
+__all__ = ["AsfSkeleton", "FORMATS", "find_asf", "load", "read_amc", "read_asf", "read_bvh"]

@@ -1,0 +1,127 @@
+"""The Motion: one clip's joint positions (and rotations) over time, as every reader returns it."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from . import rotations
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """One motion clip.
+
+    Attributes
+    ----------
+    positions : np.ndarray [shape=(T, J, 3)], float32
+        Joint positions in centimetres, y up (right-handed).
+    fps : float
+        Frames per second.
+    joint_names : tuple of str [length J]
+        Joint names: the source skeleton's (ASF bone tips, BVH joints and end sites) or, after
+        :meth:`canonical`, the 24 canonical joints of ``mocapviz.skeleton.CANONICAL_JOINTS``.
+    parents : np.ndarray [shape=(J,)], int64
+        Parent joint index, -1 for the root; parents come before their children.
+    quaternions : np.ndarray [shape=(T, J, 4)], float32, or None
+        Local joint rotations ``(w, x, y, z)`` relative to the parent, where the source has them.
+    source : str or None
+        The file the clip was read from.
+    labels : dict
+        Annotations that travel with the clip (class, actor, style, ...).
+    """
+
+    positions: np.ndarray
+    fps: float
+    joint_names: tuple
+    parents: np.ndarray
+    quaternions: np.ndarray | None = None
+    source: str | None = None
+    labels: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        pos = np.asarray(self.positions, dtype=np.float32)
+        if pos.ndim != 3 or pos.shape[2] != 3:
+            raise ValueError(f"Motion.positions must have shape (T, J, 3), got {pos.shape}")
+        names = tuple(self.joint_names)
+        parents = np.asarray(self.parents, dtype=np.int64)
+        if len(names) != pos.shape[1] or parents.shape != (pos.shape[1],):
+            raise ValueError(
+                f"Motion has {pos.shape[1]} joints in positions, {len(names)} names, {parents.shape} parents"
+            )
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"Motion.fps must be a positive number, got {self.fps}")
+        quat = self.quaternions
+        if quat is not None:
+            quat = np.asarray(quat, dtype=np.float32)
+            if quat.shape != pos.shape[:2] + (4,):
+                raise ValueError(f"Motion.quaternions must have shape {pos.shape[:2] + (4,)}, got {quat.shape}")
+        object.__setattr__(self, "positions", pos)
+        object.__setattr__(self, "joint_names", names)
+        object.__setattr__(self, "parents", parents)
+        object.__setattr__(self, "quaternions", quat)
+        object.__setattr__(self, "fps", float(self.fps))
+
+    @property
+    def n_frames(self) -> int:
+        return self.positions.shape[0]
+
+    @property
+    def n_joints(self) -> int:
+        return self.positions.shape[1]
+
+    @property
+    def duration(self) -> float:
+        """Length in seconds."""
+        return self.n_frames / self.fps
+
+    def joint(self, name: str) -> np.ndarray:
+        """Trajectory of one joint, shape (T, 3), cm."""
+        try:
+            return self.positions[:, self.joint_names.index(name)]
+        except ValueError:
+            raise KeyError(f"{self.source or 'motion'} has no joint {name!r}; it has {', '.join(self.joint_names)}")
+
+    def canonical(self, mapping: dict | None = None) -> "Motion":
+        """This clip on the 24 canonical joints (``mocapviz.skeleton``), in their fixed order.
+
+        ``mapping`` (canonical name -> this motion's joint name) overrides the automatic rules.
+        """
+        from .skeleton import to_canonical
+
+        return to_canonical(self, mapping)
+
+    def resample(self, fps: float) -> "Motion":
+        """The same clip at another frame rate.
+
+        Frame k of the result is at time k / fps; the last frame is the last one at or before the end of
+        the clip. Positions are interpolated linearly, rotations by slerp between the two nearest frames.
+        """
+        fps = float(fps)
+        if not (np.isfinite(fps) and fps > 0):
+            raise ValueError(f"target fps must be a positive number, got {fps}")
+        if fps == self.fps:
+            return self
+        n_out = int(np.floor((self.n_frames - 1) * fps / self.fps + 1e-9)) + 1
+        x = np.arange(n_out) * (self.fps / fps)
+        i0 = np.minimum(np.floor(x + 1e-9).astype(np.int64), self.n_frames - 1)
+        i1 = np.minimum(i0 + 1, self.n_frames - 1)
+        w = np.clip(x - i0, 0.0, 1.0)
+        pos = self.positions[i0] + (self.positions[i1] - self.positions[i0]) * w[:, None, None].astype(np.float32)
+        quat = None
+        if self.quaternions is not None:
+            quat = rotations.slerp(self.quaternions[i0], self.quaternions[i1], w[:, None]).astype(np.float32)
+        return replace(self, positions=pos, quaternions=quat, fps=fps)
+
+    def __getitem__(self, frames) -> "Motion":
+        """Frames ``frames`` (a slice or an index array) of this clip as a new Motion."""
+        if isinstance(frames, (int, np.integer)):
+            frames = slice(frames, frames + 1)
+        quat = None if self.quaternions is None else self.quaternions[frames]
+        return replace(self, positions=self.positions[frames], quaternions=quat)
+
+    def __repr__(self) -> str:
+        return (
+            f"Motion({self.n_frames} frames at {self.fps:g} fps, {self.n_joints} joints, "
+            f"source={self.source!r})"
+        )

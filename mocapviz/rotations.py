@@ -1,0 +1,248 @@
+"""Rotations as unit quaternions, and forward kinematics.
+
+Quaternions are stored scalar first, ``(w, x, y, z)``, as float arrays whose last axis has length 4.
+Rotations act on column vectors: ``rotate(q, v)`` is ``R(q) @ v``.
+
+Public functions
+----------------
+from_euler             Euler angles (any axis order) -> quaternions.
+multiply               Hamilton product of two quaternion arrays (broadcasting).
+rotate                 Rotate vectors by quaternions (broadcasting).
+angle                  Rotation angle between two quaternion arrays (radians).
+slerp                  Spherical linear interpolation between two quaternion arrays.
+forward_kinematics     Local rotations and global positions from Euler channels, compiled over frames.
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+_AXES = "xyz"
+
+
+def from_euler(order: str, angles: np.ndarray, degrees: bool = True) -> np.ndarray:
+    """Quaternions of Euler-angle rotations.
+
+    Parameters
+    ----------
+    order : str
+        Axes in the order the rotations are applied to a vector, e.g. ``"XYZ"`` = first about x, then y,
+        then z about the fixed (parent) axes, i.e. ``R = Rz @ Ry @ Rx``. This is the ASF ``axis``
+        convention. BVH channels ``Zrotation Xrotation Yrotation`` mean ``R = Rz @ Rx @ Ry``, which is
+        order ``"YXZ"`` here (the channel order reversed). One to three letters from x, y, z, any case.
+    angles : np.ndarray [shape=(..., len(order))]
+        Angles, one column per letter of ``order``.
+    degrees : bool
+        Angles in degrees (default) or radians.
+
+    Returns
+    -------
+    np.ndarray [shape=(..., 4)], float64, ``(w, x, y, z)``.
+
+    Examples
+    --------
+    >>> from_euler("XYZ", [90, 0, 0]).round(3)
+    array([0.707, 0.707, 0.   , 0.   ])
+    """
+    axes = [_AXES.index(a) for a in order.lower()]
+    half = np.asarray(angles, dtype=np.float64) * (0.5 * np.pi / 180.0 if degrees else 0.5)
+    if half.shape[-1] != len(axes):
+        raise ValueError(f"from_euler: {len(axes)} axes in {order!r} but angles have {half.shape[-1]} columns")
+    c, s = np.cos(half), np.sin(half)
+    q = None
+    for k, axis in enumerate(axes):
+        qk = np.zeros(half.shape[:-1] + (4,))
+        qk[..., 0] = c[..., k]
+        qk[..., 1 + axis] = s[..., k]
+        q = qk if q is None else multiply(qk, q)
+    return q
+
+
+def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a * b`` (rotation ``b`` first, then ``a``) of arrays [shape=(..., 4)]."""
+    aw, ax, ay, az = np.moveaxis(np.asarray(a), -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.asarray(b), -1, 0)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        axis=-1,
+    )
+
+
+def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors ``v`` [shape=(..., 3)] by unit quaternions ``q`` [shape=(..., 4)] (broadcasting)."""
+    q = np.asarray(q)
+    w = q[..., :1]
+    u = q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle in radians [0, pi] of the rotation taking ``a`` to ``b``; arrays [shape=(..., 4)] -> (...)."""
+    d = np.abs(np.sum(np.asarray(a) * np.asarray(b), axis=-1))
+    return 2.0 * np.arccos(np.clip(d, 0.0, 1.0))
+
+
+def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Spherical linear interpolation from ``a`` (t = 0) to ``b`` (t = 1) along the shorter arc.
+
+    Parameters
+    ----------
+    a, b : np.ndarray [shape=(..., 4)]
+        Unit quaternions.
+    t : np.ndarray [shape=(...) broadcastable against a[..., 0]]
+        Interpolation parameters in [0, 1].
+
+    Returns
+    -------
+    np.ndarray [shape=(..., 4)], unit quaternions.
+    """
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)[..., None]
+    d = np.sum(a * b, axis=-1, keepdims=True)
+    b = np.where(d < 0, -b, b)
+    d = np.abs(d)
+    theta = np.arccos(np.clip(d, 0.0, 1.0))
+    s = np.sin(theta)
+    near = s < 1e-6
+    safe = np.where(near, 1.0, s)
+    wa = np.where(near, 1.0 - t, np.sin((1.0 - t) * theta) / safe)
+    wb = np.where(near, t, np.sin(t * theta) / safe)
+    q = wa * a + wb * b
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _qmul(aw, ax, ay, az, bw, bx, by, bz):  # pragma: no cover - numba
+    return (
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    )
+
+
+@numba.njit(cache=True, nogil=True)
+def _fk_kernel(parents, euler, axes, scale, pre, post, t_local, own_frame, q_local, q_global, p_global):  # pragma: no cover
+    n_frames, n_joints = euler.shape[0], euler.shape[1]
+    per_frame_t = t_local.shape[0] > 1
+    q = np.empty(4)
+    for f in range(n_frames):
+        tf = f if per_frame_t else 0
+        for j in range(n_joints):
+            # local rotation = pre * E(euler) * post, E composed in the joint's axis order
+            lw, lx, ly, lz = pre[j, 0], pre[j, 1], pre[j, 2], pre[j, 3]
+            ew, ex, ey, ez = 1.0, 0.0, 0.0, 0.0
+            for k in range(3):
+                a = axes[j, k]
+                if a < 0:
+                    continue
+                h = 0.5 * scale * euler[f, j, k]
+                q[0] = np.cos(h)
+                q[1] = 0.0
+                q[2] = 0.0
+                q[3] = 0.0
+                q[1 + a] = np.sin(h)
+                ew, ex, ey, ez = _qmul(q[0], q[1], q[2], q[3], ew, ex, ey, ez)
+            lw, lx, ly, lz = _qmul(lw, lx, ly, lz, ew, ex, ey, ez)
+            lw, lx, ly, lz = _qmul(lw, lx, ly, lz, post[j, 0], post[j, 1], post[j, 2], post[j, 3])
+            q_local[f, j, 0] = lw
+            q_local[f, j, 1] = lx
+            q_local[f, j, 2] = ly
+            q_local[f, j, 3] = lz
+            p = parents[j]
+            vx, vy, vz = t_local[tf, j, 0], t_local[tf, j, 1], t_local[tf, j, 2]
+            if p < 0:
+                q_global[j, 0] = lw
+                q_global[j, 1] = lx
+                q_global[j, 2] = ly
+                q_global[j, 3] = lz
+                p_global[f, j, 0] = vx
+                p_global[f, j, 1] = vy
+                p_global[f, j, 2] = vz
+                continue
+            pw, px, py, pz = q_global[p, 0], q_global[p, 1], q_global[p, 2], q_global[p, 3]
+            gw, gx, gy, gz = _qmul(pw, px, py, pz, lw, lx, ly, lz)
+            q_global[j, 0] = gw
+            q_global[j, 1] = gx
+            q_global[j, 2] = gy
+            q_global[j, 3] = gz
+            if own_frame[j]:
+                rw, rx, ry, rz = gw, gx, gy, gz
+            else:
+                rw, rx, ry, rz = pw, px, py, pz
+            # v' = v + w t + u x t with t = 2 u x v
+            tx = 2.0 * (ry * vz - rz * vy)
+            ty = 2.0 * (rz * vx - rx * vz)
+            tz = 2.0 * (rx * vy - ry * vx)
+            p_global[f, j, 0] = p_global[f, p, 0] + vx + rw * tx + (ry * tz - rz * ty)
+            p_global[f, j, 1] = p_global[f, p, 1] + vy + rw * ty + (rz * tx - rx * tz)
+            p_global[f, j, 2] = p_global[f, p, 2] + vz + rw * tz + (rx * ty - ry * tx)
+
+
+def forward_kinematics(
+    parents: np.ndarray,
+    euler: np.ndarray,
+    orders,
+    translations: np.ndarray,
+    own_frame: np.ndarray | None = None,
+    pre: np.ndarray | None = None,
+    post: np.ndarray | None = None,
+    degrees: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Local rotations and global positions of a joint hierarchy driven by Euler angles, in one compiled pass.
+
+    Joint ``j`` with parent ``p`` has the local rotation ``q[j] = pre[j] * E(euler[j]) * post[j]``, where
+    ``E`` composes the rotations about the axes of ``orders[j]`` in that order (see :func:`from_euler`), the
+    global rotation ``Q[j] = Q[p] * q[j]`` and the position ``P[j] = P[p] + R(Q[p]) @ translations[j]``
+    (BVH: a joint's offset lives in its parent's frame), or ``P[j] = P[p] + R(Q[j]) @ translations[j]``
+    where ``own_frame[j]`` (ASF: a joint is the tip of its own bone). A root (parent -1) takes ``q[j]`` and
+    ``translations[j]`` as its global rotation and position.
+
+    Parameters
+    ----------
+    parents : np.ndarray [shape=(J,)], int
+        Parent index of each joint, -1 for a root; every parent precedes its children.
+    euler : np.ndarray [shape=(T, J, 3)]
+        Angles; column k of joint j turns about axis ``orders[j][k]`` (unused columns are ignored).
+    orders : sequence of str [length J]
+        Rotation order per joint, 0 to 3 letters of xyz (``""``: no rotation channels).
+    translations : np.ndarray [shape=(T, J, 3) or (1, J, 3)]
+        Local translations (any length unit; positions come out in the same unit).
+    own_frame : np.ndarray [shape=(J,)], bool, optional
+        Where true, the translation is rotated by the joint's own global rotation. Default all false.
+    pre, post : np.ndarray [shape=(J, 4)], optional
+        Constant rotations around the Euler part (ASF: the bone axis C and its inverse). Default identity.
+    degrees : bool
+        Angles in degrees (default) or radians.
+
+    Returns
+    -------
+    q_local : np.ndarray [shape=(T, J, 4)], float64 -- local rotations ``(w, x, y, z)``.
+    positions : np.ndarray [shape=(T, J, 3)], float64
+    """
+    parents = np.ascontiguousarray(parents, dtype=np.int64)
+    euler = np.ascontiguousarray(euler, dtype=np.float64)
+    translations = np.ascontiguousarray(translations, dtype=np.float64)
+    n_frames, n_joints = euler.shape[:2]
+    if np.any(parents >= np.arange(n_joints)):
+        raise ValueError("forward_kinematics: every parent must come before its children")
+    axes = np.full((n_joints, 3), -1, dtype=np.int64)
+    for j, order in enumerate(orders):
+        for k, a in enumerate(order.lower()):
+            axes[j, k] = _AXES.index(a)
+    identity = np.tile([1.0, 0.0, 0.0, 0.0], (n_joints, 1))
+    pre = identity if pre is None else np.ascontiguousarray(pre, dtype=np.float64)
+    post = identity if post is None else np.ascontiguousarray(post, dtype=np.float64)
+    own = np.zeros(n_joints, dtype=np.bool_) if own_frame is None else np.ascontiguousarray(own_frame, dtype=np.bool_)
+    q_local = np.empty((n_frames, n_joints, 4))
+    positions = np.empty((n_frames, n_joints, 3))
+    scale = np.pi / 180.0 if degrees else 1.0
+    _fk_kernel(parents, euler, axes, scale, pre, post, translations, own, q_local, np.empty((n_joints, 4)), positions)
+    return q_local, positions
