@@ -13,6 +13,7 @@ sha256 and unpacked once into a local cache:
 the package. Every unpack goes to a temporary folder renamed into place at the end, so an interrupted
 unpack never leaves a folder that a later call would take for complete.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -72,9 +73,7 @@ class Archive:
         return f"{self.name}.tar.xz"
 
 
-_BANDAI_LICENCE = (
-    "CC BY-NC 4.0 (Bandai Namco Research Inc.) — not for commercial use; do not bundle inside the package"
-)
+_BANDAI_LICENCE = "CC BY-NC 4.0 (Bandai Namco Research Inc.) — not for commercial use; do not bundle inside the package"
 
 ARCHIVES: dict[str, Archive] = {
     archive.name: archive
@@ -93,7 +92,7 @@ ARCHIVES: dict[str, Archive] = {
         ),
         Archive(
             name="cmu-asfamc",
-            description="CMU trials in 5 groups: Michael Jackson moves, martial arts, modern dance, golf, walk (ASF/AMC)",
+            description="CMU trials in 5 groups: Michael Jackson, martial arts, modern dance, golf, walk (ASF/AMC)",
             files="32 AMC trials + 5 ASF",
             frames=47_272,
             fps=120,
@@ -180,9 +179,7 @@ def fetch(name: str, progress: bool = False) -> Path:
     archive = _archive(name)
     base = data_url()
     cache = _cache_dir()
-    registry = pooch.create(
-        path=cache, base_url=base, registry={archive.filename: f"sha256:{archive.sha256}"}
-    )
+    registry = pooch.create(path=cache, base_url=base, registry={archive.filename: f"sha256:{archive.sha256}"})
     downloader = _VerifyingDownloader(archive, _downloader(base, progress))
     unpacked = registry.fetch(archive.filename, processor=_AtomicUntar(cache / name), downloader=downloader)
     folder = unpacked / name
@@ -257,13 +254,13 @@ def _archive(name: str) -> Archive:
 
 
 def _downloader(base: str, progress: bool):
-    """A pooch downloader for the scheme of ``base``: a file copy for ``file://``, pooch's own otherwise."""
-    if base.startswith("file://"):
+    """A pooch downloader for the scheme of ``base``: a file copy for ``file://``, pooch's own for http(s)."""
+    scheme = urllib.parse.urlparse(base).scheme
+    if scheme == "file":
         return _copy_local
-    try:
-        return pooch.choose_downloader(base, progressbar=progress)
-    except ValueError as exc:
-        raise DatasetError(f"{DATA_URL_ENV}={base!r}: {exc}") from None
+    if scheme in ("http", "https"):
+        return pooch.HTTPDownloader(progressbar=progress)
+    raise DatasetError(f"{DATA_URL_ENV}={base!r}: unsupported scheme {scheme!r} (use http, https, file or a folder)")
 
 
 def _copy_local(url: str, output_file, pooch_obj, check_only: bool = False):

@@ -8,6 +8,7 @@
 
 :func:`labels_for` finds the labels of one file by itself, whichever the source.
 """
+
 from __future__ import annotations
 
 import csv
@@ -136,7 +137,7 @@ def _table_rows(table: str, mtime_ns: int) -> dict[str, dict]:
     """Rows of a ``labels.tsv`` keyed by absolute file path, without ``file``/``path`` (cached per mtime)."""
     frame = read_labels_tsv(table)
     rows = frame.drop(columns=["file", "path"]).to_dict("records")
-    return dict(zip(frame["path"], rows))
+    return dict(zip(frame["path"], rows, strict=True))
 
 
 def _bandai_name(meta: Path, indices: dict, key: str, names_file: Path) -> str:

@@ -18,6 +18,7 @@ Bandai Namco data is never included: its licence forbids bundling it. The tar is
 names, mtime 0, uid/gid 0, fixed modes) and xz preset 9, so a rebuild from the same archives gives the same
 bytes.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -140,7 +141,7 @@ def _dataset_members(name: str, root: Path, table: pd.DataFrame, files: list[str
 
 def _fps_of(table: pd.DataFrame, files: list[str]) -> list[tuple[str, str]]:
     """(file, fps) of the chosen motion files, in the order of ``files``."""
-    fps = dict(zip(table["file"], table["fps"]))
+    fps = dict(zip(table["file"], table["fps"], strict=True))
     return [(f, fps[f]) for f in files if f in fps]
 
 

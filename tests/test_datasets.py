@@ -2,9 +2,13 @@
 
 MOCAPVIZ_HOME always points into pytest's tmp folders, so the user's cache is never touched.
 """
+
 from __future__ import annotations
 
+import functools
+import http.server
 import shutil
+import threading
 import urllib.parse
 import urllib.request
 from importlib import resources
@@ -106,6 +110,32 @@ def test_file_url_base_location(archives_folder, home, monkeypatch):
     assert (folder / "cfg" / "content_label.txt").is_file()
 
 
+@pytest.fixture
+def http_url(archives_folder):
+    """An http:// URL of the archives folder, served on the loopback interface for one test."""
+    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(archives_folder))
+    handler.log_message = lambda *args: None
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    yield f"http://127.0.0.1:{server.server_address[1]}/"
+    server.shutdown()
+    server.server_close()
+    thread.join()
+
+
+def test_http_base_location(http_url, home, monkeypatch):
+    monkeypatch.setenv(datasets.DATA_URL_ENV, http_url)
+    folder = datasets.fetch("bandai-namco-1")
+    assert len(list((folder / "data").glob("*.bvh"))) == 174
+
+
+def test_http_missing_archive_is_a_dataset_error(http_url, home, monkeypatch):
+    monkeypatch.setenv(datasets.DATA_URL_ENV, http_url + "nowhere/")
+    with pytest.raises(DatasetError, match="cannot download .*nowhere/bandai-namco-1.tar.xz.*404"):
+        datasets.fetch("bandai-namco-1")
+
+
 def test_interrupted_unpack_leaves_nothing_behind(archives_folder, home, monkeypatch):
     monkeypatch.setenv(datasets.DATA_URL_ENV, str(archives_folder))
     unpack_all = pooch.Untar._extract_file
@@ -158,3 +188,9 @@ def test_sample_holds_real_hdm05_and_cmu_files(hdm05, home):
     assert not list(folder.rglob("*.bvh"))
     table = read_labels_tsv(folder / "hdm05-cut" / "labels.tsv")
     assert table.groupby("actor")["class"].nunique().to_dict() == {"dg": 11, "mm": 11}
+
+
+def test_unsupported_scheme(home, monkeypatch):
+    monkeypatch.setenv(datasets.DATA_URL_ENV, "s3://bucket/mocap")
+    with pytest.raises(DatasetError, match="unsupported scheme 's3'"):
+        datasets.fetch("cmu-asfamc")

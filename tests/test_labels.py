@@ -1,7 +1,7 @@
 """mocapviz.labels on real label tables: the packaged sample (HDM05, CMU) and the Bandai Namco 1 archive."""
+
 from __future__ import annotations
 
-import json
 import os
 import shutil
 from pathlib import Path

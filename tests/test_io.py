@@ -1,0 +1,701 @@
+"""Readers (mocapviz.io) on the real archives: frame counts, forward kinematics checked against an independent
+implementation, units, encodings, malformed input reported at the right line, up axis and resampling."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from mocapviz.errors import MocapFormatError
+from mocapviz.io import find_asf, load, read_asf
+from mocapviz.io.text import scan
+
+CM_PER_INCH = 2.54
+
+# ---------------------------------------------------------------------------------------------- helpers
+
+
+def _lines(path: Path) -> list[str]:
+    """The file's lines split on '\\n' only (a '\\r' stays at the end of its line, as in the HDM05 files)."""
+    return path.read_bytes().decode("latin-1").split("\n")
+
+
+def _write(path: Path, lines: list[str]) -> Path:
+    path.write_bytes("\n".join(lines).encode("latin-1"))
+    return path
+
+
+def _is_frame_number(line: str) -> bool:
+    return re.fullmatch(r"\s*\d+\s*", line) is not None
+
+
+def _amc_frames(path: Path) -> list[tuple[int, dict[str, list[float]]]]:
+    """AMC frames read by plain Python: [(1-based line of the frame number, {bone: values})]."""
+    frames = []
+    for i, line in enumerate(_lines(path), start=1):
+        tok = line.split()
+        if not tok or tok[0].startswith(("#", ":")):
+            continue
+        if _is_frame_number(line):
+            frames.append((i, {}))
+        else:
+            frames[-1][1][tok[0]] = [float(t) for t in tok[1:]]
+    return frames
+
+
+def _bvh_header_frames(path: Path) -> int:
+    with open(path, encoding="latin-1") as fh:
+        for line in fh:
+            if line.startswith("Frames:"):
+                return int(line.split()[1])
+    raise AssertionError(f"{path}: no 'Frames:' line")
+
+
+def _bone_lengths_constant(positions: np.ndarray, parents: np.ndarray) -> np.ndarray:
+    """Per non-root joint, the standard deviation over time of its distance to its parent, cm."""
+    p = positions.astype(np.float64)
+    child = np.flatnonzero(parents >= 0)
+    return np.linalg.norm(p[:, child] - p[:, parents[child]], axis=-1).std(axis=0)
+
+
+def _hdm05_clip(labels, actor: str, cls: str, k: int = 0) -> str:
+    rows = labels[(labels.actor == actor) & (labels["class"] == cls)].sort_values("file")
+    return rows.file.iloc[k]
+
+
+# ------------------------------------------------------------------------------------- frame counts
+
+
+def test_hdm05_every_clip_loads_with_labelled_frame_count(hdm05_dir, hdm05_labels):
+    assert len(hdm05_labels) == 287
+    for row in hdm05_labels.itertuples():
+        motion = load(hdm05_dir / row.file)
+        assert motion.n_frames == row.frames, row.file
+        assert motion.fps == 120.0 == row.fps
+        assert motion.n_joints == 31
+        assert motion.quaternions.shape == (row.frames, 31, 4)
+        assert np.isfinite(motion.positions).all(), row.file
+
+
+def test_hdm05_asf_found_by_actor(hdm05_dir, hdm05_labels):
+    for row in hdm05_labels.drop_duplicates("actor").itertuples():
+        assert find_asf(hdm05_dir / row.file) == (hdm05_dir / "asf" / f"HDM_{row.actor}.asf").resolve()
+
+
+def test_bandai1_every_file_matches_its_frames_header(bandai1_files):
+    assert len(bandai1_files) == 174
+    for path in bandai1_files:
+        motion = load(path)
+        assert motion.n_frames == _bvh_header_frames(path), path.name
+        assert motion.fps == 30.0
+        assert np.isfinite(motion.positions).all(), path.name
+
+
+def test_cmu_every_trial_loads(cmu_dir):
+    import pandas as pd
+
+    labels = pd.read_csv(cmu_dir / "labels.tsv", sep="\t", dtype=str)
+    assert len(labels) == 32
+    for row in labels.itertuples():
+        path = cmu_dir / row.file
+        assert find_asf(path) == (cmu_dir / row.asf).resolve()
+        frames = _amc_frames(path)
+        bones = set().union(*(f[1] for f in frames))
+        complete = [f for f in frames if set(f[1]) == bones]
+        if len(complete) < len(frames):
+            # golf_01.amc ends inside its last frame: that frame is dropped with a warning
+            assert len(complete) == len(frames) - 1 and set(frames[-1][1]) < bones, row.file
+            with pytest.warns(UserWarning, match=r"frame \d+ is incomplete"):
+                motion = load(path)
+        else:
+            motion = load(path)
+        assert motion.n_frames == len(complete), row.file
+        assert motion.fps == 120.0
+        assert np.isfinite(motion.positions).all(), row.file
+
+
+def test_cmu_131_01_frame_count(cmu_dir):
+    path = cmu_dir / "amc" / "mjackson" / "131_01.amc"
+    numbers = [int(s) for s in _lines(path) if _is_frame_number(s)]
+    assert numbers == list(range(1, len(numbers) + 1))
+    motion = load(path)
+    assert motion.n_frames == len(numbers) == 994
+    assert motion.joint_names[0] == "root" and "lfemur" in motion.joint_names
+
+
+def test_cmu_asf_with_namespace_line(cmu_dir):
+    path = cmu_dir / "asf" / "mjackson.asf"
+    assert any(s.startswith(":namespace") for s in _lines(path))
+    skeleton = read_asf(path)
+    assert len(skeleton.bone_names) == 30
+    # the :units section after :namespace was still read
+    assert skeleton.cm_per_unit == pytest.approx(CM_PER_INCH / 0.45)
+    assert skeleton.degrees
+
+
+def test_hdm05_latin1_header(hdm05_dir, hdm05_labels, tmp_path):
+    path = hdm05_dir / hdm05_labels.file.iloc[0]
+    raw = path.read_bytes()
+    header = raw[: raw.index(b"\n1")]
+    assert b"\xfc" in header
+    motion = load(path)
+    ascii_copy = tmp_path / path.name
+    ascii_copy.write_bytes(raw.replace(b"\xfc", b"u"))
+    plain = load(ascii_copy, asf=find_asf(path))
+    assert motion.n_frames == plain.n_frames
+    np.testing.assert_array_equal(motion.positions, plain.positions)
+
+
+# ----------------------------------------------------------------------------------- FK sanity
+
+
+def test_asf_bone_lengths_constant_and_as_in_skeleton(hdm05_dir, hdm05_labels, cmu_dir):
+    paths = [hdm05_dir / _hdm05_clip(hdm05_labels, a, c) for a, c in
+             [("bd", "kickLFront1Reps"), ("bk", "lieDownFloor"), ("dg", "rotateArmsBothBackward1Reps"),
+              ("mm", "hopBothLegs1hops"), ("tr", "throwBasketball")]]  # fmt: skip
+    paths.append(cmu_dir / "amc" / "mjackson" / "131_01.amc")
+    for path in paths:
+        motion = load(path)
+        skeleton = read_asf(find_asf(path))
+        assert np.all(_bone_lengths_constant(motion.positions, motion.parents) < 1e-3), path.name
+        lengths = np.linalg.norm(motion.positions[:, 1:] - motion.positions[:, motion.parents[1:]], axis=-1)
+        expected = np.linalg.norm(skeleton.offsets, axis=1)
+        np.testing.assert_allclose(lengths.mean(0), expected, atol=1e-3, err_msg=path.name)
+
+
+def test_bvh_bone_lengths_constant(bandai1_files):
+    for path in bandai1_files[::25]:
+        motion = load(path)
+        lines = _lines(path)
+        start = next(i for i, s in enumerate(lines) if s.startswith("Frame Time")) + 1
+        data = np.array([[float(t) for t in s.split()] for s in lines[start:] if s.strip()])
+        # every joint has 6 channels here, positions first; Hips carries the body's translation
+        moving = data.reshape(len(data), -1, 6)[:, :, :3].std(axis=0).max(axis=1) > 0
+        channel_joints = [j for j, n in enumerate(motion.joint_names) if not n.endswith("_end")]
+        assert motion.joint_names[channel_joints[1]] == "Hips" and moving[1] and not moving[2:].any()
+        std = _bone_lengths_constant(motion.positions, motion.parents)
+        child = np.flatnonzero(motion.parents >= 0)
+        rigid = [k for k, j in enumerate(child) if motion.joint_names[j] != "Hips"]
+        assert np.all(std[rigid] < 1e-3), path.name
+        assert std[list(child).index(motion.joint_names.index("Hips"))] > 1e-2  # the one moving "bone"
+
+
+def test_trunk_upright_while_walking(hdm05_dir, hdm05_labels, cmu_dir, bandai1_dir):
+    """A wrong rotation order or convention for the root tilts the trunk: check it stays within 35 degrees
+    of vertical in every frame of walking clips."""
+    paths = [hdm05_dir / _hdm05_clip(hdm05_labels, a, "sneak2StepsLStart") for a in ("bd", "mm", "tr")]
+    paths += [hdm05_dir / _hdm05_clip(hdm05_labels, a, "jogLeftCircle4StepsRstart") for a in ("bk", "dg")]
+    paths += [cmu_dir / "amc" / "mjackson" / "131_01.amc", cmu_dir / "amc" / "walk" / "walk_03.amc"]
+    paths += [bandai1_dir / "data" / f"dataset-1_walk_{s}_001.bvh" for s in ("active", "normal", "old")]
+    for path in paths:
+        c = load(path).canonical()
+        trunk = c.joint("neck") - c.joint("root")
+        tilt = np.degrees(np.arccos(trunk[:, 1] / np.linalg.norm(trunk, axis=1)))
+        assert tilt.max() < 35, (path.name, tilt.max())
+        feet = c.positions[:, [3, 4, 7, 8], 1]
+        assert -10 < feet.min() < 10, (path.name, feet.min())  # the feet reach the floor, not below it
+
+
+# ------------------------------------------------------------------ FK against an independent implementation
+
+
+def _parse_asf(path: Path):
+    bones, parent, section, bone, length_unit = {}, {}, None, None, None
+    root = {}
+    for line in _lines(path):
+        tok = line.split()
+        if not tok or tok[0].startswith("#"):
+            continue
+        if tok[0].startswith(":"):
+            section = tok[0][1:]
+            continue
+        if section == "units" and tok[0] == "length":
+            length_unit = float(tok[1])
+        elif section == "root":
+            root[tok[0]] = tok[1:]
+        elif section == "bonedata":
+            if tok[0] == "begin":
+                bone = {"dof": []}
+            elif tok[0] == "end":
+                bones[bone["name"]] = bone
+            elif tok[0] == "name":
+                bone["name"] = tok[1]
+            elif tok[0] == "direction":
+                bone["direction"] = np.array(tok[1:4], dtype=float)
+            elif tok[0] == "length":
+                bone["length"] = float(tok[1])
+            elif tok[0] == "axis":
+                bone["axis"], bone["axis_order"] = np.array(tok[1:4], dtype=float), tok[4]
+            elif tok[0] == "dof":
+                bone["dof"] = tok[1:]
+        elif section == "hierarchy" and tok[0] not in ("begin", "end"):
+            for child in tok[1:]:
+                parent[child] = tok[0]
+    return bones, parent, root, length_unit
+
+
+def _asf_reference_fk(asf: Path, frame: dict[str, list[float]]) -> dict[str, np.ndarray]:
+    """Tips of all bones, cm: G = G_parent C M C^-1, tip = parent tip + G (length * direction)."""
+    bones, parent, root, length_unit = _parse_asf(asf)
+    assert root["order"] == ["TX", "TY", "TZ", "RX", "RY", "RZ"] and root["axis"] == ["XYZ"]
+    assert [float(v) for v in root["position"] + root["orientation"]] == [0.0] * 6
+    cm = CM_PER_INCH / length_unit
+    values = frame["root"]
+    tips = {"root": np.array(values[:3]) * cm}
+    rots = {"root": Rotation.from_euler("xyz", values[3:], degrees=True)}  # x first, about fixed axes
+    pending = list(bones)
+    while pending:
+        name = pending.pop(0)
+        if parent[name] not in tips:
+            pending.append(name)
+            continue
+        b = bones[name]
+        assert b["axis_order"] == "XYZ"
+        angles = dict(zip(b["dof"], frame.get(name, [0.0] * len(b["dof"]))))
+        motion = Rotation.from_euler("xyz", [angles.get(a, 0.0) for a in ("rx", "ry", "rz")], degrees=True)
+        axis = Rotation.from_euler("xyz", b["axis"], degrees=True)
+        rots[name] = rots[parent[name]] * axis * motion * axis.inv()
+        offset = b["length"] * cm * b["direction"] / np.linalg.norm(b["direction"])
+        tips[name] = tips[parent[name]] + rots[name].apply(offset)
+    return tips
+
+
+def test_asf_forward_kinematics_matches_reference(hdm05_dir, hdm05_labels, cmu_dir):
+    for path in [hdm05_dir / _hdm05_clip(hdm05_labels, "dg", "kickLFront1Reps"),
+                 cmu_dir / "amc" / "moderndance" / "md_02.amc"]:  # fmt: skip
+        motion = load(path)
+        frames = _amc_frames(path)
+        assert len(frames) == motion.n_frames
+        for f in (0, len(frames) // 3, len(frames) - 1):
+            tips = _asf_reference_fk(find_asf(path), frames[f][1])
+            assert set(tips) == set(motion.joint_names)
+            for j, name in enumerate(motion.joint_names):
+                np.testing.assert_allclose(motion.positions[f, j], tips[name], atol=1e-3, err_msg=f"{path.name} {name}")
+
+
+def _parse_bvh(path: Path):
+    """Joints (name, parent, offset, channels) in file order, and the frame values."""
+    lines = _lines(path)
+    joints, stack = [], []
+    i = 0
+    while not lines[i].startswith("MOTION"):
+        tok = lines[i].split()
+        if tok and tok[0] in ("ROOT", "JOINT"):
+            joints.append({"name": tok[1], "parent": stack[-1] if stack else -1, "channels": []})
+        elif tok and tok[0] == "End":
+            joints.append({"name": joints[stack[-1]]["name"] + "_end", "parent": stack[-1], "channels": []})
+        elif tok and tok[0] == "{":
+            stack.append(len(joints) - 1)
+        elif tok and tok[0] == "}":
+            stack.pop()
+        elif tok and tok[0] == "OFFSET":
+            joints[stack[-1]]["offset"] = np.array(tok[1:4], dtype=float)
+        elif tok and tok[0] == "CHANNELS":
+            joints[stack[-1]]["channels"] = tok[2:]
+        i += 1
+    data = [[float(t) for t in s.split()] for s in lines[i + 3:] if s.strip()]
+    return joints, np.array(data)
+
+
+def _bvh_reference_fk(joints, values: np.ndarray) -> dict[str, np.ndarray]:
+    """R = R_c1 R_c2 R_c3 (channel order); position channels replace the offset; P = P_parent + G_parent t."""
+    pos, rot = {}, {}
+    col = 0
+    for j, joint in enumerate(joints):
+        t = joint["offset"].copy()
+        r = Rotation.identity()
+        for channel in joint["channels"]:
+            axis = "XYZ".index(channel[0])
+            if channel.endswith("position"):
+                t[axis] = values[col]
+            else:
+                r = r * Rotation.from_euler(channel[0].lower(), values[col], degrees=True)
+            col += 1
+        p = joint["parent"]
+        if p < 0:
+            pos[j], rot[j] = t, r
+        else:
+            pos[j], rot[j] = pos[p] + rot[p].apply(t), rot[p] * r
+    return {joints[j]["name"]: pos[j] for j in pos}
+
+
+def test_bvh_forward_kinematics_matches_reference(bandai1_dir):
+    for name in ("dataset-1_dash_childish_001.bvh", "dataset-1_kick_normal_001.bvh"):
+        path = bandai1_dir / "data" / name
+        motion = load(path)
+        joints, data = _parse_bvh(path)
+        assert len(data) == motion.n_frames
+        for f in (0, len(data) // 2, len(data) - 1):
+            ref = _bvh_reference_fk(joints, data[f])
+            assert list(ref) == list(motion.joint_names)
+            for j, joint in enumerate(motion.joint_names):
+                np.testing.assert_allclose(motion.positions[f, j], ref[joint], atol=1e-3, err_msg=f"{name} {joint}")
+
+
+# -------------------------------------------------------------------------------------------- units
+
+
+def test_root_height_and_y_up(hdm05_dir, hdm05_labels, cmu_dir, bandai1_files):
+    paths = [hdm05_dir / f for f in hdm05_labels[hdm05_labels["class"] == "grabHighR"].file]
+    paths += sorted((cmu_dir / "amc" / "mjackson").glob("*.amc"))[:2] + [cmu_dir / "amc" / "walk" / "walk_03.amc"]
+    paths += [p for p in bandai1_files if "_walk_" in p.name]
+    for path in paths:
+        c = load(path).canonical()
+        first = c.positions[0]
+        assert 70 < first[0, 1] < 110, (path.name, first[0, 1])  # root (hips) height in cm while standing
+        y = c.positions[..., 1].mean(axis=0)
+        assert y[c.joint_names.index("headtop")] > y[0] + 40 > y[c.joint_names.index("lankle")] + 40
+        assert abs(first[0, 1] - first[:, 1].min()) > 70  # the vertical extent is along y, not x or z
+
+
+def test_standing_head_height_per_hdm05_actor(hdm05_dir, hdm05_labels):
+    actors = sorted(hdm05_labels.actor.unique())
+    assert actors == ["bd", "bk", "dg", "mm", "tr"]
+    for actor in actors:
+        for cls in ("grabHighR", "depositFloorR"):
+            c = load(hdm05_dir / _hdm05_clip(hdm05_labels, actor, cls)).canonical()
+            head = c.joint("head")[0, 1]
+            assert 140 < head < 200, (actor, cls, head)
+
+
+# ----------------------------------------------------------------------------------- precision of the scanner
+
+
+def test_scanner_matches_python_float(hdm05_dir, hdm05_labels, bandai1_dir):
+    amc = hdm05_dir / _hdm05_clip(hdm05_labels, "bk", "throwBasketball")
+    bvh = bandai1_dir / "data" / "dataset-1_dash_childish_001.bvh"
+    for path, first in ((amc, next(i for i, s in enumerate(_lines(amc)) if _is_frame_number(s))),
+                        (bvh, next(i for i, s in enumerate(_lines(bvh)) if s.startswith("Frame Time")) + 1)):  # fmt: skip
+        body = "\n".join(_lines(path)[first:])
+        sc = scan(body.encode("latin-1"), str(path), first + 1)
+        expected = []
+        for s in body.split("\n"):
+            for t in s.split():
+                try:
+                    expected.append(float(t))
+                except ValueError:
+                    pass  # bone names
+        expected = np.array(expected)
+        assert sc.values.shape == expected.shape and expected.size > 10_000
+        assert np.array_equal(sc.values, expected), np.flatnonzero(sc.values != expected)[:5]
+        assert len(set(np.round(np.abs(expected), 3))) > 1000  # many distinct numbers
+
+
+def test_scanner_number_forms(tmp_path):
+    text = "1 -2 +3.5 .25 -.5 1e3 1.5E-3 -2.5e+2 1.82882e-014 0.000001 123456789.123456\n7 8"
+    sc = scan(text.encode(), "x")
+    expected = [float(t) for t in text.split()]
+    assert sc.values.tolist() == expected
+    assert sc.n_values.tolist() == [11, 2]
+
+
+# --------------------------------------------------------------------------------------------- bad input
+
+
+def _raises(path: Path, line: int | None, **kw) -> MocapFormatError:
+    with pytest.raises(MocapFormatError) as info:
+        load(path, **kw)
+    err = info.value
+    assert isinstance(err, ValueError)
+    assert err.line == line, (str(err), line)
+    assert path.name in str(err) and err.reason in str(err)
+    if line is not None:
+        assert f"line {line}" in str(err)
+    return err
+
+
+@pytest.fixture
+def amc_copy(hdm05_dir, hdm05_labels, tmp_path):
+    """A short real HDM05 clip (its lines) and its ASF."""
+    src = hdm05_dir / _hdm05_clip(hdm05_labels, "bk", "hopBothLegs1hops")
+    return _lines(src), find_asf(src)
+
+
+def _frame_line(lines: list[str], frame: int) -> int:
+    """0-based index of the line holding frame number ``frame``."""
+    return next(i for i, s in enumerate(lines) if _is_frame_number(s) and int(s) == frame)
+
+
+def _bone_line(lines: list[str], frame: int, bone: str) -> int:
+    """0-based index of bone ``bone``'s line in frame ``frame``."""
+    i = _frame_line(lines, frame) + 1
+    while lines[i].split()[0] != bone:
+        i += 1
+    return i
+
+
+def test_amc_truncated_inside_a_bone_line(amc_copy, tmp_path):
+    lines, asf = amc_copy
+    last = max(int(s) for s in lines if _is_frame_number(s))
+    k = _bone_line(lines, last, "lhumerus")
+    cut = lines[:k] + [" ".join(lines[k].split()[:2])]  # 'lhumerus 12.3' and the file ends
+    err = _raises(_write(tmp_path / "cut.amc", cut), k + 1, asf=asf)
+    assert "lhumerus" in err.reason
+
+
+def test_amc_nan(amc_copy, tmp_path):
+    lines, asf = amc_copy
+    k = _bone_line(lines, 10, "rtibia")
+    lines[k] = "rtibia nan\r"
+    err = _raises(_write(tmp_path / "nan.amc", lines), k + 1, asf=asf)
+    assert "nan" in err.reason
+
+
+def test_amc_unknown_bone(amc_copy, tmp_path):
+    lines, asf = amc_copy
+    k = _bone_line(lines, 20, "lfemur")
+    lines[k] = lines[k].replace("lfemur", "lfemurX")
+    err = _raises(_write(tmp_path / "bone.amc", lines), k + 1, asf=asf)
+    assert "lfemurX" in err.reason
+
+
+def test_amc_missing_value(amc_copy, tmp_path):
+    lines, asf = amc_copy
+    k = _bone_line(lines, 5, "lfemur")
+    lines[k] = " ".join(lines[k].split()[:-1])
+    err = _raises(_write(tmp_path / "short.amc", lines), k + 1, asf=asf)
+    assert "lfemur" in err.reason
+
+
+def test_amc_duplicated_bone_line(amc_copy, tmp_path):
+    lines, asf = amc_copy
+    k = _bone_line(lines, 3, "ltibia")
+    lines.insert(k + 1, lines[k])
+    err = _raises(_write(tmp_path / "dup.amc", lines), k + 2, asf=asf)
+    assert "ltibia" in err.reason
+
+
+def test_amc_frame_numbers_jump(amc_copy, tmp_path):
+    lines, asf = amc_copy
+    k = _frame_line(lines, 7)
+    lines[k] = "8"
+    err = _raises(_write(tmp_path / "jump.amc", lines), k + 1, asf=asf)
+    assert "6" in err.reason and "8" in err.reason
+
+
+def test_amc_bone_line_missing_from_one_frame(amc_copy, tmp_path):
+    lines, asf = amc_copy
+    k = _bone_line(lines, 12, "rhumerus")
+    del lines[k]
+    err = _raises(_write(tmp_path / "gap.amc", lines), _frame_line(lines, 12) + 1, asf=asf)
+    assert "rhumerus" in err.reason and "12" in err.reason
+
+
+def _asf_error(asf: Path, lines: list[str], tmp_path, amc_lines) -> tuple[Path, Path]:
+    bad = _write(tmp_path / "bad.asf", lines)
+    amc = _write(tmp_path / "clip.amc", amc_lines)
+    return bad, amc
+
+
+def _raises_asf(amc: Path, asf: Path, line: int) -> MocapFormatError:
+    with pytest.raises(MocapFormatError) as info:
+        load(amc, asf=asf)
+    err = info.value
+    assert isinstance(err, ValueError)
+    assert err.path == str(asf) and asf.name in str(err)
+    assert err.line == line, (str(err), line)
+    return err
+
+
+def _asf_block(lines: list[str], bone: str) -> int:
+    """0-based index of the 'name <bone>' line."""
+    return next(i for i, s in enumerate(lines) if s.split()[:2] == ["name", bone])
+
+
+def test_asf_bone_block_without_end(amc_copy, tmp_path):
+    amc_lines, asf = amc_copy
+    lines = _lines(asf)
+    k = _asf_block(lines, "lfemur")
+    end = next(i for i in range(k, len(lines)) if lines[i].split() == ["end"])
+    del lines[end]
+    next_begin = next(i for i in range(end, len(lines)) if lines[i].split() == ["begin"])
+    bad, amc = _asf_error(asf, lines, tmp_path, amc_lines)
+    _raises_asf(amc, bad, next_begin + 1)
+
+
+def test_asf_translation_dof(amc_copy, tmp_path):
+    amc_lines, asf = amc_copy
+    lines = _lines(asf)
+    k = _asf_block(lines, "ltibia")
+    dof = next(i for i in range(k, len(lines)) if lines[i].split()[:1] == ["dof"])
+    lines[dof] = "    dof tx"
+    bad, amc = _asf_error(asf, lines, tmp_path, amc_lines)
+    err = _raises_asf(amc, bad, dof + 1)
+    assert "tx" in err.reason
+
+
+def test_asf_bad_axis_order(amc_copy, tmp_path):
+    amc_lines, asf = amc_copy
+    lines = _lines(asf)
+    k = _asf_block(lines, "lfemur")
+    axis = next(i for i in range(k, len(lines)) if lines[i].split()[:1] == ["axis"])
+    lines[axis] = lines[axis].replace("XYZ", "XXZ")
+    bad, amc = _asf_error(asf, lines, tmp_path, amc_lines)
+    err = _raises_asf(amc, bad, axis + 1)
+    assert "XXZ" in err.reason
+
+
+@pytest.fixture
+def bvh_copy(bandai1_dir):
+    path = bandai1_dir / "data" / "dataset-1_bow_active_001.bvh"
+    lines = _lines(path)
+    data = next(i for i, s in enumerate(lines) if s.startswith("Frame Time")) + 1  # 0-based, first frame
+    return lines, data
+
+
+def test_bvh_fewer_frames_than_header(bvh_copy, tmp_path):
+    lines, data = bvh_copy
+    n = int(lines[data - 2].split()[1])
+    kept = lines[: data + n - 5]
+    err = _raises(_write(tmp_path / "short.bvh", kept + [""]), data + n - 5 + 1)
+    assert str(n) in err.reason and str(n - 5) in err.reason
+
+
+def test_bvh_more_frames_than_header(bvh_copy, tmp_path):
+    lines, data = bvh_copy
+    n = int(lines[data - 2].split()[1])
+    longer = lines[: data + n] + [lines[data + n - 1]] + lines[data + n:]
+    err = _raises(_write(tmp_path / "long.bvh", longer), data + n + 1)
+    assert str(n + 1) in err.reason
+
+
+def test_bvh_value_missing(bvh_copy, tmp_path):
+    lines, data = bvh_copy
+    k = data + 10
+    lines[k] = " ".join(lines[k].split()[:-1])
+    err = _raises(_write(tmp_path / "value.bvh", lines), k + 1)
+    assert "values" in err.reason
+
+
+@pytest.mark.parametrize("token", ["abc", "1.2.3", "nan", "12x4"])
+def test_bvh_bad_number(bvh_copy, tmp_path, token):
+    lines, data = bvh_copy
+    k = data + 20
+    tok = lines[k].split()
+    tok[7] = token
+    lines[k] = " ".join(tok)
+    err = _raises(_write(tmp_path / "token.bvh", lines), k + 1)
+    assert token in err.reason
+
+
+def test_bvh_channel_count_mismatch(bvh_copy, tmp_path):
+    lines, _ = bvh_copy
+    k = next(i for i, s in enumerate(lines) if s.split()[:1] == ["CHANNELS"] and i > 10)
+    lines[k] = lines[k].replace(" Yrotation", "")
+    err = _raises(_write(tmp_path / "channels.bvh", lines), k + 1)
+    assert "6" in err.reason and "5" in err.reason
+
+
+def test_bvh_unknown_channel(bvh_copy, tmp_path):
+    lines, _ = bvh_copy
+    k = [i for i, s in enumerate(lines) if s.split()[:1] == ["CHANNELS"]][4]
+    lines[k] = lines[k].replace("Zrotation", "Wrotation")
+    err = _raises(_write(tmp_path / "w.bvh", lines), k + 1)
+    assert "Wrotation" in err.reason
+
+
+@pytest.mark.parametrize("ext", [".amc", ".bvh"])
+def test_empty_file(tmp_path, amc_copy, ext):
+    path = tmp_path / f"empty{ext}"
+    path.write_bytes(b"")
+    _raises(path, None, **({"asf": amc_copy[1]} if ext == ".amc" else {}))
+
+
+@pytest.mark.parametrize("ext", [".amc", ".bvh"])
+def test_binary_file(tmp_path, amc_copy, ext):
+    rng = np.random.default_rng(0)
+    data = rng.integers(0, 256, 5000, dtype=np.uint8).tobytes()
+    path = tmp_path / f"noise{ext}"
+    path.write_bytes(b"\x00" + data)
+    with pytest.raises(MocapFormatError) as info:
+        load(path, **({"asf": amc_copy[1]} if ext == ".amc" else {}))
+    assert isinstance(info.value, ValueError) and path.name in str(info.value)
+    assert info.value.line in (None, 1)
+
+
+def test_unsupported_extension(bvh_copy, tmp_path):
+    path = _write(tmp_path / "clip.txt", bvh_copy[0])
+    err = _raises(path, None)
+    assert ".txt" in err.reason
+
+
+def test_missing_file(tmp_path):
+    _raises(tmp_path / "nothing.bvh", None)
+
+
+def test_amc_without_asf(amc_copy, tmp_path):
+    lines, _ = amc_copy
+    _raises(_write(tmp_path / "lonely.amc", lines), None)
+
+
+# -------------------------------------------------------------------------------------------- up axis
+
+
+def test_z_up_bvh_is_turned_to_y_up(bandai1_dir, tmp_path):
+    """A genuinely z-up file: a new root joint turns the whole original figure by +90 degrees about x,
+    (x, y, z) -> (x, -z, y), so the head is above the hips along z."""
+    src = bandai1_dir / "data" / "dataset-1_walk-left_normal_001.bvh"
+    lines = _lines(src)
+    motion_at = next(i for i, s in enumerate(lines) if s.startswith("MOTION"))
+    hierarchy = ["HIERARCHY", "ROOT ZUpFrame", "{", "  OFFSET 0 0 0", "  CHANNELS 3 Xrotation Yrotation Zrotation"]
+    hierarchy += [s.replace("ROOT", "JOINT", 1) for s in lines[1:motion_at]] + ["}"]
+    header = lines[motion_at: motion_at + 3]
+    frames = ["90 0 0 " + s for s in lines[motion_at + 3:] if s.strip()]
+    z_file = _write(tmp_path / "zup.bvh", hierarchy + header + frames + [""])
+
+    original = load(src)
+    z_raw = load(z_file, up="z")  # forced: same as auto for this file
+    z_auto = load(z_file)
+    as_is = load(z_file, up="y")
+    shared = [z_auto.joint_names.index(n) for n in original.joint_names]
+    assert z_auto.joint_names[0] == "ZUpFrame" and len(shared) == original.n_joints
+    # the file really stands on z
+    head = as_is.joint("Head") - as_is.joint("Hips")
+    assert head[:, 2].mean() > 30 and abs(head[:, 1].mean()) < 10
+    p = original.positions
+    np.testing.assert_allclose(as_is.positions[:, shared], np.stack([p[..., 0], -p[..., 2], p[..., 1]], -1), atol=1e-3)
+    for m in (z_auto, z_raw):
+        np.testing.assert_allclose(m.positions[:, shared], original.positions, atol=1e-3)
+        q, q0 = m.quaternions[:, shared].astype(np.float64), original.quaternions.astype(np.float64)
+        assert np.abs(np.abs(np.sum(q * q0, axis=-1)) - 1).max() < 1e-5
+        np.testing.assert_allclose(np.abs(m.quaternions[:, 0, 0]), 1.0, atol=1e-6)  # the new root: identity
+    # a y-up file is left alone under auto
+    np.testing.assert_array_equal(load(src, up="auto").positions, load(src, up="y").positions)
+
+
+# ------------------------------------------------------------------------------------------- resample
+
+
+def test_resample_120_to_30(hdm05_dir, hdm05_labels):
+    for cls in ("kickLFront1Reps", "hopBothLegs1hops"):
+        motion = load(hdm05_dir / _hdm05_clip(hdm05_labels, "tr", cls))
+        t = motion.n_frames
+        low = motion.resample(30)
+        assert low.fps == 30.0
+        assert low.n_frames == (t - 1) // 4 + 1
+        np.testing.assert_array_equal(low.positions, motion.positions[::4])
+        q, q0 = low.quaternions.astype(np.float64), motion.quaternions[::4].astype(np.float64)
+        assert np.abs(np.abs(np.sum(q * q0, axis=-1)) - 1).max() < 1e-5
+        np.testing.assert_allclose(np.abs(q), np.abs(q0), atol=1e-5)
+        assert low.duration == pytest.approx(low.n_frames / 30)
+
+
+def test_resample_up_interpolates(hdm05_dir, hdm05_labels):
+    motion = load(hdm05_dir / _hdm05_clip(hdm05_labels, "dg", "squat1Reps"))
+    high = motion.resample(240)
+    assert high.n_frames == 2 * motion.n_frames - 1
+    np.testing.assert_array_equal(high.positions[::2], motion.positions)
+    mid = (motion.positions[:-1].astype(np.float64) + motion.positions[1:]) / 2
+    np.testing.assert_allclose(high.positions[1::2], mid, atol=1e-4)
+    # slerp midpoint: half the angle of the step
+    from mocapviz import rotations
+
+    q = high.quaternions.astype(np.float64)
+    a, m, b = q[:-1:2], q[1::2], q[2::2]
+    np.testing.assert_allclose(rotations.angle(a, m), rotations.angle(a, b) / 2, atol=2e-3)
+    assert motion.resample(120) is motion
+    with pytest.raises(ValueError):
+        motion.resample(0)
