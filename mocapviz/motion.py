@@ -116,7 +116,8 @@ class Motion:
     def __getitem__(self, frames) -> "Motion":
         """Frames ``frames`` (a slice or an index array) of this clip as a new Motion."""
         if isinstance(frames, (int, np.integer)):
-            frames = slice(frames, frames + 1)
+            k = range(self.n_frames)[frames]  # negative from the end; IndexError when out of range
+            frames = slice(k, k + 1)
         quat = None if self.quaternions is None else self.quaternions[frames]
         return replace(self, positions=self.positions[frames], quaternions=quat)
 

@@ -4,6 +4,7 @@ The archives come from :func:`mocapviz.datasets.fetch` (base location ``MOCAPVIZ
 data folder beside the repository). The cache defaults to ``<repo>/.cache/mocapviz`` so that a second test
 run does not unpack again. Without the archives the tests that need them are skipped, with the reason.
 """
+
 from __future__ import annotations
 
 import os
@@ -53,6 +54,12 @@ def cmu_dir() -> Path:
 def bandai1_dir() -> Path:
     """The unpacked Bandai Namco dataset 1: ``data/*.bvh`` (+ ``.json``), ``cfg/``."""
     return _fetch("bandai-namco-1")
+
+
+@pytest.fixture(scope="session")
+def bandai2_dir() -> Path:
+    """The unpacked Bandai Namco dataset 2 (2,902 BVH files, about 0.5 GB unpacked): for slow tests only."""
+    return _fetch("bandai-namco-2")
 
 
 @pytest.fixture(scope="session")

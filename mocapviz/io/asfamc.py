@@ -15,12 +15,14 @@ Conventions (Acclaim ASF/AMC specification, as read by the CMU and HDM05 tools):
 - ``:units length u``: lengths and root translations are in units of 1/u inch; centimetres = value * 2.54 / u.
   ``:units angle deg|rad`` (an AMC ``:RADIANS`` header overrides it).
 - A bone with DOFs that has no line in any frame of the AMC keeps its rest pose; a bone line missing from
-  only some frames is an error.
+  only some frames is an error, except in the last frame, which is dropped with a warning (a file cut off
+  inside its last frame, as CMU ``golf_01.amc``).
 """
 from __future__ import annotations
 
 import functools
 import os
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,7 +30,7 @@ import numpy as np
 from .. import rotations
 from ..errors import MocapFormatError
 from ..motion import Motion
-from .text import check_finite, name_hash, scan
+from .text import name_hash, scan
 
 _ROT_DOFS = ("rx", "ry", "rz")
 _ROOT_CHANNELS = ("TX", "TY", "TZ", "RX", "RY", "RZ")
@@ -374,6 +376,16 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
         k = np.flatnonzero(seen[slot] > 1)[1]
         raise MocapFormatError(path, f"bone {names[bone_of_line[k]]!r} appears twice in one frame", lineno(bone_lines[k]))
     present = seen.reshape(n_frames, len(names)) > 0
+    incomplete = (present != present.any(axis=0)).any(axis=1)
+    if n_frames > 1 and incomplete[-1] and not incomplete[:-1].any():
+        # the file ends inside its last frame (CMU golf_01.amc): keep the complete frames
+        warnings.warn(
+            f"{path}: last frame {frame_numbers[-1]:.0f} is incomplete (truncated file?); dropped it", stacklevel=2
+        )
+        n_frames -= 1
+        keep = frame_of_line[bone_lines] < n_frames
+        bone_lines, bone_of_line = bone_lines[keep], bone_of_line[keep]
+        markers, frame_numbers, present = markers[:-1], frame_numbers[:-1], present[:-1]
     partly = present.any(axis=0) & ~present.all(axis=0)
     if partly.any():
         b = int(np.argmax(partly))
@@ -390,7 +402,6 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
         return sc.values[sc.first_value[lines_b][:, None] + np.arange(counts[b])]
 
     root_vals = channels(0)
-    check_finite(root_vals, sc, path)
     col = {c: i for i, c in enumerate(skeleton.root_order)}
     get = lambda c: root_vals[:, col[c]] if c in col else np.zeros(n_frames)  # noqa: E731
     translation = np.stack([get("TX"), get("TY"), get("TZ")], axis=1) * skeleton.cm_per_unit + skeleton.root_position
@@ -403,7 +414,6 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
             axis_order = skeleton.axis_orders[b].lower()
             for k, d in enumerate(dof):
                 euler[:, b + 1, axis_order.index(d[1])] = vals[:, k]
-    check_finite(euler, sc, path)
     axis_q = np.concatenate([skeleton.root_quaternion[None], skeleton.axis_quaternions])
     t_local = np.zeros((n_frames, n_bones + 1, 3))
     t_local[:, 0] = translation

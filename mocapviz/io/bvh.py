@@ -122,6 +122,7 @@ def _parse_hierarchy(lines: list[str], path) -> tuple[_Hierarchy, int]:
 def _motion_header(lines: list[str], at: int, path) -> tuple[int, float, int]:
     """Frame count, frame time and index of the first data line after the MOTION line."""
     values = {}
+    where = {}
     i = at + 1
     for key in ("frames", "frame time"):
         while i < len(lines) and not lines[i].strip():
@@ -135,10 +136,11 @@ def _motion_header(lines: list[str], at: int, path) -> tuple[int, float, int]:
             values[key] = float(rest)
         except ValueError:
             raise MocapFormatError(path, f"'{key.title()}:' needs a number", i + 1) from None
+        where[key] = i + 1
         i += 1
     n, dt = values["frames"], values["frame time"]
-    if n != int(n) or n < 1:
-        raise MocapFormatError(path, f"frame count must be a positive integer, got {rest.strip()}", at + 2)
+    if not (np.isfinite(n) and n == int(n) and n >= 1):
+        raise MocapFormatError(path, f"frame count must be a positive integer, got {n:g}", where["frames"])
     if not (np.isfinite(dt) and dt > 0):
         raise MocapFormatError(path, "frame time must be a positive number", i)
     return int(n), dt, i
@@ -198,7 +200,8 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
             path, f"frame line has {sc.n_values[k]} values, the hierarchy has {n_channels} channels", sc.first_line + int(k)
         )
     if data.size != n_frames:
-        where = sc.first_line + (int(data[-1]) + 1 if data.size else 0)
+        # the first frame line beyond the header's count, or where the first missing frame should be
+        where = sc.first_line + (int(data[n_frames]) if data.size > n_frames else int(data[-1]) + 1 if data.size else 0)
         raise MocapFormatError(path, f"header says {n_frames} frames, the file has {data.size}", where)
     if data.size and data[-1] - data[0] + 1 != data.size:
         gap = int(data[np.argmax(np.diff(data) > 1)] + 1)
@@ -229,7 +232,10 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
     q_local, positions = rotations.forward_kinematics(np.array(h.parents), euler, orders, translations)
 
     if scale is None:
-        height = np.ptp(positions[0], axis=0).max()
+        # the figure's size without its root: a root may stay at the world origin, metres away from the
+        # figure (Bandai Namco's joint_Root)
+        body = np.array(h.parents) >= 0
+        height = np.ptp(positions[0, body] if body.sum() > 1 else positions[0], axis=0).max()
         scale = 100.0 if 0.5 <= height <= 3.0 else 0.1 if 500.0 <= height <= 3000.0 else 1.0
     positions *= scale
     fps = 1.0 / frame_time

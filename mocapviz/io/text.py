@@ -120,14 +120,15 @@ def _scan_kernel(buf, pow10, values, first_value, n_values, name_start, name_has
                 error[line] = _BAD_NUMBER
                 error_at[line] = start
             continue
-        if exp10 == 0:
+        # one correctly rounded operation on exact doubles gives the same double as Python's float()
+        if mant > 9007199254740992 or exp10 > 22 or exp10 < -22:
+            v = np.nan  # not exact here (rare: 1.5e-18 and such): scan() converts it with float()
+        elif exp10 == 0:
             v = float(mant)
-        elif 0 < exp10 <= 22:
+        elif exp10 > 0:
             v = mant * pow10[exp10]
-        elif -22 <= exp10 < 0:
-            v = mant / pow10[-exp10]
         else:
-            v = mant * 10.0**exp10
+            v = mant / pow10[-exp10]
         values[nv] = -v if neg else v
         nv += 1
     n_values[line] = nv - first_value[line]
@@ -211,7 +212,14 @@ def scan(data: bytes, path, first_line: int = 1) -> Scan:
         else:
             reason = f"unexpected text {tok!r} after a number"
         raise MocapFormatError(path, reason, line=first_line + int(k))
-    return Scan(
+    slow = np.flatnonzero(np.isnan(values[:nv]))
+    if slow.size:
+        line_starts = np.concatenate([[0], np.flatnonzero(buf == 10) + 1, [buf.shape[0] + 1]])
+        for k in slow:
+            line = np.searchsorted(first_value[:nl], k, side="right") - 1
+            tokens = bytes(buf[line_starts[line] : line_starts[line + 1] - 1]).split()
+            values[k] = float(tokens[k - first_value[line] + (name_start[line] >= 0)])
+    result = Scan(
         data=buf,
         values=values[:nv],
         first_value=first_value[:nl],
@@ -220,6 +228,8 @@ def scan(data: bytes, path, first_line: int = 1) -> Scan:
         name_hash=name_hash[:nl],
         first_line=first_line,
     )
+    check_finite(result.values, result, path)  # numbers too large for a double, e.g. 1e999
+    return result
 
 
 def check_finite(values: np.ndarray, scan_: Scan, path) -> None:

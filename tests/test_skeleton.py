@@ -1,0 +1,268 @@
+"""Canonical joints, name mapping, body frame and body sizes (mocapviz.skeleton) on real clips."""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import numpy as np
+import pytest
+
+from mocapviz.errors import SkeletonMappingError
+from mocapviz.io import load
+from mocapviz.skeleton import CANONICAL_JOINTS, body_frame, body_sizes, guess_mapping, heading, to_canonical
+
+# RELATIONAL_FEATURES.md §1.2, typed from the table: canonical joint -> (ASF node whose tip it is,
+# ASF node whose rotation acts there or None)
+SPEC_TABLE = {
+    "root": ("root", "root"),
+    "lhip": ("lhipjoint", "lfemur"),
+    "lknee": ("lfemur", "ltibia"),
+    "lankle": ("ltibia", "lfoot"),
+    "ltoes": ("ltoes", None),
+    "rhip": ("rhipjoint", "rfemur"),
+    "rknee": ("rfemur", "rtibia"),
+    "rankle": ("rtibia", "rfoot"),
+    "rtoes": ("rtoes", None),
+    "belly": ("lowerback", "upperback"),
+    "chest": ("upperback", "thorax"),
+    "neck": ("thorax", "lowerneck"),
+    "head": ("upperneck", "head"),
+    "headtop": ("head", None),
+    "lclavicle": ("thorax", "lclavicle"),
+    "lshoulder": ("lclavicle", "lhumerus"),
+    "lelbow": ("lhumerus", "lradius"),
+    "lwrist": ("lwrist", "lhand"),
+    "lfingers": ("lfingers", None),
+    "rclavicle": ("thorax", "rclavicle"),
+    "rshoulder": ("rclavicle", "rhumerus"),
+    "relbow": ("rhumerus", "rradius"),
+    "rwrist": ("rwrist", "rhand"),
+    "rfingers": ("rfingers", None),
+}
+SIDE_JOINTS = ("hip", "shoulder", "knee", "ankle", "elbow")
+
+
+def _idx(name: str) -> int:
+    return CANONICAL_JOINTS.index(name)
+
+
+def _clip(labels, actor, cls, k=0):
+    rows = labels[(labels.actor == actor) & (labels["class"] == cls)].sort_values("file")
+    return rows.file.iloc[k]
+
+
+def test_canonical_joint_names_are_the_spec_table():
+    assert CANONICAL_JOINTS == tuple(SPEC_TABLE)
+    assert len(CANONICAL_JOINTS) == 24
+
+
+def test_hdm05_canonical_takes_the_spec_tips(hdm05_dir, hdm05_labels):
+    motion = load(hdm05_dir / _clip(hdm05_labels, "mm", "elbowToKnee1RepsLelbowStart"))
+    c = motion.canonical()
+    assert c.joint_names == CANONICAL_JOINTS
+    assert c.n_frames == motion.n_frames and c.fps == motion.fps and c.source == motion.source
+    np.testing.assert_array_equal(c.parents[1:] < np.arange(1, 24), True)
+    for k, (canon, (tip, dof)) in enumerate(SPEC_TABLE.items()):
+        np.testing.assert_array_equal(c.positions[:, k], motion.joint(tip), err_msg=canon)
+        if dof is None:
+            np.testing.assert_array_equal(c.quaternions[:, k], np.tile([1, 0, 0, 0], (c.n_frames, 1)), err_msg=canon)
+        else:
+            np.testing.assert_array_equal(c.quaternions[:, k], motion.quaternions[:, motion.joint_names.index(dof)])
+    # same point, two names: the clavicles start at the neck
+    np.testing.assert_array_equal(c.joint("lclavicle"), c.joint("neck"))
+    np.testing.assert_array_equal(c.joint("rclavicle"), c.joint("neck"))
+    assert c.canonical() is c
+
+
+def test_bandai_mapping_by_name(bandai1_files):
+    motion = load(bandai1_files[0])
+    m = guess_mapping(motion)
+    assert set(m) == set(CANONICAL_JOINTS)
+    expected = {
+        "root": "Hips", "belly": "Spine", "chest": "Chest", "neck": "Neck", "head": "Head",
+        "lhip": "UpperLeg_L", "lknee": "LowerLeg_L", "lankle": "Foot_L", "lclavicle": "Shoulder_L",
+        "lshoulder": "UpperArm_L", "lelbow": "LowerArm_L", "lwrist": "Hand_L",
+        "rhip": "UpperLeg_R", "rknee": "LowerLeg_R", "rankle": "Foot_R", "rclavicle": "Shoulder_R",
+        "rshoulder": "UpperArm_R", "relbow": "LowerArm_R", "rwrist": "Hand_R",
+    }  # fmt: skip
+    assert {k: m[k] for k in expected} == expected
+    assert m["ltoes"] in ("Toes_L", "Toes_L_end") and m["rtoes"] in ("Toes_R", "Toes_R_end")
+    c = motion.canonical()
+    for canon, joint in m.items():
+        np.testing.assert_array_equal(c.joint(canon), motion.joint(joint))
+    # BVH: the rotation at a canonical joint is that joint's own local rotation
+    np.testing.assert_array_equal(
+        c.quaternions[:, _idx("lknee")], motion.quaternions[:, motion.joint_names.index("LowerLeg_L")]
+    )
+
+
+def test_cmu_and_bandai_map_all_24(cmu_dir, bandai1_files):
+    paths = sorted((cmu_dir / "amc").glob("*/*.amc"))[::4] + bandai1_files[::20]
+    for path in paths:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # golf_01's truncated last frame
+            motion = load(path)
+        assert set(guess_mapping(motion)) == set(CANONICAL_JOINTS), path.name
+        assert motion.canonical().positions.shape == (motion.n_frames, 24, 3)
+
+
+def _sides(motion) -> tuple[np.ndarray, np.ndarray]:
+    """Mean body-frame x over frames of the left and the right joints of SIDE_JOINTS."""
+    x = body_frame(motion.canonical().positions)[..., 0].mean(axis=0)
+    return x[[_idx("l" + j) for j in SIDE_JOINTS]], x[[_idx("r" + j) for j in SIDE_JOINTS]]
+
+
+def _check_sides(paths):
+    wrong_joints = 0
+    for path in paths:
+        left, right = _sides(load(path))
+        # the two sides as a whole, in every clip
+        assert left.mean() > 0 > right.mean(), (path.name, left, right)
+        # hips (the heading's own line) and elbows are never crossed over on average
+        assert left[0] > 0 > right[0] and left[4] > 0 > right[4], (path.name, left, right)
+        # joint by joint, but for the ankles: feet set close together (Bandai's standing clips) or crossing
+        # (HDM05's jog in a circle) put an ankle on the other side, a crossed knee or a twisted shoulder
+        # is rare
+        no_ankle = [0, 1, 2, 4]
+        wrong_joints += int((left[no_ankle] <= 0).sum() + (right[no_ankle] >= 0).sum())
+    assert wrong_joints <= 0.01 * len(paths) * 2 * 4, wrong_joints
+
+
+def test_left_is_plus_x_in_body_frame_bandai(bandai1_files):
+    _check_sides(bandai1_files)
+
+
+def test_left_is_plus_x_in_body_frame_hdm05(hdm05_dir, hdm05_labels):
+    _check_sides([hdm05_dir / f for f in hdm05_labels.file])
+
+
+def test_body_frame_root_origin_and_facing(hdm05_dir, hdm05_labels, bandai1_files, cmu_dir):
+    walks = [hdm05_dir / _clip(hdm05_labels, a, "jogLeftCircle4StepsRstart") for a in ("bd", "bk", "dg", "mm", "tr")]
+    walks += [p for p in bandai1_files if "_walk_" in p.name or "_walk-left_" in p.name]
+    walks += [cmu_dir / "amc" / "mjackson" / "131_01.amc", cmu_dir / "amc" / "walk" / "walk_03.amc"]
+    for path in walks:
+        c = load(path).canonical()
+        b = body_frame(c.positions)
+        assert b.dtype == np.float32 and b.shape == c.positions.shape
+        np.testing.assert_array_equal(b[:, 0], 0.0)
+        # heights are kept
+        np.testing.assert_allclose(b[..., 1], c.positions[..., 1] - c.positions[:, :1, 1], atol=1e-3)
+        # distances from the root are kept (a rotation about y)
+        np.testing.assert_allclose(
+            np.linalg.norm(b, axis=-1), np.linalg.norm(c.positions - c.positions[:, :1], axis=-1), atol=1e-3
+        )
+        # the feet point forward: toes in front of the ankles along +z
+        z = b[..., 2].mean(axis=0)
+        assert z[_idx("ltoes")] > z[_idx("lankle")] + 2 and z[_idx("rtoes")] > z[_idx("rankle")] + 2, path.name
+        np.testing.assert_allclose(np.sin(heading(b)), 0.0, atol=1e-4)
+        np.testing.assert_allclose(np.cos(heading(b)), 1.0, atol=1e-4)
+
+
+def test_body_frame_invariant_to_turn_and_shift(hdm05_dir, hdm05_labels):
+    c = load(hdm05_dir / _clip(hdm05_labels, "bd", "throwBasketball")).canonical()
+    p = c.positions.astype(np.float64)
+    base_heading = heading(p)
+    for a in (0.3, 2.0, -2.9):
+        turn = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])  # +z towards +x
+        moved = p @ turn.T + [120.0, 3.0, -45.0]
+        np.testing.assert_allclose(body_frame(moved), body_frame(p), atol=2e-3)
+        d = heading(moved) - base_heading - a
+        np.testing.assert_allclose(np.angle(np.exp(1j * d)), 0.0, atol=1e-6)
+
+
+def test_heading_of_a_synthetic_pose():
+    pose = np.zeros((4, 24, 3))
+    pose[:, _idx("lhip")] = [1.0, 0.0, 0.0]
+    pose[:, _idx("rhip")] = [-1.0, 0.0, 0.0]
+    # facing +z (left is +x)
+    np.testing.assert_allclose(heading(pose), 0.0)
+    # turned to face +x: left hip at -z
+    turned = pose.copy()
+    turned[:, _idx("lhip")] = [0.0, 0.0, -1.0]
+    turned[:, _idx("rhip")] = [0.0, 0.0, 1.0]
+    np.testing.assert_allclose(heading(turned), np.pi / 2)
+
+
+def test_unmappable_skeleton_error_and_explicit_mapping(bandai1_files):
+    motion = load(bandai1_files[3])
+    renamed = dataclasses.replace(
+        motion, joint_names=tuple("Knoechel_L" if n == "Foot_L" else n for n in motion.joint_names)
+    )
+    with pytest.raises(SkeletonMappingError) as info:
+        renamed.canonical()
+    msg = str(info.value)
+    assert isinstance(info.value, ValueError)
+    missing = msg.split("canonical joint(s)")[1].split("onto")[0]
+    assert "lankle" in missing and "rankle" not in missing and "lknee" not in missing
+    assert "Knoechel_L" in msg
+    fixed = renamed.canonical(mapping={"lankle": "Knoechel_L"})
+    np.testing.assert_array_equal(fixed.positions, motion.canonical().positions)
+
+    # nothing mappable at all: every canonical joint listed
+    anonymous = dataclasses.replace(motion, joint_names=tuple(f"j{k}" for k in range(motion.n_joints)))
+    with pytest.raises(SkeletonMappingError) as info:
+        to_canonical(anonymous)
+    missing = str(info.value).split("canonical joint(s)")[1].split("onto")[0]
+    assert all(j in missing.replace(",", " ").split() for j in CANONICAL_JOINTS)
+    full = {canon: f"j{motion.joint_names.index(joint)}" for canon, joint in guess_mapping(motion).items()}
+    np.testing.assert_array_equal(anonymous.canonical(mapping=full).positions, motion.canonical().positions)
+    # a mapping that names joints the skeleton does not have
+    with pytest.raises(SkeletonMappingError, match="nowhere"):
+        renamed.canonical(mapping={"lankle": "nowhere"})
+    with pytest.raises(SkeletonMappingError):
+        renamed.canonical(mapping={"ankle": "Knoechel_L"})
+
+
+def test_asf_skeleton_with_renamed_bones(hdm05_dir, hdm05_labels):
+    motion = load(hdm05_dir / _clip(hdm05_labels, "tr", "squat1Reps"))
+    renamed = dataclasses.replace(motion, joint_names=tuple(n.upper() for n in motion.joint_names))
+    with pytest.raises(SkeletonMappingError):
+        renamed.canonical()
+    mapping = {canon: tip.upper() for canon, (tip, _) in SPEC_TABLE.items()}
+    np.testing.assert_array_equal(renamed.canonical(mapping=mapping).positions, motion.canonical().positions)
+
+
+def test_body_sizes_hdm05(hdm05_dir, hdm05_labels):
+    for actor in ("bd", "bk", "dg", "mm", "tr"):
+        sizes = body_sizes(load(hdm05_dir / _clip(hdm05_labels, actor, "squat1Reps")).canonical().positions)
+        assert 20 < sizes["humerus_l"] < 40 and 20 < sizes["humerus_r"] < 40, (actor, sizes)
+        assert 35 < sizes["femur_l"] < 55 and 35 < sizes["femur_r"] < 55, (actor, sizes)
+        assert 10 < sizes["hip_width"] < 30, (actor, sizes)
+        # between the clavicle tips; actor bk's ASF clavicles measure 51 cm together
+        assert 25 < sizes["shoulder_width"] < 55, (actor, sizes)
+        assert 100 < sizes["body_length"] < 200, (actor, sizes)
+
+
+def test_body_sizes_by_hand(hdm05_dir, hdm05_labels):
+    c = load(hdm05_dir / _clip(hdm05_labels, "dg", "grabHighR")).canonical()
+    sizes = body_sizes(c.positions)
+    p = c.positions[0].astype(np.float64)
+
+    def d(a, b):
+        return np.linalg.norm(p[_idx(a)] - p[_idx(b)])
+
+    expected = {
+        "humerus_r": d("rshoulder", "relbow"),
+        "humerus_l": d("lshoulder", "lelbow"),
+        "femur_r": d("rhip", "rknee"),
+        "femur_l": d("lhip", "lknee"),
+        "hip_width": d("lhip", "rhip"),
+        "shoulder_width": d("lshoulder", "rshoulder"),
+        "chest_length": d("chest", "neck"),
+        "body_length": d("rankle", "rknee")
+        + d("rknee", "rhip")
+        + d("root", "belly")
+        + d("belly", "chest")
+        + d("chest", "neck")
+        + d("neck", "head")
+        + d("head", "headtop"),
+    }
+    assert set(sizes.index) == set(expected)
+    for k, v in expected.items():
+        assert sizes[k] == pytest.approx(v, abs=1e-4), k
+    # first frame only: later frames do not change the result
+    assert body_sizes(np.concatenate([c.positions[:1], c.positions[::-1]])).equals(sizes)
+    # humerus: the ASF bone length (a rigid bone), whatever the pose
+    later = body_sizes(c.positions[len(c.positions) // 2 :])
+    assert later["humerus_l"] == pytest.approx(sizes["humerus_l"], abs=1e-3)
