@@ -69,12 +69,12 @@ def expand_paths(paths) -> list[Path]:
     return list(dict.fromkeys(out))
 
 
-def file_checksum(path) -> str:
-    """sha256 of a motion file's bytes (an AMC together with its ASF skeleton)."""
+def file_checksum(path, asf=None) -> str:
+    """sha256 of a motion file's bytes (an AMC together with its ASF skeleton: ``asf`` or :func:`find_asf`)."""
     h = hashlib.sha256()
     parts = [Path(path)]
     if Path(path).suffix.lower() == ".amc":
-        parts.append(find_asf(path))
+        parts.append(Path(asf) if asf is not None else find_asf(path))
     for part in parts:
         with open(part, "rb") as fh:
             for chunk in iter(lambda: fh.read(1 << 20), b""):
@@ -83,7 +83,7 @@ def file_checksum(path) -> str:
 
 
 def read_document(path, fps: float | None = None, labels: dict | None = None, mapping: dict | None = None,
-                  **load_options) -> tuple[Motion, dict]:
+                  sha256: str | None = None, **load_options) -> tuple[Motion, dict]:
     """One ingest task: read a file, map it to the canonical skeleton, resample, describe it.
 
     Parameters
@@ -95,6 +95,8 @@ def read_document(path, fps: float | None = None, labels: dict | None = None, ma
         Labels of this file; default :func:`mocapviz.labels.labels_for` (label tables beside the data).
     mapping : dict, optional
         Canonical joint -> joint name, overriding the automatic mapping.
+    sha256 : str, optional
+        The file's :func:`file_checksum`, if the caller has it already.
     **load_options
         Passed to :func:`mocapviz.load`.
 
@@ -119,7 +121,7 @@ def read_document(path, fps: float | None = None, labels: dict | None = None, ma
         "n_frames": motion.n_frames,
         "fps": motion.fps,
         "source_fps": source_fps,
-        "sha256": file_checksum(path),
+        "sha256": sha256 or file_checksum(path, load_options.get("asf")),
         "label": labels.pop("label", None),
         **{k: v for k, v in labels.items() if k not in _BASE_COLUMNS},
     }
@@ -127,9 +129,9 @@ def read_document(path, fps: float | None = None, labels: dict | None = None, ma
 
 
 def _read_task(args):
-    path, fps, labels, mapping, load_options, skip_bad = args
+    path, sha256, fps, labels, mapping, load_options, skip_bad = args
     try:
-        return read_document(path, fps, labels, mapping, **load_options)
+        return read_document(path, fps, labels, mapping, sha256, **load_options)
     except (MocapFormatError, SkeletonMappingError) as exc:
         if not skip_bad:
             raise
@@ -373,10 +375,11 @@ class MotionDB:
         known = set(self.documents["sha256"])
         todo = []
         for f in expand_paths(paths):
-            if file_checksum(f) in known:
+            sha256 = file_checksum(f, load_options.get("asf"))
+            if sha256 in known:
                 continue
             lab = None if table is None else table.get(str(f), table.get(f.name, {}))
-            todo.append((str(f), fps, lab, mapping, load_options, skip_bad))
+            todo.append((str(f), sha256, fps, lab, mapping, load_options, skip_bad))
         results = []
         with contextlib.ExitStack() as stack:
             if n_jobs > 1 and len(todo) > 1:

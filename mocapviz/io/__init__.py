@@ -6,6 +6,7 @@ read_asf, read_amc, read_bvh   the format readers (``asfamc``, ``bvh`` modules).
 """
 from __future__ import annotations
 
+import functools
 import os
 from pathlib import Path
 
@@ -17,20 +18,8 @@ from .bvh import read_bvh
 FORMATS = (".amc", ".bvh")
 
 
-def find_asf(amc_path) -> Path:
-    """Locate the ASF skeleton of an AMC file.
-
-    Tried in order, in the AMC's folder, its ancestors (up to three levels) and their ``asf/`` subfolders:
-    a file named after the AMC's stem, then after its stem cut at each ``_`` from the right
-    (``HDM_bd_kick_001_120`` -> ``HDM_bd``, ``131_01`` -> ``131``), then after the AMC's folder
-    (``amc/mjackson/131_01.amc`` -> ``asf/mjackson.asf``); last, the only ``.asf`` in the AMC's folder.
-
-    Raises
-    ------
-    MocapFormatError
-        No skeleton found; the message says to pass ``asf=``.
-    """
-    amc = Path(amc_path).resolve()
+@functools.lru_cache(maxsize=4096)
+def _find_asf(amc: Path) -> Path:
     stem = amc.stem
     candidates = [stem]
     while "_" in stem:
@@ -49,7 +38,23 @@ def find_asf(amc_path) -> Path:
     only = sorted(amc.parent.glob("*.asf")) + sorted(amc.parent.glob("*.ASF"))
     if len(only) == 1:
         return only[0]
-    raise MocapFormatError(amc_path, "no ASF skeleton found beside it; pass asf=PATH")
+    raise MocapFormatError(amc, "no ASF skeleton found beside it; pass asf=PATH")
+
+
+def find_asf(amc_path) -> Path:
+    """Locate the ASF skeleton of an AMC file.
+
+    Tried in order, in the AMC's folder, its ancestors (up to three levels) and their ``asf/`` subfolders:
+    a file named after the AMC's stem, then after its stem cut at each ``_`` from the right
+    (``HDM_bd_kick_001_120`` -> ``HDM_bd``, ``131_01`` -> ``131``), then after the AMC's folder
+    (``amc/mjackson/131_01.amc`` -> ``asf/mjackson.asf``); last, the only ``.asf`` in the AMC's folder.
+
+    Raises
+    ------
+    MocapFormatError
+        No skeleton found; the message says to pass ``asf=``.
+    """
+    return _find_asf(Path(amc_path).resolve())  # found paths are cached; failures are looked up again
 
 
 def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: float | None = None) -> Motion:

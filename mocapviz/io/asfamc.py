@@ -347,7 +347,7 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
 
     names = ("root",) + skeleton.bone_names
     counts = np.array([len(skeleton.root_order)] + [len(d) for d in skeleton.dofs])
-    known = np.array([name_hash(n) for n in names], dtype=np.uint64)
+    known = _channel_layout(skeleton).name_hashes
     by_hash = np.argsort(known)
     hashes = sc.name_hash[bone_lines]
     pos = np.minimum(np.searchsorted(known[by_hash], hashes), len(names) - 1)
@@ -394,26 +394,20 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
             path, f"frame {frame_numbers[f]:.0f} has no line for bone {names[b]!r} (truncated file?)", lineno(markers[f])
         )
 
-    def channels(b: int) -> np.ndarray:
-        """Values of bone b, shape (T, counts[b]); zeros if the bone never appears."""
-        if not present[0, b]:
-            return np.zeros((n_frames, counts[b]))
-        lines_b = bone_lines[bone_of_line == b]
-        return sc.values[sc.first_value[lines_b][:, None] + np.arange(counts[b])]
-
-    root_vals = channels(0)
-    col = {c: i for i, c in enumerate(skeleton.root_order)}
-    get = lambda c: root_vals[:, col[c]] if c in col else np.zeros(n_frames)  # noqa: E731
-    translation = np.stack([get("TX"), get("TY"), get("TZ")], axis=1) * skeleton.cm_per_unit + skeleton.root_position
+    # one gather for every channel of every frame: line_of[f, b] is the line of bone b in frame f
+    line_of = np.zeros((n_frames, len(names)), dtype=np.int64)
+    line_of[frame_of_line[bone_lines], bone_of_line] = bone_lines
+    layout = _channel_layout(skeleton)
+    use = present[0, layout.bone]
+    vals = sc.values[sc.first_value[line_of[:, layout.bone[use]]] + layout.column[use]]
     n_bones = len(skeleton.bone_names)
-    euler = np.zeros((n_frames, n_bones + 1, 3))  # each joint's angles in its own axis order
-    euler[:, 0] = np.stack([get("R" + a) for a in skeleton.root_axis], axis=1)
-    for b, dof in enumerate(skeleton.dofs):
-        if dof:
-            vals = channels(b + 1)
-            axis_order = skeleton.axis_orders[b].lower()
-            for k, d in enumerate(dof):
-                euler[:, b + 1, axis_order.index(d[1])] = vals[:, k]
+    euler = np.zeros((n_frames, (n_bones + 1) * 3))  # each joint's angles in its own axis order
+    translation = np.zeros((n_frames, 3))
+    rot = layout.euler_slot[use] >= 0
+    euler[:, layout.euler_slot[use][rot]] = vals[:, rot]
+    translation[:, layout.translation[use][~rot]] = vals[:, ~rot]
+    euler = euler.reshape(n_frames, n_bones + 1, 3)
+    translation = translation * skeleton.cm_per_unit + skeleton.root_position
     axis_q = np.concatenate([skeleton.root_quaternion[None], skeleton.axis_quaternions])
     t_local = np.zeros((n_frames, n_bones + 1, 3))
     t_local[:, 0] = translation
@@ -437,6 +431,37 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
         quaternions=q_local.astype(np.float32),
         source=path,
     )
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Where each AMC channel of a skeleton goes: one entry per channel, root first, in file column order."""
+
+    bone: np.ndarray  # joint index (0 = root) whose line holds the channel
+    column: np.ndarray  # position of the value on that line
+    euler_slot: np.ndarray  # flat index into euler (J, 3) in the joint's axis order, or -1
+    translation: np.ndarray  # root translation component 0-2, or -1
+    name_hashes: np.ndarray  # name_hash of "root" and every bone, by joint index
+
+
+@functools.lru_cache(maxsize=64)
+def _channel_layout(skeleton: AsfSkeleton) -> _Layout:
+    bone, column, slot, trans = [], [], [], []
+    for k, c in enumerate(skeleton.root_order):
+        bone.append(0)
+        column.append(k)
+        slot.append(skeleton.root_axis.index(c[1]) if c[0] == "R" else -1)
+        trans.append("XYZ".index(c[1]) if c[0] == "T" else -1)
+    for b, dof in enumerate(skeleton.dofs):
+        order = skeleton.axis_orders[b].lower()
+        for k, d in enumerate(dof):
+            bone.append(b + 1)
+            column.append(k)
+            slot.append(3 * (b + 1) + order.index(d[1]))
+            trans.append(-1)
+    names = ("root",) + skeleton.bone_names
+    return _Layout(*(np.array(v, dtype=np.int64) for v in (bone, column, slot, trans)),
+                   name_hashes=np.array([name_hash(n) for n in names], dtype=np.uint64))
 
 
 def _conj(q: np.ndarray) -> np.ndarray:

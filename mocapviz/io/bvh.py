@@ -16,8 +16,10 @@ Conventions:
 """
 from __future__ import annotations
 
+import functools
 import math
 import os
+import re
 
 import numpy as np
 
@@ -33,13 +35,48 @@ _CHANNELS = {
 
 
 class _Hierarchy:
-    """The HIERARCHY section: joints in file order (parents first), offsets, channels."""
+    """The HIERARCHY section: joints in file order (parents first), offsets, channels.
+
+    After :meth:`layout`, also where each channel of a frame line goes: ``euler_slot`` (flat index into
+    the (J, 3) Euler angles, each joint's angles in application order) or ``translation_slot`` (flat index
+    into the (J, 3) translations), -1 where the channel is of the other kind.
+    """
 
     def __init__(self):
         self.names: list[str] = []
         self.parents: list[int] = []
         self.offsets: list[list[float]] = []
         self.channels: list[list[str]] = []
+
+    def layout(self) -> "_Hierarchy":
+        euler_slot, translation_slot, orders = [], [], []
+        for j, chans in enumerate(self.channels):
+            # R = R_c1 R_c2 R_c3: the last rotation channel is applied first
+            rot = [_CHANNELS[c][1] for c in chans if _CHANNELS[c][0] == "r"][::-1]
+            orders.append("".join(rot))
+            seen = 0
+            for c in chans:
+                kind, axis = _CHANNELS[c]
+                if kind == "t":
+                    translation_slot.append(3 * j + axis)
+                    euler_slot.append(-1)
+                else:
+                    euler_slot.append(3 * j + len(rot) - 1 - seen)
+                    translation_slot.append(-1)
+                    seen += 1
+        self.orders = tuple(orders)
+        self.euler_slot = np.array(euler_slot, dtype=np.int64)
+        self.translation_slot = np.array(translation_slot, dtype=np.int64)
+        self.offsets = np.array(self.offsets, dtype=np.float64).reshape(-1, 3)
+        self.parents = np.array(self.parents, dtype=np.int64)
+        return self
+
+
+@functools.lru_cache(maxsize=128)
+def _cached_hierarchy(text: str) -> _Hierarchy:
+    """Parse (once per distinct text: the files of one rig share it) the HIERARCHY text before MOTION."""
+    lines = text.split("\n")
+    return _parse_hierarchy(lines + ["MOTION"], None)[0].layout()
 
 
 def _parse_hierarchy(lines: list[str], path) -> tuple[_Hierarchy, int]:
@@ -179,16 +216,22 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
         raise MocapFormatError(path, f"cannot read file ({exc.strerror})") from None
     if not raw.strip():
         raise MocapFormatError(path, "file is empty")
-    mpos = raw.find(b"MOTION")
-    head_text = raw[: mpos + 200 if mpos >= 0 else len(raw)].decode("latin-1")
-    lines = head_text.split("\n")
-    h, motion_line = _parse_hierarchy(lines, path)
+    found = re.search(rb"(?m)^[ \t]*MOTION\b", raw)
+    if found is None:
+        _parse_hierarchy(raw.decode("latin-1").split("\n"), path)  # raises, naming the problem
+    mpos = found.start()
+    hier_text = raw[:mpos].decode("latin-1")
+    try:
+        h = _cached_hierarchy(hier_text)
+    except MocapFormatError as exc:
+        raise MocapFormatError(path, exc.reason, exc.line) from None
+    motion_line = hier_text.count("\n")
+    lines = [""] * motion_line + raw[mpos : mpos + 200].decode("latin-1").split("\n")
     n_frames, frame_time, data_line = _motion_header(lines, motion_line, path)
-    # byte offset of the first data line
-    start = sum(len(s) + 1 for s in lines[:data_line])
+    start = mpos + sum(len(s) + 1 for s in lines[motion_line:data_line])
     sc = scan(raw[start:], path, first_line=data_line + 1)
 
-    n_channels = sum(len(c) for c in h.channels)
+    n_channels = len(h.euler_slot)
     named = np.flatnonzero(sc.name_start >= 0)
     if named.size:
         raise MocapFormatError(path, f"unexpected text {sc.token(named[0])!r} in MOTION data", sc.first_line + int(named[0]))
@@ -209,32 +252,19 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
     values = sc.values.reshape(n_frames, n_channels)
 
     n_joints = len(h.names)
-    offsets = np.array(h.offsets, dtype=np.float64)
-    translations = np.broadcast_to(offsets, (n_frames, n_joints, 3)).copy()
-    euler = np.zeros((n_frames, n_joints, 3))
-    orders = []
-    col = 0
-    for j, chans in enumerate(h.channels):
-        order = ""
-        for c in chans:
-            kind, axis = _CHANNELS[c]
-            if kind == "t":
-                translations[:, j, axis] = values[:, col]
-            else:
-                order += axis
-            col += 1
-        # R = R_c1 R_c2 R_c3: the last channel's rotation is applied first
-        rot_cols = [k for k, c in enumerate(chans) if _CHANNELS[c][0] == "r"]
-        base = col - len(chans)
-        for k, rc in enumerate(reversed(rot_cols)):
-            euler[:, j, k] = values[:, base + rc]
-        orders.append(order[::-1])
-    q_local, positions = rotations.forward_kinematics(np.array(h.parents), euler, orders, translations)
+    translations = np.broadcast_to(h.offsets.ravel(), (n_frames, 3 * n_joints)).copy()
+    euler = np.zeros((n_frames, 3 * n_joints))
+    rot = h.euler_slot >= 0
+    euler[:, h.euler_slot[rot]] = values[:, rot]
+    translations[:, h.translation_slot[~rot]] = values[:, ~rot]
+    translations = translations.reshape(n_frames, n_joints, 3)
+    euler = euler.reshape(n_frames, n_joints, 3)
+    q_local, positions = rotations.forward_kinematics(h.parents, euler, h.orders, translations)
 
     if scale is None:
         # the figure's size without its root: a root may stay at the world origin, metres away from the
         # figure (Bandai Namco's joint_Root)
-        body = np.array(h.parents) >= 0
+        body = h.parents >= 0
         height = np.ptp(positions[0, body] if body.sum() > 1 else positions[0], axis=0).max()
         scale = 100.0 if 0.5 <= height <= 3.0 else 0.1 if 500.0 <= height <= 3000.0 else 1.0
     positions *= scale
@@ -245,7 +275,7 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
         positions=positions.astype(np.float32),
         fps=fps,
         joint_names=tuple(h.names),
-        parents=np.array(h.parents),
+        parents=h.parents,
         quaternions=q_local.astype(np.float32),
         source=path,
     )

@@ -1,0 +1,822 @@
+"""Reader and ingest benchmarks: mocapviz beside plain-Python / PyPI baselines, on the shared archives.
+
+1. Parse + forward kinematics of ASF/AMC (all 287 HDM05 cut clips): ``mocapviz.io.load`` against a plain
+   Python ASF/AMC reader written here (lines split into a dict of bone -> values per frame, then numpy forward
+   kinematics vectorised over frames per bone with ``scipy.spatial.transform.Rotation`` matrices).
+2. Parse + forward kinematics of BVH (all of Bandai Namco 1 and the first 500 files of Bandai Namco 2, sorted):
+   ``mocapviz.io.load`` against the ``bvh`` package from PyPI for parsing plus the same kind of numpy/scipy
+   forward kinematics.
+3. ``MotionDB.ingest`` of all the shared archives with ``n_jobs=1`` and ``n_jobs=2``.
+
+Each reader figure is the median wall time of ``repeats`` runs (frames/s = frames / median time), measured in
+one process and over a pool of 2 worker processes (``concurrent.futures.ProcessPoolExecutor``, one task per
+file, pool start-up and shut-down included, workers return the frame count). Before timing, each baseline's
+positions are checked against mocapviz's on one file, so both sides do the same work.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as _dt
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+TARGET_AMC = 100_000  # frames/s
+TARGET_BVH = 300_000  # frames/s
+TARGET_INGEST_S = 60.0  # seconds for all shared data
+CHECK_TOL_CM = 1e-3
+WORKERS = 2
+BN2_SUBSET = 500
+QUICK_FILES = 20
+
+
+# ============================================================================ baseline: plain-Python ASF/AMC
+@dataclass
+class BaselineBone:
+    name: str
+    parent: str
+    offset: np.ndarray  # (3,) cm: length * unit direction
+    order: str  # axis order, e.g. "XYZ"
+    c: np.ndarray  # (3, 3) the bone's axis frame C
+    dof: list  # ["rx", "ry", "rz"] as in the AMC columns
+
+
+@dataclass
+class BaselineSkeleton:
+    cm: float
+    degrees: bool
+    root_order: list
+    root_axis: str
+    root_position: np.ndarray
+    root_c: np.ndarray
+    bones: list = field(default_factory=list)  # parents first
+
+
+def baseline_read_asf(path) -> BaselineSkeleton:
+    """Parse an ASF file the way a user would: one pass over the split lines, section by section."""
+    section = None
+    length_unit, degrees = 1.0, True
+    root = {
+        "order": ["TX", "TY", "TZ", "RX", "RY", "RZ"],
+        "axis": "XYZ",
+        "position": [0, 0, 0],
+        "orientation": [0, 0, 0],
+    }
+    bones, bone, children = {}, None, {}
+    with open(path, encoding="latin-1") as fh:
+        for line in fh:
+            parts = line.split()
+            if not parts or parts[0].startswith("#"):
+                continue
+            if parts[0].startswith(":"):
+                section = parts[0][1:]
+                continue
+            key = parts[0]
+            if section == "units":
+                if key == "length":
+                    length_unit = float(parts[1])
+                elif key == "angle":
+                    degrees = parts[1].lower() == "deg"
+            elif section == "root":
+                if key == "order":
+                    root["order"] = [p.upper() for p in parts[1:]]
+                elif key == "axis":
+                    root["axis"] = parts[1].upper()
+                elif key in ("position", "orientation"):
+                    root[key] = [float(v) for v in parts[1:4]]
+            elif section == "bonedata":
+                if key == "begin":
+                    bone = {"dof": []}
+                elif key == "end":
+                    bones[bone["name"]] = bone
+                elif key == "name":
+                    bone["name"] = parts[1]
+                elif key == "direction":
+                    bone["direction"] = [float(v) for v in parts[1:4]]
+                elif key == "length":
+                    bone["length"] = float(parts[1])
+                elif key == "axis":
+                    bone["axis"] = [float(v) for v in parts[1:4]]
+                    bone["order"] = parts[4].upper()
+                elif key == "dof":
+                    bone["dof"] = [p.lower() for p in parts[1:]]
+            elif section == "hierarchy" and key not in ("begin", "end"):
+                children.setdefault(key, []).extend(parts[1:])
+    cm = 2.54 / length_unit
+    skel = BaselineSkeleton(
+        cm=cm,
+        degrees=degrees,
+        root_order=root["order"],
+        root_axis=root["axis"],
+        root_position=np.array(root["position"], dtype=float) * cm,
+        root_c=Rotation.from_euler(root["axis"].lower(), root["orientation"], degrees=degrees).as_matrix(),
+    )
+    todo = [("root", c) for c in children.get("root", [])]
+    while todo:  # breadth first: parents before children
+        parent, name = todo.pop(0)
+        b = bones[name]
+        direction = np.array(b["direction"], dtype=float)
+        direction /= np.linalg.norm(direction)
+        skel.bones.append(
+            BaselineBone(
+                name=name,
+                parent=parent,
+                offset=direction * b["length"] * cm,
+                order=b["order"],
+                c=Rotation.from_euler(b["order"].lower(), b["axis"], degrees=degrees).as_matrix(),
+                dof=b["dof"],
+            )
+        )
+        todo += [(name, c) for c in children.get(name, [])]
+    return skel
+
+
+def baseline_read_amc(path, skel: BaselineSkeleton) -> tuple[list, np.ndarray]:
+    """Parse an AMC file into a dict of bone -> values per frame, then run forward kinematics.
+
+    Returns the joint names (``root`` and each bone's tip) and positions (T, J, 3) in cm.
+    """
+    frames = []
+    frame = None
+    degrees = skel.degrees
+    with open(path, encoding="latin-1") as fh:
+        for line in fh:
+            parts = line.split()
+            if not parts:
+                continue
+            if parts[0][0] in "#:":
+                if parts[0].upper() == ":RADIANS":
+                    degrees = False
+                continue
+            if len(parts) == 1 and parts[0].isdigit():
+                frame = {}
+                frames.append(frame)
+            else:
+                frame[parts[0]] = [float(v) for v in parts[1:]]
+    n = len(frames)
+    zero = np.zeros(n)
+    # root: translation and rotation C M C^-1
+    root = np.array([f["root"] for f in frames])
+    channel = {c: root[:, i] for i, c in enumerate(skel.root_order)}
+    translation = np.stack([channel.get(c, zero) for c in ("TX", "TY", "TZ")], axis=1) * skel.cm + skel.root_position
+    angles = np.stack([channel.get("R" + a, zero) for a in skel.root_axis], axis=1)
+    m = Rotation.from_euler(skel.root_axis.lower(), angles, degrees=degrees).as_matrix()
+    glob = {"root": skel.root_c @ m @ skel.root_c.T}
+    pos = {"root": translation}
+    for bone in skel.bones:
+        if bone.dof and bone.name in frames[0]:
+            values = np.array([f[bone.name] for f in frames])
+            angles = np.zeros((n, 3))
+            for k, d in enumerate(bone.dof):
+                angles[:, bone.order.index(d[1].upper())] = values[:, k]
+            m = Rotation.from_euler(bone.order.lower(), angles, degrees=degrees).as_matrix()
+            g = glob[bone.parent] @ (bone.c @ m @ bone.c.T)
+        else:
+            g = glob[bone.parent]  # C I C^-1 = I
+        glob[bone.name] = g
+        pos[bone.name] = pos[bone.parent] + g @ bone.offset
+    names = ["root"] + [b.name for b in skel.bones]
+    return names, np.stack([pos[k] for k in names], axis=1)
+
+
+_BASELINE_ASF_CACHE: dict = {}
+
+
+def baseline_load_amc(amc, asf) -> tuple[list, np.ndarray]:
+    """Baseline AMC read, parsing each ASF once per process (as a user's loop over clips would)."""
+    skel = _BASELINE_ASF_CACHE.get(asf)
+    if skel is None:
+        skel = _BASELINE_ASF_CACHE[asf] = baseline_read_asf(asf)
+    return baseline_read_amc(amc, skel)
+
+
+# ============================================================================ baseline: `bvh` package + numpy FK
+def baseline_read_bvh(path) -> tuple[list, np.ndarray]:
+    """Parse a BVH file with the ``bvh`` package (PyPI) and run numpy/scipy forward kinematics.
+
+    Rotation channels ``c1 c2 c3`` give ``R = R_c1 R_c2 R_c3``; position channels replace the OFFSET.
+    Returns joint names (joints in file order, each ``End Site`` as ``<joint>_end``) and positions (T, J, 3).
+    """
+    from bvh import Bvh
+
+    with open(path) as fh:
+        mocap = Bvh(fh.read())
+    data = np.array(mocap.frames, dtype=np.float64)
+    n = data.shape[0]
+    glob, pos = {}, {}
+    names, out = [], []
+    start = 0
+    # walk the joint nodes directly: the package's name-based look-ups (joint_channels(name), ...) search the
+    # whole tree on every call and would make this baseline about 1.5x slower
+    for joint in mocap.get_joints():
+        name = joint.name
+        chans = joint["CHANNELS"][1:]
+        t = np.tile(np.array([float(v) for v in joint["OFFSET"]]), (n, 1))
+        axes, cols = "", []
+        for k, c in enumerate(chans):
+            if c.lower().endswith("position"):
+                t[:, "XYZ".index(c[0].upper())] = data[:, start + k]
+            else:
+                axes += c[0].upper()
+                cols.append(start + k)
+        start += len(chans)
+        # upper-case = intrinsic rotations in scipy: "ZXY" -> Rz @ Rx @ Ry
+        r = Rotation.from_euler(axes, data[:, cols], degrees=True).as_matrix() if axes else np.eye(3)
+        parent = joint.parent.name if joint.parent is not mocap.root else None
+        if parent is None:
+            g, p = np.broadcast_to(r, (n, 3, 3)), t
+        else:
+            gp = glob[parent]
+            g, p = gp @ r, pos[parent] + (gp @ t[:, :, None])[:, :, 0]
+        glob[name], pos[name] = g, p
+        names.append(name)
+        out.append(p)
+        for end in joint.filter("End"):
+            names.append(name + "_end")
+            out.append(p + g @ np.array([float(v) for v in end["OFFSET"]]))
+    return names, np.stack(out, axis=1)
+
+
+# ============================================================================ tasks (picklable, for the pools)
+def ours_task(path) -> int:
+    from mocapviz.io import load
+
+    return load(path).n_frames
+
+
+def baseline_amc_task(item) -> int:
+    amc, asf = item
+    return baseline_load_amc(amc, asf)[1].shape[0]
+
+
+def baseline_bvh_task(path) -> int:
+    return baseline_read_bvh(path)[1].shape[0]
+
+
+def _clear_caches() -> None:
+    """Forget parsed ASF skeletons (ours and the baseline's) so every run parses them, once per process."""
+    _BASELINE_ASF_CACHE.clear()
+    from mocapviz.io import asfamc
+
+    cached = getattr(asfamc, "_read_asf_cached", None)
+    if cached is not None and hasattr(cached, "cache_clear"):
+        cached.cache_clear()
+
+
+def _run_serial(task, items) -> int:
+    _clear_caches()
+    return sum(task(it) for it in items)
+
+
+def _run_pool(task, items, workers: int = WORKERS) -> int:
+    _clear_caches()  # the workers are forked (Linux default): they start with empty caches too
+    with ProcessPoolExecutor(workers) as pool:
+        return sum(pool.map(task, items, chunksize=1))
+
+
+def timed(fn, repeats: int) -> tuple[float, int, list, float]:
+    """Time ``repeats`` calls of ``fn`` (which returns a frame count).
+
+    Returns the median wall time, the frame count, all wall times and the median CPU time (this process plus
+    its finished worker processes), which other processes sharing the machine disturb less than wall time.
+    """
+    times, cpus, frames = [], [], None
+    for _ in range(repeats):
+        c0 = CpuMonitor._ours()
+        t0 = time.perf_counter()
+        n = fn()
+        times.append(time.perf_counter() - t0)
+        cpus.append(CpuMonitor._ours() - c0)
+        if frames is not None and n != frames:
+            raise RuntimeError(f"frame count changed between runs: {frames} then {n}")
+        frames = n
+    return statistics.median(times), frames, times, statistics.median(cpus)
+
+
+# ============================================================================ checks
+def check_amc(amc, asf) -> float:
+    """Max abs difference (cm) between the baseline's and mocapviz's positions on one clip."""
+    from mocapviz.io import load
+
+    m = load(amc)
+    names, p = baseline_load_amc(str(amc), str(asf))
+    return _max_diff(m, names, p)
+
+
+def check_bvh(path) -> float:
+    from mocapviz.io import load
+
+    m = load(path)
+    names, p = baseline_read_bvh(str(path))
+    return _max_diff(m, names, p)
+
+
+def _max_diff(motion, names, positions) -> float:
+    if sorted(names) != sorted(motion.joint_names) or positions.shape[0] != motion.n_frames:
+        raise RuntimeError(
+            f"{motion.source}: baseline has {len(names)} joints x {positions.shape[0]} frames, "
+            f"mocapviz {motion.n_joints} x {motion.n_frames}"
+        )
+    idx = [motion.joint_names.index(n) for n in names]
+    return float(np.abs(motion.positions[:, idx].astype(np.float64) - positions).max())
+
+
+# ============================================================================ machine
+def machine_info() -> dict:
+    info = {}
+    try:
+        cpuinfo = Path("/proc/cpuinfo").read_text()
+        models = [ln.split(":", 1)[1].strip() for ln in cpuinfo.splitlines() if ln.startswith("model name")]
+        info["cpu"] = models[0] if models else platform.processor() or "?"
+        fam = [ln.split(":", 1)[1].strip() for ln in cpuinfo.splitlines() if ln.startswith(("cpu family", "model\t"))]
+        if len(fam) >= 2:
+            info["cpu"] += f" (family {fam[0]} model {fam[1]})"
+        if " hypervisor" in cpuinfo:
+            info["cpu"] += ", virtual machine"
+    except OSError:
+        info["cpu"] = platform.processor() or "?"
+    info["cores"] = os.cpu_count()
+    try:
+        info["usable_cores"] = len(os.sched_getaffinity(0))
+    except AttributeError:
+        info["usable_cores"] = os.cpu_count()
+    try:
+        mem = next(ln for ln in Path("/proc/meminfo").read_text().splitlines() if ln.startswith("MemTotal"))
+        info["ram_gib"] = round(int(mem.split()[1]) / 2**20, 1)
+    except (OSError, StopIteration):
+        info["ram_gib"] = None
+    info["os"] = platform.platform()
+    info["python"] = platform.python_version()
+    for pkg in ("numpy", "numba", "scipy", "bvh", "mocapviz"):
+        try:
+            info[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            info[pkg] = "not installed"
+    try:
+        info["commit"] = (
+            subprocess.run(
+                ["git", "rev-parse", "--short", "HEAD"],
+                check=False,
+                cwd=Path(__file__).resolve().parent,
+                capture_output=True,
+                text=True,
+                timeout=10,
+            ).stdout.strip()
+            or "?"
+        )
+        # read-only: does the working tree of the measured code differ from the commit?
+        dirty = subprocess.run(
+            ["git", "diff", "--quiet", "HEAD", "--", "mocapviz"],
+            check=False,
+            cwd=Path(__file__).resolve().parent.parent,
+            capture_output=True,
+            timeout=10,
+        ).returncode
+        if dirty == 1:
+            info["commit"] += " + uncommitted changes in mocapviz/"
+    except (OSError, subprocess.SubprocessError):
+        info["commit"] = "?"
+    import multiprocessing
+
+    info["start_method"] = multiprocessing.get_start_method()
+    info["load_start"] = _loadavg()
+    return info
+
+
+def _loadavg() -> str:
+    try:
+        return " ".join(f"{v:.2f}" for v in os.getloadavg())
+    except OSError:
+        return "?"
+
+
+class CpuMonitor:
+    """CPU time the rest of the machine used while the benchmark ran (/proc/stat busy time minus ours)."""
+
+    def __init__(self):
+        self.t0, self.stat0, self.ours0 = time.perf_counter(), self._stat(), self._ours()
+
+    @staticmethod
+    def _stat() -> tuple[float, float] | None:
+        """Busy time (user, nice, system, irq, softirq) and steal time of all CPUs, seconds."""
+        try:
+            f = [int(v) for v in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
+        except (OSError, ValueError):
+            return None
+        tick = os.sysconf("SC_CLK_TCK")
+        busy = f[0] + f[1] + f[2] + (f[5] + f[6] if len(f) > 6 else 0)
+        return busy / tick, (f[7] if len(f) > 7 else 0) / tick
+
+    @staticmethod
+    def _ours() -> float:
+        t = os.times()
+        return t.user + t.system + t.children_user + t.children_system
+
+    def report(self) -> str:
+        stat = self._stat()
+        if stat is None or self.stat0 is None:
+            return "CPU use of other processes: unknown"
+        wall = time.perf_counter() - self.t0
+        others = max(0.0, (stat[0] - self.stat0[0]) - (self._ours() - self.ours0))
+        steal = stat[1] - self.stat0[1]
+        text = (
+            f"other processes used {others:.0f} CPU-s during the {wall:.0f} s run ({others / wall:.2f} cores on "
+            f"average), hypervisor steal {steal:.0f} s"
+        )
+        if (others + steal) / wall > 0.2:
+            text += " — the machine was shared: figures, 2-process ones most, are noisy"
+        return text
+
+
+def header(info: dict, quick: bool, repeats: int) -> str:
+    lines = [
+        "# mocapviz I/O benchmarks" + (" (--quick: small subsets)" if quick else ""),
+        "",
+        f"- date: {_dt.datetime.now().isoformat(timespec='seconds')}, mocapviz {info['mocapviz']} @ {info['commit']}",
+        f"- CPU: {info['cpu']}, {info['cores']} cores ({info['usable_cores']} usable), RAM {info['ram_gib']} GiB",
+        (
+            f"- {info['os']}; Python {info['python']}, numpy {info['numpy']}, numba {info['numba']}, "
+            f"scipy {info['scipy']}, bvh {info['bvh']}"
+        ),
+        (
+            f"- each figure: median of {repeats} runs; pools: ProcessPoolExecutor({WORKERS}), start method "
+            f"'{info['start_method']}', one task per file, start-up included"
+        ),
+        f"- load average (1/5/15 min) at start: {info['load_start']}; {info.get('others', '')}",
+    ]
+    return "\n".join(lines)
+
+
+# ============================================================================ tables
+@dataclass
+class Row:
+    section: str
+    benchmark: str
+    data: str
+    files: int
+    frames: int
+    workers: int
+    ours: float | None
+    baseline: float | None
+    unit: str
+    target: str
+    meets: str
+    note: str = ""
+    ours_runs: list = field(default_factory=list)
+    baseline_runs: list = field(default_factory=list)
+    baseline_files: int | None = None
+    baseline_frames: int | None = None
+    ours_cpu: float | None = None  # frames per CPU second (all processes of the run)
+
+    @property
+    def ratio(self) -> float | None:
+        if self.ours is None or not self.baseline:
+            return None
+        return self.ours / self.baseline
+
+
+def _fmt(v, unit="") -> str:
+    if v is None:
+        return "—"
+    if unit == "s":
+        return f"{v:.2f}"
+    if isinstance(v, float) and v < 100:
+        return f"{v:.2f}"
+    return f"{v:,.0f}"
+
+
+def markdown_reader_table(rows: list[Row]) -> str:
+    out = [
+        (
+            "| format | data | files | frames | workers | mocapviz frames/s | baseline frames/s | ours/baseline "
+            "| target | meets | mocapviz frames/CPU-s | note |"
+        ),
+        "|---|---|---:|---:|---:|---:|---:|---:|---|---|---:|---|",
+    ]
+    for r in rows:
+        ratio = "—" if r.ratio is None else f"{r.ratio:.1f}×"
+        out.append(
+            f"| {r.benchmark} | {r.data} | {r.files} | {r.frames:,} | {r.workers} | {_fmt(r.ours)} | "
+            f"{_fmt(r.baseline)} | {ratio} | {r.target} | {r.meets} | {_fmt(r.ours_cpu)} | {r.note} |"
+        )
+    return "\n".join(out)
+
+
+def markdown_ingest_table(rows: list[Row]) -> str:
+    out = [
+        (
+            "| data | documents | frames | n_jobs | wall s | frames/s | speed-up vs n_jobs=1 | target | meets "
+            "| frames/CPU-s | note |"
+        ),
+        "|---|---:|---:|---:|---:|---:|---:|---|---|---:|---|",
+    ]
+    for r in rows:
+        wall = r.ours_runs[0] if r.ours_runs else None
+        ratio = "—" if r.ratio is None else f"{r.ratio:.2f}×"
+        out.append(
+            f"| {r.data} | {r.files} | {r.frames:,} | {r.workers} | {_fmt(wall, 's')} | {_fmt(r.ours)} | {ratio} "
+            f"| {r.target} | {r.meets} | {_fmt(r.ours_cpu)} | {r.note} |"
+        )
+    return "\n".join(out)
+
+
+def write_csv(rows: list[Row], path: Path, info: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    ignore = path.parent / ".gitignore"
+    if not ignore.exists():
+        ignore.write_text("*.csv\n")
+    cols = [
+        "section",
+        "benchmark",
+        "data",
+        "files",
+        "frames",
+        "workers",
+        "ours",
+        "baseline",
+        "unit",
+        "ours_over_baseline",
+        "target",
+        "meets_target",
+        "ours_runs_s",
+        "baseline_runs_s",
+        "baseline_files",
+        "baseline_frames",
+        "ours_frames_per_cpu_s",
+        "note",
+        "cpu",
+        "python",
+        "numpy",
+        "numba",
+        "commit",
+    ]
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(cols)
+        for r in rows:
+            w.writerow(
+                [
+                    r.section,
+                    r.benchmark,
+                    r.data,
+                    r.files,
+                    r.frames,
+                    r.workers,
+                    "" if r.ours is None else f"{r.ours:.1f}",
+                    "" if r.baseline is None else f"{r.baseline:.1f}",
+                    r.unit,
+                    "" if r.ratio is None else f"{r.ratio:.3f}",
+                    r.target,
+                    r.meets,
+                    ";".join(f"{t:.4f}" for t in r.ours_runs),
+                    ";".join(f"{t:.4f}" for t in r.baseline_runs),
+                    "" if r.baseline_files is None else r.baseline_files,
+                    "" if r.baseline_frames is None else r.baseline_frames,
+                    "" if r.ours_cpu is None else f"{r.ours_cpu:.1f}",
+                    r.note,
+                    info["cpu"],
+                    info["python"],
+                    info["numpy"],
+                    info["numba"],
+                    info["commit"],
+                ]
+            )
+
+
+# ============================================================================ benchmarks
+def _log(msg: str) -> None:
+    print(f"[bench] {msg}", file=sys.stderr, flush=True)
+
+
+def reader_rows(
+    fmt: str, data: str, ours_items, base_items, base_task, target: int, repeats: int, note: str = ""
+) -> list[Row]:
+    """Rows for one data set: 1 process and WORKERS processes, ours and baseline."""
+    rows = []
+    for workers in (1, WORKERS):
+
+        def run(task, items, workers=workers):
+            if workers == 1:
+                return lambda: _run_serial(task, items)
+            return lambda: _run_pool(task, items, workers)
+
+        _log(f"{fmt} {data}: mocapviz, {workers} process(es), {len(ours_items)} files")
+        t_ours, n_ours, ours_runs, cpu_ours = timed(run(ours_task, ours_items), repeats)
+        _log(f"  {n_ours / t_ours:,.0f} frames/s; baseline, {len(base_items)} files")
+        t_base, n_base, base_runs, _ = timed(run(base_task, base_items), repeats)
+        _log(f"  {n_base / t_base:,.0f} frames/s")
+        ours = n_ours / t_ours
+        rows.append(
+            Row(
+                section="reader",
+                benchmark=f"{fmt} parse+FK",
+                data=data,
+                files=len(ours_items),
+                frames=n_ours,
+                workers=workers,
+                ours=ours,
+                baseline=n_base / t_base,
+                unit="frames/s",
+                target=f"≥ {target:,} frames/s",
+                meets="yes" if ours >= target else "NO",
+                note=note,
+                ours_runs=ours_runs,
+                baseline_runs=base_runs,
+                baseline_files=len(base_items),
+                baseline_frames=n_base,
+                ours_cpu=n_ours / cpu_ours if cpu_ours else None,
+            )
+        )
+    return rows
+
+
+def _fetch(name: str):
+    from mocapviz import datasets
+
+    try:
+        return datasets.fetch(name), None
+    except Exception as exc:  # noqa: BLE001 - any failure: skip the row with a note
+        return None, f"{type(exc).__name__}: {exc}"
+
+
+def bench_amc(repeats: int, quick: bool) -> tuple[list[Row], list[str]]:
+    notes = []
+    root, err = _fetch("hdm05-cut")
+    if root is None:
+        return [_skipped("ASF/AMC parse+FK", "hdm05-cut", f"fetch failed: {err}")], notes
+    amcs = sorted((root / "amc").glob("*.amc"))
+    if quick:
+        amcs = amcs[:: max(1, len(amcs) // QUICK_FILES)][:QUICK_FILES]
+
+    def asf_of(amc: Path) -> Path:  # HDM05 convention: HDM_<actor>_<class>_<take>_120.amc -> asf/HDM_<actor>.asf
+        return root / "asf" / ("_".join(amc.name.split("_")[:2]) + ".asf")
+
+    diff = check_amc(amcs[0], asf_of(amcs[0]))
+    ok = diff < CHECK_TOL_CM
+    verdict = "ok" if ok else "FAILED"
+    notes.append(f"AMC check on {amcs[0].name}: max |baseline − mocapviz| = {diff:.2e} cm ({verdict})")
+    note = "" if ok else f"CHECK FAILED ({diff:.2e} cm): baseline differs"
+    base_items = [(str(a), str(asf_of(a))) for a in amcs]
+    return reader_rows(
+        "ASF/AMC", "hdm05-cut", [str(a) for a in amcs], base_items, baseline_amc_task, TARGET_AMC, repeats, note
+    ), notes
+
+
+def bench_bvh(repeats: int, quick: bool) -> tuple[list[Row], list[str]]:
+    rows, notes = [], []
+    for name in ("bandai-namco-1", "bandai-namco-2"):
+        root, err = _fetch(name)
+        label = name if name == "bandai-namco-1" else f"{name} (first {BN2_SUBSET} sorted)"
+        if root is None:
+            rows.append(_skipped("BVH parse+FK", label, f"skipped, fetch failed: {err}"))
+            continue
+        files = sorted(str(p) for p in (root / "data").glob("*.bvh"))
+        if name == "bandai-namco-2":
+            files = files[:BN2_SUBSET]
+        if quick:
+            files = files[:: max(1, len(files) // QUICK_FILES)][:QUICK_FILES]
+            label = name
+        diff = check_bvh(files[0])
+        ok = diff < CHECK_TOL_CM
+        notes.append(
+            f"BVH check on {Path(files[0]).name}: max |baseline − mocapviz| = {diff:.2e} cm "
+            f"({'ok' if ok else 'FAILED'})"
+        )
+        note = "" if ok else f"CHECK FAILED ({diff:.2e} cm): baseline differs"
+        rows += reader_rows("BVH", label, files, files, baseline_bvh_task, TARGET_BVH, repeats, note)
+    return rows, notes
+
+
+def _skipped(benchmark, data, note) -> Row:
+    return Row(
+        section="reader",
+        benchmark=benchmark,
+        data=data,
+        files=0,
+        frames=0,
+        workers=0,
+        ours=None,
+        baseline=None,
+        unit="frames/s",
+        target="",
+        meets="—",
+        note=note,
+    )
+
+
+def bench_ingest(quick: bool) -> tuple[list[Row], list[str]]:
+    from mocapviz.database import MotionDB, expand_paths
+
+    notes = []
+    roots, missing = [], []
+    for name in ("hdm05-cut", "cmu-asfamc", "bandai-namco-1", "bandai-namco-2"):
+        root, err = _fetch(name)
+        (roots.append(root) if root is not None else missing.append(f"{name} ({err})"))
+    files = expand_paths(roots)
+    if quick:
+        files = [f for r in roots for f in sorted(p for p in files if str(p).startswith(str(r.resolve())))[:5]]
+    data = "all shared data" if not quick else f"{len(files)} files from 4 archives"
+    if missing:
+        data += " except " + ", ".join(missing)
+    # read every file once so that both runs find them in the page cache
+    nbytes = sum(len(Path(f).read_bytes()) for f in files)
+    notes.append(f"ingest input: {len(files)} files, {nbytes / 2**20:.0f} MiB (page cache warmed first), fps=None")
+    rows = []
+    for n_jobs in (1, WORKERS):
+        with tempfile.TemporaryDirectory(prefix="mocapviz-bench-") as tmp:
+            _log(f"ingest {len(files)} files, n_jobs={n_jobs}")
+            c0 = CpuMonitor._ours()
+            t0 = time.perf_counter()
+            db = MotionDB.ingest(files, Path(tmp) / "db", fps=None, n_jobs=n_jobs, progress=False)
+            wall = time.perf_counter() - t0
+            cpu = CpuMonitor._ours() - c0
+            n_docs, n_frames = len(db), db.n_frames
+            del db
+        _log(f"  {wall:.1f} s, {n_docs} documents, {n_frames} frames")
+        fps = n_frames / wall
+        rows.append(
+            Row(
+                section="ingest",
+                benchmark="MotionDB.ingest",
+                data=data,
+                files=n_docs,
+                frames=n_frames,
+                workers=n_jobs,
+                ours=fps,
+                baseline=rows[0].ours if rows else None,
+                unit="frames/s",
+                target=f"< {TARGET_INGEST_S:.0f} s (all shared data)",
+                meets=("yes" if wall < TARGET_INGEST_S else "NO") if not quick else "(quick)",
+                note="single run",
+                ours_runs=[wall],
+                ours_cpu=n_frames / cpu if cpu else None,
+            )
+        )
+    return rows, notes
+
+
+def main(quick: bool = False, repeats: int = 3, ingest: bool = True, out_dir: Path | None = None) -> int:
+    from mocapviz.io import load
+
+    t_start = time.perf_counter()
+    monitor = CpuMonitor()
+    info = machine_info()
+    # warm-up: the first call of the numba kernels compiles them (or loads them from the disk cache)
+    hdm, _ = _fetch("hdm05-cut")
+    bn1, _ = _fetch("bandai-namco-1")
+    t0 = time.perf_counter()
+    if hdm is not None:
+        load(min((hdm / "amc").glob("*.amc")))
+    if bn1 is not None:
+        load(min((bn1 / "data").glob("*.bvh")))
+    warm = time.perf_counter() - t0
+
+    amc_rows, amc_notes = bench_amc(repeats, quick)
+    bvh_rows, bvh_notes = bench_bvh(repeats, quick)
+    reader = amc_rows + bvh_rows
+    ingest_rows, ingest_notes = bench_ingest(quick) if ingest else ([], [])
+
+    info["others"] = monitor.report()
+    print(header(info, quick, repeats))
+    print(f"- warm-up (numba compile or disk-cache load + first reads): {warm:.2f} s, not timed")
+    for n in amc_notes + bvh_notes:
+        print(f"- {n}")
+    print()
+    print("## Parse + forward kinematics (frames/s, higher is better)")
+    print()
+    print(markdown_reader_table(reader))
+    print()
+    print(
+        "Baselines: ASF/AMC — plain-Python reader in `benchmarks/bench_io.py` (split lines, dict of bone → values "
+        "per frame, numpy/scipy `Rotation` FK vectorised over frames per bone); BVH — `bvh` package (PyPI) to "
+        "parse, then numpy/scipy FK. mocapviz: `mocapviz.io.load` (AMC: includes `find_asf`). Each run parses "
+        "every ASF once per process on both sides. Workers return the frame count only. frames/CPU-s: frames per "
+        "CPU second of the run's processes (parent and workers), less disturbed than wall time by other processes "
+        "sharing the machine."
+    )
+    if ingest_rows:
+        print()
+        print("## MotionDB.ingest (native frame rates, single run each)")
+        print()
+        print(markdown_ingest_table(ingest_rows))
+        print()
+        for n in ingest_notes:
+            print(f"- {n}")
+    out_dir = Path(out_dir) if out_dir is not None else Path(__file__).resolve().parent / "results"
+    csv_path = out_dir / ("io-quick.csv" if quick else "io.csv")
+    write_csv(reader + ingest_rows, csv_path, info)
+    print()
+    print(f"CSV: {csv_path}; total benchmark time {time.perf_counter() - t_start:.0f} s")
+    return 0
