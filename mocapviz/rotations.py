@@ -49,12 +49,13 @@ def from_euler(order: str, angles: np.ndarray, degrees: bool = True) -> np.ndarr
     if half.shape[-1] != len(axes):
         raise ValueError(f"from_euler: {len(axes)} axes in {order!r} but angles have {half.shape[-1]} columns")
     c, s = np.cos(half), np.sin(half)
-    q = None
+    q = np.zeros(half.shape[:-1] + (4,))
+    q[..., 0] = 1.0
     for k, axis in enumerate(axes):
         qk = np.zeros(half.shape[:-1] + (4,))
         qk[..., 0] = c[..., k]
         qk[..., 1 + axis] = s[..., k]
-        q = qk if q is None else multiply(qk, q)
+        q = multiply(qk, q)
     return q
 
 

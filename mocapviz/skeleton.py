@@ -154,6 +154,9 @@ def name_mapping(names: tuple) -> dict[str, str]:
                 if (side, s) in by_key:
                     found[side + canon] = by_key[(side, s)]
                     break
+        # CMU-derived rigs keep the ASF wrist bone: Hand = its start, FingerBase = its tip, the ASF wrist
+        if (side, "fingerbase") in by_key:
+            found[side + "wrist"] = by_key[(side, "fingerbase")]
     return found
 
 

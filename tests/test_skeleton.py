@@ -266,3 +266,77 @@ def test_body_sizes_by_hand(hdm05_dir, hdm05_labels):
     # humerus: the ASF bone length (a rigid bone), whatever the pose
     later = body_sizes(c.positions[len(c.positions) // 2 :])
     assert later["humerus_l"] == pytest.approx(sizes["humerus_l"], abs=1e-3)
+
+
+# CMU-derived BVH naming (the conversions of the CMU database to BVH): one BVH joint at the start of every
+# ASF bone; the ASF root is "Hips".
+CMU_BVH_NAMES = {
+    "lhipjoint": "LHipJoint", "lfemur": "LeftUpLeg", "ltibia": "LeftLeg", "lfoot": "LeftFoot", "ltoes": "LeftToeBase",
+    "rhipjoint": "RHipJoint", "rfemur": "RightUpLeg", "rtibia": "RightLeg", "rfoot": "RightFoot",
+    "rtoes": "RightToeBase", "lowerback": "LowerBack", "upperback": "Spine", "thorax": "Spine1",
+    "lowerneck": "Neck", "upperneck": "Neck1", "head": "Head", "lclavicle": "LeftShoulder", "lhumerus": "LeftArm",
+    "lradius": "LeftForeArm", "lwrist": "LeftHand", "lhand": "LeftFingerBase", "lfingers": "LeftHandIndex1",
+    "lthumb": "LThumb", "rclavicle": "RightShoulder", "rhumerus": "RightArm", "rradius": "RightForeArm",
+    "rwrist": "RightHand", "rhand": "RightFingerBase", "rfingers": "RightHandIndex1", "rthumb": "RThumb",
+}  # fmt: skip
+
+
+def _asf_as_cmu_bvh(amc, asf) -> str:
+    """A real ASF/AMC clip rewritten as a CMU-derived BVH: same motion, BVH conventions, ZXY channels.
+
+    BVH joint b sits at the start of ASF bone b, its OFFSET is the parent bone's vector, its rotation the
+    bone's local rotation C M C^-1; leaves get an End Site at their own bone's tip.
+    """
+    from scipy.spatial.transform import Rotation
+
+    from mocapviz.io import read_amc, read_asf
+
+    sk = read_asf(asf)
+    m = read_amc(amc, sk)
+    q = m.quaternions.astype(np.float64)  # joint 0 = root, joint b + 1 = bone b
+    # BVH "Zrotation Xrotation Yrotation" = R = Rz Rx Ry = intrinsic ZXY
+    euler = Rotation.from_quat(q.reshape(-1, 4), scalar_first=True).as_euler("ZXY", degrees=True)
+    euler = euler.reshape(m.n_frames, m.n_joints, 3)
+    children = {b: [c for c in range(len(sk.bone_names)) if sk.parents[c] == b] for b in range(-1, len(sk.bone_names))}
+    out = ["HIERARCHY", "ROOT Hips", "{", "  OFFSET 0 0 0",
+           "  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation"]  # fmt: skip
+    order = []  # BVH joint order: bone indices, depth first
+
+    def emit(b: int, offset, depth: int):
+        pad = "  " * depth
+        out.append(f"{pad}JOINT {CMU_BVH_NAMES[sk.bone_names[b]]}")
+        out.append(pad + "{")
+        out.append(f"{pad}  OFFSET {offset[0]:.9g} {offset[1]:.9g} {offset[2]:.9g}")
+        out.append(f"{pad}  CHANNELS 3 Zrotation Xrotation Yrotation")
+        order.append(b)
+        for c in children[b]:
+            emit(c, sk.offsets[b], depth + 1)
+        if not children[b]:
+            tip = sk.offsets[b]
+            out.extend([f"{pad}  End Site", pad + "  {", f"{pad}    OFFSET {tip[0]:.9g} {tip[1]:.9g} {tip[2]:.9g}", pad + "  }"])
+        out.append(pad + "}")
+
+    for c in children[-1]:
+        emit(c, np.zeros(3), 1)
+    out += ["}", "MOTION", f"Frames: {m.n_frames}", "Frame Time: 0.00833333"]
+    root = m.positions[:, 0]
+    for f in range(m.n_frames):
+        vals = list(root[f]) + list(euler[f, 0]) + [v for b in order for v in euler[f, b + 1]]
+        out.append(" ".join(f"{v:.9g}" for v in vals))
+    return "\n".join(out) + "\n"
+
+
+def test_cmu_derived_bvh_maps_onto_the_asf_canonical_joints(hdm05_dir, hdm05_labels, tmp_path):
+    """The BVH name rules put every canonical joint of a CMU-style rig exactly where the ASF table does."""
+    amc = hdm05_dir / _clip(hdm05_labels, "bd", "kickLFront1Reps")
+    bvh = tmp_path / "kick.bvh"
+    bvh.write_text(_asf_as_cmu_bvh(amc, hdm05_dir / "asf" / "HDM_bd.asf"))
+    from_bvh = load(bvh).canonical()
+    from_asf = load(amc).canonical()
+    assert from_bvh.fps == 120.0
+    np.testing.assert_allclose(from_bvh.positions, from_asf.positions, atol=2e-3)
+    # the rotation acting at each canonical joint is the same bone's in both (up to the quaternion sign)
+    dot = np.abs(np.sum(from_bvh.quaternions * from_asf.quaternions, axis=-1))
+    np.testing.assert_allclose(dot, 1.0, atol=1e-5)
+    mapping = guess_mapping(load(bvh))
+    assert mapping["lwrist"] == "LeftFingerBase" and mapping["chest"] == "Spine1" and mapping["ltoes"] == "LeftToeBase_end"

@@ -85,9 +85,10 @@ def _parse_hierarchy(lines: list[str], path) -> tuple[_Hierarchy, int]:
     stack: list[int] = []
     pending = None  # joint declared, waiting for its '{'
     i = 0
-    if not lines or lines[0].strip().upper() != "HIERARCHY":
-        raise MocapFormatError(path, "file does not start with HIERARCHY (not a BVH file?)", 1)
-    for i in range(1, len(lines)):
+    first = next((k for k, line in enumerate(lines) if line.strip()), None)
+    if first is None or lines[first].strip().lstrip("\ufeff").upper() != "HIERARCHY":
+        raise MocapFormatError(path, "file does not start with HIERARCHY (not a BVH file?)", (first or 0) + 1)
+    for i in range(first + 1, len(lines)):
         tok = lines[i].split()
         ln = i + 1
         if not tok:
@@ -105,7 +106,12 @@ def _parse_hierarchy(lines: list[str], path) -> tuple[_Hierarchy, int]:
         elif key == "END":
             if not stack:
                 raise MocapFormatError(path, "End Site outside a joint", ln)
-            pending = (f"{h.names[stack[-1]]}_end", stack[-1])
+            name = f"{h.names[stack[-1]]}_end"
+            k = 2
+            while name in h.names:  # several End Sites under one joint
+                name = f"{h.names[stack[-1]]}_end{k}"
+                k += 1
+            pending = (name, stack[-1])
         elif key == "{":
             if pending is None:
                 raise MocapFormatError(path, "'{' without a joint", ln)
@@ -220,7 +226,7 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
     if found is None:
         _parse_hierarchy(raw.decode("latin-1").split("\n"), path)  # raises, naming the problem
     mpos = found.start()
-    hier_text = raw[:mpos].decode("latin-1")
+    hier_text = raw[:mpos].decode("utf-8-sig" if raw.startswith(b"\xef\xbb\xbf") else "latin-1")
     try:
         h = _cached_hierarchy(hier_text)
     except MocapFormatError as exc:
