@@ -497,39 +497,35 @@ def _fmt(v, unit="") -> str:
     return f"{v:,.0f}"
 
 
+def _markdown(header: str, align: str, lines) -> str:
+    """A markdown table: the header and alignment rows, then one row per list of cell strings."""
+    return "\n".join([header, align] + ["| " + " | ".join(cells) + " |" for cells in lines])
+
+
 def markdown_reader_table(rows: list[Row]) -> str:
-    out = [
-        (
-            "| format | data | files | frames | workers | mocapviz frames/s | baseline frames/s | ours/baseline "
-            "| target | meets | mocapviz frames/CPU-s | note |"
-        ),
+    return _markdown(
+        "| format | data | files | frames | workers | mocapviz frames/s | baseline frames/s | ours/baseline "
+        "| target | meets | mocapviz frames/CPU-s | note |",
         "|---|---|---:|---:|---:|---:|---:|---:|---|---|---:|---|",
-    ]
-    for r in rows:
-        ratio = "—" if r.ratio is None else f"{r.ratio:.1f}×"
-        out.append(
-            f"| {r.benchmark} | {r.data} | {r.files} | {r.frames:,} | {r.workers} | {_fmt(r.ours)} | "
-            f"{_fmt(r.baseline)} | {ratio} | {r.target} | {r.meets} | {_fmt(r.ours_cpu)} | {r.note} |"
-        )
-    return "\n".join(out)
+        (
+            [r.benchmark, r.data, str(r.files), f"{r.frames:,}", str(r.workers), _fmt(r.ours), _fmt(r.baseline),
+             "—" if r.ratio is None else f"{r.ratio:.1f}×", r.target, r.meets, _fmt(r.ours_cpu), r.note]
+            for r in rows
+        ),
+    )
 
 
 def markdown_ingest_table(rows: list[Row]) -> str:
-    out = [
-        (
-            "| data | documents | frames | n_jobs | wall s | frames/s | speed-up vs n_jobs=1 | target | meets "
-            "| frames/CPU-s | note |"
-        ),
+    return _markdown(
+        "| data | documents | frames | n_jobs | wall s | frames/s | speed-up vs n_jobs=1 | target | meets "
+        "| frames/CPU-s | note |",
         "|---|---:|---:|---:|---:|---:|---:|---|---|---:|---|",
-    ]
-    for r in rows:
-        wall = r.ours_runs[0] if r.ours_runs else None
-        ratio = "—" if r.ratio is None else f"{r.ratio:.2f}×"
-        out.append(
-            f"| {r.data} | {r.files} | {r.frames:,} | {r.workers} | {_fmt(wall, 's')} | {_fmt(r.ours)} | {ratio} "
-            f"| {r.target} | {r.meets} | {_fmt(r.ours_cpu)} | {r.note} |"
-        )
-    return "\n".join(out)
+        (
+            [r.data, str(r.files), f"{r.frames:,}", str(r.workers), _fmt(r.ours_runs[0] if r.ours_runs else None, "s"),
+             _fmt(r.ours), "—" if r.ratio is None else f"{r.ratio:.2f}×", r.target, r.meets, _fmt(r.ours_cpu), r.note]
+            for r in rows
+        ),
+    )
 
 
 def write_csv(rows: list[Row], path: Path, info: dict) -> None:
