@@ -7,6 +7,7 @@ guess_mapping         canonical joint -> source joint, for ASF skeletons and BVH
 name_mapping          canonical joint -> joint name by the BVH name rules alone.
 to_canonical          a Motion on the canonical joints.
 body_frame            positions with the root at the origin, facing +z (Krüger et al. 2010 §3.2).
+mirror                the left/right mirror image of a canonical clip.
 body_sizes            humerus, femur, hip/shoulder width, chest and body length (Müller toolbox, §1.3 of the
                       feature spec), from the first frame.
 """
@@ -310,3 +311,27 @@ def body_sizes(positions: np.ndarray) -> pd.Series:
             "body_length": sum(d(a, b) for a, b in chain),
         }
     )
+
+
+def mirror(motion: Motion) -> Motion:
+    """The left/right mirror image of a canonical clip: x -> -x, and every l* joint swapped with its r* twin.
+
+    Parameters
+    ----------
+    motion : Motion
+        Canonical joints (any other skeleton is mapped first).
+
+    Returns
+    -------
+    Motion
+        Positions mirrored (T, 24, 3); quaternions mirrored too (the reflection x -> -x turns a rotation
+        (w, x, y, z) into (w, x, -y, -z)) and swapped with the joints.
+    """
+    motion = to_canonical(motion)
+    twin = {n: {"l": "r", "r": "l"}.get(n[0], "") + n[1:] for n in CANONICAL_JOINTS}
+    swap = np.array([CANONICAL_JOINTS.index(twin[n] if twin[n] in CANONICAL_JOINTS else n) for n in CANONICAL_JOINTS])
+    pos = motion.positions[:, swap] * np.array([-1.0, 1.0, 1.0], dtype=np.float32)
+    quat = None
+    if motion.quaternions is not None:
+        quat = motion.quaternions[:, swap] * np.array([1.0, 1.0, -1.0, -1.0], dtype=np.float32)
+    return replace(motion, positions=pos, quaternions=quat)

@@ -340,3 +340,25 @@ def test_cmu_derived_bvh_maps_onto_the_asf_canonical_joints(hdm05_dir, hdm05_lab
     np.testing.assert_allclose(dot, 1.0, atol=1e-5)
     mapping = guess_mapping(load(bvh))
     assert mapping["lwrist"] == "LeftFingerBase" and mapping["chest"] == "Spine1" and mapping["ltoes"] == "LeftToeBase_end"
+
+
+def test_mirror_swaps_sides_and_is_an_involution(hdm05_dir, hdm05_labels):
+    from mocapviz.skeleton import mirror
+
+    kick = load(hdm05_dir / _clip(hdm05_labels, "bd", "kickLFront1Reps")).canonical()
+    m = mirror(kick)
+    assert m.joint_names == CANONICAL_JOINTS
+    np.testing.assert_array_equal(mirror(m).positions, kick.positions)
+    np.testing.assert_allclose(mirror(m).quaternions, kick.quaternions)
+    # a left kick becomes a right kick: the mirrored right ankle rises as high as the original left one
+    assert m.positions[:, _idx("rankle"), 1].max() == kick.positions[:, _idx("lankle"), 1].max()
+    assert m.positions[:, _idx("lankle"), 1].max() < kick.positions[:, _idx("lankle"), 1].max() - 20
+    # and the left side is still on +x in the body frame
+    bf = body_frame(m.positions)
+    assert bf[:, _idx("lhip"), 0].mean() > 0 > bf[:, _idx("rhip"), 0].mean()
+    # the mirrored pose's joint angles equal the original's on the twin joints (bone lengths preserved)
+    for a, b in (("lknee", "lankle"), ("lshoulder", "lelbow")):
+        twin = lambda n: "r" + n[1:]  # noqa: E731
+        d0 = np.linalg.norm(kick.positions[:, _idx(a)] - kick.positions[:, _idx(b)], axis=1)
+        d1 = np.linalg.norm(m.positions[:, _idx(twin(a))] - m.positions[:, _idx(twin(b))], axis=1)
+        np.testing.assert_allclose(d0, d1, rtol=1e-6)
