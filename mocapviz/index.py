@@ -1,0 +1,427 @@
+"""Inverted-list indexes over relational feature sequences (Müller, Röder & Clausen 2005, §5).
+
+For a feature sequence F[D] = (w_1, ..., w_M) the index stores, for every feature vector v that occurs,
+the sorted list L(v) of the segment positions k with w_k = v (§5.1), plus each segment's start frame and
+length (so hits map back to frames) and the first segment of every document (so no hit spans two
+documents). Positions are 0-based here (the paper counts from 1).
+
+InvertedIndex                 the index of one feature set; query methods:
+    exact(query)              segments k with F[Q] = (w_k, ..., w_{k+L-1}), eq. (7)
+    fuzzy(sets)               w_{k+l} in V_l for every l, eq. (11)
+    adaptive_fuzzy(sets)      §5.2: the database segmentation coarsened to the fuzzy sets
+    mismatch(query, m)        at most m query segments may disagree (§5.2, last paragraph)
+build(db, feature_set)        one index per feature group (lower, upper, mix) over a MotionDB, saved with it.
+load(db, feature_set)         the saved indexes of a MotionDB (checked to be current).
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .errors import MotionDBError
+from .segment import FeatureSequence, decode, encode, segment
+
+FORMAT = "mocapviz.InvertedIndex"
+VERSION = 1
+
+
+def _isin_sorted(values: np.ndarray, sorted_array: np.ndarray) -> np.ndarray:
+    """Membership of ``values`` in a sorted array by binary search, shape of ``values``."""
+    if sorted_array.size == 0:
+        return np.zeros(values.shape, dtype=bool)
+    idx = np.minimum(np.searchsorted(sorted_array, values), sorted_array.size - 1)
+    return sorted_array[idx] == values
+
+
+def merge_adjacent(sets: list[np.ndarray]) -> list[np.ndarray]:
+    """Conjoin adjacent fuzzy sets with a common element until no two neighbours intersect (§5.2).
+
+    Parameters
+    ----------
+    sets : list of np.ndarray [shape=(n_l,)], int64 codes
+
+    Returns
+    -------
+    list of sorted unique code arrays, V_l ∩ V_{l+1} = ∅ for all l.
+    """
+    out: list[np.ndarray] = []
+    for s in sets:
+        s = np.unique(np.asarray(s, dtype=np.int64))
+        if out and np.intersect1d(out[-1], s).size:
+            out[-1] = np.union1d(out[-1], s)
+            # the grown set may now meet its left neighbour too
+            while len(out) > 1 and np.intersect1d(out[-2], out[-1]).size:
+                last = out.pop()
+                out[-1] = np.union1d(out[-1], last)
+        else:
+            out.append(s)
+    return out
+
+
+class InvertedIndex:
+    """Inverted lists of a feature sequence F[D] over one or more documents.
+
+    Attributes
+    ----------
+    n_features : int
+    feature_names : tuple of str
+    codes : np.ndarray [shape=(M,)], int64 -- w_k as integer codes (feature 1 = bit 0).
+    starts, lengths : np.ndarray [shape=(M,)], int64 -- first frame and frame count of each segment.
+    doc_first_segment : np.ndarray [shape=(D+1,)], int64 -- first segment of each document, then M.
+    list_codes : np.ndarray [shape=(K,)], int64 -- the codes that occur, sorted.
+    list_offsets : np.ndarray [shape=(K+1,)], int64 -- L(list_codes[i]) = positions[offsets[i]:offsets[i+1]].
+    positions : np.ndarray [shape=(M,)], int32 -- all inverted lists, each sorted.
+    meta : dict -- what the index was built from (database generation, feature set, group).
+    """
+
+    def __init__(self, sequence: FeatureSequence, doc_first_segment=None, feature_names=None, meta=None):
+        self.n_features = int(sequence.n_features)
+        self.codes = np.asarray(sequence.codes, dtype=np.int64)
+        self.starts = np.asarray(sequence.starts, dtype=np.int64)
+        self.lengths = np.asarray(sequence.lengths, dtype=np.int64)
+        m = self.codes.shape[0]
+        self.doc_first_segment = np.asarray([0, m] if doc_first_segment is None else doc_first_segment, np.int64)
+        if self.doc_first_segment[0] != 0 or self.doc_first_segment[-1] != m:
+            raise ValueError("doc_first_segment must start at 0 and end at the number of segments")
+        self.feature_names = tuple(feature_names or (f"f{k + 1}" for k in range(self.n_features)))
+        if len(self.feature_names) != self.n_features:
+            raise ValueError(f"{len(self.feature_names)} feature names for {self.n_features} features")
+        self.meta = dict(meta or {})
+        order = np.argsort(self.codes, kind="stable")  # by code, positions ascending within a code
+        self.list_codes, counts = np.unique(self.codes[order], return_counts=True)
+        self.list_offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self.positions = order.astype(np.int32)
+        self.segment_doc = np.repeat(np.arange(self.doc_first_segment.size - 1), np.diff(self.doc_first_segment))
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_feature_sequence(cls, sequence, feature_names=None) -> "InvertedIndex":
+        """Index a feature sequence given directly, one row per segment (one document).
+
+        Parameters
+        ----------
+        sequence : np.ndarray [shape=(M, f)], bool
+            F[D]; each row is one segment (of length 1 frame).
+        """
+        sequence = np.asarray(sequence, dtype=bool)
+        m = sequence.shape[0]
+        seq = FeatureSequence(encode(sequence), np.arange(m), np.ones(m, dtype=np.int64), sequence.shape[1])
+        return cls(seq, feature_names=feature_names)
+
+    @classmethod
+    def from_features(cls, values: np.ndarray, doc_starts=None, feature_names=None, meta=None) -> "InvertedIndex":
+        """Segment frame-wise feature values (adaptive segmentation, §4) and index the runs.
+
+        Parameters
+        ----------
+        values : np.ndarray [shape=(T, f)], bool
+        doc_starts : array-like of int, optional
+            First frame of each document in ``values`` (default: one document).
+        """
+        doc_starts = np.asarray([0] if doc_starts is None else doc_starts, dtype=np.int64)
+        seq = segment(values, doc_starts)
+        first = np.append(np.searchsorted(seq.starts, doc_starts), seq.codes.shape[0])
+        return cls(seq, first, feature_names, meta)
+
+    # ------------------------------------------------------------------ lists
+    @property
+    def n_segments(self) -> int:
+        return self.codes.shape[0]
+
+    def inverted_list(self, code: int) -> np.ndarray:
+        """L(v) for the code of v: sorted 0-based segment positions (empty if v never occurs)."""
+        i = np.searchsorted(self.list_codes, code)
+        if i == self.list_codes.size or self.list_codes[i] != code:
+            return np.empty(0, dtype=np.int32)
+        return self.positions[self.list_offsets[i] : self.list_offsets[i + 1]]
+
+    def union_list(self, codes) -> np.ndarray:
+        """L(V) = union of L(v) over the codes of V, sorted (one vectorised gather of the lists)."""
+        codes = np.unique(np.asarray(codes, dtype=np.int64))
+        i = np.searchsorted(self.list_codes, codes)
+        i = i[(i < self.list_codes.size) & (self.list_codes[np.minimum(i, self.list_codes.size - 1)] == codes)]
+        if i.size == 1:
+            return self.positions[self.list_offsets[i[0]] : self.list_offsets[i[0] + 1]]
+        begin, count = self.list_offsets[i], self.list_offsets[i + 1] - self.list_offsets[i]
+        at = np.repeat(begin - np.cumsum(count) + count, count) + np.arange(count.sum())
+        return np.sort(self.positions[at])
+
+    def _query_codes(self, query) -> np.ndarray:
+        q = np.asarray(query)
+        if q.ndim == 2:
+            if q.shape[1] != self.n_features:
+                raise ValueError(f"query vectors have {q.shape[1]} features, the index {self.n_features}")
+            q = encode(q)
+        q = q.astype(np.int64).ravel()
+        if q.size == 0:
+            raise ValueError("empty query: it needs at least one segment")
+        if np.any((q < 0) | (q >= (1 << self.n_features))):
+            raise ValueError(f"query codes must lie in [0, 2^{self.n_features})")
+        return q
+
+    def _query_sets(self, sets) -> list[np.ndarray]:
+        if len(sets) == 0:
+            raise ValueError("empty fuzzy query: it needs at least one set")
+        out = []
+        for s in sets:
+            s = np.asarray(s)
+            codes = self._query_codes(s) if s.size else np.empty(0, np.int64)
+            if codes.size == 0:
+                raise ValueError("a fuzzy set is empty: every set needs at least one alternative")
+            out.append(codes)
+        return merge_adjacent(out)
+
+    def _valid(self, hits: np.ndarray, n: int) -> np.ndarray:
+        """Hits k whose segments k..k+n-1 exist and lie in one document."""
+        hits = hits[(hits >= 0) & (hits + n - 1 < self.n_segments)]
+        return hits[self.segment_doc[hits] == self.segment_doc[hits + n - 1]]
+
+    # ------------------------------------------------------------------ queries
+    def _shifted_intersection(self, lists: list[np.ndarray]) -> np.ndarray:
+        """∩_l (lists[l] - l), starting from the shortest list (eq. 7 / eq. 11)."""
+        n = len(lists)
+        first = int(np.argmin([x.size for x in lists]))
+        cand = lists[first].astype(np.int64) - first
+        for l in np.argsort([x.size for x in lists], kind="stable"):
+            if l != first and cand.size:
+                cand = cand[_isin_sorted(cand + l, lists[l])]
+        return self._valid(cand, n)
+
+    def exact(self, query) -> np.ndarray:
+        """Exact hits H_D(F[Q]) (§5.1, eq. 7).
+
+        Parameters
+        ----------
+        query : np.ndarray [shape=(L, f)] bool vectors or [shape=(L,)] int codes
+            The query's feature sequence F[Q].
+
+        Returns
+        -------
+        np.ndarray [shape=(H,)], int64: sorted 0-based positions k of the first matching segment.
+        """
+        q = self._query_codes(query)
+        return self._shifted_intersection([self.inverted_list(int(c)) for c in q])
+
+    def fuzzy(self, sets) -> np.ndarray:
+        """Fuzzy hits H_D(F[Q]_fuz) (§5.2, eq. 11): w_{k+l} ∈ V_l for all l.
+
+        Parameters
+        ----------
+        sets : list of (codes [shape=(n_l,)] or bool vectors [shape=(n_l, f)])
+            The fuzzy sets V_1..V_L; adjacent sets with a common element are conjoined first.
+
+        Returns
+        -------
+        np.ndarray [shape=(H,)], int64: sorted 0-based positions k.
+        """
+        v = self._query_sets(sets)
+        return self._shifted_intersection([self.union_list(s) for s in v])
+
+    def adaptive_fuzzy(self, sets) -> np.ndarray:
+        """Adaptive fuzzy hits (§5.2): the segmentation of D coarsened to maximal runs within each V_l.
+
+        A hit starts at a segment k_1 whose vector is in V_1 while its predecessor's is not (or that begins
+        a document); the run of segments in V_1 ends before k_2, whose vector must be in V_2, and so on.
+
+        Parameters
+        ----------
+        sets : as for :meth:`fuzzy`.
+
+        Returns
+        -------
+        np.ndarray [shape=(H, L+1)], int64: per hit the 0-based segment indices k_1 < ... < k_L where each
+        coarsened segment starts, and the index one past the end of the last one.
+        """
+        v = self._query_sets(sets)
+        k = None
+        rows = []
+        for s in v:
+            u = self.union_list(s).astype(np.int64)
+            if u.size == 0:
+                return np.empty((0, len(v) + 1), dtype=np.int64)
+            # maximal runs of consecutive positions inside one document = runs of segments with w in V_l
+            brk = np.ones(u.size, dtype=bool)
+            brk[1:] = (np.diff(u) != 1) | (self.segment_doc[u[1:]] != self.segment_doc[u[:-1]])
+            run_start = u[brk]
+            run_end = np.append(u[np.flatnonzero(brk)[1:] - 1], u[-1]) + 1
+            if k is None:
+                k = run_start  # candidates k_1: starts of runs of V_1
+                doc = self.segment_doc[k]
+            else:
+                # k_l must hold a vector of V_l (then it starts a run: w_{k_l - 1} is in V_{l-1}, disjoint
+                # from V_l) and lie in the document of k_1
+                pos = np.minimum(np.searchsorted(u, k), u.size - 1)
+                ok = (u[pos] == k) & (k < self.n_segments)
+                ok[ok] &= self.segment_doc[k[ok]] == doc[ok]
+                rows = [r[ok] for r in rows]
+                k, doc = k[ok], doc[ok]
+            rows.append(k)
+            k = run_end[np.searchsorted(run_start, k)]  # k_{l+1}: one past the run of V_l
+        rows.append(k)
+        return np.stack(rows, axis=1) if rows[0].size else np.empty((0, len(v) + 1), dtype=np.int64)
+
+    def mismatch(self, query, m: int, allowed=None) -> np.ndarray:
+        """m-mismatch hits (§5.2): at most ``m`` query segments may disagree with the database.
+
+        Parameters
+        ----------
+        query : as for :meth:`exact` (L segments).
+        m : int
+            0 <= m < L.
+        allowed : array-like of int, optional
+            0-based query positions where a mismatch may occur (default: anywhere).
+
+        Returns
+        -------
+        np.ndarray [shape=(H,)], int64: sorted 0-based positions k.
+        """
+        q = self._query_codes(query)
+        n = q.size
+        if not 0 <= m < n:
+            raise ValueError(f"m must satisfy 0 <= m < {n} (the query's segments), got {m}")
+        free = np.arange(n) if allowed is None else np.unique(np.asarray(allowed, dtype=np.int64))
+        if free.size and (free.min() < 0 or free.max() >= n):
+            raise ValueError(f"allowed mismatch positions must lie in [0, {n})")
+        fixed = np.setdiff1d(np.arange(n), free)
+        lists = [self.inverted_list(int(c)).astype(np.int64) for c in q]
+        if fixed.size:
+            cand = lists[fixed[0]] - fixed[0]
+            for l in fixed[1:]:
+                cand = cand[_isin_sorted(cand + l, lists[l])]
+            matches = sum(_isin_sorted(cand + l, lists[l]).astype(np.int64) for l in free)
+            hits = cand[free.size - matches <= m] if free.size else cand
+        else:
+            shifted = np.concatenate([lists[l] - l for l in range(n)])
+            cand, matches = np.unique(shifted, return_counts=True)
+            hits = cand[matches >= n - m]
+        return self._valid(np.unique(hits), n)
+
+    # ------------------------------------------------------------------ frames
+    def frame_spans(self, first: np.ndarray, stop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Frames covered by segments ``first`` .. ``stop - 1``: (start frame, end frame exclusive)."""
+        first = np.asarray(first, dtype=np.int64)
+        last = np.asarray(stop, dtype=np.int64) - 1
+        return self.starts[first], self.starts[last] + self.lengths[last]
+
+    # ------------------------------------------------------------------ storage
+    def nbytes(self) -> int:
+        """Bytes of what is stored on disk: the lists, segment starts and lengths, document boundaries."""
+        return int(sum(a.nbytes for a in self._stored().values()))
+
+    def _stored(self) -> dict:
+        return {
+            "list_codes": self.list_codes,
+            "list_offsets": self.list_offsets,
+            "positions": self.positions,
+            "starts": self.starts.astype(np.int32),
+            "lengths": self.lengths.astype(np.int32),
+            "doc_first_segment": self.doc_first_segment,
+        }
+
+    def save(self, path) -> None:
+        """Write the index to ``path`` (.npz, no pickle) atomically: a temporary file renamed into place."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        header = {"format": FORMAT, "version": VERSION, "n_features": self.n_features,
+                  "feature_names": list(self.feature_names), "meta": self.meta}  # fmt: skip
+        tmp = path.with_name(path.name + ".tmp")
+        with open(tmp, "wb") as fh:
+            np.savez(fh, header=np.array(json.dumps(header)), **self._stored())
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+
+    @classmethod
+    def load(cls, path) -> "InvertedIndex":
+        """Read an index written by :meth:`save`.
+
+        Raises
+        ------
+        MotionDBError
+            Missing file, another format or version.
+        """
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                header = json.loads(str(z["header"]))
+                arrays = {k: z[k] for k in z.files if k != "header"}
+        except (OSError, ValueError, KeyError) as exc:
+            raise MotionDBError(f"{path}: not a readable index ({exc})") from None
+        if header.get("format") != FORMAT or header.get("version") != VERSION:
+            raise MotionDBError(f"{path}: index format {header.get('format')} v{header.get('version')}, "
+                                f"this mocapviz reads {FORMAT} v{VERSION}; rebuild it with `mocapviz index`")
+        codes = np.repeat(arrays["list_codes"], np.diff(arrays["list_offsets"]))
+        seq_codes = np.empty_like(codes)
+        seq_codes[arrays["positions"]] = codes
+        seq = FeatureSequence(seq_codes, arrays["starts"], arrays["lengths"], header["n_features"])
+        return cls(seq, arrays["doc_first_segment"], header["feature_names"], header["meta"])
+
+
+# ---------------------------------------------------------------------- MotionDB indexes
+def index_path(db, feature_set: str, group: str) -> Path:
+    """Where the index of one feature group of a MotionDB is stored."""
+    return Path(db.path) / "index" / f"relational-{feature_set}-{group}.npz"
+
+
+def build(db, feature_set: str = "2005", progress: bool = True, values: np.ndarray | None = None) -> dict:
+    """Build and save one inverted index per feature group (lower, upper, mix) over a MotionDB (§5.3).
+
+    Parameters
+    ----------
+    db : MotionDB
+    feature_set : {"2005", "2006"}
+    progress : bool
+        Progress bar over the documents while the features are computed.
+    values : np.ndarray [shape=(N, f)], bool, optional
+        The database's relational features if already computed.
+
+    Returns
+    -------
+    dict: group name -> InvertedIndex (segment positions over the whole database; documents kept apart).
+    """
+    from .features import feature_groups, feature_names, relational
+
+    if values is None:
+        values, _ = relational(db, feature_set, progress=progress)
+    names = feature_names(feature_set)
+    doc_starts = db.documents["start"].to_numpy()
+    out = {}
+    for group, members in feature_groups(feature_set).items():
+        cols = [names.index(n) for n in members]
+        meta = {"generation": db.manifest["generation"], "n_frames": db.n_frames, "feature_set": feature_set,
+                "group": group}  # fmt: skip
+        index = InvertedIndex.from_features(values[:, cols], doc_starts, members, meta)
+        index.save(index_path(db, feature_set, group))
+        out[group] = index
+    return out
+
+
+def load(db, feature_set: str = "2005") -> dict:
+    """The saved indexes of a MotionDB, one per feature group.
+
+    Raises
+    ------
+    MotionDBError
+        No index built yet, or built for an earlier state of the database: the message says to run
+        ``mocapviz index DB``.
+    """
+    from .features import feature_groups
+
+    out = {}
+    for group in feature_groups(feature_set):
+        path = index_path(db, feature_set, group)
+        if not path.is_file():
+            raise MotionDBError(f"{db.path} has no {feature_set} relational index; build it with "
+                                f"`mocapviz index {db.path}` or mocapviz.index.build(db)")
+        index = InvertedIndex.load(path)
+        if index.meta.get("generation") != db.manifest["generation"] or index.meta.get("n_frames") != db.n_frames:
+            raise MotionDBError(f"{path} was built before the database last changed; rebuild it with "
+                                f"`mocapviz index {db.path}`")
+        out[group] = index
+    return out
+
+
+__all__ = ["InvertedIndex", "build", "load", "merge_adjacent", "index_path", "decode"]

@@ -1,0 +1,158 @@
+"""Query by example over the relational indexes of a MotionDB (Müller, Röder & Clausen 2005, §5–6.2).
+
+A query is a motion clip plus a choice of relational features from any of the three groups (lower, upper,
+mix). For each group touched by the choice, the clip's own segmentation under the chosen features gives the
+query sequence; features left out are "don't care", which makes every query segment a fuzzy set of
+feature vectors (§5.2: restricting F to some components = a special choice of fuzzy sets). Hits of several
+groups are joined when they overlap in the same document. Hits are ranked by the temporal heuristic of
+§6.2: the sum over query segments of the difference between query and hit segment durations.
+
+query_by_example   Motion + feature names -> DataFrame of ranked hits.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from . import index as index_mod
+from .features import feature_groups, feature_names, relational
+from .segment import decode, segment
+
+MODES = ("adaptive", "fuzzy", "exact", "mismatch")
+_HIDDEN_COLUMNS = ("path", "sha256", "format", "start", "n_frames", "fps", "source_fps", "frames")
+
+
+def _check_features(features, feature_set: str) -> list[str]:
+    names = feature_names(feature_set)
+    if features is None:
+        return list(names)
+    features = [features] if isinstance(features, str) else list(features)
+    if not features:
+        raise ValueError(f"no features selected; choose some of the {feature_set} set: {', '.join(names)}")
+    unknown = [f for f in features if f not in names]
+    if unknown:
+        raise ValueError(f"unknown feature(s) {', '.join(unknown)}; the {feature_set} set has: {', '.join(names)}")
+    return features
+
+
+def _group_hits(idx: index_mod.InvertedIndex, q_values: np.ndarray, chosen: list[int], mode: str,
+                mismatches: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Hits of one group: (first segment, stop segment (exclusive), (H, L) segment bounds), and query lengths.
+
+    ``q_values`` (T, f_group) are the query's features of this group, ``chosen`` the selected columns.
+    Returns ``bounds`` [shape=(H, L+1)] (segment index where each hit segment starts, then the stop) and the
+    query's segment lengths in frames [shape=(L,)].
+    """
+    if mode in ("exact", "mismatch"):
+        seq = segment(q_values)
+        lengths = seq.lengths
+        if mode == "exact":
+            k = idx.exact(seq.codes)
+        else:
+            k = idx.mismatch(seq.codes, min(mismatches, len(seq.codes) - 1))
+        bounds = k[:, None] + np.arange(len(seq.codes) + 1)
+        return bounds, lengths
+    seq = segment(q_values[:, chosen])
+    occurring = decode(idx.list_codes, idx.n_features)[:, chosen]
+    pattern = decode(seq.codes, len(chosen))
+    # V_l: every occurring code of the group whose chosen bits equal the query's pattern l
+    sets = [idx.list_codes[(occurring == p).all(axis=1)] for p in pattern]
+    if any(s.size == 0 for s in sets):
+        return np.empty((0, len(sets) + 1), dtype=np.int64), seq.lengths
+    if mode == "adaptive":
+        bounds = idx.adaptive_fuzzy(sets)
+    else:
+        k = idx.fuzzy(sets)
+        bounds = k[:, None] + np.arange(len(sets) + 1)
+    return bounds, seq.lengths
+
+
+def query_by_example(db, example, features=None, mode: str = "adaptive", mismatches: int = 1,
+                     feature_set: str = "2005", indexes: dict | None = None) -> pd.DataFrame:
+    """Find the stretches of a MotionDB that move like ``example`` in the chosen feature aspects.
+
+    Parameters
+    ----------
+    db : MotionDB
+        With relational indexes built (:func:`mocapviz.index.build` / ``mocapviz index DB``).
+    example : Motion
+        The query clip (any skeleton; e.g. ``db.motion(3)[120:360]`` or ``mocapviz.load(path)``).
+    features : list of str, optional
+        Feature names of ``feature_set`` (any groups); the rest are "don't care". Default: all.
+    mode : {"adaptive", "fuzzy", "exact", "mismatch"}
+        ``adaptive`` (default): adaptive fuzzy hits, the database segmentation coarsened to the query's
+        don't-care sets (§5.2). ``fuzzy``: plain fuzzy hits (the database segmentation as it is).
+        ``exact``: every feature of the groups the selection touches must match (§5.1).
+        ``mismatch``: as exact, with up to ``mismatches`` query segments allowed to disagree.
+    mismatches : int
+        m for ``mode="mismatch"``.
+    feature_set : {"2005", "2006"}
+    indexes : dict, optional
+        Group -> InvertedIndex, if already loaded (default :func:`mocapviz.index.load`).
+
+    Returns
+    -------
+    pandas.DataFrame, one row per hit, best first: ``rank``, ``doc_id``, ``name``, ``start_frame``,
+    ``end_frame`` (inclusive, in the document's frames), ``first_segment``, ``last_segment`` (database segment
+    positions, of the first group queried), ``n_segments`` (query segments), ``score`` (seconds of
+    segment-duration difference; lower is better), ``label`` and the other label columns of the documents.
+
+    Raises
+    ------
+    ValueError
+        Unknown or no features, unknown mode, a query longer than every document.
+    MotionDBError
+        The database has no (current) index.
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+    chosen = _check_features(features, feature_set)
+    indexes = index_mod.load(db, feature_set) if indexes is None else indexes
+    docs = db.documents
+    longest = float((docs["n_frames"] / docs["fps"]).max()) if len(docs) else 0.0
+    if example.duration > longest:
+        raise ValueError(f"the query lasts {example.duration:.2f} s, longer than every document of {db.path} "
+                         f"(longest {longest:.2f} s); choose a shorter span")
+    values, names = relational(example, feature_set)
+    fps = db.fps or float(docs["fps"].iloc[0])
+    tables = []
+    for group, members in feature_groups(feature_set).items():
+        picked = [members.index(f) for f in chosen if f in members]
+        if not picked:
+            continue
+        idx = indexes[group]
+        q_values = values[:, [names.index(n) for n in members]]
+        bounds, q_len = _group_hits(idx, q_values, picked, mode, mismatches)
+        first, stop = bounds[:, 0], bounds[:, -1]
+        seg_frames = idx.starts[np.minimum(bounds, idx.n_segments - 1)]
+        seg_frames[:, -1] = idx.starts[stop - 1] + idx.lengths[stop - 1] if len(stop) else seg_frames[:, -1]
+        hit_len = np.diff(seg_frames, axis=1) / fps
+        score = np.abs(hit_len - q_len / example.fps).sum(axis=1)
+        doc_row = idx.segment_doc[first]
+        doc_start = docs["start"].to_numpy()[doc_row]
+        tables.append(pd.DataFrame({
+            "doc_row": doc_row,
+            "start_frame": idx.starts[first] - doc_start,
+            "end_frame": seg_frames[:, -1] - 1 - doc_start,
+            "first_segment": first,
+            "last_segment": stop - 1,
+            "n_segments": len(q_len),
+            "score": score,
+        }))  # fmt: skip
+    hits = tables[0]
+    for other in tables[1:]:
+        # several groups: keep pairs of hits in one document whose frame spans overlap
+        joined = hits.merge(other, on="doc_row", suffixes=("", "_b"))
+        joined = joined[(joined["start_frame"] <= joined["end_frame_b"]) & (joined["start_frame_b"] <= joined["end_frame"])]
+        joined = joined.assign(start_frame=np.minimum(joined["start_frame"], joined["start_frame_b"]),
+                               end_frame=np.maximum(joined["end_frame"], joined["end_frame_b"]),
+                               score=joined["score"] + joined["score_b"],
+                               n_segments=joined["n_segments"] + joined["n_segments_b"])  # fmt: skip
+        hits = joined[[c for c in hits.columns]]
+    labels = docs.drop(columns=[c for c in _HIDDEN_COLUMNS if c in docs.columns]).reset_index(drop=True)
+    out = hits.join(labels, on="doc_row").drop(columns="doc_row")
+    out = out.sort_values(["score", "doc_id", "start_frame"], kind="stable").reset_index(drop=True)
+    out.insert(0, "rank", np.arange(1, len(out) + 1))
+    front = ["rank", "doc_id", "name", "start_frame", "end_frame", "first_segment", "last_segment", "n_segments",
+             "score", "label"]  # fmt: skip
+    return out[front + [c for c in out.columns if c not in front]]

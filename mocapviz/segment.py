@@ -1,0 +1,103 @@
+"""Adaptive segmentation (Müller, Röder & Clausen 2005, §4): F-runs of maximal length.
+
+A boolean feature function F with f components maps every frame to a feature vector in {0, 1}^f. The
+F-segments of a motion are its runs of maximal length with a constant feature vector, and the feature
+sequence F[D] lists one vector per segment. Vectors are coded as integers with feature 1 as the least
+significant bit (the toolbox's index convention, RELATIONAL_FEATURES.md §1.7).
+
+encode            (T, f) bool -> (T,) int64 codes.
+decode            (M,) codes -> (M, f) bool.
+segment           (T, f) bool -> FeatureSequence (codes, start frames, lengths), never across documents.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+MAX_FEATURES = 62  # codes are int64
+
+
+class FeatureSequence(NamedTuple):
+    """The feature sequence F[D] of a segmentation.
+
+    Attributes
+    ----------
+    codes : np.ndarray [shape=(M,)], int64 -- feature vector of each segment (feature 1 = bit 0).
+    starts : np.ndarray [shape=(M,)], int64 -- first frame of each segment.
+    lengths : np.ndarray [shape=(M,)], int64 -- frames in each segment.
+    n_features : int -- f.
+    """
+
+    codes: np.ndarray
+    starts: np.ndarray
+    lengths: np.ndarray
+    n_features: int
+
+    def vectors(self) -> np.ndarray:
+        """The feature vectors, shape (M, f) bool."""
+        return decode(self.codes, self.n_features)
+
+
+def _check(values) -> np.ndarray:
+    values = np.asarray(values)
+    if values.ndim != 2:
+        raise ValueError(f"feature values must have shape (T, f), got {values.shape}")
+    if values.shape[1] == 0:
+        raise ValueError("no features selected: pick at least one feature")
+    if values.shape[1] > MAX_FEATURES:
+        raise ValueError(f"at most {MAX_FEATURES} features per segmentation, got {values.shape[1]}")
+    return values.astype(bool, copy=False)
+
+
+def encode(values: np.ndarray) -> np.ndarray:
+    """Feature vectors as integer codes.
+
+    Parameters
+    ----------
+    values : np.ndarray [shape=(T, f)], bool
+
+    Returns
+    -------
+    np.ndarray [shape=(T,)], int64: sum of ``values[:, k] << k``.
+    """
+    values = _check(values)
+    weights = np.left_shift(np.int64(1), np.arange(values.shape[1], dtype=np.int64))
+    return values.astype(np.int64) @ weights
+
+
+def decode(codes: np.ndarray, n_features: int) -> np.ndarray:
+    """Integer codes back to feature vectors, shape (M, n_features) bool."""
+    codes = np.asarray(codes, dtype=np.int64)
+    return ((codes[:, None] >> np.arange(n_features, dtype=np.int64)) & 1).astype(bool)
+
+
+def segment(values: np.ndarray, doc_starts=None) -> FeatureSequence:
+    """F-segmentation: runs of maximal length of a constant feature vector.
+
+    Parameters
+    ----------
+    values : np.ndarray [shape=(T, f)], bool
+        Feature values of consecutive frames (any subset of features: the segmentation adapts to it).
+    doc_starts : array-like of int, optional
+        First frames of the documents concatenated in ``values``; a segment never crosses one.
+
+    Returns
+    -------
+    FeatureSequence
+
+    Examples
+    --------
+    >>> segment(np.array([[1, 0], [1, 0], [0, 0], [1, 0]], bool)).codes
+    array([1, 0, 1])
+    """
+    codes = encode(values)
+    n = codes.shape[0]
+    change = np.ones(n, dtype=bool)
+    change[1:] = codes[1:] != codes[:-1]
+    if doc_starts is not None:
+        doc_starts = np.asarray(doc_starts, dtype=np.int64)
+        change[doc_starts[doc_starts < n]] = True
+    starts = np.flatnonzero(change)
+    lengths = np.diff(np.append(starts, n))
+    return FeatureSequence(codes[starts], starts, lengths, values.shape[1])
