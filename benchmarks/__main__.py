@@ -25,9 +25,10 @@ def main(argv=None) -> int:
     # unpack the shared archives once, into the repository's cache (ignored by git)
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
 
-    from . import bench_io
+    from . import bench_io, bench_relational
 
-    return bench_io.main(quick=args.quick, repeats=args.repeats, ingest=not args.no_ingest, out_dir=args.out)
+    status = bench_io.main(quick=args.quick, repeats=args.repeats, ingest=not args.no_ingest, out_dir=args.out)
+    return status or bench_relational.main(quick=args.quick, repeats=args.repeats, out_dir=args.out)
 
 
 if __name__ == "__main__":

@@ -5,9 +5,9 @@ it onto 24 canonical joints, ``database`` concatenates many into a :class:`Motio
 """
 __version__ = "0.1.0"
 
-from .database import MotionDB  # noqa: E402
-from .errors import MocapFormatError, MotionDBError, SkeletonMappingError  # noqa: E402
-from .io import load  # noqa: E402
-from .motion import Motion  # noqa: E402
+from .database import MotionDB
+from .errors import MocapFormatError, MotionDBError, SkeletonMappingError
+from .io import load
+from .motion import Motion
 
-__all__ = ["Motion", "MotionDB", "MocapFormatError", "MotionDBError", "SkeletonMappingError", "load", "__version__"]
+__all__ = ["MocapFormatError", "Motion", "MotionDB", "MotionDBError", "SkeletonMappingError", "__version__", "load"]

@@ -2,6 +2,8 @@
 
     mocapviz ingest PATH... --out DB [--fps N] [--labels FILE] [--skip-bad] [--jobs N]
     mocapviz info DB [--documents]
+    mocapviz index DB [--feature-set 2005|2006]
+    mocapviz query DB --example FILE|DOC_ID [--frames A:B] --features NAMES [--mode M] [--mismatch M] [--top N]
     mocapviz datasets list
     mocapviz datasets fetch NAME        (NAME: a shared archive, or ``sample`` for the embedded sample)
 
@@ -12,12 +14,18 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
+from pathlib import Path
 
 import pandas as pd
 
 from . import datasets
 from .database import MotionDB
 from .errors import MocapFormatError, MotionDBError, SkeletonMappingError
+from .features import relational
+from .index import build
+from .io import load
+from .query import query_by_example
 
 
 def _ingest(args) -> None:
@@ -39,6 +47,51 @@ def _info(args) -> None:
         if args.documents:
             cols = [c for c in db.documents.columns if c not in ("path", "sha256")]
             print(db.documents[cols].to_string(index=False))
+
+
+def _index(args) -> None:
+    from .experiments import index_statistics
+
+    db = MotionDB.open(args.db)
+    t0 = time.perf_counter()
+    values, _ = relational(db, args.feature_set, progress=not args.quiet)
+    t_features = time.perf_counter() - t0
+    build(db, args.feature_set, values=values)
+    stats = index_statistics(db, args.feature_set, values=values, t_features=t_features)
+    print(f"{db}: {args.feature_set} relational indexes written to {Path(db.path) / 'index'}")
+    print(stats.drop(columns=["t_read", "t_total"]).round(3).to_string(index=False))
+
+
+def _frames(text: str | None) -> slice:
+    if not text:
+        return slice(None)
+    try:
+        a, b = (int(x) if x else None for x in text.split(":"))
+    except ValueError:
+        raise ValueError(f"--frames must look like A:B (frame numbers), got {text!r}") from None
+    return slice(a, b)
+
+
+def _query(args) -> None:
+    db = MotionDB.open(args.db)
+    if args.example.isdigit():
+        example = db.motion(int(args.example))
+    else:
+        example = load(args.example)
+    sl = _frames(args.frames)
+    example = example[sl]
+    if example.n_frames < 2:
+        raise ValueError(f"--frames {args.frames} selects {example.n_frames} frame(s) of {example.source}; need at least 2")
+    features = [f.strip() for f in args.features.split(",") if f.strip()] if args.features else None
+    mode = "mismatch" if args.mismatch else args.mode
+    t0 = time.perf_counter()
+    hits = query_by_example(db, example, features, mode=mode, mismatches=args.mismatch or 0,
+                            feature_set=args.feature_set)
+    ms = 1000 * (time.perf_counter() - t0)
+    print(f"{len(hits)} hits in {ms:.1f} ms ({mode}, features: {', '.join(features or ['all'])})")
+    cols = [c for c in ("rank", "doc_id", "name", "start_frame", "end_frame", "score", "label") if c in hits]
+    with pd.option_context("display.width", 160, "display.max_rows", args.top + 5):
+        print(hits[cols].head(args.top).round(3).to_string(index=False))
 
 
 def _datasets(args) -> None:
@@ -72,6 +125,24 @@ def build_parser() -> argparse.ArgumentParser:
     info.add_argument("db")
     info.add_argument("--documents", action="store_true", help="also list every document")
     info.set_defaults(func=_info)
+
+    idx = sub.add_parser("index", help="compute relational features and build the inverted indexes of a MotionDB")
+    idx.add_argument("db")
+    idx.add_argument("--feature-set", default="2005", choices=["2005", "2006"])
+    idx.add_argument("--quiet", action="store_true", help="no progress bar")
+    idx.set_defaults(func=_index)
+
+    q = sub.add_parser("query", help="query by example: ranked hits of a clip's progression of chosen features")
+    q.add_argument("db")
+    q.add_argument("--example", required=True, help="a motion file, or a document id of the DB")
+    q.add_argument("--frames", help="frame span A:B of the example (default: all of it)")
+    q.add_argument("--features", help="comma-separated relational feature names (default: all of the set)")
+    q.add_argument("--mode", default="adaptive", choices=["adaptive", "fuzzy", "exact"],
+                   help="adaptive fuzzy (default), plain fuzzy or exact hits")
+    q.add_argument("--mismatch", type=int, default=0, help="allow M query segments to disagree (exact mode)")
+    q.add_argument("--feature-set", default="2005", choices=["2005", "2006"])
+    q.add_argument("--top", type=int, default=20, help="hits to print (default 20)")
+    q.set_defaults(func=_query)
 
     ds = sub.add_parser("datasets", help="list or fetch the registered motion-capture archives")
     ds.add_argument("action", choices=["list", "fetch"])

@@ -191,7 +191,7 @@ class MotionDB:
 
     # ------------------------------------------------------------------ reading
     @classmethod
-    def open(cls, path) -> "MotionDB":
+    def open(cls, path) -> MotionDB:
         """Open a MotionDB directory.
 
         Raises
@@ -299,7 +299,7 @@ class MotionDB:
 
     # ------------------------------------------------------------------ writing
     @classmethod
-    def create(cls, path) -> "MotionDB":
+    def create(cls, path) -> MotionDB:
         """An empty MotionDB at ``path`` (which must not exist or be an empty directory)."""
         path = Path(path)
         if path.exists() and (not path.is_dir() or any(path.iterdir())):
@@ -311,7 +311,7 @@ class MotionDB:
 
     @classmethod
     def ingest(cls, paths, out, fps: float | None = None, labels=None, mapping: dict | None = None,
-               skip_bad: bool = False, n_jobs: int = 1, progress: bool = True, **load_options) -> "MotionDB":
+               skip_bad: bool = False, n_jobs: int = 1, progress: bool = True, **load_options) -> MotionDB:
         """Read motion files into the MotionDB at ``out``, creating it or appending to it.
 
         Files already in the database (same sha256) are skipped, so re-running an interrupted ingest
@@ -365,7 +365,7 @@ class MotionDB:
             raise
 
     def append(self, paths, fps: float | None = None, labels=None, mapping: dict | None = None,
-               skip_bad: bool = False, n_jobs: int = 1, progress: bool = True, **load_options) -> "MotionDB":
+               skip_bad: bool = False, n_jobs: int = 1, progress: bool = True, **load_options) -> MotionDB:
         """Add motion files to this database; see :meth:`ingest`. Returns the reopened database."""
         if fps is not None and len(self) and self.fps != float(fps):
             raise MotionDBError(f"{self.path}: documents are at {self.fps} fps; cannot append at {fps} fps")

@@ -98,7 +98,7 @@ class InvertedIndex:
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_feature_sequence(cls, sequence, feature_names=None) -> "InvertedIndex":
+    def from_feature_sequence(cls, sequence, feature_names=None) -> InvertedIndex:
         """Index a feature sequence given directly, one row per segment (one document).
 
         Parameters
@@ -112,7 +112,7 @@ class InvertedIndex:
         return cls(seq, feature_names=feature_names)
 
     @classmethod
-    def from_features(cls, values: np.ndarray, doc_starts=None, feature_names=None, meta=None) -> "InvertedIndex":
+    def from_features(cls, values: np.ndarray, doc_starts=None, feature_names=None, meta=None) -> InvertedIndex:
         """Segment frame-wise feature values (adaptive segmentation, §4) and index the runs.
 
         Parameters
@@ -335,7 +335,7 @@ class InvertedIndex:
         os.replace(tmp, path)
 
     @classmethod
-    def load(cls, path) -> "InvertedIndex":
+    def load(cls, path) -> InvertedIndex:
         """Read an index written by :meth:`save`.
 
         Raises
@@ -424,4 +424,4 @@ def load(db, feature_set: str = "2005") -> dict:
     return out
 
 
-__all__ = ["InvertedIndex", "build", "load", "merge_adjacent", "index_path", "decode"]
+__all__ = ["InvertedIndex", "build", "decode", "index_path", "load", "merge_adjacent"]

@@ -82,7 +82,7 @@ class Motion:
         except ValueError:
             raise KeyError(f"{self.source or 'motion'} has no joint {name!r}; it has {', '.join(self.joint_names)}")
 
-    def canonical(self, mapping: dict | None = None) -> "Motion":
+    def canonical(self, mapping: dict | None = None) -> Motion:
         """This clip on the 24 canonical joints (``mocapviz.skeleton``), in their fixed order.
 
         ``mapping`` (canonical name -> this motion's joint name) overrides the automatic rules.
@@ -91,7 +91,7 @@ class Motion:
 
         return to_canonical(self, mapping)
 
-    def resample(self, fps: float) -> "Motion":
+    def resample(self, fps: float) -> Motion:
         """The same clip at another frame rate.
 
         Frame k of the result is at time k / fps; the last frame is the last one at or before the end of
@@ -113,7 +113,7 @@ class Motion:
             quat = rotations.slerp(self.quaternions[i0], self.quaternions[i1], w[:, None]).astype(np.float32)
         return replace(self, positions=pos, quaternions=quat, fps=fps)
 
-    def __getitem__(self, frames) -> "Motion":
+    def __getitem__(self, frames) -> Motion:
         """Frames ``frames`` (a slice or an index array) of this clip as a new Motion."""
         if isinstance(frames, (int, np.integer)):
             k = range(self.n_frames)[frames]  # negative from the end; IndexError when out of range

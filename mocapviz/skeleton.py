@@ -296,7 +296,7 @@ def body_sizes(positions: np.ndarray) -> pd.Series:
     + rknee-rhip + root-belly + belly-chest + chest-neck + neck-head + head-headtop).
     """
     p = np.asarray(positions)[0]
-    d = lambda a, b: float(np.linalg.norm(p[_index(a)] - p[_index(b)]))  # noqa: E731
+    d = lambda a, b: float(np.linalg.norm(p[_index(a)] - p[_index(b)]))
     chain = [("rankle", "rknee"), ("rknee", "rhip"), ("root", "belly"), ("belly", "chest"), ("chest", "neck"),
              ("neck", "head"), ("head", "headtop")]  # fmt: skip
     return pd.Series(

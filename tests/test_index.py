@@ -111,7 +111,7 @@ def bf_mismatch(codes, doc, q, m, allowed):
 def real_index(hdm05_dir, hdm05_labels, tmp_path_factory):
     """The 2005 upper-body index over 40 HDM05 clips (documents kept apart)."""
     import mocapviz
-    from mocapviz.features import feature_groups, feature_names, relational
+    from mocapviz.features import feature_groups, relational
 
     files = [hdm05_dir / f for f in hdm05_labels["file"].iloc[::7][:40]]
     db = mocapviz.MotionDB.ingest(files, tmp_path_factory.mktemp("idx") / "db", progress=False)

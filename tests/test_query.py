@@ -5,12 +5,11 @@ import os
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from mocapviz import MotionDB, MotionDBError, datasets
 from mocapviz.cli import main
-from mocapviz.features import feature_groups, relational
+from mocapviz.features import relational
 from mocapviz.index import build
 from mocapviz.query import query_by_example
 from mocapviz.segment import segment
@@ -72,14 +71,13 @@ def test_adaptive_query_equals_the_restricted_scan(db, db_values, label, chosen)
     assert (np.diff(hits["score"]) >= 0).all() and hits["rank"].tolist() == list(range(1, len(hits) + 1))
 
 
-def test_exact_and_mismatch_modes(db, db_values):
-    values, names = db_values
+def test_exact_and_mismatch_modes(db):
     doc = db.select(label="squat1Reps")["doc_id"].iloc[0]
     example = db.motion(doc)
     exact = query_by_example(db, example, ["rknee_bent"], mode="exact")  # all 11 lower features must match
     assert ((exact["doc_id"] == doc) & (exact["start_frame"] == 0)).any()
     loose = query_by_example(db, example, ["rknee_bent"], mode="mismatch", mismatches=1)
-    key = lambda t: set(zip(t["doc_id"], t["first_segment"]))  # noqa: E731
+    key = lambda t: set(zip(t["doc_id"], t["first_segment"]))
     assert key(exact) <= key(loose)
 
 

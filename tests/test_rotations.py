@@ -89,7 +89,7 @@ def test_angle_matches_scipy():
 def test_slerp_endpoints_and_midpoint():
     a = _wxyz(Rotation.random(50, random_state=5))
     b = _wxyz(Rotation.random(50, random_state=6))
-    sign = lambda p, q: np.sign(np.sum(p * q, axis=-1, keepdims=True))  # noqa: E731
+    sign = lambda p, q: np.sign(np.sum(p * q, axis=-1, keepdims=True))
     q0 = rotations.slerp(a, b, np.zeros(50))
     q1 = rotations.slerp(a, b, np.ones(50))
     np.testing.assert_allclose(q0, a, atol=1e-12)

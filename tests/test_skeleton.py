@@ -358,7 +358,7 @@ def test_mirror_swaps_sides_and_is_an_involution(hdm05_dir, hdm05_labels):
     assert bf[:, _idx("lhip"), 0].mean() > 0 > bf[:, _idx("rhip"), 0].mean()
     # the mirrored pose's joint angles equal the original's on the twin joints (bone lengths preserved)
     for a, b in (("lknee", "lankle"), ("lshoulder", "lelbow")):
-        twin = lambda n: "r" + n[1:]  # noqa: E731
+        twin = lambda n: "r" + n[1:]
         d0 = np.linalg.norm(kick.positions[:, _idx(a)] - kick.positions[:, _idx(b)], axis=1)
         d1 = np.linalg.norm(m.positions[:, _idx(twin(a))] - m.positions[:, _idx(twin(b))], axis=1)
         np.testing.assert_allclose(d0, d1, rtol=1e-6)

@@ -93,4 +93,4 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
     raise MocapFormatError(path, f"unsupported file type {ext or '(none)'!r}; supported: {', '.join(FORMATS)}")
 
 
-__all__ = ["AsfSkeleton", "FORMATS", "find_asf", "load", "read_amc", "read_asf", "read_bvh"]
+__all__ = ["FORMATS", "AsfSkeleton", "find_asf", "load", "read_amc", "read_asf", "read_bvh"]

@@ -319,7 +319,7 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
     start, first_line, header_degrees = _header_end(text, path)
     sc = scan(text[start:].encode("latin-1"), path, first_line)
     degrees = skeleton.degrees if header_degrees is None else header_degrees
-    lineno = lambda i: sc.first_line + int(i)  # noqa: E731
+    lineno = lambda i: sc.first_line + int(i)
 
     has_name = sc.name_start >= 0
     marker = ~has_name & (sc.n_values == 1)

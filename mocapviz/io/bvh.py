@@ -48,7 +48,7 @@ class _Hierarchy:
         self.offsets: list[list[float]] = []
         self.channels: list[list[str]] = []
 
-    def layout(self) -> "_Hierarchy":
+    def layout(self) -> _Hierarchy:
         euler_slot, translation_slot, orders = [], [], []
         for j, chans in enumerate(self.channels):
             # R = R_c1 R_c2 R_c3: the last rotation channel is applied first
