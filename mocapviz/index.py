@@ -19,6 +19,7 @@ import json
 import os
 from pathlib import Path
 
+import numba
 import numpy as np
 
 from .errors import MotionDBError
@@ -61,6 +62,93 @@ def merge_adjacent(sets: list[np.ndarray]) -> list[np.ndarray]:
     return out
 
 
+@numba.njit(cache=True, nogil=True)
+def _concatenate_lists(positions, offsets, lists):  # pragma: no cover - compiled
+    """positions[offsets[k]:offsets[k+1]] for each k of ``lists``, concatenated into one int64 array."""
+    n = 0
+    for k in lists:
+        n += offsets[k + 1] - offsets[k]
+    out = np.empty(n, dtype=np.int64)
+    at = 0
+    for k in lists:
+        for p in range(offsets[k], offsets[k + 1]):
+            out[at] = positions[p]
+            at += 1
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _verify_shifted(rank, segment_doc, member, cand, s, out):  # pragma: no cover - compiled
+    """Fuzzy hits among candidate segments of one set (eq. 11 from its smallest list).
+
+    rank : (M,) int -- list index of each segment's code; member : (L, K) bool -- list k's code is in V_l;
+    cand : (C,) int, sorted -- segments whose code is in V_s; out : (C,) int. Hit k = c - s when segments
+    k..k+L-1 exist, lie in one document and w_{k+l} ∈ V_l for every l. Returns the number of hits in ``out``.
+    """
+    n_sets = member.shape[0]
+    m = rank.shape[0]
+    h = 0
+    for c in cand:
+        k = c - s
+        if k < 0 or k + n_sets > m or segment_doc[k] != segment_doc[k + n_sets - 1]:
+            continue
+        ok = True
+        for l in range(n_sets):
+            if not member[l, rank[k + l]]:
+                ok = False
+                break
+        if ok:
+            out[h] = k
+            h += 1
+    return h
+
+
+@numba.njit(cache=True, nogil=True)
+def _adaptive_walk(rank, segment_doc, member, cand, s, out):  # pragma: no cover - compiled
+    """Adaptive fuzzy hits through candidate segments of one set (§5.2), by walking the coarsened runs.
+
+    rank : (M,) int -- list index of each segment's code; member : (L, K) bool -- list k's code is in V_l;
+    cand : (C,) int, sorted -- segments whose code is in V_s; out : (C, L+1) int. A candidate that starts a
+    maximal run of V_s is extended backwards over runs of V_{s-1}, ..., V_1 and forwards over runs of V_{s+1},
+    ..., V_L, all in its document; each complete walk is one hit row of ``out``. Returns the number of hits.
+    """
+    n_sets = member.shape[0]
+    m = rank.shape[0]
+    h = 0
+    for c in cand:
+        doc = segment_doc[c]
+        if c > 0 and segment_doc[c - 1] == doc and member[s, rank[c - 1]]:
+            continue  # inside a run of V_s: its run start is the candidate that counts
+        ok = True
+        pos = c
+        for l in range(s - 1, -1, -1):
+            if pos == 0 or segment_doc[pos - 1] != doc or not member[l, rank[pos - 1]]:
+                ok = False
+                break
+            pos -= 1
+            while pos > 0 and segment_doc[pos - 1] == doc and member[l, rank[pos - 1]]:
+                pos -= 1
+            out[h, l] = pos
+        if not ok:
+            continue
+        out[h, s] = c
+        pos = c + 1
+        while pos < m and segment_doc[pos] == doc and member[s, rank[pos]]:
+            pos += 1
+        for l in range(s + 1, n_sets):
+            if pos == m or segment_doc[pos] != doc or not member[l, rank[pos]]:
+                ok = False
+                break
+            out[h, l] = pos
+            pos += 1
+            while pos < m and segment_doc[pos] == doc and member[l, rank[pos]]:
+                pos += 1
+        if ok:
+            out[h, n_sets] = pos
+            h += 1
+    return h
+
+
 class InvertedIndex:
     """Inverted lists of a feature sequence F[D] over one or more documents.
 
@@ -74,6 +162,7 @@ class InvertedIndex:
     list_codes : np.ndarray [shape=(K,)], int64 -- the codes that occur, sorted.
     list_offsets : np.ndarray [shape=(K+1,)], int64 -- L(list_codes[i]) = positions[offsets[i]:offsets[i+1]].
     positions : np.ndarray [shape=(M,)], int32 -- all inverted lists, each sorted.
+    rank : np.ndarray [shape=(M,)], int32 -- list index of each segment's code (codes = list_codes[rank]).
     meta : dict -- what the index was built from (database generation, feature set, group).
     """
 
@@ -94,6 +183,8 @@ class InvertedIndex:
         self.list_codes, counts = np.unique(self.codes[order], return_counts=True)
         self.list_offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         self.positions = order.astype(np.int32)
+        self.rank = np.empty(m, dtype=np.int32)  # list index of each segment's code: codes = list_codes[rank]
+        self.rank[order] = np.repeat(np.arange(self.list_codes.size, dtype=np.int32), counts)
         self.segment_doc = np.repeat(np.arange(self.doc_first_segment.size - 1), np.diff(self.doc_first_segment))
 
     # ------------------------------------------------------------------ construction
@@ -139,15 +230,15 @@ class InvertedIndex:
         return self.positions[self.list_offsets[i] : self.list_offsets[i + 1]]
 
     def union_list(self, codes) -> np.ndarray:
-        """L(V) = union of L(v) over the codes of V, sorted (one vectorised gather of the lists)."""
+        """L(V) = union of L(v) over the codes of V, sorted."""
         codes = np.unique(np.asarray(codes, dtype=np.int64))
         i = np.searchsorted(self.list_codes, codes)
         i = i[(i < self.list_codes.size) & (self.list_codes[np.minimum(i, self.list_codes.size - 1)] == codes)]
-        if i.size == 1:
-            return self.positions[self.list_offsets[i[0]] : self.list_offsets[i[0] + 1]]
-        begin, count = self.list_offsets[i], self.list_offsets[i + 1] - self.list_offsets[i]
-        at = np.repeat(begin - np.cumsum(count) + count, count) + np.arange(count.sum())
-        return np.sort(self.positions[at])
+        return self._gather(i)
+
+    def _gather(self, lists: np.ndarray) -> np.ndarray:
+        """The sorted union of the inverted lists with the given list indices, int64."""
+        return np.sort(_concatenate_lists(self.positions, self.list_offsets, lists))
 
     def _query_codes(self, query) -> np.ndarray:
         q = np.asarray(query)
@@ -162,36 +253,62 @@ class InvertedIndex:
             raise ValueError(f"query codes must lie in [0, 2^{self.n_features})")
         return q
 
-    def _query_sets(self, sets) -> list[np.ndarray]:
+    def _query_sets(self, sets) -> tuple[np.ndarray, np.ndarray, int]:
+        """Checked fuzzy sets, adjacent ones with a common element merged (:func:`merge_adjacent`).
+
+        Returns (codes, set_id, L): the distinct codes of each set V_l, with set_id l, l = 0..L-1.
+        """
         if len(sets) == 0:
             raise ValueError("empty fuzzy query: it needs at least one set")
-        out = []
-        for s in sets:
-            s = np.asarray(s)
-            codes = self._query_codes(s) if s.size else np.empty(0, np.int64)
-            if codes.size == 0:
-                raise ValueError("a fuzzy set is empty: every set needs at least one alternative")
-            out.append(codes)
-        return merge_adjacent(out)
+        arrays = [np.asarray(s) for s in sets]
+        if any(a.size == 0 for a in arrays):
+            raise ValueError("a fuzzy set is empty: every set needs at least one alternative")
+        arrays = [self._query_codes(a) if a.ndim == 2 else a.ravel() for a in arrays]
+        codes = self._query_codes(np.concatenate(arrays))
+        set_id = np.repeat(np.arange(len(arrays)), [a.size for a in arrays])
+        order = np.lexsort((set_id, codes))  # by code, then set
+        codes, set_id = codes[order], set_id[order]
+        same_code = codes[1:] == codes[:-1]
+        if (same_code & (set_id[1:] == set_id[:-1] + 1)).any():  # two adjacent sets meet: conjoin (rare)
+            merged = merge_adjacent([codes[set_id == l] for l in range(len(arrays))])
+            return np.concatenate(merged), np.repeat(np.arange(len(merged)), [m.size for m in merged]), len(merged)
+        distinct = np.ones(codes.size, dtype=bool)
+        distinct[1:] = ~same_code | (set_id[1:] != set_id[:-1])
+        return codes[distinct], set_id[distinct], len(arrays)
 
     def _valid(self, hits: np.ndarray, n: int) -> np.ndarray:
         """Hits k whose segments k..k+n-1 exist and lie in one document."""
         hits = hits[(hits >= 0) & (hits + n - 1 < self.n_segments)]
         return hits[self.segment_doc[hits] == self.segment_doc[hits + n - 1]]
 
-    # ------------------------------------------------------------------ queries
-    def _shifted_intersection(self, lists: list[np.ndarray]) -> np.ndarray:
-        """∩_l (lists[l] - l), starting from the shortest list (eq. 7 / eq. 11)."""
-        n = len(lists)
-        first = int(np.argmin([x.size for x in lists]))
-        cand = lists[first].astype(np.int64) - first
-        for l in np.argsort([x.size for x in lists], kind="stable"):
-            if l != first and cand.size:
-                cand = cand[_isin_sorted(cand + l, lists[l])]
-        return self._valid(cand, n)
+    def _membership(self, codes: np.ndarray, set_id: np.ndarray, n_sets: int) -> tuple[np.ndarray, np.ndarray]:
+        """Which inverted lists each fuzzy set covers; V_l holds the ``codes`` whose ``set_id`` is l.
 
+        Returns
+        -------
+        member : np.ndarray [shape=(L, K)], bool -- list k's code lies in V_l.
+        sizes : np.ndarray [shape=(L,)], int64 -- |L(V_l)|, the number of segments with a code in V_l.
+        """
+        n_lists = self.list_codes.size
+        i = np.minimum(np.searchsorted(self.list_codes, codes), n_lists - 1)
+        found = self.list_codes[i] == codes
+        set_id, i = set_id[found], i[found]
+        member = np.zeros((n_sets, n_lists), dtype=bool)
+        member[set_id, i] = True
+        sizes = np.bincount(set_id, weights=self.list_offsets[i + 1] - self.list_offsets[i], minlength=n_sets)
+        return member, sizes
+
+    def _candidates(self, member: np.ndarray, sizes: np.ndarray) -> tuple[int, np.ndarray]:
+        """The most selective set s and the sorted segments with a code in V_s (its union list L(V_s))."""
+        s = int(np.argmin(sizes))
+        return s, self._gather(np.flatnonzero(member[s]))
+
+    # ------------------------------------------------------------------ queries
     def exact(self, query) -> np.ndarray:
         """Exact hits H_D(F[Q]) (§5.1, eq. 7).
+
+        The intersection of the shifted lists L(w_l) - l is computed from the shortest list: its positions,
+        shifted, are the only candidates, and each is checked against the stored sequence at once.
 
         Parameters
         ----------
@@ -203,10 +320,13 @@ class InvertedIndex:
         np.ndarray [shape=(H,)], int64: sorted 0-based positions k of the first matching segment.
         """
         q = self._query_codes(query)
-        return self._shifted_intersection([self.inverted_list(int(c)) for c in q])
+        return self._fuzzy_hits(q, np.arange(q.size), q.size)
 
     def fuzzy(self, sets) -> np.ndarray:
         """Fuzzy hits H_D(F[Q]_fuz) (§5.2, eq. 11): w_{k+l} ∈ V_l for all l.
+
+        ∩_l (L(V_l) - l), computed from the smallest union list L(V_s): its positions shifted by -s are the
+        candidates, checked against every set at once through the list membership table.
 
         Parameters
         ----------
@@ -217,14 +337,23 @@ class InvertedIndex:
         -------
         np.ndarray [shape=(H,)], int64: sorted 0-based positions k.
         """
-        v = self._query_sets(sets)
-        return self._shifted_intersection([self.union_list(s) for s in v])
+        return self._fuzzy_hits(*self._query_sets(sets))
+
+    def _fuzzy_hits(self, codes: np.ndarray, set_id: np.ndarray, n_sets: int) -> np.ndarray:
+        member, sizes = self._membership(codes, set_id, n_sets)
+        if self.n_segments == 0 or sizes.min() == 0:
+            return np.empty(0, dtype=np.int64)
+        s, cand = self._candidates(member, sizes)
+        out = np.empty(cand.size, dtype=np.int64)
+        return out[: _verify_shifted(self.rank, self.segment_doc, member, cand, s, out)]
 
     def adaptive_fuzzy(self, sets) -> np.ndarray:
         """Adaptive fuzzy hits (§5.2): the segmentation of D coarsened to maximal runs within each V_l.
 
         A hit starts at a segment k_1 whose vector is in V_1 while its predecessor's is not (or that begins
         a document); the run of segments in V_1 ends before k_2, whose vector must be in V_2, and so on.
+        Computed from the smallest union list L(V_s): each of its segments that starts a run of V_s is walked
+        backwards and forwards over the neighbouring runs (a compiled loop over the stored sequence).
 
         Parameters
         ----------
@@ -235,33 +364,14 @@ class InvertedIndex:
         np.ndarray [shape=(H, L+1)], int64: per hit the 0-based segment indices k_1 < ... < k_L where each
         coarsened segment starts, and the index one past the end of the last one.
         """
-        v = self._query_sets(sets)
-        k = None
-        rows = []
-        for s in v:
-            u = self.union_list(s).astype(np.int64)
-            if u.size == 0:
-                return np.empty((0, len(v) + 1), dtype=np.int64)
-            # maximal runs of consecutive positions inside one document = runs of segments with w in V_l
-            brk = np.ones(u.size, dtype=bool)
-            brk[1:] = (np.diff(u) != 1) | (self.segment_doc[u[1:]] != self.segment_doc[u[:-1]])
-            run_start = u[brk]
-            run_end = np.append(u[np.flatnonzero(brk)[1:] - 1], u[-1]) + 1
-            if k is None:
-                k = run_start  # candidates k_1: starts of runs of V_1
-                doc = self.segment_doc[k]
-            else:
-                # k_l must hold a vector of V_l (then it starts a run: w_{k_l - 1} is in V_{l-1}, disjoint
-                # from V_l) and lie in the document of k_1
-                pos = np.minimum(np.searchsorted(u, k), u.size - 1)
-                ok = (u[pos] == k) & (k < self.n_segments)
-                ok[ok] &= self.segment_doc[k[ok]] == doc[ok]
-                rows = [r[ok] for r in rows]
-                k, doc = k[ok], doc[ok]
-            rows.append(k)
-            k = run_end[np.searchsorted(run_start, k)]  # k_{l+1}: one past the run of V_l
-        rows.append(k)
-        return np.stack(rows, axis=1) if rows[0].size else np.empty((0, len(v) + 1), dtype=np.int64)
+        codes, set_id, n_sets = self._query_sets(sets)
+        member, sizes = self._membership(codes, set_id, n_sets)
+        if self.n_segments == 0 or sizes.min() == 0:
+            return np.empty((0, n_sets + 1), dtype=np.int64)
+        s, cand = self._candidates(member, sizes)
+        out = np.empty((cand.size, n_sets + 1), dtype=np.int64)
+        h = _adaptive_walk(self.rank, self.segment_doc, member, cand, s, out)
+        return out[:h]
 
     def mismatch(self, query, m: int, allowed=None) -> np.ndarray:
         """m-mismatch hits (§5.2): at most ``m`` query segments may disagree with the database.

@@ -153,6 +153,13 @@ def test_hits_never_span_documents(real_index):
         assert idx.segment_doc[hit] == idx.segment_doc[hit + 1]
 
 
+def test_exact_query_with_a_repeated_vector_has_no_hit(real_index):
+    # adjacent segments always differ, so (v, v) never occurs, although the fuzzy query {v}, {v} is merged to {v}
+    v = real_index.codes[0]
+    assert real_index.exact([v, v]).size == 0
+    assert real_index.fuzzy([[v], [v]]).size == real_index.inverted_list(v).size
+
+
 def test_save_load_round_trip(real_index, tmp_path):
     real_index.save(tmp_path / "i.npz")
     back = InvertedIndex.load(tmp_path / "i.npz")
