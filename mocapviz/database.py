@@ -380,15 +380,13 @@ class MotionDB:
                 continue
             lab = None if table is None else table.get(str(f), table.get(f.name, {}))
             todo.append((str(f), sha256, fps, lab, mapping, load_options, skip_bad))
-        results = []
         with contextlib.ExitStack() as stack:
             if n_jobs > 1 and len(todo) > 1:
                 pool = stack.enter_context(ProcessPoolExecutor(n_jobs))
                 it = pool.map(_read_task, todo, chunksize=max(1, len(todo) // (8 * n_jobs)))
             else:
                 it = map(_read_task, todo)
-            for res in tqdm(it, total=len(todo), desc="ingest", unit="file", disable=not progress or not todo):
-                results.append(res)
+            results = list(tqdm(it, total=len(todo), desc="ingest", unit="file", disable=not progress or not todo))
         motions, metas = [], []
         for (path, *_), res in zip(todo, results):
             if isinstance(res, Exception):

@@ -10,6 +10,7 @@ InvertedIndex                 the index of one feature set; query methods:
     fuzzy(sets)               w_{k+l} in V_l for every l, eq. (11)
     adaptive_fuzzy(sets)      §5.2: the database segmentation coarsened to the fuzzy sets
     mismatch(query, m)        at most m query segments may disagree (§5.2, last paragraph)
+feature_group_values          the columns of each feature group of a set's values.
 build(db, feature_set)        one index per feature group (lower, upper, mix) over a MotionDB, saved with it.
 load(db, feature_set)         the saved indexes of a MotionDB (checked to be current).
 """
@@ -476,6 +477,28 @@ def index_path(db, feature_set: str, group: str) -> Path:
     return Path(db.path) / "index" / f"relational-{feature_set}-{group}.npz"
 
 
+def feature_group_values(values: np.ndarray, feature_set: str = "2005") -> dict:
+    """The columns of each feature group (lower, upper, mix) of a set's feature values.
+
+    Parameters
+    ----------
+    values : np.ndarray [shape=(N, f)], bool -- :func:`mocapviz.features.relational` of the set.
+
+    Returns
+    -------
+    dict: group -> (member names, values of the members [shape=(N, f_group)]; a view when they are adjacent).
+    """
+    from .features import feature_groups, feature_names
+
+    names = feature_names(feature_set)
+    out = {}
+    for group, members in feature_groups(feature_set).items():
+        cols = [names.index(n) for n in members]
+        adjacent = cols == list(range(cols[0], cols[0] + len(cols)))
+        out[group] = (members, values[:, cols[0] : cols[0] + len(cols)] if adjacent else values[:, cols])
+    return out
+
+
 def build(db, feature_set: str = "2005", progress: bool = True, values: np.ndarray | None = None) -> dict:
     """Build and save one inverted index per feature group (lower, upper, mix) over a MotionDB (§5.3).
 
@@ -492,18 +515,16 @@ def build(db, feature_set: str = "2005", progress: bool = True, values: np.ndarr
     -------
     dict: group name -> InvertedIndex (segment positions over the whole database; documents kept apart).
     """
-    from .features import feature_groups, feature_names, relational
+    from .features import relational
 
     if values is None:
         values, _ = relational(db, feature_set, progress=progress)
-    names = feature_names(feature_set)
     doc_starts = db.documents["start"].to_numpy()
     out = {}
-    for group, members in feature_groups(feature_set).items():
-        cols = [names.index(n) for n in members]
+    for group, (members, group_values) in feature_group_values(values, feature_set).items():
         meta = {"generation": db.manifest["generation"], "n_frames": db.n_frames, "feature_set": feature_set,
                 "group": group}  # fmt: skip
-        index = InvertedIndex.from_features(values[:, cols], doc_starts, members, meta)
+        index = InvertedIndex.from_features(group_values, doc_starts, members, meta)
         index.save(index_path(db, feature_set, group))
         out[group] = index
     return out

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 MAX_FEATURES = 62  # codes are int64
@@ -61,9 +62,20 @@ def encode(values: np.ndarray) -> np.ndarray:
     -------
     np.ndarray [shape=(T,)], int64: sum of ``values[:, k] << k``.
     """
-    values = _check(values)
-    weights = np.left_shift(np.int64(1), np.arange(values.shape[1], dtype=np.int64))
-    return values.astype(np.int64) @ weights
+    return _encode_kernel(_check(values))
+
+
+@numba.njit(cache=True, nogil=True)
+def _encode_kernel(values):  # pragma: no cover - compiled
+    """values (T, f) bool -> (T,) int64 codes, feature k as bit k."""
+    out = np.empty(values.shape[0], dtype=np.int64)
+    for t in range(values.shape[0]):
+        code = 0
+        for k in range(values.shape[1]):
+            if values[t, k]:
+                code |= np.int64(1) << k
+        out[t] = code
+    return out
 
 
 def decode(codes: np.ndarray, n_features: int) -> np.ndarray:

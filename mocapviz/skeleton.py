@@ -9,7 +9,7 @@ to_canonical          a Motion on the canonical joints.
 body_frame            positions with the root at the origin, facing +z (Krüger et al. 2010 §3.2).
 mirror                the left/right mirror image of a canonical clip.
 body_sizes            humerus, femur, hip/shoulder width, chest and body length (Müller toolbox, §1.3 of the
-                      feature spec), from the first frame.
+                      feature spec), from the first frame; body_size_table: the same of many frames.
 """
 from __future__ import annotations
 
@@ -282,6 +282,35 @@ def body_frame(positions: np.ndarray) -> np.ndarray:
     return out.astype(np.float32)
 
 
+_SIZE_CHAINS = {
+    "humerus_r": [("rshoulder", "relbow")],
+    "humerus_l": [("lshoulder", "lelbow")],
+    "femur_r": [("rhip", "rknee")],
+    "femur_l": [("lhip", "lknee")],
+    "hip_width": [("lhip", "rhip")],
+    "shoulder_width": [("lshoulder", "rshoulder")],
+    "chest_length": [("chest", "neck")],
+    "body_length": [("rankle", "rknee"), ("rknee", "rhip"), ("root", "belly"), ("belly", "chest"), ("chest", "neck"),
+                    ("neck", "head"), ("head", "headtop")],
+}  # fmt: skip
+
+
+def body_size_table(frames: np.ndarray) -> pd.DataFrame:
+    """Body-size units of the relational features (feature spec §1.3) of each given frame.
+
+    Parameters
+    ----------
+    frames : np.ndarray [shape=(D, 24, 3)], canonical joints, cm -- e.g. the first frame of each of D clips.
+
+    Returns
+    -------
+    pandas.DataFrame [shape=(D, 8)], cm, the columns of :func:`body_sizes`.
+    """
+    p = np.asarray(frames, dtype=np.float64)
+    length = lambda a, b: np.linalg.norm(p[:, _index(a)] - p[:, _index(b)], axis=-1)
+    return pd.DataFrame({name: sum(length(a, b) for a, b in chain) for name, chain in _SIZE_CHAINS.items()})
+
+
 def body_sizes(positions: np.ndarray) -> pd.Series:
     """Body-size units of the relational features, measured on the first frame (feature spec §1.3).
 
@@ -295,22 +324,7 @@ def body_sizes(positions: np.ndarray) -> pd.Series:
     (hip-knee), ``hip_width``, ``shoulder_width``, ``chest_length`` (chest-neck), ``body_length`` (rankle-rknee
     + rknee-rhip + root-belly + belly-chest + chest-neck + neck-head + head-headtop).
     """
-    p = np.asarray(positions)[0]
-    d = lambda a, b: float(np.linalg.norm(p[_index(a)] - p[_index(b)]))
-    chain = [("rankle", "rknee"), ("rknee", "rhip"), ("root", "belly"), ("belly", "chest"), ("chest", "neck"),
-             ("neck", "head"), ("head", "headtop")]  # fmt: skip
-    return pd.Series(
-        {
-            "humerus_r": d("rshoulder", "relbow"),
-            "humerus_l": d("lshoulder", "lelbow"),
-            "femur_r": d("rhip", "rknee"),
-            "femur_l": d("lhip", "lknee"),
-            "hip_width": d("lhip", "rhip"),
-            "shoulder_width": d("lshoulder", "rshoulder"),
-            "chest_length": d("chest", "neck"),
-            "body_length": sum(d(a, b) for a, b in chain),
-        }
-    )
+    return body_size_table(np.asarray(positions)[:1]).iloc[0]
 
 
 def mirror(motion: Motion) -> Motion:

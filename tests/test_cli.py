@@ -27,7 +27,7 @@ def test_ingest_then_info(sample_dir, tmp_path, capsys):
     db = MotionDB.open(out)
     assert main(["info", str(out), "--documents"]) == 0
     text = capsys.readouterr().out
-    total = [line for line in text.splitlines() if line.startswith("total")][0].split()
+    total = next(line for line in text.splitlines() if line.startswith("total")).split()
     assert int(total[1]) == 22 and int(total[2]) == db.n_frames
     assert all(name in text for name in db.documents["name"])
 
@@ -61,5 +61,5 @@ def test_errors_are_one_line_and_exit_1(argv, needle, tmp_path, sample_dir, caps
 
 def test_console_script_runs_as_module(sample_dir, tmp_path):
     """The same command through a fresh interpreter (as the installed `mocapviz` script runs it)."""
-    res = subprocess.run([sys.executable, "-m", "mocapviz.cli", "info", str(tmp_path)], capture_output=True, text=True)
+    res = subprocess.run([sys.executable, "-m", "mocapviz.cli", "info", str(tmp_path)], capture_output=True, text=True, check=False)
     assert res.returncode == 1 and res.stderr.count("\n") == 1 and "not a MotionDB" in res.stderr

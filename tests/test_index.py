@@ -178,3 +178,11 @@ def test_bad_queries_have_clear_errors(walk):
         walk.mismatch(vecs("10,11,01"), 3)
     with pytest.raises(ValueError, match="fuzzy set is empty"):
         walk.fuzzy([np.empty(0, np.int64)])
+
+
+@pytest.mark.parametrize("f", [1, 12, 31, 62])
+def test_encode_is_the_weighted_bit_sum_and_decode_inverts_it(f):
+    values = np.random.default_rng(f).random((500, f)) < 0.5
+    codes = encode(values)
+    assert codes.tolist() == [sum(1 << k for k in range(f) if row[k]) for row in values]
+    assert (decode(codes, f) == values).all()

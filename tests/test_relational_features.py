@@ -225,12 +225,18 @@ def test_geometric_primitives_on_hand_made_points():
     assert rf._plane_distance(ex, ey, o, col([3, -2, 2.5])) == pytest.approx([2.5])
     assert rf._plane_distance(ey, ex, o, col([3, -2, 2.5])) == pytest.approx([-2.5])  # order fixes the side
     assert rf._normal_plane_distance(o, ey, ez, col([7, 4, 9])) == pytest.approx([4.0])
-    # point-segment distance: along the segment perpendicular, beyond the ends the balls (or infinity)
-    p1, p2 = col([0, 0, 0], [0, 0, 0], [0, 0, 0]), col([2, 0, 0], [2, 0, 0], [2, 0, 0])
+    # point-segment distance: along the segment perpendicular, beyond the ends the balls (or infinity); the
+    # touch kernel gives D / (scale * |p2 - p1|) with |p2 - p1| = 2, joints 0, 1, 2 = p1, p2, q
     q = col([1, 3, 0], [-3, 4, 0], [5, 0, 4])
-    assert rf._point_segment_distance(p1, p2, q).tolist() == pytest.approx([3, 5, 5])
-    assert rf._point_segment_distance(p1, p2, q, (False, True)).tolist() == pytest.approx([3, np.inf, 5])
-    assert rf._point_segment_distance(p1, p2, q, (True, False)).tolist() == pytest.approx([3, 5, np.inf])
+    joints = np.zeros((24, 3, 3))
+    joints[1, 0] = 2.0
+    joints[2] = q
+    for balls, expected in (((True, True), [3, 5, 5]), ((False, True), [3, np.inf, 5]), ((True, False), [3, 5, np.inf])):
+        out = np.empty(3)
+        rf._touch_kernel(joints, np.array([0]), np.array([1]), np.array([2]), np.array([balls[0]]),
+                         np.array([balls[1]]), np.array([0.5]), out)
+        assert out.tolist() == pytest.approx(expected)
+    assert rf._plane_velocity(ex, ey, o, col([3, -2, 2.5])) == pytest.approx([2.5])
     assert rf._joint_angle(ex, ey, o) == pytest.approx([90.0])
     assert rf._joint_angle(ex, -ex, o) == pytest.approx([180.0])
     assert rf._segment_angle(ey, o, o, ey) == pytest.approx([180.0])  # (ey - o) vs (o - ey)
@@ -245,7 +251,7 @@ def test_plane_normals_point_where_the_spec_says(clip):
     j = {n: m.positions[:, k].T.astype(float) for k, n in enumerate(CANONICAL_JOINTS)}
     v = rf._velocity(j["root"], 12, m.fps)
     v[1] = 0.0  # horizontal motion only
-    along = lambda p1, p2, p3: np.mean(rf._dot(rf._plane_normal(j[p1], j[p2], j[p3]), rf._unit(v)))
+    along = lambda p1, p2, p3: np.mean(rf._plane_velocity(j[p1], j[p2], j[p3], v / rf._norm(v)))
     assert along("root", "lhip", "lankle") < -0.5  # 2005 #1: backwards
     assert along("root", "rankle", "rhip") < -0.5  # 2005 #2
     assert along("root", "lshoulder", "rshoulder") > 0.5  # 2005 #12: forwards

@@ -18,7 +18,7 @@ import pandas as pd
 
 from .. import index as index_mod
 from ..errors import MotionDBError
-from ..features import feature_groups, feature_names, relational
+from ..features import feature_names, relational
 
 __all__ = [
     "ALTERNATIVES",
@@ -109,10 +109,9 @@ def index_statistics(db, feature_set: str = "2005", values: np.ndarray | None = 
     t_read = float("nan") if t_read is None else float(t_read)
     t_features = float("nan") if t_features is None else float(t_features)
     rows = []
-    for group, members in feature_groups(feature_set).items():
-        cols = [names.index(n) for n in members]
+    for group, (members, group_values) in index_mod.feature_group_values(values, feature_set).items():
         t0 = time.perf_counter()
-        idx = index_mod.InvertedIndex.from_features(values[:, cols], doc_starts, members)
+        idx = index_mod.InvertedIndex.from_features(group_values, doc_starts, members)
         t_index = time.perf_counter() - t0
         nbytes = idx.nbytes()
         rows.append({

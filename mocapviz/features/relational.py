@@ -50,6 +50,8 @@ document, so nothing crosses a document boundary.
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields, replace
 
 import numba
@@ -59,7 +61,7 @@ from tqdm.auto import tqdm
 
 from ..database import MotionDB
 from ..motion import Motion
-from ..skeleton import CANONICAL_JOINTS, body_sizes
+from ..skeleton import CANONICAL_JOINTS, body_size_table
 
 __all__ = ["FEATURE_SETS", "feature_groups", "feature_names", "feature_table", "relational"]
 
@@ -86,69 +88,117 @@ def _norm(v: np.ndarray) -> np.ndarray:
     return np.sqrt(_dot(v, v))
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    """v / |v|: [shape=(3, ...)] -> [shape=(3, ...)] (NaN where |v| = 0)."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return v / _norm(v)
+_KERNEL = {"cache": True, "nogil": True, "error_model": "numpy"}  # numpy float semantics: x / 0 -> inf or NaN
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Frame-wise cross product a x b: [shape=(3, ...)] -> [shape=(3, ...)]."""
-    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+@numba.njit(inline="always", **_KERNEL)
+def _plane_normal_at(p1, p2, p3, t):  # pragma: no cover - compiled
+    """Unit normal of the plane through p1, p2, p3 at frame t: unit((p1 - p3) x (p2 - p3)), a 3-tuple."""
+    ux, uy, uz = p1[0, t] - p3[0, t], p1[1, t] - p3[1, t], p1[2, t] - p3[2, t]
+    vx, vy, vz = p2[0, t] - p3[0, t], p2[1, t] - p3[1, t], p2[2, t] - p3[2, t]
+    nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+    norm = np.sqrt(nx * nx + ny * ny + nz * nz)
+    return nx / norm, ny / norm, nz / norm
 
 
-def _plane_normal(p1: np.ndarray, p2: np.ndarray, p3: np.ndarray) -> np.ndarray:
-    """Unit normal unit((p1 - p3) x (p2 - p3)) of the plane through p1, p2, p3: [shape=(3, T)] each -> (3, T)."""
-    return _unit(_cross(p1 - p3, p2 - p3))
-
-
-def _plane_distance(p1: np.ndarray, p2: np.ndarray, p3: np.ndarray, q: np.ndarray) -> np.ndarray:
+@numba.njit(**_KERNEL)
+def _plane_distance(p1, p2, p3, q):  # pragma: no cover - compiled
     """Signed distance of q from the plane through p1, p2, p3 (toolbox ``feature_distPointPlane``, spec §1.4).
 
     Parameters
     ----------
-    p1, p2, p3, q : np.ndarray [shape=(3, T)]
+    p1, p2, p3, q : np.ndarray [shape=(3, T)], float64
 
     Returns
     -------
     np.ndarray [shape=(T,)]: n . (q - p3) with n = unit((p1 - p3) x (p2 - p3)); positive on the normal's side.
     """
-    return _dot(_plane_normal(p1, p2, p3), q - p3)
+    out = np.empty(q.shape[1])
+    for t in range(out.shape[0]):
+        nx, ny, nz = _plane_normal_at(p1, p2, p3, t)
+        out[t] = nx * (q[0, t] - p3[0, t]) + ny * (q[1, t] - p3[1, t]) + nz * (q[2, t] - p3[2, t])
+    return out
 
 
-def _normal_plane_distance(p1: np.ndarray, p2: np.ndarray, p3: np.ndarray, q: np.ndarray) -> np.ndarray:
+@numba.njit(**_KERNEL)
+def _plane_velocity(p1, p2, p3, v):  # pragma: no cover - compiled
+    """Component of v along the unit normal of the plane through p1, p2, p3 (``feature_velRelPointPlane``).
+
+    p1, p2, p3, v : np.ndarray [shape=(3, T)], float64 -> np.ndarray [shape=(T,)], the unit of v.
+    """
+    out = np.empty(v.shape[1])
+    for t in range(out.shape[0]):
+        nx, ny, nz = _plane_normal_at(p1, p2, p3, t)
+        out[t] = nx * v[0, t] + ny * v[1, t] + nz * v[2, t]
+    return out
+
+
+@numba.njit(**_KERNEL)
+def _normal_plane_distance(p1, p2, p3, q):  # pragma: no cover - compiled
     """Signed distance of q from the plane through p3 with normal unit(p2 - p1) (``feature_distPointNormalPlane``).
 
     Parameters
     ----------
-    p1, p2, p3, q : np.ndarray [shape=(3, T)]
+    p1, p2, p3, q : np.ndarray [shape=(3, T)], float64
 
     Returns
     -------
     np.ndarray [shape=(T,)]: unit(p2 - p1) . (q - p3).
     """
-    return _dot(_unit(p2 - p1), q - p3)
+    out = np.empty(q.shape[1])
+    for t in range(out.shape[0]):
+        nx, ny, nz = p2[0, t] - p1[0, t], p2[1, t] - p1[1, t], p2[2, t] - p1[2, t]
+        dot = nx * (q[0, t] - p3[0, t]) + ny * (q[1, t] - p3[1, t]) + nz * (q[2, t] - p3[2, t])
+        out[t] = dot / np.sqrt(nx * nx + ny * ny + nz * nz)
+    return out
 
 
-def _point_segment_distance(p1: np.ndarray, p2: np.ndarray, q: np.ndarray, balls=(True, True)) -> np.ndarray:
-    """Distance of q from the segment p1-p2 (toolbox ``feature_bool_distPointSegment``, spec §1.4).
+@numba.njit(**_KERNEL)
+def _direction_velocity(p1, p2, v):  # pragma: no cover - compiled
+    """Component of v along unit(p2 - p1) (``feature_velRelPointNormalPlane``).
+
+    p1, p2, v : np.ndarray [shape=(3, T)], float64 -> np.ndarray [shape=(T,)], the unit of v.
+    """
+    out = np.empty(v.shape[1])
+    for t in range(out.shape[0]):
+        nx, ny, nz = p2[0, t] - p1[0, t], p2[1, t] - p1[1, t], p2[2, t] - p1[2, t]
+        out[t] = (nx * v[0, t] + ny * v[1, t] + nz * v[2, t]) / np.sqrt(nx * nx + ny * ny + nz * nz)
+    return out
+
+
+@numba.njit(**_KERNEL)
+def _segment_angle(p1, p2, p3, p4):  # pragma: no cover - compiled
+    """Angle in degrees between the vectors p1 - p2 and p3 - p4 (``feature_angleSegmentSegment``).
 
     Parameters
     ----------
-    p1, p2, q : np.ndarray [shape=(3, ...)]
-    balls : (bool, bool), or two bool arrays broadcasting against [shape=(...)]
-        Whether the p1 / p2 end is capped with a ball. Where q projects before p1 (beyond p2) the distance is
-        |q - p1| (|q - p2|) with a ball there, and infinite without one.
+    p1, p2, p3, p4 : np.ndarray [shape=(3, T)], float64
 
     Returns
     -------
-    np.ndarray [shape=(...)]: the perpendicular distance from q to the line p1-p2, replaced at the ends as above.
+    np.ndarray [shape=(T,)], degrees in [0, 180]; the cosine clipped to [-1, 1] as in :func:`_vector_angle`.
     """
-    r = _unit(p2 - p1)
-    q1, q2 = q - p1, q - p2
-    d = _norm(_cross(q1, r))
-    d = np.where(_dot(r, q1) < 0, np.where(balls[0], _norm(q1), np.inf), d)
-    return np.where(_dot(r, q2) > 0, np.where(balls[1], _norm(q2), np.inf), d)
+    out = np.empty(p1.shape[1])
+    for t in range(out.shape[0]):
+        ux, uy, uz = p1[0, t] - p2[0, t], p1[1, t] - p2[1, t], p1[2, t] - p2[2, t]
+        vx, vy, vz = p3[0, t] - p4[0, t], p3[1, t] - p4[1, t], p3[2, t] - p4[2, t]
+        cos = (ux * vx + uy * vy + uz * vz) / (np.sqrt(ux * ux + uy * uy + uz * uz) * np.sqrt(vx * vx + vy * vy + vz * vz))
+        out[t] = np.degrees(np.arccos(min(1.0, max(-1.0, cos))))
+    return out
+
+
+def _joint_angle(a: np.ndarray, b: np.ndarray, vertex: np.ndarray) -> np.ndarray:
+    """Angle at ``vertex`` between a and b in degrees, 180 = straight limb (``feature_angleJoint``).
+
+    Parameters
+    ----------
+    a, b, vertex : np.ndarray [shape=(3, T)], float64
+
+    Returns
+    -------
+    np.ndarray [shape=(T,)], degrees in [0, 180].
+    """
+    return _segment_angle(a, vertex, b, vertex)
 
 
 def _vector_angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -159,34 +209,6 @@ def _vector_angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"):
         cos = _dot(u, v) / (_norm(u) * _norm(v))
     return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
-
-
-def _joint_angle(a: np.ndarray, b: np.ndarray, vertex: np.ndarray) -> np.ndarray:
-    """Angle at ``vertex`` between a and b in degrees, 180 = straight limb (``feature_angleJoint``).
-
-    Parameters
-    ----------
-    a, b, vertex : np.ndarray [shape=(3, T)]
-
-    Returns
-    -------
-    np.ndarray [shape=(T,)], degrees in [0, 180].
-    """
-    return _vector_angle(a - vertex, b - vertex)
-
-
-def _segment_angle(p1: np.ndarray, p2: np.ndarray, p3: np.ndarray, p4: np.ndarray) -> np.ndarray:
-    """Angle in degrees between the vectors p1 - p2 and p3 - p4 (``feature_angleSegmentSegment``).
-
-    Parameters
-    ----------
-    p1, p2, p3, p4 : np.ndarray [shape=(3, T)]
-
-    Returns
-    -------
-    np.ndarray [shape=(T,)], degrees in [0, 180].
-    """
-    return _vector_angle(p1 - p2, p3 - p4)
 
 
 def _window_frames(window_ms: float, fps: float) -> int:
@@ -215,18 +237,79 @@ def _velocity(x: np.ndarray, w: int, fps: float) -> np.ndarray:
 
     Returns
     -------
-    np.ndarray [shape=(..., T)], cm/s.
+    np.ndarray [shape=(..., T)], float64, cm/s.
     """
     n = x.shape[-1]
-    d = np.empty_like(x)
-    np.subtract(x[..., 1:], x[..., :-1], out=d[..., :-1])
-    d[..., -1] = d[..., -2]
-    rest = [(0, 0)] * (x.ndim - 1)
-    if n < w:
-        d = np.pad(d, rest + [(0, w - n)], mode="symmetric")
-    c = (w + 1) // 2
-    s = np.cumsum(np.pad(d, rest + [(c, c)], mode="symmetric"), axis=-1)
-    return (s[..., w : w + n] - s[..., :n]) * (fps / w)
+    flat = np.ascontiguousarray(x, dtype=np.float64).reshape(-1, n)
+    out = np.empty_like(flat)
+    _velocity_kernel(flat, np.array([0, n]), np.array([w]), np.array([float(fps)]), out)
+    return out.reshape(x.shape)
+
+
+@numba.njit(cache=True, nogil=True)
+def _velocity_kernel(x, bounds, windows, fps, out):  # pragma: no cover - compiled
+    """:func:`_velocity` of each document of k trajectories at once.
+
+    x, out : (k, N) float64 (out written); bounds : (D+1,) document boundaries; windows : (D,) int, the window
+    of each document in frames; fps : (D,). The padding is the symmetric (edge-repeating) extension, which
+    repeats with period 2n for an array of n samples; the windowed sums are differences of a running sum.
+    """
+    for d in range(bounds.shape[0] - 1):
+        a = bounds[d]
+        n = bounds[d + 1] - a
+        w = windows[d]
+        c = (w + 1) // 2
+        n1 = max(n, w)
+        total = n1 + 2 * c
+        ext = np.empty(n1)
+        running = np.empty(total)
+        scale = fps[d] / w
+        for j in range(x.shape[0]):
+            for m in range(n - 1):
+                ext[m] = x[j, a + m + 1] - x[j, a + m]
+            ext[n - 1] = ext[n - 2]
+            for m in range(n, n1):  # fewer frames than the window: mirrored at the end
+                r = m % (2 * n)
+                ext[m] = ext[r] if r < n else ext[2 * n - 1 - r]
+            acc = 0.0
+            for m in range(total):  # mirrored by c at both ends, summed
+                r = (m - c + 2 * n1) % (2 * n1)
+                acc += ext[r] if r < n1 else ext[2 * n1 - 1 - r]
+                running[m] = acc
+            for i in range(n):
+                out[j, a + i] = (running[i + w] - running[i]) * scale
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "afn", "reassoc", "nsz"})
+def _touch_kernel(joints, p1, p2, q, ball1, ball2, scale, out):  # pragma: no cover - compiled
+    """min over pairs k of D_k / (scale_k * |p2_k - p1_k|), D_k the distance of joint q_k from the segment
+    p1_k-p2_k (toolbox ``feature_bool_distPointSegment``, spec §1.4): the perpendicular distance from the line,
+    or beyond an end the distance from that end if it is capped with a ball, else infinite.
+
+    joints : (24, 3, N) float64 cm; p1, p2, q : (k,) joint indices; ball1, ball2 : (k,) bool; scale : (k,);
+    out : (N,) float64, written. A zero-length segment gives NaN for its pair (ignored unless all pairs are NaN,
+    as ``np.fmin``). The frame loop is branch-free (selects), so that it vectorises; no fast-math NaN/inf
+    assumptions.
+    """
+    out[:] = np.nan
+    for k in range(p1.shape[0]):
+        a, b, c = joints[p1[k]], joints[p2[k]], joints[q[k]]
+        cap1 = 0.0 if ball1[k] else np.inf
+        cap2 = 0.0 if ball2[k] else np.inf
+        for t in range(out.shape[0]):
+            ax, ay, az = a[0, t], a[1, t], a[2, t]
+            rx, ry, rz = b[0, t] - ax, b[1, t] - ay, b[2, t] - az
+            vx, vy, vz = c[0, t] - ax, c[1, t] - ay, c[2, t] - az
+            wx, wy, wz = vx - rx, vy - ry, vz - rz
+            length = np.sqrt(rx * rx + ry * ry + rz * rz)
+            along = (rx * vx + ry * vy + rz * vz) / length
+            cx, cy, cz = vy * rz - vz * ry, vz * rx - vx * rz, vx * ry - vy * rx
+            perp = np.sqrt(cx * cx + cy * cy + cz * cz) / length
+            before = max(np.sqrt(vx * vx + vy * vy + vz * vz), cap1)
+            beyond = max(np.sqrt(wx * wx + wy * wy + wz * wz), cap2)
+            ratio = (before if along < 0 else (beyond if along > length else perp)) / (scale[k] * length)
+            best = out[t]
+            out[t] = ratio if (ratio < best or np.isnan(best)) else best
 
 
 @numba.njit(cache=True)
@@ -304,9 +387,8 @@ class _Batch:
         self.fps = np.asarray(fps, dtype=np.float64)
         self.lengths = np.diff(self.bounds)
         self.n_frames = int(self.bounds[-1])
-        first = [body_sizes(positions[b : b + 1]) for b in self.bounds[:-1]]
-        table = np.array([s.to_numpy(np.float64) for s in first])  # (D, sizes)
-        self.sizes = dict(zip(first[0].index, table.T))
+        table = body_size_table(positions[self.bounds[:-1]])
+        self.sizes = {unit: table[unit].to_numpy() for unit in table.columns}
         self._values: dict = {}
         self._units: dict = {}
         self._velocities: dict = {}
@@ -343,9 +425,8 @@ class _Batch:
         for window_ms, keys in todo.items():
             x = np.stack([self[q] - self[p3] if p3 else self[q] for q, p3, _ in keys])  # (k, 3, N)
             v = np.empty_like(x)
-            for d in range(len(self.lengths)):
-                a, b = self.bounds[d], self.bounds[d + 1]
-                v[..., a:b] = _velocity(x[..., a:b], _window_frames(window_ms, self.fps[d]), self.fps[d])
+            windows = np.array([_window_frames(window_ms, fps) for fps in self.fps])
+            _velocity_kernel(x.reshape(-1, self.n_frames), self.bounds, windows, self.fps, v.reshape(-1, self.n_frames))
             for k, key in enumerate(keys):
                 self._velocities[key] = v[k]
 
@@ -519,7 +600,7 @@ class _Touch(_Quantity):
     """Smallest relative distance of any of ``points`` from any of ``segments`` (OR of touch tests).
 
     ``segments``: tuples (p1, p2, balls, scale). The value is min over points and segments of
-    D / (scale * |p2 - p1|), with D from :func:`_point_segment_distance` and the segment length of the current
+    D / (scale * |p2 - p1|), with D the point-segment distance of :func:`_touch_kernel` and the segment length of the current
     frame; "q within t * scale * |p2 - p1| of the segment" for any pair is then value <= t.
     """
 
@@ -527,13 +608,12 @@ class _Touch(_Quantity):
     segments: tuple
 
     def __call__(self, b):
-        pairs = [(p1, p2, balls, scale, q) for p1, p2, balls, scale in self.segments for q in self.points]
-        p1, p2, q = (b.joints[[_INDEX[pair[k]] for pair in pairs]].transpose(1, 0, 2) for k in (0, 1, 4))  # (3, k, N)
-        balls = np.array([pair[2] for pair in pairs])[:, :, None]  # (k, 2, 1)
-        scale = np.array([pair[3] for pair in pairs])[:, None]  # (k, 1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = _point_segment_distance(p1, p2, q, (balls[:, 0], balls[:, 1])) / (scale * _norm(p2 - p1))
-        return np.fmin.reduce(ratio, axis=0)
+        pairs = [(_INDEX[p1], _INDEX[p2], _INDEX[q], balls[0], balls[1], scale)
+                 for p1, p2, balls, scale in self.segments for q in self.points]  # fmt: skip
+        p1, p2, q, ball1, ball2, scale = (np.array(column) for column in zip(*pairs))
+        out = np.empty(b.n_frames)
+        _touch_kernel(b.joints, p1, p2, q, ball1, ball2, scale.astype(np.float64), out)
+        return out
 
 
 @dataclass(frozen=True)
@@ -561,7 +641,7 @@ class _PlaneVelocity(_Quantity):
     window_ms: float
 
     def __call__(self, b):
-        return _dot(_plane_normal(b[self.p1], b[self.p2], b[self.p3]), b.velocity(self.q, self.p3, self.window_ms))
+        return _plane_velocity(b[self.p1], b[self.p2], b[self.p3], b.velocity(self.q, self.p3, self.window_ms))
 
     def mirror(self):
         # as _Plane.mirror; keeps the toolbox's reference point: 2006 F1 and F2 both move relative to lhip
@@ -585,7 +665,7 @@ class _NormalVelocity(_Quantity):
     window_ms: float
 
     def __call__(self, b):
-        return _dot(_unit(b[self.p2] - b[self.p1]), b.velocity(self.q, self.p3, self.window_ms))
+        return _direction_velocity(b[self.p1], b[self.p2], b.velocity(self.q, self.p3, self.window_ms))
 
     def velocities(self):
         return ((self.q, self.p3, self.window_ms),)
@@ -938,10 +1018,10 @@ def _check_finite(positions: np.ndarray, where) -> None:
 
     ``where(frame) -> str`` names the source of a frame of ``positions``.
     """
-    bad = ~np.isfinite(positions).all(axis=2)
-    if bad.any():
-        t, j = np.argwhere(bad)[0]
-        raise ValueError(f"{where(int(t))}: joint {CANONICAL_JOINTS[j]} has a non-finite (NaN/inf) position")
+    if np.isfinite(positions).all():
+        return
+    t, j = np.argwhere(~np.isfinite(positions).all(axis=2))[0]
+    raise ValueError(f"{where(int(t))}: joint {CANONICAL_JOINTS[j]} has a non-finite (NaN/inf) position")
 
 
 def _motion_features(motion: Motion, feats: tuple) -> np.ndarray:
@@ -953,44 +1033,54 @@ def _motion_features(motion: Motion, feats: tuple) -> np.ndarray:
     return _evaluate(feats, _Batch(motion.positions, [0, motion.n_frames], [motion.fps]))
 
 
-def _db_features(db: MotionDB, feats: tuple, progress: bool) -> np.ndarray:
+def _db_features(db: MotionDB, feats: tuple, progress: bool, n_jobs: int) -> np.ndarray:
     docs = db.documents.sort_values("start")
     starts = docs["start"].to_numpy(np.int64)
     lengths = docs["n_frames"].to_numpy(np.int64)
+    fps = docs["fps"].to_numpy(np.float64)
     short = lengths < 2
     if short.any():
         row = docs.iloc[int(np.argmax(short))]
         raise ValueError(f"{db.path}: document {row['doc_id']} ({row['path']}) has {row['n_frames']} frame(s); "
                          f"relational features need at least 2 per document")  # fmt: skip
+    # batches of whole documents, contiguous in the frame arrays, about _BATCH_FRAMES frames in all
+    batches, first = [], 0
+    while first < len(docs):
+        last = first + 1
+        while (last < len(docs) and starts[last] == starts[last - 1] + lengths[last - 1]
+               and starts[last] + lengths[last] - starts[first] <= _BATCH_FRAMES):
+            last += 1  # fmt: skip
+        batches.append((first, last))
+        first = last
     out = np.empty((db.n_frames, len(feats)), dtype=bool)
+
+    def run(batch: tuple[int, int]) -> int:
+        first, last = batch
+        a, b = int(starts[first]), int(starts[last - 1] + lengths[last - 1])
+        positions = np.asarray(db.positions[a:b])
+        bounds = np.concatenate([[0], np.cumsum(lengths[first:last])])
+
+        def where(t):
+            d = first + int(np.searchsorted(bounds, t, side="right")) - 1
+            row = docs.iloc[d]
+            return f"{db.path}: document {row['doc_id']} ({row['path']}), frame {a + t - int(starts[d])}"
+
+        _check_finite(positions, where)
+        out[a:b] = _evaluate(feats, _Batch(positions, bounds, fps[first:last]))
+        return last - first
+
     bar = tqdm(total=len(docs), desc=f"relational features {len(feats)}", unit="doc",
                disable=not progress or len(docs) <= _PROGRESS_MIN_DOCUMENTS)  # fmt: skip
-    with bar:
-        first = 0
-        while first < len(docs):
-            # whole documents, contiguous in the frame arrays, about _BATCH_FRAMES frames in all
-            last = first + 1
-            while (last < len(docs) and starts[last] == starts[last - 1] + lengths[last - 1]
-                   and starts[last] + lengths[last] - starts[first] <= _BATCH_FRAMES):
-                last += 1  # fmt: skip
-            a, b = int(starts[first]), int(starts[last - 1] + lengths[last - 1])
-            positions = np.asarray(db.positions[a:b])
-            bounds = np.concatenate([[0], np.cumsum(lengths[first:last])])
-
-            def where(t, first=first, bounds=bounds, a=a):
-                d = first + int(np.searchsorted(bounds, t, side="right")) - 1
-                row = docs.iloc[d]
-                return f"{db.path}: document {row['doc_id']} ({row['path']}), frame {a + t - int(starts[d])}"
-
-            _check_finite(positions, where)
-            batch = _Batch(positions, bounds, docs["fps"].to_numpy(np.float64)[first:last])
-            out[a:b] = _evaluate(feats, batch)
-            bar.update(last - first)
-            first = last
+    # threads: the numpy operations and compiled kernels release the GIL; results come in batch order, so the
+    # first bad batch raises
+    with bar, ThreadPoolExecutor(max(1, n_jobs)) as pool:
+        for done in pool.map(run, batches):
+            bar.update(done)
     return out
 
 
-def relational(source, feature_set: str = "2005", progress: bool = True) -> tuple[np.ndarray, list[str]]:
+def relational(source, feature_set: str = "2005", progress: bool = True, n_jobs: int | None = None,
+               ) -> tuple[np.ndarray, list[str]]:
     """Boolean relational features of every frame (Müller, Röder & Clausen 2005 §3; Müller & Röder 2006).
 
     Parameters
@@ -1004,6 +1094,8 @@ def relational(source, feature_set: str = "2005", progress: bool = True) -> tupl
         lower F15-F26, mix F27-F39). See :func:`feature_table` for the definitions.
     progress : bool
         Progress bar over the documents of a MotionDB with more than 50 documents.
+    n_jobs : int, optional
+        Threads over batches of documents of a MotionDB (default: the machine's cores, at most 8).
 
     Returns
     -------
@@ -1030,5 +1122,5 @@ def relational(source, feature_set: str = "2005", progress: bool = True) -> tupl
     if isinstance(source, Motion):
         return _motion_features(source, feats), names
     if isinstance(source, MotionDB):
-        return _db_features(source, feats, progress), names
+        return _db_features(source, feats, progress, n_jobs or min(8, os.cpu_count() or 1)), names
     raise TypeError(f"relational features need a Motion or a MotionDB, got {type(source).__name__}")

@@ -223,7 +223,7 @@ def _read_asf_cached(path, _mtime, _size) -> AsfSkeleton:
     names = [b["name"] for b in bones]
     dup = {n for n in names if names.count(n) > 1}
     if dup:
-        raise MocapFormatError(path, f"bone {sorted(dup)[0]!r} defined twice")
+        raise MocapFormatError(path, f"bone {min(dup)!r} defined twice")
     known = set(names) | {"root"}
     for child, parent in hierarchy.items():
         if child not in known or parent not in known:
