@@ -29,6 +29,11 @@ class Motion:
         The file the clip was read from.
     labels : dict
         Annotations that travel with the clip (class, actor, style, ...).
+    euler : np.ndarray [shape=(T, C)], float32, or None
+        The source file's C rotation channel values in degrees, translation channels left out (AMC: the
+        root's rotation channels, then each bone's DOFs, bones in skeleton order; BVH: the rotation channels
+        in file order). They describe the source skeleton, so :meth:`canonical` keeps them unchanged
+        (needed for Krüger et al. 2010 §3.1 Deuler, ``mocapviz.features.distances``).
     """
 
     positions: np.ndarray
@@ -38,6 +43,7 @@ class Motion:
     quaternions: np.ndarray | None = None
     source: str | None = None
     labels: dict = field(default_factory=dict)
+    euler: np.ndarray | None = None
 
     def __post_init__(self):
         pos = np.asarray(self.positions, dtype=np.float32)
@@ -59,7 +65,13 @@ class Motion:
         object.__setattr__(self, "positions", pos)
         object.__setattr__(self, "joint_names", names)
         object.__setattr__(self, "parents", parents)
+        euler = self.euler
+        if euler is not None:
+            euler = np.asarray(euler, dtype=np.float32)
+            if euler.ndim != 2 or euler.shape[0] != pos.shape[0]:
+                raise ValueError(f"Motion.euler must have shape ({pos.shape[0]}, C), got {euler.shape}")
         object.__setattr__(self, "quaternions", quat)
+        object.__setattr__(self, "euler", euler)
         object.__setattr__(self, "fps", float(self.fps))
 
     @property
@@ -95,7 +107,8 @@ class Motion:
         """The same clip at another frame rate.
 
         Frame k of the result is at time k / fps; the last frame is the last one at or before the end of
-        the clip. Positions are interpolated linearly, rotations by slerp between the two nearest frames.
+        the clip. Positions are interpolated linearly, rotations by slerp between the two nearest frames,
+        Euler angles linearly along the shorter way round (so 179 and -179 degrees meet at 180).
         """
         fps = float(fps)
         if not (np.isfinite(fps) and fps > 0):
@@ -111,7 +124,11 @@ class Motion:
         quat = None
         if self.quaternions is not None:
             quat = rotations.slerp(self.quaternions[i0], self.quaternions[i1], w[:, None]).astype(np.float32)
-        return replace(self, positions=pos, quaternions=quat, fps=fps)
+        euler = None
+        if self.euler is not None:
+            step = np.remainder(self.euler[i1] - self.euler[i0] + 180.0, 360.0) - 180.0
+            euler = self.euler[i0] + step * w[:, None].astype(np.float32)
+        return replace(self, positions=pos, quaternions=quat, euler=euler, fps=fps)
 
     def __getitem__(self, frames) -> Motion:
         """Frames ``frames`` (a slice or an index array) of this clip as a new Motion."""
@@ -119,7 +136,8 @@ class Motion:
             k = range(self.n_frames)[frames]  # negative from the end; IndexError when out of range
             frames = slice(k, k + 1)
         quat = None if self.quaternions is None else self.quaternions[frames]
-        return replace(self, positions=self.positions[frames], quaternions=quat)
+        euler = None if self.euler is None else self.euler[frames]
+        return replace(self, positions=self.positions[frames], quaternions=quat, euler=euler)
 
     def __repr__(self) -> str:
         return (

@@ -306,7 +306,8 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
     -------
     Motion
         Joints ``root`` and the tip of every bone (named after the bone), positions (T, B+1, 3) in cm,
-        local quaternions (T, B+1, 4).
+        local quaternions (T, B+1, 4), and ``euler`` (T, C): the C rotation channel values in degrees (the
+        root's, then each bone's DOFs, bones in :attr:`AsfSkeleton.bone_names` order).
 
     Raises
     ------
@@ -407,6 +408,9 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
     euler[:, layout.euler_slot[use][rot]] = vals[:, rot]
     translation[:, layout.translation[use][~rot]] = vals[:, ~rot]
     euler = euler.reshape(n_frames, n_bones + 1, 3)
+    # the file's rotation channels as they are (bones without lines: 0), for Motion.euler
+    channels = np.zeros((n_frames, int(np.count_nonzero(layout.euler_slot >= 0))))
+    channels[:, (np.cumsum(layout.euler_slot >= 0) - 1)[use][rot]] = vals[:, rot]
     translation = translation * skeleton.cm_per_unit + skeleton.root_position
     axis_q = np.concatenate([skeleton.root_quaternion[None], skeleton.axis_quaternions])
     t_local = np.zeros((n_frames, n_bones + 1, 3))
@@ -430,6 +434,7 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
         parents=parents,
         quaternions=q_local.astype(np.float32),
         source=path,
+        euler=channels if degrees else np.degrees(channels),
     )
 
 

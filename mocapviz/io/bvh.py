@@ -204,7 +204,8 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
     -------
     Motion
         All joints and end sites of the file in file order, positions (T, J, 3) in cm, y up, local
-        quaternions (T, J, 4); fps = 1 / Frame Time (rounded to an integer when within 0.01 %).
+        quaternions (T, J, 4), ``euler`` (T, C): the file's rotation channel values in degrees, in file
+        order; fps = 1 / Frame Time (rounded to an integer when within 0.01 %).
 
     Raises
     ------
@@ -284,6 +285,7 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
         parents=h.parents,
         quaternions=q_local.astype(np.float32),
         source=path,
+        euler=values[:, rot],
     )
     if up == "z" or (up == "auto" and _stands_on_z(motion)):
         motion = _z_up_to_y_up(motion)

@@ -1,0 +1,145 @@
+"""Experiments of Krüger, Tautges, Weber & Zinke 2010 on numeric similarity search, as DataFrames.
+
+knn_timings     Table 1 (§3.3): k-nearest-neighbour search times per feature set, ours beside the paper's.
+paper_table1    Table 1 as printed in the paper (HDM05 380,813 frames and CMU 1,038,388 frames at 30 Hz).
+base_poses      §5.3: fat-graph base poses with kd-tree radius searches, against the O(n²) construction.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pandas as pd
+
+from ..errors import MotionDBError
+from ..features.numeric import NUMERIC_SETS, fit_pca, load_numeric, numeric
+from ..knn import KnnIndex, base_poses_quadratic
+from ..knn import base_poses as knn_base_poses
+
+__all__ = ["base_poses", "knn_timings", "paper_table1"]
+
+# Table 1 (ms per query, exact search, ANN library on 2010 hardware): rows (database, k), columns the sets
+_PAPER_TABLE1 = {
+    ("HDM05", 16): (0.19, 1.33, 2.86, 1.11, 3.87, 5.27, 7.95, 14.01, 18.98),
+    ("HDM05", 256): (1.03, 4.99, 8.68, 4.53, 12.50, 16.37, 23.70, 36.22, 46.71),
+    ("CMU", 16): (0.25, 2.15, 5.37, 1.65, 6.37, 8.71, 20.62, 37.08, 55.59),
+    ("CMU", 256): (1.35, 8.97, 18.10, 7.36, 24.12, 31.68, 60.23, 96.55, 136.29),
+}
+_PAPER_SETS = ("Fp8", "Fp16", "Fp25", "F15E", "F30E", "F39E", "F15x3E", "F15x5E", "F30x3E")
+_PAPER_FRAMES = {"HDM05": 380_813, "CMU": 1_038_388}
+
+
+def paper_table1() -> pd.DataFrame:
+    """Table 1 of Krüger et al. 2010: mean ms per exact k-NN query, per database, k and feature set.
+
+    Returns
+    -------
+    pandas.DataFrame, columns ``database``, ``frames``, ``k``, ``set``, ``mean_ms``.
+    """
+    return pd.DataFrame(
+        [{"database": db, "frames": _PAPER_FRAMES[db], "k": k, "set": s, "mean_ms": ms}
+         for (db, k), row in _PAPER_TABLE1.items() for s, ms in zip(_PAPER_SETS, row)]
+    )  # fmt: skip
+
+
+def _features(db, name: str, pca) -> np.ndarray:
+    """The stored feature set if current, else computed here (PCA sets with ``pca``, fitted on ``db`` if None)."""
+    try:
+        return np.asarray(load_numeric(db, name))
+    except MotionDBError:  # not stored, or stale: compute instead
+        if name.startswith("Fp") and pca is None:
+            pca = fit_pca(db, progress=False)
+        return numeric(db, name, pca=pca, progress=False)
+
+
+def knn_timings(db, sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 1000, pca=None, database: str | None = None,
+                seed: int = 0, workers: int = -1) -> pd.DataFrame:  # fmt: skip
+    """k-NN search times per feature set (Krüger et al. 2010 §3.3, Table 1).
+
+    For each set a :class:`mocapviz.knn.KnnIndex` (scipy cKDTree) is built over all frames of ``db``, then
+    ``n_queries`` random frames of the database are searched for their k nearest neighbours, exactly (ε = 0),
+    as one batch on ``workers`` threads; the mean time per query is the batch's wall time / n_queries.
+
+    Parameters
+    ----------
+    db : MotionDB
+        Features are taken from ``<db>/features`` when stored and current, else computed.
+    sets : sequence of str
+        Names of :data:`mocapviz.features.numeric.NUMERIC_SETS`; default the nine sets of Table 1.
+    ks : sequence of int
+    n_queries : int
+    pca : PCAModel, optional
+        The reference PCA for the Fp sets (the paper: fitted on all of HDM05); default fitted on ``db``.
+    database : str, optional
+        Name of the database for the table (default: the folder name of ``db``).
+    seed : int
+    workers : int
+        Threads of the batched query (-1: all cores).
+
+    Returns
+    -------
+    pandas.DataFrame, one row per (set, k): ``database``, ``frames``, ``set``, ``d``, ``k``, ``build_s`` (tree
+    construction), ``mean_ms`` (per query), ``queries``.
+    """
+    unknown = [s for s in sets if s not in NUMERIC_SETS]
+    if unknown:
+        raise ValueError(f"unknown feature set(s) {unknown}; known: {', '.join(NUMERIC_SETS)}")
+    rng = np.random.default_rng(seed)
+    frames = rng.choice(db.n_frames, size=min(n_queries, db.n_frames), replace=False)
+    name = database or getattr(db, "path", "db").name
+    rows = []
+    for s in sets:
+        x = np.ascontiguousarray(_features(db, s, pca))
+        t0 = time.perf_counter()
+        index = KnnIndex(x)
+        build = time.perf_counter() - t0
+        queries = x[frames]
+        for k in ks:
+            index.query(queries[:10], k, workers=workers)  # warm-up
+            t0 = time.perf_counter()
+            index.query(queries, k, workers=workers)
+            elapsed = time.perf_counter() - t0
+            rows.append({"database": name, "frames": db.n_frames, "set": s, "d": x.shape[1], "k": k,
+                         "build_s": build, "mean_ms": 1e3 * elapsed / len(frames), "queries": len(frames)})  # fmt: skip
+    return pd.DataFrame(rows)
+
+
+def base_poses(features: np.ndarray, radius: float, k: int = 256, quadratic_frames: int = 5000) -> pd.DataFrame:
+    """Fat-graph base poses (Krüger et al. 2010 §5.3): kd-tree construction vs the O(n²) one.
+
+    Parameters
+    ----------
+    features : np.ndarray [shape=(N, d)], e.g. F15E of a database (cm)
+    radius : float
+        Neighbourhood radius, in the features' unit.
+    k : int
+        At most k neighbours per frame.
+    quadratic_frames : int
+        The O(n²) construction runs on the first ``quadratic_frames`` frames only (and the kd-tree one again on
+        the same subset, to compare results).
+
+    Returns
+    -------
+    pandas.DataFrame, one row per (method, frames): ``method``, ``frames``, ``base_poses``, ``seconds``,
+    ``same_as_quadratic`` (the subset rows: whether both constructions chose the same base poses).
+    """
+    features = np.asarray(features)
+    sub = features[:quadratic_frames]
+    rows = []
+    t0 = time.perf_counter()
+    base_q, _ = base_poses_quadratic(sub, radius, k=k)
+    t_q = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    base_s, _ = knn_base_poses(sub, radius, k=k)
+    t_s = time.perf_counter() - t0
+    same = bool(np.array_equal(np.sort(base_q), np.sort(base_s)))
+    rows.append({"method": "O(n²) distance matrix", "frames": len(sub), "base_poses": len(base_q), "seconds": t_q,
+                 "same_as_quadratic": True})  # fmt: skip
+    rows.append({"method": "kd-tree, O(n log n)", "frames": len(sub), "base_poses": len(base_s), "seconds": t_s,
+                 "same_as_quadratic": same})  # fmt: skip
+    if len(features) > len(sub):
+        t0 = time.perf_counter()
+        base_all, _ = knn_base_poses(features, radius, k=k)
+        rows.append({"method": "kd-tree, O(n log n)", "frames": len(features), "base_poses": len(base_all),
+                     "seconds": time.perf_counter() - t0, "same_as_quadratic": None})  # fmt: skip
+    return pd.DataFrame(rows)

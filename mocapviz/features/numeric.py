@@ -1,0 +1,756 @@
+"""Numeric pose features for kNN search (Krüger, Tautges, Weber & Zinke 2010, §3.1-3.2).
+
+Every frame becomes a float vector of joint positions in the frame's *body frame* (root at the origin, rotated
+about the vertical axis so that the body faces +z: :func:`mocapviz.skeleton.heading` and
+:func:`mocapviz.skeleton.body_frame`), in centimetres, y up.
+
+Public API
+----------
+numeric           Motion or MotionDB -> (T, d) float32 values of one feature set.
+numeric_columns   the d column names of a set.
+window_offsets    the frame offsets of the windowed sets' samples at a frame rate.
+fit_pca           PCAModel of body-frame poses of a reference set (the Fp_n baselines).
+PCAModel          mean, principal axes and variances; project / reconstruct; save / load as .npz.
+store_numeric     compute feature sets of a MotionDB and store them beside it (``<db>/features/``).
+load_numeric      a stored set, memory-mapped; MotionDBError when missing or stale.
+NUMERIC_SETS      the set names, in the order below.
+
+Feature sets
+------------
+"F15E"     §3.2: lwrist, rwrist, lankle, rankle, head (4 end effectors and the head), x y z each: 15 columns.
+"F30E"     F15E + lelbow, relbow, lknee, rknee, chest: 30 columns.
+"F39E"     F30E + lshoulder, rshoulder, belly: 39 columns.
+"F15x3E"   §3.2 "feature sets on windows of frames": F15E of 3 samples spread evenly over a 0.3 s window
+"F15x5E"   centred on the frame (5 samples; F30E x 3), every sample in the *centre* frame's body frame, the
+"F30x3E"   samples' columns concatenated in time order (45, 75, 90 columns). Offsets are seconds rounded to
+           frames at each document's rate (:func:`window_offsets`); a sample beyond a document's end takes
+           its first / last frame, so no window reads a neighbouring document.
+"Fp8"      §3.1 Fp_n^pca: the first n principal components of all 24 canonical joint positions in the body
+"Fp16"     frame (72-d), with a PCA fitted once on a reference set (the paper: the entire HDM05 database)
+"Fp25"     and passed as ``pca=``.
+
+Storage
+-------
+``store_numeric(db)`` writes ``<db.path>/features/numeric-<name>.npy`` ((N, d) float32) and a JSON header
+``numeric-<name>.json`` (the DB generation and frame count it was computed for, the window offsets, the PCA
+reference), and the PCA model as ``features/pca.npz``. Files are written under temporary names and renamed into
+place; the old header is removed before the data is replaced and the new header renamed in last, under a lock,
+so a header on disk always describes the data beside it.
+
+Implementation
+--------------
+A MotionDB is processed in batches of whole documents (about ``_BATCH_FRAMES`` frames each) on a thread pool;
+within a batch everything is vectorised numpy over all frames (the heading once per frame, one gather and one
+rotation per window sample), in float32 like :func:`mocapviz.skeleton.body_frame`; the PCA in float64.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import fcntl
+import hashlib
+import io
+import json
+import os
+import tempfile
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ..database import MotionDB
+from ..errors import MotionDBError
+from ..motion import Motion
+from ..skeleton import CANONICAL_JOINTS, body_frame, heading
+
+__all__ = [
+    "NUMERIC_SETS",
+    "PCAModel",
+    "fit_pca",
+    "load_numeric",
+    "numeric",
+    "numeric_columns",
+    "store_numeric",
+    "window_offsets",
+]
+
+WINDOW_SECONDS = 0.3  # §3.2: "a window of fixed length 0.3 sec"
+_F15 = ("lwrist", "rwrist", "lankle", "rankle", "head")
+_F30 = _F15 + ("lelbow", "relbow", "lknee", "rknee", "chest")
+_F39 = _F30 + ("lshoulder", "rshoulder", "belly")
+_POSE_DIMS = 3 * len(CANONICAL_JOINTS)  # 72: the PCA's input, all canonical joints in the body frame
+_FRAME_JOINTS = ("root", "lhip", "rhip")  # what the body frame itself is computed from
+_BATCH_FRAMES = 1 << 15  # a MotionDB is processed in batches of whole documents of about this many frames
+_PROGRESS_MIN_DOCUMENTS = 50
+_HEADER_FORMAT = "mocapviz.numeric-features"
+_PCA_FORMAT = "mocapviz.PCAModel"
+_FORMAT_VERSION = 1
+_STALE_HINT = "run `mocapviz features DB` (store_numeric(db)) to compute them"
+
+
+@dataclass(frozen=True)
+class _Set:
+    """A numeric feature set: joint positions of ``samples`` window samples, or the first ``pcs`` PCs."""
+
+    joints: tuple[str, ...] = ()
+    samples: int = 1
+    pcs: int = 0
+
+    @property
+    def dims(self) -> int:
+        return self.pcs or 3 * len(self.joints) * self.samples
+
+
+_SETS = {
+    "F15E": _Set(_F15), "F30E": _Set(_F30), "F39E": _Set(_F39),
+    "F15x3E": _Set(_F15, 3), "F15x5E": _Set(_F15, 5), "F30x3E": _Set(_F30, 3),
+    "Fp8": _Set(pcs=8), "Fp16": _Set(pcs=16), "Fp25": _Set(pcs=25),
+}  # fmt: skip
+NUMERIC_SETS = tuple(_SETS)
+_PCA_COMPONENTS = max(s.pcs for s in _SETS.values())  # a default model serves every Fp set
+
+
+def _spec(name: str) -> _Set:
+    if name not in _SETS:
+        raise ValueError(f"unknown numeric feature set {name!r}; known sets: {', '.join(NUMERIC_SETS)}")
+    return _SETS[name]
+
+
+# ================================================================================================ geometry
+
+
+def window_offsets(n_samples: int, fps: float) -> np.ndarray:
+    """Frame offsets of the samples of a windowed feature set (§3.2: 3 or 5 samples over 0.3 s).
+
+    The nominal offsets (k / (n - 1) - 1/2) * 0.3 s, k = 0 .. n-1, times ``fps``, rounded to the nearest frame,
+    halves towards the centre frame (at 120 Hz the 3-sample offsets are -18, 0, 18; at 30 Hz, 4.5 frames, -4, 0, 4;
+    at 24 Hz, 3.6 frames, -4, 0, 4).
+
+    Parameters
+    ----------
+    n_samples : int, >= 1
+    fps : float, frames per second
+
+    Returns
+    -------
+    np.ndarray [shape=(n_samples,)], int64 frames, ascending, symmetric about the 0 in the middle.
+    """
+    if n_samples == 1:
+        return np.zeros(1, dtype=np.int64)
+    nominal = (np.arange(n_samples) / (n_samples - 1) - 0.5) * (WINDOW_SECONDS * fps)
+    return (np.sign(nominal) * np.ceil(np.abs(nominal) - 0.5 - 1e-9)).astype(np.int64)
+
+
+def _joint_features(positions: np.ndarray, bounds: np.ndarray, fps: np.ndarray, spec: _Set) -> np.ndarray:
+    """F15E ... F30x3E of a batch of whole documents (§3.2).
+
+    Each window sample's joints are put into the centre frame's body frame with the transform of
+    :func:`mocapviz.skeleton.body_frame` (root of the centre frame to the origin, then a rotation by minus its
+    :func:`mocapviz.skeleton.heading` about y), with the same float32 operations, so that the centre sample is
+    exactly ``body_frame(positions)[:, joints]``. Coordinates are handled as rows [shape=(k, N)] (contiguous
+    frames) and interleaved into the output once.
+
+    Parameters
+    ----------
+    positions : np.ndarray [shape=(N, 24, 3)], float32, canonical joints, cm, y up
+    bounds : np.ndarray [shape=(D+1,)], int -- document d is frames bounds[d]:bounds[d+1] of the batch
+    fps : np.ndarray [shape=(D,)] -- each document's frame rate (for the window offsets)
+    spec : _Set
+
+    Returns
+    -------
+    np.ndarray [shape=(N, spec.dims)], float32, cm: for each window sample in time order, for each joint of the
+    set, its x y z in the centre frame's body frame.
+    """
+    n, k = positions.shape[0], len(spec.joints)
+    theta = heading(positions)
+    c, s = np.cos(theta), np.sin(theta)
+    joints = np.take(positions, [CANONICAL_JOINTS.index(j) for j in spec.joints], axis=1).T  # [shape=(3, k, N)]
+    root = positions[:, CANONICAL_JOINTS.index("root")].T  # [shape=(3, N)]
+    lengths = np.diff(bounds)
+    first, last = np.repeat(bounds[:-1], lengths), np.repeat(bounds[1:] - 1, lengths)
+    offsets = np.stack([window_offsets(spec.samples, f) for f in fps]) if len(fps) else np.zeros((0, spec.samples))
+    out = np.empty((n, spec.samples, k, 3), dtype=np.float32)
+    for i in range(spec.samples):
+        frames = np.clip(np.arange(n) + np.repeat(offsets[:, i], lengths), first, last)  # clamped to the document
+        x, y, z = (joints[axis][:, frames] - root[axis] for axis in range(3))  # [shape=(k, N)] each
+        out[:, i, :, 0] = (x * c - z * s).T
+        out[:, i, :, 1] = y.T
+        out[:, i, :, 2] = (x * s + z * c).T
+    return out.reshape(n, spec.dims)
+
+
+# ===================================================================================================== PCA
+
+
+@dataclass(frozen=True, eq=False)
+class PCAModel:
+    """Principal components of body-frame poses (§3.1 Fp_n^pca), fitted once on a reference set.
+
+    Attributes
+    ----------
+    mean : np.ndarray [shape=(72,)], float64, cm -- mean body-frame pose (joint-major x y z, canonical order)
+    components : np.ndarray [shape=(n, 72)], float64 -- orthonormal principal axes, by decreasing variance; the
+        sign of each makes its largest-magnitude entry positive
+    explained_variance : np.ndarray [shape=(n,)], float64, cm^2 -- the variance along each axis, decreasing
+    total_variance : float, cm^2 -- the variance of all 72 dimensions (for ratios)
+    n_frames : int -- frames the model was fitted on
+    reference : str -- what it was fitted on
+    """
+
+    mean: np.ndarray
+    components: np.ndarray
+    explained_variance: np.ndarray
+    total_variance: float
+    n_frames: int
+    reference: str
+
+    def __post_init__(self):
+        n = np.shape(self.components)[0] if np.ndim(self.components) == 2 else -1
+        if (
+            np.shape(self.mean) != (_POSE_DIMS,)
+            or np.shape(self.components) != (n, _POSE_DIMS)
+            or n < 1
+            or np.shape(self.explained_variance) != (n,)
+        ):
+            raise ValueError(
+                f"PCAModel needs mean (72,), components (n, 72), explained_variance (n,); got "
+                f"{np.shape(self.mean)}, {np.shape(self.components)}, {np.shape(self.explained_variance)}"
+            )
+        for name in ("mean", "components", "explained_variance"):
+            object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=np.float64))
+        object.__setattr__(self, "total_variance", float(self.total_variance))
+        object.__setattr__(self, "n_frames", int(self.n_frames))
+        object.__setattr__(self, "reference", str(self.reference))
+
+    @property
+    def n_components(self) -> int:
+        return self.components.shape[0]
+
+    @property
+    def explained_variance_ratio(self) -> np.ndarray:
+        """Share of the total variance along each axis, [shape=(n,)]."""
+        return self.explained_variance / self.total_variance
+
+    def project(self, poses: np.ndarray, n: int | None = None) -> np.ndarray:
+        """Coefficients of the first ``n`` (default all) components of body-frame poses.
+
+        poses : np.ndarray [shape=(T, 72) or (T, 24, 3)], cm, body frame -> np.ndarray [shape=(T, n)], float64, cm.
+        """
+        n = self.n_components if n is None else n
+        if not 1 <= n <= self.n_components:
+            raise ValueError(f"the PCA model ({self.reference}) has {self.n_components} components; asked for {n}")
+        x = np.asarray(poses, dtype=np.float64).reshape(-1, _POSE_DIMS)
+        return (self.components[:n] @ (x - self.mean).T).T  # this way round BLAS is about 2x faster for small n
+
+    def reconstruct(self, coefficients: np.ndarray) -> np.ndarray:
+        """Body-frame poses from the coefficients of the first n components (the inverse of :meth:`project`).
+
+        coefficients : np.ndarray [shape=(T, n)], cm -> np.ndarray [shape=(T, 72)], float64, cm.
+        """
+        c = np.asarray(coefficients, dtype=np.float64)
+        return self.mean + c @ self.components[: c.shape[1]]
+
+    def save(self, path) -> None:
+        """Write the model as an ``.npz`` (no pickled objects), atomically (temporary file, then rename)."""
+        _atomic_write(Path(path), self._npz_bytes())
+
+    def _npz_bytes(self) -> bytes:
+        buf = io.BytesIO()
+        np.savez(
+            buf,
+            format=np.str_(_PCA_FORMAT),
+            version=np.int64(_FORMAT_VERSION),
+            mean=self.mean,
+            components=self.components,
+            explained_variance=self.explained_variance,
+            total_variance=np.float64(self.total_variance),
+            n_frames=np.int64(self.n_frames),
+            reference=np.str_(self.reference),
+        )
+        return buf.getvalue()
+
+    @classmethod
+    def load(cls, path) -> PCAModel:
+        """Read a model written by :meth:`save`.
+
+        Raises
+        ------
+        ValueError
+            Not such a file (names the file and what is wrong).
+        """
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                fields = {k: z[k] for k in z.files}
+        except (OSError, ValueError, EOFError) as exc:
+            raise ValueError(f"{path}: cannot read a PCA model ({exc})") from None
+        if str(fields.get("format", "")) != _PCA_FORMAT or int(fields.get("version", -1)) != _FORMAT_VERSION:
+            raise ValueError(f"{path}: not a {_PCA_FORMAT} version {_FORMAT_VERSION} file")
+        try:
+            return cls(
+                mean=fields["mean"],
+                components=fields["components"],
+                explained_variance=fields["explained_variance"],
+                total_variance=fields["total_variance"],
+                n_frames=fields["n_frames"],
+                reference=str(fields["reference"]),
+            )
+        except (KeyError, ValueError) as exc:
+            raise ValueError(f"{path}: malformed PCA model ({exc})") from None
+
+
+def fit_pca(
+    source, n_components: int = 25, reference: str | None = None, progress: bool = True, n_jobs: int | None = None
+) -> PCAModel:
+    """Principal components of all 24 canonical joint positions in the body frame (§3.1, Fp_n^pca).
+
+    The paper fits once on a fixed reference database (the entire HDM05) and uses that model for every search.
+
+    Parameters
+    ----------
+    source : Motion or MotionDB
+        The reference frames (a Motion on any skeleton is mapped with ``canonical()``).
+    n_components : int, 1 .. 72
+    reference : str, optional
+        Description stored with the model; default: the clip or database (path, generation, frames).
+    progress, n_jobs :
+        As for :func:`numeric`.
+
+    Returns
+    -------
+    PCAModel
+
+    Raises
+    ------
+    ValueError
+        ``n_components`` out of range, fewer than 2 frames, or a NaN / infinite position (names the frame).
+    """
+    if not 1 <= n_components <= _POSE_DIMS:
+        raise ValueError(f"n_components must be in 1..{_POSE_DIMS}, got {n_components}")
+    _n_frames(source)  # a Motion or a MotionDB
+
+    count, total, outer = 0, np.zeros(_POSE_DIMS), np.zeros((_POSE_DIMS, _POSE_DIMS))
+    batches = _map_batches(source, _pca_input, range(len(CANONICAL_JOINTS)), "PCA moments", progress, n_jobs)
+    for _, poses in batches:  # the sums here, in the calling thread: BLAS runs its own threads
+        x = poses.astype(np.float64)
+        count, total, outer = count + x.shape[0], total + x.sum(axis=0), outer + x.T @ x
+    if count < 2:
+        raise ValueError(f"{_describe(source)}: {count} frame(s); a PCA needs at least 2")
+    mean = total / count
+    cov = (outer - count * np.outer(mean, mean)) / (count - 1)
+    variance, axes = np.linalg.eigh(cov)  # ascending
+    order = np.argsort(variance)[::-1][:n_components]
+    components = axes[:, order].T
+    components *= np.sign(components[np.arange(n_components), np.abs(components).argmax(axis=1)])[:, None]
+    return PCAModel(
+        mean=mean,
+        components=components,
+        explained_variance=np.maximum(variance[order], 0.0),
+        total_variance=float(np.trace(cov)),
+        n_frames=count,
+        reference=reference or _describe(source),
+    )
+
+
+# ========================================================================================== batch processing
+
+
+@dataclass(frozen=True)
+class _Batch:
+    """Whole documents, contiguous: positions [shape=(N, 24, 3)] cm, bounds [shape=(D+1,)], fps [shape=(D,)]."""
+
+    positions: np.ndarray
+    bounds: np.ndarray
+    fps: np.ndarray
+
+
+def _pca_input(batch: _Batch) -> np.ndarray:
+    """The PCA's input (§3.1): all 24 canonical joints of a batch in the body frame
+    (:func:`mocapviz.skeleton.body_frame`), flattened to [shape=(N, 72)], float32, cm (x y z per joint)."""
+    return body_frame(batch.positions).reshape(-1, _POSE_DIMS)
+
+
+def _describe(source) -> str:
+    if isinstance(source, MotionDB):
+        return (
+            f"MotionDB {source.path} (generation {source.manifest['generation']}, {len(source)} documents, "
+            f"{source.n_frames} frames)"
+        )
+    return f"{source.source or 'motion'} ({source.n_frames} frames at {source.fps:g} fps)"
+
+
+def _check_finite(positions: np.ndarray, joints, where: Callable[[int], str]) -> None:
+    """Raise ValueError naming the first frame (and joint) where one of ``joints`` (indices) is not finite.
+
+    positions : [shape=(N, 24, 3)], cm; ``where(frame) -> str`` names the source of a frame of ``positions``.
+    """
+    ok = np.isfinite(positions[:, joints]).all(axis=2)
+    if ok.all():
+        return
+    t, j = np.argwhere(~ok)[0]
+    raise ValueError(f"{where(int(t))}: joint {CANONICAL_JOINTS[joints[j]]} has a non-finite (NaN/inf) position")
+
+
+def _map_batches(
+    source, work: Callable[[_Batch], object], joints, desc: str, progress: bool, n_jobs: int | None
+) -> Iterator:
+    """(frames, work(batch)) for the batches of whole documents of ``source``, in frame order.
+
+    ``source`` is a Motion (one batch) or a MotionDB (the callers check which with :func:`_n_frames`). A MotionDB
+    is cut into batches of whole documents of about ``_BATCH_FRAMES`` frames, run on a thread pool (numpy releases
+    the GIL) at most two per thread ahead of the consumer, so that results waiting to be consumed stay few.
+    ``frames`` is the slice of the source's frames a result covers. Every batch is checked for non-finite
+    positions of ``joints`` (canonical indices) first; the first bad batch in frame order raises.
+    """
+    if not isinstance(source, MotionDB):
+        motion = source.canonical()
+        name = source.source or "motion"
+        _check_finite(motion.positions, list(joints), lambda t: f"{name}, frame {t}")
+        yield (
+            slice(0, motion.n_frames),
+            work(_Batch(motion.positions, np.array([0, motion.n_frames]), np.array([motion.fps]))),
+        )
+        return
+    db = source
+    docs = db.documents.sort_values("start")
+    starts = docs["start"].to_numpy(np.int64)
+    lengths = docs["n_frames"].to_numpy(np.int64)
+    fps = docs["fps"].to_numpy(np.float64)
+    batches, first = [], 0
+    while first < len(docs):
+        last = first + 1
+        while (
+            last < len(docs)
+            and starts[last] == starts[last - 1] + lengths[last - 1]
+            and starts[last] + lengths[last] - starts[first] <= _BATCH_FRAMES
+        ):
+            last += 1
+        batches.append((first, last))
+        first = last
+
+    def run(batch: tuple[int, int]) -> tuple[slice, object, int]:
+        first, last = batch
+        a, b = int(starts[first]), int(starts[last - 1] + lengths[last - 1])
+        positions = np.asarray(db.positions[a:b])
+        bounds = np.concatenate([[0], np.cumsum(lengths[first:last])])
+
+        def where(t: int) -> str:
+            d = first + int(np.searchsorted(bounds, t, side="right")) - 1
+            row = docs.iloc[d]
+            return f"{db.path}: document {row['doc_id']} ({row['path']}), frame {a + t - int(starts[d])}"
+
+        _check_finite(positions, list(joints), where)
+        return slice(a, b), work(_Batch(positions, bounds, fps[first:last])), last - first
+
+    threads = max(1, n_jobs or min(8, os.cpu_count() or 1))
+    bar = tqdm(total=len(docs), desc=desc, unit="doc", disable=not progress or len(docs) <= _PROGRESS_MIN_DOCUMENTS)
+
+    def done(future) -> tuple[slice, object]:
+        frames, result, n_documents = future.result()
+        bar.update(n_documents)
+        return frames, result
+
+    with bar, ThreadPoolExecutor(threads) as pool:
+        pending = collections.deque()
+        for batch in batches:
+            pending.append(pool.submit(run, batch))
+            if len(pending) > 2 * threads:
+                yield done(pending.popleft())
+        while pending:
+            yield done(pending.popleft())
+
+
+def _fill(source, name: str, pca: PCAModel | None, out: np.ndarray, progress: bool, n_jobs: int | None) -> None:
+    """Write the values of feature set ``name`` of every frame of ``source`` into ``out`` [shape=(T, d)]."""
+    spec = _spec(name)
+    desc = f"numeric features {name}"
+    if spec.pcs:
+        if pca is None:
+            raise ValueError(
+                f"feature set {name} needs a PCA model: pass pca=fit_pca(reference) or "
+                f"pca=PCAModel.load(path) (the paper's reference is the whole HDM05 database)"
+            )
+        if pca.n_components < spec.pcs:
+            raise ValueError(
+                f"feature set {name} needs {spec.pcs} components; the PCA model ({pca.reference}) "
+                f"has {pca.n_components}"
+            )
+        batches = _map_batches(source, _pca_input, range(len(CANONICAL_JOINTS)), desc, progress, n_jobs)
+        for frames, poses in batches:
+            out[frames] = pca.project(poses, spec.pcs)  # here, in the calling thread: BLAS runs its own threads
+        return
+
+    def work(batch: _Batch) -> np.ndarray:
+        return _joint_features(batch.positions, batch.bounds, batch.fps, spec)
+
+    joints = [CANONICAL_JOINTS.index(j) for j in _FRAME_JOINTS + spec.joints]
+    for frames, values in _map_batches(source, work, joints, desc, progress, n_jobs):
+        out[frames] = values
+
+
+def _n_frames(source) -> int:
+    if isinstance(source, (Motion, MotionDB)):
+        return source.n_frames
+    raise TypeError(f"numeric features need a Motion or a MotionDB, got {type(source).__name__}")
+
+
+def numeric(
+    source, name: str, pca: PCAModel | None = None, progress: bool = True, n_jobs: int | None = None
+) -> np.ndarray:
+    """Numeric feature values of every frame (Krüger et al. 2010 §3.2; PCA baselines §3.1).
+
+    Parameters
+    ----------
+    source : Motion or MotionDB
+        A Motion on any skeleton (mapped with ``motion.canonical()``), or a MotionDB: all its frames in its frame
+        (document) order; windows are clamped to each document, never reading a neighbouring one.
+    name : str
+        One of :data:`NUMERIC_SETS`: "F15E", "F30E", "F39E" (positions in the frame's body frame), "F15x3E",
+        "F15x5E", "F30x3E" (3 or 5 samples of a 0.3 s window, in the centre frame's body frame), "Fp8", "Fp16",
+        "Fp25" (principal components; need ``pca``). Column names: :func:`numeric_columns`.
+    pca : PCAModel, optional
+        The reference PCA (:func:`fit_pca`, :meth:`PCAModel.load`), for the Fp sets; unused by the others.
+    progress : bool
+        Progress bar over the documents of a MotionDB with more than 50 documents.
+    n_jobs : int, optional
+        Threads over batches of documents of a MotionDB (default: the machine's cores, at most 8).
+
+    Returns
+    -------
+    np.ndarray [shape=(T, d)], float32, cm (Fp: cm along unit principal axes).
+
+    Raises
+    ------
+    ValueError
+        An unknown set (lists the known ones); a PCA set without a model, or with too few components; a NaN or
+        infinite position of a joint the set uses (names the clip or document and the frame).
+    mocapviz.SkeletonMappingError
+        A Motion whose joints cannot be mapped onto the canonical skeleton.
+    TypeError
+        ``source`` is neither a Motion nor a MotionDB.
+    """
+    spec = _spec(name)
+    out = np.empty((_n_frames(source), spec.dims), dtype=np.float32)
+    _fill(source, name, pca, out, progress, n_jobs)
+    return out
+
+
+def numeric_columns(name: str) -> list[str]:
+    """Column names of a numeric feature set.
+
+    ``"lwrist.x"`` ... for the frame sets; ``"lwrist.x@-0.150s"`` ... (nominal window offset) for the windowed
+    ones, samples in time order; ``"pc1"`` ... for the PCA sets.
+    """
+    spec = _spec(name)
+    if spec.pcs:
+        return [f"pc{k + 1}" for k in range(spec.pcs)]
+    cols = [f"{j}.{axis}" for j in spec.joints for axis in "xyz"]
+    if spec.samples == 1:
+        return cols
+    nominal = (np.arange(spec.samples) / (spec.samples - 1) - 0.5) * WINDOW_SECONDS
+    return [f"{c}@{t:+.3f}s" for t in nominal for c in cols]
+
+
+# ================================================================================================== storage
+
+
+def _atomic_write(target: Path, data: bytes) -> None:
+    """Write ``data`` to a temporary file beside ``target``, fsync, rename it into place."""
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def _features_lock(folder: Path, exclusive: bool):
+    """Hold the feature folder's lock: exclusive while files are swapped in, shared while a header and its
+    data are opened (so a reader never pairs one writer's header with another's data)."""
+    with open(folder / ".lock", "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _paths(db: MotionDB, name: str) -> tuple[Path, Path]:
+    folder = db.path / "features"
+    return folder / f"numeric-{name}.npy", folder / f"numeric-{name}.json"
+
+
+def store_numeric(
+    db: MotionDB, names=None, pca: PCAModel | None = None, progress: bool = True, n_jobs: int | None = None
+) -> dict[str, np.ndarray]:
+    """Compute numeric feature sets of a MotionDB and store them in ``<db.path>/features/``.
+
+    Each set goes to ``numeric-<name>.npy`` ((N, d) float32, written to a temporary file and renamed) with a JSON
+    header ``numeric-<name>.json``: the database generation and frame count it describes (so that
+    :func:`load_numeric` notices a changed database), columns, window offsets per frame rate, and for the PCA sets
+    the model's reference and checksum. The PCA model is stored as ``features/pca.npz``.
+
+    Parameters
+    ----------
+    db : MotionDB
+    names : str or list of str, optional
+        Sets to compute (default: all of :data:`NUMERIC_SETS`).
+    pca : PCAModel, optional
+        The reference PCA for the Fp sets. Default: fitted on this database (the header says so; a ``pca.npz``
+        fitted on this same generation is reused); the paper's reference is the entire HDM05 database, fitted
+        once with :func:`fit_pca`.
+    progress, n_jobs :
+        As for :func:`numeric`.
+
+    Returns
+    -------
+    dict name -> np.ndarray [shape=(N, d)], float32 memory maps of the stored files (:func:`load_numeric`).
+
+    Raises
+    ------
+    ValueError
+        Unknown set names (before anything is computed); bad positions as in :func:`numeric`. Sets stored before
+        the failing one stay stored; the failing one keeps its previous files.
+    """
+    names = list(NUMERIC_SETS) if names is None else [names] if isinstance(names, str) else list(names)
+    specs = {name: _spec(name) for name in names}
+    folder = db.path / "features"
+    folder.mkdir(exist_ok=True)
+    pca_header = None
+    if any(s.pcs for s in specs.values()):
+        fitted_here = pca is None
+        if fitted_here:
+            pca = _own_pca(db, progress, n_jobs)
+        blob = pca._npz_bytes()
+        pca_header = {
+            "file": "pca.npz",
+            "sha256": hashlib.sha256(blob).hexdigest(),
+            "reference": pca.reference,
+            "n_components": pca.n_components,
+            "n_frames": pca.n_frames,
+            "fitted_on_this_database": fitted_here,
+        }
+        with _features_lock(folder, exclusive=True):
+            _atomic_write(folder / "pca.npz", blob)
+    fps_values = sorted({float(f) for f in db.documents["fps"]})
+    for name, spec in specs.items():
+        data_path, header_path = _paths(db, name)
+        header = {
+            "format": _HEADER_FORMAT,
+            "version": _FORMAT_VERSION,
+            "set": name,
+            "dims": spec.dims,
+            "dtype": "float32",
+            "generation": db.manifest["generation"],
+            "n_frames": db.n_frames,
+            "n_documents": len(db),
+            "columns": numeric_columns(name),
+            "window": None
+            if spec.samples == 1
+            else {
+                "seconds": WINDOW_SECONDS,
+                "samples": spec.samples,
+                "offsets_frames": {f"{f:g}": window_offsets(spec.samples, f).tolist() for f in fps_values},
+            },
+            "pca": pca_header if spec.pcs else None,
+            "paper": "Krüger, Tautges, Weber, Zinke 2010, §3.2" if not spec.pcs else "Krüger et al. 2010, §3.1",
+            "written_by": f"mocapviz {_version()}",
+        }
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{data_path.name}.", suffix=".tmp")
+        os.close(fd)
+        try:
+            out = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.float32, shape=(db.n_frames, spec.dims))
+            _fill(db, name, pca, out, progress, n_jobs)
+            out.flush()
+            del out
+            with open(tmp, "rb+") as fh:
+                os.fsync(fh.fileno())
+            with _features_lock(folder, exclusive=True):
+                header_path.unlink(missing_ok=True)  # no header = missing: never an old header on new data
+                os.replace(tmp, data_path)
+                _atomic_write(header_path, json.dumps(header, indent=1).encode())
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+            raise
+    return {name: load_numeric(db, name) for name in names}
+
+
+def _own_pca(db: MotionDB, progress: bool, n_jobs: int | None) -> PCAModel:
+    """The default PCA reference of a database: fitted on the database itself, or the stored ``pca.npz`` when it
+    was fitted on this very generation (so that Fp sets stored one at a time share one model)."""
+    reference = f"this database: {_describe(db)}"
+    with contextlib.suppress(ValueError):
+        stored = PCAModel.load(db.path / "features" / "pca.npz")
+        if stored.reference == reference and stored.n_components == _PCA_COMPONENTS:
+            return stored
+    return fit_pca(db, _PCA_COMPONENTS, reference=reference, progress=progress, n_jobs=n_jobs)
+
+
+def load_numeric(db: MotionDB, name: str) -> np.ndarray:
+    """A numeric feature set stored by :func:`store_numeric`, memory-mapped read-only.
+
+    Returns
+    -------
+    np.ndarray [shape=(N, d)], float32 memory map; row i is frame i of the database.
+
+    Raises
+    ------
+    ValueError
+        An unknown set name.
+    mocapviz.MotionDBError
+        The set is not stored, or stale: computed for another generation or frame count of the database, or
+        with a PCA model other than the stored ``pca.npz``; or its files are unreadable. The message says to run
+        ``mocapviz features DB``.
+    """
+    spec = _spec(name)
+    data_path, header_path = _paths(db, name)
+    if not header_path.is_file():
+        raise MotionDBError(f"{db.path}: numeric feature set {name} is not stored; {_STALE_HINT}")
+    with _features_lock(header_path.parent, exclusive=False):
+        try:
+            header = json.loads(header_path.read_text())
+            data = np.load(data_path, mmap_mode="r", allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise MotionDBError(
+                f"{header_path.parent}: numeric feature set {name} unreadable ({exc}); {_STALE_HINT}"
+            ) from None
+        stale = None
+        if header.get("format") != _HEADER_FORMAT or header.get("version") != _FORMAT_VERSION:
+            stale = f"its header is not {_HEADER_FORMAT} version {_FORMAT_VERSION}"
+        elif (header.get("generation"), header.get("n_frames")) != (db.manifest["generation"], db.n_frames):
+            stale = (
+                f"it was computed for generation {header.get('generation')} ({header.get('n_frames')} frames); "
+                f"the database is at generation {db.manifest['generation']} ({db.n_frames} frames)"
+            )
+        elif data.shape != (db.n_frames, spec.dims) or data.dtype != np.float32:
+            stale = f"{data_path.name} holds {data.shape} {data.dtype}, expected ({db.n_frames}, {spec.dims}) float32"
+        elif spec.pcs and _file_sha256(header_path.parent / "pca.npz") != header["pca"]["sha256"]:
+            stale = "pca.npz has been replaced since it was computed"
+    if stale:
+        raise MotionDBError(f"{db.path}: numeric feature set {name} is stale: {stale}; {_STALE_HINT}")
+    return data
+
+
+def _file_sha256(path: Path) -> str | None:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return __version__

@@ -1,0 +1,495 @@
+"""k-nearest-neighbour and radius searches on per-frame feature arrays (Krüger, Tautges, Weber & Zinke 2010).
+
+KnnIndex               a search structure over the frames of a feature array (N, d), e.g. F15E (N, 15) in cm:
+                       exact and eps-approximate k nearest neighbours (§3.3, Table 1), "radius r, at most k"
+                       (§4.1, the search step of the lazy neighbourhood graph), batched over all cores. Engines:
+                       "ckdtree" (scipy.spatial.cKDTree, the preprocessing of §4.1) and "brute" (numpy/scipy,
+                       chunked, exact: the reference in the tests and the baseline of the benchmark).
+base_poses             fat-graph base poses in O(n log n) (§5.3): a radius search from every frame (at most k
+                       neighbours), then greedily the frame with the most remaining neighbours.
+base_poses_quadratic   the same clustering from full distance matrices, O(n^2): the reference.
+
+Conventions shared by all functions:
+
+- Distances are Euclidean, in the units of the features (cm for F15E), returned as float64.
+- A neighbour lies within radius r when its distance is *strictly* less than r (scipy's
+  ``distance_upper_bound``).
+- Rows of results are sorted by distance; equal distances by frame number (lowest first). Which of several
+  frames tied at the k-th distance are returned is not specified.
+- Missing neighbours (fewer than k within r) are index -1 with distance inf.
+- Frame numbers are rows of the feature array given to the index (database frame numbers when the features
+  cover a whole MotionDB).
+"""
+
+from __future__ import annotations
+
+import heapq
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
+import numpy as np
+from scipy.spatial import cKDTree
+from scipy.spatial.distance import cdist
+
+ENGINES = ("ckdtree", "brute")
+LEAFSIZE = 16  # points per kd-tree leaf
+_NODE_BYTES = 72  # sizeof(ckdtreenode) in scipy: 9 fields of 8 bytes
+_BRUTE_CHUNK_BYTES = 64 << 20  # distance matrix of one brute-force chunk of queries
+_ORDER_MIN = 64  # queries from which a batch is searched in the tree's leaf order
+_ORDER_EPS = 10.0  # approximation of the 1-NN search that finds a query's place in that order
+
+
+# ============================================================================ input checks
+def _check_features(features) -> np.ndarray:
+    """The feature array as a real (N, d) array (not copied), or a ValueError saying what is wrong."""
+    arr = np.asarray(features)
+    if arr.ndim != 2 or arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise ValueError(f"features must be a 2-D array (frames, dimensions) with at least one of each; got shape "
+                         f"{arr.shape}")  # fmt: skip
+    if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+        raise ValueError(f"features must be real numbers; got dtype {arr.dtype}")
+    bad = ~np.isfinite(arr).all(axis=1)
+    if bad.any():
+        raise ValueError(f"features: frame {int(np.argmax(bad))} is not finite (NaN or inf); "
+                         f"{int(bad.sum())} such frame(s)")  # fmt: skip
+    return arr
+
+
+def _check_valid(valid, n: int) -> np.ndarray:
+    """``valid`` as a bool (n,) mask (all True when None)."""
+    if valid is None:
+        return np.ones(n, dtype=bool)
+    mask = np.asarray(valid)
+    if mask.dtype != bool or mask.shape != (n,):
+        raise ValueError(f"valid must be a bool mask of shape ({n},), one entry per frame; got {mask.dtype} "
+                         f"{mask.shape}")  # fmt: skip
+    if not mask.any():
+        raise ValueError("valid selects no frame: there is nothing to search")
+    return mask
+
+
+def frames_mask(frames, n: int) -> np.ndarray:
+    """A bool (n,) mask from a mask or from [start, stop) frame ranges.
+
+    Parameters
+    ----------
+    frames : np.ndarray
+        bool [shape=(n,)], True for the frames meant; or int [shape=(B, 2)], one [start, stop) range of frame
+        numbers per row, e.g. documents' ``start`` and ``start + n_frames``.
+    n : int
+        Number of frames.
+
+    Returns
+    -------
+    np.ndarray [shape=(n,)], bool
+    """
+    arr = np.asarray(frames)
+    if arr.dtype == bool:
+        if arr.shape != (n,):
+            raise ValueError(f"a frame mask must have shape ({n},); got {arr.shape}")
+        return arr
+    if arr.ndim != 2 or arr.shape[1] != 2 or not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"frames must be a bool mask ({n},) or int [start, stop) ranges (B, 2); got {arr.dtype} "
+                         f"{arr.shape}")  # fmt: skip
+    if arr.size and (arr.min() < 0 or arr.max() > n or (arr[:, 0] > arr[:, 1]).any()):
+        raise ValueError(f"frame ranges must satisfy 0 <= start <= stop <= {n}")
+    # +1 at every start, -1 at every stop, summed: > 0 inside any range
+    edges = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(edges, arr[:, 0], 1)
+    np.add.at(edges, arr[:, 1], -1)
+    return np.cumsum(edges[:n]) > 0
+
+
+def _check_k(k, n_indexed: int) -> int:
+    if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)):
+        raise TypeError(f"k must be an integer; got {k!r}")
+    if not 1 <= k <= n_indexed:
+        raise ValueError(f"k must be between 1 and the number of indexed frames ({n_indexed:,}); got {k}")
+    return int(k)
+
+
+def _check_radius(radius) -> float | None:
+    if radius is None:
+        return None
+    r = float(radius)
+    if not r > 0 or np.isnan(r):
+        raise ValueError(f"radius must be a positive number (or None for no limit); got {radius!r}")
+    return r
+
+
+def _check_eps(eps) -> float:
+    e = float(eps)
+    if not e >= 0 or not np.isfinite(e):
+        raise ValueError(f"eps must be a finite number >= 0; got {eps!r}")
+    return e
+
+
+def _check_workers(workers) -> int:
+    """Number of threads: ``-1`` all CPUs, otherwise a positive int."""
+    if isinstance(workers, (bool, np.bool_)) or not isinstance(workers, (int, np.integer)) or not (
+            workers == -1 or workers >= 1):  # fmt: skip
+        raise ValueError(f"workers must be -1 (all CPUs) or a positive integer; got {workers!r}")
+    return (os.cpu_count() or 1) if workers == -1 else int(workers)
+
+
+def _check_queries(x, dim: int) -> np.ndarray:
+    """Queries as a float64 (q, d) array; a ValueError names the first non-finite query row."""
+    arr = np.asarray(x)
+    if arr.ndim not in (1, 2) or arr.shape[-1] != dim:
+        raise ValueError(f"queries must have shape ({dim},) or (q, {dim}) to match the index; got {arr.shape}")
+    if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+        raise ValueError(f"queries must be real numbers; got dtype {arr.dtype}")
+    arr = np.ascontiguousarray(np.atleast_2d(arr), dtype=np.float64)
+    bad = ~np.isfinite(arr).all(axis=1)
+    if bad.any():
+        raise ValueError(f"query row {int(np.argmax(bad))} is not finite (NaN or inf); {int(bad.sum())} such row(s)")
+    return arr
+
+
+# ============================================================================ engines
+def _build_ckdtree(data: np.ndarray, leafsize: int) -> tuple[cKDTree, np.ndarray]:
+    """kd-tree over data (M, d) float64 (§4.1 preprocessing) and the rank (M,) int64 of each point in the tree's
+    leaf order. Sliding-midpoint splits (``balanced_tree=False``): on F15E queries are about twice as fast as
+    with median splits."""
+    tree = cKDTree(data, leafsize=leafsize, balanced_tree=False, copy_data=False)
+    rank = np.empty(tree.n, dtype=np.int64)
+    rank[tree.indices] = np.arange(tree.n)
+    return tree, rank
+
+
+def _leaf_order(tree: cKDTree, rank: np.ndarray, x: np.ndarray, workers: int) -> np.ndarray:
+    """A permutation of the queries x (q, d) in the tree's leaf order (of a roughly nearest point, found by a
+    cheap approximate 1-NN search), so that consecutive queries visit the same nodes and points: on a 1M-frame
+    F15E tree a batch of random queries then takes about a third less time."""
+    _, near = tree.query(x, k=1, eps=_ORDER_EPS, workers=workers)
+    return np.argsort(rank[near], kind="stable")
+
+
+def _query_ckdtree(structure, x: np.ndarray, k: int, radius: float | None, eps: float, workers: int):
+    """k nearest (within radius) of queries x (q, d): distances (q, k) float64, positions in the tree's data
+    (q, k) int64 with -1 for missing neighbours. Rows sorted by distance (ties in any order). Batches of at
+    least ``_ORDER_MIN`` queries are searched in leaf order."""
+    tree, rank = structure
+    bound = np.inf if radius is None else radius
+    order = _leaf_order(tree, rank, x, workers) if len(x) >= _ORDER_MIN else np.arange(len(x))
+    d_sorted, i_sorted = tree.query(x[order], k=k, eps=eps, distance_upper_bound=bound, workers=workers)
+    d, i = np.empty((len(x), k)), np.empty((len(x), k), dtype=np.int64)
+    d[order], i[order] = d_sorted.reshape(len(x), k), i_sorted.reshape(len(x), k)
+    i[i == tree.n] = -1
+    return d, i
+
+
+def _brute_chunk(data: np.ndarray, x: np.ndarray, k: int, radius: float | None):
+    """Exact k nearest of queries x (c, d) among data (M, d) from the full distance matrix (c, M).
+
+    Returns distances (c, k) float64 and positions in ``data`` (c, k) int64, rows sorted by (distance, position);
+    beyond the radius: -1 and inf. The squared distances are sums of squared coordinate differences (no
+    |x|^2 - 2xy + |y|^2 cancellation), so they agree with the kd-tree's to rounding.
+    """
+    d2 = cdist(x, data, "sqeuclidean")
+    idx = np.argpartition(d2, k - 1, axis=1)[:, :k] if k < d2.shape[1] else np.tile(np.arange(k), (len(x), 1))
+    d2k = np.take_along_axis(d2, idx, axis=1)
+    order = np.lexsort((idx, d2k), axis=1)
+    idx, d2k = np.take_along_axis(idx, order, axis=1), np.take_along_axis(d2k, order, axis=1)
+    if radius is not None:
+        far = d2k >= radius * radius
+        d2k[far], idx[far] = np.inf, -1
+    return np.sqrt(d2k), idx
+
+
+def _query_brute(data: np.ndarray, x: np.ndarray, k: int, radius: float | None, eps: float, workers: int):
+    """Brute-force search (exact whatever ``eps``), chunks of queries over ``workers`` threads; see
+    :func:`_brute_chunk` for the arrays returned."""
+    size = max(1, _BRUTE_CHUNK_BYTES // (8 * len(data)))
+    starts = range(0, max(len(x), 1), size)  # one (empty) chunk for an empty batch
+    with ThreadPoolExecutor(min(workers, len(starts))) as pool:
+        parts = list(pool.map(lambda s: _brute_chunk(data, x[s : s + size], k, radius), starts))
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+
+_ENGINES = {
+    "ckdtree": (_build_ckdtree, _query_ckdtree),
+    "brute": (lambda data, leafsize: data, _query_brute),
+}
+
+
+def _ties_by_frame(d: np.ndarray, i: np.ndarray):
+    """Rows sorted by distance, re-sorted so that equal distances come in increasing position order."""
+    tied = ((d[:, 1:] == d[:, :-1]) & np.isfinite(d[:, 1:])).any(axis=1)
+    if tied.any():
+        order = np.lexsort((i[tied], d[tied]), axis=1)
+        i[tied] = np.take_along_axis(i[tied], order, axis=1)
+        d[tied] = np.take_along_axis(d[tied], order, axis=1)
+    return d, i
+
+
+# ============================================================================ the index
+class KnnIndex:
+    """Nearest-neighbour searches over the frames of a feature array (Krüger et al. 2010 §3.3, §4.1).
+
+    Parameters
+    ----------
+    features : np.ndarray [shape=(N, d)], real (float32 accepted; searched in float64), e.g. F15E in cm.
+    engine : str
+        "ckdtree" (scipy.spatial.cKDTree) or "brute" (exact brute force, chunked; for tests and baselines).
+    valid : np.ndarray [shape=(N,)], bool, optional
+        Frames that may be returned (e.g. not those of deleted documents or of the query's own document). The
+        search structure holds the valid frames only; results are frame numbers of ``features``.
+    leafsize : int
+        Points per kd-tree leaf (ignored by "brute").
+
+    Attributes
+    ----------
+    n_frames, dim : int         N and d.
+    n_indexed : int             number of valid frames.
+    frames : np.ndarray         (n_indexed,) int64, the valid frame numbers, increasing.
+    valid : np.ndarray          (N,) bool.
+    build_seconds : float       wall time of building the structure.
+    nbytes : int                memory held by the structure: the float64 copy of the valid frames, the
+                                kd-tree's permutation, its inverse and nodes (72 bytes each), and ``frames``.
+
+    Raises
+    ------
+    ValueError
+        Unknown engine, features not (N, d) real and finite (the first bad frame is named), a bad ``valid``
+        mask or one selecting no frame, leafsize < 1.
+    """
+
+    def __init__(self, features, engine: str = "ckdtree", valid=None, leafsize: int = LEAFSIZE):
+        if engine not in _ENGINES:
+            raise ValueError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINES)}")
+        if isinstance(leafsize, (bool, np.bool_)) or not isinstance(leafsize, (int, np.integer)) or leafsize < 1:
+            raise ValueError(f"leafsize must be a positive integer; got {leafsize!r}")
+        self._features = _check_features(features)
+        self.n_frames, self.dim = self._features.shape
+        self.engine, self.leafsize = engine, int(leafsize)
+        self.valid = _check_valid(valid, self.n_frames)
+        self.frames = np.flatnonzero(self.valid)
+        self.n_indexed = len(self.frames)
+        t0 = time.perf_counter()
+        picked = self._features if self.n_indexed == self.n_frames else self._features[self.frames]
+        data = np.ascontiguousarray(picked, dtype=np.float64)
+        self._structure = _ENGINES[engine][0](data, self.leafsize)
+        self.build_seconds = time.perf_counter() - t0
+        self.nbytes = data.nbytes + self.frames.nbytes
+        if engine == "ckdtree":
+            tree, rank = self._structure
+            self.nbytes += tree.indices.nbytes + tree.size * _NODE_BYTES + rank.nbytes
+
+    def __repr__(self) -> str:
+        return (f"KnnIndex({self.engine}: {self.n_indexed:,} of {self.n_frames:,} frames, d={self.dim}, "
+                f"{self.nbytes / 2**20:.1f} MiB, built in {self.build_seconds:.2f} s)")  # fmt: skip
+
+    def query(self, x, k: int, radius: float | None = None, eps: float = 0.0, workers: int = -1):
+        """The k nearest valid frames of each query (§3.3); with ``radius``, at most k within r (§4.1).
+
+        Parameters
+        ----------
+        x : np.ndarray [shape=(d,) or (q, d)], real, feature units (cm for F15E).
+        k : int
+            Neighbours per query, 1 <= k <= n_indexed.
+        radius : float, optional
+            Only neighbours at distance < radius; fewer than k are padded with -1 / inf.
+        eps : float
+            Approximation: the k-th returned distance is at most (1 + eps) times the true k-th nearest distance
+            (0: exact). The brute engine is always exact.
+        workers : int
+            Threads, -1 for all CPUs.
+
+        Returns
+        -------
+        distances : np.ndarray [shape=(q, k), or (k,) for x (d,)], float64, sorted increasing.
+        indices : np.ndarray [shape=(q, k), or (k,) for x (d,)], int64 frame numbers; -1 where missing.
+
+        Raises
+        ------
+        ValueError
+            x not of dimension d or not finite (the query row is named), k out of range, radius <= 0, eps < 0,
+            bad workers.
+        TypeError
+            k not an integer.
+        """
+        queries = _check_queries(x, self.dim)
+        k = _check_k(k, self.n_indexed)
+        radius, eps, workers = _check_radius(radius), _check_eps(eps), _check_workers(workers)
+        d, i = _ENGINES[self.engine][1](self._structure, queries, k, radius, eps, workers)
+        d, i = _ties_by_frame(d, i)
+        i = np.where(i >= 0, self.frames[np.maximum(i, 0)], -1)
+        return (d[0], i[0]) if np.ndim(x) == 1 else (d, i)
+
+    def exclude(self, frames) -> KnnIndex:
+        """A new index without some frames (e.g. documents), built again on the remaining valid frames.
+
+        Parameters
+        ----------
+        frames : np.ndarray
+            bool (N,) mask of frames to leave out, or int (B, 2) [start, stop) frame ranges such as documents'
+            ``start`` and ``start + n_frames``.
+
+        Returns
+        -------
+        KnnIndex with ``valid = self.valid & ~frames``; building it costs about ``build_seconds``.
+        """
+        drop = frames_mask(frames, self.n_frames)
+        return KnnIndex(self._features, self.engine, valid=self.valid & ~drop, leafsize=self.leafsize)
+
+
+# ============================================================================ fat-graph base poses (§5.3)
+def _check_fat_graph(radius, k) -> tuple[float, int]:
+    """The radius (> 0) and neighbour cap (>= 1) of the base-pose search, or a ValueError."""
+    if radius is None or _check_radius(radius) is None:
+        raise ValueError("radius must be a positive number")
+    if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or k < 1:
+        raise ValueError(f"k must be a positive integer; got {k!r}")
+    return float(radius), int(k)
+
+
+def _neighbour_table(features, radius: float, k: int, valid, workers: int, chunk: int = 1 << 16):
+    """Each valid frame's at most k nearest *other* valid frames within ``radius`` (§5.3 step 1, kd-tree).
+
+    Returns ``frames`` (M,) int64, the valid frame numbers, and ``nb`` (M, k) int64 positions in ``frames`` of
+    the neighbours, nearest first, -1 padded. Queries run in chunks of ``chunk`` frames so that only the
+    neighbour table stays in memory (8 k M bytes).
+    """
+    index = KnnIndex(features, valid=valid)
+    frames = index.frames
+    k = min(k, index.n_indexed - 1)
+    nb = np.full((len(frames), max(k, 1)), -1, dtype=np.int64)
+    if k < 1:  # a single frame: no neighbours
+        return frames, nb
+    data = index._features
+    for s in range(0, len(frames), chunk):
+        rows = frames[s : s + chunk]
+        _, found = index.query(data[rows], k + 1, radius=radius, workers=workers)
+        found[found == rows[:, None]] = -1  # the frame itself
+        kept = (found >= 0) & (np.cumsum(found >= 0, axis=1) <= k)
+        positions = np.searchsorted(frames, found)
+        # left-align the kept entries of each row
+        order = np.argsort(~kept, axis=1, kind="stable")[:, :k]
+        left = np.take_along_axis(positions, order, 1)
+        nb[s : s + len(rows)] = np.where(np.take_along_axis(kept, order, 1), left, -1)
+    return frames, nb
+
+
+def _reverse_lists(nb: np.ndarray):
+    """CSR of the reversed neighbour relation: the frames whose lists hold j are ``rev[ptr[j]:ptr[j + 1]]``."""
+    m = len(nb)
+    owner = np.repeat(np.arange(m), nb.shape[1])
+    target = nb.ravel()
+    keep = target >= 0
+    owner, target = owner[keep], target[keep]
+    order = np.argsort(target, kind="stable")
+    ptr = np.zeros(m + 1, dtype=np.int64)
+    np.cumsum(np.bincount(target, minlength=m), out=ptr[1:])
+    return owner[order], ptr
+
+
+@numba.njit(cache=True)
+def _greedy_cover(nb, rev, ptr):  # pragma: no cover - compiled
+    """Greedy base poses (§5.3 step 2, repeated): ``cluster`` (M,) int64, the base of each frame, and the bases
+    in the order chosen. A lazy max-heap keyed (remaining neighbours, -frame): O(k M log M) overall."""
+    m, k = nb.shape
+    count = np.zeros(m, dtype=np.int64)
+    for i in range(m):
+        for j in range(k):
+            count[i] += nb[i, j] >= 0
+    heap = [(-count[i], i) for i in range(m)]
+    heapq.heapify(heap)
+    cluster = np.full(m, -1, dtype=np.int64)
+    bases = np.empty(m, dtype=np.int64)
+    n_bases = 0
+    while heap:
+        key, i = heapq.heappop(heap)
+        if cluster[i] >= 0:
+            continue
+        if -key != count[i]:  # stale: its neighbours were taken since it was pushed
+            heapq.heappush(heap, (-count[i], i))
+            continue
+        bases[n_bases] = i
+        n_bases += 1
+        for j in range(-1, k):
+            f = i if j < 0 else nb[i, j]
+            if f < 0 or cluster[f] >= 0:
+                continue
+            cluster[f] = i
+            for p in range(ptr[f], ptr[f + 1]):
+                count[rev[p]] -= 1
+    return cluster, bases[:n_bases]
+
+
+def _full_cluster(n: int, frames: np.ndarray, cluster: np.ndarray, bases: np.ndarray):
+    """Positions among ``frames`` to frame numbers: bases (B,) and cluster (n,) with -1 for invalid frames."""
+    out = np.full(n, -1, dtype=np.int64)
+    out[frames] = frames[cluster]
+    return frames[bases], out
+
+
+def base_poses(features, radius: float, k: int = 32, valid=None, workers: int = -1):
+    """Fat-graph base poses in O(k n log n) (Krüger et al. 2010 §5.3, replacing the O(n^2) step of [SO06]).
+
+    1. A radius search from every valid frame: its at most k nearest other frames at distance < radius
+       (kd-tree, batched).
+    2. Repeatedly, the frame with the most remaining (not yet assigned) neighbours becomes a base pose (ties:
+       lowest frame number); it and its remaining neighbours are assigned to it. A frame none of whose
+       neighbours chose it ends up chosen itself, as a base pose of a cluster of one or more frames; so every
+       valid frame is in exactly one cluster, within ``radius`` of its base pose.
+
+    Parameters
+    ----------
+    features : np.ndarray [shape=(N, d)], real, e.g. F15E in cm.
+    radius : float
+        Neighbourhood radius in feature units.
+    k : int
+        Most neighbours per frame. Memory: 8 k N bytes for the neighbour table.
+    valid : np.ndarray [shape=(N,)], bool, optional
+        Frames to cluster (default all).
+    workers : int
+        Threads of the radius search, -1 for all CPUs.
+
+    Returns
+    -------
+    base : np.ndarray [shape=(B,)], int64 frame numbers of the base poses, in the order chosen.
+    cluster : np.ndarray [shape=(N,)], int64, the base pose of each frame; -1 for frames not valid.
+    """
+    radius, k = _check_fat_graph(radius, k)
+    frames, nb = _neighbour_table(features, radius, k, valid, workers)
+    rev, ptr = _reverse_lists(nb)
+    cluster, bases = _greedy_cover(nb, rev, ptr)
+    return _full_cluster(len(np.asarray(features)), frames, cluster, bases)
+
+
+def base_poses_quadratic(features, radius: float, k: int = 32, valid=None):
+    """The base poses of :func:`base_poses` from the full distance matrix, O(n^2) time and memory ([SO06]'s
+    cost; Krüger et al. 2010 §5.3): the reference for tests and benchmarks, for a few thousand frames.
+
+    Neighbours of a frame: the k nearest other valid frames by (distance, frame number) at distance < radius.
+    The greedy step recounts remaining neighbours from the adjacency matrix. Parameters and returns as
+    :func:`base_poses`.
+    """
+    radius, k = _check_fat_graph(radius, k)
+    arr = _check_features(features)
+    frames = np.flatnonzero(_check_valid(valid, len(arr)))
+    x = np.asarray(arr[frames], dtype=np.float64)
+    m = len(frames)
+    d2 = cdist(x, x, "sqeuclidean")
+    np.fill_diagonal(d2, np.inf)
+    nearest = np.argsort(d2, axis=1, kind="stable")[:, : min(k, m)]
+    rows = np.repeat(np.arange(m), nearest.shape[1])
+    near = np.take_along_axis(d2, nearest, axis=1).ravel() < radius * radius
+    adjacent = np.zeros((m, m), dtype=bool)
+    adjacent[rows[near], nearest.ravel()[near]] = True
+    count = adjacent.sum(axis=1)
+    left = np.ones(m, dtype=bool)
+    cluster = np.full(m, -1, dtype=np.int64)
+    bases = []
+    while left.any():
+        b = int(np.argmax(np.where(left, count, -1)))  # first maximum: lowest frame number
+        members = left & adjacent[b]
+        members[b] = True
+        cluster[members] = b
+        left &= ~members
+        count -= adjacent[:, members].sum(axis=1)
+        bases.append(b)
+    return _full_cluster(len(arr), frames, cluster, np.array(bases, dtype=np.int64))
