@@ -3,7 +3,10 @@
     mocapviz ingest PATH... --out DB [--fps N] [--labels FILE] [--skip-bad] [--jobs N]
     mocapviz info DB [--documents]
     mocapviz index DB [--feature-set 2005|2006]
-    mocapviz query DB --example FILE|DOC_ID [--frames A:B] --features NAMES [--mode M] [--mismatch M] [--top N]
+    mocapviz query DB --example FILE|DOC_ID [--frames A:B] --features NAMES [--mode M] [--mismatch M [--mismatch-at I,J]]
+                                                                                              [--top N]
+    mocapviz features DB [--sets F15E,F30E,...] [--pca FILE|DB]
+    mocapviz knn DB --frame DOC:FRAME [--features F15E] [-k 16] [--radius R] [--eps E] [--exclude-document]
     mocapviz datasets list
     mocapviz datasets fetch NAME        (NAME: a shared archive, or ``sample`` for the embedded sample)
 
@@ -15,16 +18,19 @@ import argparse
 import json
 import sys
 import time
+import warnings
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from . import datasets
 from .database import MotionDB
 from .errors import MocapFormatError, MotionDBError, SkeletonMappingError
-from .features import relational
+from .features import NUMERIC_SETS, PCAModel, fit_pca, numeric_of, relational, store_numeric
 from .index import build
 from .io import load
+from .knn import KnnIndex, describe_frames
 from .query import query_by_example
 
 
@@ -82,16 +88,73 @@ def _query(args) -> None:
     example = example[sl]
     if example.n_frames < 2:
         raise ValueError(f"--frames {args.frames} selects {example.n_frames} frame(s) of {example.source}; need at least 2")
-    features = [f.strip() for f in args.features.split(",") if f.strip()] if args.features else None
+    features = None if args.features is None else [f.strip() for f in args.features.split(",") if f.strip()]
     mode = "mismatch" if args.mismatch else args.mode
     t0 = time.perf_counter()
+    allowed = None if args.mismatch_at is None else [int(x) for x in args.mismatch_at.split(",") if x.strip()]
     hits = query_by_example(db, example, features, mode=mode, mismatches=args.mismatch or 0,
-                            feature_set=args.feature_set)
+                            feature_set=args.feature_set, allowed=allowed)
     ms = 1000 * (time.perf_counter() - t0)
     print(f"{len(hits)} hits in {ms:.1f} ms ({mode}, features: {', '.join(features or ['all'])})")
     cols = [c for c in ("rank", "doc_id", "name", "start_frame", "end_frame", "score", "label") if c in hits]
     with pd.option_context("display.width", 160, "display.max_rows", args.top + 5):
         print(hits[cols].head(args.top).round(3).to_string(index=False))
+
+
+def _names(text: str | None, known, what: str) -> list[str] | None:
+    """Comma-separated names, each checked against ``known``."""
+    if text is None:
+        return None
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in known]
+    if unknown or not names:
+        raise ValueError(f"unknown {what} {', '.join(unknown) or repr(text)}; choose from {', '.join(known)}")
+    return names
+
+
+def _features(args) -> None:
+    db = MotionDB.open(args.db)
+    pca = None
+    if args.pca:
+        ref = Path(args.pca)
+        pca = fit_pca(MotionDB.open(ref), progress=not args.quiet) if ref.is_dir() else PCAModel.load(ref)
+    t0 = time.perf_counter()
+    stored = store_numeric(db, _names(args.sets, NUMERIC_SETS, "feature set"), pca=pca, progress=not args.quiet)
+    print(f"{db}: {len(stored)} numeric feature sets in {time.perf_counter() - t0:.1f} s, "
+          f"written to {Path(db.path) / 'features'}")
+    rows = [{"set": n, "dims": a.shape[1], "MB": a.nbytes / 2**20} for n, a in stored.items()]
+    print(pd.DataFrame(rows).round(1).to_string(index=False))
+
+
+def _doc_frame(text: str) -> tuple[int, int]:
+    try:
+        doc, frame = (int(x) for x in text.split(":"))
+    except ValueError:
+        raise ValueError(f"--frame must look like DOC:FRAME (document id and frame within it), got {text!r}") from None
+    return doc, frame
+
+
+def _knn(args) -> None:
+    db = MotionDB.open(args.db)
+    doc, frame = _doc_frame(args.frame)
+    span = db.frames(doc)
+    if not 0 <= frame < span.stop - span.start:
+        raise ValueError(f"document {doc} has frames 0..{span.stop - span.start - 1}; --frame asks for {frame}")
+    features = numeric_of(db, _names(args.features, NUMERIC_SETS, "feature set")[0], progress=not args.quiet)
+    valid = None
+    if args.exclude_document:
+        valid = np.ones(db.n_frames, dtype=bool)
+        valid[span] = False
+    index = KnnIndex(features, valid=valid)
+    t0 = time.perf_counter()
+    dist, idx = index.query(features[span.start + frame], args.k, radius=args.radius, eps=args.eps)
+    ms = 1000 * (time.perf_counter() - t0)
+    hits = describe_frames(db, idx, dist)
+    print(f"{len(hits)} neighbours of document {doc} frame {frame} by {args.features} in {ms:.2f} ms "
+          f"({index})")
+    cols = [c for c in ("rank", "doc_id", "name", "doc_frame", "time_s", "distance", "label") if c in hits]
+    with pd.option_context("display.width", 160, "display.max_rows", args.k + 5):
+        print(hits[cols].round(3).to_string(index=False))
 
 
 def _datasets(args) -> None:
@@ -140,9 +203,29 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--mode", default="adaptive", choices=["adaptive", "fuzzy", "exact"],
                    help="adaptive fuzzy (default), plain fuzzy or exact hits")
     q.add_argument("--mismatch", type=int, default=0, help="allow M query segments to disagree (exact mode)")
+    q.add_argument("--mismatch-at", help="comma-separated 0-based query segments that may disagree (default any)")
     q.add_argument("--feature-set", default="2005", choices=["2005", "2006"])
     q.add_argument("--top", type=int, default=20, help="hits to print (default 20)")
     q.set_defaults(func=_query)
+
+    feat = sub.add_parser("features", help="compute and store the numeric feature sets of a MotionDB (kNN search)")
+    feat.add_argument("db")
+    feat.add_argument("--sets", help=f"comma-separated sets (default all: {','.join(NUMERIC_SETS)})")
+    feat.add_argument("--pca", help="PCA reference for Fp8/16/25: a saved model (.npz) or a MotionDB to fit it on "
+                                    "(default: fitted on DB itself)")
+    feat.add_argument("--quiet", action="store_true", help="no progress bar")
+    feat.set_defaults(func=_features)
+
+    kn = sub.add_parser("knn", help="the k nearest frames of one frame of a MotionDB (kd-tree)")
+    kn.add_argument("db")
+    kn.add_argument("--frame", required=True, help="DOC:FRAME, a document id and a frame within it")
+    kn.add_argument("--features", default="F15E", help="numeric feature set (default F15E)")
+    kn.add_argument("-k", type=int, default=16, help="neighbours (default 16)")
+    kn.add_argument("--radius", type=float, help="only neighbours closer than this (feature units, cm)")
+    kn.add_argument("--eps", type=float, default=0.0, help="approximate search: k-th distance within (1+eps)")
+    kn.add_argument("--exclude-document", action="store_true", help="leave out the frame's own document")
+    kn.add_argument("--quiet", action="store_true", help="no progress bar")
+    kn.set_defaults(func=_knn)
 
     ds = sub.add_parser("datasets", help="list or fetch the registered motion-capture archives")
     ds.add_argument("action", choices=["list", "fetch"])
@@ -151,12 +234,18 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"mocapviz: warning: {message}", file=sys.stderr)
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        args.func(args)
-    except (MocapFormatError, SkeletonMappingError, MotionDBError, datasets.DatasetError, FileNotFoundError,
-            ValueError, KeyError) as exc:
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
+            args.func(args)
+    except (MocapFormatError, SkeletonMappingError, MotionDBError, datasets.DatasetError, OSError, ValueError,
+            KeyError, TypeError) as exc:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
         print(f"mocapviz: error: {msg}", file=sys.stderr)
         return 1

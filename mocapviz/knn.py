@@ -5,6 +5,7 @@ KnnIndex               a search structure over the frames of a feature array (N,
                        (§4.1, the search step of the lazy neighbourhood graph), batched over all cores. Engines:
                        "ckdtree" (scipy.spatial.cKDTree, the preprocessing of §4.1) and "brute" (numpy/scipy,
                        chunked, exact: the reference in the tests and the baseline of the benchmark).
+describe_frames        database frames -> a table of documents, frames within them and labels (for results).
 base_poses             fat-graph base poses in O(n log n) (§5.3): a radius search from every frame (at most k
                        neighbours), then greedily the frame with the most remaining neighbours.
 base_poses_quadratic   the same clustering from full distance matrices, O(n^2): the reference.
@@ -30,6 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
+import pandas as pd
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
@@ -334,6 +336,40 @@ class KnnIndex:
         """
         drop = frames_mask(frames, self.n_frames)
         return KnnIndex(self._features, self.engine, valid=self.valid & ~drop, leafsize=self.leafsize)
+
+
+def describe_frames(db, frames, distances=None) -> pd.DataFrame:
+    """Where database frames lie: their documents, their frame numbers within them and the documents' labels.
+
+    Parameters
+    ----------
+    db : MotionDB
+    frames : np.ndarray [shape=(n,)], int, frame numbers of the database; -1 entries (missing neighbours of a
+        radius search) are left out.
+    distances : np.ndarray [shape=(n,)], optional, the neighbours' distances (e.g. cm) to put beside them.
+
+    Returns
+    -------
+    pandas.DataFrame, one row per frame in the given order: ``rank`` (1-based position in ``frames``), ``frame``,
+    ``doc_id``, ``name``, ``doc_frame`` (frame within the document), ``time_s`` (its time in the document),
+    ``distance`` (when given) and the documents' label columns (``label``, ``actor``, ...).
+    """
+    frames = np.asarray(frames, dtype=np.int64).ravel()
+    keep = frames >= 0
+    if frames[keep].size and frames[keep].max() >= db.n_frames:
+        raise ValueError(f"frame {int(frames[keep].max())} is beyond the database's {db.n_frames:,} frames")
+    docs = db.documents.sort_values("start").reset_index(drop=True)
+    row = np.searchsorted(docs["start"].to_numpy(), frames[keep], side="right") - 1
+    found = docs.iloc[row].reset_index(drop=True)
+    out = pd.DataFrame({"rank": np.flatnonzero(keep) + 1, "frame": frames[keep], "doc_id": found["doc_id"],
+                        "name": found["name"], "doc_frame": frames[keep] - found["start"].to_numpy()})  # fmt: skip
+    out["time_s"] = out["doc_frame"] / found["fps"].to_numpy()
+    if distances is not None:
+        out["distance"] = np.asarray(distances, dtype=np.float64).ravel()[keep]
+    skip = {"doc_id", "name", "path", "format", "start", "n_frames", "fps", "source_fps", "sha256"}
+    for col in (c for c in docs.columns if c not in skip):
+        out[col] = found[col].to_numpy()
+    return out
 
 
 # ============================================================================ fat-graph base poses (§5.3)

@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from mocapviz import MotionDB, datasets
@@ -63,3 +64,91 @@ def test_console_script_runs_as_module(sample_dir, tmp_path):
     """The same command through a fresh interpreter (as the installed `mocapviz` script runs it)."""
     res = subprocess.run([sys.executable, "-m", "mocapviz.cli", "info", str(tmp_path)], capture_output=True, text=True, check=False)
     assert res.returncode == 1 and res.stderr.count("\n") == 1 and "not a MotionDB" in res.stderr
+
+
+@pytest.fixture(scope="module")
+def sample_db(sample_dir, tmp_path_factory) -> MotionDB:
+    out = tmp_path_factory.mktemp("cli") / "db30"
+    assert main(["ingest", str(sample_dir), "--out", str(out), "--fps", "30", "--quiet"]) == 0
+    return MotionDB.open(out)
+
+
+def _table(text: str) -> list[list[str]]:
+    """Rows of the neighbour table printed by `mocapviz knn` (after its header lines), split on whitespace."""
+    lines = text.splitlines()
+    head = next(i for i, line in enumerate(lines) if line.split()[:2] == ["rank", "doc_id"])
+    return [line.split() for line in lines[head + 1 :]]
+
+
+def test_features_then_knn_prints_the_index_answer(sample_db, capsys):
+    """`mocapviz features` stores every numeric set; `mocapviz knn` prints the neighbours KnnIndex finds."""
+    from mocapviz.features import NUMERIC_SETS, load_numeric
+    from mocapviz.knn import KnnIndex
+
+    assert main(["features", str(sample_db.path), "--quiet"]) == 0
+    capsys.readouterr()
+    stored = {n: load_numeric(sample_db, n) for n in NUMERIC_SETS}  # raises if missing or stale
+    assert all(a.shape[0] == sample_db.n_frames for a in stored.values())
+
+    doc = int(sample_db.select(label="squat1Reps")["doc_id"].iloc[0])
+    span = sample_db.frames(doc)
+    assert main(["knn", str(sample_db.path), "--frame", f"{doc}:12", "-k", "7", "--features", "F30E",
+                 "--exclude-document"]) == 0  # fmt: skip
+    rows = _table(capsys.readouterr().out)
+    valid = np.ones(sample_db.n_frames, bool)
+    valid[span] = False
+    d, i = KnnIndex(stored["F30E"], valid=valid).query(stored["F30E"][span.start + 12], 7)
+    assert [int(r[0]) for r in rows] == list(range(1, 8))
+    assert [int(r[1]) for r in rows] == sample_db.document_of(i).tolist()
+    assert all(int(r[1]) != doc for r in rows)
+    np.testing.assert_allclose([float(r[5]) for r in rows], d, atol=1e-3)
+
+
+def test_knn_radius_prints_only_neighbours_within_it(sample_db, capsys):
+    doc = int(sample_db.documents["doc_id"].iloc[-1])
+    assert main(["knn", str(sample_db.path), "--frame", f"{doc}:5", "-k", "50", "--radius", "4"]) == 0
+    rows = _table(capsys.readouterr().out)
+    assert 1 <= len(rows) < 50 and rows[0][3] == "5" and float(rows[0][5]) == 0.0
+    assert all(float(r[5]) < 4 for r in rows)
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--frame", "0:100000"], "document 0 has frames 0.."),
+        (["--frame", "3"], "DOC:FRAME"),
+        (["--frame", "999:0"], "no document 999"),
+        (["--frame", "0:1", "--features", "F16E"], "unknown feature set F16E"),
+        (["--frame", "0:1", "-k", "0"], "k must be between 1"),
+    ],
+)
+def test_knn_errors_are_one_line(sample_db, args, needle, capsys):
+    assert main(["knn", str(sample_db.path), *args, "--quiet"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("mocapviz: error:") and needle in err and "\n" not in err
+
+
+def test_skip_bad_and_label_table_from_the_command_line(sample_dir, tmp_path, capsys):
+    """--skip-bad turns a bad file into one warning line; --labels replaces the labels found beside the data."""
+    src = tmp_path / "clips"
+    src.mkdir()
+    (src / "broken.bvh").write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n}\n")
+    good = next((sample_dir / "hdm05-cut" / "amc").glob("*.amc"))
+    table = tmp_path / "labels.csv"
+    table.write_text(f"file,label,mood\n{good.name},my-label,calm\n")
+    out = tmp_path / "db"
+    assert main(["ingest", str(src), str(good), "--out", str(out), "--skip-bad", "--labels", str(table),
+                 "--quiet"]) == 0  # fmt: skip
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("mocapviz: warning: skipped") and "broken.bvh, line 4" in err[0]
+    docs = MotionDB.open(out).documents
+    assert docs["name"].tolist() == [good.stem] and docs["label"].tolist() == ["my-label"]
+    assert docs["mood"].tolist() == ["calm"]
+
+
+def test_operating_system_errors_are_one_line(sample_dir, tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    assert main(["ingest", str(sample_dir / "cmu-asfamc"), "--out", str(blocker / "db"), "--quiet"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("mocapviz: error:") and "\n" not in err

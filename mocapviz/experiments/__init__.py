@@ -4,9 +4,13 @@ mocapviz.experiments").
 index_statistics    Müller, Röder & Clausen 2005, Table 2: relational index construction statistics.
 query_statistics    Müller, Röder & Clausen 2005, Table 3: random exact / adaptive fuzzy query statistics.
 relational_query    Müller, Röder & Clausen 2005, Figs. 7-9: query by example per class, precision and recall.
+knn_timings         Krüger, Tautges, Weber & Zinke 2010, Table 1: k-NN search times per numeric feature set.
+base_poses          Krüger et al. 2010, §5.3: fat-graph base poses, kd-tree against the O(n²) construction.
 
-The paper's own figures: :func:`mocapviz.experiments.relational.paper_table2` and ``paper_table3``.
+The papers' own figures: :func:`mocapviz.experiments.relational.paper_table2` and ``paper_table3``,
+:func:`mocapviz.experiments.numeric.paper_table1`.
 """
+from .numeric import base_poses, knn_timings
 from .relational import index_statistics, query_statistics, relational_query
 
-__all__ = ["index_statistics", "query_statistics", "relational_query"]
+__all__ = ["base_poses", "index_statistics", "knn_timings", "query_statistics", "relational_query"]

@@ -11,8 +11,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from ..errors import MotionDBError
-from ..features.numeric import NUMERIC_SETS, fit_pca, load_numeric, numeric
+from ..features.numeric import NUMERIC_SETS, default_pca, numeric_of
 from ..knn import KnnIndex, base_poses_quadratic
 from ..knn import base_poses as knn_base_poses
 
@@ -42,16 +41,6 @@ def paper_table1() -> pd.DataFrame:
     )  # fmt: skip
 
 
-def _features(db, name: str, pca) -> np.ndarray:
-    """The stored feature set if current, else computed here (PCA sets with ``pca``, fitted on ``db`` if None)."""
-    try:
-        return np.asarray(load_numeric(db, name))
-    except MotionDBError:  # not stored, or stale: compute instead
-        if name.startswith("Fp") and pca is None:
-            pca = fit_pca(db, progress=False)
-        return numeric(db, name, pca=pca, progress=False)
-
-
 def knn_timings(db, sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 1000, pca=None, database: str | None = None,
                 seed: int = 0, workers: int = -1) -> pd.DataFrame:  # fmt: skip
     """k-NN search times per feature set (Krüger et al. 2010 §3.3, Table 1).
@@ -69,7 +58,8 @@ def knn_timings(db, sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 1000, pca=N
     ks : sequence of int
     n_queries : int
     pca : PCAModel, optional
-        The reference PCA for the Fp sets (the paper: fitted on all of HDM05); default fitted on ``db``.
+        The reference PCA for the Fp sets (the paper: fitted on all of HDM05); default
+        :func:`mocapviz.features.numeric.default_pca` (the stored one, else fitted on ``db``).
     database : str, optional
         Name of the database for the table (default: the folder name of ``db``).
     seed : int
@@ -78,8 +68,9 @@ def knn_timings(db, sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 1000, pca=N
 
     Returns
     -------
-    pandas.DataFrame, one row per (set, k): ``database``, ``frames``, ``set``, ``d``, ``k``, ``build_s`` (tree
-    construction), ``mean_ms`` (per query), ``queries``.
+    pandas.DataFrame, one row per (set, k): ``database``, ``frames``, ``set``, ``d``, ``k``, ``features_s``
+    (loading the stored features, or computing them), ``build_s`` (tree construction), ``mean_ms`` (per query),
+    ``queries``.
     """
     unknown = [s for s in sets if s not in NUMERIC_SETS]
     if unknown:
@@ -87,9 +78,13 @@ def knn_timings(db, sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 1000, pca=N
     rng = np.random.default_rng(seed)
     frames = rng.choice(db.n_frames, size=min(n_queries, db.n_frames), replace=False)
     name = database or getattr(db, "path", "db").name
+    if pca is None and any(s.startswith("Fp") for s in sets):
+        pca = default_pca(db)
     rows = []
     for s in sets:
-        x = np.ascontiguousarray(_features(db, s, pca))
+        t0 = time.perf_counter()
+        x = np.ascontiguousarray(numeric_of(db, s, pca))
+        t_features = time.perf_counter() - t0
         t0 = time.perf_counter()
         index = KnnIndex(x)
         build = time.perf_counter() - t0
@@ -100,7 +95,8 @@ def knn_timings(db, sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 1000, pca=N
             index.query(queries, k, workers=workers)
             elapsed = time.perf_counter() - t0
             rows.append({"database": name, "frames": db.n_frames, "set": s, "d": x.shape[1], "k": k,
-                         "build_s": build, "mean_ms": 1e3 * elapsed / len(frames), "queries": len(frames)})  # fmt: skip
+                         "features_s": t_features, "build_s": build, "mean_ms": 1e3 * elapsed / len(frames),
+                         "queries": len(frames)})  # fmt: skip
     return pd.DataFrame(rows)
 
 

@@ -13,6 +13,7 @@ fit_pca           PCAModel of body-frame poses of a reference set (the Fp baseli
 PCAModel          mean, principal axes, variances; project / reconstruct; save / load (.npz).
 store_numeric     compute numeric sets of a MotionDB and store them in <db>/features/.
 load_numeric      a stored numeric set, memory-mapped (MotionDBError when missing or stale).
+numeric_of        a MotionDB's numeric set: stored when current, else computed.
 NUMERIC_SETS      the numeric feature set names.
 """
 
@@ -23,6 +24,7 @@ from .numeric import (
     load_numeric,
     numeric,
     numeric_columns,
+    numeric_of,
     store_numeric,
     window_offsets,
 )
@@ -39,6 +41,7 @@ __all__ = [
     "load_numeric",
     "numeric",
     "numeric_columns",
+    "numeric_of",
     "relational",
     "store_numeric",
     "window_offsets",

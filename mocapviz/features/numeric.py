@@ -13,6 +13,8 @@ fit_pca           PCAModel of body-frame poses of a reference set (the Fp_n base
 PCAModel          mean, principal axes and variances; project / reconstruct; save / load as .npz.
 store_numeric     compute feature sets of a MotionDB and store them beside it (``<db>/features/``).
 load_numeric      a stored set, memory-mapped; MotionDBError when missing or stale.
+numeric_of        a MotionDB's set: the stored one when current, else computed (nothing written).
+default_pca       a MotionDB's PCA reference: its stored pca.npz, else fitted on it.
 NUMERIC_SETS      the set names, in the order below.
 
 Feature sets
@@ -70,10 +72,12 @@ from ..skeleton import CANONICAL_JOINTS, body_frame, heading
 __all__ = [
     "NUMERIC_SETS",
     "PCAModel",
+    "default_pca",
     "fit_pca",
     "load_numeric",
     "numeric",
     "numeric_columns",
+    "numeric_of",
     "store_numeric",
     "window_offsets",
 ]
@@ -741,6 +745,42 @@ def load_numeric(db: MotionDB, name: str) -> np.ndarray:
     if stale:
         raise MotionDBError(f"{db.path}: numeric feature set {name} is stale: {stale}; {_STALE_HINT}")
     return data
+
+
+def numeric_of(db: MotionDB, name: str, pca: PCAModel | None = None, progress: bool = False) -> np.ndarray:
+    """A MotionDB's numeric feature set: the stored one when it is current, else computed now (nothing written).
+
+    Parameters
+    ----------
+    db : MotionDB
+    name : str
+        One of :data:`NUMERIC_SETS`.
+    pca : PCAModel, optional
+        For an Fp set: computed with this model. Default: the stored set when current, else computed with
+        :func:`default_pca`.
+    progress : bool
+
+    Returns
+    -------
+    np.ndarray [shape=(N, d)], float32, cm (a read-only memory map when stored).
+    """
+    if _spec(name).pcs and pca is not None:
+        return numeric(db, name, pca=pca, progress=progress)
+    try:
+        return load_numeric(db, name)
+    except MotionDBError:  # not stored, or stale: compute instead
+        pass
+    if _spec(name).pcs:
+        pca = default_pca(db, progress)
+    return numeric(db, name, pca=pca, progress=progress)
+
+
+def default_pca(db: MotionDB, progress: bool = False) -> PCAModel:
+    """The PCA reference of a MotionDB when none is given: its stored ``features/pca.npz``, else fitted on it."""
+    try:
+        return PCAModel.load(db.path / "features" / "pca.npz")
+    except ValueError:
+        return fit_pca(db, progress=progress)
 
 
 def _file_sha256(path: Path) -> str | None:
