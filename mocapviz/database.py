@@ -375,7 +375,13 @@ class MotionDB:
         known = set(self.documents["sha256"])
         todo = []
         for f in expand_paths(paths):
-            sha256 = file_checksum(f, load_options.get("asf"))
+            try:
+                sha256 = file_checksum(f, load_options.get("asf"))
+            except MocapFormatError as exc:  # e.g. an AMC without its ASF
+                if not skip_bad:
+                    raise
+                warnings.warn(f"skipped {exc}", stacklevel=2)
+                continue
             if sha256 in known:
                 continue
             lab = None if table is None else table.get(str(f), table.get(f.name, {}))
@@ -394,6 +400,53 @@ class MotionDB:
                 continue
             motions.append(res[0])
             metas.append(res[1])
+        return self._commit_motions(motions, metas)
+
+    def append_motions(self, motions, metas=None) -> MotionDB:
+        """Add clips held in memory (derived data: mirrored, resampled or edited copies of documents).
+
+        Unlike :meth:`append`, nothing is read and nothing is skipped: a clip equal to one already held is added
+        again. All clips are committed at once, atomically.
+
+        Parameters
+        ----------
+        motions : list of Motion
+            Clips on the 24 canonical joints (``Motion.canonical()``), at the database's frame rate.
+        metas : list of dict, optional
+            One per clip: any document columns (``name``, ``label``, ``path``, ``sha256``, ``source_fps``, label
+            columns such as ``actor``). Defaults: the clip's labels; name = the source file's stem; path = the
+            source; format "memory"; sha256 of the positions' bytes.
+
+        Returns
+        -------
+        MotionDB, reopened.
+
+        Raises
+        ------
+        ValueError
+            A clip not on the canonical joints, at another frame rate than the database's, or metas of another
+            length than motions.
+        """
+        motions = list(motions)
+        metas = [{} for _ in motions] if metas is None else [dict(m) for m in metas]
+        if len(metas) != len(motions):
+            raise ValueError(f"{len(motions)} motions but {len(metas)} metas")
+        rows = []
+        for i, (m, meta) in enumerate(zip(motions, metas)):
+            if tuple(m.joint_names) != tuple(CANONICAL_JOINTS):
+                raise ValueError(f"motion {i} ({m.source}): not on the canonical joints; use Motion.canonical()")
+            if len(self) and self.fps is not None and m.fps != self.fps:
+                raise ValueError(f"motion {i} ({m.source}) is at {m.fps:g} fps; the database at {self.fps:g} fps")
+            labels = {k: v for k, v in m.labels.items() if k not in _BASE_COLUMNS or k == "label"}
+            rows.append({
+                "name": Path(m.source).stem if m.source else f"motion{i}", "path": m.source or "",
+                "format": "memory", "source_fps": m.fps,
+                "sha256": hashlib.sha256(np.ascontiguousarray(m.positions).tobytes()).hexdigest(),
+                **labels, **meta, "n_frames": m.n_frames, "fps": m.fps,
+            })  # fmt: skip
+        return self._commit_motions(motions, rows)
+
+    def _commit_motions(self, motions: list, metas: list[dict]) -> MotionDB:
         if motions:
             with _locked(self.path):
                 _commit(self.path, _read_manifest(self.path), [m.positions for m in motions],
@@ -424,8 +477,8 @@ def _read_manifest(path: Path) -> dict:
         manifest = json.loads(f.read_text())
     except (OSError, ValueError) as exc:
         raise MotionDBError(f"{f}: unreadable ({exc})") from None
-    if manifest.get("format") != FORMAT:
-        raise MotionDBError(f"{path}: not a MotionDB (format {manifest.get('format')!r})")
+    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
+        raise MotionDBError(f"{path}: not a MotionDB (manifest.json is not a {FORMAT} manifest)")
     if manifest.get("version") != VERSION:
         raise MotionDBError(
             f"{path}: MotionDB format version {manifest.get('version')}; this mocapviz reads version {VERSION}"

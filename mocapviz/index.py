@@ -30,14 +30,6 @@ FORMAT = "mocapviz.InvertedIndex"
 VERSION = 1
 
 
-def _isin_sorted(values: np.ndarray, sorted_array: np.ndarray) -> np.ndarray:
-    """Membership of ``values`` in a sorted array by binary search, shape of ``values``."""
-    if sorted_array.size == 0:
-        return np.zeros(values.shape, dtype=bool)
-    idx = np.minimum(np.searchsorted(sorted_array, values), sorted_array.size - 1)
-    return sorted_array[idx] == values
-
-
 def merge_adjacent(sets: list[np.ndarray]) -> list[np.ndarray]:
     """Conjoin adjacent fuzzy sets with a common element until no two neighbours intersect (§5.2).
 
@@ -377,6 +369,11 @@ class InvertedIndex:
     def mismatch(self, query, m: int, allowed=None) -> np.ndarray:
         """m-mismatch hits (§5.2): at most ``m`` query segments may disagree with the database.
 
+        Candidates come from few lists: a hit agrees with every position where no mismatch is allowed, so the
+        shortest such list gives them all; with mismatches allowed anywhere it agrees with at least one of any
+        m + 1 positions (pigeonhole), so the union of the m + 1 shortest lists does. Each candidate is then
+        checked against the stored sequence at once.
+
         Parameters
         ----------
         query : as for :meth:`exact` (L segments).
@@ -397,18 +394,16 @@ class InvertedIndex:
         if free.size and (free.min() < 0 or free.max() >= n):
             raise ValueError(f"allowed mismatch positions must lie in [0, {n})")
         fixed = np.setdiff1d(np.arange(n), free)
-        lists = [self.inverted_list(int(c)).astype(np.int64) for c in q]
+        sizes = np.array([self.inverted_list(int(c)).size for c in q])
         if fixed.size:
-            cand = lists[fixed[0]] - fixed[0]
-            for l in fixed[1:]:
-                cand = cand[_isin_sorted(cand + l, lists[l])]
-            matches = sum(_isin_sorted(cand + l, lists[l]).astype(np.int64) for l in free)
-            hits = cand[free.size - matches <= m] if free.size else cand
+            anchors = fixed[[np.argmin(sizes[fixed])]]
         else:
-            shifted = np.concatenate([lists[l] - l for l in range(n)])
-            cand, matches = np.unique(shifted, return_counts=True)
-            hits = cand[matches >= n - m]
-        return self._valid(np.unique(hits), n)
+            anchors = np.argsort(sizes, kind="stable")[: m + 1]
+        cand = np.unique(np.concatenate([self.inverted_list(int(q[a])).astype(np.int64) - a for a in anchors]))
+        cand = cand[(cand >= 0) & (cand + n <= self.n_segments)]
+        agree = self.codes[cand[:, None] + np.arange(n)] == q
+        ok = agree[:, fixed].all(axis=1) & (agree[:, free].sum(axis=1) >= free.size - m)
+        return self._valid(cand[ok], n)
 
     # ------------------------------------------------------------------ frames
     def frame_spans(self, first: np.ndarray, stop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -541,16 +536,16 @@ def load(db, feature_set: str = "2005") -> dict:
     """
     from .features import feature_groups
 
+    option = "" if feature_set == "2005" else f" --feature-set {feature_set}"
+    how = f"`mocapviz index {db.path}{option}` or mocapviz.index.build(db, {feature_set!r})"
     out = {}
     for group in feature_groups(feature_set):
         path = index_path(db, feature_set, group)
         if not path.is_file():
-            raise MotionDBError(f"{db.path} has no {feature_set} relational index; build it with "
-                                f"`mocapviz index {db.path}` or mocapviz.index.build(db)")
+            raise MotionDBError(f"{db.path} has no {feature_set} relational index; build it with {how}")
         index = InvertedIndex.load(path)
         if index.meta.get("generation") != db.manifest["generation"] or index.meta.get("n_frames") != db.n_frames:
-            raise MotionDBError(f"{path} was built before the database last changed; rebuild it with "
-                                f"`mocapviz index {db.path}`")
+            raise MotionDBError(f"{path} was built before the database last changed; rebuild it with {how}")
         out[group] = index
     return out
 

@@ -36,7 +36,7 @@ def _check_features(features, feature_set: str) -> list[str]:
 
 
 def _group_hits(idx: index_mod.InvertedIndex, q_values: np.ndarray, chosen: list[int], mode: str,
-                mismatches: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                mismatches: int, allowed=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Hits of one group: (first segment, stop segment (exclusive), (H, L) segment bounds), and query lengths.
 
     ``q_values`` (T, f_group) are the query's features of this group, ``chosen`` the selected columns.
@@ -49,7 +49,7 @@ def _group_hits(idx: index_mod.InvertedIndex, q_values: np.ndarray, chosen: list
         if mode == "exact":
             k = idx.exact(seq.codes)
         else:
-            k = idx.mismatch(seq.codes, min(mismatches, len(seq.codes) - 1))
+            k = idx.mismatch(seq.codes, min(mismatches, len(seq.codes) - 1), allowed)
         bounds = k[:, None] + np.arange(len(seq.codes) + 1)
         return bounds, lengths
     seq = segment(q_values[:, chosen])
@@ -68,7 +68,7 @@ def _group_hits(idx: index_mod.InvertedIndex, q_values: np.ndarray, chosen: list
 
 
 def query_by_example(db, example, features=None, mode: str = "adaptive", mismatches: int = 1,
-                     feature_set: str = "2005", indexes: dict | None = None) -> pd.DataFrame:
+                     feature_set: str = "2005", indexes: dict | None = None, allowed=None) -> pd.DataFrame:
     """Find the stretches of a MotionDB that move like ``example`` in the chosen feature aspects.
 
     Parameters
@@ -81,11 +81,17 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
         Feature names of ``feature_set`` (any groups); the rest are "don't care". Default: all.
     mode : {"adaptive", "fuzzy", "exact", "mismatch"}
         ``adaptive`` (default): adaptive fuzzy hits, the database segmentation coarsened to the query's
-        don't-care sets (§5.2). ``fuzzy``: plain fuzzy hits (the database segmentation as it is).
-        ``exact``: every feature of the groups the selection touches must match (§5.1).
-        ``mismatch``: as exact, with up to ``mismatches`` query segments allowed to disagree.
+        don't-care sets (§5.2). The sets (every vector that agrees with the query on the selected features)
+        partition the vectors, so the coarsened segmentation is the database's segmentation under the selected
+        features alone, and these are the *exact* hits of the selection. ``fuzzy``: plain fuzzy hits, the
+        database segmentation as it is (a change of a left-out feature splits a segment, so fewer hits).
+        ``exact``: every feature of the groups the selection touches must match (§5.1, eq. 7, on the stored
+        segmentation: the strict form). ``mismatch``: as exact, with up to ``mismatches`` query segments
+        allowed to disagree.
     mismatches : int
         m for ``mode="mismatch"``.
+    allowed : list of int, optional
+        For ``mode="mismatch"``: the 0-based query segments that may disagree (default: any).
     feature_set : {"2005", "2006"}
     indexes : dict, optional
         Group -> InvertedIndex, if already loaded (default :func:`mocapviz.index.load`).
@@ -122,7 +128,7 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
             continue
         idx = indexes[group]
         q_values = values[:, [names.index(n) for n in members]]
-        bounds, q_len = _group_hits(idx, q_values, picked, mode, mismatches)
+        bounds, q_len = _group_hits(idx, q_values, picked, mode, mismatches, allowed)
         first, stop = bounds[:, 0], bounds[:, -1]
         seg_frames = idx.starts[np.minimum(bounds, idx.n_segments - 1)]
         seg_frames[:, -1] = idx.starts[stop - 1] + idx.lengths[stop - 1] if len(stop) else seg_frames[:, -1]

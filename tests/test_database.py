@@ -254,3 +254,60 @@ def test_ingest_all_hdm05_frames_at_120(hdm05_dir, hdm05_labels, tmp_path):
     counts = db.documents.set_index("name")["n_frames"]
     expect = hdm05_labels.assign(name=[Path(f).stem for f in hdm05_labels["file"]]).set_index("name")["frames"]
     pd.testing.assert_series_equal(counts.sort_index(), expect.sort_index(), check_names=False, check_dtype=False)
+
+
+def test_append_motions_adds_derived_clips(sample_dir, tmp_path):
+    """Mirrored copies held in memory are appended after the files, with their labels and given columns."""
+    from mocapviz.skeleton import mirror
+
+    db = MotionDB.ingest(sample_dir / "hdm05-cut", tmp_path / "db", fps=30, progress=False)
+    ids = db.documents["doc_id"].to_numpy()[:3]
+    copies = [mirror(db.motion(int(i))) for i in ids]
+    grown = db.append_motions(copies, [{"name": f"m{i}", "mirror_of": int(i)} for i in ids])
+    assert len(grown) == len(db) + 3 and grown.n_frames == db.n_frames + sum(c.n_frames for c in copies)
+    new = grown.documents.iloc[len(db):]
+    assert new["name"].tolist() == [f"m{i}" for i in ids] and new["format"].unique().tolist() == ["memory"]
+    assert new["label"].tolist() == db.documents["label"].iloc[:3].tolist()
+    assert new["mirror_of"].tolist() == ids.tolist()
+    for row, c in zip(new.itertuples(), copies):
+        np.testing.assert_array_equal(grown.motion(row.doc_id).positions, c.positions)
+    np.testing.assert_array_equal(grown.positions[: db.n_frames], db.positions)
+
+
+def test_append_motions_refuses_other_rates_and_skeletons(sample_dir, tmp_path):
+    db = MotionDB.ingest(sample_dir / "hdm05-cut", tmp_path / "db", fps=30, progress=False)
+    before = _state(db.path)
+    clip = db.motion(0)
+    with pytest.raises(ValueError, match="60 fps; the database at 30 fps"):
+        db.append_motions([clip.resample(60)])
+    with pytest.raises(ValueError, match="canonical joints"):
+        db.append_motions([mocapviz.load(db.documents["path"].iloc[0])])
+    with pytest.raises(ValueError, match="1 motions but 2 metas"):
+        db.append_motions([clip], [{}, {}])
+    assert _state(db.path) == before
+
+
+def test_skip_bad_also_skips_an_amc_without_its_skeleton(sample_dir, tmp_path):
+    """The checksum of an AMC needs its ASF: a missing one is a bad file like any other."""
+    src = shutil.copytree(sample_dir / "cmu-asfamc", tmp_path / "cmu")
+    lone = tmp_path / "lone" / "amc"
+    lone.mkdir(parents=True)
+    orphan = shutil.copy(next((src / "amc").rglob("131_01.amc")), lone / "orphan.amc")
+    with pytest.raises(MocapFormatError, match="no ASF skeleton"):
+        MotionDB.ingest([src, lone], tmp_path / "db", progress=False)
+    assert not (tmp_path / "db").exists()
+    with pytest.warns(UserWarning, match="orphan.amc"):
+        db = MotionDB.ingest([src, lone], tmp_path / "db", skip_bad=True, progress=False)
+    assert len(db) == 2 and Path(orphan).name not in set(db.documents["path"].map(lambda p: Path(p).name))
+
+
+def test_open_refuses_a_manifest_that_is_not_an_object(tmp_path):
+    (tmp_path / "manifest.json").write_text("[1, 2]")
+    with pytest.raises(MotionDBError, match="not a MotionDB"):
+        MotionDB.open(tmp_path)
+
+
+def test_ingest_shows_a_progress_bar_over_the_files(sample_dir, tmp_path, capsys):
+    MotionDB.ingest(sample_dir / "cmu-asfamc", tmp_path / "db", progress=True)
+    err = capsys.readouterr().err
+    assert "ingest" in err and "2/2" in err and "file" in err

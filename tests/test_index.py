@@ -186,3 +186,16 @@ def test_encode_is_the_weighted_bit_sum_and_decode_inverts_it(f):
     codes = encode(values)
     assert codes.tolist() == [sum(1 << k for k in range(f) if row[k]) for row in values]
     assert (decode(codes, f) == values).all()
+
+
+def test_frame_spans_recover_the_frames_of_adaptive_hits():
+    """The walk of §4 at frame level (segment l lasting l + 1 frames): the adaptive hits (2, 3, 6) and (6, 7, 10)
+    cover frames [sum of the lengths before segment 2, the end of segment 6) and likewise for the second."""
+    lengths = np.arange(1, len(WALK) + 1)
+    index = InvertedIndex.from_features(np.repeat(WALK, lengths, axis=0))
+    assert index.starts.tolist() == np.concatenate([[0], np.cumsum(lengths)[:-1]]).tolist()
+    hits = index.adaptive_fuzzy([vecs("00,01"), vecs("10,11"), vecs("00,01")])
+    start, stop = index.frame_spans(hits[:, 0], hits[:, -1])
+    ends = np.cumsum(lengths)
+    assert start.tolist() == [ends[0], ends[4]]  # segments 2 and 6 (1-based) start after segments 1 and 5
+    assert stop.tolist() == [ends[5], ends[9]]  # ... and the hits end with segments 6 and 10

@@ -79,6 +79,9 @@ def test_exact_and_mismatch_modes(db):
     loose = query_by_example(db, example, ["rknee_bent"], mode="mismatch", mismatches=1)
     key = lambda t: set(zip(t["doc_id"], t["first_segment"]))
     assert key(exact) <= key(loose)
+    nowhere = query_by_example(db, example, ["rknee_bent"], mode="mismatch", mismatches=1, allowed=[])
+    first = query_by_example(db, example, ["rknee_bent"], mode="mismatch", mismatches=1, allowed=[0])
+    assert key(nowhere) == key(exact) and key(exact) <= key(first) <= key(loose)
 
 
 def test_features_from_two_groups_are_joined_by_overlap(db):
@@ -109,6 +112,8 @@ def test_bad_queries_say_what_to_do(db, tmp_path, db_values):
     bare = MotionDB.ingest(db.documents["path"].iloc[:2].tolist(), tmp_path / "bare", progress=False)
     with pytest.raises(MotionDBError, match="mocapviz index"):
         query_by_example(bare, example, ["rknee_bent"])
+    with pytest.raises(MotionDBError, match="--feature-set 2006"):
+        query_by_example(bare, example, None, feature_set="2006")
     build(bare, progress=False)
     bare = bare.append(db.documents["path"].iloc[2:3].tolist(), progress=False)
     with pytest.raises(MotionDBError, match="rebuild"):
@@ -128,3 +133,9 @@ def test_cli_index_and_query_print_the_library_answer(db, tmp_path, capsys):
     assert first.startswith(f"{len(hits)} hits")
     assert main(["query", str(copy.path), "--example", str(doc), "--features", "bogus"]) == 1
     assert "unknown feature" in capsys.readouterr().err
+    assert main(["query", str(copy.path), "--example", str(doc), "--features", ""]) == 1
+    assert "no features selected" in capsys.readouterr().err
+    assert main(["query", str(copy.path), "--example", str(doc), "--features", "rknee_bent", "--mismatch", "1",
+                 "--mismatch-at", "0"]) == 0  # fmt: skip
+    at_first = query_by_example(copy, copy.motion(doc), ["rknee_bent"], mode="mismatch", allowed=[0])
+    assert capsys.readouterr().out.startswith(f"{len(at_first)} hits")

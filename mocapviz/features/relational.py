@@ -672,29 +672,25 @@ class _NormalVelocity(_Quantity):
 
 
 @dataclass(frozen=True)
-class _Min(_Quantity):
-    """Smallest of the parts: "all parts >= t" is min >= t."""
+class _Extreme(_Quantity):
+    """Smallest (or largest) of the parts: "all parts >= t" is min >= t, "all parts <= t" is max <= t."""
 
     parts: tuple
+    largest: bool = False
 
     def __call__(self, b):
-        return np.minimum.reduce([b.value(p) for p in self.parts])
+        return (np.maximum if self.largest else np.minimum).reduce([b.value(p) for p in self.parts])
 
     def velocities(self):
         return tuple(r for p in self.parts for r in p.velocities())
 
 
-@dataclass(frozen=True)
-class _Max(_Quantity):
-    """Largest of the parts: "all parts <= t" is max <= t."""
+def _Min(parts: tuple) -> _Extreme:
+    return _Extreme(parts)
 
-    parts: tuple
 
-    def __call__(self, b):
-        return np.maximum.reduce([b.value(p) for p in self.parts])
-
-    def velocities(self):
-        return tuple(r for p in self.parts for r in p.velocities())
+def _Max(parts: tuple) -> _Extreme:
+    return _Extreme(parts, largest=True)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,29 @@
+"""The two environment descriptions agree: environment.yml (conda-forge) lists every requirement of
+pyproject.toml (dependencies and every extra) with the same version bound."""
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+_REQ = re.compile(r"^\s*([A-Za-z0-9_.\-]+)\s*(.*?)\s*$")
+
+
+def _requirements(lines) -> dict[str, str]:
+    """{normalised name: version bound} of requirement strings such as ``numpy>=1.26``."""
+    out = {}
+    for line in lines:
+        name, bound = _REQ.match(line).groups()
+        out[re.sub(r"[-_.]+", "-", name).lower()] = bound.replace(" ", "")
+    return out
+
+
+def test_environment_yml_matches_pyproject():
+    project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
+    wanted = project["dependencies"] + [r for extra in project["optional-dependencies"].values() for r in extra]
+    wanted = _requirements(r for r in wanted if not r.startswith(project["name"]))
+    dependencies = (REPO / "environment.yml").read_text().split("dependencies:", 1)[1]
+    listed = [m.group(1) for m in re.finditer(r"^\s*-\s+([A-Za-z][^\s#:]*)\s*$", dependencies, re.M)]
+    listed = _requirements(x for x in listed if x not in ("pip",) and not x.startswith(("python", "-e")))
+    assert listed == wanted
