@@ -3,5 +3,8 @@
 Run ``python -m benchmarks`` (``make bench``), or ``python -m benchmarks --quick`` for a smoke run on small
 subsets. Tables are printed as markdown; the same rows are written as CSV under ``benchmarks/results/``.
 
-bench_io    readers (parse + forward kinematics, ASF/AMC and BVH) and ``MotionDB.ingest``.
+common            what they share: machine description, markdown tables, the cached benchmark MotionDB.
+bench_io          readers (parse + forward kinematics, ASF/AMC and BVH) and ``MotionDB.ingest``.
+bench_relational  relational features, inverted-index build and queries (Müller et al. 2005, Tables 2-3).
+bench_knn         kNN search per feature set and fat-graph base poses (Krüger et al. 2010, Table 1, §5.3).
 """

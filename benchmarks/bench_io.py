@@ -18,20 +18,17 @@ from __future__ import annotations
 
 import csv
 import datetime as _dt
-import os
-import platform
 import statistics
-import subprocess
-import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+
+from .common import CpuMonitor, fetch, log, machine_info, markdown
 
 TARGET_AMC = 100_000  # frames/s
 TARGET_BVH = 300_000  # frames/s
@@ -334,112 +331,6 @@ def _max_diff(motion, names, positions) -> float:
 
 
 # ============================================================================ machine
-def machine_info() -> dict:
-    info = {}
-    try:
-        cpuinfo = Path("/proc/cpuinfo").read_text()
-        models = [ln.split(":", 1)[1].strip() for ln in cpuinfo.splitlines() if ln.startswith("model name")]
-        info["cpu"] = models[0] if models else platform.processor() or "?"
-        fam = [ln.split(":", 1)[1].strip() for ln in cpuinfo.splitlines() if ln.startswith(("cpu family", "model\t"))]
-        if len(fam) >= 2:
-            info["cpu"] += f" (family {fam[0]} model {fam[1]})"
-        if " hypervisor" in cpuinfo:
-            info["cpu"] += ", virtual machine"
-    except OSError:
-        info["cpu"] = platform.processor() or "?"
-    info["cores"] = os.cpu_count()
-    try:
-        info["usable_cores"] = len(os.sched_getaffinity(0))
-    except AttributeError:
-        info["usable_cores"] = os.cpu_count()
-    try:
-        mem = next(ln for ln in Path("/proc/meminfo").read_text().splitlines() if ln.startswith("MemTotal"))
-        info["ram_gib"] = round(int(mem.split()[1]) / 2**20, 1)
-    except (OSError, StopIteration):
-        info["ram_gib"] = None
-    info["os"] = platform.platform()
-    info["python"] = platform.python_version()
-    for pkg in ("numpy", "numba", "scipy", "bvh", "mocapviz"):
-        try:
-            info[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            info[pkg] = "not installed"
-    try:
-        info["commit"] = (
-            subprocess.run(
-                ["git", "rev-parse", "--short", "HEAD"],
-                check=False,
-                cwd=Path(__file__).resolve().parent,
-                capture_output=True,
-                text=True,
-                timeout=10,
-            ).stdout.strip()
-            or "?"
-        )
-        # read-only: does the working tree of the measured code differ from the commit?
-        dirty = subprocess.run(
-            ["git", "diff", "--quiet", "HEAD", "--", "mocapviz"],
-            check=False,
-            cwd=Path(__file__).resolve().parent.parent,
-            capture_output=True,
-            timeout=10,
-        ).returncode
-        if dirty == 1:
-            info["commit"] += " + uncommitted changes in mocapviz/"
-    except (OSError, subprocess.SubprocessError):
-        info["commit"] = "?"
-    import multiprocessing
-
-    info["start_method"] = multiprocessing.get_start_method()
-    info["load_start"] = _loadavg()
-    return info
-
-
-def _loadavg() -> str:
-    try:
-        return " ".join(f"{v:.2f}" for v in os.getloadavg())
-    except OSError:
-        return "?"
-
-
-class CpuMonitor:
-    """CPU time the rest of the machine used while the benchmark ran (/proc/stat busy time minus ours)."""
-
-    def __init__(self):
-        self.t0, self.stat0, self.ours0 = time.perf_counter(), self._stat(), self._ours()
-
-    @staticmethod
-    def _stat() -> tuple[float, float] | None:
-        """Busy time (user, nice, system, irq, softirq) and steal time of all CPUs, seconds."""
-        try:
-            f = [int(v) for v in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
-        except (OSError, ValueError):
-            return None
-        tick = os.sysconf("SC_CLK_TCK")
-        busy = f[0] + f[1] + f[2] + (f[5] + f[6] if len(f) > 6 else 0)
-        return busy / tick, (f[7] if len(f) > 7 else 0) / tick
-
-    @staticmethod
-    def _ours() -> float:
-        t = os.times()
-        return t.user + t.system + t.children_user + t.children_system
-
-    def report(self) -> str:
-        stat = self._stat()
-        if stat is None or self.stat0 is None:
-            return "CPU use of other processes: unknown"
-        wall = time.perf_counter() - self.t0
-        others = max(0.0, (stat[0] - self.stat0[0]) - (self._ours() - self.ours0))
-        steal = stat[1] - self.stat0[1]
-        text = (
-            f"other processes used {others:.0f} CPU-s during the {wall:.0f} s run ({others / wall:.2f} cores on "
-            f"average), hypervisor steal {steal:.0f} s"
-        )
-        if (others + steal) / wall > 0.2:
-            text += " — the machine was shared: figures, 2-process ones most, are noisy"
-        return text
-
-
 def header(info: dict, quick: bool, repeats: int) -> str:
     lines = [
         "# mocapviz I/O benchmarks" + (" (--quick: small subsets)" if quick else ""),
@@ -497,13 +388,8 @@ def _fmt(v, unit="") -> str:
     return f"{v:,.0f}"
 
 
-def _markdown(header: str, align: str, lines) -> str:
-    """A markdown table: the header and alignment rows, then one row per list of cell strings."""
-    return "\n".join([header, align] + ["| " + " | ".join(cells) + " |" for cells in lines])
-
-
 def markdown_reader_table(rows: list[Row]) -> str:
-    return _markdown(
+    return markdown(
         "| format | data | files | frames | workers | mocapviz frames/s | baseline frames/s | ours/baseline "
         "| target | meets | mocapviz frames/CPU-s | note |",
         "|---|---|---:|---:|---:|---:|---:|---:|---|---|---:|---|",
@@ -516,7 +402,7 @@ def markdown_reader_table(rows: list[Row]) -> str:
 
 
 def markdown_ingest_table(rows: list[Row]) -> str:
-    return _markdown(
+    return markdown(
         "| data | documents | frames | n_jobs | wall s | frames/s | speed-up vs n_jobs=1 | target | meets "
         "| frames/CPU-s | note |",
         "|---|---:|---:|---:|---:|---:|---:|---|---|---:|---|",
@@ -592,10 +478,6 @@ def write_csv(rows: list[Row], path: Path, info: dict) -> None:
 
 
 # ============================================================================ benchmarks
-def _log(msg: str) -> None:
-    print(f"[bench] {msg}", file=sys.stderr, flush=True)
-
-
 def reader_rows(
     fmt: str, data: str, ours_items, base_items, base_task, target: int, repeats: int, note: str = ""
 ) -> list[Row]:
@@ -608,11 +490,11 @@ def reader_rows(
                 return lambda: _run_serial(task, items)
             return lambda: _run_pool(task, items, workers)
 
-        _log(f"{fmt} {data}: mocapviz, {workers} process(es), {len(ours_items)} files")
+        log(f"{fmt} {data}: mocapviz, {workers} process(es), {len(ours_items)} files")
         t_ours, n_ours, ours_runs, cpu_ours = timed(run(ours_task, ours_items), repeats)
-        _log(f"  {n_ours / t_ours:,.0f} frames/s; baseline, {len(base_items)} files")
+        log(f"  {n_ours / t_ours:,.0f} frames/s; baseline, {len(base_items)} files")
         t_base, n_base, base_runs, _ = timed(run(base_task, base_items), repeats)
-        _log(f"  {n_base / t_base:,.0f} frames/s")
+        log(f"  {n_base / t_base:,.0f} frames/s")
         ours = n_ours / t_ours
         rows.append(
             Row(
@@ -638,18 +520,9 @@ def reader_rows(
     return rows
 
 
-def _fetch(name: str):
-    from mocapviz import datasets
-
-    try:
-        return datasets.fetch(name), None
-    except Exception as exc:  # noqa: BLE001 - any failure: skip the row with a note
-        return None, f"{type(exc).__name__}: {exc}"
-
-
 def bench_amc(repeats: int, quick: bool) -> tuple[list[Row], list[str]]:
     notes = []
-    root, err = _fetch("hdm05-cut")
+    root, err = fetch("hdm05-cut")
     if root is None:
         return [_skipped("ASF/AMC parse+FK", "hdm05-cut", f"fetch failed: {err}")], notes
     amcs = sorted((root / "amc").glob("*.amc"))
@@ -673,7 +546,7 @@ def bench_amc(repeats: int, quick: bool) -> tuple[list[Row], list[str]]:
 def bench_bvh(repeats: int, quick: bool) -> tuple[list[Row], list[str]]:
     rows, notes = [], []
     for name in ("bandai-namco-1", "bandai-namco-2"):
-        root, err = _fetch(name)
+        root, err = fetch(name)
         label = name if name == "bandai-namco-1" else f"{name} (first {BN2_SUBSET} sorted)"
         if root is None:
             rows.append(_skipped("BVH parse+FK", label, f"skipped, fetch failed: {err}"))
@@ -718,7 +591,7 @@ def bench_ingest(quick: bool) -> tuple[list[Row], list[str]]:
     notes = []
     roots, missing = [], []
     for name in ("hdm05-cut", "cmu-asfamc", "bandai-namco-1", "bandai-namco-2"):
-        root, err = _fetch(name)
+        root, err = fetch(name)
         (roots.append(root) if root is not None else missing.append(f"{name} ({err})"))
     files = expand_paths(roots)
     if quick:
@@ -732,7 +605,7 @@ def bench_ingest(quick: bool) -> tuple[list[Row], list[str]]:
     rows = []
     for n_jobs in (1, WORKERS):
         with tempfile.TemporaryDirectory(prefix="mocapviz-bench-") as tmp:
-            _log(f"ingest {len(files)} files, n_jobs={n_jobs}")
+            log(f"ingest {len(files)} files, n_jobs={n_jobs}")
             c0 = CpuMonitor._ours()
             t0 = time.perf_counter()
             db = MotionDB.ingest(files, Path(tmp) / "db", fps=None, n_jobs=n_jobs, progress=False)
@@ -740,7 +613,7 @@ def bench_ingest(quick: bool) -> tuple[list[Row], list[str]]:
             cpu = CpuMonitor._ours() - c0
             n_docs, n_frames = len(db), db.n_frames
             del db
-        _log(f"  {wall:.1f} s, {n_docs} documents, {n_frames} frames")
+        log(f"  {wall:.1f} s, {n_docs} documents, {n_frames} frames")
         fps = n_frames / wall
         rows.append(
             Row(
@@ -770,8 +643,8 @@ def main(quick: bool = False, repeats: int = 3, ingest: bool = True, out_dir: Pa
     monitor = CpuMonitor()
     info = machine_info()
     # warm-up: the first call of the numba kernels compiles them (or loads them from the disk cache)
-    hdm, _ = _fetch("hdm05-cut")
-    bn1, _ = _fetch("bandai-namco-1")
+    hdm, _ = fetch("hdm05-cut")
+    bn1, _ = fetch("bandai-namco-1")
     t0 = time.perf_counter()
     if hdm is not None:
         load(min((hdm / "amc").glob("*.amc")))

@@ -12,20 +12,21 @@
     query) is printed too: it is less disturbed by other processes than wall time.
 (c) Fat-graph base poses (§5.3): ``base_poses`` against ``base_poses_quadratic`` on evenly spaced subsets of
     the real frames (identical results required), and ``base_poses`` on the whole database.
+(d) Table 1 for every feature set (F15E ... F30x3E, Fp8/16/25): :func:`mocapviz.experiments.knn_timings`, with
+    each set's slowdown against F15E beside the paper's (CMU column).
 
 The benchmark database: all four shared archives ingested at 30 Hz (``MotionDB.ingest(..., fps=30, n_jobs=2)``),
 about 446k frames. The paper's scale (1-1.3M frames) is reached by appending left/right MIRRORED copies
 (``mocapviz.skeleton.mirror``) of the documents, archive by archive, until the database holds 1M frames; when
 every document has been mirrored once (about 892k frames) the next round repeats mirrored copies, i.e. exact
 duplicates of frames already present. The output says how many frames of each kind there are. The database
-is cached under ``<repo>/.cache/bench/<VERSION>[-quick]/`` with the wall time of the ingest that built it.
+is cached under ``<repo>/.cache/bench/<tag>[-quick]/`` (``benchmarks.common.benchmark_db``) with the wall time of
+the ingest that built it.
 """
 
 from __future__ import annotations
 
-import json
 import os
-import shutil
 import statistics
 import sys
 import time
@@ -34,22 +35,22 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .bench_io import CpuMonitor, _fetch, _loadavg, _log, _markdown, machine_info
+from mocapviz.features import numeric
 
-REPO = Path(__file__).resolve().parent.parent
-VERSION = "knn-v1"  # bump to rebuild the cached benchmark database
-ARCHIVES = ("hdm05-cut", "cmu-asfamc", "bandai-namco-1", "bandai-namco-2")
+from .common import REPO, BenchDB, CpuMonitor, benchmark_db, describe_db, loadavg, log, machine_info, markdown
+from .common import fmt as _f
+from .common import write_results_csv
+
 FPS = 30
-N_JOBS = 2
-MIN_FRAMES = 1_000_000
-QUICK_FILES = {"hdm05-cut": 40, "cmu-asfamc": 4, "bandai-namco-1": 10, "bandai-namco-2": 0}
-END_EFFECTORS = ("lwrist", "rwrist", "lankle", "rankle", "head")
+DATABASE = BenchDB("knn-v2", fps=FPS, min_frames=1_000_000)
 KS = (16, 256)
 N_QUERIES = {16: 20_000, 256: 5_000}  # batch per figure; quick: N_QUERIES_QUICK
 N_QUERIES_QUICK = {16: 2_000, 256: 500}
 N_BRUTE = 200  # queries timed (and checked) with brute force; quick: N_BRUTE_QUICK
 N_BRUTE_QUICK = 50
 EPS = 0.5  # the approximation the paper found harmless for reconstruction (§5.2)
+N_SET_QUERIES = 500  # per feature set in (d); quick: N_SET_QUERIES_QUICK
+N_SET_QUERIES_QUICK = 100
 TARGET_MS = {16: 0.1, 256: 1.0}
 TARGET_SPEEDUP = 50.0
 # Table 1, F15E, ms per query: HDM05 (380,813 frames) and CMU (1,038,388 frames) at 30 Hz, ANN library, 2010 PC
@@ -58,162 +59,6 @@ FAT_RADIUS = 10.0  # cm, F15E
 FAT_K = 32
 FAT_SIZES = (2_000, 5_000, 10_000)
 FAT_SIZES_QUICK = (1_000, 2_000)
-
-
-# ============================================================================ the benchmark database
-def _cache_dir(quick: bool) -> Path:
-    return REPO / ".cache" / "bench" / (VERSION + ("-quick" if quick else ""))
-
-
-def _source_files(quick: bool) -> tuple[dict, list[str]]:
-    """{archive: [files]} of the archives that could be fetched, and notes on the ones that could not."""
-    from mocapviz.database import expand_paths
-
-    files, notes = {}, []
-    for name in ARCHIVES:
-        if quick and not QUICK_FILES[name]:
-            continue
-        root, err = _fetch(name)
-        if root is None:
-            notes.append(f"{name} missing ({err})")
-            continue
-        found = expand_paths(root)
-        if quick:
-            found = found[:: max(1, len(found) // QUICK_FILES[name])][: QUICK_FILES[name]]
-        files[name] = [str(f) for f in found]
-    return files, notes
-
-
-def _add_mirrored(db, archive_of: dict, need: int) -> dict:
-    """Append mirrored copies of the documents (archive by archive, in database order) until ``need`` frames.
-
-    The first round mirrors each document once; later rounds (if needed) repeat the mirrored copies. MotionDB
-    has no public way to add in-memory Motions (ingest reads files), so this goes through its private commit,
-    under its writer lock, as ``MotionDB.append`` does. Returns {"documents", "frames", "repeated_frames"}.
-    """
-    from mocapviz import database
-    from mocapviz.skeleton import mirror
-
-    docs = db.documents
-    positions, quaternions, metas, frames, repeated = [], [], [], db.n_frames, 0
-    for round_ in range(1, 1 + -(-need // max(1, db.n_frames))):
-        for row in docs.itertuples():
-            if frames >= need:
-                break
-            m = mirror(db.motion(int(row.doc_id)))
-            positions.append(m.positions)
-            quaternions.append(m.quaternions)
-            metas.append({"name": f"{row.name}_mirror{round_}", "path": row.path, "format": row.format,
-                          "n_frames": m.n_frames, "fps": m.fps, "source_fps": row.source_fps,
-                          "sha256": f"mirror{round_}-{row.sha256}", "label": row.label,
-                          "archive": archive_of.get(row.path, "?"), "mirrored": True})  # fmt: skip
-            frames += m.n_frames
-            repeated += m.n_frames if round_ > 1 else 0
-    if metas:
-        with database._locked(db.path):
-            database._commit(db.path, database._read_manifest(db.path), positions, quaternions, metas)
-    return {"documents": len(metas), "frames": frames - db.n_frames, "repeated_frames": repeated}
-
-
-def benchmark_db(quick: bool):
-    """The cached benchmark MotionDB and its build record (ingest seconds, sources, mirrored copies)."""
-    from mocapviz.database import MotionDB
-    from mocapviz.errors import MotionDBError
-
-    folder = _cache_dir(quick)
-    record_file = folder / "build.json"
-    if record_file.is_file():
-        try:
-            db = MotionDB.open(folder / "db")
-            record = json.loads(record_file.read_text())
-            if record.get("n_frames") == db.n_frames:
-                record["cached"] = True
-                return db, record
-        except (MotionDBError, ValueError, OSError) as exc:
-            _log(f"cached benchmark database unusable ({exc}); rebuilding")
-    files, missing = _source_files(quick)
-    if not files:
-        raise RuntimeError("no shared archive could be fetched: " + "; ".join(missing))
-    folder.mkdir(parents=True, exist_ok=True)
-    tmp = folder / f"db.tmp-{os.getpid()}"
-    for old in folder.glob("db.tmp-*"):  # left by an interrupted build of this benchmark
-        shutil.rmtree(old)
-    all_files = [f for fs in files.values() for f in fs]
-    _log(f"building the benchmark database: {len(all_files)} files at {FPS} Hz, n_jobs={N_JOBS} -> {folder / 'db'}")
-    t0 = time.perf_counter()
-    db = MotionDB.ingest(all_files, tmp, fps=FPS, n_jobs=N_JOBS, progress=False)
-    t_ingest = time.perf_counter() - t0
-    _log(f"  ingest {t_ingest:.1f} s, {db.n_frames:,} frames")
-    real_frames = db.n_frames
-    mirrored = {"documents": 0, "frames": 0, "repeated_frames": 0}
-    if db.n_frames < MIN_FRAMES and not quick:
-        archive_of = {str(Path(f).resolve()): name for name, fs in files.items() for f in fs}
-        mirrored = _add_mirrored(db, archive_of, MIN_FRAMES)
-        _log(f"  added {mirrored['documents']} mirrored documents, {mirrored['frames']:,} frames")
-    if (folder / "db").exists():
-        shutil.rmtree(folder / "db")
-    tmp.rename(folder / "db")
-    db = MotionDB.open(folder / "db")
-    record = {
-        "version": VERSION,
-        "t_ingest": t_ingest,
-        "n_jobs": N_JOBS,
-        "fps": FPS,
-        "files": {k: len(v) for k, v in files.items()},
-        "missing": missing,
-        "real_frames": real_frames,
-        "mirrored_documents": mirrored["documents"],
-        "mirrored_frames": mirrored["frames"],
-        "repeated_frames": mirrored["repeated_frames"],
-        "n_frames": db.n_frames,
-        "n_documents": len(db),
-        "built": time.strftime("%Y-%m-%dT%H:%M:%S"),
-    }
-    record_file.write_text(json.dumps(record, indent=2))
-    record["cached"] = False
-    return db, record
-
-
-def describe_db(db, record: dict) -> list[str]:
-    """Lines saying what the benchmark database holds: real frames per archive, mirrored and repeated copies."""
-    docs = db.documents
-    mirrored = docs["name"].str.contains("_mirror", regex=False)
-    parts = []
-    for name in record["files"]:
-        root, _ = _fetch(name)
-        sel = ~mirrored & docs["path"].str.startswith(str(Path(root).resolve()))
-        parts.append(f"{name} {int(sel.sum())} documents, {int(docs.loc[sel, 'n_frames'].sum()):,} frames")
-    lines = [f"benchmark database: {len(db):,} documents, {db.n_frames:,} frames at {FPS} Hz "
-             f"({db.n_frames / FPS / 3600:.1f} h); real: {record['real_frames']:,} frames — " + "; ".join(parts)]
-    if record["mirrored_documents"]:
-        lines.append(
-            f"**{record['mirrored_documents']:,} left/right MIRRORED copies** of real documents "
-            f"({record['mirrored_frames']:,} frames, `mocapviz.skeleton.mirror`) were appended to reach "
-            f"{MIN_FRAMES:,} frames; of these, **{record['repeated_frames']:,} frames repeat a mirrored copy** "
-            "(second round: exact duplicates of frames already in the database)"
-        )
-    elif db.n_frames < MIN_FRAMES:
-        lines.append("quick run: a small database, far from the paper's scale; no mirrored copies")
-    if record["missing"]:
-        lines.append("missing archives: " + "; ".join(record["missing"]))
-    cached = " (database from the cache; measured when it was built)" if record["cached"] else ""
-    lines.append(f"MotionDB.ingest of the {sum(record['files'].values())} source files at {FPS} Hz, "
-                 f"n_jobs={record['n_jobs']}: {record['t_ingest']:.1f} s{cached}")  # fmt: skip
-    return lines
-
-
-# ============================================================================ features
-def f15e_from_skeleton(db, chunk: int = 1 << 17) -> np.ndarray:
-    """F15E of every frame (Krüger et al. 2010 §3.2): body-frame positions of lwrist, rwrist, lankle, rankle and
-    head, (N, 15) float32, cm. A stand-in until ``mocapviz.features.numeric.numeric(db, "F15E")`` lands."""
-    from mocapviz.skeleton import CANONICAL_JOINTS, body_frame
-
-    joints = [CANONICAL_JOINTS.index(j) for j in END_EFFECTORS]
-    out = np.empty((db.n_frames, 3 * len(joints)), dtype=np.float32)
-    for s in range(0, db.n_frames, chunk):
-        pose = body_frame(np.asarray(db.positions[s : s + chunk]))
-        out[s : s + chunk] = pose[:, joints].reshape(len(pose), -1)
-    return out
 
 
 # ============================================================================ engines
@@ -314,7 +159,7 @@ def bench_queries(features: np.ndarray, engines: dict, quick: bool, repeats: int
         runs = {name: [] for name, *_ in variants}
         for _ in range(repeats):
             for name, engine, options, q in variants:
-                _log(f"k={k}: {name}, {len(q):,} queries")
+                log(f"k={k}: {name}, {len(q):,} queries")
                 wall, cpu, _ = _timed(lambda e=engine, q=q, o=options, k=k: engines[e](q, k, **o))
                 runs[name].append((wall / len(q) * 1e3, cpu / len(q) * 1e3))
         brute_ms = statistics.median(r[0] for r in runs["numpy brute force, all cores"])
@@ -344,7 +189,7 @@ def bench_fat_graph(features: np.ndarray, real_frames: int, quick: bool) -> list
     base_poses(features[:100], FAT_RADIUS, k=FAT_K)  # numba: compile or load from the disk cache
     for n in FAT_SIZES_QUICK if quick else FAT_SIZES:
         subset = features[: real_frames : max(1, real_frames // n)][:n]
-        _log(f"base poses of {len(subset):,} frames")
+        log(f"base poses of {len(subset):,} frames")
         wall, _, (base, cluster) = _timed(lambda subset=subset: base_poses(subset, FAT_RADIUS, k=FAT_K))
         wall_q, _, (base_q, cluster_q) = _timed(lambda subset=subset: base_poses_quadratic(subset, FAT_RADIUS,
                                                                                             k=FAT_K))  # fmt: skip
@@ -352,7 +197,7 @@ def bench_fat_graph(features: np.ndarray, real_frames: int, quick: bool) -> list
         rows.append({"frames": len(subset), "base_poses": len(base), "ours_s": wall, "quadratic_s": wall_q,
                      "speed-up": wall_q / wall, "identical": "yes" if same else "NO"})  # fmt: skip
     if not quick:
-        _log(f"base poses of all {len(features):,} frames")
+        log(f"base poses of all {len(features):,} frames")
         wall, _, (base, _) = _timed(lambda: base_poses(features, FAT_RADIUS, k=FAT_K))
         rows.append({"frames": len(features), "base_poses": len(base), "ours_s": wall, "quadratic_s": None,
                      "speed-up": None, "identical": "(no reference: n^2 = "
@@ -360,15 +205,23 @@ def bench_fat_graph(features: np.ndarray, real_frames: int, quick: bool) -> list
     return rows
 
 
+# ============================================================================ (d) Table 1, all feature sets
+def bench_sets(db, quick: bool) -> pd.DataFrame:
+    """(d): :func:`mocapviz.experiments.knn_timings` on every set of Table 1, beside the paper's CMU column."""
+    from mocapviz.experiments import knn_timings
+    from mocapviz.experiments.numeric import paper_table1
+
+    log("Table 1: every feature set")
+    ours = knn_timings(db, ks=KS, n_queries=N_SET_QUERIES_QUICK if quick else N_SET_QUERIES, database="benchmark")
+    paper = paper_table1().query("database == 'CMU'")[["set", "k", "mean_ms"]].rename(columns={"mean_ms": "paper_ms"})
+    out = ours.merge(paper, on=["set", "k"])
+    f15 = out[out["set"] == "F15E"].set_index("k")
+    out["slowdown"] = out["mean_ms"] / out["k"].map(f15["mean_ms"])
+    out["paper_slowdown"] = out["paper_ms"] / out["k"].map(f15["paper_ms"])
+    return out
+
+
 # ============================================================================ output
-def _f(v, digits: int = 2) -> str:
-    if v is None or (isinstance(v, float) and not np.isfinite(v)):
-        return "—"
-    if isinstance(v, (int, np.integer)):
-        return f"{v:,}"
-    return f"{v:,.0f}" if abs(v) >= 1000 else f"{v:.{digits}f}"
-
-
 def _header(info: dict, quick: bool, repeats: int) -> str:
     return "\n".join([
         "# mocapviz kNN benchmark (Krüger, Tautges, Weber & Zinke 2010, Table 1, §5.3)"
@@ -379,13 +232,13 @@ def _header(info: dict, quick: bool, repeats: int) -> str:
         (f"- {info['os']}; Python {info['python']}, numpy {info['numpy']}, scipy {info['scipy']}, "
          f"numba {info['numba']}, pykdtree {info['pykdtree']}"),
         f"- each figure: median of {repeats} runs of the whole query batch; engines alternate within a run",
-        f"- load average (1/5/15 min) at start: {info['load_start']}, at end: {_loadavg()}; {info.get('others', '')}",
+        f"- load average (1/5/15 min) at start: {info['load_start']}, at end: {loadavg()}; {info.get('others', '')}",
         "- paper (Table 1, F15E, exact): ANN library on a 2010 PC; HDM05 380,813 frames, CMU 1,038,388 frames",
     ])  # fmt: skip
 
 
 def table_build(rows: list[dict]) -> str:
-    return _markdown(
+    return markdown(
         "| engine | build s (median) | runs s | structure MB | RSS growth MB |",
         "|---|---:|---|---:|---:|",
         ([r["engine"], _f(r["build_s"]), ", ".join(f"{t:.2f}" for t in r["runs_s"]), _f(r["nbytes_MB"], 1),
@@ -394,7 +247,7 @@ def table_build(rows: list[dict]) -> str:
 
 
 def table_queries(rows: list[dict]) -> str:
-    return _markdown(
+    return markdown(
         "| k | engine | queries | ms/query | CPU ms/query | runs ms/query | brute / this | paper ms HDM05 / CMU "
         "| target | meets |",
         "|---:|---|---:|---:|---:|---|---:|---|---|---|",
@@ -404,31 +257,28 @@ def table_queries(rows: list[dict]) -> str:
     )  # fmt: skip
 
 
+def table_sets(rows: pd.DataFrame) -> str:
+    wide = rows.pivot_table(index=["set", "d", "features_s", "build_s"], columns="k",
+                            values=["mean_ms", "slowdown", "paper_ms", "paper_slowdown"], sort=False)  # fmt: skip
+    return markdown(
+        "| set | d | features s | tree build s | 16-NN ms | × F15E | paper 16-NN ms (CMU) | paper × F15E "
+        "| 256-NN ms | × F15E | paper 256-NN ms (CMU) | paper × F15E |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        ([s, str(d), _f(fs), _f(bs)] + [c for k in KS for c in (
+            _f(r[("mean_ms", k)], 3), f"{r[('slowdown', k)]:.1f}×", _f(r[("paper_ms", k)]),
+            f"{r[('paper_slowdown', k)]:.1f}×")]
+         for (s, d, fs, bs), r in wide.iterrows()),
+    )  # fmt: skip
+
+
 def table_fat(rows: list[dict]) -> str:
-    return _markdown(
+    return markdown(
         "| frames | base poses | base_poses s (kd-tree, O(n log n)) | base_poses_quadratic s (O(n²)) | speed-up "
         "| identical |",
         "|---:|---:|---:|---:|---:|---|",
         ([f"{r['frames']:,}", f"{r['base_poses']:,}", _f(r["ours_s"]), _f(r["quadratic_s"]),
           "—" if r["speed-up"] is None else f"{r['speed-up']:.1f}×", r["identical"]] for r in rows),
     )  # fmt: skip
-
-
-def write_csv(path: Path, build_rows, query_rows, fat_rows, info: dict) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    ignore = path.parent / ".gitignore"
-    if not ignore.exists():
-        ignore.write_text("*.csv\n")
-    parts = [
-        pd.DataFrame(build_rows).assign(section="build").drop(columns=["runs_s"]),
-        pd.DataFrame(query_rows).assign(section="queries").drop(columns=["runs_ms"]),
-        pd.DataFrame(fat_rows).assign(section="fat_graph"),
-    ]
-    out = pd.concat(parts, ignore_index=True)
-    for k in ("cpu", "python", "numpy", "scipy", "commit"):
-        out[k] = info[k]
-    out.insert(0, "section", out.pop("section"))
-    out.to_csv(path, index=False)
 
 
 # ============================================================================ main
@@ -443,22 +293,24 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
         info["pykdtree"] = metadata.version("pykdtree")
     except metadata.PackageNotFoundError:
         info["pykdtree"] = "not installed (pip install pykdtree to compare)"
-    db, record = benchmark_db(quick)
-    _log(f"F15E of {db.n_frames:,} frames")
+    db, record = benchmark_db(DATABASE, quick)
+    log(f"F15E of {db.n_frames:,} frames")
     t0 = time.perf_counter()
-    features = f15e_from_skeleton(db)
+    features = numeric(db, "F15E", progress=False)
     t_features = time.perf_counter() - t0
     engines, build_rows = build_engines(features, repeats)
     query_rows, query_notes = bench_queries(features, engines, quick, repeats)
     del engines
     fat_rows = bench_fat_graph(features, record["real_frames"], quick)
+    del features
+    set_rows = bench_sets(db, quick)
     info["others"] = monitor.report()
 
     print(_header(info, quick, repeats))
     for line in describe_db(db, record):
         print(f"- {line}")
-    print(f"- F15E features: `f15e_from_skeleton` (mocapviz.skeleton.body_frame of {', '.join(END_EFFECTORS)}), "
-          f"({db.n_frames:,}, 15) float32 cm, {t_features:.1f} s")  # fmt: skip
+    print(f"- F15E features: `mocapviz.features.numeric(db, 'F15E')`, ({db.n_frames:,}, 15) float32 cm, "
+          f"{t_features:.1f} s")  # fmt: skip
     print()
     print("## (a) Build time and memory")
     print()
@@ -486,9 +338,22 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print("Subsets: evenly spaced frames of the real (not mirrored) part of the database. Identical: same base poses "
           "in the same order and the same cluster of every frame (ties broken by lowest frame number on both "
           "sides).")  # fmt: skip
+    print()
+    print(f"## (d) Table 1: every feature set, exact k-NN, {set_rows['queries'].iloc[0]:,} random database frames "
+          "per set as one batch over all cores (`mocapviz.experiments.knn_timings`)")
+    print()
+    print(table_sets(set_rows))
+    print()
+    print("Slowdown: ms per query of the set / ms of F15E, same k, same run; the paper's from its Table 1 (CMU). "
+          "Features s: computing the set for the whole database (`numeric`; Fp: projection with a PCA fitted on "
+          "this database once, not counted).")  # fmt: skip
     out_dir = Path(out_dir) if out_dir is not None else Path(__file__).resolve().parent / "results"
     csv_path = out_dir / ("knn-quick.csv" if quick else "knn.csv")
-    write_csv(csv_path, build_rows, query_rows, fat_rows, info)
+    write_results_csv(csv_path, {
+        "build": pd.DataFrame(build_rows).drop(columns=["runs_s"]),
+        "queries": pd.DataFrame(query_rows).drop(columns=["runs_ms"]),
+        "fat_graph": pd.DataFrame(fat_rows), "feature_sets": set_rows,
+    }, info, ("cpu", "python", "numpy", "scipy", "commit"))  # fmt: skip
     print()
     print(f"CSV: {csv_path}; total benchmark time {time.perf_counter() - t_start:.0f} s")
     sys.stdout.flush()
