@@ -253,8 +253,7 @@ class MotionDB:
         row = self._row(doc_id)
         sl = self.frames(doc_id)
         quat = self.quaternions[sl]
-        label_cols = [c for c in self.documents.columns if c not in _BASE_COLUMNS]
-        labels = {"label": row["label"], **{c: row[c] for c in label_cols if not pd.isna(row[c])}}
+        labels = {"label": row["label"], **{c: row[c] for c in self.label_columns[1:] if not pd.isna(row[c])}}
         return Motion(
             positions=self.positions[sl],
             fps=float(row["fps"]),
@@ -264,6 +263,13 @@ class MotionDB:
             source=row["path"],
             labels=labels,
         )
+
+    @property
+    def label_columns(self) -> list[str]:
+        """The documents' label columns: ``label`` and those of the label tables (``actor``, ``class``, ...), not
+        the bookkeeping columns (path, start, fps, ...) nor ``frames`` (a label table's own frame count, at the
+        source's rate)."""
+        return ["label"] + [c for c in self.documents.columns if c not in _BASE_COLUMNS and c != "frames"]
 
     def document_of(self, frames) -> np.ndarray:
         """Document id of each frame index (array in, array out)."""

@@ -150,6 +150,17 @@ def _check_queries(x, dim: int) -> np.ndarray:
     return arr
 
 
+def _check_exclude(exclude, n_queries: int) -> np.ndarray:
+    """Per-query [start, stop) frame ranges as int64 (q, 2), or a ValueError."""
+    arr = np.asarray(exclude)
+    if arr.ndim == 1:
+        arr = arr[None]
+    if arr.shape != (n_queries, 2) or not np.issubdtype(arr.dtype, np.integer) or (arr[:, 0] > arr[:, 1]).any():
+        raise ValueError(f"exclude must be one [start, stop) frame range per query, int ({n_queries}, 2) with start "
+                         f"<= stop; got {arr.dtype} {arr.shape}")  # fmt: skip
+    return arr.astype(np.int64)
+
+
 # ============================================================================ engines
 def _build_ckdtree(data: np.ndarray, leafsize: int) -> tuple[cKDTree, np.ndarray]:
     """kd-tree over data (M, d) float64 (§4.1 preprocessing) and the rank (M,) int64 of each point in the tree's
@@ -284,7 +295,7 @@ class KnnIndex:
         return (f"KnnIndex({self.engine}: {self.n_indexed:,} of {self.n_frames:,} frames, d={self.dim}, "
                 f"{self.nbytes / 2**20:.1f} MiB, built in {self.build_seconds:.2f} s)")  # fmt: skip
 
-    def query(self, x, k: int, radius: float | None = None, eps: float = 0.0, workers: int = -1):
+    def query(self, x, k: int, radius: float | None = None, eps: float = 0.0, workers: int = -1, exclude=None):
         """The k nearest valid frames of each query (§3.3); with ``radius``, at most k within r (§4.1).
 
         Parameters
@@ -299,6 +310,10 @@ class KnnIndex:
             (0: exact). The brute engine is always exact.
         workers : int
             Threads, -1 for all CPUs.
+        exclude : np.ndarray [shape=(q, 2) or (2,)], int, optional
+            Per query, a [start, stop) range of frames it must not return (e.g. the query's own document, so that
+            its neighbouring frames do not fill the list). Searched as k + (frames of the range) neighbours and
+            filtered, so the result is the k nearest outside the range.
 
         Returns
         -------
@@ -309,17 +324,42 @@ class KnnIndex:
         ------
         ValueError
             x not of dimension d or not finite (the query row is named), k out of range, radius <= 0, eps < 0,
-            bad workers.
+            bad workers, ``exclude`` not one [start, stop) range per query.
         TypeError
             k not an integer.
         """
         queries = _check_queries(x, self.dim)
         k = _check_k(k, self.n_indexed)
         radius, eps, workers = _check_radius(radius), _check_eps(eps), _check_workers(workers)
+        if exclude is None:
+            d, i = self._search(queries, k, radius, eps, workers)
+        else:
+            d, i = self._search_excluding(queries, k, radius, eps, workers, _check_exclude(exclude, len(queries)))
+        return (d[0], i[0]) if np.ndim(x) == 1 else (d, i)
+
+    def _search(self, queries: np.ndarray, k: int, radius, eps: float, workers: int):
+        """Checked queries (q, d) -> distances (q, k), database frame numbers (q, k) (-1 missing)."""
         d, i = _ENGINES[self.engine][1](self._structure, queries, k, radius, eps, workers)
         d, i = _ties_by_frame(d, i)
-        i = np.where(i >= 0, self.frames[np.maximum(i, 0)], -1)
-        return (d[0], i[0]) if np.ndim(x) == 1 else (d, i)
+        return d, np.where(i >= 0, self.frames[np.maximum(i, 0)], -1)
+
+    def _search_excluding(self, queries, k: int, radius, eps: float, workers: int, ranges: np.ndarray):
+        """:meth:`_search` leaving out each query's [start, stop) frame range. Queries are searched in groups of
+        similar range length (next power of two), each asking for k + that many neighbours."""
+        d_out = np.full((len(queries), k), np.inf)
+        i_out = np.full((len(queries), k), -1, dtype=np.int64)
+        inside = np.searchsorted(self.frames, ranges[:, 1]) - np.searchsorted(self.frames, ranges[:, 0])
+        width = np.where(inside > 0, 1 << np.ceil(np.log2(np.maximum(inside, 1))).astype(np.int64), 0)
+        for w in np.unique(width):
+            rows = np.flatnonzero(width == w)
+            wide = min(k + int(w), self.n_indexed)
+            d, i = self._search(queries[rows], wide, radius, eps, workers)
+            keep = (i >= 0) & ~((i >= ranges[rows, :1]) & (i < ranges[rows, 1:]))
+            order = np.argsort(~keep, axis=1, kind="stable")[:, :k]  # kept entries first, in distance order
+            kept = np.take_along_axis(keep, order, axis=1)
+            d_out[rows, : order.shape[1]] = np.where(kept, np.take_along_axis(d, order, axis=1), np.inf)
+            i_out[rows, : order.shape[1]] = np.where(kept, np.take_along_axis(i, order, axis=1), -1)
+        return d_out, i_out
 
     def exclude(self, frames) -> KnnIndex:
         """A new index without some frames (e.g. documents), built again on the remaining valid frames.
@@ -366,8 +406,7 @@ def describe_frames(db, frames, distances=None) -> pd.DataFrame:
     out["time_s"] = out["doc_frame"] / found["fps"].to_numpy()
     if distances is not None:
         out["distance"] = np.asarray(distances, dtype=np.float64).ravel()[keep]
-    skip = {"doc_id", "name", "path", "format", "start", "n_frames", "fps", "source_fps", "sha256"}
-    for col in (c for c in docs.columns if c not in skip):
+    for col in db.label_columns:
         out[col] = found[col].to_numpy()
     return out
 

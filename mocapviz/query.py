@@ -19,7 +19,6 @@ from .features import feature_groups, feature_names, relational
 from .segment import decode, segment
 
 MODES = ("adaptive", "fuzzy", "exact", "mismatch")
-_HIDDEN_COLUMNS = ("path", "sha256", "format", "start", "n_frames", "fps", "source_fps", "frames")
 
 
 def _check_features(features, feature_set: str) -> list[str]:
@@ -155,7 +154,7 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
                                score=joined["score"] + joined["score_b"],
                                n_segments=joined["n_segments"] + joined["n_segments_b"])  # fmt: skip
         hits = joined[[c for c in hits.columns]]
-    labels = docs.drop(columns=[c for c in _HIDDEN_COLUMNS if c in docs.columns]).reset_index(drop=True)
+    labels = docs[["doc_id", "name", *db.label_columns]].reset_index(drop=True)
     out = hits.join(labels, on="doc_row").drop(columns="doc_row")
     out = out.sort_values(["score", "doc_id", "start_frame"], kind="stable").reset_index(drop=True)
     out.insert(0, "rank", np.arange(1, len(out) + 1))

@@ -263,3 +263,23 @@ def test_describe_frames_names_documents_and_frames(db):
     assert table["distance"].tolist() == [0.0, 1.5, 2.0]
     with pytest.raises(ValueError, match="beyond the database"):
         describe_frames(db, [db.n_frames])
+
+
+def test_per_query_exclusion_equals_an_index_without_those_frames(db, tree, features, queries, ranked):
+    """Each query leaves out its own [start, stop) range (here: a real document, different per query): the
+    answer equals the brute-force ranking restricted to the frames outside that range."""
+    docs = db.documents
+    rng = np.random.default_rng(11)
+    picks = rng.integers(0, len(docs), len(queries))
+    ranges = np.stack([docs["start"].to_numpy()[picks], (docs["start"] + docs["n_frames"]).to_numpy()[picks]], 1)
+    for k, radius in ((16, None), (40, 30.0)):
+        d, i = tree.query(queries, k, radius=radius, exclude=ranges)
+        for r in range(len(queries)):
+            valid = np.ones(len(features), bool)
+            valid[ranges[r, 0] : ranges[r, 1]] = False
+            d_ref, i_ref = reference((ranked[0][r : r + 1], ranked[1][r : r + 1]), k, radius, valid)
+            assert_same_neighbours(features, queries[r : r + 1], d[r : r + 1], i[r : r + 1], d_ref, i_ref)
+    single_d, single_i = tree.query(queries[0], 16, exclude=ranges[0])
+    np.testing.assert_array_equal(single_i, tree.query(queries[:1], 16, exclude=ranges[:1])[1][0])
+    with pytest.raises(ValueError, match="one \\[start, stop\\) frame range per query"):
+        tree.query(queries[:3], 4, exclude=ranges[:2])
