@@ -21,7 +21,6 @@ import time
 import warnings
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from . import datasets
@@ -141,13 +140,10 @@ def _knn(args) -> None:
     if not 0 <= frame < span.stop - span.start:
         raise ValueError(f"document {doc} has frames 0..{span.stop - span.start - 1}; --frame asks for {frame}")
     features = numeric_of(db, _names(args.features, NUMERIC_SETS, "feature set")[0], progress=not args.quiet)
-    valid = None
-    if args.exclude_document:
-        valid = np.ones(db.n_frames, dtype=bool)
-        valid[span] = False
-    index = KnnIndex(features, valid=valid)
+    index = KnnIndex(features)
+    own = (span.start, span.stop) if args.exclude_document else None
     t0 = time.perf_counter()
-    dist, idx = index.query(features[span.start + frame], args.k, radius=args.radius, eps=args.eps)
+    dist, idx = index.query(features[span.start + frame], args.k, radius=args.radius, eps=args.eps, exclude=own)
     ms = 1000 * (time.perf_counter() - t0)
     hits = describe_frames(db, idx, dist)
     print(f"{len(hits)} neighbours of document {doc} frame {frame} by {args.features} in {ms:.2f} ms "

@@ -398,9 +398,7 @@ def describe_frames(db, frames, distances=None) -> pd.DataFrame:
     keep = frames >= 0
     if frames[keep].size and frames[keep].max() >= db.n_frames:
         raise ValueError(f"frame {int(frames[keep].max())} is beyond the database's {db.n_frames:,} frames")
-    docs = db.documents.sort_values("start").reset_index(drop=True)
-    row = np.searchsorted(docs["start"].to_numpy(), frames[keep], side="right") - 1
-    found = docs.iloc[row].reset_index(drop=True)
+    found = db.documents.set_index("doc_id").loc[db.document_of(frames[keep])].reset_index()
     out = pd.DataFrame({"rank": np.flatnonzero(keep) + 1, "frame": frames[keep], "doc_id": found["doc_id"],
                         "name": found["name"], "doc_frame": frames[keep] - found["start"].to_numpy()})  # fmt: skip
     out["time_s"] = out["doc_frame"] / found["fps"].to_numpy()
