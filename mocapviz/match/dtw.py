@@ -1,0 +1,470 @@
+"""Dynamic time warping: full, band-restricted and subsequence DTW (Müller 2007 ch. 4; Krüger et al. 2010 §4).
+
+dtw                 the optimal alignment of two feature sequences, optionally only inside a band of the cost
+                    matrix (Müller, Röder & Clausen 2005 §7: refine a segment-wise alignment).
+subsequence_costs   the accumulated cost of the best alignment of a query ending at every database frame, with
+                    the frame where that alignment starts; documents are never crossed. O(m n) time, O(m) memory
+                    per document boundary: the database is streamed in blocks.
+subsequence_dtw     the top-K non-overlapping matches of a query in a database, ranked by cost, with their paths.
+select_matches      K non-overlapping intervals of least cost from candidate (start, end, cost) triples (shared
+                    with the lazy neighbourhood graph, so both rank matches the same way).
+
+Cost model (the same as the lazy neighbourhood graph's, so the two are comparable):
+
+- The local cost c(i, j) of query frame i and database frame j is the Euclidean distance of their feature
+  vectors (any feature set, in its units), or what a ``distance(a, b) -> (len(a), len(b))`` callable returns,
+  e.g. one of the ``*_pairwise`` functions of :mod:`mocapviz.features.distances`.
+- A step (di, dj, w) goes from cell (i - di, j - dj) to (i, j) and adds w * c(i, j). ``"basic"`` (the default)
+  is {(1, 1, 1), (1, 0, 1), (0, 1, 1)}: diagonal, next query frame, next database frame, all with weight 1.
+  ``"symmetric"`` weighs the diagonal 2 (Sakoe & Chiba); ``"slope"`` is {(1, 1, 1), (2, 1, 1), (1, 2, 1)},
+  which bounds the slope of a path between 1/2 and 2 (Müller 2007 §4.2).
+- The first cell of a path adds c(i0, j0) with weight 1. DTW starts at (0, 0) and ends at (m-1, n-1);
+  subsequence DTW starts at (0, j0) for any j0 and ends at (m-1, j1) for any j1 >= j0.
+- Paths are arrays (L, 2) of (query frame, database frame) pairs. Of several optimal predecessors the first
+  step of the step set wins (the diagonal for the built-in sets).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pandas as pd
+
+STEP_SETS = {
+    "basic": ((1, 1, 1.0), (1, 0, 1.0), (0, 1, 1.0)),
+    "symmetric": ((1, 1, 2.0), (1, 0, 1.0), (0, 1, 1.0)),
+    "slope": ((1, 1, 1.0), (2, 1, 1.0), (1, 2, 1.0)),
+}
+_BLOCK_ELEMENTS = 1 << 21  # cost-matrix cells of one block of database frames (16 MB of float64)
+MATCH_COLUMNS = ["doc_id", "start", "end", "cost", "path"]
+
+
+# ============================================================================ input checks
+def _sequence(x, name: str, dim: int | None = None) -> np.ndarray:
+    """A (T, d) float array of finite values (a 1-D array is one feature per frame), or a ValueError."""
+    arr = np.asarray(x)
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2 or not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+        raise ValueError(f"{name} must be a real (frames, dimensions) array; got {arr.dtype} {arr.shape}")
+    if dim is not None and arr.shape[1] != dim:
+        raise ValueError(f"{name} has {arr.shape[1]} dimensions per frame but the query has {dim}")
+    bad = ~np.isfinite(arr).all(axis=1)
+    if bad.any():
+        raise ValueError(f"{name}: frame {int(np.argmax(bad))} is not finite (NaN or inf)")
+    return arr if arr.dtype in (np.float32, np.float64) else arr.astype(np.float64)
+
+
+def _steps(steps) -> np.ndarray:
+    """A step set name or ((di, dj, w), ...) as a float64 (S, 3) array, or a ValueError."""
+    table = STEP_SETS.get(steps, steps) if isinstance(steps, str) else steps
+    if isinstance(table, str):
+        raise ValueError(f"unknown step set {steps!r}; choose one of {', '.join(STEP_SETS)} or give (di, dj, w) rows")
+    arr = np.asarray(table, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
+        raise ValueError(f"steps must be rows (di, dj, weight); got shape {arr.shape}")
+    di, dj, w = arr.T
+    if (di < 0).any() or (dj < 0).any() or ((di == 0) & (dj == 0)).any() or (di != np.round(di)).any() or (
+            dj != np.round(dj)).any() or not (w > 0).all():  # fmt: skip
+        raise ValueError("each step needs non-negative integer (di, dj), not both 0, and a weight > 0")
+    return arr
+
+
+def _check_document_starts(starts, n: int) -> np.ndarray:
+    """Document start frames as increasing int64 (B,) beginning with 0, or a ValueError."""
+    if starts is None:
+        return np.zeros(1, dtype=np.int64)
+    arr = np.asarray(starts)
+    if arr.ndim != 1 or len(arr) == 0 or not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"document starts must be a 1-D int array of first frames; got {arr.dtype} {arr.shape}")
+    if arr[0] != 0 or (np.diff(arr) <= 0).any() or arr[-1] >= n:
+        raise ValueError(f"document starts must increase strictly from 0 and stay below the {n:,} frames")
+    return arr.astype(np.int64)
+
+
+def _check_count(value, name: str) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer; got {value!r}")
+    if value < 1:
+        raise ValueError(f"{name} must be at least 1; got {value}")
+    return int(value)
+
+
+# ============================================================================ local costs
+@numba.njit(cache=True, parallel=True)
+def _euclidean_block(q, x, lo, hi):  # pragma: no cover - compiled
+    """c[j, i] = |q[i] - x[j]| for lo[j] <= i < hi[j], inf elsewhere. q (m, d), x (b, d) -> (b, m) float64."""
+    b, m, d = x.shape[0], q.shape[0], q.shape[1]
+    out = np.full((b, m), np.inf)
+    for j in numba.prange(b):
+        for i in range(lo[j], hi[j]):
+            s = 0.0
+            for t in range(d):
+                diff = np.float64(q[i, t]) - np.float64(x[j, t])
+                s += diff * diff
+            out[j, i] = np.sqrt(s)
+    return out
+
+
+def _cost_block(query: np.ndarray, frames: np.ndarray, distance, lo=None, hi=None) -> np.ndarray:
+    """Local costs (len(frames), m) float64 of every database frame (row) against every query frame (column);
+    with ``lo``/``hi`` only those query frames per database frame (inf elsewhere; Euclidean only)."""
+    m = len(query)
+    if distance is None:
+        if lo is None:
+            lo, hi = np.zeros(len(frames), np.int64), np.full(len(frames), m, np.int64)
+        return _euclidean_block(query, frames, lo, hi)
+    c = np.asarray(distance(query, frames), dtype=np.float64)
+    if c.shape != (m, len(frames)):
+        raise ValueError(f"distance(query, frames) must return shape ({m}, {len(frames)}); got {c.shape}")
+    if np.isnan(c).any() or (c < 0).any():
+        raise ValueError("distance(query, frames) returned a negative or NaN cost")
+    out = np.ascontiguousarray(c.T)
+    if lo is not None:
+        rows = np.arange(m)
+        out[(rows[None, :] < lo[:, None]) | (rows[None, :] >= hi[:, None])] = np.inf
+    return out
+
+
+# ============================================================================ DTW over a (banded) cost matrix
+@numba.njit(cache=True)
+def _accumulate(cost, steps, free_start):  # pragma: no cover - compiled
+    """Accumulated costs D (n, m) and the step taken into each cell (-1: a path starts there; -2: unreachable)
+    of a cost matrix given database frame first, cost[j, i]. Cells of infinite cost are unreachable."""
+    n, m = cost.shape
+    acc = np.full((n, m), np.inf)
+    step = np.full((n, m), -2, dtype=np.int8)
+    for j in range(n):
+        for i in range(m):
+            c = cost[j, i]
+            if not np.isfinite(c):
+                continue
+            if i == 0 and (free_start or j == 0):
+                acc[j, i] = c
+                step[j, i] = -1
+                continue
+            best, arg = np.inf, -2
+            for s in range(steps.shape[0]):
+                pi, pj = i - int(steps[s, 0]), j - int(steps[s, 1])
+                if pi < 0 or pj < 0:
+                    continue
+                v = acc[pj, pi] + steps[s, 2] * c
+                if v < best:
+                    best, arg = v, s
+            acc[j, i] = best
+            step[j, i] = arg
+    return acc, step
+
+
+@numba.njit(cache=True)
+def _backtrack(step, steps, i, j):  # pragma: no cover - compiled
+    """The path ending in cell (i, j) as (L, 2) rows of (query frame, frame), first cell first."""
+    out = np.empty((step.shape[0] + step.shape[1], 2), dtype=np.int64)
+    n_out = 0
+    while True:
+        out[n_out, 0], out[n_out, 1] = i, j
+        n_out += 1
+        s = step[j, i]
+        if s < 0:
+            break
+        i, j = i - int(steps[s, 0]), j - int(steps[s, 1])
+    return out[:n_out][::-1].copy()
+
+
+def _check_band(band, m: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """A band (m, 2) of [lo, hi) database frames per query frame -> per database frame the [lo, hi) range of query
+    frames it may align to (the band is contiguous in both directions for the bands this module builds; for
+    others, the per-column hull is used)."""
+    arr = np.asarray(band)
+    if arr.shape != (m, 2) or not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"band must be int ({m}, 2): one [lo, hi) range of frames of b per frame of a; got "
+                         f"{arr.dtype} {arr.shape}")  # fmt: skip
+    lo_row, hi_row = np.clip(arr[:, 0], 0, n), np.clip(arr[:, 1], 0, n)
+    if (lo_row >= hi_row).any():
+        raise ValueError(f"band row {int(np.argmax(lo_row >= hi_row))} is empty after clipping to [0, {n})")
+    inside = np.zeros((n + 1, m), dtype=np.int8)
+    rows = np.arange(m)
+    np.add.at(inside, (lo_row, rows), 1)
+    np.add.at(inside, (hi_row, rows), -1)
+    mask = np.cumsum(inside[:n], axis=0) > 0  # (n, m)
+    any_ = mask.any(axis=1)
+    lo = np.where(any_, mask.argmax(axis=1), 0)
+    hi = np.where(any_, m - mask[:, ::-1].argmax(axis=1), 0)
+    return lo.astype(np.int64), hi.astype(np.int64)
+
+
+def dtw(a, b, distance=None, steps="basic", band=None) -> tuple[float, np.ndarray]:
+    """Optimal DTW alignment of two feature sequences, optionally restricted to a band of the cost matrix.
+
+    Müller 2007 §4.1 (classical DTW); with ``band``, Müller, Röder & Clausen 2005 §7: the cost matrix is computed
+    only inside the band (e.g. the enlarged area of matched segments), the rest is never visited.
+
+    Parameters
+    ----------
+    a : np.ndarray [shape=(m, d)], real, feature units (e.g. F15E in cm).
+    b : np.ndarray [shape=(n, d)].
+    distance : callable, optional
+        ``distance(a, b) -> (m, n)`` local costs, e.g. :func:`mocapviz.features.distances.dquat_pairwise` with
+        a, b of quaternions; default the Euclidean distance of feature vectors (then ``a``/``b`` are (T, d)).
+    steps : str or array (S, 3)
+        "basic" (default), "symmetric", "slope" or rows (di, dj, weight); see the module docstring.
+    band : np.ndarray [shape=(m, 2)], int, optional
+        Per frame of ``a`` the [lo, hi) frames of ``b`` it may align to.
+
+    Returns
+    -------
+    cost : float
+        The accumulated cost of the optimal path from (0, 0) to (m-1, n-1) (inf if the band allows none).
+    path : np.ndarray [shape=(L, 2)], int64
+        (frame of a, frame of b) pairs, empty (0, 2) when there is no path.
+
+    Raises
+    ------
+    ValueError
+        Empty or non-finite sequences (the frame is named), different dimensions, a bad step set or band.
+    """
+    steps_arr = _steps(steps)
+    if distance is None:
+        a = _sequence(a, "a")
+        b = _sequence(b, "b", a.shape[1])
+    m, n = len(a), len(b)
+    if m < 1 or n < 1:
+        raise ValueError(f"both sequences need at least one frame; got {m} and {n}")
+    lo, hi = (None, None) if band is None else _check_band(band, m, n)
+    cost = _cost_block(a, b, distance, lo, hi)
+    acc, step = _accumulate(cost, steps_arr, False)
+    total = float(acc[n - 1, m - 1])
+    if not np.isfinite(total):
+        return total, np.empty((0, 2), dtype=np.int64)
+    return total, _backtrack(step, steps_arr, m - 1, n - 1)
+
+
+def band_from_path(path, shape: tuple[int, int], margin: int = 0) -> np.ndarray:
+    """The [lo, hi) band (m, 2) covering a path (or the cells of matched segments) enlarged by ``margin`` frames
+    in both directions (Müller et al. 2005 §7, Fig. 11's grey area).
+
+    Parameters
+    ----------
+    path : np.ndarray [shape=(L, 2)], int: (row, column) cells; every row 0..m-1 must occur.
+    shape : (m, n)
+    margin : int, frames added on every side.
+    """
+    m, n = shape
+    cells = np.asarray(path, dtype=np.int64)
+    lo = np.full(m, n, dtype=np.int64)
+    hi = np.zeros(m, dtype=np.int64)
+    np.minimum.at(lo, cells[:, 0], cells[:, 1])
+    np.maximum.at(hi, cells[:, 0], cells[:, 1] + 1)
+    if (hi == 0).any():
+        raise ValueError(f"the path misses row {int(np.argmax(hi == 0))}")
+    if margin:
+        # rows within ``margin`` of each other share their ranges: a square dilation of the covered cells
+        win = 2 * margin + 1
+        lo_pad = np.pad(lo, margin, constant_values=n)
+        hi_pad = np.pad(hi, margin, constant_values=0)
+        view = np.lib.stride_tricks.sliding_window_view
+        lo = view(lo_pad, win).min(axis=1) - margin
+        hi = view(hi_pad, win).max(axis=1) + margin
+    return np.stack([np.clip(lo, 0, n), np.clip(hi, 0, n)], axis=1)
+
+
+# ============================================================================ subsequence DTW
+@numba.njit(cache=True)
+def _subsequence_block(cost, offset, doc, steps, hist_acc, hist_start, hist_doc, last, last_start):  # pragma: no cover
+    """Advance subsequence DTW over one block of database frames.
+
+    cost (b, m): local costs of the block's frames, the first being database frame ``offset``; doc (b,): their
+    document numbers. hist_* (h, m) / (h,): the accumulated costs, start frames and documents of the h frames
+    before the block (h = largest dj; document -1 when there is none), updated in place. Writes the last query
+    row of every block frame to last / last_start (b,)."""
+    b, m = cost.shape
+    h = hist_acc.shape[0]
+    acc = np.full((h + b, m), np.inf)
+    start = np.full((h + b, m), -1, dtype=np.int64)
+    docs = np.empty(h + b, dtype=np.int64)
+    acc[:h] = hist_acc
+    start[:h] = hist_start
+    docs[:h] = hist_doc
+    docs[h:] = doc
+    for jb in range(b):
+        j = h + jb
+        for i in range(m):
+            c = cost[jb, i]
+            if i == 0:
+                acc[j, 0] = c
+                start[j, 0] = offset + jb
+                continue
+            best, arg = np.inf, -1
+            for s in range(steps.shape[0]):
+                pi, pj = i - int(steps[s, 0]), j - int(steps[s, 1])
+                if pi < 0 or pj < 0 or docs[pj] != docs[j]:
+                    continue
+                v = acc[pj, pi] + steps[s, 2] * c
+                if v < best:
+                    best, arg = v, s
+            acc[j, i] = best
+            if arg >= 0:
+                start[j, i] = start[j - int(steps[arg, 1]), i - int(steps[arg, 0])]
+        last[jb] = acc[j, m - 1]
+        last_start[jb] = start[j, m - 1]
+    hist_acc[:] = acc[b:]
+    hist_start[:] = start[b:]
+    hist_doc[:] = docs[b:]
+
+
+def subsequence_costs(query, database, starts=None, distance=None, steps="basic", progress=False):
+    """For every database frame j, the least accumulated cost of aligning the whole query to a stretch of one
+    document ending at j, and the frame where that stretch starts (subsequence DTW, Müller 2007 §4.4;
+    the baseline of Krüger et al. 2010 §4).
+
+    Parameters
+    ----------
+    query : np.ndarray [shape=(m, d)], real, feature units (or what ``distance`` takes).
+    database : np.ndarray [shape=(n, d)], the features of all database frames.
+    starts : np.ndarray [shape=(B,)], int, optional
+        First frame of every document (``db.documents.start``); alignments never cross a document boundary.
+        Default: one document.
+    distance : callable, optional
+        ``distance(query, frames) -> (m, len(frames))``; default Euclidean.
+    steps : str or array (S, 3)
+    progress : bool
+        A tqdm bar over blocks of database frames.
+
+    Returns
+    -------
+    cost : np.ndarray [shape=(n,)], float64; inf where no alignment ends (e.g. too close to a document start for
+        the "slope" steps).
+    start : np.ndarray [shape=(n,)], int64 first frame of that alignment; -1 where cost is inf.
+    """
+    steps_arr = _steps(steps)
+    if distance is None:
+        query = _sequence(query, "query")
+        database = _sequence(database, "database", query.shape[1])
+    m, n = len(query), len(database)
+    if m < 1 or n < 1:
+        raise ValueError(f"query and database need at least one frame; got {m} and {n}")
+    doc_starts = _check_document_starts(starts, n)
+    h = int(steps_arr[:, 1].max()) or 1
+    hist_acc, hist_start = np.full((h, m), np.inf), np.full((h, m), -1, dtype=np.int64)
+    hist_doc = np.full(h, -1, dtype=np.int64)
+    cost_out, start_out = np.empty(n), np.empty(n, dtype=np.int64)
+    block = max(1, _BLOCK_ELEMENTS // m)
+    blocks = range(0, n, block)
+    if progress:
+        from tqdm.auto import tqdm
+
+        blocks = tqdm(blocks, desc="subsequence DTW", unit="block")
+    doc_of = np.searchsorted(doc_starts, np.arange(0, n), side="right") - 1
+    for a in blocks:
+        z = min(n, a + block)
+        c = _cost_block(query, database[a:z], distance)
+        _subsequence_block(c, a, doc_of[a:z], steps_arr, hist_acc, hist_start, hist_doc, cost_out[a:z],
+                           start_out[a:z])  # fmt: skip
+    start_out[~np.isfinite(cost_out)] = -1
+    return cost_out, start_out
+
+
+@numba.njit(cache=True)
+def _select(order, starts, ends, k, n):  # pragma: no cover - compiled
+    """Indices (into the candidates) of up to k intervals [start, end], taken in ``order``, none overlapping one
+    taken before. ``n``: frames, for the occupancy array."""
+    taken = np.zeros(n + 1, dtype=np.bool_)
+    out = np.empty(k, dtype=np.int64)
+    n_out = 0
+    for c in order:
+        s, e = starts[c], ends[c]
+        free = True
+        for f in range(s, e + 1):
+            if taken[f]:
+                free = False
+                break
+        if not free:
+            continue
+        taken[s : e + 1] = True
+        out[n_out] = c
+        n_out += 1
+        if n_out == k:
+            break
+    return out[:n_out]
+
+
+def select_matches(starts, ends, costs, k: int, n_frames: int | None = None) -> np.ndarray:
+    """The indices of the ``k`` candidate matches [start, end] of least cost that do not overlap each other,
+    in increasing cost (ties: earlier end first). The greedy choice of Müller 2007 §4.4: take the best match,
+    discard every candidate overlapping it, repeat.
+
+    Parameters
+    ----------
+    starts, ends : np.ndarray [shape=(c,)], int, database frames (inclusive).
+    costs : np.ndarray [shape=(c,)], float; inf candidates are never taken.
+    k : int
+    n_frames : int, optional; default max(ends) + 1.
+    """
+    starts, ends = np.asarray(starts, dtype=np.int64), np.asarray(ends, dtype=np.int64)
+    costs = np.asarray(costs, dtype=np.float64)
+    finite = np.flatnonzero(np.isfinite(costs))
+    if not len(finite):
+        return np.empty(0, dtype=np.int64)
+    order = finite[np.lexsort((ends[finite], costs[finite]))]
+    n = int(ends.max()) + 1 if n_frames is None else int(n_frames)
+    return _select(order, starts, ends, _check_count(k, "K"), n)
+
+
+def _local_minima(cost: np.ndarray, doc_of: np.ndarray) -> np.ndarray:
+    """Frames whose cost is finite and no larger than both neighbours' in the same document."""
+    left = np.r_[np.inf, cost[:-1]]
+    right = np.r_[cost[1:], np.inf]
+    same_left = np.r_[False, doc_of[1:] == doc_of[:-1]]
+    same_right = np.r_[doc_of[:-1] == doc_of[1:], False]
+    ok = np.isfinite(cost) & (~same_left | (cost <= left)) & (~same_right | (cost <= right))
+    return np.flatnonzero(ok)
+
+
+def matches_frame(doc_of: np.ndarray, starts, ends, costs, paths) -> pd.DataFrame:
+    """The matches table shared by subsequence DTW and the lazy neighbourhood graph: doc_id (document number, the
+    position in ``starts``), start, end (database frames, inclusive), cost, path ((L, 2) array of (query frame,
+    database frame))."""
+    starts, ends = np.asarray(starts, dtype=np.int64), np.asarray(ends, dtype=np.int64)
+    return pd.DataFrame({
+        "doc_id": doc_of[ends] if len(ends) else np.empty(0, np.int64), "start": starts, "end": ends,
+        "cost": np.asarray(costs, dtype=np.float64), "path": pd.Series(list(paths), dtype=object),
+    })  # fmt: skip
+
+
+def subsequence_dtw(query, database, starts=None, k: int = 10, distance=None, steps="basic", paths: bool = True,
+                    progress: bool = False) -> pd.DataFrame:  # fmt: skip
+    """The ``k`` best non-overlapping matches of a query in a database by subsequence DTW (Müller 2007 §4.4): the
+    local minima of the accumulated cost over the last query frame, best first, each discarding the candidates
+    that overlap it. The reference that the lazy neighbourhood graph (Krüger et al. 2010 §4.1) approximates.
+
+    Parameters
+    ----------
+    query : np.ndarray [shape=(m, d)] features of the query frames (m >= 2).
+    database : np.ndarray [shape=(n, d)] features of all database frames, e.g. ``load_numeric(db, "F15E")``.
+    starts : np.ndarray [shape=(B,)], int, optional: first frame of every document (``db.documents.start``).
+    k : int, matches wanted (fewer when the database has fewer non-overlapping ones).
+    distance, steps : see :func:`subsequence_costs`.
+    paths : bool, compute each match's path (by DTW of the query against the matched stretch; same cost).
+    progress : bool
+
+    Returns
+    -------
+    pd.DataFrame, one row per match, best first: doc_id (index into ``starts``), start, end (database frames,
+    inclusive), cost (accumulated local costs, feature units), path ((L, 2) int64 (query frame, database frame),
+    or None when ``paths`` is False).
+    """
+    k = _check_count(k, "k")
+    cost, first = subsequence_costs(query, database, starts, distance, steps, progress)
+    n = len(cost)
+    doc_starts = _check_document_starts(starts, n)
+    doc_of = np.searchsorted(doc_starts, np.arange(n), side="right") - 1
+    cand = _local_minima(cost, doc_of)
+    chosen = cand[select_matches(first[cand], cand, cost[cand], k, n)]
+    found = []
+    for s, e in zip(first[chosen], chosen):
+        if paths:
+            _, p = dtw(query, database[s : e + 1], distance=distance, steps=steps)
+            found.append(p + np.array([0, s]))
+        else:
+            found.append(None)
+    return matches_frame(doc_of, first[chosen], chosen, cost[chosen], found)

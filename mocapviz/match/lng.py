@@ -1,0 +1,190 @@
+"""The lazy neighbourhood graph: fast global motion matching (Krüger, Tautges, Weber & Zinke 2010 §4.1).
+
+neighbourhoods   the search step: for each query frame, at most k database frames within radius r (KnnIndex).
+graph_matches    graph construction and path search on given neighbourhoods: nodes are the neighbours, edges the
+                 DTW steps between them, edge cost the distance of the node entered; one shortest-path pass in
+                 topological order, O(k m log k). Returns the top-K non-overlapping matches with their paths.
+lng              both steps: ``lng(query, knn_index, k=..., radius=...)``.
+
+The cost model is subsequence DTW's "basic" step set (:mod:`mocapviz.match.dtw`): a diagonal step (next query
+frame, next database frame), a "horizontal" step (next query frame, same database frame) and a "vertical" step
+(same query frame, next database frame), each adding the local cost of the cell entered. When every cell of the
+optimal subsequence-DTW path ending at a frame lies in the neighbourhoods, the graph finds that path and its cost
+(the paper's condition for equal results); otherwise the graph's cost there is higher, or there is no path.
+Paths never cross a document boundary.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numba
+import numpy as np
+import pandas as pd
+
+from .dtw import _check_count, _check_document_starts, _sequence, matches_frame, select_matches
+
+
+def neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: float = 0.0, exclude=None,
+                   workers: int = -1) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The search step of §4.1: for each query frame, the at most ``k`` nearest database frames at distance <
+    ``radius`` (fixed-radius kNN).
+
+    Parameters
+    ----------
+    query : np.ndarray [shape=(m, d)], features of the query frames in the index's feature set.
+    knn_index : mocapviz.knn.KnnIndex over the database's features (N, d).
+    k, radius, eps, workers : see :meth:`mocapviz.knn.KnnIndex.query`.
+    exclude : np.ndarray [shape=(2,)], int, optional
+        One [start, stop) range of database frames no query frame may match (e.g. the query's own document).
+
+    Returns
+    -------
+    distances : np.ndarray [shape=(m, k)], float64, increasing per row; inf where missing.
+    frames : np.ndarray [shape=(m, k)], int64 database frames; -1 where missing.
+    """
+    q = _sequence(query, "query", knn_index.dim)
+    if len(q) < 2:
+        raise ValueError(f"a query needs at least 2 frames; got {len(q)}")
+    if exclude is not None:
+        exclude = np.broadcast_to(np.asarray(exclude, dtype=np.int64).reshape(-1)[:2], (len(q), 2))
+    return knn_index.query(q, k, radius=radius, eps=eps, workers=workers, exclude=exclude)
+
+
+@numba.njit(cache=True)
+def _shortest_paths(frames, dist, docs):  # pragma: no cover - compiled
+    """Single-source shortest paths on the lazy neighbourhood graph, row by row (a topological order).
+
+    frames, dist, docs (m, k): the neighbours of each query frame (-1 / inf where missing) and their documents.
+    Returns, per row sorted by frame: the frames F, the accumulated costs A, the start frames S, the predecessor
+    step P (-1 start, 0 diagonal, 1 horizontal, 2 vertical) and column C of every node, and counts (m,)."""
+    m, k = frames.shape
+    F = np.full((m, k), -1, dtype=np.int64)
+    A = np.full((m, k), np.inf)
+    S = np.full((m, k), -1, dtype=np.int64)
+    P = np.full((m, k), -1, dtype=np.int8)
+    C = np.full((m, k), -1, dtype=np.int64)
+    D = np.full((m, k), -1, dtype=np.int64)
+    cost = np.full((m, k), np.inf)
+    counts = np.zeros(m, dtype=np.int64)
+    for i in range(m):
+        order = np.argsort(np.where(frames[i] >= 0, frames[i], np.iinfo(np.int64).max))
+        for c in range(k):
+            f = frames[i, order[c]]
+            if f < 0:
+                break
+            F[i, c], D[i, c], cost[i, c] = f, docs[i, order[c]], dist[i, order[c]]
+            counts[i] += 1
+    for c in range(counts[0]):
+        A[0, c], S[0, c] = cost[0, c], F[0, c]
+    for i in range(1, m):
+        p = 0  # first node of the previous row whose frame is >= f - 1
+        for c in range(counts[i]):
+            f, doc = F[i, c], D[i, c]
+            best, arg, col = np.inf, -1, -1
+            while p < counts[i - 1] and F[i - 1, p] < f - 1:
+                p += 1
+            q = p
+            if q < counts[i - 1] and F[i - 1, q] == f - 1:
+                if D[i - 1, q] == doc and A[i - 1, q] < best:  # diagonal
+                    best, arg, col = A[i - 1, q], 0, q
+                q += 1
+            if q < counts[i - 1] and F[i - 1, q] == f and D[i - 1, q] == doc and A[i - 1, q] < best:  # horizontal
+                best, arg, col = A[i - 1, q], 1, q
+            if c > 0 and F[i, c - 1] == f - 1 and D[i, c - 1] == doc and A[i, c - 1] < best:  # vertical
+                best, arg, col = A[i, c - 1], 2, c - 1
+            if arg >= 0:
+                A[i, c] = best + cost[i, c]
+                P[i, c], C[i, c] = arg, col
+                S[i, c] = S[i, c - 1] if arg == 2 else S[i - 1, col]
+    return F, A, S, P, C, counts
+
+
+@numba.njit(cache=True)
+def _graph_path(F, P, C, i, c):  # pragma: no cover - compiled
+    """The path ending in node (row i, column c) as (L, 2) rows of (query frame, database frame)."""
+    out = np.empty((F.shape[0] * (F.shape[1] + 1), 2), dtype=np.int64)
+    n = 0
+    while True:
+        out[n, 0], out[n, 1] = i, F[i, c]
+        n += 1
+        step = P[i, c]
+        if step < 0:
+            break
+        c = C[i, c]
+        if step != 2:
+            i -= 1
+    return out[:n][::-1].copy()
+
+
+def graph_matches(distances, frames, starts=None, n_frames: int | None = None, k_matches: int = 10,
+                  paths: bool = True) -> pd.DataFrame:  # fmt: skip
+    """Graph construction and path search of §4.1 on given neighbourhoods: the top-K non-overlapping matches.
+
+    Parameters
+    ----------
+    distances, frames : np.ndarray [shape=(m, k)], from :func:`neighbourhoods` (inf / -1 where missing).
+    starts : np.ndarray [shape=(B,)], int, optional: first frame of every document; default one document.
+    n_frames : int, optional: database frames (default: the largest neighbour frame + 1).
+    k_matches : int, matches wanted (K).
+    paths : bool, return each match's path.
+
+    Returns
+    -------
+    pd.DataFrame like :func:`mocapviz.match.subsequence_dtw`'s: doc_id, start, end (database frames, inclusive),
+    cost (sum of the local costs along the path, feature units), path ((L, 2) (query frame, database frame)).
+    """
+    d = np.asarray(distances, dtype=np.float64)
+    f = np.asarray(frames, dtype=np.int64)
+    if d.ndim != 2 or d.shape != f.shape or len(d) < 2:
+        raise ValueError(f"distances and frames must be (m, k) arrays of the same shape with m >= 2; got {d.shape} "
+                         f"and {f.shape}")  # fmt: skip
+    n = int(f.max()) + 1 if n_frames is None else int(n_frames)
+    doc_starts = _check_document_starts(starts, max(n, 1))
+    docs = np.searchsorted(doc_starts, f, side="right") - 1
+    F, A, S, P, C, counts = _shortest_paths(f, d, docs)
+    last = len(F) - 1
+    cols = np.arange(counts[last])
+    chosen = cols[select_matches(S[last, cols], F[last, cols], A[last, cols], _check_count(k_matches, "K"), n)]
+    found = [_graph_path(F, P, C, last, c) if paths else None for c in chosen]
+    doc_of = np.searchsorted(doc_starts, np.arange(n), side="right") - 1 if len(chosen) else np.zeros(0, np.int64)
+    return matches_frame(doc_of, S[last, chosen], F[last, chosen], A[last, chosen], found)
+
+
+def lng(query, knn_index, k: int = 64, radius: float | None = None, k_matches: int = 10, starts=None,
+        eps: float = 0.0, exclude=None, workers: int = -1, paths: bool = True) -> pd.DataFrame:  # fmt: skip
+    """Global motion matching with the lazy neighbourhood graph (Krüger et al. 2010 §4.1): the top ``k_matches``
+    non-overlapping stretches of the database that align to the query, ranked by global cost, with their
+    alignments, in O(k m log n).
+
+    Parameters
+    ----------
+    query : np.ndarray [shape=(m, d)], m >= 2, features of the query frames in the index's feature set.
+    knn_index : mocapviz.knn.KnnIndex over the database's features (N, d), e.g. ``KnnIndex(load_numeric(db,
+        "F15E"))``.
+    k : int, at most this many neighbours per query frame (1 <= k <= indexed frames).
+    radius : float, optional, only neighbours at distance < radius (feature units).
+    k_matches : int, matches wanted (K).
+    starts : np.ndarray [shape=(B,)], int, optional: first frame of every document (``db.documents.start``);
+        default one document.
+    eps : float, ε-approximate kNN (see :meth:`mocapviz.knn.KnnIndex.query`).
+    exclude : [start, stop), optional: database frames not to match (the query's own document).
+    workers : int, kNN threads (-1 all CPUs).
+    paths : bool, return each match's path.
+
+    Returns
+    -------
+    pd.DataFrame, best first: doc_id (index into ``starts``), start, end (database frames, inclusive), cost, path
+    ((L, 2) int64 (query frame, database frame)). ``attrs["seconds"]`` holds {"knn": ..., "graph": ...}.
+
+    Raises
+    ------
+    ValueError / TypeError
+        A query of fewer than 2 frames or of the wrong dimension, k or radius out of range (from the index).
+    """
+    t0 = time.perf_counter()
+    d, f = neighbourhoods(query, knn_index, k, radius, eps, exclude, workers)
+    t1 = time.perf_counter()
+    out = graph_matches(d, f, starts, knn_index.n_frames, k_matches, paths)
+    out.attrs["seconds"] = {"knn": t1 - t0, "graph": time.perf_counter() - t1}
+    return out
