@@ -40,7 +40,7 @@ MATCH_COLUMNS = ["doc_id", "start", "end", "cost", "path"]
 
 
 # ============================================================================ input checks
-def _sequence(x, name: str, dim: int | None = None) -> np.ndarray:
+def _sequence(x, name: str, dim: int | None = None, other: str = "the query") -> np.ndarray:
     """A (T, d) float array of finite values (a 1-D array is one feature per frame), or a ValueError."""
     arr = np.asarray(x)
     if arr.ndim == 1:
@@ -48,7 +48,7 @@ def _sequence(x, name: str, dim: int | None = None) -> np.ndarray:
     if arr.ndim != 2 or not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
         raise ValueError(f"{name} must be a real (frames, dimensions) array; got {arr.dtype} {arr.shape}")
     if dim is not None and arr.shape[1] != dim:
-        raise ValueError(f"{name} has {arr.shape[1]} dimensions per frame but the query has {dim}")
+        raise ValueError(f"{name} has {arr.shape[1]} dimensions per frame but {other} has {dim}")
     bad = ~np.isfinite(arr).all(axis=1)
     if bad.any():
         raise ValueError(f"{name}: frame {int(np.argmax(bad))} is not finite (NaN or inf)")
@@ -80,6 +80,16 @@ def _check_document_starts(starts, n: int) -> np.ndarray:
     if arr[0] != 0 or (np.diff(arr) <= 0).any() or arr[-1] >= n:
         raise ValueError(f"document starts must increase strictly from 0 and stay below the {n:,} frames")
     return arr.astype(np.int64)
+
+
+def check_query_length(m: int, doc_starts: np.ndarray, n: int) -> None:
+    """A ValueError unless 2 <= m <= the longest document's frame count (no match could exist)."""
+    longest = int(np.diff(np.r_[doc_starts, n]).max())
+    if m < 2:
+        raise ValueError(f"a query needs at least 2 frames; got {m}")
+    if m > longest:
+        raise ValueError(f"the query has {m} frames, more than the longest document ({longest} frames); a match "
+                         f"cannot be shorter than the query")  # fmt: skip
 
 
 def _check_count(value, name: str) -> int:
@@ -439,7 +449,7 @@ def subsequence_dtw(query, database, starts=None, k: int = 10, distance=None, st
 
     Parameters
     ----------
-    query : np.ndarray [shape=(m, d)] features of the query frames (m >= 2).
+    query : np.ndarray [shape=(m, d)] features of the query frames, 2 <= m <= the longest document.
     database : np.ndarray [shape=(n, d)] features of all database frames, e.g. ``load_numeric(db, "F15E")``.
     starts : np.ndarray [shape=(B,)], int, optional: first frame of every document (``db.documents.start``).
     k : int, matches wanted (fewer when the database has fewer non-overlapping ones).
@@ -452,11 +462,18 @@ def subsequence_dtw(query, database, starts=None, k: int = 10, distance=None, st
     pd.DataFrame, one row per match, best first: doc_id (index into ``starts``), start, end (database frames,
     inclusive), cost (accumulated local costs, feature units), path ((L, 2) int64 (query frame, database frame),
     or None when ``paths`` is False).
+
+    Raises
+    ------
+    ValueError / TypeError
+        A query shorter than 2 frames or longer than the longest document, non-finite frames (named), feature
+        dimensions that differ, bad document starts or step set, k not a positive integer.
     """
     k = _check_count(k, "k")
-    cost, first = subsequence_costs(query, database, starts, distance, steps, progress)
-    n = len(cost)
+    n = len(database)
     doc_starts = _check_document_starts(starts, n)
+    check_query_length(len(query), doc_starts, n)
+    cost, first = subsequence_costs(query, database, starts, distance, steps, progress)
     doc_of = np.searchsorted(doc_starts, np.arange(n), side="right") - 1
     cand = _local_minima(cost, doc_of)
     chosen = cand[select_matches(first[cand], cand, cost[cand], k, n)]

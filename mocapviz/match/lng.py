@@ -22,7 +22,7 @@ import numba
 import numpy as np
 import pandas as pd
 
-from .dtw import _check_count, _check_document_starts, _sequence, matches_frame, select_matches
+from .dtw import _check_count, _check_document_starts, _sequence, check_query_length, matches_frame, select_matches
 
 
 def neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: float = 0.0, exclude=None,
@@ -43,7 +43,7 @@ def neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: f
     distances : np.ndarray [shape=(m, k)], float64, increasing per row; inf where missing.
     frames : np.ndarray [shape=(m, k)], int64 database frames; -1 where missing.
     """
-    q = _sequence(query, "query", knn_index.dim)
+    q = _sequence(query, "query", knn_index.dim, other="the index")
     if len(q) < 2:
         raise ValueError(f"a query needs at least 2 frames; got {len(q)}")
     if exclude is not None:
@@ -180,8 +180,10 @@ def lng(query, knn_index, k: int = 64, radius: float | None = None, k_matches: i
     Raises
     ------
     ValueError / TypeError
-        A query of fewer than 2 frames or of the wrong dimension, k or radius out of range (from the index).
+        A query of fewer than 2 frames, longer than the longest document or of the wrong dimension, k or radius
+        out of range (from the index).
     """
+    check_query_length(len(query), _check_document_starts(starts, knn_index.n_frames), knn_index.n_frames)
     t0 = time.perf_counter()
     d, f = neighbourhoods(query, knn_index, k, radius, eps, exclude, workers)
     t1 = time.perf_counter()
