@@ -103,9 +103,9 @@ def _check_count(value, name: str) -> int:
 # ============================================================================ local costs
 @numba.njit(cache=True, parallel=True)
 def _euclidean_block(q, x, lo, hi):  # pragma: no cover - compiled
-    """c[j, i] = |q[i] - x[j]| for lo[j] <= i < hi[j], inf elsewhere. q (m, d), x (b, d) -> (b, m) float64."""
+    """c[j, i] = |q[i] - x[j]| for lo[j] <= i < hi[j] (other cells left unset). q (m, d), x (b, d) -> (b, m)."""
     b, m, d = x.shape[0], q.shape[0], q.shape[1]
-    out = np.full((b, m), np.inf)
+    out = np.empty((b, m))
     for j in numba.prange(b):
         for i in range(lo[j], hi[j]):
             s = 0.0
@@ -118,7 +118,8 @@ def _euclidean_block(q, x, lo, hi):  # pragma: no cover - compiled
 
 def _cost_block(query: np.ndarray, frames: np.ndarray, distance, lo=None, hi=None) -> np.ndarray:
     """Local costs (len(frames), m) float64 of every database frame (row) against every query frame (column);
-    with ``lo``/``hi`` only those query frames per database frame (inf elsewhere; Euclidean only)."""
+    with ``lo``/``hi``, the Euclidean costs are computed only for query frames lo[j] <= i < hi[j] (the others
+    are left unset: readers must stay inside the band)."""
     m = len(query)
     if distance is None:
         if lo is None:
@@ -129,34 +130,29 @@ def _cost_block(query: np.ndarray, frames: np.ndarray, distance, lo=None, hi=Non
         raise ValueError(f"distance(query, frames) must return shape ({m}, {len(frames)}); got {c.shape}")
     if np.isnan(c).any() or (c < 0).any():
         raise ValueError("distance(query, frames) returned a negative or NaN cost")
-    out = np.ascontiguousarray(c.T)
-    if lo is not None:
-        rows = np.arange(m)
-        out[(rows[None, :] < lo[:, None]) | (rows[None, :] >= hi[:, None])] = np.inf
-    return out
+    return np.ascontiguousarray(c.T)
 
 
 # ============================================================================ DTW over a (banded) cost matrix
 @numba.njit(cache=True)
-def _accumulate(cost, steps, free_start):  # pragma: no cover - compiled
-    """Accumulated costs D (n, m) and the step taken into each cell (-1: a path starts there; -2: unreachable)
-    of a cost matrix given database frame first, cost[j, i]. Cells of infinite cost are unreachable."""
+def _accumulate(cost, lo, hi, steps):  # pragma: no cover - compiled
+    """Accumulated costs D (n, m) and the step taken into each cell (-1: the path starts there; -2: unreachable)
+    of a cost matrix given database frame first, cost[j, i], visiting only the cells lo[j] <= i < hi[j] of each
+    column (the band); cells outside it are never read. The path starts at (0, 0)."""
     n, m = cost.shape
-    acc = np.full((n, m), np.inf)
-    step = np.full((n, m), -2, dtype=np.int8)
+    acc = np.empty((n, m))
+    step = np.empty((n, m), dtype=np.int8)
     for j in range(n):
-        for i in range(m):
+        for i in range(lo[j], hi[j]):
             c = cost[j, i]
-            if not np.isfinite(c):
-                continue
-            if i == 0 and (free_start or j == 0):
+            if i == 0 and j == 0:
                 acc[j, i] = c
                 step[j, i] = -1
                 continue
             best, arg = np.inf, -2
             for s in range(steps.shape[0]):
                 pi, pj = i - int(steps[s, 0]), j - int(steps[s, 1])
-                if pi < 0 or pj < 0:
+                if pi < 0 or pj < 0 or pi < lo[pj] or pi >= hi[pj]:
                     continue
                 v = acc[pj, pi] + steps[s, 2] * c
                 if v < best:
@@ -182,9 +178,8 @@ def _backtrack(step, steps, i, j):  # pragma: no cover - compiled
 
 
 def _check_band(band, m: int, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """A band (m, 2) of [lo, hi) database frames per query frame -> per database frame the [lo, hi) range of query
-    frames it may align to (the band is contiguous in both directions for the bands this module builds; for
-    others, the per-column hull is used)."""
+    """A band (m, 2) of [lo, hi) frames of b per frame of a, both bounds non-decreasing (as every band around a
+    monotone path is) -> per frame j of b the [lo, hi) range of frames of a it may align to."""
     arr = np.asarray(band)
     if arr.shape != (m, 2) or not np.issubdtype(arr.dtype, np.integer):
         raise ValueError(f"band must be int ({m}, 2): one [lo, hi) range of frames of b per frame of a; got "
@@ -192,15 +187,12 @@ def _check_band(band, m: int, n: int) -> tuple[np.ndarray, np.ndarray]:
     lo_row, hi_row = np.clip(arr[:, 0], 0, n), np.clip(arr[:, 1], 0, n)
     if (lo_row >= hi_row).any():
         raise ValueError(f"band row {int(np.argmax(lo_row >= hi_row))} is empty after clipping to [0, {n})")
-    inside = np.zeros((n + 1, m), dtype=np.int8)
-    rows = np.arange(m)
-    np.add.at(inside, (lo_row, rows), 1)
-    np.add.at(inside, (hi_row, rows), -1)
-    mask = np.cumsum(inside[:n], axis=0) > 0  # (n, m)
-    any_ = mask.any(axis=1)
-    lo = np.where(any_, mask.argmax(axis=1), 0)
-    hi = np.where(any_, m - mask[:, ::-1].argmax(axis=1), 0)
-    return lo.astype(np.int64), hi.astype(np.int64)
+    if (np.diff(lo_row) < 0).any() or (np.diff(hi_row) < 0).any():
+        raise ValueError("band bounds must not decrease from one frame of a to the next (a warping path is monotone)")
+    cols = np.arange(n)
+    # rows i with lo_row[i] <= j < hi_row[i]: from the first i whose hi_row exceeds j to the last whose lo_row <= j
+    return np.searchsorted(hi_row, cols, side="right").astype(np.int64), np.searchsorted(
+        lo_row, cols, side="right").astype(np.int64)  # fmt: skip
 
 
 def dtw(a, b, distance=None, steps="basic", band=None) -> tuple[float, np.ndarray]:
@@ -219,7 +211,8 @@ def dtw(a, b, distance=None, steps="basic", band=None) -> tuple[float, np.ndarra
     steps : str or array (S, 3)
         "basic" (default), "symmetric", "slope" or rows (di, dj, weight); see the module docstring.
     band : np.ndarray [shape=(m, 2)], int, optional
-        Per frame of ``a`` the [lo, hi) frames of ``b`` it may align to.
+        Per frame of ``a`` the [lo, hi) frames of ``b`` it may align to, both bounds non-decreasing
+        (:func:`band_from_path` makes one). Only these cells are computed: time O(band cells); memory O(m n).
 
     Returns
     -------
@@ -240,9 +233,13 @@ def dtw(a, b, distance=None, steps="basic", band=None) -> tuple[float, np.ndarra
     m, n = len(a), len(b)
     if m < 1 or n < 1:
         raise ValueError(f"both sequences need at least one frame; got {m} and {n}")
-    lo, hi = (None, None) if band is None else _check_band(band, m, n)
-    cost = _cost_block(a, b, distance, lo, hi)
-    acc, step = _accumulate(cost, steps_arr, False)
+    if band is None:
+        lo, hi = np.zeros(n, dtype=np.int64), np.full(n, m, dtype=np.int64)
+    else:
+        lo, hi = _check_band(band, m, n)
+    if not (lo[0] == 0 < hi[0] and lo[-1] < m <= hi[-1]):
+        return np.inf, np.empty((0, 2), dtype=np.int64)  # the band leaves out the first or the last cell
+    acc, step = _accumulate(_cost_block(a, b, distance, lo, hi), lo, hi, steps_arr)
     total = float(acc[n - 1, m - 1])
     if not np.isfinite(total):
         return total, np.empty((0, 2), dtype=np.int64)
