@@ -7,6 +7,8 @@
                                                                                               [--top N]
     mocapviz features DB [--sets F15E,F30E,...] [--pca FILE|DB]
     mocapviz knn DB --frame DOC:FRAME [--features F15E] [-k 16] [--radius R] [--eps E] [--exclude-document]
+    mocapviz match DB --example FILE|DOC_ID [--frames A:B] [--features F15E] [-K 10] [-k 256] [--radius R] [--eps E]
+                                                                                [--method lng|dtw] [--paths]
     mocapviz datasets list
     mocapviz datasets fetch NAME        (NAME: a shared archive, or ``sample`` for the embedded sample)
 
@@ -21,15 +23,17 @@ import time
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from . import datasets
 from .database import MotionDB
 from .errors import MocapFormatError, MotionDBError, SkeletonMappingError
-from .features import NUMERIC_SETS, PCAModel, fit_pca, numeric_of, relational, store_numeric
+from .features import NUMERIC_SETS, PCAModel, fit_pca, load_numeric, numeric, numeric_of, relational, store_numeric
 from .index import build
 from .io import load
 from .knn import KnnIndex, describe_frames
+from .match import lng, subsequence_dtw
 from .query import query_by_example
 
 
@@ -153,6 +157,60 @@ def _knn(args) -> None:
         print(hits[cols].round(3).to_string(index=False))
 
 
+def _example_features(db: MotionDB, example: str, frames: str | None, name: str, X) -> tuple[object, tuple | None]:
+    """The query's features: frames of a document of the DB (taken from the stored set) or of a motion file
+    (resampled to the DB's rate), and the [start, stop) database frames of its document (None for a file)."""
+    sl = _frames(frames)
+    if example.isdigit():
+        span = db.frames(int(example))
+        rows = range(span.start, span.stop)[sl]
+        return np.asarray(X[rows.start : rows.stop]), (span.start, span.stop)
+    motion = load(example)
+    if db.fps and abs(motion.fps - db.fps) > 1e-6:
+        motion = motion.resample(db.fps)
+    pca = None
+    if name.startswith("Fp"):
+        pca = PCAModel.load(Path(db.path) / "features" / "pca.npz")
+    return numeric(motion[sl], name, pca=pca, progress=False), None
+
+
+def _match(args) -> None:
+    db = MotionDB.open(args.db)
+    name = _names(args.features, NUMERIC_SETS, "feature set")[0]
+    X = load_numeric(db, name)  # a clear error naming `mocapviz features DB` when the set is not stored
+    query, own = _example_features(db, args.example, args.frames, name, X)
+    starts = db.documents["start"].to_numpy()
+    t0 = time.perf_counter()
+    if args.method == "dtw":
+        found = subsequence_dtw(query, X, starts, k=args.K + (args.K if own else 0), paths=args.paths)
+        if own:
+            found = found[(found["end"] < own[0]) | (found["start"] >= own[1])].head(args.K)
+        what = "subsequence DTW"
+    else:
+        found = lng(query, KnnIndex(X), k=args.k, radius=args.radius, k_matches=args.K, starts=starts, eps=args.eps,
+                    exclude=own, paths=args.paths)  # fmt: skip
+        what = f"lazy neighbourhood graph, k={args.k}" + (f", r={args.radius:g}" if args.radius else "")
+    ms = 1000 * (time.perf_counter() - t0)
+    print(f"{len(found)} matches of a {len(query)}-frame query by {name} ({what}) in {ms:.1f} ms"
+          + (" (the query's own document excluded)" if own else ""))  # fmt: skip
+    docs = db.documents.set_index("doc_id")
+    table = pd.DataFrame({
+        "rank": np.arange(1, len(found) + 1), "doc_id": found["doc_id"].to_numpy(),
+        "name": docs["name"].reindex(found["doc_id"]).to_numpy(),
+        "start_frame": (found["start"] - docs["start"].reindex(found["doc_id"]).to_numpy()).to_numpy(),
+        "end_frame": (found["end"] - docs["start"].reindex(found["doc_id"]).to_numpy()).to_numpy(),
+        "cost": found["cost"].to_numpy(), "cost_per_frame": (found["cost"] / len(query)).to_numpy(),
+    })  # fmt: skip
+    for col in db.label_columns:
+        table[col] = docs[col].reindex(found["doc_id"]).to_numpy()
+    with pd.option_context("display.width", 160, "display.max_rows", args.K + 5):
+        print(table.round(3).to_string(index=False))
+    if args.paths:
+        for rank, doc, path in zip(table["rank"], table["doc_id"], found["path"]):
+            first = int(docs.loc[doc, "start"])
+            print(f"path {rank} (query frame:frame of document {doc}): " + " ".join(f"{i}:{j - first}" for i, j in path))
+
+
 def _datasets(args) -> None:
     if args.action == "list":
         with pd.option_context("display.width", 160, "display.max_colwidth", 40):
@@ -222,6 +280,23 @@ def build_parser() -> argparse.ArgumentParser:
     kn.add_argument("--exclude-document", action="store_true", help="leave out the frame's own document")
     kn.add_argument("--quiet", action="store_true", help="no progress bar")
     kn.set_defaults(func=_knn)
+
+    mt = sub.add_parser("match", help="stretches of the DB that move like an example, ranked (lazy neighbourhood "
+                        "graph or subsequence DTW)")  # fmt: skip
+    mt.add_argument("db")
+    mt.add_argument("--example", required=True, help="a motion file, or a document id of the DB (then its own "
+                    "document is excluded from the matches)")  # fmt: skip
+    mt.add_argument("--frames", help="frame span A:B of the example (default: all of it)")
+    mt.add_argument("--features", default="F15E", help="stored numeric feature set (default F15E; see "
+                    "`mocapviz features`)")  # fmt: skip
+    mt.add_argument("-K", type=int, default=10, help="matches to report (default 10)")
+    mt.add_argument("-k", type=int, default=256, help="neighbours per query frame (default 256)")
+    mt.add_argument("--radius", type=float, help="only neighbours closer than this (feature units)")
+    mt.add_argument("--eps", type=float, default=0.0, help="approximate kNN: k-th distance within (1+eps)")
+    mt.add_argument("--method", choices=["lng", "dtw"], default="lng", help="lng (default) or subsequence DTW")
+    mt.add_argument("--paths", action="store_true", help="also print each match's alignment (query frame:document "
+                    "frame pairs)")  # fmt: skip
+    mt.set_defaults(func=_match)
 
     ds = sub.add_parser("datasets", help="list or fetch the registered motion-capture archives")
     ds.add_argument("action", choices=["list", "fetch"])

@@ -152,3 +152,54 @@ def test_operating_system_errors_are_one_line(sample_dir, tmp_path, capsys):
     assert main(["ingest", str(sample_dir / "cmu-asfamc"), "--out", str(blocker / "db"), "--quiet"]) == 1
     err = capsys.readouterr().err.strip()
     assert err.startswith("mocapviz: error:") and "\n" not in err
+
+
+def test_match_prints_the_library_matches(sample_db, capsys):
+    """`mocapviz match` with a document of the DB as the example: the graph's (and subsequence DTW's) matches
+    outside that document, as :func:`mocapviz.match.lng` / ``subsequence_dtw`` find them."""
+    from mocapviz.features import load_numeric
+    from mocapviz.knn import KnnIndex
+    from mocapviz.match import lng, subsequence_dtw
+
+    assert main(["features", str(sample_db.path), "--sets", "F15E", "--quiet"]) == 0
+    capsys.readouterr()
+    X = load_numeric(sample_db, "F15E")
+    starts = sample_db.documents["start"].to_numpy()
+    doc = int(sample_db.select(label="squat1Reps")["doc_id"].iloc[0])
+    span = sample_db.frames(doc)
+    q = X[span.start + 5 : span.start + 35]
+    assert main(["match", str(sample_db.path), "--example", str(doc), "--frames", "5:35", "-K", "4", "-k", "64"]) == 0
+    rows = _table(capsys.readouterr().out)
+    ref = lng(q, KnnIndex(X), k=64, k_matches=4, starts=starts, exclude=[span.start, span.stop])
+    assert len(rows) == len(ref) >= 1
+    assert [int(r[1]) for r in rows] == ref["doc_id"].tolist()
+    assert [int(r[3]) for r in rows] == (ref["start"] - starts[ref["doc_id"]]).tolist()
+    np.testing.assert_allclose([float(r[5]) for r in rows], ref["cost"], atol=1e-3)
+
+    assert main(["match", str(sample_db.path), "--example", str(doc), "--frames", "5:35", "-K", "3", "--method",
+                 "dtw", "--paths"]) == 0  # fmt: skip
+    text = capsys.readouterr().out
+    ref = subsequence_dtw(q, X, starts, k=20)
+    ref = ref[ref["doc_id"] != doc].head(3)
+    rows = _table(text.split("\npath 1")[0])
+    assert [int(r[4]) for r in rows] == (ref["end"] - starts[ref["doc_id"]]).tolist()
+    first = ref["path"].iloc[0]
+    assert f"0:{first[0, 1] - starts[ref['doc_id'].iloc[0]]} " in text.split("\npath 1")[1]
+
+
+def test_match_errors_are_one_line(sample_dir, sample_db, tmp_path, capsys):
+    bare = tmp_path / "bare"
+    assert main(["ingest", str(sample_dir / "hdm05-cut"), "--out", str(bare), "--fps", "30", "--quiet"]) == 0
+    cases = [
+        ([str(bare), "--example", "0"], "run `mocapviz features DB`"),
+        ([str(sample_db.path), "--example", "0", "--frames", "5:6"], "at least 2 frames"),
+        ([str(sample_db.path), "--example", "0", "-k", "0"], "k must be between 1"),
+        ([str(sample_db.path), "--example", "0", "--radius", "-2"], "radius must be a positive"),
+        ([str(sample_db.path), "--example", "0", "--features", "F16E"], "unknown feature set F16E"),
+    ]
+    main(["features", str(sample_db.path), "--sets", "F15E", "--quiet"])
+    capsys.readouterr()
+    for args, needle in cases:
+        assert main(["match", *args]) == 1
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("mocapviz: error:") and needle in err and "\n" not in err, (args, err)

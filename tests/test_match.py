@@ -8,6 +8,7 @@ Features: F15E of the HDM05 cut clips of the shared data at 30 Hz (287 documents
 from __future__ import annotations
 
 import importlib
+import itertools
 
 import numpy as np
 import pytest
@@ -62,7 +63,7 @@ def path_cost(cost: np.ndarray, path: np.ndarray, steps) -> float:
     fails when a move is not a step of the set."""
     weights = {(int(di), int(dj)): w for di, dj, w in steps}
     total = cost[path[0, 0], path[0, 1]]
-    for (i0, j0), (i1, j1) in zip(path[:-1], path[1:]):
+    for (i0, j0), (i1, j1) in itertools.pairwise(path):
         total += weights[(int(i1 - i0), int(j1 - j0))] * cost[i1, j1]
     return total
 
@@ -140,7 +141,7 @@ def test_subsequence_dtw_matches_are_optimal_non_overlapping_and_within_document
     assert len(out) == 15
     assert (np.diff(out["cost"]) >= 0).all()
     spans = sorted(zip(out["start"], out["end"]))
-    assert all(e0 < s1 for (_, e0), (s1, _) in zip(spans[:-1], spans[1:])), "matches overlap"
+    assert all(e0 < s1 for (_, e0), (s1, _) in itertools.pairwise(spans)), "matches overlap"
     cost, first = subsequence_costs(q, X, starts)
     assert out["cost"].iloc[0] == cost.min() == 0.0  # the query is a stretch of the database
     for row in out.itertuples():

@@ -6,11 +6,18 @@ query_statistics    Müller, Röder & Clausen 2005, Table 3: random exact / adap
 relational_query    Müller, Röder & Clausen 2005, Figs. 7-9: query by example per class, precision and recall.
 knn_timings         Krüger, Tautges, Weber & Zinke 2010, Table 1: k-NN search times per numeric feature set.
 base_poses          Krüger et al. 2010, §5.3: fat-graph base poses, kd-tree against the O(n²) construction.
+lng_accuracy        Krüger et al. 2010, §4.2: the lazy neighbourhood graph against subsequence DTW (Spearman, eps).
+similarity_matrices Krüger et al. 2010, Fig. 3: distance matrices per feature set, the cells the graph computed,
+                    its warping paths, subsequence DTW on Dpc1.
+alignment           Müller, Röder & Clausen 2005, §7 / Fig. 11: segment-wise alignment refined by band DTW.
+numerical_search    Krüger et al. 2010, Table 2: numerical and logical similarity search hits per feature set.
 
 The papers' own figures: :func:`mocapviz.experiments.relational.paper_table2` and ``paper_table3``,
-:func:`mocapviz.experiments.numeric.paper_table1`.
+:func:`mocapviz.experiments.numeric.paper_table1`, :func:`mocapviz.experiments.matching.paper_table2`.
 """
+from .matching import alignment, lng_accuracy, numerical_search, similarity_matrices, summarize_accuracy
 from .numeric import base_poses, knn_timings
 from .relational import index_statistics, query_statistics, relational_query
 
-__all__ = ["base_poses", "index_statistics", "knn_timings", "query_statistics", "relational_query"]
+__all__ = ["alignment", "base_poses", "index_statistics", "knn_timings", "lng_accuracy", "numerical_search",
+           "query_statistics", "relational_query", "similarity_matrices", "summarize_accuracy"]

@@ -93,7 +93,7 @@ def lng_accuracy(db, feature_set: str = "F15E", n_queries: int = 128, seconds=(1
 
         work = tqdm(work, desc="LNG vs subsequence DTW", unit="query")
     for sec, _ in work:
-        m = max(2, int(round(sec * db.fps)))
+        m = max(2, round(sec * db.fps))
         long_enough = np.flatnonzero(stops - starts >= m)
         if not len(long_enough):
             raise ValueError(f"no document of {db.path} has {m} frames for a {sec:g} s query")
@@ -101,7 +101,7 @@ def lng_accuracy(db, feature_set: str = "F15E", n_queries: int = 128, seconds=(1
         q0 = int(rng.integers(starts[doc], stops[doc] - m + 1))
         q = X[q0 : q0 + m]
         t0 = time.perf_counter()
-        cost, first = subsequence_costs(q, X, starts)
+        cost, _ = subsequence_costs(q, X, starts)
         t_dtw = time.perf_counter() - t0
         cost[starts[doc] : stops[doc]] = np.inf  # the query's own document is excluded from both
         ref = subsequence_dtw(q, X, starts, k=k_matches + 64, paths=False)

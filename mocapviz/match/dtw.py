@@ -59,7 +59,7 @@ def _steps(steps) -> np.ndarray:
     """A step set name or ((di, dj, w), ...) as a float64 (S, 3) array, or a ValueError."""
     table = STEP_SETS.get(steps, steps) if isinstance(steps, str) else steps
     if isinstance(table, str):
-        raise ValueError(f"unknown step set {steps!r}; choose one of {', '.join(STEP_SETS)} or give (di, dj, w) rows")
+        raise ValueError(f"unknown step set {steps!r}; choose one of {', '.join(STEP_SETS)} or give (di, dj, w) rows")  # noqa: TRY004
     arr = np.asarray(table, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
         raise ValueError(f"steps must be rows (di, dj, weight); got shape {arr.shape}")
