@@ -25,10 +25,10 @@ def main(argv=None) -> int:
     # unpack the shared archives once, into the repository's cache (ignored by git)
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
 
-    from . import bench_io, bench_knn, bench_relational
+    from . import bench_io, bench_knn, bench_match, bench_relational
 
     status = bench_io.main(quick=args.quick, repeats=args.repeats, ingest=not args.no_ingest, out_dir=args.out)
-    for bench in (bench_relational, bench_knn):
+    for bench in (bench_relational, bench_knn, bench_match):
         status = status or bench.main(quick=args.quick, repeats=args.repeats, out_dir=args.out)
     return status
 

@@ -316,6 +316,8 @@ def describe_db(db, record: dict) -> list[str]:
     docs = db.documents
     fps = record["fps"]
     real = ~docs["format"].eq("memory").to_numpy()
+    if "mirror_of" in docs:  # mirrored copies keep their original's format and path
+        real &= docs["mirror_of"].isna().to_numpy()
     archive = _archive_of(db, list(record["files"]))
     parts = []
     for name in record["files"]:

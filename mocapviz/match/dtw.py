@@ -372,30 +372,27 @@ def subsequence_costs(query, database, starts=None, distance=None, steps="basic"
 
 
 @numba.njit(cache=True)
-def _select(order, starts, ends, k, n):  # pragma: no cover - compiled
+def _select(order, starts, ends, k):  # pragma: no cover - compiled
     """Indices (into the candidates) of up to k intervals [start, end], taken in ``order``, none overlapping one
-    taken before. ``n``: frames, for the occupancy array."""
-    taken = np.zeros(n + 1, dtype=np.bool_)
+    taken before (checked against the taken ones: O(k) per candidate, no array over all frames)."""
     out = np.empty(k, dtype=np.int64)
     n_out = 0
     for c in order:
         s, e = starts[c], ends[c]
         free = True
-        for f in range(s, e + 1):
-            if taken[f]:
+        for t in range(n_out):
+            if s <= ends[out[t]] and starts[out[t]] <= e:
                 free = False
                 break
-        if not free:
-            continue
-        taken[s : e + 1] = True
-        out[n_out] = c
-        n_out += 1
-        if n_out == k:
-            break
+        if free:
+            out[n_out] = c
+            n_out += 1
+            if n_out == k:
+                break
     return out[:n_out]
 
 
-def select_matches(starts, ends, costs, k: int, n_frames: int | None = None) -> np.ndarray:
+def select_matches(starts, ends, costs, k: int) -> np.ndarray:
     """The indices of the ``k`` candidate matches [start, end] of least cost that do not overlap each other,
     in increasing cost (ties: earlier end first). The greedy choice of Müller 2007 §4.4: take the best match,
     discard every candidate overlapping it, repeat.
@@ -405,7 +402,6 @@ def select_matches(starts, ends, costs, k: int, n_frames: int | None = None) -> 
     starts, ends : np.ndarray [shape=(c,)], int, database frames (inclusive).
     costs : np.ndarray [shape=(c,)], float; inf candidates are never taken.
     k : int
-    n_frames : int, optional; default max(ends) + 1.
     """
     starts, ends = np.asarray(starts, dtype=np.int64), np.asarray(ends, dtype=np.int64)
     costs = np.asarray(costs, dtype=np.float64)
@@ -413,8 +409,7 @@ def select_matches(starts, ends, costs, k: int, n_frames: int | None = None) -> 
     if not len(finite):
         return np.empty(0, dtype=np.int64)
     order = finite[np.lexsort((ends[finite], costs[finite]))]
-    n = int(ends.max()) + 1 if n_frames is None else int(n_frames)
-    return _select(order, starts, ends, _check_count(k, "K"), n)
+    return _select(order, starts, ends, _check_count(k, "K"))
 
 
 def _local_minima(cost: np.ndarray, doc_of: np.ndarray) -> np.ndarray:
@@ -427,13 +422,13 @@ def _local_minima(cost: np.ndarray, doc_of: np.ndarray) -> np.ndarray:
     return np.flatnonzero(ok)
 
 
-def matches_frame(doc_of: np.ndarray, starts, ends, costs, paths) -> pd.DataFrame:
+def matches_frame(doc_starts: np.ndarray, starts, ends, costs, paths) -> pd.DataFrame:
     """The matches table shared by subsequence DTW and the lazy neighbourhood graph: doc_id (document number, the
-    position in ``starts``), start, end (database frames, inclusive), cost, path ((L, 2) array of (query frame,
-    database frame))."""
+    position in ``doc_starts``), start, end (database frames, inclusive), cost, path ((L, 2) array of (query
+    frame, database frame))."""
     starts, ends = np.asarray(starts, dtype=np.int64), np.asarray(ends, dtype=np.int64)
     return pd.DataFrame({
-        "doc_id": doc_of[ends] if len(ends) else np.empty(0, np.int64), "start": starts, "end": ends,
+        "doc_id": np.searchsorted(doc_starts, ends, side="right") - 1, "start": starts, "end": ends,
         "cost": np.asarray(costs, dtype=np.float64), "path": pd.Series(list(paths), dtype=object),
     })  # fmt: skip
 
@@ -473,7 +468,7 @@ def subsequence_dtw(query, database, starts=None, k: int = 10, distance=None, st
     cost, first = subsequence_costs(query, database, starts, distance, steps, progress)
     doc_of = np.searchsorted(doc_starts, np.arange(n), side="right") - 1
     cand = _local_minima(cost, doc_of)
-    chosen = cand[select_matches(first[cand], cand, cost[cand], k, n)]
+    chosen = cand[select_matches(first[cand], cand, cost[cand], k)]
     found = []
     for s, e in zip(first[chosen], chosen):
         if paths:
@@ -481,4 +476,4 @@ def subsequence_dtw(query, database, starts=None, k: int = 10, distance=None, st
             found.append(p + np.array([0, s]))
         else:
             found.append(None)
-    return matches_frame(doc_of, first[chosen], chosen, cost[chosen], found)
+    return matches_frame(doc_starts, first[chosen], chosen, cost[chosen], found)

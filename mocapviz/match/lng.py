@@ -145,10 +145,9 @@ def graph_matches(distances, frames, starts=None, n_frames: int | None = None, k
     F, A, S, P, C, counts = _shortest_paths(f, d, docs)
     last = len(F) - 1
     cols = np.arange(counts[last])
-    chosen = cols[select_matches(S[last, cols], F[last, cols], A[last, cols], _check_count(k_matches, "K"), n)]
+    chosen = cols[select_matches(S[last, cols], F[last, cols], A[last, cols], _check_count(k_matches, "K"))]
     found = [_graph_path(F, P, C, last, c) if paths else None for c in chosen]
-    doc_of = np.searchsorted(doc_starts, np.arange(n), side="right") - 1 if len(chosen) else np.zeros(0, np.int64)
-    return matches_frame(doc_of, S[last, chosen], F[last, chosen], A[last, chosen], found)
+    return matches_frame(doc_starts, S[last, chosen], F[last, chosen], A[last, chosen], found)
 
 
 def lng(query, knn_index, k: int = 64, radius: float | None = None, k_matches: int = 10, starts=None,
