@@ -112,7 +112,7 @@ def reference(q: np.ndarray, features: np.ndarray, starts: np.ndarray, doc_of: n
     seconds = time.perf_counter() - t0
     cost[query["doc_start"] : query["doc_stop"]] = np.inf
     cand = _local_minima(cost, doc_of)
-    ends = cand[select_matches(first[cand], cand, cost[cand], K_MATCHES, len(cost))]
+    ends = cand[select_matches(first[cand], cand, cost[cand], K_MATCHES)]
     return {"cost": cost, "first": first, "ends": ends, "starts": first[ends], "seconds": seconds}
 
 
