@@ -37,9 +37,20 @@ import pandas as pd
 
 from mocapviz.features import numeric
 
-from .common import REPO, BenchDB, CpuMonitor, benchmark_db, describe_db, loadavg, log, machine_info, markdown
+from .common import (
+    REPO,
+    BenchDB,
+    CpuMonitor,
+    benchmark_db,
+    describe_db,
+    loadavg,
+    log,
+    machine_info,
+    markdown,
+    package_version,
+    write_results_csv,
+)
 from .common import fmt as _f
-from .common import write_results_csv
 
 FPS = 30
 DATABASE = BenchDB("knn-v2", fps=FPS, min_frames=1_000_000)
@@ -284,15 +295,10 @@ def table_fat(rows: list[dict]) -> str:
 # ============================================================================ main
 def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> int:
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
-    from importlib import metadata
 
     t_start = time.perf_counter()
     monitor = CpuMonitor()
-    info = machine_info()
-    try:
-        info["pykdtree"] = metadata.version("pykdtree")
-    except metadata.PackageNotFoundError:
-        info["pykdtree"] = "not installed (pip install pykdtree to compare)"
+    info = machine_info() | {"pykdtree": package_version("pykdtree")}
     db, record = benchmark_db(DATABASE, quick)
     log(f"F15E of {db.n_frames:,} frames")
     t0 = time.perf_counter()

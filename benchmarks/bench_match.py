@@ -41,7 +41,6 @@ import os
 import statistics
 import sys
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -50,7 +49,18 @@ import pandas as pd
 from mocapviz.features import numeric
 
 from .bench_knn import DATABASE, FPS
-from .common import REPO, CpuMonitor, benchmark_db, describe_db, loadavg, log, machine_info, markdown, write_results_csv
+from .common import (
+    REPO,
+    CpuMonitor,
+    benchmark_db,
+    describe_db,
+    loadavg,
+    log,
+    machine_info,
+    markdown,
+    package_version,
+    write_results_csv,
+)
 from .common import fmt as _f
 
 SECONDS = (1, 3)  # query lengths
@@ -94,49 +104,28 @@ def pick_queries(db, m: int, n: int, rng) -> list[dict]:
     return out
 
 
-def _local_minima(cost: np.ndarray, doc_of: np.ndarray) -> np.ndarray:
-    """Frames of finite cost no larger than their neighbours in the same document (subsequence_dtw's candidates)."""
-    same_left = np.r_[False, doc_of[1:] == doc_of[:-1]]
-    same_right = np.r_[doc_of[:-1] == doc_of[1:], False]
-    left, right = np.r_[np.inf, cost[:-1]], np.r_[cost[1:], np.inf]
-    return np.flatnonzero(np.isfinite(cost) & (~same_left | (cost <= left)) & (~same_right | (cost <= right)))
-
-
-def reference(q: np.ndarray, features: np.ndarray, starts: np.ndarray, doc_of: np.ndarray, query: dict) -> dict:
+def reference(q: np.ndarray, features: np.ndarray, starts: np.ndarray, query: dict) -> dict:
     """Subsequence DTW's cost and start at every end frame (own document's ends set to inf) and its top-K
     non-overlapping matches outside the own document."""
-    from mocapviz.match import select_matches, subsequence_costs
+    from mocapviz.match import best_ends, subsequence_costs
 
     t0 = time.perf_counter()
     cost, first = subsequence_costs(q, features, starts)
     seconds = time.perf_counter() - t0
     cost[query["doc_start"] : query["doc_stop"]] = np.inf
-    cand = _local_minima(cost, doc_of)
-    ends = cand[select_matches(first[cand], cand, cost[cand], K_MATCHES)]
+    ends = best_ends(cost, first, starts, K_MATCHES)
     return {"cost": cost, "first": first, "ends": ends, "starts": first[ends], "seconds": seconds}
 
 
 def quality(matches: pd.DataFrame, ref: dict) -> dict:
-    """Spearman rho of LNG's match costs against subsequence DTW's at the same ends, exactly equal costs, and the
-    recall of subsequence DTW's top matches."""
-    from scipy.stats import spearmanr
+    """Spearman rho of LNG's match costs against subsequence DTW's at the same ends, the counts of exactly equal
+    costs and of subsequence DTW's top matches recalled (:func:`mocapviz.experiments.matching.agreement`)."""
+    from mocapviz.experiments.matching import agreement
 
-    ends = matches["end"].to_numpy(np.int64)
-    lng_cost = matches["cost"].to_numpy(np.float64)
-    dtw_cost = ref["cost"][ends]
-    equal = np.abs(lng_cost - dtw_cost) <= EQUAL_RTOL * np.maximum(np.abs(dtw_cost), 1e-300)
-    rho = np.nan
-    if len(ends) >= 3:
-        if np.ptp(lng_cost) == 0 and np.ptp(dtw_cost) == 0:
-            rho = 1.0
-        else:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                rho = float(spearmanr(lng_cost, dtw_cost).statistic)
-    lo, hi = matches["start"].to_numpy(np.int64), ends
-    hit = [bool(((lo <= e) & (hi >= s)).any()) for s, e in zip(ref["starts"], ref["ends"])]
-    return {"rho": rho, "n_matches": len(ends), "n_equal": int(equal.sum()), "n_ref": len(hit),
-            "n_recalled": int(sum(hit)), "lower_than_dtw": int((lng_cost < dtw_cost * (1 - EQUAL_RTOL)).sum())}
+    a = agreement(matches, ref["cost"], ref["starts"], ref["ends"], EQUAL_RTOL)
+    n, n_ref = len(matches), len(ref["ends"])
+    return {"rho": a["spearman"], "n_matches": n, "n_equal": round(a["equal"] * n) if n else 0, "n_ref": n_ref,
+            "n_recalled": round(a["recall"] * n_ref) if n_ref else 0, "lower_than_dtw": a["below_dtw"]}
 
 
 # ============================================================================ timings
@@ -368,17 +357,12 @@ def table_baselines(rows: list[dict]) -> str:
 # ============================================================================ main
 def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> int:
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
-    from importlib import metadata
 
     from mocapviz.knn import KnnIndex
 
     t_start = time.perf_counter()
     monitor = CpuMonitor()
-    info = machine_info()
-    try:
-        info["dtaidistance"] = metadata.version("dtaidistance")
-    except metadata.PackageNotFoundError:
-        info["dtaidistance"] = "not installed (pip install dtaidistance to compare)"
+    info = machine_info() | {"dtaidistance": package_version("dtaidistance")}
     db, record = benchmark_db(DATABASE, quick)
     log(f"F15E of {db.n_frames:,} frames")
     t0 = time.perf_counter()
@@ -388,7 +372,6 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     index = KnnIndex(features)
     t_index = time.perf_counter() - t0
     starts = db.documents["start"].to_numpy()
-    doc_of = np.searchsorted(starts, np.arange(db.n_frames), side="right") - 1
     library, library_note = _library()
     x64 = np.asarray(features, dtype=np.float64) if library is not None else None
 
@@ -402,7 +385,7 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     for i, q in enumerate(queries):
         log(f"subsequence-DTW reference, query {i + 1} of {len(queries)} ({q['m']} frames)")
         qa = np.asarray(features[q["first"] : q["first"] + q["m"]], dtype=np.float64)
-        refs[i] = reference(qa, features, starts, doc_of, q)
+        refs[i] = reference(qa, features, starts, q)
     rows, base_rows, query_rows, notes = summarise(queries, runs, refs, base)
     del refs, x64
     info["others"] = monitor.report()

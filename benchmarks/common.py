@@ -90,6 +90,16 @@ def machine_info() -> dict:
     return info
 
 
+def package_version(name: str) -> str:
+    """The installed version of a baseline package, or a note saying how to install it."""
+    from importlib import metadata
+
+    try:
+        return metadata.version(name)
+    except metadata.PackageNotFoundError:
+        return f"not installed (pip install {name} to compare)"
+
+
 def loadavg() -> str:
     try:
         return " ".join(f"{v:.2f}" for v in os.getloadavg())

@@ -26,7 +26,7 @@ from ..features.distances import dpc_pairwise, window_clouds
 from ..features.numeric import numeric_of
 from ..features.relational import relational
 from ..knn import KnnIndex
-from ..match.dtw import band_from_path, dtw, subsequence_costs, subsequence_dtw
+from ..match.dtw import band_from_path, best_ends, dtw, subsequence_costs, subsequence_dtw
 from ..match.lng import graph_matches, neighbourhoods
 from ..segment import segment
 
@@ -78,8 +78,8 @@ def lng_accuracy(db, feature_set: str = "F15E", n_queries: int = 128, seconds=(1
     frame), ``m`` (query frames), ``lng_matches``, ``spearman`` (rho between the graph's costs of its matches and
     subsequence DTW's accumulated cost at the same end frames; NaN with fewer than 3 matches or a constant
     side), ``equal`` (share of the graph's matches whose cost equals DTW's at their end, relative difference <
-    1e-9), ``recall`` (share of DTW's best ``k_matches`` matches overlapped by a graph match), ``same_best``
-    (the best matches are the same stretch), ``knn_s``, ``graph_s``, ``dtw_s`` (subsequence DTW over the whole
+    1e-9), ``below_dtw``, ``recall`` (share of DTW's best ``k_matches`` matches overlapped by a graph match),
+    ``same_best`` (the best matches overlap): see :func:`agreement`; ``knn_s``, ``graph_s``, ``dtw_s`` (subsequence DTW over the whole
     database, seconds).
     """
     X = numeric_of(db, feature_set) if features is None else features
@@ -104,34 +104,54 @@ def lng_accuracy(db, feature_set: str = "F15E", n_queries: int = 128, seconds=(1
         q0 = int(rng.integers(starts[doc], stops[doc] - m + 1))
         q = X[q0 : q0 + m]
         t0 = time.perf_counter()
-        cost, _ = subsequence_costs(q, X, starts)
+        cost, first = subsequence_costs(q, X, starts)
         t_dtw = time.perf_counter() - t0
         cost[starts[doc] : stops[doc]] = np.inf  # the query's own document is excluded from both
-        ref = subsequence_dtw(q, X, starts, k=k_matches + 64, paths=False)
-        ref = ref[ref["doc_id"] != doc].head(k_matches)
+        ref_ends = best_ends(cost, first, starts, k_matches)
         for e in eps:
             t0 = time.perf_counter()
             d, f = neighbourhoods(q, index, k, radius, e, exclude=[starts[doc], stops[doc]])
             t1 = time.perf_counter()
             found = graph_matches(d, f, starts, len(X), k_matches, paths=False)
             t2 = time.perf_counter()
-            at_end = cost[found["end"].to_numpy()]
-            lng_cost = found["cost"].to_numpy()
-            rho = np.nan
-            if len(found) >= 3 and np.ptp(lng_cost) > 0 and np.ptp(at_end) > 0:
-                rho = float(spearmanr(lng_cost, at_end).statistic)
-            hit = _overlaps(ref["start"], ref["end"], found["start"], found["end"]).any(axis=1)
-            rows.append({
-                "seconds": sec, "eps": e, "query_doc": doc, "query_start": q0, "m": m, "lng_matches": len(found),
-                "spearman": rho,
-                "equal": float(np.mean(np.abs(lng_cost - at_end) <= 1e-9 * np.maximum(at_end, 1e-300)))
-                if len(found) else np.nan,
-                "recall": float(hit.mean()) if len(ref) else np.nan,
-                "same_best": bool(len(found) and len(ref) and _overlaps(ref["start"][:1], ref["end"][:1],
-                                                                        found["start"][:1], found["end"][:1])[0, 0]),
-                "knn_s": t1 - t0, "graph_s": t2 - t1, "dtw_s": t_dtw,
-            })  # fmt: skip
+            rows.append({"seconds": sec, "eps": e, "query_doc": doc, "query_start": q0, "m": m,
+                         "lng_matches": len(found), **agreement(found, cost, first[ref_ends], ref_ends),
+                         "knn_s": t1 - t0, "graph_s": t2 - t1, "dtw_s": t_dtw})  # fmt: skip
     return pd.DataFrame(rows)
+
+
+def agreement(found: pd.DataFrame, cost: np.ndarray, ref_starts, ref_ends, rtol: float = 1e-9) -> dict:
+    """How well graph matches agree with subsequence DTW (Krüger et al. 2010 §4.1, §4.2).
+
+    Parameters
+    ----------
+    found : matches DataFrame (start, end, cost) of the lazy neighbourhood graph.
+    cost : np.ndarray [shape=(n,)], subsequence DTW's accumulated cost at every end frame
+        (:func:`mocapviz.match.subsequence_costs`).
+    ref_starts, ref_ends : np.ndarray, subsequence DTW's best matches (:func:`mocapviz.match.best_ends`).
+    rtol : float, relative difference under which two costs count as equal.
+
+    Returns
+    -------
+    dict: ``spearman`` (rho between the graph's match costs and DTW's at the same end frames; NaN with fewer than
+    3 matches or one side constant, 1.0 when both are), ``equal`` (share of the graph's costs equal to DTW's: it
+    found DTW's optimal path there), ``below_dtw`` (graph costs below DTW's: impossible unless one is wrong),
+    ``recall`` (share of DTW's matches some graph match overlaps), ``same_best`` (the best matches overlap).
+    """
+    ends = found["end"].to_numpy(np.int64)
+    ours, dtw_cost = found["cost"].to_numpy(np.float64), cost[ends]
+    rho = np.nan
+    if len(ends) >= 3:
+        flat = (np.ptp(ours) == 0, np.ptp(dtw_cost) == 0)
+        rho = 1.0 if all(flat) else np.nan if any(flat) else float(spearmanr(ours, dtw_cost).statistic)
+    hit = _overlaps(ref_starts, ref_ends, found["start"], ends)
+    return {
+        "spearman": rho,
+        "equal": float(np.mean(np.abs(ours - dtw_cost) <= rtol * np.maximum(dtw_cost, 1e-300))) if len(ends) else np.nan,
+        "below_dtw": int((ours < dtw_cost * (1 - rtol)).sum()),
+        "recall": float(hit.any(axis=1).mean()) if len(ref_ends) else np.nan,
+        "same_best": bool(len(ends) and len(ref_ends) and hit[0, 0]),
+    }  # fmt: skip
 
 
 def summarize_accuracy(per_query: pd.DataFrame) -> pd.DataFrame:

@@ -6,6 +6,7 @@ subsequence_costs   the accumulated cost of the best alignment of a query ending
                     the frame where that alignment starts; documents are never crossed. O(m n) time, O(m) memory
                     per document boundary: the database is streamed in blocks.
 subsequence_dtw     the top-K non-overlapping matches of a query in a database, ranked by cost, with their paths.
+best_ends           the end frames of those matches, from subsequence_costs' output.
 select_matches      K non-overlapping intervals of least cost from candidate (start, end, cost) triples (shared
                     with the lazy neighbourhood graph, so both rank matches the same way).
 
@@ -53,6 +54,17 @@ def _sequence(x, name: str, dim: int | None = None, other: str = "the query") ->
     if bad.any():
         raise ValueError(f"{name}: frame {int(np.argmax(bad))} is not finite (NaN or inf)")
     return arr if arr.dtype in (np.float32, np.float64) else arr.astype(np.float64)
+
+
+def _pair(a, b, names: tuple[str, str], distance) -> tuple:
+    """Two sequences checked as (T, d) feature arrays of equal d (unless a ``distance`` callable takes them as
+    they are), both with at least one frame, or a ValueError naming them."""
+    if distance is None:
+        a = _sequence(a, names[0])
+        b = _sequence(b, names[1], a.shape[1])
+    if len(a) < 1 or len(b) < 1:
+        raise ValueError(f"{names[0]} and {names[1]} need at least one frame each; got {len(a)} and {len(b)}")
+    return a, b
 
 
 def _steps(steps) -> np.ndarray:
@@ -227,12 +239,8 @@ def dtw(a, b, distance=None, steps="basic", band=None) -> tuple[float, np.ndarra
         Empty or non-finite sequences (the frame is named), different dimensions, a bad step set or band.
     """
     steps_arr = _steps(steps)
-    if distance is None:
-        a = _sequence(a, "a")
-        b = _sequence(b, "b", a.shape[1])
+    a, b = _pair(a, b, ("a", "b"), distance)
     m, n = len(a), len(b)
-    if m < 1 or n < 1:
-        raise ValueError(f"both sequences need at least one frame; got {m} and {n}")
     if band is None:
         lo, hi = np.zeros(n, dtype=np.int64), np.full(n, m, dtype=np.int64)
     else:
@@ -344,12 +352,8 @@ def subsequence_costs(query, database, starts=None, distance=None, steps="basic"
     start : np.ndarray [shape=(n,)], int64 first frame of that alignment; -1 where cost is inf.
     """
     steps_arr = _steps(steps)
-    if distance is None:
-        query = _sequence(query, "query")
-        database = _sequence(database, "database", query.shape[1])
+    query, database = _pair(query, database, ("query", "database"), distance)
     m, n = len(query), len(database)
-    if m < 1 or n < 1:
-        raise ValueError(f"query and database need at least one frame; got {m} and {n}")
     doc_starts = _check_document_starts(starts, n)
     h = int(steps_arr[:, 1].max()) or 1
     hist_acc, hist_start = np.full((h, m), np.inf), np.full((h, m), -1, dtype=np.int64)
@@ -412,14 +416,29 @@ def select_matches(starts, ends, costs, k: int) -> np.ndarray:
     return _select(order, starts, ends, _check_count(k, "K"))
 
 
-def _local_minima(cost: np.ndarray, doc_of: np.ndarray) -> np.ndarray:
-    """Frames whose cost is finite and no larger than both neighbours' in the same document."""
-    left = np.r_[np.inf, cost[:-1]]
-    right = np.r_[cost[1:], np.inf]
-    same_left = np.r_[False, doc_of[1:] == doc_of[:-1]]
-    same_right = np.r_[doc_of[:-1] == doc_of[1:], False]
-    ok = np.isfinite(cost) & (~same_left | (cost <= left)) & (~same_right | (cost <= right))
-    return np.flatnonzero(ok)
+def best_ends(cost, first, starts, k: int) -> np.ndarray:
+    """The end frames of the ``k`` best non-overlapping subsequence-DTW matches (Müller 2007 §4.4): the local
+    minima of the accumulated cost within each document, taken greedily by :func:`select_matches`.
+
+    Parameters
+    ----------
+    cost, first : np.ndarray [shape=(n,)], from :func:`subsequence_costs` (set ``cost`` to inf where no match may
+        end, e.g. inside the query's own document).
+    starts : np.ndarray [shape=(B,)], int, first frame of every document (None: one document).
+    k : int
+
+    Returns
+    -------
+    np.ndarray [shape=(<= k,)], int64 end frames, best first; the matches start at ``first[ends]``.
+    """
+    cost = np.asarray(cost, dtype=np.float64)
+    n = len(cost)
+    doc_start = np.zeros(n + 1, dtype=bool)  # frame j opens a document; the end of the database closes the last
+    doc_start[_check_document_starts(starts, n)] = True
+    doc_start[n] = True
+    left, right = np.r_[np.inf, cost[:-1]], np.r_[cost[1:], np.inf]
+    cand = np.flatnonzero(np.isfinite(cost) & (doc_start[:n] | (cost <= left)) & (doc_start[1:] | (cost <= right)))
+    return cand[select_matches(np.asarray(first)[cand], cand, cost[cand], k)]
 
 
 def matches_frame(doc_starts: np.ndarray, starts, ends, costs, paths) -> pd.DataFrame:
@@ -466,9 +485,7 @@ def subsequence_dtw(query, database, starts=None, k: int = 10, distance=None, st
     doc_starts = _check_document_starts(starts, n)
     check_query_length(len(query), doc_starts, n)
     cost, first = subsequence_costs(query, database, starts, distance, steps, progress)
-    doc_of = np.searchsorted(doc_starts, np.arange(n), side="right") - 1
-    cand = _local_minima(cost, doc_of)
-    chosen = cand[select_matches(first[cand], cand, cost[cand], k)]
+    chosen = best_ends(cost, first, doc_starts, k)
     found = []
     for s, e in zip(first[chosen], chosen):
         if paths:
