@@ -9,6 +9,7 @@
     mocapviz knn DB --frame DOC:FRAME [--features F15E] [-k 16] [--radius R] [--eps E] [--exclude-document]
     mocapviz match DB --example FILE|DOC_ID [--frames A:B] [--features F15E] [-K 10] [-k 256] [--radius R] [--eps E]
                                                                                 [--method lng|dtw] [--paths]
+    mocapviz reproduce NAME|all [--full] --out DIR   (NAME: an experiment, e.g. rank_correlations, reconstruction)
     mocapviz datasets list
     mocapviz datasets fetch NAME        (NAME: a shared archive, or ``sample`` for the embedded sample)
 
@@ -211,6 +212,12 @@ def _match(args) -> None:
             print(f"path {rank} (query frame:frame of document {doc}): " + " ".join(f"{i}:{j - first}" for i, j in path))
 
 
+def _reproduce(args) -> None:
+    from .reproduce import reproduce
+
+    reproduce(args.names, args.out, full=args.full, progress=not args.quiet)
+
+
 def _datasets(args) -> None:
     if args.action == "list":
         with pd.option_context("display.width", 160, "display.max_colwidth", 40):
@@ -297,6 +304,17 @@ def build_parser() -> argparse.ArgumentParser:
     mt.add_argument("--paths", action="store_true", help="also print each match's alignment (query frame:document "
                     "frame pairs)")  # fmt: skip
     mt.set_defaults(func=_match)
+
+    rp = sub.add_parser("reproduce", help="re-run the papers' experiments on the shared data; write CSV tables and "
+                        "PNG/HTML figures")  # fmt: skip
+    rp.add_argument("names", nargs="+", metavar="NAME", help="experiment function name(s) (index_statistics, "
+                    "query_statistics, relational_query, alignment, knn_timings, rank_correlations, "
+                    "similarity_matrices, lng_accuracy, numerical_search, reconstruction, base_poses) or 'all'")
+    rp.add_argument("--out", required=True, help="output folder; each experiment writes OUT/NAME/")
+    rp.add_argument("--full", action="store_true", help="the papers' sizes (slow; every shared archive as the "
+                    "large database)")  # fmt: skip
+    rp.add_argument("--quiet", action="store_true", help="no progress bars")
+    rp.set_defaults(func=_reproduce)
 
     ds = sub.add_parser("datasets", help="list or fetch the registered motion-capture archives")
     ds.add_argument("action", choices=["list", "fetch"])

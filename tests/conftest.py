@@ -76,3 +76,19 @@ def bandai1_files(bandai1_dir) -> list[Path]:
     files = sorted((bandai1_dir / "data").glob("*.bvh"))
     assert files, f"no BVH files under {bandai1_dir / 'data'}"
     return files
+
+
+@pytest.fixture(scope="session")
+def hdm05_db30(hdm05_dir, tmp_path_factory):
+    """All 287 HDM05 cut clips ingested at 30 Hz (the papers' kNN rate), labelled; shared by the test modules."""
+    from mocapviz import MotionDB
+
+    return MotionDB.ingest([hdm05_dir], tmp_path_factory.mktemp("hdm05-30") / "db", fps=30, progress=False, n_jobs=2)
+
+
+@pytest.fixture(scope="session")
+def cmu_db30(cmu_dir, tmp_path_factory):
+    """The 32 shared CMU trials ingested at 30 Hz."""
+    from mocapviz import MotionDB
+
+    return MotionDB.ingest([cmu_dir], tmp_path_factory.mktemp("cmu-30") / "db", fps=30, progress=False, n_jobs=2)

@@ -17,7 +17,8 @@ the y axis, frame 0 at the bottom; a cell (i, j) is centred on x = j, y = i.
 from __future__ import annotations
 
 import holoviews as hv
-import holoviews.plotting.bokeh  # registers the bokeh backend and its options
+import holoviews.plotting.bokeh  # noqa: F401 - registers the bokeh backend and its options
+import holoviews.plotting.mpl  # noqa: F401 - and the matplotlib one (PNG files of `mocapviz reproduce`)
 import numpy as np
 import pandas as pd
 
@@ -93,11 +94,14 @@ def similarity_layout(result: dict, cols: int = 3, width: int = 380, height: int
         value = hv.Dimension(f"distance_{name}", label=f"{name} distance", unit=unit)
         image = _image(np.where(computed, dist, np.nan), x, y, value).opts(
             cmap="gray", clipping_colors={"NaN": NOT_COMPUTED}, colorbar=True, tools=["hover"], axiswise=True,
-            backend="bokeh")  # fmt: skip
+            backend="bokeh").opts(cmap="gray", clipping_colors={"NaN": NOT_COMPUTED}, colorbar=True,
+                                  backend="matplotlib")  # fmt: skip
         boundaries = hv.VLines(starts[1:] - 0.5, kdims=[x]).opts(color=BOUNDARY_COLOUR, line_width=1.5,
-                                                                  line_dash="dashed", backend="bokeh")  # fmt: skip
+                                                                  line_dash="dashed", backend="bokeh").opts(
+            color=BOUNDARY_COLOUR, linewidth=1.5, linestyle="dashed", backend="matplotlib")  # fmt: skip
         paths = hv.Path(_path_xy(part["matches"]["path"]), kdims=[x, y]).opts(color=PATH_COLOUR, line_width=2.5,
-                                                                              backend="bokeh")  # fmt: skip
+                                                                              backend="bokeh").opts(
+            color=PATH_COLOUR, linewidth=2, backend="matplotlib")  # fmt: skip
         share = computed.mean()
         how = "subsequence DTW" if name.startswith("Dpc") else "LNG"
         found = len(part["matches"])
@@ -168,28 +172,34 @@ def alignment_layout(result: dict, width: int = 430, height: int = 400) -> hv.La
 
     def lines():
         style = {"color": BOUNDARY_COLOUR, "line_width": 0.8, "alpha": 0.7, "backend": "bokeh"}
-        return [hv.HLines(np.asarray(seg_a.starts[1:], np.float64) - 0.5, kdims=[y]).opts(**style),
-                hv.VLines(np.asarray(seg_b.starts[1:], np.float64) - 0.5, kdims=[x]).opts(**style)]  # fmt: skip
+        mpl = {"color": BOUNDARY_COLOUR, "linewidth": 0.6, "alpha": 0.7, "backend": "matplotlib"}
+        return [hv.HLines(np.asarray(seg_a.starts[1:], np.float64) - 0.5, kdims=[y]).opts(**style).opts(**mpl),
+                hv.VLines(np.asarray(seg_b.starts[1:], np.float64) - 0.5, kdims=[x]).opts(**style).opts(**mpl)]
 
     def paths():
         full = hv.Curve(_path_xy([result["path_full"]])[0] if len(result["path_full"]) else [], x, y,
-                        label="full DTW").opts(color=PATH_COLOUR, line_width=2.5, backend="bokeh")  # fmt: skip
+                        label="full DTW").opts(color=PATH_COLOUR, line_width=2.5, backend="bokeh").opts(
+            color=PATH_COLOUR, linewidth=2, backend="matplotlib")  # fmt: skip
         inside = hv.Curve(_path_xy([result["path_band"]])[0] if len(result["path_band"]) else [], x, y,
                           label="band DTW").opts(color=BAND_PATH_COLOUR, line_width=2, line_dash="dashed",
-                                                 backend="bokeh")  # fmt: skip
+                                                 backend="bokeh").opts(
+            color=BAND_PATH_COLOUR, linewidth=1.5, linestyle="dashed", backend="matplotlib")  # fmt: skip
         return [full, inside]
 
     image = _image(cost, x, y, hv.Dimension("cost", label="local cost", unit="cm")).opts(
-        cmap="gray", colorbar=True, tools=["hover"], backend="bokeh")  # fmt: skip
+        cmap="gray", colorbar=True, tools=["hover"], backend="bokeh").opts(cmap="gray", colorbar=True,
+                                                                           backend="matplotlib")  # fmt: skip
     pairs = np.asarray(result["segment_path"], dtype=np.int64).reshape(-1, 2)
     a0 = np.asarray(seg_a.starts)[pairs[:, 0]] - 0.5
     b0 = np.asarray(seg_b.starts)[pairs[:, 1]] - 0.5
     rects = hv.Rectangles((b0, a0, b0 + np.asarray(seg_b.lengths)[pairs[:, 1]],
                            a0 + np.asarray(seg_a.lengths)[pairs[:, 0]]), kdims=[x, y, "x1", "y1"],
                           label="matched segments").opts(fill_color="#d9d9d9", line_color="#bdbdbd",
-                                                         backend="bokeh")  # fmt: skip
+                                                         backend="bokeh").opts(
+        facecolor="#d9d9d9", edgecolor="#bdbdbd", backend="matplotlib")  # fmt: skip
     area = hv.Polygons([band_polygon(band)], kdims=[x, y], label="band").opts(
-        fill_color="grey", fill_alpha=0.45, line_color="dimgrey", backend="bokeh")  # fmt: skip
+        fill_color="grey", fill_alpha=0.45, line_color="dimgrey", backend="bokeh").opts(
+        facecolor="grey", alpha=0.45, edgecolor="dimgrey", backend="matplotlib")  # fmt: skip
     cells = int((np.clip(band[:, 1], 0, n) - np.clip(band[:, 0], 0, n)).sum())
     if summary is not None:
         t_cost = (f"local costs; full DTW {summary['cost_full']:.0f}, band DTW {summary['cost_band']:.0f}"

@@ -1,0 +1,371 @@
+"""``mocapviz reproduce``: run the papers' experiments on the shared real data and write tables and figures.
+
+Each experiment of :mod:`mocapviz.experiments` (the table in ARCHITECTURE.md) has a runner here that chooses its
+database and settings, calls the experiment function and turns the result into named tables (pandas DataFrames,
+written as CSV) and figures (HoloViews objects from :mod:`mocapviz.viz`, written as PNG with the matplotlib
+backend and as self-contained HTML with the bokeh backend). A runner's name is the experiment function's name.
+
+Settings: without ``full`` every experiment runs in minutes on the shared HDM05 cut clips (287 clips, 70,996 frames at
+120 Hz / 17,878 at 30 Hz), with fewer random queries where the paper uses thousands. With ``full`` the query counts
+are the papers' and the "large" database is every shared archive (HDM05, CMU, Bandai Namco 1 and 2) at 30 Hz,
+about 446k frames, ingested once per run.
+
+Output: ``OUT/<name>/<table>.csv``, ``OUT/<name>/<figure>.png`` and ``.html``, and ``OUT/<name>/settings.json``
+(the settings, the databases' sizes, seconds, package version). Each experiment's folder is written under a
+temporary name and renamed into place when complete, so an interrupted run never leaves a half-written folder.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import datasets
+from .database import MotionDB
+
+__all__ = ["EXPERIMENTS", "Result", "reproduce", "write_result"]
+
+_LARGE_ARCHIVES = ("hdm05-cut", "cmu-asfamc", "bandai-namco-1", "bandai-namco-2")
+
+
+@dataclass
+class Result:
+    """What a runner gives back: tables (CSV) and HoloViews figures (PNG + HTML), by file stem."""
+
+    tables: dict[str, pd.DataFrame] = field(default_factory=dict)
+    figures: dict[str, object] = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
+
+
+class _Data:
+    """The databases of one reproduce run, ingested on first use into a temporary folder and shared by runners."""
+
+    def __init__(self, folder: Path, full: bool, progress: bool):
+        self.folder, self.full, self.progress = folder, full, progress
+        self._dbs: dict[tuple, MotionDB] = {}
+        self._indexes = None
+
+    def _ingest(self, archives: tuple[str, ...], fps: float) -> MotionDB:
+        key = (archives, fps)
+        if key not in self._dbs:
+            paths = [datasets.fetch(name) for name in archives]
+            out = self.folder / f"{'+'.join(archives)}-{fps:g}hz.mdb"
+            self._dbs[key] = MotionDB.ingest(paths, out, fps=fps, progress=self.progress, n_jobs=2)
+        return self._dbs[key]
+
+    def hdm05(self, fps: float) -> MotionDB:
+        """The 287 labelled HDM05 cut clips at ``fps``."""
+        return self._ingest(("hdm05-cut",), fps)
+
+    def cmu(self, fps: float) -> MotionDB:
+        """The 32 shared CMU trials at ``fps``."""
+        return self._ingest(("cmu-asfamc",), fps)
+
+    def large(self) -> MotionDB:
+        """Every shared archive at 30 Hz with ``full``; else the HDM05 clips at 30 Hz."""
+        return self._ingest(_LARGE_ARCHIVES, 30.0) if self.full else self.hdm05(30.0)
+
+    def relational_indexes(self) -> dict:
+        """Inverted indexes (2005 features) of the HDM05 clips at 120 Hz, built once."""
+        if self._indexes is None:
+            from .index import build
+
+            self._indexes = build(self.hdm05(120.0), "2005", progress=self.progress)
+        return self._indexes
+
+    @staticmethod
+    def describe(db: MotionDB) -> dict:
+        return {"path": db.path.name, "documents": len(db), "frames": db.n_frames, "fps": db.fps}
+
+
+def _stacked(ours: pd.DataFrame, paper: pd.DataFrame, ours_name: str) -> pd.DataFrame:
+    """Ours and the paper's rows in one long table with a ``source`` column."""
+    return pd.concat([ours.assign(source=ours_name), paper.assign(source="paper")], ignore_index=True)
+
+
+# ============================================================================================ the runners
+
+
+def _index_statistics(data: _Data) -> Result:
+    from .experiments.relational import index_statistics, paper_table2
+    from .viz.paper import comparison_bars
+
+    db = data.hdm05(120.0)
+    data.relational_indexes()
+    ours = index_statistics(db, "2005")
+    both = _stacked(ours, paper_table2(), "HDM05 cut")
+    both["segments per 100 frames"] = 100 * both["segments"] / both["frames"]
+    both["case"] = both["group"] + " " + both["minutes"].round(0).astype(int).astype(str) + " min"
+    return Result(
+        tables={"table2": both},
+        figures={"segments": comparison_bars(both, "case", "segments per 100 frames", title="Müller 2005 Table 2: "
+                                             "segments per 100 frames"),
+                 "bytes_per_segment": comparison_bars(both, "case", "bytes/segment", title="index bytes per segment")},
+        settings={"database": data.describe(db)},
+    )  # fmt: skip
+
+
+def _query_statistics(data: _Data) -> Result:
+    from .experiments.relational import paper_table3, query_statistics
+    from .viz.paper import curves
+
+    n_queries = 10_000 if data.full else 300
+    ours = query_statistics(data.relational_indexes()["upper"], n_queries=n_queries)
+    both = _stacked(ours, paper_table3(), "HDM05 cut")
+    both["series"] = both["source"] + ", " + both["mode"] + ", " + both["hits"] + " hits"
+    return Result(
+        tables={"table3": both},
+        figures={"query_times": curves(both, "L", "mean_ms", "series", title="Müller 2005 Table 3: mean query time",
+                                       xlabel="query length L (segments)", ylabel="ms", logy=True)},
+        settings={"n_queries": n_queries, "database": data.describe(data.hdm05(120.0))},
+    )  # fmt: skip
+
+
+def _relational_query(data: _Data) -> Result:
+    from .experiments.relational import relational_query
+    from .viz.paper import comparison_bars
+
+    db = data.hdm05(120.0)
+    table = relational_query(db, indexes=data.relational_indexes())
+    long = table.melt(id_vars=["class"], value_vars=["precision", "recall"], var_name="source", value_name="value")
+    return Result(
+        tables={"queries": table},
+        figures={"precision_recall": comparison_bars(long, "class", "value", title="query by example per class "
+                                                     "(Müller 2005 Figs. 7-9)", ylabel="precision / recall")},
+        settings={"database": data.describe(db)},
+    )  # fmt: skip
+
+
+def _alignment(data: _Data) -> Result:
+    from .experiments.matching import alignment
+    from .viz import alignment_layout
+
+    db = data.hdm05(120.0)
+    docs = db.documents.set_index("doc_id")
+    jog = docs.index[docs["label"] == "jogLeftCircle4StepsRstart"]
+    a = int(jog[0])
+    b = int(next(d for d in jog if docs.loc[d, "actor"] != docs.loc[a, "actor"]))
+    features = ["rfoot_behind", "lfoot_behind"]
+    res = alignment(db, a, b, features=features, margin=4)
+    summary = res["summary"].assign(clip_a=docs.loc[a, "name"], clip_b=docs.loc[b, "name"])
+    paths = pd.DataFrame({"frame_a": res["path_full"][:, 0], "frame_b_full": res["path_full"][:, 1]})
+    return Result(
+        tables={"summary": summary, "path_full": paths,
+                "path_band": pd.DataFrame(res["path_band"], columns=["frame_a", "frame_b"])},
+        figures={"alignment": alignment_layout(res)},
+        settings={"features": features, "margin": 4, "database": data.describe(db)},
+    )  # fmt: skip
+
+
+def _knn_timings(data: _Data) -> Result:
+    from .experiments.numeric import knn_timings, paper_table1
+    from .viz.paper import comparison_bars
+
+    db = data.large()
+    ours = knn_timings(db, n_queries=1000, workers=1, database="this run")
+    both = _stacked(ours, paper_table1(), "this run")
+    both["source"] = both["source"].where(both["source"] != "paper", "paper " + both["database"])
+    figures = {f"knn{k}": comparison_bars(both[both["k"] == k], "set", "mean_ms", logy=True, ylabel="ms per query",
+                                          title=f"Krüger 2010 Table 1: exact {k}-NN, one thread")
+               for k in (16, 256)}  # fmt: skip
+    return Result(tables={"table1": both}, figures=figures, settings={"database": data.describe(db), "workers": 1})
+
+
+def _rank_correlations(data: _Data) -> Result:
+    from .experiments.correlation import rank_correlations
+    from .viz.correlation import correlation_heatmap
+
+    db = data.hdm05(30.0)
+    large = data.large()
+    n_queries, k = (1024, 256) if data.full else (256, 256)
+    res = rank_correlations(db, large_db=large, n_queries=n_queries, k=k, progress=data.progress)
+    titles = {"pose": "pose-based, sample database", "pose_large": f"pose-based, {large.n_frames:,} frames",
+              "segment": "segment-based (DTW), sample database"}
+    return Result(
+        tables={name: frame for name, frame in res.items()},
+        figures={name: correlation_heatmap(res[name], title=f"Krüger 2010 Fig. 2: {title}")
+                 for name, title in titles.items()},
+        settings={"n_queries": n_queries, "k": k, "database": data.describe(db), "large": data.describe(large)},
+    )  # fmt: skip
+
+
+def _similarity_matrices(data: _Data) -> Result:
+    from .experiments.matching import similarity_matrices
+    from .viz import similarity_layout
+
+    db = data.hdm05(30.0)
+    jog = db.select(label="jogLeftCircle4StepsRstart")["doc_id"].astype(int).tolist()
+    res = similarity_matrices(db, jog[0], k=64, k_matches=3)
+    panels = [k for k, v in res.items() if isinstance(v, dict) and "matches" in v]
+    matches = pd.concat([res[p]["matches"].drop(columns="path").assign(set=p) for p in panels], ignore_index=True)
+    return Result(tables={"matches": matches}, figures={"fig3": similarity_layout(res)},
+                  settings={"query_doc": jog[0], "k": 64, "database": data.describe(db)})  # fmt: skip
+
+
+def _lng_accuracy(data: _Data) -> Result:
+    from .experiments.matching import PAPER_SECONDS, PAPER_SPEARMAN, lng_accuracy, summarize_accuracy
+    from .viz import accuracy_plot
+
+    db = data.large()
+    n_queries, k = (128, 256) if data.full else (16, 1024)
+    per_query = lng_accuracy(db, "Fp16", n_queries=n_queries, k=k, progress=data.progress)
+    return Result(tables={"per_query": per_query, "summary": summarize_accuracy(per_query)},
+                  figures={"accuracy": accuracy_plot(per_query, PAPER_SECONDS, PAPER_SPEARMAN)},
+                  settings={"n_queries": n_queries, "k": k, "feature_set": "Fp16", "database": data.describe(db)})
+
+
+def _numerical_search(data: _Data) -> Result:
+    from .experiments.matching import numerical_search, paper_table2
+    from .viz.paper import comparison_bars
+
+    db = data.hdm05(30.0)
+    ours = numerical_search(db)
+    long = ours.melt(id_vars=["class", "set"], value_vars=["recall", "logical_recall"], var_name="search")
+    long["case"] = long["class"] + " " + long["search"]
+    return Result(tables={"table2": ours, "paper_table2": paper_table2()},
+                  figures={"recall": comparison_bars(long, "case", "value", source="set", ylabel="recall",
+                                                     title="Krüger 2010 Table 2: recall per class and feature set")},
+                  settings={"database": data.describe(db)})  # fmt: skip
+
+
+def _reconstruction(data: _Data) -> Result:
+    from .experiments.reconstruction import paper_table3, paper_table4, reconstruction
+    from .viz.reconstruction import reconstruction_figures
+
+    db, other = data.hdm05(30.0), data.cmu(30.0)
+    res = reconstruction(db, other_db=other, full=data.full, progress=data.progress)
+    return Result(tables={**res, "paper_table3": paper_table3(), "paper_table4": paper_table4()},
+                  figures=reconstruction_figures(res, paper_table3(), paper_table4()),
+                  settings={"database": data.describe(db), "other_database": data.describe(other)})
+
+
+def _base_poses(data: _Data) -> Result:
+    from .experiments.numeric import base_poses
+    from .features.numeric import numeric
+    from .viz.paper import curves
+
+    db = data.large()
+    table = base_poses(numeric(db, "F15E", progress=data.progress), radius=10.0, k=32, quadratic_frames=5000)
+    return Result(tables={"base_poses": table},
+                  figures={"scaling": curves(table, "frames", "seconds", "method", logx=True, logy=True,
+                                             title="Krüger 2010 §5.3: base poses, r = 10 cm, k = 32")},
+                  settings={"radius_cm": 10.0, "k": 32, "database": data.describe(db)})  # fmt: skip
+
+
+EXPERIMENTS: dict[str, Callable[[_Data], Result]] = {
+    "index_statistics": _index_statistics,
+    "query_statistics": _query_statistics,
+    "relational_query": _relational_query,
+    "alignment": _alignment,
+    "knn_timings": _knn_timings,
+    "rank_correlations": _rank_correlations,
+    "similarity_matrices": _similarity_matrices,
+    "lng_accuracy": _lng_accuracy,
+    "numerical_search": _numerical_search,
+    "reconstruction": _reconstruction,
+    "base_poses": _base_poses,
+}
+
+
+# ============================================================================================== writing
+
+
+def _write_csv(frame: pd.DataFrame, path: Path) -> None:
+    """A table as CSV; a meaningful index (e.g. a correlation matrix's measure names) becomes the first column."""
+    keep_index = not isinstance(frame.index, pd.RangeIndex) or frame.index.name is not None
+    arrays = [c for c in frame.columns if frame[c].dtype == object and frame[c].map(lambda v: isinstance(v, np.ndarray)).any()]
+    frame = frame.drop(columns=arrays)
+    frame.to_csv(path, index=keep_index)
+
+
+def write_result(result: Result, folder) -> list[Path]:
+    """Write a runner's tables (CSV), figures (PNG via matplotlib, HTML via bokeh) and settings into ``folder``.
+
+    Columns holding arrays (warping paths) are left out of the CSV files. Returns the files written.
+    """
+    import holoviews as hv
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, frame in result.tables.items():
+        _write_csv(frame, folder / f"{name}.csv")
+        written.append(folder / f"{name}.csv")
+    for name, figure in result.figures.items():
+        hv.save(figure, folder / f"{name}.png", backend="matplotlib")
+        hv.save(figure, folder / f"{name}.html", backend="bokeh", title=name)
+        written += [folder / f"{name}.png", folder / f"{name}.html"]
+    (folder / "settings.json").write_text(json.dumps(result.settings, indent=2, default=str))
+    return written + [folder / "settings.json"]
+
+
+def _replace_dir(tmp: Path, target: Path) -> None:
+    """Rename ``tmp`` to ``target``, replacing an earlier run's folder only once the new one is complete."""
+    old = None
+    if target.exists():
+        old = target.with_name(f".{target.name}.old-{time.time_ns()}")
+        target.rename(old)
+    tmp.rename(target)
+    if old is not None:
+        shutil.rmtree(old)
+
+
+def reproduce(names, out, full: bool = False, progress: bool = True, log: Callable[[str], None] = print) -> dict:
+    """Run experiments and write each one's tables and figures to ``out/<name>/``.
+
+    Parameters
+    ----------
+    names : str or sequence of str
+        Experiment function names (keys of :data:`EXPERIMENTS`) or ``"all"``.
+    out : str or os.PathLike
+        Output folder (created).
+    full : bool
+        The papers' sizes (thousands of queries, every shared archive as the large database) instead of minutes.
+    progress : bool
+        Progress bars of the long steps.
+    log : callable
+        Receives one line per finished experiment.
+
+    Returns
+    -------
+    dict: name -> the experiment's output folder.
+
+    Raises
+    ------
+    ValueError
+        An unknown experiment name (the known ones are listed).
+    """
+    names = list(EXPERIMENTS) if names in ("all", ["all"]) else [names] if isinstance(names, str) else list(names)
+    unknown = [n for n in names if n not in EXPERIMENTS]
+    if unknown:
+        raise ValueError(f"unknown experiment(s) {unknown}; known: all, {', '.join(EXPERIMENTS)}")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    from . import __version__
+
+    folders = {}
+    with tempfile.TemporaryDirectory(prefix="mocapviz-reproduce-") as work:
+        data = _Data(Path(work), full, progress)
+        for name in names:
+            t0 = time.perf_counter()
+            result = EXPERIMENTS[name](data)
+            result.settings = {"experiment": name, "full": full, "seconds": round(time.perf_counter() - t0, 2),
+                               "mocapviz": __version__, **result.settings}  # fmt: skip
+            tmp = Path(tempfile.mkdtemp(prefix=f".{name}.tmp-", dir=out))
+            try:
+                files = write_result(result, tmp)
+                _replace_dir(tmp, out / name)
+            except BaseException:
+                shutil.rmtree(tmp, ignore_errors=True)
+                raise
+            folders[name] = out / name
+            log(f"{name}: {len(files)} files in {out / name} ({result.settings['seconds']:.0f} s)")
+    return folders
