@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 BIN := $(VENV)/bin
 DEMO_DB ?= build/sample.mdb
 
-.PHONY: install demo test test-fast bench clean
+.PHONY: install demo test test-fast notebooks-full reproduce bench clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -24,6 +24,14 @@ test: install
 
 test-fast: install
 	$(PY) -m pytest tests -m "not slow"
+
+# the notebooks at the papers' sizes (MOCAPVIZ_FULL=1: more random queries, the largest shared database); slow
+notebooks-full: install
+	MOCAPVIZ_FULL=1 $(PY) -m pytest notebooks --nbmake --nbmake-timeout=7200
+
+# every experiment's tables and figures (CSV, PNG, HTML) into build/reproduce; FULL=1 for the papers' sizes
+reproduce: install
+	$(BIN)/mocapviz reproduce all --out build/reproduce $(if $(FULL),--full,)
 
 bench: install
 	$(PY) -m benchmarks
