@@ -32,7 +32,7 @@ from tqdm.auto import tqdm
 
 from .errors import MocapFormatError, MotionDBError, SkeletonMappingError
 from .io import FORMATS, find_asf, load
-from .labels import labels_for, read_labels_tsv
+from .labels import MAIN_LABEL_COLUMNS, labels_for, read_labels_tsv
 from .motion import Motion
 from .skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
 
@@ -160,6 +160,8 @@ def _labels_table(labels) -> dict[str, dict] | None:
         key = row.pop("path", None) or row.get("file")
         row.pop("file", None)
         row = {k: v for k, v in row.items() if not (isinstance(v, float) and np.isnan(v))}
+        if row.get("label") is None:  # the main class, as labels_for gives it for tables found automatically
+            row["label"] = next((row[c] for c in MAIN_LABEL_COLUMNS if c in row), None)
         out[str(Path(key).resolve()) if os.path.isabs(str(key)) else str(key)] = row
         out.setdefault(Path(str(key)).name, row)
     return out

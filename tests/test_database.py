@@ -311,3 +311,12 @@ def test_ingest_shows_a_progress_bar_over_the_files(sample_dir, tmp_path, capsys
     MotionDB.ingest(sample_dir / "cmu-asfamc", tmp_path / "db", progress=True)
     err = capsys.readouterr().err
     assert "ingest" in err and "2/2" in err and "file" in err
+
+
+def test_explicit_hdm05_label_table_gives_the_class_as_label(sample_dir, tmp_path):
+    """A labels.tsv passed explicitly fills `label` with the main class, as the automatic discovery does."""
+    folder = sample_dir / "hdm05-cut"
+    found = MotionDB.ingest(folder, tmp_path / "auto", progress=False)
+    given = MotionDB.ingest(folder, tmp_path / "given", labels=folder / "labels.tsv", progress=False)
+    assert found.documents["label"].notna().all()
+    assert given.documents["label"].tolist() == found.documents["label"].tolist() == given.documents["class"].tolist()
