@@ -31,9 +31,19 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .common import REPO, BenchDB, CpuMonitor, benchmark_db, describe_db, loadavg, log, machine_info, markdown
+from .common import (
+    REPO,
+    BenchDB,
+    CpuMonitor,
+    benchmark_db,
+    describe_db,
+    loadavg,
+    log,
+    machine_info,
+    markdown,
+    write_results_csv,
+)
 from .common import fmt as _f
-from .common import write_results_csv
 
 FPS = 120
 MIN_FRAMES = 1_000_000

@@ -85,7 +85,7 @@ def bandai_labels(bvh_path) -> dict:
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"{meta}: malformed label json ({exc})") from None
     if not isinstance(indices, dict):
-        raise ValueError(f"{meta}: label json is not an object")
+        raise ValueError(f"{meta}: label json is not an object")  # noqa: TRY004 - bad file content, not a bad argument
     cfg = bvh.parent.parent / "cfg"
     return {key: _bandai_name(meta, indices, key, cfg / f"{key}_label.txt") for key in ("content", "style")}
 
@@ -147,7 +147,7 @@ def _bandai_name(meta: Path, indices: dict, key: str, names_file: Path) -> str:
     names = _label_names(str(names_file), names_file.stat().st_mtime_ns)
     index = indices.get(key)
     if isinstance(index, bool) or not isinstance(index, int):
-        raise ValueError(f"{meta}: {key!r} must be an integer index, got {index!r}")
+        raise ValueError(f"{meta}: {key!r} must be an integer index, got {index!r}")  # noqa: TRY004 - file content
     if not 0 <= index < len(names):
         raise ValueError(f"{meta}: {key} index {index} outside 0..{len(names) - 1} of {names_file}")
     return names[index]

@@ -279,7 +279,7 @@ def test_per_query_exclusion_equals_an_index_without_those_frames(db, tree, feat
             valid[ranges[r, 0] : ranges[r, 1]] = False
             d_ref, i_ref = reference((ranked[0][r : r + 1], ranked[1][r : r + 1]), k, radius, valid)
             assert_same_neighbours(features, queries[r : r + 1], d[r : r + 1], i[r : r + 1], d_ref, i_ref)
-    single_d, single_i = tree.query(queries[0], 16, exclude=ranges[0])
+    _, single_i = tree.query(queries[0], 16, exclude=ranges[0])
     np.testing.assert_array_equal(single_i, tree.query(queries[:1], 16, exclude=ranges[:1])[1][0])
     with pytest.raises(ValueError, match="one \\[start, stop\\) frame range per query"):
         tree.query(queries[:3], 4, exclude=ranges[:2])

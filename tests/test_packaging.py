@@ -3,8 +3,9 @@ pyproject.toml (dependencies and every extra) with the same version bound."""
 from __future__ import annotations
 
 import re
-import tomllib
 from pathlib import Path
+
+import tomllib
 
 REPO = Path(__file__).resolve().parent.parent
 _REQ = re.compile(r"^\s*([A-Za-z0-9_.\-]+)\s*(.*?)\s*$")
@@ -24,6 +25,6 @@ def test_environment_yml_matches_pyproject():
     wanted = project["dependencies"] + [r for extra in project["optional-dependencies"].values() for r in extra]
     wanted = _requirements(r for r in wanted if not r.startswith(project["name"]))
     dependencies = (REPO / "environment.yml").read_text().split("dependencies:", 1)[1]
-    listed = [m.group(1) for m in re.finditer(r"^\s*-\s+([A-Za-z][^\s#:]*)\s*$", dependencies, re.M)]
+    listed = [m.group(1) for m in re.finditer(r"^\s*-\s+([A-Za-z][^\s#:]*)\s*$", dependencies, re.MULTILINE)]
     listed = _requirements(x for x in listed if x not in ("pip",) and not x.startswith(("python", "-e")))
     assert listed == wanted

@@ -17,8 +17,8 @@ the y axis, frame 0 at the bottom; a cell (i, j) is centred on x = j, y = i.
 from __future__ import annotations
 
 import holoviews as hv
-import holoviews.plotting.bokeh  # noqa: F401 - registers the bokeh backend and its options
-import holoviews.plotting.mpl  # noqa: F401 - and the matplotlib one (PNG files of `mocapviz reproduce`)
+import holoviews.plotting.bokeh  # registers the bokeh backend and its options
+import holoviews.plotting.mpl  # and the matplotlib one (the PNG files of `mocapviz reproduce`)
 import numpy as np
 import pandas as pd
 

@@ -12,8 +12,8 @@ matplotlib backend (PNG), so ``hv.save(obj, "x.png", backend="matplotlib")`` wor
 from __future__ import annotations
 
 import holoviews as hv
-import holoviews.plotting.bokeh  # noqa: F401 - registers the bokeh backend and its options
-import holoviews.plotting.mpl  # noqa: F401 - and the matplotlib one (PNG files)
+import holoviews.plotting.bokeh  # registers the bokeh backend and its options
+import holoviews.plotting.mpl  # and the matplotlib one (the PNG files of `mocapviz reproduce`)
 import pandas as pd
 
 __all__ = ["comparison_bars", "curves"]
