@@ -180,7 +180,7 @@ def _knn_timings(data: _Data) -> Result:
 
 
 def _rank_correlations(data: _Data) -> Result:
-    from .experiments.correlation import rank_correlations
+    from .experiments.correlation import paper_claims, rank_correlations
     from .viz.correlation import correlation_heatmap
 
     db = data.hdm05(30.0)
@@ -190,7 +190,7 @@ def _rank_correlations(data: _Data) -> Result:
     titles = {"pose": "pose-based, sample database", "pose_large": f"pose-based, {large.n_frames:,} frames",
               "segment": "segment-based (DTW), sample database"}
     return Result(
-        tables={name: frame for name, frame in res.items()},
+        tables={**res, "paper_claims": paper_claims(res)},
         figures={name: correlation_heatmap(res[name], title=f"Krüger 2010 Fig. 2: {title}")
                  for name, title in titles.items()},
         settings={"n_queries": n_queries, "k": k, "database": data.describe(db), "large": data.describe(large)},

@@ -97,3 +97,17 @@ def test_cli_writes_alignment(hdm05_dir, tmp_path, capsys):
     path = pd.read_csv(tmp_path / "alignment" / "path_full.csv")
     assert path.iloc[0].tolist() == [0, 0] and (np.diff(path.to_numpy(), axis=0) >= 0).all()
     assert (tmp_path / "alignment" / "alignment.png").read_bytes()[:8] == PNG_MAGIC
+
+
+def test_correlation_matrix_csv_keeps_the_measure_names(hdm05_db30, tmp_path):
+    from mocapviz.experiments.correlation import pose_correlations
+    from mocapviz.viz.correlation import correlation_heatmap
+
+    sets = ("F15E", "F30E", "F15x3E")
+    matrix = pose_correlations(hdm05_db30, rows=sets, columns=sets, n_queries=16, k=32)
+    files = rp.write_result(rp.Result(tables={"pose": matrix}, figures={"pose": correlation_heatmap(matrix)}), tmp_path)
+    assert {f.name for f in files} == {"pose.csv", "pose.png", "pose.html", "settings.json"}
+    back = pd.read_csv(tmp_path / "pose.csv", index_col=0)
+    assert list(back.index) == list(back.columns) == list(sets) and back.index.name == "neighbours by"
+    np.testing.assert_allclose(back.to_numpy(), matrix.to_numpy())
+    assert (tmp_path / "pose.png").read_bytes()[:8] == PNG_MAGIC

@@ -525,7 +525,7 @@ def dpc_pairwise(a: np.ndarray, b: np.ndarray, weights=None) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------------- Dwb
 
 
-def lee_frames(quaternions: np.ndarray, fps: float, lengths=None) -> np.ndarray:
+def lee_frames(quaternions: np.ndarray, fps: float, lengths=None, frames=None) -> np.ndarray:
     """Per-frame joint rotations and joint angular velocities, the descriptors of Lee et al.'s cost (:func:`dwb`).
 
     The angular velocity of joint j at frame t, in its parent's axes, is ``omega = 2 log(q[t+1] q[t-1]^-1) /
@@ -541,34 +541,44 @@ def lee_frames(quaternions: np.ndarray, fps: float, lengths=None) -> np.ndarray:
         Frame rate of all clips.
     lengths : array_like of int, optional
         Frame counts of the clips concatenated in ``quaternions``; default one clip.
+    frames : array_like of int [shape=(F,)], optional
+        The frames whose descriptors to build (default all T); only these frames and their neighbours are read
+        and checked, so a few frames of a large memory-mapped database cost little.
 
     Returns
     -------
-    np.ndarray [shape=(T, J, 7)], float64: ``[..., :4]`` the normalised quaternion, ``[..., 4:]`` omega in rad/s.
+    np.ndarray [shape=(F, J, 7)] (F = T by default), float64: ``[..., :4]`` the normalised quaternion,
+    ``[..., 4:]`` omega in rad/s.
 
     Raises
     ------
     ValueError
         Bad shapes, NaN, non-unit quaternions, fps not positive, a clip of fewer than 2 frames, ``lengths``
-        not summing to T.
+        not summing to T, frame indices out of range.
     """
-    q = _array(quaternions, "quaternions", 3, 4).astype(np.float64, copy=False)
-    q = q / np.sqrt(_squared_norms(q, "quaternions"))[..., None]
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"fps must be a positive number, got {fps!r}")
-    first, last = _document_bounds(q.shape[0], lengths)
+    quaternions = np.asarray(quaternions)
+    if quaternions.ndim != 3 or quaternions.shape[-1] != 4:
+        _array(quaternions, "quaternions", 3, 4)  # raises, naming the shape
+    first, last = _document_bounds(quaternions.shape[0], lengths)
     if (first == last).any():
         k = int(np.argmax(first == last))
         raise ValueError(f"the clip at frame {k} has 1 frame; joint velocities need at least 2 frames")
-    t = np.arange(q.shape[0])
-    before, after = np.maximum(t - 1, first), np.minimum(t + 1, last)
-    step = rotations.multiply(q[after], q[before] * np.array([1.0, -1.0, -1.0, -1.0]))
+    t = np.arange(quaternions.shape[0]) if frames is None else np.asarray(frames)
+    if t.ndim != 1 or t.dtype.kind not in "iu" or (t < 0).any() or (t >= quaternions.shape[0]).any():
+        raise ValueError(f"frames must be a 1-D array of frame indices in [0, {quaternions.shape[0]})")
+    before, after = np.maximum(t - 1, first[t]), np.minimum(t + 1, last[t])
+    used, where = np.unique(np.concatenate([t, before, after]), return_inverse=True)  # each frame read once
+    q = _array(quaternions[used], "quaternions", 3, 4).astype(np.float64, copy=False)
+    q_t, q_before, q_after = np.split((q / np.sqrt(_squared_norms(q, "quaternions"))[..., None])[where], 3)
+    step = rotations.multiply(q_after, q_before * np.array([1.0, -1.0, -1.0, -1.0]))
     step = np.where(step[..., :1] < 0, -step, step)  # the shorter arc
     sin_half = np.linalg.norm(step[..., 1:], axis=-1)
     angle = 2.0 * np.arctan2(sin_half, step[..., 0])
     axis_angle = step[..., 1:] * np.divide(angle, sin_half, out=np.zeros_like(angle), where=sin_half > 0)[..., None]
     dt = ((after - before) / float(fps))[:, None, None]
-    return np.concatenate([q, axis_angle / dt], axis=-1)
+    return np.concatenate([q_t, axis_angle / dt], axis=-1)
 
 
 def _lee_inputs(a, b, a_ndim: int, weights, nu):

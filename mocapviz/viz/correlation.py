@@ -1,0 +1,86 @@
+"""HoloViews plots of the rank-correlation experiments (:mod:`mocapviz.experiments.correlation`).
+
+correlation_heatmap   Krüger, Tautges, Weber & Zinke 2010, Fig. 2: the (asymmetric) matrix of mean Spearman rank
+                      correlations, neighbours chosen by the row measure, compared with the column measure, the value
+                      printed in every cell.
+
+A pure function: a matrix in, a HoloViews object out, with options for the bokeh backend (notebooks, the dashboard)
+and for the matplotlib backend (``hv.save(obj, "fig2.png", backend="matplotlib")``). Cells sit on an integer grid
+(column j at x = j, row i at y = i, the y axis inverted so that row 0 is on top) with the measure names as ticks:
+matplotlib cannot put text on a heat map's categorical axes, and this way both backends draw the same picture.
+"""
+
+from __future__ import annotations
+
+import holoviews as hv
+import holoviews.plotting.bokeh  # registers the bokeh backend and its options
+import holoviews.plotting.mpl  # registers the matplotlib backend (PNG output) and its options
+import numpy as np
+import pandas as pd
+from bokeh.models import CustomJSHover
+
+ROWS = "neighbours by"
+COLUMNS = "compared with"
+CMAP = "RdBu_r"  # diverging: blue -1, white 0, red +1
+COLOUR_RANGE = (-1.0, 1.0)  # the whole range of Spearman's rho, the same in every plot so that plots compare
+WHITE_TEXT_FROM = 0.75  # |rho| from which a value is printed in white (the cell is dark)
+
+
+def _names(names: list[str]) -> CustomJSHover:
+    """A bokeh hover formatter showing the name at an integer grid position."""
+    return CustomJSHover(code="return names[Math.round(value)]", args={"names": names})
+
+
+def correlation_heatmap(matrix: pd.DataFrame, title: str = "", cell: int = 46) -> hv.Overlay:
+    """Krüger et al. 2010, Fig. 2: a rank-correlation matrix as a heat map with its values.
+
+    Parameters
+    ----------
+    matrix : pd.DataFrame [shape=(R, C)]
+        Mean Spearman's rho in [-1, 1] (NaN allowed: an empty cell): rows = the measure the neighbours were chosen
+        by, columns = the measure they are compared with (:func:`mocapviz.experiments.correlation.pose_correlations`,
+        ``segment_correlations``). Not symmetric in general, and drawn as it is.
+    title : str
+    cell : int
+        Size of one cell in screen pixels (bokeh); the matplotlib figure is scaled alike (80 pixels per inch).
+
+    Returns
+    -------
+    hv.Overlay of
+
+    - an hv.HeatMap: x = column position 0..C-1, ticks the column names left to right in the matrix's order
+      (axis label "compared with"); y = row position 0..R-1, ticks the row names top to bottom in the matrix's
+      order ("neighbours by"); colour = rho on the fixed diverging scale -1 (blue) .. 0 (white) .. +1 (red), the
+      same for every matrix. Bokeh: hover shows the row and column names and rho;
+    - two hv.Labels with the values to 2 decimals, centred in their cells: black, and white where |rho| >= 0.75
+      (dark cells).
+
+    Raises
+    ------
+    ValueError
+        An empty matrix or non-numeric values.
+    """
+    if matrix.empty:
+        raise ValueError("the correlation matrix is empty")
+    values = matrix.to_numpy()
+    if values.dtype.kind not in "fiu":
+        raise ValueError(f"the correlation matrix must hold numbers; got dtype {values.dtype}")
+    rows, cols = [str(r) for r in matrix.index], [str(c) for c in matrix.columns]
+    x, y = np.tile(np.arange(len(cols)), len(rows)), np.repeat(np.arange(len(rows)), len(cols))
+    v = values.astype(np.float64).ravel()
+    kdims = [hv.Dimension("x", label=COLUMNS), hv.Dimension("y", label=ROWS)]
+    heat = hv.HeatMap((x, y, v), kdims=kdims, vdims=[hv.Dimension("rho", label="ρ")])
+    text = np.array(["" if np.isnan(a) else f"{a:.2f}" for a in v], dtype=object)
+    dark = np.abs(np.nan_to_num(v)) >= WHITE_TEXT_FROM  # white text on dark cells
+    labels = [hv.Labels((x[on], y[on], text[on]), kdims=kdims, vdims=["text"]).opts(
+        text_font_size="8pt", text_color=ink, backend="bokeh").opts(size=8, color=ink, backend="matplotlib")
+        for on, ink in ((~dark, "black"), (dark, "white"))]  # fmt: skip
+    width, height = cell * len(cols) + 170, cell * len(rows) + 120
+    common = {"cmap": CMAP, "clim": COLOUR_RANGE, "colorbar": True, "xticks": list(enumerate(cols)),
+              "yticks": list(enumerate(rows)), "invert_yaxis": True, "xrotation": 45}  # fmt: skip
+    heat = heat.opts(
+        tools=["hover"], hover_tooltips=[(ROWS, "@{y}{custom}"), (COLUMNS, "@{x}{custom}"), ("ρ", "@{rho}{0.000}")],
+        hover_formatters={"@{y}": _names(rows), "@{x}": _names(cols)}, backend="bokeh", **common,
+    ).opts(show_values=False, backend="matplotlib", **common)  # fmt: skip
+    return hv.Overlay([heat, *labels]).opts(title=title, width=width, height=height, backend="bokeh").opts(
+        title=title, fig_inches=width / 80, aspect=len(cols) / len(rows), padding=0, backend="matplotlib")  # fmt: skip
