@@ -11,17 +11,21 @@ similarity_matrices Krüger et al. 2010, Fig. 3: distance matrices per feature s
                     its warping paths, subsequence DTW on Dpc1.
 alignment           Müller, Röder & Clausen 2005, §7 / Fig. 11: segment-wise alignment refined by band DTW.
 numerical_search    Krüger et al. 2010, Table 2: numerical and logical similarity search hits per feature set.
+reconstruction      Krüger et al. 2010, §5.2, Tables 3-4: full-body motion from six sparse markers (local linear
+                    models of the kNN poses, after Chai & Hodgins 2005) with priors from different databases.
 rank_correlations   Krüger et al. 2010, Fig. 2 / §3.3: Spearman rank-correlation matrices between feature sets and
                     distance measures, pose-based (sample and large database) and segment-based (DTW).
 
 The papers' own figures: :func:`mocapviz.experiments.relational.paper_table2` and ``paper_table3``,
-:func:`mocapviz.experiments.numeric.paper_table1`, :func:`mocapviz.experiments.matching.paper_table2`.
+:func:`mocapviz.experiments.numeric.paper_table1`, :func:`mocapviz.experiments.matching.paper_table2`,
+:func:`mocapviz.experiments.reconstruction.paper_table3` and ``paper_table4``.
 """
 from .correlation import paper_claims, pose_correlations, rank_correlations, segment_correlations
 from .matching import alignment, lng_accuracy, numerical_search, similarity_matrices, summarize_accuracy
 from .numeric import base_poses, knn_timings
+from .reconstruction import reconstruction
 from .relational import index_statistics, query_statistics, relational_query
 
 __all__ = ["alignment", "base_poses", "index_statistics", "knn_timings", "lng_accuracy", "numerical_search",
-           "paper_claims", "pose_correlations", "query_statistics", "rank_correlations", "relational_query",
-           "segment_correlations", "similarity_matrices", "summarize_accuracy"]
+           "paper_claims", "pose_correlations", "query_statistics", "rank_correlations", "reconstruction",
+           "relational_query", "segment_correlations", "similarity_matrices", "summarize_accuracy"]

@@ -53,14 +53,15 @@ def comparison_bars(table: pd.DataFrame, category: str, value: str, source: str 
     # a log axis needs a positive lower end: half the smallest positive value
     ylim = (float(data.loc[data[value] > 0, value].min()) / 2, None) if logy and (data[value] > 0).any() else (None, None)
     bars = bars.opts(width=width, height=height, tools=["hover"], xrotation=45, logy=logy, ylim=ylim, title=title,
-                     backend="bokeh")  # fmt: skip
-    return bars.opts(fig_size=200, xrotation=45, logy=logy, ylim=ylim, title=title, backend="matplotlib")
+                     multi_level=False, color=source, cmap="Category10", show_legend=True, backend="bokeh")  # fmt: skip
+    return bars.opts(fig_size=200, aspect=2.5, xrotation=30, logy=logy, ylim=ylim, title=title, multi_level=False,
+                     show_legend=True, legend_position="right", backend="matplotlib")  # fmt: skip
 
 
 def curves(table: pd.DataFrame, x: str, y: str, group: str, title: str = "", xlabel: str | None = None,
-           ylabel: str | None = None, logx: bool = False, logy: bool = False, width: int = 600,
+           ylabel: str | None = None, logx: bool = False, logy: bool = False, markers: bool = True, width: int = 600,
            height: int = 320) -> hv.Overlay:  # fmt: skip
-    """One line with markers per value of ``group``: ``y`` against ``x``.
+    """One line (with markers unless ``markers`` is false) per value of ``group``: ``y`` against ``x``.
 
     Parameters
     ----------
@@ -70,6 +71,8 @@ def curves(table: pd.DataFrame, x: str, y: str, group: str, title: str = "", xla
         Column names.
     title, xlabel, ylabel : str
     logx, logy : bool
+    markers : bool
+        A marker on every point (few points, e.g. query lengths); off for dense series such as frames.
 
     Returns
     -------
@@ -80,9 +83,10 @@ def curves(table: pd.DataFrame, x: str, y: str, group: str, title: str = "", xla
     xd, yd = hv.Dimension(x, label=xlabel or x), hv.Dimension(y, label=ylabel or y)
     layers = []
     for name, part in data.groupby(group, sort=False):
-        layers.append(hv.Curve(part, kdims=[xd], vdims=[yd], label=str(name)))
-        layers.append(hv.Scatter(part, kdims=[xd], vdims=[yd], label=str(name)).opts(size=6, backend="bokeh"))
+        layers.append(hv.Curve(part, kdims=[xd], vdims=[yd], label=str(name)).opts(tools=["hover"], backend="bokeh"))
+        if markers:
+            layers.append(hv.Scatter(part, kdims=[xd], vdims=[yd], label=str(name)).opts(size=6, backend="bokeh"))
     overlay = hv.Overlay(layers).opts(width=width, height=height, logx=logx, logy=logy, title=title,
                                       legend_position="right", backend="bokeh")  # fmt: skip
-    return overlay.opts(fig_size=200, aspect=2, logx=logx, logy=logy, title=title, legend_position="right",
+    return overlay.opts(fig_size=200, aspect=2.5, logx=logx, logy=logy, title=title, legend_position="right",
                         backend="matplotlib")
