@@ -1,11 +1,11 @@
 """The ``mocapviz`` command.
 
-    mocapviz ingest PATH... --out DB [--fps N] [--labels FILE] [--skip-bad] [--jobs N]
+    mocapviz ingest PATH... --out DB [--fps N] [--labels FILE] [--skip-bad] [--scheduler ADDRESS | [--no-cluster] [--jobs N]]
     mocapviz info DB [--documents]
-    mocapviz index DB [--feature-set 2005|2006]
+    mocapviz index DB [--feature-set 2005|2006] [--scheduler ADDRESS | --no-cluster]
     mocapviz query DB --example FILE|DOC_ID [--frames A:B] --features NAMES [--mode M] [--mismatch M [--mismatch-at I,J]]
                                                                                               [--top N]
-    mocapviz features DB [--sets F15E,F30E,...] [--pca FILE|DB]
+    mocapviz features DB [--sets F15E,F30E,...] [--pca FILE|DB] [--scheduler ADDRESS | --no-cluster]
     mocapviz knn DB --frame DOC:FRAME [--features F15E] [-k 16] [--radius R] [--eps E] [--exclude-document]
     mocapviz match DB --example FILE|DOC_ID [--frames A:B] [--features F15E] [-K 10] [-k 256] [--radius R] [--eps E]
                                                                                 [--method lng|dtw] [--paths]
@@ -13,11 +13,17 @@
     mocapviz datasets list
     mocapviz datasets fetch NAME        (NAME: a shared archive, or ``sample`` for the embedded sample)
 
+``ingest``, ``features`` and ``index`` run their work as Dask tasks: on the scheduler at ``--scheduler ADDRESS``
+(``tcp://host:8786``), else on a local cluster started for the command (one single-threaded worker process per
+core, or ``ingest --jobs N`` workers; :mod:`mocapviz.cluster`). ``--no-cluster`` runs in this process instead
+(threads; for ``ingest``, ``--jobs N`` reader processes), as the library functions do by default.
+
 Errors print one line (``mocapviz: error: ...``) and exit with status 1.
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 import time
@@ -28,6 +34,7 @@ import numpy as np
 import pandas as pd
 
 from . import datasets
+from .cluster import LOCAL, dask_client, optional_client
 from .database import MotionDB
 from .errors import MocapFormatError, MotionDBError, SkeletonMappingError
 from .features import NUMERIC_SETS, PCAModel, fit_pca, load_numeric, numeric, numeric_of, relational, store_numeric
@@ -38,14 +45,33 @@ from .match import lng, subsequence_dtw
 from .query import query_by_example
 
 
+def _scheduler(args):
+    """The ``scheduler=`` of the ingest / features / index commands: None (--no-cluster), an address, or local."""
+    if args.no_cluster:
+        if args.scheduler:
+            raise ValueError("--scheduler and --no-cluster exclude each other")
+        return None
+    return args.scheduler or LOCAL
+
+
 def _ingest(args) -> None:
     mapping = None
     if args.mapping:
         with open(args.mapping) as fh:
             mapping = json.load(fh)
     options = {k: v for k, v in (("asf", args.asf), ("up", args.up)) if v is not None}
-    db = MotionDB.ingest(args.paths, args.out, fps=args.fps, labels=args.labels, mapping=mapping,
-                         skip_bad=args.skip_bad, n_jobs=args.jobs, progress=not args.quiet, **options)
+    if args.jobs is not None and args.jobs < 1:
+        raise ValueError(f"--jobs must be at least 1, got {args.jobs}")
+    scheduler = _scheduler(args)
+    if args.jobs is not None and scheduler not in (None, LOCAL):
+        raise ValueError("--jobs sizes the local cluster (or, with --no-cluster, the reader processes); the "
+                         "workers of --scheduler are the scheduler's")
+    with contextlib.ExitStack() as stack:
+        if scheduler == LOCAL:  # the local cluster, with --jobs workers if given
+            scheduler = stack.enter_context(dask_client(LOCAL, n_workers=args.jobs))
+        db = MotionDB.ingest(args.paths, args.out, fps=args.fps, labels=args.labels, mapping=mapping,
+                             skip_bad=args.skip_bad, n_jobs=args.jobs or 1, progress=not args.quiet,
+                             scheduler=scheduler, **options)
     print(db)
 
 
@@ -64,7 +90,7 @@ def _index(args) -> None:
 
     db = MotionDB.open(args.db)
     t0 = time.perf_counter()
-    values, _ = relational(db, args.feature_set, progress=not args.quiet)
+    values, _ = relational(db, args.feature_set, progress=not args.quiet, scheduler=_scheduler(args))
     t_features = time.perf_counter() - t0
     build(db, args.feature_set, values=values)
     stats = index_statistics(db, args.feature_set, values=values, t_features=t_features)
@@ -118,12 +144,17 @@ def _names(text: str | None, known, what: str) -> list[str] | None:
 
 def _features(args) -> None:
     db = MotionDB.open(args.db)
-    pca = None
-    if args.pca:
-        ref = Path(args.pca)
-        pca = fit_pca(MotionDB.open(ref), progress=not args.quiet) if ref.is_dir() else PCAModel.load(ref)
+    names = _names(args.sets, NUMERIC_SETS, "feature set")
+    ref = Path(args.pca) if args.pca else None
+    reference_db = MotionDB.open(ref) if ref is not None and ref.is_dir() else None
     t0 = time.perf_counter()
-    stored = store_numeric(db, _names(args.sets, NUMERIC_SETS, "feature set"), pca=pca, progress=not args.quiet)
+    with optional_client(_scheduler(args)) as client:  # one cluster for the PCA fit and every set
+        pca = None
+        if reference_db is not None:
+            pca = fit_pca(reference_db, progress=not args.quiet, scheduler=client)
+        elif ref is not None:
+            pca = PCAModel.load(ref)
+        stored = store_numeric(db, names, pca=pca, progress=not args.quiet, scheduler=client)
     print(f"{db}: {len(stored)} numeric feature sets in {time.perf_counter() - t0:.1f} s, "
           f"written to {Path(db.path) / 'features'}")
     rows = [{"set": n, "dims": a.shape[1], "MB": a.nbytes / 2**20} for n, a in stored.items()]
@@ -228,6 +259,13 @@ def _datasets(args) -> None:
         print(datasets.sample() if args.name == "sample" else datasets.fetch(args.name, progress=True))
 
 
+def _cluster_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scheduler", metavar="ADDRESS", help="run the tasks on this dask.distributed scheduler "
+                   "(e.g. tcp://host:8786; its workers must see the same paths); default: a local cluster, one "
+                   "worker process per core")  # fmt: skip
+    p.add_argument("--no-cluster", action="store_true", help="no Dask: work in this process (threads)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="mocapviz", description="Content-based retrieval in motion-capture databases.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -241,7 +279,9 @@ def build_parser() -> argparse.ArgumentParser:
     ing.add_argument("--asf", help="ASF skeleton for all AMC files (default: found beside each)")
     ing.add_argument("--up", choices=["auto", "y", "z"], help="up axis of BVH files (default auto)")
     ing.add_argument("--skip-bad", action="store_true", help="skip unreadable files with a warning")
-    ing.add_argument("--jobs", type=int, default=1, help="reader processes (default 1)")
+    _cluster_options(ing)
+    ing.add_argument("--jobs", type=int, help="worker processes of the local cluster (default: one per core), or "
+                     "with --no-cluster reader processes (default 1)")
     ing.add_argument("--quiet", action="store_true", help="no progress bar")
     ing.set_defaults(func=_ingest)
 
@@ -253,6 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
     idx = sub.add_parser("index", help="compute relational features and build the inverted indexes of a MotionDB")
     idx.add_argument("db")
     idx.add_argument("--feature-set", default="2005", choices=["2005", "2006"])
+    _cluster_options(idx)
     idx.add_argument("--quiet", action="store_true", help="no progress bar")
     idx.set_defaults(func=_index)
 
@@ -274,6 +315,7 @@ def build_parser() -> argparse.ArgumentParser:
     feat.add_argument("--sets", help=f"comma-separated sets (default all: {','.join(NUMERIC_SETS)})")
     feat.add_argument("--pca", help="PCA reference for Fp8/16/25: a saved model (.npz) or a MotionDB to fit it on "
                                     "(default: fitted on DB itself)")
+    _cluster_options(feat)
     feat.add_argument("--quiet", action="store_true", help="no progress bar")
     feat.set_defaults(func=_features)
 

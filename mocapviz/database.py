@@ -11,8 +11,9 @@ Every write produces the files of a new generation G under their final names and
 ``manifest.json`` atomically (``os.replace``); readers only follow the manifest. A write that fails or is
 killed therefore leaves the previous generation, and the database, exactly as they were.
 
-Ingest reads each file in an independent task (:func:`read_document`), so that a scheduler (a process pool
-here, Dask later) can run them anywhere; the commit is done by the caller, in input order.
+Ingest reads each file in an independent task (:func:`read_document`), so that a scheduler (a process pool, or
+Dask: ``scheduler=``, see :mod:`mocapviz.cluster`) can run them anywhere; the commit is done by the caller, in
+input order, once every file has been read.
 """
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ import json
 import os
 import warnings
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +41,7 @@ from .skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
 FORMAT = "mocapviz.MotionDB"
 VERSION = 1
 _ARRAYS = {"positions": 3, "quaternions": 4}
+_CHUNK_MAX_BYTES = 64 << 20  # Dask ingest tasks read at most this many bytes of motion files (or one file)
 _BASE_COLUMNS = ["doc_id", "name", "path", "format", "start", "n_frames", "fps", "source_fps", "sha256", "label"]
 
 
@@ -128,14 +131,64 @@ def read_document(path, fps: float | None = None, labels: dict | None = None, ma
     return motion, meta
 
 
-def _read_task(args):
-    path, sha256, fps, labels, mapping, load_options, skip_bad = args
+@dataclass(frozen=True)
+class _ReadFailure:
+    """A file that failed to read, as a task returns it (MocapFormatError itself does not survive pickling)."""
+
+    kind: str  # "format" or "mapping"
+    message: str
+    path: str | None = None
+    reason: str = ""
+    line: int | None = None
+
+    @classmethod
+    def of(cls, exc: Exception) -> _ReadFailure:
+        if isinstance(exc, MocapFormatError):
+            return cls("format", str(exc), exc.path, exc.reason, exc.line)
+        return cls("mapping", str(exc))
+
+    def error(self) -> Exception:
+        """The exception the reader raised, rebuilt (same type and message)."""
+        if self.kind == "format":
+            return MocapFormatError(self.path, self.reason, self.line)
+        return SkeletonMappingError(self.message)
+
+
+def _read_task(args) -> tuple[np.ndarray, np.ndarray | None, dict] | _ReadFailure:
+    """One ingest task (in this process, a process pool or a Dask worker).
+
+    ``args`` = (path, sha256, fps, labels, mapping, load_options). Returns (positions [shape=(T, 24, 3)] cm,
+    quaternions [shape=(T, 24, 4)] or None, meta) of :func:`read_document`, or a :class:`_ReadFailure` for a
+    file that fails to read, so that the caller decides (raise it, or skip it with ``skip_bad``).
+    """
+    path, sha256, fps, labels, mapping, load_options = args
     try:
-        return read_document(path, fps, labels, mapping, sha256, **load_options)
+        motion, meta = read_document(path, fps, labels, mapping, sha256, **load_options)
     except (MocapFormatError, SkeletonMappingError) as exc:
-        if not skip_bad:
-            raise
-        return exc
+        return _ReadFailure.of(exc)
+    return motion.positions, motion.quaternions, meta
+
+
+def _read_chunk(chunk: list) -> list:
+    """A Dask ingest task: :func:`_read_task` of each file of a chunk, in order (files fail one by one)."""
+    return [_read_task(args) for args in chunk]
+
+
+def _chunks(todo: list, parts: int, max_bytes: int = _CHUNK_MAX_BYTES) -> list[list]:
+    """``todo`` (ingest task arguments, path first) cut into about ``parts`` contiguous chunks of similar size on
+    disk, none above ``max_bytes`` unless it is one file: a task per file costs more than reading a small file."""
+    sizes = np.array([os.path.getsize(args[0]) for args in todo], dtype=np.float64)
+    target = min(max(sizes.sum() / max(1, parts), 1.0), max_bytes)
+    out, chunk, held = [], [], 0.0
+    for args, size in zip(todo, sizes):
+        if chunk and held + size > target:
+            out.append(chunk)
+            chunk, held = [], 0.0
+        chunk.append(args)
+        held += size
+    if chunk:
+        out.append(chunk)
+    return out
 
 
 def _labels_table(labels) -> dict[str, dict] | None:
@@ -319,7 +372,8 @@ class MotionDB:
 
     @classmethod
     def ingest(cls, paths, out, fps: float | None = None, labels=None, mapping: dict | None = None,
-               skip_bad: bool = False, n_jobs: int = 1, progress: bool = True, **load_options) -> MotionDB:
+               skip_bad: bool = False, n_jobs: int = 1, progress: bool = True, scheduler=None,
+               **load_options) -> MotionDB:
         """Read motion files into the MotionDB at ``out``, creating it or appending to it.
 
         Files already in the database (same sha256) are skipped, so re-running an interrupted ingest
@@ -343,9 +397,14 @@ class MotionDB:
         skip_bad : bool
             Skip files that fail to read (with a warning) instead of stopping.
         n_jobs : int
-            Worker processes for reading (1: in this process).
+            Worker processes for reading (1: in this process); ignored when ``scheduler`` is given.
         progress : bool
             Show a progress bar.
+        scheduler : None, "local", str or dask.distributed.Client
+            Read the files as Dask tasks, one per file (:func:`mocapviz.cluster.dask_client`): ``"local"`` starts
+            a local cluster for this call, an address connects to a running scheduler (its workers must see the
+            same paths), a Client is used as it is. None (default): in this process, or ``n_jobs`` processes.
+            The results are committed here, in input order, whatever order the tasks finish in.
         **load_options
             Passed to :func:`mocapviz.load` (``asf``, ``up``, ``scale``).
 
@@ -366,14 +425,15 @@ class MotionDB:
         db = cls.create(out) if created else cls.open(out)
         try:
             return db.append(files, fps=fps, labels=labels, mapping=mapping, skip_bad=skip_bad, n_jobs=n_jobs,
-                             progress=progress, **load_options)
+                             progress=progress, scheduler=scheduler, **load_options)
         except BaseException:
             if created:
                 _remove_db(out)
             raise
 
     def append(self, paths, fps: float | None = None, labels=None, mapping: dict | None = None,
-               skip_bad: bool = False, n_jobs: int = 1, progress: bool = True, **load_options) -> MotionDB:
+               skip_bad: bool = False, n_jobs: int = 1, progress: bool = True, scheduler=None,
+               **load_options) -> MotionDB:
         """Add motion files to this database; see :meth:`ingest`. Returns the reopened database."""
         if fps is not None and len(self) and self.fps != float(fps):
             raise MotionDBError(f"{self.path}: documents are at {self.fps} fps; cannot append at {fps} fps")
@@ -393,22 +453,33 @@ class MotionDB:
             if sha256 in known:
                 continue
             lab = None if table is None else table.get(str(f), table.get(f.name, {}))
-            todo.append((str(f), sha256, fps, lab, mapping, load_options, skip_bad))
+            todo.append((str(f), sha256, fps, lab, mapping, load_options))
+        positions, quaternions, metas = [], [], []
         with contextlib.ExitStack() as stack:
-            if n_jobs > 1 and len(todo) > 1:
+            if scheduler is not None and todo:
+                from .cluster import dask_client, map_ordered, n_threads
+
+                client = stack.enter_context(dask_client(scheduler))
+                chunks = _chunks(todo, 4 * n_threads(client))  # every task in flight: the results are all kept
+                done = stack.enter_context(contextlib.closing(  # cancels what is pending before the client closes
+                    map_ordered(client, _read_chunk, chunks, ahead=len(chunks), name="mocapviz-read")))
+                it = (res for chunk in done for res in chunk)
+            elif n_jobs > 1 and len(todo) > 1:
                 pool = stack.enter_context(ProcessPoolExecutor(n_jobs))
                 it = pool.map(_read_task, todo, chunksize=max(1, len(todo) // (8 * n_jobs)))
             else:
                 it = map(_read_task, todo)
-            results = list(tqdm(it, total=len(todo), desc="ingest", unit="file", disable=not progress or not todo))
-        motions, metas = [], []
-        for (path, *_), res in zip(todo, results):
-            if isinstance(res, Exception):
-                warnings.warn(f"skipped {res}", stacklevel=2)
-                continue
-            motions.append(res[0])
-            metas.append(res[1])
-        return self._commit_motions(motions, metas)
+            # results in input order; the first file that fails (in that order) stops the run before any write
+            for res in tqdm(it, total=len(todo), desc="ingest", unit="file", disable=not progress or not todo):
+                if isinstance(res, _ReadFailure):
+                    if not skip_bad:
+                        raise res.error()
+                    warnings.warn(f"skipped {res.message}", stacklevel=2)
+                    continue
+                positions.append(res[0])
+                quaternions.append(res[1])
+                metas.append(res[2])
+        return self._commit_arrays(positions, quaternions, metas)
 
     def append_motions(self, motions, metas=None) -> MotionDB:
         """Add clips held in memory (derived data: mirrored, resampled or edited copies of documents).
@@ -455,10 +526,12 @@ class MotionDB:
         return self._commit_motions(motions, rows)
 
     def _commit_motions(self, motions: list, metas: list[dict]) -> MotionDB:
-        if motions:
+        return self._commit_arrays([m.positions for m in motions], [m.quaternions for m in motions], metas)
+
+    def _commit_arrays(self, positions: list, quaternions: list, metas: list[dict]) -> MotionDB:
+        if positions:
             with _locked(self.path):
-                _commit(self.path, _read_manifest(self.path), [m.positions for m in motions],
-                        [m.quaternions for m in motions], metas)
+                _commit(self.path, _read_manifest(self.path), positions, quaternions, metas)
         return MotionDB.open(self.path)
 
 

@@ -494,7 +494,8 @@ def feature_group_values(values: np.ndarray, feature_set: str = "2005") -> dict:
     return out
 
 
-def build(db, feature_set: str = "2005", progress: bool = True, values: np.ndarray | None = None) -> dict:
+def build(db, feature_set: str = "2005", progress: bool = True, values: np.ndarray | None = None,
+          scheduler=None) -> dict:
     """Build and save one inverted index per feature group (lower, upper, mix) over a MotionDB (§5.3).
 
     Parameters
@@ -505,6 +506,9 @@ def build(db, feature_set: str = "2005", progress: bool = True, values: np.ndarr
         Progress bar over the documents while the features are computed.
     values : np.ndarray [shape=(N, f)], bool, optional
         The database's relational features if already computed.
+    scheduler : None, "local", str or dask.distributed.Client
+        Compute the features as Dask tasks (see :func:`mocapviz.features.relational`); default: threads here.
+        The index itself is built and written here, each file renamed into place when complete.
 
     Returns
     -------
@@ -513,7 +517,7 @@ def build(db, feature_set: str = "2005", progress: bool = True, values: np.ndarr
     from .features import relational
 
     if values is None:
-        values, _ = relational(db, feature_set, progress=progress)
+        values, _ = relational(db, feature_set, progress=progress, scheduler=scheduler)
     doc_starts = db.documents["start"].to_numpy()
     out = {}
     for group, (members, group_values) in feature_group_values(values, feature_set).items():

@@ -51,6 +51,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import fcntl
+import functools
 import hashlib
 import io
 import json
@@ -64,6 +65,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
+from ..cluster import optional_client
 from ..database import MotionDB
 from ..errors import MotionDBError
 from ..motion import Motion
@@ -309,7 +311,8 @@ class PCAModel:
 
 
 def fit_pca(
-    source, n_components: int = 25, reference: str | None = None, progress: bool = True, n_jobs: int | None = None
+    source, n_components: int = 25, reference: str | None = None, progress: bool = True, n_jobs: int | None = None,
+    scheduler=None,
 ) -> PCAModel:
     """Principal components of all 24 canonical joint positions in the body frame (§3.1, Fp_n^pca).
 
@@ -322,8 +325,9 @@ def fit_pca(
     n_components : int, 1 .. 72
     reference : str, optional
         Description stored with the model; default: the clip or database (path, generation, frames).
-    progress, n_jobs :
-        As for :func:`numeric`.
+    progress, n_jobs, scheduler :
+        As for :func:`numeric` (with Dask, the workers compute the body-frame poses; the moments are summed here,
+        in batch order, so the model is the same).
 
     Returns
     -------
@@ -339,10 +343,12 @@ def fit_pca(
     _n_frames(source)  # a Motion or a MotionDB
 
     count, total, outer = 0, np.zeros(_POSE_DIMS), np.zeros((_POSE_DIMS, _POSE_DIMS))
-    batches = _map_batches(source, _pca_input, range(len(CANONICAL_JOINTS)), "PCA moments", progress, n_jobs)
-    for _, poses in batches:  # the sums here, in the calling thread: BLAS runs its own threads
-        x = poses.astype(np.float64)
-        count, total, outer = count + x.shape[0], total + x.sum(axis=0), outer + x.T @ x
+    with optional_client(scheduler if isinstance(source, MotionDB) else None) as client:
+        batches = _map_batches(source, _pca_input, range(len(CANONICAL_JOINTS)), "PCA moments", progress, n_jobs,
+                               client)  # fmt: skip
+        for _, poses in batches:  # the sums here, in the calling thread: BLAS runs its own threads
+            x = poses.astype(np.float64)
+            count, total, outer = count + x.shape[0], total + x.sum(axis=0), outer + x.T @ x
     if count < 2:
         raise ValueError(f"{_describe(source)}: {count} frame(s); a PCA needs at least 2")
     mean = total / count
@@ -400,27 +406,12 @@ def _check_finite(positions: np.ndarray, joints, where: Callable[[int], str]) ->
     raise ValueError(f"{where(int(t))}: joint {CANONICAL_JOINTS[joints[j]]} has a non-finite (NaN/inf) position")
 
 
-def _map_batches(
-    source, work: Callable[[_Batch], object], joints, desc: str, progress: bool, n_jobs: int | None
-) -> Iterator:
-    """(frames, work(batch)) for the batches of whole documents of ``source``, in frame order.
+def _document_batches(db: MotionDB) -> tuple:
+    """The documents of a MotionDB in frame order and its batches of whole, contiguous documents.
 
-    ``source`` is a Motion (one batch) or a MotionDB (the callers check which with :func:`_n_frames`). A MotionDB
-    is cut into batches of whole documents of about ``_BATCH_FRAMES`` frames, run on a thread pool (numpy releases
-    the GIL) at most two per thread ahead of the consumer, so that results waiting to be consumed stay few.
-    ``frames`` is the slice of the source's frames a result covers. Every batch is checked for non-finite
-    positions of ``joints`` (canonical indices) first; the first bad batch in frame order raises.
+    Returns (docs, starts, lengths, fps, batches): ``docs`` sorted by start frame; ``batches`` a list of
+    (first, last) positions in ``docs``, each about ``_BATCH_FRAMES`` frames (at least one document).
     """
-    if not isinstance(source, MotionDB):
-        motion = source.canonical()
-        name = source.source or "motion"
-        _check_finite(motion.positions, list(joints), lambda t: f"{name}, frame {t}")
-        yield (
-            slice(0, motion.n_frames),
-            work(_Batch(motion.positions, np.array([0, motion.n_frames]), np.array([motion.fps]))),
-        )
-        return
-    db = source
     docs = db.documents.sort_values("start")
     starts = docs["start"].to_numpy(np.int64)
     lengths = docs["n_frames"].to_numpy(np.int64)
@@ -436,23 +427,79 @@ def _map_batches(
             last += 1
         batches.append((first, last))
         first = last
+    return docs, starts, lengths, fps, batches
+
+
+def _run_batch(db: MotionDB, docs, first: int, last: int, joints, work: Callable[[_Batch], object]) -> tuple:
+    """work(documents first..last-1 of ``docs``) after the finiteness check: (frames slice, result, documents)."""
+    starts = docs["start"].to_numpy(np.int64)
+    lengths = docs["n_frames"].to_numpy(np.int64)
+    fps = docs["fps"].to_numpy(np.float64)
+    a, b = int(starts[first]), int(starts[last - 1] + lengths[last - 1])
+    positions = np.asarray(db.positions[a:b])
+    bounds = np.concatenate([[0], np.cumsum(lengths[first:last])])
+
+    def where(t: int) -> str:
+        d = first + int(np.searchsorted(bounds, t, side="right")) - 1
+        row = docs.iloc[d]
+        return f"{db.path}: document {row['doc_id']} ({row['path']}), frame {a + t - int(starts[d])}"
+
+    _check_finite(positions, list(joints), where)
+    return slice(a, b), work(_Batch(positions, bounds, fps[first:last])), last - first
+
+
+def _remote_batch(task: tuple) -> tuple:
+    """A Dask task: (db path, generation, first, last, joints, work) -> :func:`_run_batch` on the worker's own
+    memory map of the database (:func:`mocapviz.cluster.open_db`)."""
+    from ..cluster import open_db
+
+    path, generation, first, last, joints, work = task
+    db = open_db(path, generation)
+    return _run_batch(db, db.documents.sort_values("start"), first, last, joints, work)
+
+
+def _map_batches(
+    source, work: Callable[[_Batch], object], joints, desc: str, progress: bool, n_jobs: int | None, client=None
+) -> Iterator:
+    """(frames, work(batch)) for the batches of whole documents of ``source``, in frame order.
+
+    ``source`` is a Motion (one batch) or a MotionDB (the callers check which with :func:`_n_frames`). A MotionDB
+    is cut into batches of whole documents of about ``_BATCH_FRAMES`` frames, run on a thread pool (numpy releases
+    the GIL) at most two per thread ahead of the consumer, so that results waiting to be consumed stay few; or,
+    with a Dask ``client``, as Dask tasks (``work`` must then be importable on the workers: a module-level function
+    or a partial of one), each reading its documents from the workers' own memory map of the database.
+    ``frames`` is the slice of the source's frames a result covers. Every batch is checked for non-finite
+    positions of ``joints`` (canonical indices) first; the first bad batch in frame order raises.
+    """
+    if not isinstance(source, MotionDB):
+        motion = source.canonical()
+        name = source.source or "motion"
+        _check_finite(motion.positions, list(joints), lambda t: f"{name}, frame {t}")
+        yield (
+            slice(0, motion.n_frames),
+            work(_Batch(motion.positions, np.array([0, motion.n_frames]), np.array([motion.fps]))),
+        )
+        return
+    db = source
+    docs, _, _, _, batches = _document_batches(db)
+    bar = tqdm(total=len(docs), desc=desc, unit="doc", disable=not progress or len(docs) <= _PROGRESS_MIN_DOCUMENTS)
+    joints = [int(j) for j in joints]
+
+    if client is not None:
+        from ..cluster import map_ordered
+
+        path, generation = str(Path(db.path).resolve()), db.manifest["generation"]
+        tasks = ((path, generation, first, last, joints, work) for first, last in batches)
+        with bar, contextlib.closing(map_ordered(client, _remote_batch, tasks, name="mocapviz-numeric")) as results:
+            for frames, result, n_documents in results:
+                bar.update(n_documents)
+                yield frames, result
+        return
 
     def run(batch: tuple[int, int]) -> tuple[slice, object, int]:
-        first, last = batch
-        a, b = int(starts[first]), int(starts[last - 1] + lengths[last - 1])
-        positions = np.asarray(db.positions[a:b])
-        bounds = np.concatenate([[0], np.cumsum(lengths[first:last])])
-
-        def where(t: int) -> str:
-            d = first + int(np.searchsorted(bounds, t, side="right")) - 1
-            row = docs.iloc[d]
-            return f"{db.path}: document {row['doc_id']} ({row['path']}), frame {a + t - int(starts[d])}"
-
-        _check_finite(positions, list(joints), where)
-        return slice(a, b), work(_Batch(positions, bounds, fps[first:last])), last - first
+        return _run_batch(db, docs, batch[0], batch[1], joints, work)
 
     threads = max(1, n_jobs or min(8, os.cpu_count() or 1))
-    bar = tqdm(total=len(docs), desc=desc, unit="doc", disable=not progress or len(docs) <= _PROGRESS_MIN_DOCUMENTS)
 
     def done(future) -> tuple[slice, object]:
         frames, result, n_documents = future.result()
@@ -469,8 +516,15 @@ def _map_batches(
             yield done(pending.popleft())
 
 
-def _fill(source, name: str, pca: PCAModel | None, out: np.ndarray, progress: bool, n_jobs: int | None) -> None:
-    """Write the values of feature set ``name`` of every frame of ``source`` into ``out`` [shape=(T, d)]."""
+def _joint_work(spec: _Set, batch: _Batch) -> np.ndarray:
+    """:func:`_joint_features` of a batch (module level, so that Dask workers can import it)."""
+    return _joint_features(batch.positions, batch.bounds, batch.fps, spec)
+
+
+def _fill(source, name: str, pca: PCAModel | None, out: np.ndarray, progress: bool, n_jobs: int | None,
+          client=None) -> None:
+    """Write the values of feature set ``name`` of every frame of ``source`` into ``out`` [shape=(T, d)]
+    (batches on threads, or as Dask tasks of ``client``)."""
     spec = _spec(name)
     desc = f"numeric features {name}"
     if spec.pcs:
@@ -484,16 +538,14 @@ def _fill(source, name: str, pca: PCAModel | None, out: np.ndarray, progress: bo
                 f"feature set {name} needs {spec.pcs} components; the PCA model ({pca.reference}) "
                 f"has {pca.n_components}"
             )
-        batches = _map_batches(source, _pca_input, range(len(CANONICAL_JOINTS)), desc, progress, n_jobs)
+        batches = _map_batches(source, _pca_input, range(len(CANONICAL_JOINTS)), desc, progress, n_jobs, client)
         for frames, poses in batches:
             out[frames] = pca.project(poses, spec.pcs)  # here, in the calling thread: BLAS runs its own threads
         return
 
-    def work(batch: _Batch) -> np.ndarray:
-        return _joint_features(batch.positions, batch.bounds, batch.fps, spec)
-
     joints = [CANONICAL_JOINTS.index(j) for j in _FRAME_JOINTS + spec.joints]
-    for frames, values in _map_batches(source, work, joints, desc, progress, n_jobs):
+    for frames, values in _map_batches(source, functools.partial(_joint_work, spec), joints, desc, progress, n_jobs,
+                                       client):  # fmt: skip
         out[frames] = values
 
 
@@ -504,7 +556,8 @@ def _n_frames(source) -> int:
 
 
 def numeric(
-    source, name: str, pca: PCAModel | None = None, progress: bool = True, n_jobs: int | None = None
+    source, name: str, pca: PCAModel | None = None, progress: bool = True, n_jobs: int | None = None,
+    scheduler=None,
 ) -> np.ndarray:
     """Numeric feature values of every frame (Krüger et al. 2010 §3.2; PCA baselines §3.1).
 
@@ -523,6 +576,10 @@ def numeric(
         Progress bar over the documents of a MotionDB with more than 50 documents.
     n_jobs : int, optional
         Threads over batches of documents of a MotionDB (default: the machine's cores, at most 8).
+    scheduler : None, "local", str or dask.distributed.Client
+        Compute the batches of a MotionDB as Dask tasks (:func:`mocapviz.cluster.dask_client`: ``"local"`` starts
+        a local cluster for this call, an address connects to a scheduler whose workers see the database's path,
+        a Client is used as it is). None (default): threads in this process. The values are the same either way.
 
     Returns
     -------
@@ -540,7 +597,8 @@ def numeric(
     """
     spec = _spec(name)
     out = np.empty((_n_frames(source), spec.dims), dtype=np.float32)
-    _fill(source, name, pca, out, progress, n_jobs)
+    with optional_client(scheduler if isinstance(source, MotionDB) else None) as client:
+        _fill(source, name, pca, out, progress, n_jobs, client)
     return out
 
 
@@ -596,7 +654,8 @@ def _paths(db: MotionDB, name: str) -> tuple[Path, Path]:
 
 
 def store_numeric(
-    db: MotionDB, names=None, pca: PCAModel | None = None, progress: bool = True, n_jobs: int | None = None
+    db: MotionDB, names=None, pca: PCAModel | None = None, progress: bool = True, n_jobs: int | None = None,
+    scheduler=None,
 ) -> dict[str, np.ndarray]:
     """Compute numeric feature sets of a MotionDB and store them in ``<db.path>/features/``.
 
@@ -616,6 +675,10 @@ def store_numeric(
         once with :func:`fit_pca`.
     progress, n_jobs :
         As for :func:`numeric`.
+    scheduler : None, "local", str or dask.distributed.Client
+        Compute the batches of documents as Dask tasks (one client for all the sets; see :func:`numeric`). The
+        values are gathered here and written in frame order; the files are only renamed into place once a set is
+        complete, so a failed or cancelled task leaves that set's previous files.
 
     Returns
     -------
@@ -629,13 +692,21 @@ def store_numeric(
     """
     names = list(NUMERIC_SETS) if names is None else [names] if isinstance(names, str) else list(names)
     specs = {name: _spec(name) for name in names}
+    with optional_client(scheduler) as client:
+        return _store_numeric(db, specs, pca, progress, n_jobs, client)
+
+
+def _store_numeric(db: MotionDB, specs: dict, pca: PCAModel | None, progress: bool, n_jobs: int | None,
+                   client) -> dict[str, np.ndarray]:
+    """:func:`store_numeric` of the sets ``specs`` (name -> _Set), batches on threads or on ``client``."""
+    names = list(specs)
     folder = db.path / "features"
     folder.mkdir(exist_ok=True)
     pca_header = None
     if any(s.pcs for s in specs.values()):
         fitted_here = pca is None
         if fitted_here:
-            pca = _own_pca(db, progress, n_jobs)
+            pca = _own_pca(db, progress, n_jobs, client)
         blob = pca._npz_bytes()
         pca_header = {
             "file": "pca.npz",
@@ -675,7 +746,7 @@ def store_numeric(
         os.close(fd)
         try:
             out = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.float32, shape=(db.n_frames, spec.dims))
-            _fill(db, name, pca, out, progress, n_jobs)
+            _fill(db, name, pca, out, progress, n_jobs, client)
             out.flush()
             del out
             with open(tmp, "rb+") as fh:
@@ -691,7 +762,7 @@ def store_numeric(
     return {name: load_numeric(db, name) for name in names}
 
 
-def _own_pca(db: MotionDB, progress: bool, n_jobs: int | None) -> PCAModel:
+def _own_pca(db: MotionDB, progress: bool, n_jobs: int | None, client=None) -> PCAModel:
     """The default PCA reference of a database: fitted on the database itself, or the stored ``pca.npz`` when it
     was fitted on this very generation (so that Fp sets stored one at a time share one model)."""
     reference = f"this database: {_describe(db)}"
@@ -699,7 +770,7 @@ def _own_pca(db: MotionDB, progress: bool, n_jobs: int | None) -> PCAModel:
         stored = PCAModel.load(db.path / "features" / "pca.npz")
         if stored.reference == reference and stored.n_components == _PCA_COMPONENTS:
             return stored
-    return fit_pca(db, _PCA_COMPONENTS, reference=reference, progress=progress, n_jobs=n_jobs)
+    return fit_pca(db, _PCA_COMPONENTS, reference=reference, progress=progress, n_jobs=n_jobs, scheduler=client)
 
 
 def load_numeric(db: MotionDB, name: str) -> np.ndarray:

@@ -49,16 +49,19 @@ document, so nothing crosses a document boundary.
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields, replace
+from pathlib import Path
 
 import numba
 import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
+from ..cluster import optional_client
 from ..database import MotionDB
 from ..motion import Motion
 from ..skeleton import CANONICAL_JOINTS, body_size_table
@@ -1029,17 +1032,18 @@ def _motion_features(motion: Motion, feats: tuple) -> np.ndarray:
     return _evaluate(feats, _Batch(motion.positions, [0, motion.n_frames], [motion.fps]))
 
 
-def _db_features(db: MotionDB, feats: tuple, progress: bool, n_jobs: int) -> np.ndarray:
+def _document_batches(db: MotionDB) -> tuple:
+    """(docs sorted by start frame, batches): batches of whole documents, contiguous in the frame arrays, about
+    ``_BATCH_FRAMES`` frames each, as (first, last) positions in ``docs``. Raises ValueError for a document with
+    fewer than 2 frames."""
     docs = db.documents.sort_values("start")
     starts = docs["start"].to_numpy(np.int64)
     lengths = docs["n_frames"].to_numpy(np.int64)
-    fps = docs["fps"].to_numpy(np.float64)
     short = lengths < 2
     if short.any():
         row = docs.iloc[int(np.argmax(short))]
         raise ValueError(f"{db.path}: document {row['doc_id']} ({row['path']}) has {row['n_frames']} frame(s); "
                          f"relational features need at least 2 per document")  # fmt: skip
-    # batches of whole documents, contiguous in the frame arrays, about _BATCH_FRAMES frames in all
     batches, first = [], 0
     while first < len(docs):
         last = first + 1
@@ -1048,25 +1052,61 @@ def _db_features(db: MotionDB, feats: tuple, progress: bool, n_jobs: int) -> np.
             last += 1  # fmt: skip
         batches.append((first, last))
         first = last
+    return docs, batches
+
+
+def _run_batch(db: MotionDB, docs, feats: tuple, first: int, last: int) -> tuple[int, int, np.ndarray]:
+    """Feature values of documents first..last-1 of ``docs``: (first frame a, end frame b, values [shape=(b-a, f)])."""
+    starts = docs["start"].to_numpy(np.int64)
+    lengths = docs["n_frames"].to_numpy(np.int64)
+    fps = docs["fps"].to_numpy(np.float64)
+    a, b = int(starts[first]), int(starts[last - 1] + lengths[last - 1])
+    positions = np.asarray(db.positions[a:b])
+    bounds = np.concatenate([[0], np.cumsum(lengths[first:last])])
+
+    def where(t):
+        d = first + int(np.searchsorted(bounds, t, side="right")) - 1
+        row = docs.iloc[d]
+        return f"{db.path}: document {row['doc_id']} ({row['path']}), frame {a + t - int(starts[d])}"
+
+    _check_finite(positions, where)
+    return a, b, _evaluate(feats, _Batch(positions, bounds, fps[first:last]))
+
+
+def _remote_batch(task: tuple) -> tuple[int, int, np.ndarray]:
+    """A Dask task: (db path, generation, feature set, first, last) -> :func:`_run_batch` on the worker's own
+    memory map of the database (:func:`mocapviz.cluster.open_db`)."""
+    from ..cluster import open_db
+
+    path, generation, feature_set, first, last = task
+    db = open_db(path, generation)
+    return _run_batch(db, db.documents.sort_values("start"), _features(feature_set), first, last)
+
+
+def _db_features(db: MotionDB, feature_set: str, progress: bool, n_jobs: int, client=None) -> np.ndarray:
+    feats = _features(feature_set)
+    docs, batches = _document_batches(db)
     out = np.empty((db.n_frames, len(feats)), dtype=bool)
-
-    def run(batch: tuple[int, int]) -> int:
-        first, last = batch
-        a, b = int(starts[first]), int(starts[last - 1] + lengths[last - 1])
-        positions = np.asarray(db.positions[a:b])
-        bounds = np.concatenate([[0], np.cumsum(lengths[first:last])])
-
-        def where(t):
-            d = first + int(np.searchsorted(bounds, t, side="right")) - 1
-            row = docs.iloc[d]
-            return f"{db.path}: document {row['doc_id']} ({row['path']}), frame {a + t - int(starts[d])}"
-
-        _check_finite(positions, where)
-        out[a:b] = _evaluate(feats, _Batch(positions, bounds, fps[first:last]))
-        return last - first
-
     bar = tqdm(total=len(docs), desc=f"relational features {len(feats)}", unit="doc",
                disable=not progress or len(docs) <= _PROGRESS_MIN_DOCUMENTS)  # fmt: skip
+    if client is not None:
+        # Dask tasks read their documents from the workers' own memory maps; results are written here in frame
+        # order, so the first bad batch in that order raises
+        from ..cluster import map_ordered
+
+        path, generation = str(Path(db.path).resolve()), db.manifest["generation"]
+        tasks = ((path, generation, str(feature_set), first, last) for first, last in batches)
+        with bar, contextlib.closing(map_ordered(client, _remote_batch, tasks, name="mocapviz-relational")) as results:
+            for (first, last), (a, b, values) in zip(batches, results):
+                out[a:b] = values
+                bar.update(last - first)
+        return out
+
+    def run(batch: tuple[int, int]) -> int:
+        a, b, values = _run_batch(db, docs, feats, *batch)
+        out[a:b] = values
+        return batch[1] - batch[0]
+
     # threads: the numpy operations and compiled kernels release the GIL; results come in batch order, so the
     # first bad batch raises
     with bar, ThreadPoolExecutor(max(1, n_jobs)) as pool:
@@ -1076,7 +1116,7 @@ def _db_features(db: MotionDB, feats: tuple, progress: bool, n_jobs: int) -> np.
 
 
 def relational(source, feature_set: str = "2005", progress: bool = True, n_jobs: int | None = None,
-               ) -> tuple[np.ndarray, list[str]]:
+               scheduler=None) -> tuple[np.ndarray, list[str]]:
     """Boolean relational features of every frame (Müller, Röder & Clausen 2005 §3; Müller & Röder 2006).
 
     Parameters
@@ -1092,6 +1132,10 @@ def relational(source, feature_set: str = "2005", progress: bool = True, n_jobs:
         Progress bar over the documents of a MotionDB with more than 50 documents.
     n_jobs : int, optional
         Threads over batches of documents of a MotionDB (default: the machine's cores, at most 8).
+    scheduler : None, "local", str or dask.distributed.Client
+        Compute the batches of whole documents of a MotionDB as Dask tasks (:func:`mocapviz.cluster.dask_client`:
+        ``"local"`` starts a local cluster for this call, an address connects to a scheduler whose workers see the
+        database's path, a Client is used as it is). None (default): threads in this process. Same values.
 
     Returns
     -------
@@ -1118,5 +1162,6 @@ def relational(source, feature_set: str = "2005", progress: bool = True, n_jobs:
     if isinstance(source, Motion):
         return _motion_features(source, feats), names
     if isinstance(source, MotionDB):
-        return _db_features(source, feats, progress, n_jobs or min(8, os.cpu_count() or 1)), names
+        with optional_client(scheduler) as client:
+            return _db_features(source, feature_set, progress, n_jobs or min(8, os.cpu_count() or 1), client), names
     raise TypeError(f"relational features need a Motion or a MotionDB, got {type(source).__name__}")
