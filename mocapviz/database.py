@@ -535,6 +535,74 @@ class MotionDB:
         return MotionDB.open(self.path)
 
 
+# ---------------------------------------------------------------------- batches of documents
+def document_batches(db: MotionDB, max_frames: int) -> tuple[pd.DataFrame, list[tuple[int, int]]]:
+    """Cut a MotionDB into batches of whole documents, contiguous in the frame arrays, for per-batch feature work.
+
+    Parameters
+    ----------
+    db : MotionDB
+    max_frames : int
+        A batch holds documents while their frames add up to at most this many (at least one document each).
+
+    Returns
+    -------
+    docs : pandas.DataFrame
+        The document table sorted by first frame.
+    batches : list of (first, last)
+        Positions in ``docs``: documents ``docs.iloc[first:last]`` form one batch; in frame order.
+    """
+    docs = db.documents.sort_values("start")
+    starts = docs["start"].to_numpy(np.int64)
+    lengths = docs["n_frames"].to_numpy(np.int64)
+    batches, first = [], 0
+    while first < len(docs):
+        last = first + 1
+        while (last < len(docs) and starts[last] == starts[last - 1] + lengths[last - 1]
+               and starts[last] + lengths[last] - starts[first] <= max_frames):
+            last += 1  # fmt: skip
+        batches.append((first, last))
+        first = last
+    return docs, batches
+
+
+@dataclass(frozen=True)
+class FrameBatch:
+    """The frames of documents ``docs.iloc[first:last]`` read from a MotionDB (:func:`read_batch`).
+
+    Attributes
+    ----------
+    start, stop : int -- the batch is database frames ``start:stop``
+    positions : np.ndarray [shape=(stop - start, 24, 3)], float32, cm
+    bounds : np.ndarray [shape=(D + 1,)], int64 -- document d is rows ``bounds[d]:bounds[d + 1]`` of ``positions``
+    fps : np.ndarray [shape=(D,)], float64 -- each document's frame rate
+    """
+
+    db_path: str
+    docs: pd.DataFrame
+    start: int
+    stop: int
+    positions: np.ndarray
+    bounds: np.ndarray
+    fps: np.ndarray
+
+    def where(self, t: int) -> str:
+        """Names row ``t`` of ``positions`` for an error: database, document id, source file and frame."""
+        d = int(np.searchsorted(self.bounds, t, side="right")) - 1
+        row = self.docs.iloc[d]
+        return f"{self.db_path}: document {row['doc_id']} ({row['path']}), frame {t - int(self.bounds[d])}"
+
+
+def read_batch(db: MotionDB, docs: pd.DataFrame, first: int, last: int) -> FrameBatch:
+    """The positions of documents ``docs.iloc[first:last]`` (one batch of :func:`document_batches`), in memory."""
+    part = docs.iloc[first:last]
+    lengths = part["n_frames"].to_numpy(np.int64)
+    start = int(part["start"].iloc[0])
+    stop = start + int(lengths.sum())
+    return FrameBatch(str(db.path), part, start, stop, np.asarray(db.positions[start:stop]),
+                      np.concatenate([[0], np.cumsum(lengths)]), part["fps"].to_numpy(np.float64))  # fmt: skip
+
+
 # ---------------------------------------------------------------------- storage helpers
 @contextlib.contextmanager
 def _locked(path: Path):

@@ -66,7 +66,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..cluster import optional_client
-from ..database import MotionDB
+from ..database import MotionDB, document_batches, read_batch
 from ..errors import MotionDBError
 from ..motion import Motion
 from ..skeleton import CANONICAL_JOINTS, body_frame, heading
@@ -406,46 +406,11 @@ def _check_finite(positions: np.ndarray, joints, where: Callable[[int], str]) ->
     raise ValueError(f"{where(int(t))}: joint {CANONICAL_JOINTS[joints[j]]} has a non-finite (NaN/inf) position")
 
 
-def _document_batches(db: MotionDB) -> tuple:
-    """The documents of a MotionDB in frame order and its batches of whole, contiguous documents.
-
-    Returns (docs, starts, lengths, fps, batches): ``docs`` sorted by start frame; ``batches`` a list of
-    (first, last) positions in ``docs``, each about ``_BATCH_FRAMES`` frames (at least one document).
-    """
-    docs = db.documents.sort_values("start")
-    starts = docs["start"].to_numpy(np.int64)
-    lengths = docs["n_frames"].to_numpy(np.int64)
-    fps = docs["fps"].to_numpy(np.float64)
-    batches, first = [], 0
-    while first < len(docs):
-        last = first + 1
-        while (
-            last < len(docs)
-            and starts[last] == starts[last - 1] + lengths[last - 1]
-            and starts[last] + lengths[last] - starts[first] <= _BATCH_FRAMES
-        ):
-            last += 1
-        batches.append((first, last))
-        first = last
-    return docs, starts, lengths, fps, batches
-
-
 def _run_batch(db: MotionDB, docs, first: int, last: int, joints, work: Callable[[_Batch], object]) -> tuple:
     """work(documents first..last-1 of ``docs``) after the finiteness check: (frames slice, result, documents)."""
-    starts = docs["start"].to_numpy(np.int64)
-    lengths = docs["n_frames"].to_numpy(np.int64)
-    fps = docs["fps"].to_numpy(np.float64)
-    a, b = int(starts[first]), int(starts[last - 1] + lengths[last - 1])
-    positions = np.asarray(db.positions[a:b])
-    bounds = np.concatenate([[0], np.cumsum(lengths[first:last])])
-
-    def where(t: int) -> str:
-        d = first + int(np.searchsorted(bounds, t, side="right")) - 1
-        row = docs.iloc[d]
-        return f"{db.path}: document {row['doc_id']} ({row['path']}), frame {a + t - int(starts[d])}"
-
-    _check_finite(positions, list(joints), where)
-    return slice(a, b), work(_Batch(positions, bounds, fps[first:last])), last - first
+    batch = read_batch(db, docs, first, last)
+    _check_finite(batch.positions, list(joints), batch.where)
+    return slice(batch.start, batch.stop), work(_Batch(batch.positions, batch.bounds, batch.fps)), last - first
 
 
 def _remote_batch(task: tuple) -> tuple:
@@ -481,7 +446,7 @@ def _map_batches(
         )
         return
     db = source
-    docs, _, _, _, batches = _document_batches(db)
+    docs, batches = document_batches(db, _BATCH_FRAMES)
     bar = tqdm(total=len(docs), desc=desc, unit="doc", disable=not progress or len(docs) <= _PROGRESS_MIN_DOCUMENTS)
     joints = [int(j) for j in joints]
 

@@ -62,7 +62,7 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from ..cluster import optional_client
-from ..database import MotionDB
+from ..database import MotionDB, document_batches, read_batch
 from ..motion import Motion
 from ..skeleton import CANONICAL_JOINTS, body_size_table
 
@@ -1033,44 +1033,21 @@ def _motion_features(motion: Motion, feats: tuple) -> np.ndarray:
 
 
 def _document_batches(db: MotionDB) -> tuple:
-    """(docs sorted by start frame, batches): batches of whole documents, contiguous in the frame arrays, about
-    ``_BATCH_FRAMES`` frames each, as (first, last) positions in ``docs``. Raises ValueError for a document with
-    fewer than 2 frames."""
-    docs = db.documents.sort_values("start")
-    starts = docs["start"].to_numpy(np.int64)
-    lengths = docs["n_frames"].to_numpy(np.int64)
-    short = lengths < 2
+    """:func:`mocapviz.database.document_batches` of about ``_BATCH_FRAMES`` frames; raises ValueError for a
+    document with fewer than 2 frames (no velocities)."""
+    short = db.documents["n_frames"].to_numpy(np.int64) < 2
     if short.any():
-        row = docs.iloc[int(np.argmax(short))]
+        row = db.documents.iloc[int(np.argmax(short))]
         raise ValueError(f"{db.path}: document {row['doc_id']} ({row['path']}) has {row['n_frames']} frame(s); "
                          f"relational features need at least 2 per document")  # fmt: skip
-    batches, first = [], 0
-    while first < len(docs):
-        last = first + 1
-        while (last < len(docs) and starts[last] == starts[last - 1] + lengths[last - 1]
-               and starts[last] + lengths[last] - starts[first] <= _BATCH_FRAMES):
-            last += 1  # fmt: skip
-        batches.append((first, last))
-        first = last
-    return docs, batches
+    return document_batches(db, _BATCH_FRAMES)
 
 
 def _run_batch(db: MotionDB, docs, feats: tuple, first: int, last: int) -> tuple[int, int, np.ndarray]:
     """Feature values of documents first..last-1 of ``docs``: (first frame a, end frame b, values [shape=(b-a, f)])."""
-    starts = docs["start"].to_numpy(np.int64)
-    lengths = docs["n_frames"].to_numpy(np.int64)
-    fps = docs["fps"].to_numpy(np.float64)
-    a, b = int(starts[first]), int(starts[last - 1] + lengths[last - 1])
-    positions = np.asarray(db.positions[a:b])
-    bounds = np.concatenate([[0], np.cumsum(lengths[first:last])])
-
-    def where(t):
-        d = first + int(np.searchsorted(bounds, t, side="right")) - 1
-        row = docs.iloc[d]
-        return f"{db.path}: document {row['doc_id']} ({row['path']}), frame {a + t - int(starts[d])}"
-
-    _check_finite(positions, where)
-    return a, b, _evaluate(feats, _Batch(positions, bounds, fps[first:last]))
+    batch = read_batch(db, docs, first, last)
+    _check_finite(batch.positions, batch.where)
+    return batch.start, batch.stop, _evaluate(feats, _Batch(batch.positions, batch.bounds, batch.fps))
 
 
 def _remote_batch(task: tuple) -> tuple[int, int, np.ndarray]:
