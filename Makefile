@@ -33,6 +33,8 @@ notebooks-full: install
 reproduce: install
 	$(BIN)/mocapviz reproduce all --out build/reproduce $(if $(FULL),--full,)
 
+# every benchmark (long: builds 1M- and 4M-frame databases once, cached in .cache/bench): markdown tables,
+# benchmarks/results/*.csv and one report, benchmarks/REPORT.md
 bench: install
 	$(PY) -m benchmarks
 

@@ -4,7 +4,8 @@ MotionDB built once from the shared real archives and cached.
 benchmark_db(spec, quick)   the cached database of a :class:`BenchDB` spec and its build record: the archives
                             ingested at the spec's rate; if they hold fewer frames than ``min_frames``,
                             left/right MIRRORED copies (``mocapviz.skeleton.mirror``) of the documents of
-                            ``mirror_archives`` are appended (``MotionDB.append_motions``), round after round;
+                            ``mirror_archives`` are appended (``MotionDB.append_motions``), round after round (with
+                            ``BenchDB.stretches``: mirrored, then time-stretched copies, :func:`add_variants`);
                             from the second round on they repeat frames already present. ``describe_db`` says so.
 """
 
@@ -201,6 +202,10 @@ class BenchDB:
     mirror_archives : tuple    the archives whose documents are mirrored
     archives : tuple           the shared archives ingested
     quick_files : dict         files per archive in a --quick run (0: archive left out), evenly spaced
+    stretches : tuple          if given, copies are added by :func:`add_variants` instead of
+                               :func:`add_mirrored`: mirrored copies first, then TIME-STRETCHED copies
+                               (original and mirrored, slowed down by each factor in turn), no repeats
+    quick_min_frames : int     frames to reach in a --quick run (0: no copies added in quick runs)
     """
 
     tag: str
@@ -210,6 +215,8 @@ class BenchDB:
     archives: tuple = ARCHIVES
     quick_files: dict = field(default_factory=lambda: {"hdm05-cut": 40, "cmu-asfamc": 4, "bandai-namco-1": 10,
                                                        "bandai-namco-2": 0})  # fmt: skip
+    stretches: tuple = ()
+    quick_min_frames: int = 0
 
 
 def _source_files(spec: BenchDB, quick: bool) -> tuple[dict, list[str]]:
@@ -269,6 +276,72 @@ def add_mirrored(db, archives, need: int) -> dict:
     return db.append_motions(motions, metas), added
 
 
+def stretched(motion, factor: float):
+    """The clip slowed down by ``factor`` at the same frame rate: resampled to ``factor`` x its rate
+    (``Motion.resample``: linear positions, slerp rotations), then relabelled with the original rate."""
+    from dataclasses import replace
+
+    return replace(motion.resample(motion.fps * factor), fps=motion.fps)
+
+
+def on_source_frames(n_out: int, factor: float) -> int:
+    """Frames of a clip of ``n_out`` frames stretched by ``factor`` that fall exactly on a source frame (equal to
+    it): output frame k is at source time k / factor, an integer when k is a multiple of p, factor = p / q."""
+    from fractions import Fraction
+
+    p = Fraction(factor).limit_denominator(1000).numerator
+    return (n_out - 1) // p + 1 if n_out else 0
+
+
+def add_variants(db, archives, need: int, stretches) -> tuple:
+    """Append derived copies of the documents of ``archives`` until ``db`` holds ``need`` frames, in rounds:
+    round 1 a left/right mirrored copy of each document; then for each factor s of ``stretches``, the original
+    and its mirror image slowed down by s (:func:`stretched`: new, interpolated frames, a slower performance of
+    the same motion). A stretched frame whose time falls exactly on a source frame equals that frame of the
+    original or of the mirror image (every 11th frame at s = 1.1, every 6th at 1.2: :func:`on_source_frames`);
+    these are counted as ``repeated_frames``; all other frames are new. Appended in chunks
+    (``MotionDB.append_motions``) to bound memory.
+
+    Returns the reopened database and {"documents", "frames", "repeated_frames", "rounds": {name: frames}}.
+    """
+    from mocapviz.skeleton import mirror
+
+    docs = db.documents[np.isin(_archive_of(db, archives), archives)]
+    rounds = [("mirrored", False, 1.0)]
+    for s in stretches:
+        rounds += [(f"stretched x{s:g}", False, s), (f"mirrored + stretched x{s:g}", True, s)]
+    frames, added_docs, per_round, chunk, chunk_frames, repeated = db.n_frames, 0, {}, ([], []), 0, 0
+    for i, (name, mirrored, factor) in enumerate(rounds):
+        if frames >= need:
+            break
+        for row in docs.itertuples():
+            if frames >= need:
+                break
+            m = db.motion(int(row.doc_id))
+            if i == 0 or mirrored:
+                m = mirror(m)
+            if factor != 1.0:
+                m = stretched(m, factor)
+                repeated += on_source_frames(m.n_frames, factor)
+            chunk[0].append(m)
+            chunk[1].append({"name": f"{row.name}_v{i}", "path": row.path, "format": row.format,
+                             "source_fps": row.source_fps, "sha256": f"v{i}-{row.sha256}",
+                             "mirror_of": int(row.doc_id), "variant": name})  # fmt: skip
+            frames += m.n_frames
+            chunk_frames += m.n_frames
+            per_round[name] = per_round.get(name, 0) + m.n_frames
+            added_docs += 1
+            if chunk_frames >= 500_000:
+                db = db.append_motions(*chunk)
+                chunk, chunk_frames = ([], []), 0
+                log(f"  {frames:,} frames")
+    if chunk[0]:
+        db = db.append_motions(*chunk)
+    added = {"documents": added_docs, "frames": sum(per_round.values()), "repeated_frames": repeated,
+             "rounds": per_round}
+    return db, added
+
+
 def benchmark_db(spec: BenchDB, quick: bool):
     """The cached benchmark MotionDB of ``spec`` and its build record (ingest seconds, sources, mirrored copies).
 
@@ -302,7 +375,11 @@ def benchmark_db(spec: BenchDB, quick: bool):
     log(f"  ingest {t_ingest:.1f} s, {db.n_frames:,} frames")
     real_frames = db.n_frames
     mirrored = {"documents": 0, "frames": 0, "repeated_frames": 0}
-    if db.n_frames < spec.min_frames and not quick:
+    need = spec.quick_min_frames if quick else spec.min_frames
+    if spec.stretches and db.n_frames < need:
+        db, mirrored = add_variants(db, spec.mirror_archives, need, spec.stretches)
+        log(f"  added {mirrored['documents']:,} mirrored / time-stretched documents, {mirrored['frames']:,} frames")
+    elif db.n_frames < spec.min_frames and not quick:
         db, mirrored = add_mirrored(db, spec.mirror_archives, spec.min_frames)
         log(f"  added {mirrored['documents']:,} mirrored documents, {mirrored['frames']:,} frames")
     if (folder / "db").exists():
@@ -313,8 +390,9 @@ def benchmark_db(spec: BenchDB, quick: bool):
         "tag": spec.tag, "t_ingest": t_ingest, "n_jobs": N_JOBS, "fps": spec.fps,
         "files": {k: len(v) for k, v in files.items()}, "missing": missing, "real_frames": real_frames,
         "mirrored_documents": mirrored["documents"], "mirrored_frames": mirrored["frames"],
-        "repeated_frames": mirrored["repeated_frames"], "min_frames": spec.min_frames,
+        "repeated_frames": mirrored["repeated_frames"],
         "n_frames": db.n_frames, "n_documents": len(db), "built": time.strftime("%Y-%m-%dT%H:%M:%S"),
+        "variant_frames": mirrored.get("rounds", {}), "min_frames": need if spec.stretches else spec.min_frames,
     }  # fmt: skip
     record_file.write_text(json.dumps(record, indent=2))
     return db, record | {"cached": False}
@@ -338,7 +416,19 @@ def describe_db(db, record: dict) -> list[str]:
         parts.append(f"{name} {int(sel.sum())} documents, {int(docs.loc[sel, 'n_frames'].sum()):,} frames{note}")
     lines = [f"benchmark database: {len(db):,} documents, {db.n_frames:,} frames at {fps:g} Hz "
              f"({db.n_frames / fps / 3600:.1f} h); real: {record['real_frames']:,} frames — " + "; ".join(parts)]
-    if record["mirrored_documents"]:
+    if record.get("variant_frames"):
+        lines.append(
+            f"**{record['mirrored_documents']:,} derived documents** ({record['mirrored_frames']:,} frames) were "
+            f"appended to reach {record['min_frames']:,} frames: left/right MIRRORED copies "
+            "(`mocapviz.skeleton.mirror`), then TIME-STRETCHED copies of the originals and of their mirror images "
+            f"(`Motion.resample` to s × {fps:g} Hz, relabelled {fps:g} Hz: the same motion performed s times "
+            "slower, linearly interpolated positions / slerped rotations). Frames per kind: "
+            + "; ".join(f"{k} {v:,}" for k, v in record["variant_frames"].items())
+            + f". Of the stretched frames, **{record['repeated_frames']:,} fall exactly on a source frame** "
+            "(every 11th at s = 1.1, 6th at 1.2, 13th at 1.3) and so duplicate a frame of the original or of its "
+            "mirror image; every other frame is new"
+        )
+    elif record["mirrored_documents"]:
         lines.append(
             f"**{record['mirrored_documents']:,} left/right MIRRORED copies** of real documents "
             f"({record['mirrored_frames']:,} frames, `mocapviz.skeleton.mirror`) were appended to reach "
