@@ -43,7 +43,7 @@ from .common import (
     CpuMonitor,
     benchmark_db,
     describe_db,
-    loadavg,
+    header,
     log,
     machine_info,
     markdown,
@@ -234,18 +234,13 @@ def bench_sets(db, quick: bool) -> pd.DataFrame:
 
 # ============================================================================ output
 def _header(info: dict, quick: bool, repeats: int) -> str:
-    return "\n".join([
+    return header(
         "# mocapviz kNN benchmark (Krüger, Tautges, Weber & Zinke 2010, Table 1, §5.3)"
         + (" (--quick: small database)" if quick else ""),
-        "",
-        f"- date: {time.strftime('%Y-%m-%dT%H:%M:%S')}, mocapviz {info['mocapviz']} @ {info['commit']}",
-        f"- CPU: {info['cpu']}, {info['cores']} cores ({info['usable_cores']} usable), RAM {info['ram_gib']} GiB",
-        (f"- {info['os']}; Python {info['python']}, numpy {info['numpy']}, scipy {info['scipy']}, "
-         f"numba {info['numba']}, pykdtree {info['pykdtree']}"),
-        f"- each figure: median of {repeats} runs of the whole query batch; engines alternate within a run",
-        f"- load average (1/5/15 min) at start: {info['load_start']}, at end: {loadavg()}; {info.get('others', '')}",
-        "- paper (Table 1, F15E, exact): ANN library on a 2010 PC; HDM05 380,813 frames, CMU 1,038,388 frames",
-    ])  # fmt: skip
+        info, ("numpy", "scipy", "numba", "pykdtree"),
+        [f"each figure: median of {repeats} runs of the whole query batch; engines alternate within a run",
+         "paper (Table 1, F15E, exact): ANN library on a 2010 PC; HDM05 380,813 frames, CMU 1,038,388 frames"],
+    )  # fmt: skip
 
 
 def table_build(rows: list[dict]) -> str:

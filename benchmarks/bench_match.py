@@ -54,7 +54,7 @@ from .common import (
     CpuMonitor,
     benchmark_db,
     describe_db,
-    loadavg,
+    header,
     log,
     machine_info,
     markdown,
@@ -296,18 +296,13 @@ def summarise(queries, runs, refs, base) -> tuple[list[dict], list[dict], list[d
 
 # ============================================================================ output
 def _header(info: dict, quick: bool, repeats: int) -> str:
-    return "\n".join([
+    return header(
         "# mocapviz motion-matching benchmark (Krüger, Tautges, Weber & Zinke 2010 §4.1: lazy neighbourhood graph)"
         + (" (--quick: small database)" if quick else ""),
-        "",
-        f"- date: {time.strftime('%Y-%m-%dT%H:%M:%S')}, mocapviz {info['mocapviz']} @ {info['commit']}",
-        f"- CPU: {info['cpu']}, {info['cores']} cores ({info['usable_cores']} usable), RAM {info['ram_gib']} GiB",
-        (f"- {info['os']}; Python {info['python']}, numpy {info['numpy']}, scipy {info['scipy']}, "
-         f"numba {info['numba']}, dtaidistance {info['dtaidistance']}"),
-        (f"- LNG: median over {repeats} run(s) per query (k=1024: 1 run), then the median over the queries; the "
-         "configurations alternate within a run. Baselines: one run per query"),
-        f"- load average (1/5/15 min) at start: {info['load_start']}, at end: {loadavg()}; {info.get('others', '')}",
-    ])  # fmt: skip
+        info, ("numpy", "scipy", "numba", "dtaidistance"),
+        [(f"LNG: median over {repeats} run(s) per query (k=1024: 1 run), then the median over the queries; the "
+         "configurations alternate within a run. Baselines: one run per query")],
+    )  # fmt: skip
 
 
 def table_lng(rows: list[dict]) -> str:

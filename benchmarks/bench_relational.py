@@ -37,7 +37,7 @@ from .common import (
     CpuMonitor,
     benchmark_db,
     describe_db,
-    loadavg,
+    header,
     log,
     machine_info,
     markdown,
@@ -259,17 +259,13 @@ def bench_table3(index, quick: bool) -> pd.DataFrame:
 
 # ============================================================================ output
 def _header(info: dict, quick: bool, repeats: int) -> str:
-    return "\n".join([
+    return header(
         "# mocapviz relational indexing benchmarks (Müller, Röder & Clausen 2005, Tables 2–3)"
         + (" (--quick: small database)" if quick else ""),
-        "",
-        f"- date: {time.strftime('%Y-%m-%dT%H:%M:%S')}, mocapviz {info['mocapviz']} @ {info['commit']}",
-        f"- CPU: {info['cpu']}, {info['cores']} cores ({info['usable_cores']} usable), RAM {info['ram_gib']} GiB",
-        f"- {info['os']}; Python {info['python']}, numpy {info['numpy']}, numba {info['numba']}",
-        f"- features / index build: median of {repeats} runs; queries: single-threaded, each timed alone",
-        f"- load average (1/5/15 min) at start: {info['load_start']}, at end: {loadavg()}; {info.get('others', '')}",
-        "- paper: Matlab on a 3.6 GHz Pentium 4, 1 GB RAM; D^180 = 1,288,846 frames at 120 Hz",
-    ])  # fmt: skip
+        info, ("numpy", "numba"),
+        [f"features / index build: median of {repeats} runs; queries: single-threaded, each timed alone",
+         "paper: Matlab on a 3.6 GHz Pentium 4, 1 GB RAM; D^180 = 1,288,846 frames at 120 Hz"],
+    )  # fmt: skip
 
 
 def table_build(rows: list[dict]) -> str:

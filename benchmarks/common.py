@@ -108,6 +108,21 @@ def loadavg() -> str:
         return "?"
 
 
+def header(title: str, info: dict, software: tuple[str, ...], notes: list[str]) -> str:
+    """The markdown head of a benchmark's output: title; date and commit; CPU; OS with Python and the versions of
+    ``software`` (keys of ``info``); the load average at the start (and now) with what other processes used; then
+    the benchmark's own ``notes`` (one bullet each)."""
+    versions = ", ".join([f"Python {info['python']}"] + [f"{name} {info[name]}" for name in software])
+    return "\n".join([
+        title, "",
+        f"- date: {time.strftime('%Y-%m-%dT%H:%M:%S')}, mocapviz {info['mocapviz']} @ {info['commit']}",
+        f"- CPU: {info['cpu']}, {info['cores']} cores ({info['usable_cores']} usable), RAM {info['ram_gib']} GiB",
+        f"- {info['os']}; {versions}",
+        f"- load average (1/5/15 min) at start: {info['load_start']}, at end: {loadavg()}; {info.get('others', '')}",
+        *(f"- {note}" for note in notes),
+    ])  # fmt: skip
+
+
 class CpuMonitor:
     """CPU time the rest of the machine used while the benchmark ran (/proc/stat busy time minus ours)."""
 
