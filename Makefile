@@ -4,6 +4,11 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 BIN := $(VENV)/bin
 DEMO_DB ?= build/sample.mdb
+PORT ?= 5006
+CHROMIUM := /usr/bin/chromium
+# Debian's Chromium for the dashboard's browser tests (never `playwright install`) and Mesa's EGL / OSMesa for
+# PyVista's offscreen rendering; installed once, as root or through sudo
+SYSTEM_PACKAGES := chromium libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6
 
 .PHONY: install demo test test-fast notebooks-full reproduce bench clean
 
@@ -15,12 +20,21 @@ $(VENV)/.installed: pyproject.toml
 
 install: $(VENV)/.installed
 
-demo: install
-	$(BIN)/mocapviz ingest "$$($(BIN)/mocapviz datasets fetch sample)" --out $(DEMO_DB)
-	$(BIN)/mocapviz info $(DEMO_DB)
+$(CHROMIUM):
+	@if [ "$$(id -u)" = 0 ]; then SUDO=; elif command -v sudo >/dev/null; then SUDO=sudo; else \
+	  echo "the browser tests need Debian's packages: apt-get install $(SYSTEM_PACKAGES)" >&2; exit 1; fi; \
+	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(SYSTEM_PACKAGES)
 
-test: install
-	$(PY) -m pytest tests notebooks --nbmake
+# the embedded sample as a MotionDB with its relational indexes and numeric feature sets, then the dashboard on
+# http://127.0.0.1:$(PORT)/ (Ctrl-C stops it)
+demo: install
+	$(BIN)/mocapviz ingest "$$($(BIN)/mocapviz datasets fetch sample)" --out $(DEMO_DB) --no-cluster --quiet
+	$(BIN)/mocapviz index $(DEMO_DB) --no-cluster --quiet
+	$(BIN)/mocapviz features $(DEMO_DB) --no-cluster --quiet
+	$(BIN)/mocapviz serve $(DEMO_DB) --port $(PORT)
+
+test: install $(CHROMIUM)
+	MOCAPVIZ_REQUIRE_BROWSER=1 $(PY) -m pytest tests notebooks --nbmake
 
 test-fast: install
 	$(PY) -m pytest tests -m "not slow"

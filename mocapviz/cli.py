@@ -10,6 +10,7 @@
     mocapviz match DB --example FILE|DOC_ID [--frames A:B] [--features F15E] [-K 10] [-k 256] [--radius R] [--eps E]
                                                                                 [--method lng|dtw] [--paths]
     mocapviz reproduce NAME|all [--full] --out DIR   (NAME: an experiment, e.g. rank_correlations, reconstruction)
+    mocapviz serve [DB] [--port 5006] [--address 127.0.0.1] [--show]   (no DB: the embedded sample)
     mocapviz datasets list
     mocapviz datasets fetch NAME        (NAME: a shared archive, or ``sample`` for the embedded sample)
 
@@ -358,11 +359,33 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--quiet", action="store_true", help="no progress bars")
     rp.set_defaults(func=_reproduce)
 
+    sv = sub.add_parser("serve", help="the dashboard in the browser: browse, query by example, kNN, matching, "
+                        "correlations, index statistics, reconstruction")
+    sv.add_argument("db", nargs="?", help="MotionDB folder (default: the embedded sample, ingested once)")
+    sv.add_argument("--port", type=int, default=5006)
+    sv.add_argument("--address", default="127.0.0.1",
+                    help="interface to listen on (default 127.0.0.1: this machine only; anything else exposes the "
+                    "database to the network and prints a warning)")
+    sv.add_argument("--show", action="store_true", help="open the dashboard in a web browser")
+    sv.set_defaults(func=_serve)
+
     ds = sub.add_parser("datasets", help="list or fetch the registered motion-capture archives")
     ds.add_argument("action", choices=["list", "fetch"])
     ds.add_argument("name", nargs="?")
     ds.set_defaults(func=_datasets)
     return p
+
+
+def _serve(args) -> None:
+    from .app import serve
+    from .app.backend import sample_database
+
+    db = args.db if args.db else sample_database()
+    if not 0 < args.port < 65536:
+        raise ValueError(f"--port must be 1..65535, got {args.port}")
+    print(f"mocapviz: serving {db} on http://{args.address}:{args.port}/ (Ctrl-C stops)", flush=True)
+    with contextlib.suppress(KeyboardInterrupt):
+        serve(db, port=args.port, address=args.address, show=args.show)
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:

@@ -92,3 +92,133 @@ def cmu_db30(cmu_dir, tmp_path_factory):
     from mocapviz import MotionDB
 
     return MotionDB.ingest([cmu_dir], tmp_path_factory.mktemp("cmu-30") / "db", fps=30, progress=False, n_jobs=2)
+
+
+# ---------------------------------------------------------------------------------------------- dashboard (browser)
+CHROMIUM = Path("/usr/bin/chromium")  # Debian's package; never `playwright install` (../shared/design/STACK.md)
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync"]
+ARTIFACTS = REPO / "build" / "test-artifacts" / "dashboard"  # screenshots and measured round trips
+
+
+@pytest.fixture(scope="session")
+def sample_db(tmp_path_factory):
+    """The embedded sample (22 HDM05 clips of actors dg and mm, 2 CMU trials) ingested at its own 120 Hz."""
+    from mocapviz import MotionDB, datasets
+
+    os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
+    return MotionDB.ingest([datasets.sample()], tmp_path_factory.mktemp("sample") / "db", progress=False)
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _serve(db_path: Path, log_dir: Path):
+    """Start ``mocapviz serve DB --port P`` in a subprocess; wait until it answers; return (url, process, log)."""
+    import subprocess
+    import sys
+    import time
+    import urllib.request
+
+    port = _free_port()
+    log = log_dir / f"serve-{port}.log"
+    proc = subprocess.Popen([sys.executable, "-m", "mocapviz.cli", "serve", str(db_path), "--port", str(port)],
+                            stdout=log.open("w"), stderr=subprocess.STDOUT, cwd=REPO)
+    url = f"http://127.0.0.1:{port}/"
+    deadline = time.monotonic() + 180
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            pytest.fail(f"mocapviz serve exited with {proc.returncode}:\n{log.read_text()}")
+        try:
+            with urllib.request.urlopen(url, timeout=5) as r:
+                if r.status == 200:
+                    return url, proc, log
+        except OSError:
+            time.sleep(0.3)
+    proc.kill()
+    pytest.fail(f"mocapviz serve did not answer on {url} within 180 s:\n{log.read_text()}")
+
+
+@pytest.fixture(scope="session")
+def serve_dashboard(tmp_path_factory):
+    """``serve_dashboard(db_path) -> url``: the dashboard of a MotionDB served by ``mocapviz serve`` in a subprocess
+    (one per database for the whole session, stopped at the end)."""
+    servers: dict = {}
+    log_dir = tmp_path_factory.mktemp("serve")
+
+    def get(db_path) -> str:
+        key = str(db_path)
+        if key not in servers:
+            servers[key] = _serve(Path(db_path), log_dir)
+        return servers[key][0]
+
+    yield get
+    for _, proc, _ in servers.values():
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except Exception:  # noqa: BLE001 - a server that ignores SIGTERM is killed
+            proc.kill()
+
+
+@pytest.fixture(scope="session")
+def sample_dashboard(sample_db, serve_dashboard) -> str:
+    """URL of the dashboard over :func:`sample_db`."""
+    return serve_dashboard(sample_db.path)
+
+
+@pytest.fixture(scope="session")
+def hdm05_dashboard(hdm05_db30, serve_dashboard) -> str:
+    """URL of the dashboard over all 287 HDM05 clips at 30 Hz (:func:`hdm05_db30`)."""
+    return serve_dashboard(hdm05_db30.path)
+
+
+@pytest.fixture(scope="session")
+def browser():
+    """Headless Debian Chromium driven by Playwright. Without /usr/bin/chromium the browser tests are skipped, unless
+    MOCAPVIZ_REQUIRE_BROWSER=1 (set by `make test`), when they fail."""
+    if not CHROMIUM.exists():
+        message = f"{CHROMIUM} not found: `apt-get install chromium` (make test does)"
+        if os.environ.get("MOCAPVIZ_REQUIRE_BROWSER") == "1":
+            pytest.fail(message)
+        pytest.skip(message)
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture
+def page(browser):
+    """A fresh browser page (1400 x 1000); the test fails if the page logs any console error or uncaught exception.
+    ``page.console_errors`` lists them as they come."""
+    context = browser.new_context(viewport={"width": 1400, "height": 1000})
+    pg = context.new_page()
+    pg.set_default_timeout(60_000)
+    errors: list[str] = []
+    pg.on("console", lambda m: errors.append(f"console.{m.type}: {m.text}") if m.type == "error" else None)
+    pg.on("pageerror", lambda e: errors.append(f"uncaught: {e}"))
+    pg.console_errors = errors
+    yield pg
+    context.close()
+    assert not errors, "browser console errors:\n" + "\n".join(errors)
+
+
+@pytest.fixture
+def screenshot(page, request):
+    """``screenshot(name)`` saves a full-page PNG of the page under build/test-artifacts/dashboard/."""
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+
+    def take(name: str) -> Path:
+        out = ARTIFACTS / f"{request.node.name}-{name}.png"
+        page.screenshot(path=str(out), full_page=True)
+        return out
+
+    return take

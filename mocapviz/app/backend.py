@@ -1,0 +1,128 @@
+"""The dashboard's back end: one opened MotionDB and everything its pages compute from it, cached per database.
+
+A :class:`Backend` is shared by every browser session showing the same database (``Backend.open`` keeps one per
+database path and generation, so an ingest that adds documents gives a fresh one). Its results are computed once,
+under a lock per result, and kept: a second session, or the same page opened again, gets them at once.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .. import index as index_mod
+from ..database import MotionDB
+from ..errors import MotionDBError
+from ..features import feature_groups, numeric_of, relational
+from ..knn import KnnIndex
+
+_BACKENDS: dict = {}
+_OPEN_LOCK = threading.Lock()
+
+
+class Backend:
+    """A MotionDB with cached derived data for the dashboard.
+
+    Attributes
+    ----------
+    db : MotionDB
+    documents : pandas.DataFrame, the database's document table.
+    fps : float, the database's frame rate (the first document's when they differ).
+    """
+
+    def __init__(self, db: MotionDB):
+        self.db = db
+        self.documents = db.documents
+        self.fps = db.fps or float(db.documents["fps"].iloc[0])
+        self._results: dict = {}
+        self._locks: dict = {}
+        self._guard = threading.Lock()
+
+    @classmethod
+    def open(cls, path) -> Backend:
+        """The Backend of the MotionDB at ``path`` (one per database path and generation, shared).
+
+        Raises
+        ------
+        MotionDBError
+            Not a MotionDB, or an empty one (nothing to show).
+        """
+        db = MotionDB.open(path)
+        if len(db) == 0:
+            raise MotionDBError(f"{path}: the database holds no documents; ingest some first (`mocapviz ingest`)")
+        key = (str(Path(path).resolve()), db.manifest.get("generation"))
+        with _OPEN_LOCK:
+            if key not in _BACKENDS:
+                _BACKENDS[key] = cls(db)
+            return _BACKENDS[key]
+
+    def cached(self, key, compute):
+        """``compute()``'s result, computed once per ``key`` (a hashable) and kept; concurrent callers wait."""
+        with self._guard:
+            if key in self._results:
+                return self._results[key]
+            lock = self._locks.setdefault(key, threading.Lock())
+        with lock:
+            if key not in self._results:
+                self._results[key] = compute()
+            return self._results[key]
+
+    def is_cached(self, key) -> bool:
+        return key in self._results
+
+    # ------------------------------------------------------------------ derived data
+    def indexes(self, feature_set: str = "2005") -> dict:
+        """The relational inverted indexes (group -> InvertedIndex); built and saved in DB/index/ when missing or
+        stale (Müller et al. 2005 §4), as ``mocapviz index DB`` would."""
+        def load_or_build():
+            try:
+                return index_mod.load(self.db, feature_set)
+            except MotionDBError:
+                return index_mod.build(self.db, feature_set, progress=False)
+        return self.cached(("indexes", feature_set), load_or_build)
+
+    def clip_relational(self, doc: int, feature_set: str = "2005") -> tuple[np.ndarray, list[str]]:
+        """One document's relational features: (T, f) bool and the f names, computed on the clip (§3)."""
+        return self.cached(("relational", doc, feature_set),
+                           lambda: relational(self.db.motion(doc), feature_set, progress=False))
+
+    def numeric(self, name: str) -> np.ndarray:
+        """A numeric feature set of every frame, (N, d) float32 cm (stored when current, else computed)."""
+        return self.cached(("numeric", name), lambda: numeric_of(self.db, name))
+
+    def knn(self, name: str) -> KnnIndex:
+        """The kd-tree over a numeric feature set (Krüger et al. 2010 §3.3)."""
+        return self.cached(("knn", name), lambda: KnnIndex(self.numeric(name)))
+
+    def document(self, doc: int) -> pd.Series:
+        """The document table's row of ``doc``."""
+        rows = self.documents[self.documents["doc_id"] == doc]
+        if rows.empty:
+            raise KeyError(f"{self.db.path}: no document {doc}")
+        return rows.iloc[0]
+
+    def doc_options(self) -> dict:
+        """{"<id>: <name> (<label>)": doc_id} for a document selector, in document order."""
+        docs = self.documents
+        labels = docs["label"].fillna("") if "label" in docs else pd.Series("", index=docs.index)
+        return {f"{d}: {n}" + (f" ({lab})" if lab else ""): int(d)
+                for d, n, lab in zip(docs["doc_id"], docs["name"], labels)}
+
+    @staticmethod
+    def groups(feature_set: str = "2005") -> dict[str, list[str]]:
+        return feature_groups(feature_set)
+
+
+def sample_database() -> Path:
+    """The embedded sample (:func:`mocapviz.datasets.sample`: 22 HDM05 clips, 2 CMU trials) as a MotionDB at the
+    clips' own 120 Hz, ingested once beside the unpacked sample and reused."""
+    from .. import datasets
+
+    folder = datasets.sample()
+    out = folder.parent / "sample.mdb"
+    if not (out / "manifest.json").exists():
+        MotionDB.ingest(folder, out)
+    return out

@@ -1,0 +1,174 @@
+"""Correlations page: Spearman rank correlations between feature sets and distance measures (Krüger, Tautges, Weber
+& Zinke 2010, §3.3, Fig. 2), pose-based and segment-based, for the open database.
+
+Both use the correlation sample (:func:`mocapviz.experiments.correlation.correlation_sample`: the labelled classes
+with at least ``clips per class`` clips, that many clips of each; the paper: 8 per class). Pose-based
+(:func:`pose_correlations`, Fig. 2) draws random query frames from the sample's clips, or from every document when
+the database has no such sample; segment-based (:func:`segment_correlations`, DTW between all pairs of clips) needs
+the sample, and the page says so when the database cannot give one. Computed in the background with a fixed seed
+(:data:`SEED`), so the same settings always give the same matrices, and cached per database and settings.
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+import panel as pn
+
+from ...experiments.correlation import available_measures, correlation_sample, pose_correlations, segment_correlations
+from ...viz.correlation import correlation_heatmap
+from ..progress import Task
+
+SEED = 0
+DEFAULT_MEASURES = ("Fp16", "F15E", "F30E", "F39E", "F15x3E", "Dpc1")  # cheap on a small database: ~5 s in all
+PAPER_CLIPS = 8  # clips per class of the paper's sample (76 clips of 9 HDM05 classes)
+
+
+def default_clips(documents: pd.DataFrame) -> int:
+    """Clips per class for the sample: the paper's 8, or fewer when the database has fewer (the second largest
+    class's count, so that two classes qualify), at least 2."""
+    if "label" not in documents or documents["label"].isna().all():
+        return PAPER_CLIPS
+    counts = documents["label"].value_counts().to_numpy()
+    return max(2, min(PAPER_CLIPS, int(counts[1]) if len(counts) > 1 else 0))
+
+
+def sample_of(db, clips: int) -> tuple[pd.DataFrame | None, str]:
+    """The correlation sample with ``clips`` clips per class (classes with at least that many), or None and why
+    the database cannot give one."""
+    try:
+        return correlation_sample(db, clips_per_class=clips, min_clips=clips, seed=SEED), ""
+    except ValueError as exc:
+        return None, str(exc)
+
+
+def pose_matrix(backend, measures: tuple, n_queries: int, k: int, clips: int) -> pd.DataFrame:
+    """Fig. 2 on the open database: rows = columns = ``measures``; query frames from the correlation sample's clips
+    (all documents without one). Cached per settings."""
+    def compute():
+        sample, _ = sample_of(backend.db, clips)
+        return pose_correlations(backend.db, rows=measures, columns=measures, docs=sample, n_queries=n_queries, k=k,
+                                 seed=SEED)  # fmt: skip
+    return backend.cached(("correlations", "pose", measures, n_queries, k, clips, SEED), compute)
+
+
+def segment_matrix(backend, measures: tuple, clips: int, n_first: int) -> pd.DataFrame:
+    """§3.3 segment-based on the correlation sample (which must exist: :func:`segment_problem`). Cached per
+    settings."""
+    def compute():
+        return segment_correlations(backend.db, sample_of(backend.db, clips)[0], measures=measures, n_first=n_first)
+    return backend.cached(("correlations", "segment", measures, clips, n_first, SEED), compute)
+
+
+def segment_problem(db, clips: int, n_first: int) -> str:
+    """Why the segment-based comparison cannot run with these settings ("" when it can)."""
+    sample, why = sample_of(db, clips)
+    if sample is None:
+        return (f"**Segment-based comparisons need several clips per class**, and this database cannot give a "
+                f"sample of {clips} clips per class: {why}. Lower *clips per class* (at least 2), or open a labelled "
+                f"database with more takes per class (the paper: {PAPER_CLIPS} per class).")
+    if not 2 <= n_first < len(sample):
+        return (f"*first n* must be between 2 and {len(sample) - 1} (the sample's {len(sample)} clips less the "
+                f"query clip); it is {n_first}.")
+    return ""
+
+
+def values_table(matrix: pd.DataFrame, css: str) -> pn.pane.DataFrame:
+    """The matrix's values to 3 decimals (rows: neighbours by; columns: compared with; extra columns as they are)."""
+    return pn.pane.DataFrame(matrix.round(3), float_format=lambda x: f"{x:.3f}", css_classes=[css],
+                             sizing_mode="stretch_width")
+
+
+class CorrelationsPage(pn.viewable.Viewer):
+    """Krüger 2010 Fig. 2 for the open database: the measures and settings chosen, both heat maps computed."""
+
+    def __init__(self, backend, selection):
+        super().__init__()
+        self.backend, self.selection = backend, selection
+        db = backend.db
+        options = list(available_measures(db))
+        self.measures = pn.widgets.MultiChoice(name="feature sets and distance measures", options=options,
+                                               value=[m for m in DEFAULT_MEASURES if m in options], width=520,
+                                               css_classes=["mv-measures"])  # fmt: skip
+        self.n_queries = pn.widgets.IntInput(name="queries", value=min(128, db.n_frames), start=1,
+                                             end=db.n_frames, width=100)  # fmt: skip
+        self.k = pn.widgets.IntInput(name="k", value=min(64, db.n_frames - 1), start=1, end=db.n_frames - 1, width=90)
+        self.clips = pn.widgets.IntInput(name="clips per class", value=default_clips(db.documents), start=2, width=110,
+                                         css_classes=["mv-clips"])  # fmt: skip
+        self.n_first = pn.widgets.IntInput(name="first n", value=PAPER_CLIPS, start=2, width=90)
+        self.button = pn.widgets.Button(name="Compute", button_type="primary", width=110, align="end",
+                                        css_classes=["mv-compute"])  # fmt: skip
+        self.button.on_click(self._compute)
+        self.pose_task, self.segment_task = Task(), Task()
+        self.pose = pn.Column(width=560)
+        self.segment = pn.Column(width=560)
+        self.segment_note = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-segment-problem"])
+        self.started = False
+
+    def __panel__(self):
+        intro = pn.pane.Markdown(
+            "Mean Spearman rank correlation ρ between the distances of two measures (Krüger et al. 2010, §3.3, "
+            "Fig. 2): the neighbours are chosen by the **row** measure and their distances compared with those of "
+            "the **column** measure, so the matrix is not symmetric. The paper: 1024 queries, k = 256, 8 clips of "
+            "each of 9 classes, the first 8 of each ranking.", sizing_mode="stretch_width")
+        controls = pn.Row(self.measures, self.n_queries, self.k, self.clips, self.n_first, self.button)
+        pose = pn.Column("### Pose-based (Fig. 2)", self.pose_task, self.pose)
+        segment = pn.Column("### Segment-based (DTW of clips)", self.segment_task, self.segment_note, self.segment)
+        return pn.Column(intro, controls, pn.FlexBox(pose, segment), sizing_mode="stretch_width")
+
+    def activate(self) -> None:
+        """Compute with the default settings the first time the tab is shown."""
+        if not self.started:
+            self.started = True
+            pn.state.execute(self._compute)
+
+    def settings(self) -> tuple[tuple, int, int, int, int]:
+        """(measures in Fig. 2's order, queries, k, clips per class, first n) as chosen."""
+        chosen = [m for m in self.measures.options if m in self.measures.value]
+        return tuple(chosen), self.n_queries.value, self.k.value, self.clips.value, self.n_first.value
+
+    async def _compute(self, event=None) -> None:
+        measures, n_queries, k, clips, n_first = self.settings()
+        if not measures:
+            self.pose_task.status.object = "Choose at least one measure."
+            return
+        self.button.disabled = True
+        try:
+            pose = await self.pose_task.run(f"Pose-based, {len(measures)} measures", pose_matrix, self.backend,
+                                            measures, n_queries, k, clips)  # fmt: skip
+            if pose is not None:
+                self.pose[:] = self._pose_view(pose, sampled=sample_of(self.backend.db, clips)[0] is not None)
+            problem = segment_problem(self.backend.db, clips, n_first)
+            self.segment_note.object, self.segment_note.visible = problem, bool(problem)
+            if problem:
+                self.segment[:] = []
+                return
+            segment = await self.segment_task.run(f"Segment-based, {len(measures)} measures", segment_matrix,
+                                                  self.backend, measures, clips, n_first)  # fmt: skip
+            if segment is not None:
+                self.segment[:] = self._segment_view(segment)
+        finally:
+            self.button.disabled = False
+
+    @staticmethod
+    def _pose_view(matrix: pd.DataFrame, sampled: bool) -> list:
+        a = matrix.attrs
+        clips = f"the sample's {a['documents']} clips" if sampled else f"all {a['documents']} documents (no sample)"
+        caption = (f"{a['n_queries']} random query frames of {clips} ({a['frames']:,} frames), their k = {a['k']} "
+                   f"nearest frames by the row measure.")
+        return [pn.pane.HoloViews(correlation_heatmap(matrix, title="pose-based"), css_classes=["mv-heatmap-pose"]),
+                pn.pane.Markdown(caption, css_classes=["mv-pose-caption"]),
+                pn.Card(values_table(matrix, "mv-correlation-pose"), title="values", collapsed=True,
+                        css_classes=["mv-values-pose"], sizing_mode="stretch_width")]  # fmt: skip
+
+    @staticmethod
+    def _segment_view(matrix: pd.DataFrame) -> list:
+        a = matrix.attrs
+        caption = (f"DTW between all pairs of the {a['clips']} clips ({a['frames']:,} frames); ρ over the first "
+                   f"{a['n_first']} clips of each ranking. *precision*: the share of those with the clip's own "
+                   f"class (a random ranking: {a['chance']:.3f}).")
+        table = matrix.assign(precision=a["precision"])
+        return [pn.pane.HoloViews(correlation_heatmap(matrix, title="segment-based"),
+                                  css_classes=["mv-heatmap-segment"]),
+                pn.pane.Markdown(caption, css_classes=["mv-segment-caption"]),
+                pn.Card(values_table(table, "mv-correlation-segment"), title="values", collapsed=True,
+                        css_classes=["mv-values-segment"], sizing_mode="stretch_width")]  # fmt: skip

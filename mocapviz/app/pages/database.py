@@ -1,0 +1,133 @@
+"""Database page: the documents table (filter by label, actor, length), the 3D skeleton player of the chosen clip with
+the query span, and beneath it the clip's relational feature timelines (Müller et al. 2005 §3-4) and numeric feature
+curves (Krüger et al. 2010 §3.2)."""
+
+from __future__ import annotations
+
+import numpy as np
+import panel as pn
+
+from ...features import NUMERIC_SETS, numeric_columns
+from ...segment import segment
+from ...viz.timeline import numeric_curves, relational_timeline
+from ..player import SkeletonPlayer
+
+TABLE_COLUMNS = ("doc_id", "name", "label", "actor", "seconds", "n_frames", "fps")
+
+
+class DatabasePage(pn.viewable.Viewer):
+    """Browse the documents and play one; its span becomes the example of the query pages."""
+
+    def __init__(self, backend, selection):
+        super().__init__()
+        self.backend, self.selection = backend, selection
+        docs = backend.documents.copy()
+        docs["seconds"] = (docs["n_frames"] / docs["fps"]).round(2)
+        self.table_data = docs[[c for c in TABLE_COLUMNS if c in docs]]
+        labels = sorted(docs["label"].dropna().unique()) if "label" in docs else []
+        actors = sorted(docs["actor"].dropna().unique()) if "actor" in docs else []
+        self.label_filter = pn.widgets.MultiChoice(label="label", options=labels, width=260)
+        self.actor_filter = pn.widgets.MultiChoice(label="actor", options=actors, width=160)
+        longest = float(docs["seconds"].max())
+        self.length_filter = pn.widgets.RangeSlider(label="length (s)", start=0.0, end=max(longest, 0.1),
+                                                    value=(0.0, max(longest, 0.1)), step=0.1, width=220)
+        self.table = pn.widgets.Tabulator(self.table_data, pagination="local", page_size=12, selectable=1,
+                                          show_index=False, disabled=True, sizing_mode="stretch_width",
+                                          height=380, css_classes=["mv-documents"])
+        self.count = pn.pane.Markdown("", css_classes=["mv-doc-count"])
+        for w in (self.label_filter, self.actor_filter, self.length_filter):
+            w.param.watch(self._filter, "value")
+        self.table.param.watch(self._on_select, "selection")
+        self.player = SkeletonPlayer()
+        self.player.param.watch(self._on_step, "step")
+        self.span = pn.widgets.IntRangeSlider(label="query span (frames)", start=0, end=1, value=(0, 1), width=420,
+                                              css_classes=["mv-span"])
+        self.span_start = pn.widgets.Button(label="span starts here", width=130)
+        self.span_end = pn.widgets.Button(label="span ends here", width=130)
+        self.span_start.on_click(lambda e: self._set_span(self.player.frames()[0], None))
+        self.span_end.on_click(lambda e: self._set_span(None, self.player.frames()[0]))
+        self.span.param.watch(self._on_span, "value_throttled")
+        self.numeric_set = pn.widgets.Select(label="numeric feature set", options=list(NUMERIC_SETS[:3]) + [
+            s for s in NUMERIC_SETS[3:] if not s.startswith("Fp")], value="F15E", width=160)
+        self.numeric_set.param.watch(lambda e: self._draw_curves(), "value")
+        self.timeline = pn.pane.HoloViews(None, sizing_mode="stretch_width", css_classes=["mv-timeline"])
+        self.timeline_info = pn.pane.Markdown("", css_classes=["mv-timeline-info"], margin=(0, 10))
+        self.curves = pn.pane.HoloViews(None, sizing_mode="stretch_width", css_classes=["mv-curves"])
+        self._filter()
+        self.show_document(selection.doc)
+
+    def __panel__(self):
+        filters = pn.Row(self.label_filter, self.actor_filter, self.length_filter)
+        left = pn.Column("### Documents", filters, self.count, self.table, sizing_mode="stretch_width")
+        right = pn.Column("### Player", self.player, self.span, pn.Row(self.span_start, self.span_end))
+        return pn.Column(pn.Row(left, right, sizing_mode="stretch_width"), "### Relational features", self.timeline_info,
+                         self.timeline,
+                         "### Numeric features", self.numeric_set, self.curves, sizing_mode="stretch_width")
+
+    # ------------------------------------------------------------------ table
+    def _filter(self, event=None) -> None:
+        t = self.table_data
+        keep = np.ones(len(t), dtype=bool)
+        if self.label_filter.value:
+            keep &= t["label"].isin(self.label_filter.value).to_numpy()
+        if self.actor_filter.value:
+            keep &= t["actor"].isin(self.actor_filter.value).to_numpy()
+        lo, hi = self.length_filter.value
+        keep &= ((t["seconds"] >= lo - 1e-9) & (t["seconds"] <= hi + 1e-9)).to_numpy()
+        self.table.value = t[keep].reset_index(drop=True)
+        self.count.object = f"{int(keep.sum())} of {len(t)} documents"
+
+    def _on_select(self, event) -> None:
+        if event.new:
+            self.show_document(int(self.table.value["doc_id"].iloc[event.new[0]]))
+
+    # ------------------------------------------------------------------ clip
+    def show_document(self, doc: int) -> None:
+        """Load document ``doc`` into the player and the plots; its whole length becomes the span."""
+        row = self.backend.document(doc)
+        n = int(row["n_frames"])
+        self.doc, self.n_frames, self.doc_fps = doc, n, float(row["fps"])
+        self.selection.param.update(doc=doc, frame=0, span=(0, n - 1))
+        self.player.load([self.backend.db.positions[self.backend.db.frames(doc)]], titles=[str(row["name"])],
+                         fps=self.doc_fps)
+        self.span.param.update(start=0, end=max(n - 1, 1), value=(0, n - 1))
+        self._draw_timeline()
+        self._draw_curves()
+
+    def _on_step(self, event) -> None:
+        self.selection.frame = self.player.frames()[0]
+
+    def _set_span(self, first, last) -> None:
+        a, b = self.span.value
+        a = a if first is None else first
+        b = b if last is None else last
+        if a > b:
+            a, b = b, a
+        self.span.value = (a, b)
+        self._on_span()
+
+    def _on_span(self, event=None) -> None:
+        self.selection.span = tuple(int(v) for v in self.span.value)
+        self._draw_timeline()
+        self._draw_curves()
+
+    def _partial_span(self):
+        """The span to shade: None when it is the whole clip."""
+        a, b = self.selection.span
+        return None if (a, b) == (0, self.n_frames - 1) else (a, b)
+
+    def _draw_timeline(self) -> None:
+        values, names = self.backend.clip_relational(self.doc)
+        a, b = self.selection.span
+        self.timeline_info.object = (
+            f"{len(names)} features of the 2005 set (lower blue, upper red, mix green), "
+            f"{len(segment(values).starts)} segments in the clip, {len(segment(values[a:b + 1]).starts)} "
+            f"in the span {a}..{b}")
+        self.timeline.object = relational_timeline(values, names, self.doc_fps, self.backend.groups(),
+                                                   span=self._partial_span())
+
+    def _draw_curves(self) -> None:
+        name = self.numeric_set.value
+        X = self.backend.numeric(name)[self.backend.db.frames(self.doc)]
+        self.curves.object = numeric_curves(X, numeric_columns(name), self.doc_fps, title=f"{name} (cm, body frame)",
+                                            span=self._partial_span())

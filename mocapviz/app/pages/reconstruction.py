@@ -1,0 +1,226 @@
+"""Reconstruction page: a clip of the database rebuilt from six synthetic markers with local linear pose models
+(Krüger, Tautges, Weber & Zinke 2010 §5.2, after Chai & Hodgins 2005; the method is :mod:`mocapviz.reconstruct`).
+
+The test clip's four end effectors, head and root become markers with uniform noise (§5.2: "randomly disturbed
+within a range of 1mm"; a fixed seed per clip, as in :mod:`mocapviz.experiments.reconstruction`, so the page's
+errors can be recomputed), and every frame is rebuilt from the k nearest poses of a prior that leaves the test clip
+out (Table 3's "HDM" column) or, when the database names actors, every clip of the test clip's actor ("HDM-actor").
+The original and the reconstruction play side by side; the per-joint and per-frame errors are plotted and the mean
+and worst-frame errors (cm per joint, as in Table 3) are shown as text. Results are cached per database and settings.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pandas as pd
+import panel as pn
+
+from ...experiments.reconstruction import _frame_actor
+from ...features import NUMERIC_SETS
+from ...reconstruct import DEFAULT_K, MARKERS, PosePrior, reconstruct, reconstruction_errors, synthetic_markers
+from ...skeleton import CANONICAL_JOINTS, heading
+from ...viz.reconstruction import error_curves, joint_error_bars
+from ..player import SkeletonPlayer
+from ..progress import Task
+
+SEED = 0  # the markers' noise comes from np.random.default_rng([SEED, doc_id]), as in the experiment
+DEFAULT_NOISE_CM = 0.1  # §5.2: +-1 mm
+PRIORS = {"without the test clip": "clip", "without the test clip's actor": "actor"}
+
+
+# ============================================================================ computations (no widgets)
+def default_k(n_frames: int) -> int:
+    """The k offered first: :data:`mocapviz.reconstruct.DEFAULT_K`, at most a quarter of the database's frames (a
+    prior leaving out one clip or one of several actors keeps more than that, so the default always works)."""
+    return max(1, min(DEFAULT_K, n_frames // 4))
+
+
+def prior_mask(db, doc: int, kind: str) -> tuple[np.ndarray, str]:
+    """The frames a prior may use and what it leaves out.
+
+    Parameters
+    ----------
+    db : MotionDB; doc : the test clip's doc_id; kind : "clip" (leave the clip out) or "actor" (leave out every
+        clip of its actor: Table 3's HDM-actor / CMU- setting).
+
+    Returns
+    -------
+    (valid, left_out): np.ndarray [shape=(N,)] bool over the database's frames, and e.g. "actor dg's clips".
+
+    Raises
+    ------
+    ValueError
+        ``kind`` "actor" for a clip without an actor label.
+    """
+    if kind == "clip":
+        valid = np.ones(db.n_frames, dtype=bool)
+        valid[db.frames(doc)] = False
+        return valid, "the test clip"
+    docs = db.documents.set_index("doc_id")
+    actor = docs.at[doc, "actor"] if "actor" in docs else None
+    if actor is None or pd.isna(actor):
+        raise ValueError(f"Document {doc} has no actor label: choose the prior without the test clip")
+    return _frame_actor(db) != actor, f"actor {actor}'s clips"
+
+
+def check_settings(db, doc: int, kind: str, k: int, noise_cm: float) -> str | None:
+    """A one-line reason why these settings cannot be reconstructed, or None when they can."""
+    if db.fps is None:
+        return "The database mixes frame rates; the markers must be at the prior's one rate: resample it first."
+    try:
+        valid, left_out = prior_mask(db, doc, kind)
+    except ValueError as exc:
+        return f"{exc}."
+    n = int(valid.sum())
+    if n == 0:
+        return f"The prior is empty: the database holds nothing but {left_out}. Choose another prior or clip."
+    if k is None or k < 1:
+        return "k must be a positive whole number of neighbours."
+    if k > n:
+        return f"k = {k:,} is larger than the prior ({n:,} frames without {left_out}): choose k ≤ {n:,}."
+    if noise_cm is None or not np.isfinite(noise_cm) or noise_cm < 0:
+        return "The marker noise must be a number ≥ 0 cm."
+    return None
+
+
+def clip_markers(db, doc: int, noise_cm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A clip as the reconstruction's test data (§5.2).
+
+    Returns
+    -------
+    truth : np.ndarray [shape=(T, 24, 3)], float64, cm, the clip's canonical joints.
+    markers : np.ndarray [shape=(T, 6, 3)], cm, the joints of :data:`MARKERS` with uniform noise of
+        +-``noise_cm`` per coordinate (seed ``[SEED, doc]``).
+    headings : np.ndarray [shape=(T,)], radians, the clip's heading (the root marker cluster's).
+    """
+    truth = np.asarray(db.positions[db.frames(doc)], dtype=np.float64)
+    markers = synthetic_markers(truth, noise_cm, np.random.default_rng([SEED, doc]))
+    return truth, markers, heading(truth)
+
+
+def prior_for(backend, doc: int, kind: str) -> tuple[PosePrior, str]:
+    """The cached PosePrior of a test clip (one per left-out clip or actor, its kd-trees reused) and what it
+    leaves out; every prior of the database shares the body-frame poses and feature values."""
+    valid, left_out = prior_mask(backend.db, doc, kind)
+    full = backend.cached(("recon-prior",), lambda: PosePrior(backend.db))
+    key = ("recon-prior", kind, left_out if kind == "actor" else doc)
+    return backend.cached(key, lambda: full.restrict(valid)), left_out
+
+
+def run_reconstruction(backend, doc: int, kind: str, feature_set: str, k: int, noise_cm: float) -> dict:
+    """Reconstruct a clip from its six synthetic markers, cached per database and settings.
+
+    Returns
+    -------
+    dict: ``truth``, ``estimate`` (T, 24, 3) cm; ``errors`` (:func:`mocapviz.reconstruct.reconstruction_errors`);
+    ``prior_frames`` (int), ``left_out`` (str), ``seconds`` (the first computation's wall time).
+    """
+    def compute() -> dict:
+        t0 = time.perf_counter()
+        prior, left_out = prior_for(backend, doc, kind)
+        truth, markers, headings = clip_markers(backend.db, doc, noise_cm)
+        estimate = reconstruct(markers, headings, prior, feature_set=feature_set, k=k)
+        return {"truth": truth, "estimate": estimate, "errors": reconstruction_errors(truth, estimate),
+                "prior_frames": prior.n_valid, "left_out": left_out, "seconds": time.perf_counter() - t0}
+
+    return backend.cached(("reconstruction", doc, kind, feature_set, int(k), float(noise_cm)), compute)
+
+
+def error_tables(errors: dict, variant: str, fps: float) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The errors as the plots' tidy tables: per joint (``joint``, ``variant``, ``error_cm``) and per frame
+    (``frame``, ``time_s``, ``variant``, ``error_cm``)."""
+    joints = pd.DataFrame({"joint": CANONICAL_JOINTS, "variant": variant, "error_cm": errors["per_joint_cm"]})
+    per_frame = errors["per_frame_cm"]
+    frames = pd.DataFrame({"frame": np.arange(len(per_frame)), "time_s": np.arange(len(per_frame)) / fps,
+                           "variant": variant, "error_cm": per_frame})
+    return joints, frames
+
+
+# ============================================================================ the page
+class ReconstructionPage(pn.viewable.Viewer):
+    """Choose a test clip, a prior, a feature set, k and the marker noise; reconstruct; compare."""
+
+    def __init__(self, backend, selection):
+        super().__init__()
+        self.backend, self.selection = backend, selection
+        docs = backend.documents
+        has_actors = "actor" in docs and docs["actor"].notna().any()
+        self.clip = pn.widgets.Select(name="test clip", options=backend.doc_options(), value=selection.doc,
+                                      width=560, css_classes=["mv-recon-clip"])
+        self.prior = pn.widgets.Select(name="prior: the database …", width=230, css_classes=["mv-recon-prior"],
+                                       options={n: v for n, v in PRIORS.items() if v == "clip" or has_actors})
+        self.feature_set = pn.widgets.Select(name="feature set (kNN search)", options=list(NUMERIC_SETS),
+                                             value="F15E", width=170, css_classes=["mv-recon-features"])
+        self.k = pn.widgets.IntInput(name="k (neighbours per frame)", value=default_k(backend.db.n_frames), start=1,
+                                     width=170, css_classes=["mv-recon-k"])
+        self.noise = pn.widgets.FloatInput(name="marker noise (± cm)", value=DEFAULT_NOISE_CM, start=0.0, step=0.05,
+                                           width=150, css_classes=["mv-recon-noise"])
+        self.run_button = pn.widgets.Button(name="Reconstruct", button_type="primary", width=140, align="end",
+                                            css_classes=["mv-recon-run"])
+        self.run_button.on_click(self._run)
+        self.message = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-recon-message"])
+        self.task = Task()
+        self.summary = pn.pane.Markdown("Choose a clip and press **Reconstruct**.", css_classes=["mv-recon-summary"])
+        self.error_text = pn.pane.Markdown("", css_classes=["mv-recon-error"], styles={"font-size": "1.2em"})
+        self.player = SkeletonPlayer(size=(760, 420))
+        self.caption = pn.pane.Markdown("", css_classes=["mv-recon-caption"])
+        # not linked: the Database page's curves share the time axis's name but show another clip
+        self.joints = pn.pane.HoloViews(None, linked_axes=False, css_classes=["mv-recon-joints"])
+        self.frames = pn.pane.HoloViews(None, linked_axes=False, css_classes=["mv-recon-frames"])
+        self.results = pn.Column(self.error_text, pn.Row(pn.Column(self.player, self.caption), self.frames),
+                                 self.joints,
+                                 visible=False, sizing_mode="stretch_width")
+        self._followed = selection.doc
+
+    def __panel__(self):
+        intro = pn.pane.Markdown(
+            f"### Reconstruction from six markers (Krüger et al. 2010 §5.2)\nEvery frame of the test clip is rebuilt "
+            f"from its markers ({', '.join(MARKERS)}), with uniform noise, by a local linear model of its k nearest "
+            "poses in the prior.", margin=(0, 10))
+        options = pn.Row(self.prior, self.feature_set, self.k, self.noise, self.run_button)
+        return pn.Column(intro, self.clip, options, self.message, self.task, self.summary, self.results,
+                         sizing_mode="stretch_width", css_classes=["mv-recon-page"])
+
+    def activate(self) -> None:
+        """Follow the clip chosen on the Database page since this page was last shown."""
+        if self.selection.doc != self._followed:
+            self._followed = self.selection.doc
+            self.clip.value = self.selection.doc
+
+    def _settings(self) -> tuple:
+        return int(self.clip.value), self.prior.value, self.feature_set.value, self.k.value, self.noise.value
+
+    async def _run(self, event=None) -> None:
+        doc, kind, feature_set, k, noise = self._settings()
+        problem = check_settings(self.backend.db, doc, kind, k, noise)
+        self.message.object, self.message.visible = problem or "", problem is not None
+        if problem:
+            return
+        self.run_button.disabled = True
+        try:
+            result = await self.task.run("Reconstructing", run_reconstruction, self.backend, doc, kind, feature_set,
+                                         k, noise)
+        finally:
+            self.run_button.disabled = False
+        if result is not None:
+            self._show(result, doc, feature_set, k, noise)
+
+    def _show(self, result: dict, doc: int, feature_set: str, k: int, noise: float) -> None:
+        name, fps = str(self.backend.document(doc)["name"]), self.backend.fps
+        err = result["errors"]
+        self.summary.object = (
+            f"**{name}** · {len(result['truth'])} frames · prior: {result['prior_frames']:,} frames without "
+            f"{result['left_out']} · {feature_set} · k = {k:,} · noise ± {noise:g} cm · "
+            f"computed in {result['seconds']:.1f} s")
+        self.error_text.object = (f"**mean error {err['mean_cm']:.2f} cm** per joint · worst frame "
+                                  f"{err['max_cm']:.2f} cm · bone length error {err['bone_cm']:.2f} cm")
+        self.player.load([result["truth"], result["estimate"]], titles=["original", "reconstruction"], fps=fps)
+        self.caption.object = f"left: original · right: reconstruction from {len(MARKERS)} markers"
+        joints, frames = error_tables(err, f"without {result['left_out']}", fps)
+        # one prior: the summary names it, a legend would only cover bars
+        self.joints.object = joint_error_bars(joints, width=1150, height=300).opts(show_legend=False,
+                                                                                  backend="bokeh")
+        self.frames.object = error_curves(frames, width=560, height=420)
+        self.results.visible = True

@@ -1,0 +1,240 @@
+"""Relational query page: query by example over the database's relational indexes (Müller, Röder & Clausen 2005
+§5: exact hits §5.1, fuzzy and adaptive fuzzy hits §5.2, m-mismatch hits; ranking §6.2).
+
+The example is a frame span of one document (by default the session's clip and span from the Database page's
+player); the user ticks relational features of the three groups (lower, upper, mix; the rest are "don't care")
+and a kind of hit. The hits are ranked by :func:`mocapviz.query.query_by_example`; clicking one plays the query
+span beside it. When the database has labels, the hits are judged against the query document's label
+(:func:`mocapviz.viz.query.precision_recall`: a hit is relevant when its document has the query's label; hits in
+the query document itself are left out; recall is over the other documents with that label).
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+import panel as pn
+
+from ...query import query_by_example
+from ...viz.query import precision_recall, precision_recall_plot
+from ..player import SkeletonPlayer
+from ..progress import Task
+
+FEATURE_SET = "2005"
+# the "kicking" query of Müller et al. 2005 §6.2 (Fig. 9): F_l3, F_l4, F_l7, F_l8
+DEFAULT_FEATURES = ("rfoot_raised", "lfoot_raised", "rknee_bent", "lknee_bent")
+MODES = {"exact": "exact", "fuzzy": "fuzzy", "adaptive fuzzy": "adaptive", "mismatch": "mismatch"}
+GROUP_TITLES = {"lower": "lower body", "upper": "upper body", "mix": "mix"}
+HIT_COLUMNS = ["rank", "doc_id", "document", "label", "start (s)", "end (s)", "score"]
+
+
+class RelationalPage(pn.viewable.Viewer):
+    """Pose a query by example and browse its hits; the query clip and span follow the session's Selection."""
+
+    def __init__(self, backend, selection):
+        super().__init__()
+        self.backend, self.selection = backend, selection
+        self.has_labels = "label" in backend.documents and backend.documents["label"].notna().any()
+        self._syncing = False
+        self.hits, self.shown_query = pd.DataFrame(), None
+        self.doc = pn.widgets.Select(name="query clip", options=backend.doc_options(), width=420,
+                                     css_classes=["mv-query-doc"])
+        self.span = pn.widgets.IntRangeSlider(name="query span (frames)", start=0, end=1, value=(0, 1), width=420,
+                                              css_classes=["mv-query-span"])
+        self.first = pn.widgets.IntInput(name="first frame", start=0, width=100, css_classes=["mv-query-first"])
+        self.last = pn.widgets.IntInput(name="last frame", start=0, width=100, css_classes=["mv-query-last"])
+        self.span_info = pn.pane.Markdown("", margin=(0, 10), css_classes=["mv-query-span-info"])
+        self.features = {g: pn.widgets.CheckBoxGroup(name=GROUP_TITLES[g], options=names, inline=False,
+                                                     value=[n for n in names if n in DEFAULT_FEATURES],
+                                                     css_classes=[f"mv-features-{g}"])
+                         for g, names in backend.groups(FEATURE_SET).items()}
+        self.mode = pn.widgets.RadioButtonGroup(name="hits", options=list(MODES), value="adaptive fuzzy",
+                                                css_classes=["mv-query-mode"])
+        self.mismatches = pn.widgets.IntInput(name="m (mismatching segments)", start=1, end=20, value=1, width=170,
+                                              disabled=True, css_classes=["mv-query-m"])
+        self.run = pn.widgets.Button(name="Run query", button_type="primary", width=140, css_classes=["mv-run"])
+        self.task = Task()
+        self.message = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-query-message"])
+        self.count = pn.pane.Markdown("", css_classes=["mv-hit-count"])
+        self.quality = pn.pane.Markdown("", css_classes=["mv-hit-quality"])
+        self.table = pn.widgets.Tabulator(pd.DataFrame(columns=HIT_COLUMNS), pagination="local", page_size=12,
+                                          selectable=1, show_index=False, disabled=True, height=380,
+                                          sizing_mode="stretch_width", css_classes=["mv-hits"])
+        self.curve = pn.pane.HoloViews(None, visible=False, css_classes=["mv-precision-recall"])
+        self.player = SkeletonPlayer(size=(640, 360))
+        self.player_caption = pn.pane.Markdown("", css_classes=["mv-hit-caption"])
+        self._watch()
+        self._set_query(selection.doc, selection.span)
+
+    def __panel__(self):
+        features = pn.Row(*[pn.Column(f"**{GROUP_TITLES[g]}**", w) for g, w in self.features.items()])
+        query = pn.Column("### Query", self.doc, self.span, pn.Row(self.first, self.last), self.span_info,
+                          "**Features** (unticked ones are \"don't care\")", features,
+                          "**Hits** (§5: exact, fuzzy, adaptive fuzzy, m-mismatch)", self.mode, self.mismatches,
+                          self.run, self.message, self.task)
+        player = pn.Column("### Query beside hit", self.player, self.player_caption, css_classes=["mv-query-player"])
+        results = pn.Column("### Hits", self.count, self.quality, self.table, self.curve, sizing_mode="stretch_width")
+        return pn.Column(pn.Row(query, player), results, sizing_mode="stretch_width")
+
+    def _watch(self) -> None:
+        self.doc.param.watch(self._on_doc, "value")
+        self.span.param.watch(self._on_span, "value_throttled")
+        self.first.param.watch(self._on_bound, "value")
+        self.last.param.watch(self._on_bound, "value")
+        self.mode.param.watch(lambda e: setattr(self.mismatches, "disabled", e.new != "mismatch"), "value")
+        self.run.on_click(self._on_run)
+        self.table.param.watch(self._on_select, "selection")
+
+    # ------------------------------------------------------------------ the query clip and span
+    def activate(self) -> None:
+        """Take the session's clip and span (the Database page may have changed them) when the tab is shown."""
+        if (self.selection.doc, tuple(self.selection.span)) != (self.doc.value, tuple(self.span.value)):
+            self._set_query(self.selection.doc, self.selection.span)
+        if not self.backend.is_cached(("indexes", FEATURE_SET)):
+            pn.state.execute(self._load_indexes)
+
+    async def _load_indexes(self) -> None:
+        """Load (or build, the first time) the relational indexes behind the progress bar; Run waits for them."""
+        self.run.disabled = True
+        await self.task.run("Loading the relational indexes", self.backend.indexes, FEATURE_SET)
+        self.run.disabled = False
+
+    def _set_query(self, doc: int, span) -> None:
+        """Show document ``doc`` and ``span`` (first, last frames, inclusive; clipped to the document)."""
+        n = int(self.backend.document(doc)["n_frames"])
+        first, last = sorted(min(max(int(v), 0), n - 1) for v in span)
+        self._syncing = True
+        try:
+            self.doc.value = doc
+            self.span.param.update(start=0, end=max(n - 1, 1), value=(first, last))
+            self.first.param.update(end=n - 1, value=first)
+            self.last.param.update(end=n - 1, value=last)
+        finally:
+            self._syncing = False
+        self._span_changed()
+
+    def _on_doc(self, event) -> None:
+        if not self._syncing:
+            n = int(self.backend.document(event.new)["n_frames"])
+            self._set_query(event.new, (0, n - 1))
+
+    def _on_span(self, event) -> None:
+        if not self._syncing:
+            self._set_query(self.doc.value, event.new)
+
+    def _on_bound(self, event) -> None:
+        if not self._syncing:
+            self._set_query(self.doc.value, (self.first.value, self.last.value))
+
+    def _span_changed(self) -> None:
+        """Tell the Selection, describe the span and show it in the player."""
+        doc, (first, last) = self.doc.value, self.span.value
+        if (self.selection.doc, tuple(self.selection.span)) != (doc, (first, last)):
+            self.selection.param.update(doc=doc, frame=first, span=(first, last))
+        fps = self._doc_fps(doc)
+        self.span_info.object = (f"{last - first + 1} frames · {first / fps:.2f}–{(last + 1) / fps:.2f} s of "
+                                 f"{self._doc_name(doc)}")
+        self.player.load([self._clip(doc, first, last)], titles=["query"], fps=fps)
+        self.player_caption.object = f"Query: **{self._doc_name(doc)}**, frames {first}–{last}. Click a hit to " \
+                                     "play it beside the query."
+
+    # ------------------------------------------------------------------ running
+    def query(self) -> dict:
+        """The query the widgets describe: doc, span (first, last), features (names), mode, mismatches."""
+        features = [n for w in self.features.values() for n in w.value]
+        return {"doc": int(self.doc.value), "span": tuple(int(v) for v in self.span.value), "features": features,
+                "mode": MODES[self.mode.value], "mismatches": int(self.mismatches.value or 1)}
+
+    def problem(self, q: dict) -> str | None:
+        """Why the query ``q`` cannot run (a sentence for the user), or None when it can."""
+        if not q["features"]:
+            return "Tick at least one feature: the query compares the clips in the ticked features only."
+        first, last = q["span"]
+        if last <= first:
+            return ("The span must hold at least two frames (the velocity features need two): set its last frame "
+                    "after its first.")
+        return None
+
+    def search(self, q: dict) -> pd.DataFrame:
+        """The ranked hits of ``q`` (:func:`mocapviz.query.query_by_example`), cached per database."""
+        key = ("relational query", FEATURE_SET, q["doc"], q["span"], tuple(sorted(q["features"])), q["mode"],
+               q["mismatches"] if q["mode"] == "mismatch" else 0)
+        first, last = q["span"]
+        db = self.backend.db
+        return self.backend.cached(key, lambda: query_by_example(
+            db, db.motion(q["doc"])[first:last + 1], q["features"], q["mode"], q["mismatches"], FEATURE_SET,
+            self.backend.indexes(FEATURE_SET)))
+
+    async def _on_run(self, event=None) -> None:
+        q = self.query()
+        reason = self.problem(q)
+        self.message.param.update(object=reason or "", visible=reason is not None)
+        if reason:
+            return
+        self.run.disabled = True
+        self.count.object = ""
+        try:
+            hits = await self.task.run("Searching", self.search, q)
+        finally:
+            self.run.disabled = False
+        if hits is not None:
+            self._show_hits(q, hits)
+
+    # ------------------------------------------------------------------ results
+    def _show_hits(self, q: dict, hits: pd.DataFrame) -> None:
+        self.hits, self.shown_query = hits, q
+        fps = hits["doc_id"].map(self._doc_fps)
+        table = pd.DataFrame({"rank": hits["rank"], "doc_id": hits["doc_id"], "document": hits["name"],
+                              "label": hits["label"], "start (s)": (hits["start_frame"] / fps).round(2),
+                              "end (s)": ((hits["end_frame"] + 1) / fps).round(2), "score": hits["score"].round(3)})
+        self.table.selection = []
+        self.table.value = table
+        n = len(hits)
+        self.count.object = f"**{n} hit{'s' if n != 1 else ''}** for {len(q['features'])} features, " \
+                            f"{self.mode.value} hits (score: seconds of segment-length difference, §6.2; lower " \
+                            "is better)"
+        self._show_quality(q, hits)
+
+    def _show_quality(self, q: dict, hits: pd.DataFrame) -> None:
+        """Precision and recall against the query document's label, as numbers and over the rank."""
+        label = self.backend.document(q["doc"])["label"] if self.has_labels else None
+        if label is None or pd.isna(label):
+            self.quality.object = "*No label on the query clip: the hits cannot be judged.*"
+            self.curve.visible = False
+            return
+        curve = precision_recall(hits["doc_id"], self.backend.documents, q["doc"])
+        n_rel = curve.attrs["n_relevant"]
+        rule = (f"A hit is relevant when its document is labelled *{label}*; hits inside the query's own document "
+                f"are left out; recall counts the {n_rel} other document(s) with that label.")
+        if curve.empty:
+            self.quality.object = f"No hit outside the query's document. {rule}"
+            self.curve.visible = False
+            return
+        last = curve.iloc[-1]
+        recall = "undefined (no other document has this label)" if not n_rel else f"{last['recall']:.2f}"
+        self.quality.object = (f"**Precision {last['precision']:.2f}** ({int(curve['relevant'].sum())} of "
+                               f"{len(curve)} hits) · **recall {recall}**. {rule}")
+        self.curve.object = precision_recall_plot(curve, label=str(label))
+        self.curve.visible = True
+
+    def _on_select(self, event) -> None:
+        if not event.new or self.hits.empty:
+            return
+        hit = self.hits.iloc[int(event.new[0])]
+        q = self.shown_query
+        doc, start, end = int(hit["doc_id"]), int(hit["start_frame"]), int(hit["end_frame"])
+        self.player.load([self._clip(q["doc"], *q["span"]), self._clip(doc, start, end)],
+                         titles=["query", f"hit {int(hit['rank'])}"], fps=self._doc_fps(doc))
+        self.player_caption.object = (f"Query: **{self._doc_name(q['doc'])}**, frames {q['span'][0]}–{q['span'][1]}"
+                                      f" · beside hit {int(hit['rank'])}: **{hit['name']}**, frames {start}–{end}")
+
+    # ------------------------------------------------------------------ helpers
+    def _clip(self, doc: int, first: int, last: int):
+        """Frames first..last (inclusive) of document ``doc``: (T, 24, 3) cm."""
+        sl = self.backend.db.frames(doc)
+        return self.backend.db.positions[sl.start + first: sl.start + last + 1]
+
+    def _doc_fps(self, doc: int) -> float:
+        return float(self.backend.document(int(doc))["fps"])
+
+    def _doc_name(self, doc: int) -> str:
+        return str(self.backend.document(int(doc))["name"])

@@ -1,0 +1,375 @@
+"""Similarity search page: numeric similarity searches of Krüger, Tautges, Weber & Zinke 2010 on the session's clip.
+
+1. Nearest neighbours of the current frame (§3.3): the k nearest database frames by a numeric feature set (kd-tree
+   of :meth:`Backend.knn`), as a table and drawn together in the body frame as in Fig. 1.
+2. Global motion matching of the current span with the lazy neighbourhood graph (§4.1): the K best matches; a
+   chosen match plays beside the query, step by step along its warping path.
+3. The similarity matrices of Fig. 3: the span against the documents of the best matches, with the cells the graph
+   computed and its warping paths (behind its own button: it costs a full distance matrix).
+
+The example (document, frame, span) is the one chosen on the Database page (:class:`~mocapviz.app.state.Selection`).
+Every result is computed in a worker thread behind a progress bar and cached per database (``Backend.cached``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import panel as pn
+
+from ...experiments.matching import similarity_matrices
+from ...features import NUMERIC_SETS
+from ...knn import describe_frames
+from ...match.lng import lng
+from ...viz.matching import similarity_layout
+from ...viz.skeleton import neighbour_poses, png_bytes
+from ..player import SkeletonPlayer
+from ..progress import Task
+
+FEATURE_SETS = [s for s in NUMERIC_SETS if not s.startswith("Fp")]  # Fp sets need a PCA model of the database
+MAX_NEIGHBOURS = 256  # Fig. 1 draws 256 neighbours; more make an unreadable figure and a slow render
+MAX_MATCHES = 100
+MAX_MATRIX_CELLS = 600_000  # query frames x small-database frames of the Fig. 3 matrices
+LNG_K_AT_30HZ = 256  # neighbours per query frame of §4.2's experiments (scaled with the frame rate)
+MATRIX_K_AT_30HZ = 32  # neighbours per query frame on Fig. 3's small database (similarity_matrices' default)
+MATRIX_DOCS = 3  # documents of the best matches forming the small database of Fig. 3
+KNN_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "doc_frame": "frame", "time_s": "time (s)",
+              "distance": "distance", "label": "label"}
+SHOWN_DECIMALS = {"start_s": 2, "end_s": 2, "cost": 1, "cost_per_frame": 2}
+MATCH_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "label": "label", "start_s": "start (s)",
+                "end_s": "end (s)", "frames": "frames", "cost": "cost", "cost_per_frame": "cost / frame"}
+
+
+# ============================================================================ computations (worker thread)
+def _check_count(value, name: str, most: int) -> int:
+    """``value`` as an int in 1..most, or a one-line ValueError naming ``name``."""
+    if value is None or not 1 <= int(value) <= most:
+        raise ValueError(f"{name} must be between 1 and {most:,}; got {value}")
+    return int(value)
+
+
+def _own_frames(backend, doc: int) -> tuple[int, int]:
+    """The [start, stop) database frames of document ``doc``."""
+    frames = backend.db.frames(doc)
+    return frames.start, frames.stop
+
+
+def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own: bool) -> tuple[pd.DataFrame, bytes]:
+    """The k nearest database frames of one frame (Krüger et al. 2010 §3.3) and Fig. 1's picture of them.
+
+    Parameters
+    ----------
+    backend : Backend
+    name : str, numeric feature set (distances in its units, cm for F15E).
+    doc, frame : the query frame, ``frame`` counted within document ``doc``.
+    k : int, 1 <= k <= min(MAX_NEIGHBOURS, indexed frames).
+    exclude_own : bool, leave out the frames of the query's own document.
+
+    Returns
+    -------
+    table : pd.DataFrame, :func:`mocapviz.knn.describe_frames` (rank, frame, doc_id, name, doc_frame, time_s,
+        distance, labels), nearest first.
+    image : PNG bytes of :func:`mocapviz.viz.skeleton.neighbour_poses` (the query red, the neighbours faint).
+    """
+    start, stop = _own_frames(backend, doc)
+    if not 0 <= frame < stop - start:
+        raise ValueError(f"frame {frame} is outside document {doc} (frames 0..{stop - start - 1})")
+    index = backend.knn(name)
+    k = _check_count(k, "k", min(MAX_NEIGHBOURS, index.n_indexed))
+    query = backend.numeric(name)[start + frame]
+    distances, frames = index.query(query, k, exclude=(start, stop) if exclude_own else None)
+    table = describe_frames(backend.db, frames, distances)
+    positions = backend.db.positions
+    image = neighbour_poses(positions[start + frame], positions[table["frame"].to_numpy()])
+    return table, png_bytes(image)
+
+
+def _query_span(backend, doc: int, span: tuple[int, int]) -> tuple[int, int]:
+    """The span's [first, stop) database frames, or a ValueError when it is too short or too long."""
+    start, stop = _own_frames(backend, doc)
+    first, last = int(span[0]), int(span[1])
+    if not 0 <= first <= last < stop - start:
+        raise ValueError(f"span {first}..{last} is outside document {doc} (frames 0..{stop - start - 1})")
+    longest = int(backend.documents["n_frames"].max())
+    if last - first + 1 < 2:
+        raise ValueError("the span is 1 frame long; matching needs at least 2 (set it on the Database page)")
+    if last - first + 1 > longest:
+        raise ValueError(f"the span has {last - first + 1} frames, more than the longest document ({longest}); "
+                         "no match can be found")
+    return start + first, start + last + 1
+
+
+def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, k_matches: int,
+               exclude_own: bool) -> pd.DataFrame:
+    """The K best matches of a span in the database by the lazy neighbourhood graph (Krüger et al. 2010 §4.1).
+
+    Parameters
+    ----------
+    backend : Backend
+    name : str, numeric feature set.
+    doc : int, span : (first, last) frames of document ``doc``, inclusive; 2 <= length <= the longest document.
+    k : int, neighbours per query frame (1 <= k <= indexed frames).
+    k_matches : int, matches wanted (K, at most MAX_MATCHES).
+    exclude_own : bool, no match inside the query's own document.
+
+    Returns
+    -------
+    pd.DataFrame, best first, one row per match: rank, doc_id, name, label (when the database has labels), start,
+    end (database frames, inclusive), start_s, end_s (seconds within the match's document), frames, cost (sum of
+    the local costs along the path, feature units), cost_per_frame (per query frame), path ((L, 2) int64 of (query
+    frame within the span, database frame)).
+    """
+    q0, q1 = _query_span(backend, doc, span)
+    index = backend.knn(name)
+    k = _check_count(k, "k", index.n_indexed)
+    k_matches = _check_count(k_matches, "K", MAX_MATCHES)
+    docs = backend.documents
+    starts = docs["start"].to_numpy()
+    found = lng(backend.numeric(name)[q0:q1], index, k=k, k_matches=k_matches, starts=starts,
+                exclude=_own_frames(backend, doc) if exclude_own else None)
+    rows = docs.iloc[found["doc_id"].to_numpy()]
+    first = rows["start"].to_numpy()
+    fps = rows["fps"].to_numpy(dtype=np.float64)
+    table = pd.DataFrame({"rank": np.arange(1, len(found) + 1), "doc_id": rows["doc_id"].to_numpy(),
+                          "name": rows["name"].to_numpy()})
+    if "label" in rows:
+        table["label"] = rows["label"].to_numpy()
+    table["start"], table["end"] = found["start"].to_numpy(), found["end"].to_numpy()
+    table["start_s"] = (table["start"] - first) / fps
+    table["end_s"] = (table["end"] - first) / fps
+    table["frames"] = table["end"] - table["start"] + 1
+    table["cost"] = found["cost"].to_numpy()
+    table["cost_per_frame"] = table["cost"] / (q1 - q0)
+    table["path"] = found["path"].to_numpy()
+    return table
+
+
+def scaled_k(k_at_30hz: int, fps: float) -> int:
+    """Neighbours per query frame for the graph at ``fps``: ``k_at_30hz`` at 30 Hz or less, proportionally more at
+    higher frame rates (a pose's nearest frames then include more of its own neighbouring frames, leaving fewer for
+    other motions, and the graph finds no path)."""
+    return round(k_at_30hz * max(1.0, fps / 30.0))
+
+
+def match_alignment(path: np.ndarray, match_start: int) -> np.ndarray:
+    """A match's warping path as the player's alignment of (query span clip, match clip).
+
+    Parameters
+    ----------
+    path : np.ndarray [shape=(L, 2)], int, (query frame within the span, database frame) per step.
+    match_start : int, the match's first database frame.
+
+    Returns
+    -------
+    np.ndarray [shape=(L, 2)], int64: per step the frame of the query clip and of the match clip (which starts at
+    ``match_start``).
+    """
+    return np.asarray(path, dtype=np.int64) - np.array([0, match_start], dtype=np.int64)
+
+
+def matrix_docs(matches: pd.DataFrame, most: int = MATRIX_DOCS) -> list[int]:
+    """The documents of the best matches, best first, each once, at most ``most``: Fig. 3's small database."""
+    return [int(d) for d in pd.unique(matches["doc_id"])[:most]]
+
+
+def similarity_result(backend, name: str, doc: int, span: tuple[int, int], k: int, database_docs: list[int]) -> dict:
+    """Fig. 3 of Krüger et al. 2010 for the span against ``database_docs``: the distance matrix by ``name``, the
+    cells the graph computed, its paths, and subsequence DTW on Dpc1 (:func:`similarity_matrices`).
+
+    Raises
+    ------
+    ValueError
+        No document to compare with, or a matrix of more than MAX_MATRIX_CELLS cells (shorten the span).
+    """
+    q0, q1 = _query_span(backend, doc, span)
+    if not database_docs:
+        raise ValueError("no match to compare with: the span matched nothing")
+    n = sum(backend.db.frames(d).stop - backend.db.frames(d).start for d in database_docs)
+    if (q1 - q0) * n > MAX_MATRIX_CELLS:
+        raise ValueError(f"the matrix would have {q1 - q0} x {n:,} cells (at most {MAX_MATRIX_CELLS:,}); choose a "
+                         f"span of at most {MAX_MATRIX_CELLS // n} frames")
+    first = int(span[0])
+    return similarity_matrices(backend.db, doc, (first, first + q1 - q0), database_docs, sets=(name,), k=k)
+
+
+# ============================================================================ the page
+class SimilarityPage(pn.viewable.Viewer):
+    """kNN of the current frame (Fig. 1), LNG matching of the current span with aligned playback, and Fig. 3."""
+
+    def __init__(self, backend, selection):
+        super().__init__()
+        self.backend, self.selection = backend, selection
+        self.query = pn.pane.Markdown("", css_classes=["mv-similarity-query"], margin=(0, 10))
+        self.feature_set = pn.widgets.Select(name="numeric feature set", options=FEATURE_SETS, value="F15E",
+                                             width=160)
+        self.exclude_own = pn.widgets.Checkbox(name="exclude the query's own document", value=True, width=260,
+                                               align="end", css_classes=["mv-exclude-own"])
+        self._build_knn()
+        self._build_match()
+        self._build_matrix()
+        selection.param.watch(lambda e: self.activate(), ["doc", "frame", "span"])
+        self.activate()
+
+    def _build_knn(self) -> None:
+        self.knn_k = pn.widgets.IntInput(name="k (neighbours)", value=64, start=1, width=120,
+                                         css_classes=["mv-knn-k"])
+        self.knn_button = _button("Search", "mv-knn-search", self._search)
+        self.knn_task = Task()
+        self.knn_count = pn.pane.Markdown("", css_classes=["mv-knn-count"], margin=(0, 10))
+        self.knn_table = pn.widgets.Tabulator(pd.DataFrame(columns=list(KNN_TITLES)), titles=KNN_TITLES,
+                                              pagination="local", page_size=12, show_index=False, disabled=True,
+                                              sizing_mode="stretch_width", css_classes=["mv-knn-table"])
+        self.knn_poses = pn.pane.PNG(None, width=480, height=420, css_classes=["mv-knn-poses"])
+
+    def _build_match(self) -> None:
+        self.match_k = pn.widgets.IntInput(name="k (neighbours per frame)", start=1, width=160,
+                                           value=scaled_k(LNG_K_AT_30HZ, self.backend.fps), css_classes=["mv-match-k"])
+        self.match_count_k = pn.widgets.IntInput(name="K (matches)", value=10, start=1, width=110,
+                                                 css_classes=["mv-match-kk"])
+        self.match_button = _button("Match", "mv-match-run", self._match)
+        self.match_task = Task()
+        self.match_count = pn.pane.Markdown("", css_classes=["mv-match-count"], margin=(0, 10))
+        self.match_table = pn.widgets.Tabulator(pd.DataFrame(columns=list(MATCH_TITLES)), titles=MATCH_TITLES,
+                                                pagination="local", page_size=10, selectable=1, show_index=False,
+                                                disabled=True, sizing_mode="stretch_width",
+                                                css_classes=["mv-match-table"])
+        self.match_table.param.watch(self._on_match_select, "selection")
+        self.matches = None
+        self.playing = pn.pane.Markdown("Click a match to play it beside the query, aligned by its warping path.",
+                                        margin=(0, 10), css_classes=["mv-match-playing"])
+        self.player = SkeletonPlayer(size=(760, 380))
+        self.player_box = pn.Column(self.player, visible=False, css_classes=["mv-match-player"])
+
+    def _build_matrix(self) -> None:
+        self.matrix_k = pn.widgets.IntInput(name="k (neighbours per frame, small database)", start=1, width=260,
+                                            value=scaled_k(MATRIX_K_AT_30HZ, self.backend.fps),
+                                            css_classes=["mv-matrix-k"])
+        self.matrix_button = _button("Similarity matrix", "mv-matrix-run", self._matrix, width=160)
+        self.matrix_task = Task()
+        self.matrix = pn.pane.HoloViews(None, sizing_mode="stretch_width", css_classes=["mv-similarity-matrix"])
+
+    def __panel__(self):
+        knn = pn.Column("### Nearest neighbours of the frame (Krüger et al. 2010 §3.3, Fig. 1)",
+                        pn.Row(self.knn_k, self.knn_button), _scoped(self.knn_task, "mv-knn-task"),
+                        pn.Row(pn.Column(self.knn_count, self.knn_table, sizing_mode="stretch_width"),
+                               self.knn_poses, sizing_mode="stretch_width"), sizing_mode="stretch_width")
+        match = pn.Column("### Motion matching of the span (lazy neighbourhood graph, §4.1)",
+                          pn.Row(self.match_k, self.match_count_k, self.match_button),
+                          _scoped(self.match_task, "mv-match-task"), self.match_count, self.match_table,
+                          self.playing, self.player_box, sizing_mode="stretch_width")
+        matrix = pn.Column("### Similarity matrix of the span against the best matches' documents (Fig. 3)",
+                           pn.pane.Markdown(MATRIX_LEGEND, margin=(0, 10)), pn.Row(self.matrix_k, self.matrix_button),
+                           _scoped(self.matrix_task, "mv-matrix-task"), self.matrix, sizing_mode="stretch_width")
+        return pn.Column(pn.Row(self.feature_set, self.exclude_own), self.query, knn, match, matrix,
+                         sizing_mode="stretch_width")
+
+    def activate(self) -> None:
+        """Show the Database page's current example (called when the tab is shown and when the example changes)."""
+        s = self.selection
+        row = self.backend.document(s.doc)
+        fps = float(row["fps"])
+        first, last = s.span
+        self.query.object = (f"**Query**: document {s.doc} ({row['name']}), frame {s.frame} ({s.frame / fps:.2f} s); "
+                             f"span {first}–{last} ({last - first + 1} frames, {(last - first + 1) / fps:.2f} s). "
+                             "Choose the document, frame and span on the Database page.")
+
+    # ------------------------------------------------------------------ kNN
+    async def _search(self, event=None) -> None:
+        s = self.selection
+        name, doc, frame, k, own = self.feature_set.value, s.doc, s.frame, self.knn_k.value, self.exclude_own.value
+        result = await _run(self.knn_button, self.knn_task, "Searching", self.backend.cached,
+                            ("similarity.knn", name, doc, frame, k, own),
+                            lambda: nearest_frames(self.backend, name, doc, frame, k, own))
+        if result is None:
+            return
+        table, image = result
+        self.knn_table.value = table[[c for c in KNN_TITLES if c in table]].round({"time_s": 3, "distance": 2})
+        self.knn_poses.object = image
+        self.knn_count.object = (f"**{len(table)} neighbours** of document {doc} frame {frame} by {name}"
+                                 + (", its own document excluded" if own else ""))
+
+    # ------------------------------------------------------------------ LNG
+    def _match_key(self) -> tuple:
+        """(feature set, document, span, k, K, exclude own) of the matching the widgets ask for."""
+        s = self.selection
+        return (self.feature_set.value, s.doc, tuple(s.span), self.match_k.value, self.match_count_k.value,
+                self.exclude_own.value)
+
+    def _cached_matches(self, key: tuple) -> pd.DataFrame:
+        """The matches of ``key`` (see :meth:`_match_key`), computed once per database."""
+        return self.backend.cached(("similarity.lng", *key), lambda: match_span(self.backend, *key))
+
+    async def _match(self, event=None) -> None:
+        key = self._match_key()
+        found = await _run(self.match_button, self.match_task, "Matching", self._cached_matches, key)
+        if found is None:
+            return
+        name, doc, (first, last), k, k_matches, own = key
+        self.matches, self.match_query = found, (doc, first, last)
+        shown = found[[c for c in MATCH_TITLES if c in found]].round(SHOWN_DECIMALS)
+        self.match_table.param.update(selection=[], value=shown)
+        self.player_box.visible = False
+        self.match_count.object = (f"**{len(found)} matches** of document {doc} frames {first}–{last} by {name} "
+                                   f"(k = {k}, K = {k_matches})" + (", its own document excluded" if own else "")
+                                   + ("; try a larger k" if found.empty else ""))
+
+    def _on_match_select(self, event) -> None:
+        if not event.new or self.matches is None:
+            return
+        match = self.matches.iloc[event.new[0]]
+        doc, first, last = self.match_query
+        q0 = self.backend.db.frames(doc).start
+        positions = self.backend.db.positions
+        clips = [positions[q0 + first : q0 + last + 1], positions[match["start"] : match["end"] + 1]]
+        d0 = self.backend.db.frames(int(match["doc_id"])).start
+        titles = [f"query: document {doc}", f"match {match['rank']}: document {match['doc_id']}"]
+        self.player.load(clips, titles=titles, fps=self.backend.fps,
+                         alignment=match_alignment(match["path"], int(match["start"])))
+        self.player_box.visible = True
+        self.playing.object = (f"Playing the query (document {doc}, frames {first}–{last}) beside match "
+                               f"{match['rank']} (document {match['doc_id']}, {match['name']}, frames "
+                               f"{match['start'] - d0}–{match['end'] - d0}), aligned by its warping path "
+                               f"({len(match['path'])} steps).")
+
+    # ------------------------------------------------------------------ Fig. 3
+    def _similarity(self, key: tuple, k: int):
+        """Fig. 3's layout for the matching ``key``: its best matches' documents form the small database, searched
+        with ``k`` neighbours per query frame."""
+        name, doc, span = key[:3]
+        docs = matrix_docs(self._cached_matches(key))
+        result = self.backend.cached(("similarity.matrix", name, doc, span, k, tuple(docs)),
+                                     lambda: similarity_result(self.backend, name, doc, span, k, docs))
+        return similarity_layout(result, cols=2, width=560, height=360)
+
+    async def _matrix(self, event=None) -> None:
+        layout = await _run(self.matrix_button, self.matrix_task, "Computing the similarity matrix",
+                            self._similarity, self._match_key(), self.matrix_k.value)
+        if layout is not None:
+            self.matrix.object = layout
+
+
+MATRIX_LEGEND = ("The span against the documents of its best matches (at most three, the small database). Grey: "
+                 "distances the graph computed (darker = more similar); blue: cells it never computed; red: its "
+                 "warping paths; orange: document boundaries. Second panel: subsequence DTW on the point-cloud "
+                 "distance Dpc1, computed in full.")
+
+
+def _button(name: str, css_class: str, callback, width: int = 100) -> pn.widgets.Button:
+    button = pn.widgets.Button(name=name, button_type="primary", width=width, align="end", css_classes=[css_class])
+    button.on_click(callback)
+    return button
+
+
+async def _run(button: pn.widgets.Button, task: Task, label: str, fn, *args):
+    """``fn(*args)`` in a worker thread behind ``task``'s progress bar, ``button`` disabled meanwhile; None after an
+    error (shown by the task)."""
+    button.disabled = True
+    try:
+        return await task.run(label, fn, *args)
+    finally:
+        button.disabled = False
+
+
+def _scoped(task: Task, css_class: str) -> pn.Column:
+    """A Task's status line in a column of its own css class, so the page's tasks can be told apart."""
+    return pn.Column(task, css_classes=[css_class], sizing_mode="stretch_width", margin=0)

@@ -1,0 +1,181 @@
+"""Index statistics page: the open database's index and search figures beside the papers' tables.
+
+- Müller, Röder & Clausen 2005, Table 2 (§6.1): per feature group the inverted index's lists, segments, size and
+  construction times (:func:`mocapviz.experiments.relational.index_statistics`), with the paper's D^60 / D^180 rows.
+- Müller et al. 2005, Table 3 (§6.2): exact and adaptive fuzzy random queries on one group index, grouped by hit
+  count (:func:`query_statistics`), with the paper's I_u^180 values; and every query's time against its hit count.
+- Krüger, Tautges, Weber & Zinke 2010, Table 1 (§3.3): exact k-NN query times per feature set
+  (:func:`mocapviz.experiments.numeric.knn_timings`), with the paper's HDM05 and CMU times.
+
+Computed in the background the first time the tab is shown, with small settings (:data:`QUERIES`,
+:data:`KNN_QUERIES`), and cached per database (:meth:`Backend.cached`); each table appears as soon as it is ready.
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+import panel as pn
+
+from ...experiments.numeric import knn_timings, paper_table1
+from ...experiments.relational import index_statistics, paper_table2, paper_table3, query_statistics
+from ...viz.paper import comparison_bars, curves
+from ...viz.statistics import query_time_scatter
+from ..progress import Task
+
+OURS = "this database"
+SEED = 0
+QUERIES = 200  # random queries per (mode, L) cell of Table 3 (the paper: 10,000)
+TABLE3_LENGTHS = (5, 10, 20)  # the paper's query lengths |Q| in segments
+SCATTER_LENGTHS = (1, 2, 3, 5, 10, 20)  # short queries too: on a small index the long ones all have a single hit
+KNN_QUERIES = 200  # k-NN queries per feature set of Table 1 (batched, one thread)
+TABLE2_SHOWN = ["source", "index", "minutes", "f", "lists", "frames", "segments", "MB", "bytes/segment", "t_read",
+                "t_features", "t_index", "t_total"]  # fmt: skip
+TABLE3_RENAMED = {"queries": "queries", "mean_hits": "µh", "std_hits": "σh", "mean_ms": "µt (ms)",
+                  "median_ms": "median (ms)", "p90_ms": "p90 (ms)"}  # fmt: skip
+TABLE3_PAPER = {"mean_hits": "paper µh", "std_hits": "paper σh", "mean_ms": "paper µt (ms)"}
+
+
+def _number(x) -> str:
+    """A table cell: integers with thousands separators, other numbers to 3 significant digits (at least 0.001)."""
+    if pd.isna(x):
+        return "–"
+    if float(x).is_integer() and abs(x) >= 1:
+        return f"{int(x):,}"
+    return f"{x:.3g}" if abs(x) >= 0.001 else f"{x:.2e}"
+
+
+def _table(frame: pd.DataFrame, css: str) -> pn.pane.DataFrame:
+    formatters = {c: _number for c in frame.columns if pd.api.types.is_numeric_dtype(frame[c])}
+    return pn.pane.DataFrame(frame, index=False, formatters=formatters, css_classes=[css, "mv-result-table"],
+                             sizing_mode="stretch_width", margin=(0, 10))
+
+
+# ------------------------------------------------------------------ the tables, ours beside the paper's
+def table2(backend) -> pd.DataFrame:
+    """Table 2 of the open database (one row per group index) above the paper's six rows; column ``source``."""
+    ours = backend.cached(("statistics", "table2"), lambda: index_statistics(backend.db, "2005"))
+    return pd.concat([ours.assign(source=OURS), paper_table2().assign(source="paper")], ignore_index=True)
+
+
+def table3(backend, group: str) -> pd.DataFrame:
+    """Table 3 on the open database's ``group`` index: one row per (mode, L, hits group) with our statistics of
+    :data:`QUERIES` random queries per (mode, L) and the paper's µh, σh, µt (I_u^180) beside them."""
+    ours = backend.cached(("statistics", "table3", group, QUERIES), lambda: query_statistics(
+        backend.indexes()[group], n_queries=QUERIES, lengths=TABLE3_LENGTHS, seed=SEED))  # fmt: skip
+    paper = paper_table3()[["mode", "L", "hits", *TABLE3_PAPER]].rename(columns=TABLE3_PAPER)
+    return ours.merge(paper, on=["mode", "L", "hits"], how="left").rename(columns=TABLE3_RENAMED)
+
+
+def query_times(backend, group: str) -> pd.DataFrame:
+    """Every random query of :data:`SCATTER_LENGTHS` on the ``group`` index: mode, L, k, query, hits, ms, group."""
+    return backend.cached(("statistics", "query_times", group, QUERIES), lambda: query_statistics(
+        backend.indexes()[group], n_queries=QUERIES, lengths=SCATTER_LENGTHS, seed=SEED, per_query=True))  # fmt: skip
+
+
+def table1(backend) -> pd.DataFrame:
+    """Table 1 in long form: our mean ms per k-NN query per (set, k) (``database`` = :data:`OURS`) and the paper's
+    HDM05 and CMU rows; columns database, frames, set, d, k, mean_ms."""
+    ours = backend.cached(("statistics", "table1", KNN_QUERIES), lambda: knn_timings(
+        backend.db, n_queries=min(KNN_QUERIES, backend.db.n_frames), workers=1, seed=SEED, database=OURS))  # fmt: skip
+    paper = paper_table1().merge(ours[["set", "d"]].drop_duplicates(), on="set", how="left")
+    return pd.concat([ours, paper.assign(database=paper["database"] + " (paper)")], ignore_index=True)
+
+
+def table1_wide(long: pd.DataFrame) -> pd.DataFrame:
+    """Table 1 as printed: one row per feature set (in the paper's order), its dimension d, and one column of mean
+    ms per (database, k)."""
+    wide = long.pivot_table(index=["set", "d"], columns=["k", "database"], values="mean_ms", sort=False)
+    databases = list(dict.fromkeys(long["database"]))
+    wide = wide[sorted(wide.columns, key=lambda c: (c[0], databases.index(c[1])))]
+    wide.columns = [f"{db}, k={k}" for k, db in wide.columns]
+    return wide.reset_index()
+
+
+# ------------------------------------------------------------------ the page
+class StatisticsPage(pn.viewable.Viewer):
+    """Müller 2005 Tables 2-3 and Krüger 2010 Table 1 for the open database, each beside the paper's numbers."""
+
+    def __init__(self, backend, selection):
+        super().__init__()
+        self.backend, self.selection = backend, selection
+        self.task = Task()
+        self.started = False
+        self.group = pn.widgets.Select(name="index of Table 3", options=["upper", "lower", "mix"], value="upper",
+                                       width=160, disabled=True, css_classes=["mv-table3-group"])  # fmt: skip
+        self.group.param.watch(lambda e: pn.state.execute(self._queries), "value")
+        self.table2 = pn.Column(sizing_mode="stretch_width")
+        self.table3 = pn.Column(sizing_mode="stretch_width")
+        self.table1 = pn.Column(sizing_mode="stretch_width")
+
+    def __panel__(self):
+        db = self.backend.db
+        intro = pn.pane.Markdown(
+            f"The indexes of **{db.path.name}** ({db.n_frames:,} frames, {len(db)} documents) beside the papers' "
+            f"tables: Müller, Röder & Clausen 2005 Tables 2 and 3 (relational indexes, 120 Hz), Krüger et al. 2010 "
+            f"Table 1 (kd-tree k-NN search, 30 Hz). Small settings: {QUERIES} random queries per row of Table 3 "
+            f"(the paper: 10,000), {KNN_QUERIES} k-NN queries per feature set.", sizing_mode="stretch_width")
+        return pn.Column(intro, self.task, "### Müller 2005, Table 2: feature computation and index construction",
+                         self.table2, "### Müller 2005, Table 3: random queries", self.group, self.table3,
+                         "### Krüger 2010, Table 1: k-NN query times", self.table1, sizing_mode="stretch_width")
+
+    def activate(self) -> None:
+        """Start the computation the first time the tab is shown."""
+        if not self.started:
+            self.started = True
+            pn.state.execute(self._compute)
+
+    async def _compute(self) -> None:
+        both = await self.task.run("Table 2: relational features and indexes", table2, self.backend)
+        if both is not None:
+            self.table2[:] = self._table2_view(both)
+        await self._queries()
+        long = await self.task.run("Table 1: k-NN query times", table1, self.backend)
+        if long is not None:
+            self.table1[:] = self._table1_view(long)
+
+    async def _queries(self) -> None:
+        self.group.disabled = True
+        group = self.group.value
+        result = await self.task.run(f"Table 3: random queries on the {group} index",
+                                     lambda: (table3(self.backend, group), query_times(self.backend, group)))
+        self.group.disabled = False
+        if result is not None:
+            self.table3[:] = self._table3_view(*result)
+
+    # ------------------------------------------------------------------ views
+    @staticmethod
+    def _table2_view(both: pd.DataFrame) -> list:
+        both = both.assign(**{"segments per 100 frames": 100 * both["segments"] / both["frames"]})
+        bars = [comparison_bars(both, "index", column, title=title, width=560, height=300)
+                for column, title in (("segments per 100 frames", "segments per 100 frames"),
+                                      ("bytes/segment", "index bytes per segment"))]  # fmt: skip
+        note = pn.pane.Markdown("Times in seconds (the paper: Matlab on a 3.6 GHz Pentium 4). ``t_read`` is the "
+                                "reading of the motion files, done at ingest here, so not measured.")
+        return [_table(both[TABLE2_SHOWN], "mv-table2"), note,
+                pn.Row(*[pn.pane.HoloViews(b, css_classes=["mv-table2-bars"]) for b in bars])]
+
+    @staticmethod
+    def _table3_view(table: pd.DataFrame, per_query: pd.DataFrame) -> list:
+        long = pd.concat([table.rename(columns={"µt (ms)": "mean_ms"}).assign(source=OURS),
+                          paper_table3().assign(source="paper")], ignore_index=True)  # fmt: skip
+        long["series"] = long["source"] + ", " + long["mode"] + ", " + long["hits"] + " hits"
+        mean = curves(long, "L", "mean_ms", "series", title="mean query time per hit group",
+                      xlabel="query length L (segments)", ylabel="ms", logy=True, width=620, height=340)
+        scatter = query_time_scatter(per_query, title=f"query time against hits ({len(per_query):,} random "
+                                                      f"queries, L = {', '.join(map(str, SCATTER_LENGTHS))})")
+        note = pn.pane.Markdown(f"Fuzzy queries are adaptive, 64 alternatives per set (§6.2). µh, σh: mean and "
+                                f"standard deviation of the hit count; µt: mean time per query. {QUERIES} queries "
+                                f"per (mode, L); the paper's 10,000 on I_u^180.")
+        return [_table(table, "mv-table3"), note,
+                pn.Row(pn.pane.HoloViews(mean, css_classes=["mv-table3-curves"]),
+                       pn.pane.HoloViews(scatter, css_classes=["mv-query-times"]))]
+
+    def _table1_view(self, long: pd.DataFrame) -> list:
+        bars = [comparison_bars(long[long["k"] == k], "set", "mean_ms", source="database", logy=True, width=560,
+                                height=320, ylabel="ms per query", title=f"k = {k}") for k in sorted(set(long["k"]))]
+        note = pn.pane.Markdown(
+            f"Mean milliseconds per exact k-NN query (scipy cKDTree, one thread; {KNN_QUERIES} queries) on this "
+            f"database's {self.backend.db.n_frames:,} frames; the paper (ANN library, 2010): HDM05 380,813 and CMU "
+            f"1,038,388 frames at 30 Hz.", css_classes=["mv-table1-note"])
+        return [_table(table1_wide(long), "mv-table1"), note,
+                pn.Row(*[pn.pane.HoloViews(b, css_classes=["mv-table1-bars"]) for b in bars])]

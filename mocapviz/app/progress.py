@@ -1,0 +1,58 @@
+"""Long computations of a page, run off the server's event loop with a progress bar, so the page never freezes.
+
+:class:`Task` shows an indeterminate bar (or a percentage when the computation reports one) and a status line while
+a function runs in a worker thread; when it ends, the line says how long it took, or shows its error as one red
+message naming the error's type (the server log keeps the traceback).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+
+import panel as pn
+
+LOG = logging.getLogger("mocapviz.app")
+
+
+class Task(pn.viewable.Viewer):
+    """A status line and progress bar for one page's long computations.
+
+    ``await task.run("Searching", fn, *args)`` returns ``fn(*args)``, computed in a worker thread, or None after
+    showing its error. ``task.report(fraction)`` may be called from ``fn`` to show a percentage.
+    """
+
+    def __init__(self, **params):
+        super().__init__(**params)
+        self.bar = pn.indicators.Progress(value=-1, active=False, visible=False, height=12, sizing_mode="stretch_width",
+                                          bar_color="primary")
+        self.status = pn.pane.Markdown("", margin=(0, 10), css_classes=["mv-status"])
+        self.error = pn.pane.Alert("", alert_type="danger", visible=False, css_classes=["mv-error"])
+        self.seconds = None
+
+    def __panel__(self):
+        return pn.Column(self.bar, self.status, self.error, sizing_mode="stretch_width", margin=0)
+
+    def report(self, fraction: float) -> None:
+        """Show ``fraction`` (0..1) done; safe to call from the worker thread."""
+        self.bar.value = int(round(100 * min(max(fraction, 0.0), 1.0)))
+
+    async def run(self, label: str, fn, *args):
+        self.error.visible = False
+        self.status.object = f"{label} …"
+        self.bar.value, self.bar.active, self.bar.visible = -1, True, True
+        t0 = time.perf_counter()
+        try:
+            result = await asyncio.get_running_loop().run_in_executor(None, fn, *args)
+        except Exception as exc:  # noqa: BLE001 - shown to the user as one line; the log keeps the traceback
+            LOG.exception("%s failed", label)
+            self.error.object = f"**{label} failed.** {type(exc).__name__}: {exc}"
+            self.error.visible = True
+            self.status.object = ""
+            return None
+        finally:
+            self.bar.active, self.bar.visible = False, False
+        self.seconds = time.perf_counter() - t0
+        self.status.object = f"{label}: done in {self.seconds:.2f} s"
+        return result

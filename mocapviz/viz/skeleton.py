@@ -1,0 +1,173 @@
+"""Skeletons drawn offscreen with PyVista (VTK through EGL; no display needed): the dashboard's 3D player and the
+neighbour-pose figure of Krüger, Tautges, Weber & Zinke 2010, Fig. 1.
+
+render_skeletons   one image of one or more canonical poses: side by side (each in its own viewport, one shared
+                   camera) or drawn together in one scene (``overlay``), over a floor grid.
+scene_bounds       the box a whole clip (or several) moves in, so a player's camera stays put while it plays.
+neighbour_poses    Fig. 1: the k nearest poses of a query pose, each turned into the body frame (root at the origin,
+                   facing +z) and drawn together, the query in front.
+png_bytes          an RGB image as PNG bytes (for ``panel.pane.PNG``).
+
+Poses are float (J, 3) arrays in cm, y up, joints in :data:`mocapviz.skeleton.CANONICAL_JOINTS` order. VTK is not
+thread safe: every call renders under one lock on a plotter kept per (viewports, size), so concurrent dashboard
+sessions queue for a few milliseconds rather than corrupt each other's images.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import threading
+
+import numpy as np
+
+from ..skeleton import CANONICAL_PARENTS, body_frame
+
+COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
+_LOCK = threading.Lock()
+_PLOTTERS: dict = {}
+
+
+def _bones(parents: np.ndarray) -> np.ndarray:
+    """VTK line cells (2, parent, child) of a skeleton's bones, flattened."""
+    child = np.flatnonzero(parents >= 0)
+    return np.column_stack([np.full(len(child), 2), parents[child], child]).ravel()
+
+
+def _check_poses(poses, what: str = "poses") -> list[np.ndarray]:
+    out = [np.asarray(p, dtype=np.float64) for p in poses]
+    if not out:
+        raise ValueError(f"no {what} to draw")
+    for i, p in enumerate(out):
+        if p.shape != (len(CANONICAL_PARENTS), 3):
+            raise ValueError(f"{what}[{i}] has shape {p.shape}; expected ({len(CANONICAL_PARENTS)}, 3) canonical "
+                             "joint positions in cm")
+        if not np.isfinite(p).all():
+            raise ValueError(f"{what}[{i}] holds NaN or infinite coordinates")
+    return out
+
+
+def scene_bounds(*clips, margin_cm: float = 20.0) -> np.ndarray:
+    """The box every frame of the given clips lies in, widened by ``margin_cm``.
+
+    Parameters
+    ----------
+    *clips : np.ndarray [shape=(T, J, 3) or (J, 3)], cm, y up.
+
+    Returns
+    -------
+    np.ndarray [shape=(2, 3)], float: (min, max) corners in cm; the floor (y = 0) is always inside.
+    """
+    pts = np.concatenate([np.asarray(c, dtype=np.float64).reshape(-1, 3) for c in clips])
+    lo, hi = np.nanmin(pts, axis=0) - margin_cm, np.nanmax(pts, axis=0) + margin_cm
+    lo[1], hi[1] = min(lo[1], 0.0), max(hi[1], 0.0)
+    return np.stack([lo, hi])
+
+
+def _plotter(viewports: int, size: tuple[int, int]):
+    key = (viewports, size)
+    if key not in _PLOTTERS:
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+        import pyvista as pv
+
+        _PLOTTERS[key] = pv.Plotter(off_screen=True, shape=(1, viewports), window_size=size, border=False)
+    return _PLOTTERS[key]
+
+
+def render_skeletons(poses, bounds=None, size: tuple[int, int] = (480, 360), overlay: bool = False,
+                     colours=None, opacities=None, titles=None, azimuth: float = 0.0) -> np.ndarray:
+    """Draw canonical poses offscreen.
+
+    Parameters
+    ----------
+    poses : sequence of np.ndarray [shape=(24, 3)], cm, y up.
+    bounds : np.ndarray [shape=(2, 3)], optional, the box the camera frames (:func:`scene_bounds`, so a playing
+        clip does not make the camera jump); default the poses' own box.
+    size : (width, height) of the whole image in pixels.
+    overlay : bool, all poses in one scene (Fig. 1) instead of one viewport each, side by side.
+    colours, opacities : one per pose (default :data:`COLOURS`, opaque).
+    titles : one caption per viewport (side by side) or one for the scene (overlay).
+    azimuth : float, degrees the camera is turned about the vertical axis from its front-right view.
+
+    Returns
+    -------
+    np.ndarray [shape=(height, width, 3)], uint8 RGB.
+    """
+    import pyvista as pv
+
+    poses = _check_poses(poses)
+    colours = list(colours or [COLOURS[i % len(COLOURS)] for i in range(len(poses))])
+    opacities = list(opacities or [1.0] * len(poses))
+    bounds = scene_bounds(*poses) if bounds is None else np.asarray(bounds, dtype=np.float64)
+    viewports = 1 if overlay else len(poses)
+    lines = _bones(CANONICAL_PARENTS)
+    with _LOCK:
+        p = _plotter(viewports, tuple(size))
+        p.clear_actors()  # of every viewport
+        for v in range(viewports):
+            p.subplot(0, v)
+            members = range(len(poses)) if overlay else [v]
+            for i in members:
+                mesh = pv.PolyData(poses[i], lines=lines)
+                p.add_mesh(mesh, color=colours[i], opacity=opacities[i], line_width=5, render_lines_as_tubes=True)
+                p.add_points(poses[i], color=colours[i], opacity=opacities[i], point_size=9,
+                             render_points_as_spheres=True)
+            _floor(p, bounds)
+            if titles is not None and v < len(titles):
+                p.add_text(str(titles[v]), font_size=9, position="upper_left", color="black", name=f"title{v}")
+            _camera(p, bounds, azimuth)
+        p.set_background("white")
+        return np.asarray(p.screenshot(return_img=True))[..., :3].copy()
+
+
+def _floor(p, bounds: np.ndarray) -> None:
+    import pyvista as pv
+
+    (x0, _, z0), (x1, _, z1) = bounds
+    floor = pv.Plane(center=((x0 + x1) / 2, 0.0, (z0 + z1) / 2), direction=(0, 1, 0), i_size=x1 - x0,
+                     j_size=z1 - z0, i_resolution=max(1, int((x1 - x0) // 50)),
+                     j_resolution=max(1, int((z1 - z0) // 50)))
+    p.add_mesh(floor, color="#d9d9d9", style="wireframe", line_width=1)
+
+
+def _camera(p, bounds: np.ndarray, azimuth: float) -> None:
+    centre = bounds.mean(axis=0)
+    radius = float(np.linalg.norm(bounds[1] - bounds[0])) / 2
+    a = np.deg2rad(30.0 + azimuth)
+    direction = np.array([np.sin(a), 0.35, np.cos(a)])
+    p.camera.focal_point = tuple(centre)
+    p.camera.position = tuple(centre + direction / np.linalg.norm(direction) * radius / np.tan(np.deg2rad(14.0)))
+    p.camera.up = (0.0, 1.0, 0.0)
+    p.camera.view_angle = 30.0
+    p.camera.clipping_range = (radius * 0.1, radius * 8)
+
+
+def neighbour_poses(query_pose, neighbours, size: tuple[int, int] = (480, 420), azimuth: float = 0.0) -> np.ndarray:
+    """Krüger et al. 2010, Fig. 1: a query pose and its nearest neighbours drawn together in the body frame.
+
+    Parameters
+    ----------
+    query_pose : np.ndarray [shape=(24, 3)], cm, y up (world coordinates).
+    neighbours : np.ndarray [shape=(k, 24, 3)], cm, y up: the neighbour frames' poses (world coordinates).
+
+    Returns
+    -------
+    np.ndarray [shape=(height, width, 3)], uint8 RGB: the neighbours faint grey-blue, the query red, all with the
+    root at the origin facing +z (so only the posture differs, as in the figure).
+    """
+    neighbours = np.asarray(neighbours, dtype=np.float64).reshape(-1, len(CANONICAL_PARENTS), 3)
+    poses = body_frame(np.concatenate([neighbours, np.asarray(query_pose, dtype=np.float64)[None]]))
+    poses[..., 1] -= poses[..., 1].min()  # the root sits at height 0: lift the lowest joint onto the floor
+    k = len(neighbours)
+    return render_skeletons(list(poses), size=size, overlay=True, colours=["#4a78b5"] * k + ["#d62728"],
+                            opacities=[max(0.15, min(0.6, 6.0 / max(k, 1)))] * k + [1.0],
+                            titles=[f"query and its {k} nearest neighbours"], azimuth=azimuth)
+
+
+def png_bytes(image: np.ndarray) -> bytes:
+    """(H, W, 3) uint8 RGB -> PNG file bytes (fast compression)."""
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(np.asarray(image, dtype=np.uint8)).save(buf, format="PNG", compress_level=1)
+    return buf.getvalue()

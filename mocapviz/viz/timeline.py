@@ -1,0 +1,128 @@
+"""A clip's features over time: the dashboard's Database page and the query pages.
+
+relational_timeline   Müller, Röder & Clausen 2005 §3-4: one row per boolean feature, its runs of 1 drawn as bars
+                      coloured by feature group (lower / upper / mix), the segment boundaries of the whole feature
+                      vector (§4, the F-segmentation of :func:`mocapviz.segment.segment`) as thin lines, an optional highlighted span.
+numeric_curves        Krüger, Tautges, Weber & Zinke 2010 §3.2: the coordinates of a numeric feature set (e.g. F15E,
+                      cm in the body frame) against time.
+runs                  (feature, start, stop) runs of 1 of a boolean (T, f) array.
+
+Both builders return HoloViews objects with bokeh options; x is time in seconds.
+"""
+
+from __future__ import annotations
+
+import holoviews as hv
+import holoviews.plotting.bokeh  # noqa: F401  registers the bokeh backend and its options
+import numpy as np
+import pandas as pd
+
+from ..segment import segment
+
+GROUP_COLOURS = {"lower": "#1f77b4", "upper": "#d62728", "mix": "#2ca02c"}
+
+
+def runs(values: np.ndarray) -> pd.DataFrame:
+    """The runs of 1 of every column of a boolean array.
+
+    Parameters
+    ----------
+    values : np.ndarray [shape=(T, f)], bool.
+
+    Returns
+    -------
+    pandas.DataFrame: ``feature`` (column number), ``start``, ``stop`` (frames, stop exclusive), by feature then
+    start.
+    """
+    values = np.asarray(values, dtype=bool)
+    if values.ndim != 2:
+        raise ValueError(f"values must be (T, f) booleans; got shape {values.shape}")
+    padded = np.zeros((values.shape[0] + 2, values.shape[1]), dtype=np.int8)
+    padded[1:-1] = values
+    edges = np.diff(padded, axis=0)
+    feature, start = np.nonzero(edges.T == 1)  # row-major: by feature, then frame; rises and falls pair up
+    stop = np.nonzero(edges.T == -1)[1]
+    return pd.DataFrame({"feature": feature, "start": start, "stop": stop})
+
+
+def relational_timeline(values: np.ndarray, names, fps: float, groups: dict | None = None, span=None,
+                        width: int = 900, row_height: int = 14, segments: bool = True) -> hv.Overlay:
+    """Boolean feature timelines of one clip.
+
+    Parameters
+    ----------
+    values : np.ndarray [shape=(T, f)], bool: the clip's relational features (:func:`mocapviz.features.relational`).
+    names : list of str, the f feature names (rows, top to bottom).
+    fps : float, frames per second (x is in seconds).
+    groups : dict group -> list of names (:func:`mocapviz.features.feature_groups`), for the colours; default one
+        colour.
+    span : (first, last) frames, optional: shaded (the query span).
+    segments : bool, draw the segment boundaries of the whole feature vector.
+
+    Returns
+    -------
+    holoviews.Overlay of Rectangles (the runs; hover shows feature and times), the boundaries and the span.
+    """
+    values = np.asarray(values, dtype=bool)
+    names = list(names)
+    if values.ndim != 2 or values.shape[1] != len(names):
+        raise ValueError(f"values {values.shape} do not match {len(names)} feature names")
+    if fps <= 0:
+        raise ValueError(f"fps must be positive, got {fps}")
+    group_of = {n: g for g, members in (groups or {}).items() for n in members}
+    r = runs(values)
+    f = len(names)
+    row = f - 1 - r["feature"].to_numpy()  # first feature on top
+    table = pd.DataFrame({
+        "x0": r["start"] / fps, "y0": row - 0.4, "x1": r["stop"] / fps, "y1": row + 0.4,
+        "feature": [names[i] for i in r["feature"]],
+        "group": [group_of.get(names[i], "feature") for i in r["feature"]],
+        "from_s": r["start"] / fps, "to_s": r["stop"] / fps,
+    })
+    table["colour"] = [GROUP_COLOURS.get(g, "#555555") for g in table["group"]]
+    duration = values.shape[0] / fps
+    ticks = [(f - 1 - i, n) for i, n in enumerate(names)]
+    rects = hv.Rectangles(table, kdims=["x0", "y0", "x1", "y1"], vdims=["feature", "group", "from_s", "to_s",
+                                                                        "colour"])
+    rects = rects.opts(color="colour", line_color=None, tools=["hover"], width=width, height=max(120, row_height * f
+                       + 60), yticks=ticks, xlabel="time (s)", ylabel="", xlim=(0, duration), ylim=(-0.6, f - 0.4),
+                       show_grid=False, toolbar="above")
+    layers = [rects]
+    if segments:
+        bounds = segment(values).starts[1:] / fps
+        layers.append(hv.VLines(bounds).opts(color="#bbbbbb", line_width=0.5))
+    if span is not None:
+        a, b = span
+        layers.append(hv.VSpan(a / fps, (b + 1) / fps).opts(color="orange", alpha=0.2))
+    return hv.Overlay(layers).opts(title=f"{f} relational features, {len(segment(values).starts)} segments")
+
+
+def numeric_curves(values: np.ndarray, columns, fps: float, title: str = "", width: int = 900,
+                   height: int = 260, span=None) -> hv.Overlay:
+    """Numeric feature coordinates of one clip against time.
+
+    Parameters
+    ----------
+    values : np.ndarray [shape=(T, d)], float (cm for the end-effector sets).
+    columns : list of str, the d coordinate names (:func:`mocapviz.features.numeric_columns`).
+    fps : float.
+    span : (first, last) frames, optional: shaded.
+
+    Returns
+    -------
+    holoviews.Overlay of one Curve per coordinate (legend clickable to hide), x in seconds.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    columns = list(columns)
+    if values.ndim != 2 or values.shape[1] != len(columns):
+        raise ValueError(f"values {values.shape} do not match {len(columns)} column names")
+    if fps <= 0:
+        raise ValueError(f"fps must be positive, got {fps}")
+    t = np.arange(values.shape[0]) / fps
+    curves = [hv.Curve((t, values[:, j]), "time (s)", hv.Dimension("value", label="feature value"), label=c)
+              .opts(line_width=1) for j, c in enumerate(columns)]
+    if span is not None:
+        curves.append(hv.VSpan(span[0] / fps, (span[1] + 1) / fps).opts(color="orange", alpha=0.2))
+    return hv.Overlay(curves).opts(width=width, height=height, title=title, legend_position="right",
+                                   legend_cols=2 if len(columns) > 16 else 1, show_legend=True,
+                                   tools=["hover"], click_policy="hide")

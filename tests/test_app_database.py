@@ -1,0 +1,86 @@
+"""The dashboard's Database page in headless Chromium, against the embedded sample served by `mocapviz serve`."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from browser_helpers import open_dashboard, record_timing, text_of
+
+from mocapviz.features import relational
+from mocapviz.segment import segment
+
+
+def _doc_row(db, name: str):
+    return db.documents[db.documents["name"] == name].iloc[0]
+
+
+def test_first_page_lists_documents_and_plays_the_first_clip(sample_db, sample_dashboard, page, screenshot):
+    seconds = open_dashboard(page, sample_dashboard)
+    record_timing("first_page_s", seconds, "s")
+    docs = sample_db.documents
+    assert text_of(page, ".mv-doc-count") == f"{len(docs)} of {len(docs)} documents"
+    first = docs.iloc[0]
+    caption = text_of(page, ".mv-player-caption")
+    assert f"of {first['n_frames']}" in caption  # one step per frame of the first document
+    values, _ = relational(sample_db.motion(int(first["doc_id"])), progress=False)
+    assert f"{len(segment(values).starts)} segments in the clip" in text_of(page, ".mv-timeline-info")
+    screenshot("database")
+
+
+def test_filter_and_select_a_document(sample_db, sample_dashboard, page, screenshot):
+    open_dashboard(page, sample_dashboard)
+    docs = sample_db.documents
+    label = "kickLFront1Reps"
+    expected = docs[docs["label"] == label]
+    assert len(expected) >= 2
+    page.locator(".mv-documents").wait_for()
+    choice = page.locator(".choices").first
+    choice.click()
+    page.keyboard.type(label)
+    page.keyboard.press("Enter")
+    page.keyboard.press("Escape")
+    page.locator(".mv-header").click()  # close the dropdown
+    count = page.locator(".mv-doc-count")
+    count.get_by_text(f"{len(expected)} of {len(docs)} documents").wait_for()
+    target = expected.iloc[-1]
+    page.locator(".mv-documents").get_by_text(target["name"], exact=True).click()
+    caption = page.locator(".mv-player-caption")
+    caption.get_by_text(re.compile(rf"of {target['n_frames']} ")).wait_for()
+    values, _ = relational(sample_db.motion(int(target["doc_id"])), progress=False)
+    page.locator(".mv-timeline-info").get_by_text(f"{len(segment(values).starts)} segments in the clip").wait_for()
+    assert page.locator(".mv-player-image img").get_attribute("src").startswith("data:image/png")
+    screenshot("selected")
+
+
+def test_player_steps_through_frames(sample_db, sample_dashboard, page):
+    open_dashboard(page, sample_dashboard)
+    caption = page.locator(".mv-player-caption")
+    before = page.locator(".mv-player-image img").get_attribute("src")
+    page.locator(".mv-player").get_by_role("button").nth(4).click()  # "next"
+    caption.get_by_text(re.compile(r"^step (?!1 )\d+ of")).wait_for()
+    assert page.locator(".mv-player-image img").get_attribute("src") != before
+
+
+def test_serve_refuses_a_missing_database(tmp_path, capsys):
+    from mocapviz.cli import main
+
+    assert main(["serve", str(tmp_path / "no-such-db")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("mocapviz: error:") and "no-such-db" in err and "Traceback" not in err
+
+
+def test_serving_beyond_localhost_warns(sample_db):
+    from mocapviz.app import serve
+
+    with pytest.warns(UserWarning, match="anyone who can reach"):
+        server = serve(sample_db.path, port=_free_port(), address="0.0.0.0", threaded=True)
+    server.stop()
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]

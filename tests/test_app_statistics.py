@@ -1,0 +1,189 @@
+"""The dashboard's Correlations and Index statistics pages in headless Chromium, against the embedded sample served by
+`mocapviz serve`: the numbers shown are the library's for the same database and settings."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from browser_helpers import open_dashboard, record_timing, text_of
+
+from mocapviz.app.backend import Backend
+from mocapviz.app.pages import correlations as corr_page
+from mocapviz.app.pages import statistics as stats_page
+from mocapviz.experiments.correlation import correlation_sample, pose_correlations, segment_correlations
+from mocapviz.experiments.numeric import paper_table1
+from mocapviz.experiments.relational import index_statistics, paper_table2, query_statistics
+
+WAIT_MS = 240_000  # the server shares two cores with other test runs
+
+
+def open_tab(page, name: str) -> None:
+    """Show the page tab ``name`` (Bokeh's tab headers are ``.bk-tab`` divs without an ARIA role, so
+    ``browser_helpers.open_tab`` finds none)."""
+    page.locator(".mv-tabs .bk-tab", has_text=name).click()
+
+
+def _rows(page, css: str) -> list[dict]:
+    """The rows of the HTML table of the DataFrame pane with css class ``css``: [{header: text}] (index included)."""
+    table = page.locator(f"{css} table").first
+    table.wait_for(timeout=WAIT_MS)
+    cells = table.evaluate("t => [...t.rows].map(r => [...r.cells].map(c => c.textContent.trim()))")
+    header = cells[0]
+    data = [r for r in cells[1:] if any(r[1:])]  # pandas puts the index name on a row of its own, otherwise empty
+    return [dict(zip(header, r)) for r in data]
+
+
+def _matrix_rows(page, css: str) -> dict[str, dict[str, str]]:
+    """A correlation values table as {row measure: {column: text}} (the first column holds the row measures)."""
+    return {next(iter(r.values())): r for r in _rows(page, css)}
+
+
+def _expected_pose(sample_db, measures, clips: int = 2):
+    sample = correlation_sample(sample_db, clips_per_class=clips, min_clips=clips, seed=corr_page.SEED)
+    return pose_correlations(sample_db, rows=measures, columns=measures, docs=sample, n_queries=128, k=64,
+                             seed=corr_page.SEED)  # fmt: skip
+
+
+def _assert_matrix(shown: dict, expected) -> None:
+    assert list(shown) == list(expected.index)
+    for row in expected.index:
+        for col in expected.columns:
+            assert shown[row][col] == f"{expected.loc[row, col]:.3f}", (row, col)
+
+
+def _open_values(page, css: str) -> None:
+    """Expand the collapsed "values" card ``css``."""
+    card = page.locator(css).first
+    card.wait_for(timeout=WAIT_MS)
+    card.locator(".card-header").first.click()
+
+
+# ============================================================================ Correlations
+def test_correlations_match_the_library(sample_db, sample_dashboard, page, screenshot):
+    open_dashboard(page, sample_dashboard)
+    t0 = time.perf_counter()
+    open_tab(page, "Correlations")
+    _open_values(page, ".mv-values-pose")
+    record_timing("correlations_pose_s", time.perf_counter() - t0, "s")
+    measures = list(corr_page.DEFAULT_MEASURES)
+    _assert_matrix(_matrix_rows(page, ".mv-correlation-pose"), _expected_pose(sample_db, measures))
+    assert "128 random query frames of the sample's 22 clips" in text_of(page, ".mv-pose-caption")
+
+    _open_values(page, ".mv-values-segment")
+    record_timing("correlations_both_s", time.perf_counter() - t0, "s")
+    sample = correlation_sample(sample_db, clips_per_class=2, min_clips=2, seed=corr_page.SEED)
+    segment = segment_correlations(sample_db, sample, measures=measures, n_first=8)
+    shown = _matrix_rows(page, ".mv-correlation-segment")
+    _assert_matrix(shown, segment)
+    assert [shown[m]["precision"] for m in measures] == [f"{segment.attrs['precision'][m]:.3f}" for m in measures]
+    assert "the 22 clips" in text_of(page, ".mv-segment-caption")
+    screenshot("correlations")
+
+
+def test_correlations_recompute_with_other_measures(sample_db, sample_dashboard, page, screenshot):
+    open_dashboard(page, sample_dashboard)
+    open_tab(page, "Correlations")
+    page.locator(".mv-values-pose").first.wait_for(timeout=WAIT_MS)
+    page.locator(".mv-values-segment").first.wait_for(timeout=WAIT_MS)
+    chooser = page.locator(".mv-measures")
+    chooser.locator(".choices__item[data-value='F39E'] .choices__button").click()
+    chooser.locator(".choices").first.click()
+    page.keyboard.type("F15x5E")
+    page.keyboard.press("Enter")
+    page.keyboard.press("Escape")
+    page.locator(".mv-compute button").click()
+    measures = [m for m in ("Fp16", "F15E", "F30E", "F15x3E", "F15x5E", "Dpc1")]
+    page.locator(".mv-pose-caption").first.wait_for()
+    _open_values(page, ".mv-values-pose")
+    deadline = time.monotonic() + WAIT_MS / 1000
+    shown = _matrix_rows(page, ".mv-correlation-pose")
+    while list(shown) != measures and time.monotonic() < deadline:
+        time.sleep(0.5)
+        shown = _matrix_rows(page, ".mv-correlation-pose")
+    _assert_matrix(shown, _expected_pose(sample_db, measures))
+    screenshot("recomputed")
+
+
+def test_segment_based_says_when_the_database_cannot(sample_db, sample_dashboard, page, screenshot):
+    open_dashboard(page, sample_dashboard)
+    open_tab(page, "Correlations")
+    page.locator(".mv-values-segment").first.wait_for(timeout=WAIT_MS)
+    clips = page.locator(".mv-clips input")
+    clips.fill("3")
+    clips.press("Enter")
+    page.locator(".mv-compute button").click()
+    problem = page.locator(".mv-segment-problem")
+    problem.get_by_text("Segment-based comparisons need several clips per class").wait_for(timeout=WAIT_MS)
+    assert "0 class(es) with at least 3 clips" in problem.inner_text()
+    assert page.locator(".mv-values-segment").count() == 0
+    caption = page.locator(".mv-pose-caption")
+    caption.get_by_text(f"all {len(sample_db)} documents (no sample)").wait_for(timeout=WAIT_MS)
+    assert page.locator(".mv-error").filter(has_text="failed").count() == 0
+    screenshot("no-segment-sample")
+
+
+# ============================================================================ Index statistics
+def _number(x) -> str:
+    return stats_page._number(x)
+
+
+@pytest.fixture(scope="module")
+def upper_lower(sample_db):
+    """The sample's relational indexes as the dashboard opens them."""
+    indexes = Backend(sample_db).indexes()
+    return indexes
+
+
+def test_statistics_tables_match_the_library(sample_db, sample_dashboard, upper_lower, page, screenshot):
+    open_dashboard(page, sample_dashboard)
+    t0 = time.perf_counter()
+    open_tab(page, "Index statistics")
+    page.locator(".mv-table1 table").first.wait_for(timeout=WAIT_MS)
+    record_timing("statistics_all_s", time.perf_counter() - t0, "s")
+
+    # Table 2: our three group indexes, then the paper's six rows
+    rows = _rows(page, ".mv-table2")
+    ours, paper = index_statistics(sample_db), paper_table2()
+    assert [r["source"] for r in rows] == ["this database"] * 3 + ["paper"] * 6
+    for shown, (_, want) in zip(rows, [*ours.iterrows(), *paper.iterrows()]):
+        for col in ("index", "f", "lists", "frames", "segments"):
+            assert shown[col] == (want[col] if col == "index" else _number(want[col])), col
+    assert rows[0]["frames"] == f"{sample_db.n_frames:,}"
+
+    # Table 3: counts and mean hits of the same random queries (times differ from run to run)
+    rows = _rows(page, ".mv-table3")
+    want = query_statistics(upper_lower["upper"], n_queries=stats_page.QUERIES, lengths=stats_page.TABLE3_LENGTHS,
+                            seed=stats_page.SEED)  # fmt: skip
+    assert len(rows) == len(want) == 18
+    for shown, (_, w) in zip(rows, want.iterrows()):
+        assert (shown["mode"], shown["L"], shown["hits"]) == (w["mode"], str(w["L"]), w["hits"])
+        assert shown["queries"] == _number(w["queries"]) and shown["µh"] == _number(w["mean_hits"])
+    assert rows[0]["paper µt (ms)"] == "16" and rows[17]["paper µh"] == "1,908"
+
+    # Table 1: one row per feature set with its dimension, our times beside the paper's
+    rows = _rows(page, ".mv-table1")
+    paper = paper_table1()
+    dims = {"Fp8": 8, "Fp16": 16, "Fp25": 25, "F15E": 15, "F30E": 30, "F39E": 39, "F15x3E": 45, "F15x5E": 75,
+            "F30x3E": 90}  # fmt: skip
+    assert [(r["set"], r["d"]) for r in rows] == [(s, str(d)) for s, d in dims.items()]
+    for r in rows:
+        for k in (16, 256):
+            assert float(r[f"this database, k={k}"]) > 0
+            for db in ("HDM05", "CMU"):
+                ms = paper[(paper["database"] == db) & (paper["k"] == k) & (paper["set"] == r["set"])]["mean_ms"]
+                assert r[f"{db} (paper), k={k}"] == _number(ms.iloc[0])
+    assert f"{sample_db.n_frames:,} frames" in text_of(page, ".mv-table1-note")
+    for css in (".mv-table2-bars", ".mv-table3-curves", ".mv-query-times", ".mv-table1-bars"):
+        assert page.locator(f"{css} canvas").first.is_visible(), css
+    screenshot("statistics")
+
+    # another index for Table 3: the table follows
+    page.locator(".mv-table3-group select").select_option("lower")
+    want = query_statistics(upper_lower["lower"], n_queries=stats_page.QUERIES, lengths=stats_page.TABLE3_LENGTHS,
+                            seed=stats_page.SEED)  # fmt: skip
+    expected = [_number(v) for v in want["µh" if "µh" in want else "mean_hits"]]
+    deadline = time.monotonic() + WAIT_MS / 1000
+    while [r["µh"] for r in _rows(page, ".mv-table3")] != expected and time.monotonic() < deadline:
+        time.sleep(0.5)
+    assert [r["µh"] for r in _rows(page, ".mv-table3")] == expected

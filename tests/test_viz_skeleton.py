@@ -1,0 +1,67 @@
+"""Offscreen skeleton drawings (mocapviz.viz.skeleton) of real sample poses, checked on their pixels."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from mocapviz.viz.skeleton import neighbour_poses, png_bytes, render_skeletons, scene_bounds
+
+
+@pytest.fixture(scope="module")
+def clip(sample_db):
+    doc = int(sample_db.select(label="kickLFront1Reps")["doc_id"].iloc[0])
+    return np.asarray(sample_db.positions[sample_db.frames(doc)])
+
+
+def _red(image: np.ndarray) -> np.ndarray:
+    """Pixels of the shaded red of COLOURS[1] (#d62728): red well above green and blue."""
+    r, g, b = (image[..., i].astype(int) for i in range(3))
+    return (r > 90) & (r > 2 * g) & (r > 2 * b)
+
+
+def _blue(image: np.ndarray) -> np.ndarray:
+    """Pixels of the shaded blue of COLOURS[0] (#1f77b4)."""
+    r, g, b = (image[..., i].astype(int) for i in range(3))
+    return (b > 80) & (b > 2 * r)
+
+
+def test_scene_bounds_hold_every_joint_and_the_floor(clip):
+    lo, hi = scene_bounds(clip, margin_cm=5)
+    pts = clip.reshape(-1, 3)
+    assert (pts >= lo + 5 - 1e-4).all() and (pts <= hi - 5 + 1e-4).all()
+    assert lo[1] <= 0 <= hi[1]
+
+
+def test_side_by_side_draws_each_pose_in_its_own_half(clip):
+    img = render_skeletons([clip[0], clip[-1]], bounds=scene_bounds(clip), size=(400, 200))
+    assert img.shape == (200, 400, 3) and img.dtype == np.uint8
+    blue, red = _blue(img), _red(img)
+    assert blue[:, :200].sum() > 50 and blue[:, 200:].sum() == 0
+    assert red[:, 200:].sum() > 50 and red[:, :200].sum() == 0
+
+
+def test_overlay_puts_the_query_in_red_over_the_neighbours(clip):
+    img = neighbour_poses(clip[30], clip[::10], size=(300, 260))
+    assert img.shape == (260, 300, 3)
+    assert _red(img).sum() > 50
+
+
+def test_bad_poses_are_refused(clip):
+    with pytest.raises(ValueError, match=r"expected \(24, 3\)"):
+        render_skeletons([clip[0, :10]])
+    bad = clip[0].copy()
+    bad[3, 1] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        render_skeletons([bad])
+    with pytest.raises(ValueError, match="no poses"):
+        render_skeletons([])
+
+
+def test_png_bytes_round_trip(clip):
+    img = render_skeletons([clip[0]], size=(120, 90))
+    back = np.asarray(Image.open(io.BytesIO(png_bytes(img))))
+    np.testing.assert_array_equal(back, img)
