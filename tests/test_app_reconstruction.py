@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
-from browser_helpers import open_dashboard, record_timing, timed
+from browser_helpers import open_dashboard, open_tab, record_timing, timed
 
 from mocapviz.app.pages.reconstruction import DEFAULT_NOISE_CM, SEED, default_k
 from mocapviz.reconstruct import PosePrior, reconstruct, reconstruction_errors, synthetic_markers
 from mocapviz.skeleton import heading
-
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 TEST_DOC = 3  # HDM_dg_elbowToKnee1RepsLelbowStart_017_120: 100 frames of actor dg
 ERROR = ".mv-recon-error p"
@@ -18,10 +15,9 @@ MESSAGE = ".mv-recon-message"
 
 
 def _open_page(page, url: str) -> None:
-    """Load the dashboard and show the Reconstruction tab (Bokeh's tab headers are ``.bk-tab`` divs without an ARIA
-    role, so ``browser_helpers.open_tab``'s ``get_by_role("tab")`` finds none)."""
+    """Load the dashboard and show the Reconstruction tab."""
     open_dashboard(page, url)
-    page.locator(".mv-tabs .bk-tab", has_text="Reconstruction").click()
+    open_tab(page, "Reconstruction")
     page.locator(".mv-recon-run button").wait_for()
 
 

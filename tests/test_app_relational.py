@@ -6,15 +6,13 @@ from __future__ import annotations
 import re
 
 import pytest
-from browser_helpers import open_dashboard, record_timing, text_of, timed
+from browser_helpers import open_dashboard, open_tab, record_timing, text_of, timed
 from playwright.sync_api import expect
 
 from mocapviz import index
 from mocapviz.app.pages.relational import DEFAULT_FEATURES, MODES
 from mocapviz.features import feature_groups
 from mocapviz.query import query_by_example
-
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 COUNT = ".mv-hit-count"
 KNEES = ["rknee_bent", "lknee_bent"]
@@ -29,16 +27,17 @@ def _option(db, doc: int) -> str:
 def _open_page(page, url: str) -> None:
     """Open the Relational query tab and wait until its indexes are loaded (Run enabled)."""
     open_dashboard(page, url)
-    # Bokeh 3.9's tab headers are plain divs without role="tab", so browser_helpers.open_tab finds nothing
-    page.locator(".bk-tab", has_text=re.compile(r"^Relational query$")).click()
+    open_tab(page, "Relational query")
     page.locator(".mv-run button:not([disabled])").wait_for(timeout=600_000)
 
 
 def _set_query(page, db, doc: int, span, features, mode: str, m: int = 1) -> None:
     """Choose the clip, span, ticked features and kind of hit through the page's widgets."""
+    row = db.documents.set_index("doc_id").loc[doc]
+    fps, info = float(row["fps"]), page.locator(".mv-query-span-info")
     page.locator(".mv-query-doc select").select_option(label=_option(db, doc))
-    fps = float(db.documents.set_index("doc_id").at[doc, "fps"])
-    info = page.locator(".mv-query-span-info")
+    expect(info).to_contain_text(f"{row['n_frames']} frames · 0.00–")  # the whole new clip, before the span changes
+    expect(info).to_contain_text(f"of {row['name']}")
     page.locator(".mv-query-first input").fill(str(span[0]))
     page.locator(".mv-query-first input").press("Enter")
     expect(info).to_contain_text(f" · {span[0] / fps:.2f}–")  # wait for the server before the next change

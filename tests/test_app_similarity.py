@@ -8,7 +8,7 @@ import re
 import numpy as np
 import pandas as pd
 import pytest
-from browser_helpers import open_dashboard, record_timing, timed
+from browser_helpers import open_dashboard, open_tab, record_timing, text_of, timed
 
 from mocapviz.app.pages.similarity import LNG_K_AT_30HZ, match_alignment, matrix_docs, scaled_k
 from mocapviz.features import numeric_of
@@ -20,21 +20,9 @@ TAB = "Similarity search"
 
 
 # ============================================================================ helpers
-def _open_tab(page, name: str) -> None:
-    """Click a page tab. Bokeh's tab headers are ``div.bk-tab`` without an ARIA role, so
-    ``browser_helpers.open_tab`` (``get_by_role("tab")``) does not find them."""
-    page.locator(".bk-tab", has_text=name).click()
-
-
-def _text(page, css: str) -> str:
-    """The text of a Markdown pane (or Alert) of css class ``css``: its content is in the element's shadow root, which
-    ``inner_text`` does not read."""
-    return page.locator(css).first.evaluate("e => e.shadowRoot.lastElementChild.innerText")
-
-
 def _leading_int(page, css: str) -> int:
     """The number a count line (``css``) starts with."""
-    return int(re.match(r"\s*(\d+)", _text(page, css)).group(1))
+    return int(re.match(r"\s*(\d+)", text_of(page, css)).group(1))
 
 
 def _cells(page, table_css: str, field: str, rows: int) -> list[str]:
@@ -50,7 +38,8 @@ def _choose(page, name: str) -> None:
 
 def _query(page) -> tuple[int, int, tuple[int, int]]:
     """(document, frame, (first, last)) that the page's query line names."""
-    text = _text(page, ".mv-similarity-query")
+    page.locator(".mv-similarity-query", has_text="span").wait_for()
+    text = text_of(page, ".mv-similarity-query")
     doc, frame, first, last = re.search(r"document (\d+) .*frame (\d+) .*span (\d+)–(\d+)", text).groups()
     return int(doc), int(frame), (int(first), int(last))
 
@@ -97,7 +86,7 @@ def test_knn_of_the_current_frame_equals_the_library(page, sample_dashboard, sam
     _choose(page, QUERY_NAME)
     for _ in range(4):  # step the Database page's player into the kick
         page.locator(".mv-player button.next").first.click()
-    _open_tab(page, TAB)
+    open_tab(page, TAB)
     page.locator(".mv-similarity-query", has_text=re.compile(rf"{QUERY_NAME}.*frame [1-9]")).wait_for()
     doc, frame, _ = _query(page)
     _set(page, ".mv-knn-k", 32)
@@ -117,13 +106,13 @@ def test_knn_of_the_current_frame_equals_the_library(page, sample_dashboard, sam
     page.locator(".mv-knn-search button").click()
     error = page.locator(".mv-knn-task .mv-error")
     error.wait_for(state="visible")
-    assert "k must be between 1 and 256" in _text(page, ".mv-knn-task .mv-error")
+    assert "k must be between 1 and 256" in text_of(page, ".mv-knn-task .mv-error")
 
 
 def test_lng_matches_equal_the_library_and_play_aligned(page, sample_dashboard, sample_db, screenshot):
     open_dashboard(page, sample_dashboard)
     _choose(page, QUERY_NAME)
-    _open_tab(page, TAB)
+    open_tab(page, TAB)
     page.locator(".mv-similarity-query", has_text=QUERY_NAME).wait_for()
     doc, _, span = _query(page)
     k = scaled_k(LNG_K_AT_30HZ, sample_db.fps)
@@ -140,7 +129,7 @@ def test_lng_matches_equal_the_library_and_play_aligned(page, sample_dashboard, 
 
     page.locator(".mv-match-table .tabulator-row").first.click()
     page.locator(".mv-match-playing", has_text="Playing").wait_for()
-    playing = _text(page, ".mv-match-playing")
+    playing = text_of(page, ".mv-match-playing")
     assert f"document {doc}," in playing and f"(document {best}," in playing
     steps = len(expected["path"].iloc[0])
     page.locator(".mv-match-player .mv-player-caption", has_text=f"of {steps} ").wait_for()
@@ -156,7 +145,7 @@ def test_lng_matches_equal_the_library_and_play_aligned(page, sample_dashboard, 
     page.locator(".mv-match-run button").click()
     error = page.locator(".mv-match-task .mv-error")
     error.wait_for(state="visible")
-    assert "K must be between 1 and 100" in _text(page, ".mv-match-task .mv-error")
+    assert "K must be between 1 and 100" in text_of(page, ".mv-match-task .mv-error")
 
 
 @pytest.mark.slow
@@ -164,7 +153,7 @@ def test_knn_round_trip_on_hdm05(page, hdm05_dashboard, hdm05_db30, screenshot):
     """Click Search -> the neighbours table shows, on all 287 HDM05 clips at 30 Hz (measured, never asserted): the
     first search builds the kd-tree, the second (another k) finds it cached."""
     open_dashboard(page, hdm05_dashboard)
-    _open_tab(page, TAB)
+    open_tab(page, TAB)
     doc, frame, _ = _query(page)
     search = page.locator(".mv-knn-search button")
     cold = timed(search.click, lambda: page.locator(".mv-knn-count", has_text="neighbours").wait_for())

@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import time
 
+import pandas as pd
 import pytest
-from browser_helpers import open_dashboard, record_timing, text_of
+from browser_helpers import open_dashboard, open_tab, record_timing, text_of
 
 from mocapviz.app.backend import Backend
 from mocapviz.app.pages import correlations as corr_page
@@ -16,12 +17,6 @@ from mocapviz.experiments.numeric import paper_table1
 from mocapviz.experiments.relational import index_statistics, paper_table2, query_statistics
 
 WAIT_MS = 240_000  # the server shares two cores with other test runs
-
-
-def open_tab(page, name: str) -> None:
-    """Show the page tab ``name`` (Bokeh's tab headers are ``.bk-tab`` divs without an ARIA role, so
-    ``browser_helpers.open_tab`` finds none)."""
-    page.locator(".mv-tabs .bk-tab", has_text=name).click()
 
 
 def _rows(page, css: str) -> list[dict]:
@@ -89,16 +84,14 @@ def test_correlations_recompute_with_other_measures(sample_db, sample_dashboard,
     chooser = page.locator(".mv-measures")
     chooser.locator(".choices__item[data-value='F39E'] .choices__button").click()
     chooser.locator(".choices").first.click()
-    page.keyboard.type("F15x5E")
-    page.keyboard.press("Enter")
+    chooser.locator(".choices__list--dropdown .choices__item--choice[data-value='F15x5E']").click()
     page.keyboard.press("Escape")
+    _open_values(page, ".mv-values-pose")  # the card stays open when the matrix is replaced
     page.locator(".mv-compute button").click()
-    measures = [m for m in ("Fp16", "F15E", "F30E", "F15x3E", "F15x5E", "Dpc1")]
-    page.locator(".mv-pose-caption").first.wait_for()
-    _open_values(page, ".mv-values-pose")
+    measures = ["Fp16", "F15E", "F30E", "F15x3E", "F15x5E", "Dpc1"]
     deadline = time.monotonic() + WAIT_MS / 1000
     shown = _matrix_rows(page, ".mv-correlation-pose")
-    while list(shown) != measures and time.monotonic() < deadline:
+    while list(shown) == list(corr_page.DEFAULT_MEASURES) and time.monotonic() < deadline:
         time.sleep(0.5)
         shown = _matrix_rows(page, ".mv-correlation-pose")
     _assert_matrix(shown, _expected_pose(sample_db, measures))
@@ -115,8 +108,8 @@ def test_segment_based_says_when_the_database_cannot(sample_db, sample_dashboard
     page.locator(".mv-compute button").click()
     problem = page.locator(".mv-segment-problem")
     problem.get_by_text("Segment-based comparisons need several clips per class").wait_for(timeout=WAIT_MS)
-    assert "0 class(es) with at least 3 clips" in problem.inner_text()
-    assert page.locator(".mv-values-segment").count() == 0
+    assert "0 class(es) with at least 3 clips" in text_of(page, ".mv-segment-problem")
+    assert not page.locator(".mv-values-segment").first.is_visible()
     caption = page.locator(".mv-pose-caption")
     caption.get_by_text(f"all {len(sample_db)} documents (no sample)").wait_for(timeout=WAIT_MS)
     assert page.locator(".mv-error").filter(has_text="failed").count() == 0
@@ -124,18 +117,13 @@ def test_segment_based_says_when_the_database_cannot(sample_db, sample_dashboard
 
 
 # ============================================================================ Index statistics
-def _number(x) -> str:
-    return stats_page._number(x)
-
-
 @pytest.fixture(scope="module")
-def upper_lower(sample_db):
-    """The sample's relational indexes as the dashboard opens them."""
-    indexes = Backend(sample_db).indexes()
-    return indexes
+def sample_indexes(sample_db):
+    """The sample's relational indexes (group -> InvertedIndex) as the dashboard opens them."""
+    return Backend(sample_db).indexes()
 
 
-def test_statistics_tables_match_the_library(sample_db, sample_dashboard, upper_lower, page, screenshot):
+def test_statistics_tables_match_the_library(sample_db, sample_dashboard, sample_indexes, page, screenshot):
     open_dashboard(page, sample_dashboard)
     t0 = time.perf_counter()
     open_tab(page, "Index statistics")
@@ -148,17 +136,17 @@ def test_statistics_tables_match_the_library(sample_db, sample_dashboard, upper_
     assert [r["source"] for r in rows] == ["this database"] * 3 + ["paper"] * 6
     for shown, (_, want) in zip(rows, [*ours.iterrows(), *paper.iterrows()]):
         for col in ("index", "f", "lists", "frames", "segments"):
-            assert shown[col] == (want[col] if col == "index" else _number(want[col])), col
+            assert shown[col] == (want[col] if col == "index" else stats_page.cell_text(want[col])), col
     assert rows[0]["frames"] == f"{sample_db.n_frames:,}"
 
     # Table 3: counts and mean hits of the same random queries (times differ from run to run)
     rows = _rows(page, ".mv-table3")
-    want = query_statistics(upper_lower["upper"], n_queries=stats_page.QUERIES, lengths=stats_page.TABLE3_LENGTHS,
+    want = query_statistics(sample_indexes["upper"], n_queries=stats_page.QUERIES, lengths=stats_page.TABLE3_LENGTHS,
                             seed=stats_page.SEED)  # fmt: skip
     assert len(rows) == len(want) == 18
     for shown, (_, w) in zip(rows, want.iterrows()):
         assert (shown["mode"], shown["L"], shown["hits"]) == (w["mode"], str(w["L"]), w["hits"])
-        assert shown["queries"] == _number(w["queries"]) and shown["µh"] == _number(w["mean_hits"])
+        assert shown["queries"] == stats_page.cell_text(w["queries"]) and shown["µh"] == stats_page.cell_text(w["mean_hits"])
     assert rows[0]["paper µt (ms)"] == "16" and rows[17]["paper µh"] == "1,908"
 
     # Table 1: one row per feature set with its dimension, our times beside the paper's
@@ -172,7 +160,7 @@ def test_statistics_tables_match_the_library(sample_db, sample_dashboard, upper_
             assert float(r[f"this database, k={k}"]) > 0
             for db in ("HDM05", "CMU"):
                 ms = paper[(paper["database"] == db) & (paper["k"] == k) & (paper["set"] == r["set"])]["mean_ms"]
-                assert r[f"{db} (paper), k={k}"] == _number(ms.iloc[0])
+                assert r[f"{db} (paper), k={k}"] == stats_page.cell_text(ms.iloc[0])
     assert f"{sample_db.n_frames:,} frames" in text_of(page, ".mv-table1-note")
     for css in (".mv-table2-bars", ".mv-table3-curves", ".mv-query-times", ".mv-table1-bars"):
         assert page.locator(f"{css} canvas").first.is_visible(), css
@@ -180,10 +168,34 @@ def test_statistics_tables_match_the_library(sample_db, sample_dashboard, upper_
 
     # another index for Table 3: the table follows
     page.locator(".mv-table3-group select").select_option("lower")
-    want = query_statistics(upper_lower["lower"], n_queries=stats_page.QUERIES, lengths=stats_page.TABLE3_LENGTHS,
+    want = query_statistics(sample_indexes["lower"], n_queries=stats_page.QUERIES, lengths=stats_page.TABLE3_LENGTHS,
                             seed=stats_page.SEED)  # fmt: skip
-    expected = [_number(v) for v in want["µh" if "µh" in want else "mean_hits"]]
+    expected = [stats_page.cell_text(v) for v in want["mean_hits"]]
     deadline = time.monotonic() + WAIT_MS / 1000
     while [r["µh"] for r in _rows(page, ".mv-table3")] != expected and time.monotonic() < deadline:
         time.sleep(0.5)
     assert [r["µh"] for r in _rows(page, ".mv-table3")] == expected
+
+
+# ============================================================================ the pages' helpers, without a browser
+def test_default_clips_follows_the_second_largest_class():
+    docs = pd.DataFrame({"label": ["a"] * 9 + ["b"] * 5 + ["c"]})
+    assert corr_page.default_clips(docs) == 5
+    assert corr_page.default_clips(pd.DataFrame({"label": ["a"] * 20 + ["b"] * 12})) == corr_page.PAPER_CLIPS
+    assert corr_page.default_clips(pd.DataFrame({"label": ["a", "a", "a"]})) == 2
+    assert corr_page.default_clips(pd.DataFrame({"label": [None, None]})) == corr_page.PAPER_CLIPS
+
+
+def test_segment_problem_names_what_is_missing(sample_db):
+    assert corr_page.default_clips(sample_db.documents) == 2
+    assert corr_page.segment_problem(sample_db, 2, 8) == ""
+    assert "need several clips per class" in corr_page.segment_problem(sample_db, 3, 8)
+    assert "between 2 and 21" in corr_page.segment_problem(sample_db, 2, 22)
+
+
+def test_table1_wide_keeps_the_papers_order():
+    long = pd.DataFrame({"database": ["ours", "ours", "P", "P"], "set": ["F15E", "Fp8", "F15E", "Fp8"],
+                         "d": [15, 8, 15, 8], "k": [16, 16, 16, 16], "mean_ms": [0.1, 0.2, 1.1, 0.19]})
+    wide = stats_page.table1_wide(long)
+    assert list(wide.columns) == ["set", "d", "ours, k=16", "P, k=16"]
+    assert list(wide["set"]) == ["F15E", "Fp8"] and list(wide["P, k=16"]) == [1.1, 0.19]

@@ -17,7 +17,7 @@ def test_precision_counts_hits_and_recall_counts_documents():
     # hits by rank: the query's own doc (left out), 1 (A), 2 (B), 1 again (A), 4 (none), 3 (A)
     curve = precision_recall([0, 1, 2, 1, 4, 3], DOCUMENTS, query_doc=0)
     assert curve["doc_id"].tolist() == [1, 2, 1, 4, 3]
-    assert curve["rank"].tolist() == [1, 2, 3, 4, 5]
+    assert curve["rank"].tolist() == [2, 3, 4, 5, 6]  # ranks of the hits table
     assert curve["relevant"].tolist() == [True, False, True, False, True]
     np.testing.assert_allclose(curve["precision"], [1 / 1, 1 / 2, 2 / 3, 2 / 4, 3 / 5])
     # two other A documents: doc 1 found at rank 1 (its second hit adds nothing), doc 3 at rank 5
@@ -27,7 +27,7 @@ def test_precision_counts_hits_and_recall_counts_documents():
 
 def test_recall_is_undefined_without_other_documents_of_the_label():
     curve = precision_recall([2, 0, 1], DOCUMENTS, query_doc=2)
-    assert curve["relevant"].tolist() == [False, False]
+    assert curve["relevant"].tolist() == [False, False] and curve["rank"].tolist() == [2, 3]
     np.testing.assert_allclose(curve["precision"], [0.0, 0.0])
     assert curve["recall"].isna().all() and curve.attrs["n_relevant"] == 0
 
@@ -44,9 +44,9 @@ def test_plot_holds_the_two_curves():
     plot = precision_recall_plot(curve, label="A")
     lines = {el.label: el for el in plot if isinstance(el, hv.Curve)}
     assert set(lines) == {"precision", "recall"}
-    np.testing.assert_allclose(lines["precision"].dimension_values("rank"), [1, 2, 3, 4, 5])
+    np.testing.assert_allclose(lines["precision"].dimension_values("rank"), [2, 3, 4, 5, 6])
     np.testing.assert_allclose(lines["precision"].dimension_values("fraction"), [1, 1 / 2, 2 / 3, 2 / 4, 3 / 5])
     np.testing.assert_allclose(lines["recall"].dimension_values("fraction"), [0.5, 0.5, 0.5, 0.5, 1.0])
     assert len([el for el in plot if isinstance(el, hv.Scatter)]) == 2
-    assert "(A)" in plot.opts.get().kwargs["title"]
+    assert plot.opts.get().kwargs["title"].endswith(": A")
     hv.render(plot, backend="bokeh")  # renders without error

@@ -25,7 +25,7 @@ def _red(image: np.ndarray) -> np.ndarray:
 
 def _blue(image: np.ndarray) -> np.ndarray:
     """Pixels of the shaded blue of COLOURS[0] (#1f77b4)."""
-    r, g, b = (image[..., i].astype(int) for i in range(3))
+    r, _g, b = (image[..., i].astype(int) for i in range(3))
     return (b > 80) & (b > 2 * r)
 
 

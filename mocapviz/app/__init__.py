@@ -74,21 +74,11 @@ def dashboard(db_path) -> pn.viewable.Viewable:
     return pn.Column(header, tabs, sizing_mode="stretch_width")
 
 
-def _warm_up(backend: Backend) -> None:
-    """Compute what the first page shows (the first clip's features, the renderer's first frame) before the server
-    listens, so the first visitor does not wait for library start-up (numba kernels, the EGL context)."""
-    from ..viz.skeleton import render_skeletons
-
-    doc = int(backend.documents["doc_id"].iloc[0])
-    backend.clip_relational(doc)
-    backend.numeric("F15E")
-    render_skeletons([backend.db.positions[backend.db.frames(doc).start]])
-
-
 def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, threaded: bool = False):
     """Serve the dashboard of the MotionDB at ``db_path`` on http://address:port/ until interrupted.
 
-    The database is opened (and checked) before the server starts, so a bad path fails at once. Any address other
+    The database is opened (and checked) and one dashboard built before the server starts, so a bad path fails at
+    once and the first page comes quickly. Any address other
     than 127.0.0.1 / localhost exposes the database to the network: a warning says so.
 
     Raises
@@ -96,7 +86,8 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, t
     MotionDBError
         ``db_path`` is not a MotionDB, or holds no documents.
     """
-    _warm_up(Backend.open(db_path))
+    dashboard(db_path)  # once before listening: the first visitor then finds numba kernels, the EGL context,
+    # HoloViews' option trees and the first clip's features ready
     if address not in (LOCAL, "localhost"):
         warnings.warn(f"serving on {address}: anyone who can reach this machine's port {port} can browse "
                       f"{db_path}", UserWarning, stacklevel=2)

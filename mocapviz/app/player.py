@@ -98,9 +98,9 @@ class SkeletonPlayer(pn.viewable.Viewer):
         self._draw()
 
     def _set_interval(self) -> None:
-        stride = max(1, int(round(self.fps / MAX_DISPLAY_FPS)))
+        stride = max(1, round(self.fps / MAX_DISPLAY_FPS))
         self.player.step = stride
-        self.player.interval = int(round(1000 * stride / self.fps / SPEEDS[self.speed.value]))
+        self.player.interval = round(1000 * stride / self.fps / SPEEDS[self.speed.value])
 
     def _on_step(self, event) -> None:
         if self.player.value != event.new:

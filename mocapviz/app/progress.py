@@ -36,7 +36,7 @@ class Task(pn.viewable.Viewer):
 
     def report(self, fraction: float) -> None:
         """Show ``fraction`` (0..1) done; safe to call from the worker thread."""
-        self.bar.value = int(round(100 * min(max(fraction, 0.0), 1.0)))
+        self.bar.value = round(100 * min(max(fraction, 0.0), 1.0))
 
     async def run(self, label: str, fn, *args):
         self.error.visible = False
@@ -45,7 +45,7 @@ class Task(pn.viewable.Viewer):
         t0 = time.perf_counter()
         try:
             result = await asyncio.get_running_loop().run_in_executor(None, fn, *args)
-        except Exception as exc:  # noqa: BLE001 - shown to the user as one line; the log keeps the traceback
+        except Exception as exc:
             LOG.exception("%s failed", label)
             self.error.object = f"**{label} failed.** {type(exc).__name__}: {exc}"
             self.error.visible = True

@@ -99,7 +99,8 @@ def default_test_docs(db, actor: str = "bk", full: bool = False) -> list[int]:
     return sorted(int(d) for d in (mine["doc_id"] if full else mine.groupby("label")["doc_id"].first()))
 
 
-def _frame_actor(db) -> np.ndarray:
+def frame_actors(db) -> np.ndarray:
+    """The actor of every frame of a MotionDB: (N,) object array of the documents' ``actor`` labels."""
     return db.documents.set_index("doc_id").loc[db.document_of(np.arange(db.n_frames)), "actor"].to_numpy()
 
 
@@ -175,7 +176,7 @@ def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, featur
     variants = [v for v in VARIANTS if v != "CMU" or other_db is not None]
     prior = PosePrior(db, pca=pca)
     other = PosePrior(other_db) if other_db is not None else None
-    actor_of = _frame_actor(db)
+    actor_of = frame_actors(db)
     by_actor: dict[str, PosePrior] = {}
 
     def priors(doc: int) -> dict[str, PosePrior]:

@@ -29,8 +29,9 @@ def precision_recall(hit_docs, documents: pd.DataFrame, query_doc: int) -> pd.Da
 
     Returns
     -------
-    pandas.DataFrame, one row per hit outside the query document, in rank order: ``rank`` (1-based among these
-    hits), ``doc_id``, ``relevant`` (bool), ``precision`` and ``recall`` after this rank (fractions in [0, 1]).
+    pandas.DataFrame, one row per hit outside the query document, in rank order: ``rank`` (the hit's 1-based
+    position in ``hit_docs``, as in the hits table), ``doc_id``, ``relevant`` (bool), ``precision`` and ``recall``
+    after this hit (fractions in [0, 1]; precision over the judged hits so far).
     ``attrs["n_relevant"]`` is the number of other documents with the query's label (recall is NaN when 0).
 
     Raises
@@ -44,24 +45,25 @@ def precision_recall(hit_docs, documents: pd.DataFrame, query_doc: int) -> pd.Da
     label = labels[query_doc]
     if pd.isna(label) or label == "":
         raise ValueError(f"document {query_doc} has no label, so no hit can be judged")
-    docs = np.asarray([int(d) for d in hit_docs if int(d) != query_doc], dtype=np.int64)
+    all_docs = np.asarray([int(d) for d in hit_docs], dtype=np.int64)
+    judged = all_docs != query_doc
+    docs, ranks = all_docs[judged], np.flatnonzero(judged) + 1
     relevant = np.array([labels.get(int(d)) == label for d in docs], dtype=bool)
     n_relevant = sum(1 for d, lab in labels.items() if lab == label and d != query_doc)
     first_time = ~pd.Series(docs).duplicated().to_numpy()
-    ranks = np.arange(1, len(docs) + 1)
     found = np.cumsum(relevant & first_time)
     out = pd.DataFrame({
         "rank": ranks,
         "doc_id": docs,
         "relevant": relevant,
-        "precision": np.cumsum(relevant) / ranks,
+        "precision": np.cumsum(relevant) / np.arange(1, len(docs) + 1),
         "recall": found / n_relevant if n_relevant else np.full(len(docs), np.nan),
     })
     out.attrs["n_relevant"] = n_relevant
     return out
 
 
-def precision_recall_plot(curve: pd.DataFrame, label: str = "", width: int = 520, height: int = 260) -> hv.Overlay:
+def precision_recall_plot(curve: pd.DataFrame, label: str = "", width: int = 720, height: int = 280) -> hv.Overlay:
     """Precision and recall over the rank, as returned by :func:`precision_recall`.
 
     Parameters
@@ -73,7 +75,7 @@ def precision_recall_plot(curve: pd.DataFrame, label: str = "", width: int = 520
     -------
     holoviews.Overlay of two step curves with markers (y: fraction 0..1, x: rank of the hit).
     """
-    y = hv.Dimension("fraction", range=(0, 1.05))
+    y = hv.Dimension("fraction", range=(-0.04, 1.05))  # a line at 0 stays visible above the axis
     layers = []
     for column, colour in (("precision", "#1f77b4"), ("recall", "#ff7f0e")):
         data = curve[["rank", column, "doc_id", "relevant"]].rename(columns={column: "fraction"})
@@ -81,6 +83,6 @@ def precision_recall_plot(curve: pd.DataFrame, label: str = "", width: int = 520
                       .opts(interpolation="steps-post", color=colour, line_width=2))
         layers.append(hv.Scatter(data, "rank", [y, "doc_id", "relevant"], label=column)
                       .opts(color=colour, size=5, tools=["hover"]))
-    title = f"precision and recall over rank ({label})" if label else "precision and recall over rank"
+    title = f"precision / recall over rank: {label}" if label else "precision / recall over rank"
     return hv.Overlay(layers).opts(width=width, height=height, title=title, legend_position="bottom_right",
                                    xlabel="rank of hit", ylabel="fraction", show_grid=True, toolbar="above")

@@ -9,23 +9,24 @@ neighbour_poses    Fig. 1: the k nearest poses of a query pose, each turned into
 png_bytes          an RGB image as PNG bytes (for ``panel.pane.PNG``).
 
 Poses are float (J, 3) arrays in cm, y up, joints in :data:`mocapviz.skeleton.CANONICAL_JOINTS` order. VTK is not
-thread safe: every call renders under one lock on a plotter kept per (viewports, size), so concurrent dashboard
-sessions queue for a few milliseconds rather than corrupt each other's images.
+thread safe (a plotter rendered from another thread than its own crashes the process): every drawing is done in
+one render thread, on a plotter kept per (viewports, size), whichever thread asks for it; concurrent dashboard
+sessions queue for a few milliseconds.
 """
 
 from __future__ import annotations
 
 import io
 import os
-import threading
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
 from ..skeleton import CANONICAL_PARENTS, body_frame
 
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
-_LOCK = threading.Lock()
-_PLOTTERS: dict = {}
+_RENDER_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mocapviz-vtk")
+_PLOTTERS: dict = {}  # (viewports, size) -> pyvista.Plotter, created and used in _RENDER_THREAD only
 
 
 def _bones(parents: np.ndarray) -> np.ndarray:
@@ -93,31 +94,42 @@ def render_skeletons(poses, bounds=None, size: tuple[int, int] = (480, 360), ove
     -------
     np.ndarray [shape=(height, width, 3)], uint8 RGB.
     """
-    import pyvista as pv
-
     poses = _check_poses(poses)
     colours = list(colours or [COLOURS[i % len(COLOURS)] for i in range(len(poses))])
     opacities = list(opacities or [1.0] * len(poses))
     bounds = scene_bounds(*poses) if bounds is None else np.asarray(bounds, dtype=np.float64)
-    viewports = 1 if overlay else len(poses)
-    lines = _bones(CANONICAL_PARENTS)
-    with _LOCK:
-        p = _plotter(viewports, tuple(size))
-        p.clear_actors()  # of every viewport
-        for v in range(viewports):
-            p.subplot(0, v)
-            members = range(len(poses)) if overlay else [v]
-            for i in members:
-                mesh = pv.PolyData(poses[i], lines=lines)
-                p.add_mesh(mesh, color=colours[i], opacity=opacities[i], line_width=5, render_lines_as_tubes=True)
-                p.add_points(poses[i], color=colours[i], opacity=opacities[i], point_size=9,
-                             render_points_as_spheres=True)
-            _floor(p, bounds)
-            if titles is not None and v < len(titles):
-                p.add_text(str(titles[v]), font_size=9, position="upper_left", color="black", name=f"title{v}")
-            _camera(p, bounds, azimuth)
-        p.set_background("white")
-        return np.asarray(p.screenshot(return_img=True))[..., :3].copy()
+    viewports = [list(range(len(poses)))] if overlay else [[i] for i in range(len(poses))]
+    return _RENDER_THREAD.submit(_render, poses, viewports, bounds, tuple(size), colours, opacities, titles,
+                                 azimuth).result()
+
+
+def _render(poses, viewports, bounds, size, colours, opacities, titles, azimuth) -> np.ndarray:
+    """Draw in the render thread: per viewport, the poses of each (colour, opacity) merged into one mesh."""
+    import pyvista as pv
+
+    p = _plotter(len(viewports), size)
+    p.clear_actors()  # of every viewport
+    for v, members in enumerate(viewports):
+        p.subplot(0, v)
+        styles = dict.fromkeys((colours[i], opacities[i]) for i in members)
+        for colour, opacity in styles:
+            group = [poses[i] for i in members if (colours[i], opacities[i]) == (colour, opacity)]
+            mesh = pv.PolyData(np.concatenate(group), lines=_bones_of(len(group)))
+            p.add_mesh(mesh, color=colour, opacity=opacity, line_width=5, render_lines_as_tubes=True)
+            p.add_points(mesh.points, color=colour, opacity=opacity, point_size=9, render_points_as_spheres=True)
+        _floor(p, bounds)
+        if titles is not None and v < len(titles):
+            p.add_text(str(titles[v]), font_size=9, position="upper_left", color="black", name=f"title{v}")
+        _camera(p, bounds, azimuth)
+    p.set_background("white")
+    return np.asarray(p.screenshot(return_img=True))[..., :3].copy()
+
+
+def _bones_of(n_poses: int) -> np.ndarray:
+    """VTK line cells of ``n_poses`` canonical skeletons stacked one after the other in one point array."""
+    one = _bones(CANONICAL_PARENTS).reshape(-1, 3)
+    shift = (np.arange(n_poses) * len(CANONICAL_PARENTS))[:, None, None] * np.array([0, 1, 1])
+    return (one[None] + shift).ravel()
 
 
 def _floor(p, bounds: np.ndarray) -> None:

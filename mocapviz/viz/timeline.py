@@ -13,7 +13,7 @@ Both builders return HoloViews objects with bokeh options; x is time in seconds.
 from __future__ import annotations
 
 import holoviews as hv
-import holoviews.plotting.bokeh  # noqa: F401  registers the bokeh backend and its options
+import holoviews.plotting.bokeh
 import numpy as np
 import pandas as pd
 
@@ -120,9 +120,11 @@ def numeric_curves(values: np.ndarray, columns, fps: float, title: str = "", wid
         raise ValueError(f"fps must be positive, got {fps}")
     t = np.arange(values.shape[0]) / fps
     curves = [hv.Curve((t, values[:, j]), "time (s)", hv.Dimension("value", label="feature value"), label=c)
-              .opts(line_width=1) for j, c in enumerate(columns)]
+              for j, c in enumerate(columns)]
     if span is not None:
         curves.append(hv.VSpan(span[0] / fps, (span[1] + 1) / fps).opts(color="orange", alpha=0.2))
-    return hv.Overlay(curves).opts(width=width, height=height, title=title, legend_position="right",
-                                   legend_cols=2 if len(columns) > 16 else 1, show_legend=True,
-                                   tools=["hover"], click_policy="hide")
+    return hv.Overlay(curves).opts({
+        "Curve": {"line_width": 1, "tools": ["hover"]},
+        "Overlay": {"width": width, "height": height, "title": title, "legend_position": "right", "show_legend": True,
+                    "legend_cols": 2 if len(columns) > 16 else 1, "click_policy": "hide"},
+    }, backend="bokeh")

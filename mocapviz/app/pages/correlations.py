@@ -21,6 +21,7 @@ from ..progress import Task
 SEED = 0
 DEFAULT_MEASURES = ("Fp16", "F15E", "F30E", "F39E", "F15x3E", "Dpc1")  # cheap on a small database: ~5 s in all
 PAPER_CLIPS = 8  # clips per class of the paper's sample (76 clips of 9 HDM05 classes)
+WIDTH = 660  # pixels of each of the two matrices' columns: side by side on a 1400-pixel screen
 
 
 def default_clips(documents: pd.DataFrame) -> int:
@@ -78,6 +79,33 @@ def values_table(matrix: pd.DataFrame, css: str) -> pn.pane.DataFrame:
                              sizing_mode="stretch_width")
 
 
+class MatrixView(pn.viewable.Viewer):
+    """One correlation matrix: its heat map (Fig. 2's form), a caption and its values in a card that stays open or
+    closed across recomputations. Hidden until the first matrix."""
+
+    def __init__(self, kind: str):
+        super().__init__()
+        self.kind = kind
+        self.plot = pn.pane.HoloViews(None, css_classes=[f"mv-heatmap-{kind}"])
+        self.caption = pn.pane.Markdown("", css_classes=[f"mv-{kind}-caption"], sizing_mode="stretch_width")
+        self.values = pn.Card(title="values", collapsed=True, css_classes=[f"mv-values-{kind}"], width=WIDTH - 20)
+        self.layout = pn.Column(self.plot, self.caption, self.values, visible=False, width=WIDTH)
+
+    def __panel__(self):
+        return self.layout
+
+    def show(self, matrix: pd.DataFrame, caption: str, table: pd.DataFrame | None = None) -> None:
+        """Draw ``matrix`` [shape=(R, C)], rho; ``table`` (default the matrix) goes into the values card."""
+        cell = max(30, min(46, (WIDTH - 190) // len(matrix.columns)))  # 14 measures fit the column too
+        self.plot.object = correlation_heatmap(matrix, title=f"{self.kind}-based", cell=cell)
+        self.caption.object = caption
+        self.values[:] = [values_table(matrix if table is None else table, f"mv-correlation-{self.kind}")]
+        self.layout.visible = True
+
+    def hide(self) -> None:
+        self.layout.visible = False
+
+
 class CorrelationsPage(pn.viewable.Viewer):
     """Krüger 2010 Fig. 2 for the open database: the measures and settings chosen, both heat maps computed."""
 
@@ -86,21 +114,20 @@ class CorrelationsPage(pn.viewable.Viewer):
         self.backend, self.selection = backend, selection
         db = backend.db
         options = list(available_measures(db))
-        self.measures = pn.widgets.MultiChoice(name="feature sets and distance measures", options=options,
+        self.measures = pn.widgets.MultiChoice(label="feature sets and distance measures", options=options,
                                                value=[m for m in DEFAULT_MEASURES if m in options], width=520,
                                                css_classes=["mv-measures"])  # fmt: skip
-        self.n_queries = pn.widgets.IntInput(name="queries", value=min(128, db.n_frames), start=1,
+        self.n_queries = pn.widgets.IntInput(label="queries", value=min(128, db.n_frames), start=1,
                                              end=db.n_frames, width=100)  # fmt: skip
-        self.k = pn.widgets.IntInput(name="k", value=min(64, db.n_frames - 1), start=1, end=db.n_frames - 1, width=90)
-        self.clips = pn.widgets.IntInput(name="clips per class", value=default_clips(db.documents), start=2, width=110,
+        self.k = pn.widgets.IntInput(label="k", value=min(64, db.n_frames - 1), start=1, end=db.n_frames - 1, width=90)
+        self.clips = pn.widgets.IntInput(label="clips per class", value=default_clips(db.documents), start=2, width=110,
                                          css_classes=["mv-clips"])  # fmt: skip
-        self.n_first = pn.widgets.IntInput(name="first n", value=PAPER_CLIPS, start=2, width=90)
-        self.button = pn.widgets.Button(name="Compute", button_type="primary", width=110, align="end",
+        self.n_first = pn.widgets.IntInput(label="first n", value=PAPER_CLIPS, start=2, width=90)
+        self.button = pn.widgets.Button(label="Compute", button_type="primary", width=110, align="end",
                                         css_classes=["mv-compute"])  # fmt: skip
         self.button.on_click(self._compute)
         self.pose_task, self.segment_task = Task(), Task()
-        self.pose = pn.Column(width=560)
-        self.segment = pn.Column(width=560)
+        self.pose, self.segment = MatrixView("pose"), MatrixView("segment")
         self.segment_note = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-segment-problem"])
         self.started = False
 
@@ -111,8 +138,9 @@ class CorrelationsPage(pn.viewable.Viewer):
             "the **column** measure, so the matrix is not symmetric. The paper: 1024 queries, k = 256, 8 clips of "
             "each of 9 classes, the first 8 of each ranking.", sizing_mode="stretch_width")
         controls = pn.Row(self.measures, self.n_queries, self.k, self.clips, self.n_first, self.button)
-        pose = pn.Column("### Pose-based (Fig. 2)", self.pose_task, self.pose)
-        segment = pn.Column("### Segment-based (DTW of clips)", self.segment_task, self.segment_note, self.segment)
+        pose = pn.Column("### Pose-based (Fig. 2)", self.pose_task, self.pose, width=WIDTH)
+        segment = pn.Column("### Segment-based (DTW of clips)", self.segment_task, self.segment_note, self.segment,
+                            width=WIDTH)
         return pn.Column(intro, controls, pn.FlexBox(pose, segment), sizing_mode="stretch_width")
 
     def activate(self) -> None:
@@ -136,39 +164,31 @@ class CorrelationsPage(pn.viewable.Viewer):
             pose = await self.pose_task.run(f"Pose-based, {len(measures)} measures", pose_matrix, self.backend,
                                             measures, n_queries, k, clips)  # fmt: skip
             if pose is not None:
-                self.pose[:] = self._pose_view(pose, sampled=sample_of(self.backend.db, clips)[0] is not None)
+                self.pose.show(pose, self._pose_caption(pose, sampled=sample_of(self.backend.db, clips)[0] is not None))
             problem = segment_problem(self.backend.db, clips, n_first)
             self.segment_note.object, self.segment_note.visible = problem, bool(problem)
             if problem:
-                self.segment[:] = []
+                self.segment.hide()
+                self.segment_task.status.object = ""
                 return
             segment = await self.segment_task.run(f"Segment-based, {len(measures)} measures", segment_matrix,
                                                   self.backend, measures, clips, n_first)  # fmt: skip
             if segment is not None:
-                self.segment[:] = self._segment_view(segment)
+                self.segment.show(segment, self._segment_caption(segment),
+                                  segment.assign(precision=segment.attrs["precision"]))
         finally:
             self.button.disabled = False
 
     @staticmethod
-    def _pose_view(matrix: pd.DataFrame, sampled: bool) -> list:
+    def _pose_caption(matrix: pd.DataFrame, sampled: bool) -> str:
         a = matrix.attrs
         clips = f"the sample's {a['documents']} clips" if sampled else f"all {a['documents']} documents (no sample)"
-        caption = (f"{a['n_queries']} random query frames of {clips} ({a['frames']:,} frames), their k = {a['k']} "
-                   f"nearest frames by the row measure.")
-        return [pn.pane.HoloViews(correlation_heatmap(matrix, title="pose-based"), css_classes=["mv-heatmap-pose"]),
-                pn.pane.Markdown(caption, css_classes=["mv-pose-caption"]),
-                pn.Card(values_table(matrix, "mv-correlation-pose"), title="values", collapsed=True,
-                        css_classes=["mv-values-pose"], sizing_mode="stretch_width")]  # fmt: skip
+        return (f"{a['n_queries']} random query frames of {clips} ({a['frames']:,} frames), their k = {a['k']} "
+                f"nearest frames by the row measure.")
 
     @staticmethod
-    def _segment_view(matrix: pd.DataFrame) -> list:
+    def _segment_caption(matrix: pd.DataFrame) -> str:
         a = matrix.attrs
-        caption = (f"DTW between all pairs of the {a['clips']} clips ({a['frames']:,} frames); ρ over the first "
-                   f"{a['n_first']} clips of each ranking. *precision*: the share of those with the clip's own "
-                   f"class (a random ranking: {a['chance']:.3f}).")
-        table = matrix.assign(precision=a["precision"])
-        return [pn.pane.HoloViews(correlation_heatmap(matrix, title="segment-based"),
-                                  css_classes=["mv-heatmap-segment"]),
-                pn.pane.Markdown(caption, css_classes=["mv-segment-caption"]),
-                pn.Card(values_table(table, "mv-correlation-segment"), title="values", collapsed=True,
-                        css_classes=["mv-values-segment"], sizing_mode="stretch_width")]  # fmt: skip
+        return (f"DTW between all pairs of the {a['clips']} clips ({a['frames']:,} frames); ρ over the first "
+                f"{a['n_first']} clips of each ranking. *precision*: the share of those with the clip's own class "
+                f"(a random ranking: {a['chance']:.3f}).")

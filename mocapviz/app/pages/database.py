@@ -50,11 +50,14 @@ class DatabasePage(pn.viewable.Viewer):
         self.numeric_set = pn.widgets.Select(label="numeric feature set", options=list(NUMERIC_SETS[:3]) + [
             s for s in NUMERIC_SETS[3:] if not s.startswith("Fp")], value="F15E", width=160)
         self.numeric_set.param.watch(lambda e: self._draw_curves(), "value")
-        self.timeline = pn.pane.HoloViews(None, sizing_mode="stretch_width", css_classes=["mv-timeline"])
+        self.timeline = pn.pane.HoloViews(None, sizing_mode="stretch_width", linked_axes=False,
+                                          css_classes=["mv-timeline"])
         self.timeline_info = pn.pane.Markdown("", css_classes=["mv-timeline-info"], margin=(0, 10))
-        self.curves = pn.pane.HoloViews(None, sizing_mode="stretch_width", css_classes=["mv-curves"])
+        self.curves = pn.pane.HoloViews(None, sizing_mode="stretch_width", linked_axes=False,
+                                        css_classes=["mv-curves"])
         self._filter()
         self.show_document(selection.doc)
+        selection.param.watch(self._follow, ["doc", "span"])
 
     def __panel__(self):
         filters = pn.Row(self.label_filter, self.actor_filter, self.length_filter)
@@ -82,17 +85,30 @@ class DatabasePage(pn.viewable.Viewer):
             self.show_document(int(self.table.value["doc_id"].iloc[event.new[0]]))
 
     # ------------------------------------------------------------------ clip
-    def show_document(self, doc: int) -> None:
-        """Load document ``doc`` into the player and the plots; its whole length becomes the span."""
+    def show_document(self, doc: int, span=None) -> None:
+        """Load document ``doc`` into the player and the plots; ``span`` (first, last), default the whole clip,
+        becomes the session's span."""
         row = self.backend.document(doc)
         n = int(row["n_frames"])
+        if span is None or not 0 <= span[0] <= span[1] < n:
+            span = (0, n - 1)
         self.doc, self.n_frames, self.doc_fps = doc, n, float(row["fps"])
-        self.selection.param.update(doc=doc, frame=0, span=(0, n - 1))
+        self.selection.param.update(doc=doc, frame=0, span=tuple(span))
         self.player.load([self.backend.db.positions[self.backend.db.frames(doc)]], titles=[str(row["name"])],
                          fps=self.doc_fps)
-        self.span.param.update(start=0, end=max(n - 1, 1), value=(0, n - 1))
+        self.span.param.update(start=0, end=max(n - 1, 1), value=tuple(span))
         self._draw_timeline()
         self._draw_curves()
+
+    def _follow(self, *events) -> None:
+        """Show the clip and span chosen on another page."""
+        doc, span = self.selection.doc, tuple(self.selection.span)
+        if doc != self.doc:
+            self.show_document(doc, span)
+        elif span != tuple(self.span.value):
+            self.span.value = span
+            self._draw_timeline()
+            self._draw_curves()
 
     def _on_step(self, event) -> None:
         self.selection.frame = self.player.frames()[0]

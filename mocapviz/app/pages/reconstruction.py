@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 import panel as pn
 
-from ...experiments.reconstruction import _frame_actor
+from ...experiments.reconstruction import frame_actors
 from ...features import NUMERIC_SETS
 from ...reconstruct import DEFAULT_K, MARKERS, PosePrior, reconstruct, reconstruction_errors, synthetic_markers
 from ...skeleton import CANONICAL_JOINTS, heading
@@ -62,7 +62,7 @@ def prior_mask(db, doc: int, kind: str) -> tuple[np.ndarray, str]:
     actor = docs.at[doc, "actor"] if "actor" in docs else None
     if actor is None or pd.isna(actor):
         raise ValueError(f"Document {doc} has no actor label: choose the prior without the test clip")
-    return _frame_actor(db) != actor, f"actor {actor}'s clips"
+    return frame_actors(db) != actor, f"actor {actor}'s clips"
 
 
 def check_settings(db, doc: int, kind: str, k: int, noise_cm: float) -> str | None:
@@ -147,17 +147,17 @@ class ReconstructionPage(pn.viewable.Viewer):
         self.backend, self.selection = backend, selection
         docs = backend.documents
         has_actors = "actor" in docs and docs["actor"].notna().any()
-        self.clip = pn.widgets.Select(name="test clip", options=backend.doc_options(), value=selection.doc,
+        self.clip = pn.widgets.Select(label="test clip", options=backend.doc_options(), value=selection.doc,
                                       width=560, css_classes=["mv-recon-clip"])
-        self.prior = pn.widgets.Select(name="prior: the database …", width=230, css_classes=["mv-recon-prior"],
+        self.prior = pn.widgets.Select(label="prior: the database …", width=230, css_classes=["mv-recon-prior"],
                                        options={n: v for n, v in PRIORS.items() if v == "clip" or has_actors})
-        self.feature_set = pn.widgets.Select(name="feature set (kNN search)", options=list(NUMERIC_SETS),
+        self.feature_set = pn.widgets.Select(label="feature set (kNN search)", options=list(NUMERIC_SETS),
                                              value="F15E", width=170, css_classes=["mv-recon-features"])
-        self.k = pn.widgets.IntInput(name="k (neighbours per frame)", value=default_k(backend.db.n_frames), start=1,
+        self.k = pn.widgets.IntInput(label="k (neighbours per frame)", value=default_k(backend.db.n_frames), start=1,
                                      width=170, css_classes=["mv-recon-k"])
-        self.noise = pn.widgets.FloatInput(name="marker noise (± cm)", value=DEFAULT_NOISE_CM, start=0.0, step=0.05,
+        self.noise = pn.widgets.FloatInput(label="marker noise (± cm)", value=DEFAULT_NOISE_CM, start=0.0, step=0.05,
                                            width=150, css_classes=["mv-recon-noise"])
-        self.run_button = pn.widgets.Button(name="Reconstruct", button_type="primary", width=140, align="end",
+        self.run_button = pn.widgets.Button(label="Reconstruct", button_type="primary", width=140, align="end",
                                             css_classes=["mv-recon-run"])
         self.run_button.on_click(self._run)
         self.message = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-recon-message"])
@@ -170,8 +170,7 @@ class ReconstructionPage(pn.viewable.Viewer):
         self.joints = pn.pane.HoloViews(None, linked_axes=False, css_classes=["mv-recon-joints"])
         self.frames = pn.pane.HoloViews(None, linked_axes=False, css_classes=["mv-recon-frames"])
         self.results = pn.Column(self.error_text, pn.Row(pn.Column(self.player, self.caption), self.frames),
-                                 self.joints,
-                                 visible=False, sizing_mode="stretch_width")
+                                 self.joints, visible=False, sizing_mode="stretch_width")
         self._followed = selection.doc
 
     def __panel__(self):

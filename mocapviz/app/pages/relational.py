@@ -36,29 +36,29 @@ class RelationalPage(pn.viewable.Viewer):
         self.has_labels = "label" in backend.documents and backend.documents["label"].notna().any()
         self._syncing = False
         self.hits, self.shown_query = pd.DataFrame(), None
-        self.doc = pn.widgets.Select(name="query clip", options=backend.doc_options(), width=420,
+        self.doc = pn.widgets.Select(label="query clip", options=backend.doc_options(), width=420,
                                      css_classes=["mv-query-doc"])
-        self.span = pn.widgets.IntRangeSlider(name="query span (frames)", start=0, end=1, value=(0, 1), width=420,
+        self.span = pn.widgets.IntRangeSlider(label="query span (frames)", start=0, end=1, value=(0, 1), width=420,
                                               css_classes=["mv-query-span"])
-        self.first = pn.widgets.IntInput(name="first frame", start=0, width=100, css_classes=["mv-query-first"])
-        self.last = pn.widgets.IntInput(name="last frame", start=0, width=100, css_classes=["mv-query-last"])
+        self.first = pn.widgets.IntInput(label="first frame", start=0, width=100, css_classes=["mv-query-first"])
+        self.last = pn.widgets.IntInput(label="last frame", start=0, width=100, css_classes=["mv-query-last"])
         self.span_info = pn.pane.Markdown("", margin=(0, 10), css_classes=["mv-query-span-info"])
-        self.features = {g: pn.widgets.CheckBoxGroup(name=GROUP_TITLES[g], options=names, inline=False,
+        self.features = {g: pn.widgets.CheckBoxGroup(label=GROUP_TITLES[g], options=names, inline=False,
                                                      value=[n for n in names if n in DEFAULT_FEATURES],
                                                      css_classes=[f"mv-features-{g}"])
                          for g, names in backend.groups(FEATURE_SET).items()}
-        self.mode = pn.widgets.RadioButtonGroup(name="hits", options=list(MODES), value="adaptive fuzzy",
+        self.mode = pn.widgets.RadioButtonGroup(label="hits", options=list(MODES), value="adaptive fuzzy",
                                                 css_classes=["mv-query-mode"])
-        self.mismatches = pn.widgets.IntInput(name="m (mismatching segments)", start=1, end=20, value=1, width=170,
+        self.mismatches = pn.widgets.IntInput(label="m (mismatching segments)", start=1, end=20, value=1, width=170,
                                               disabled=True, css_classes=["mv-query-m"])
-        self.run = pn.widgets.Button(name="Run query", button_type="primary", width=140, css_classes=["mv-run"])
+        self.run = pn.widgets.Button(label="Run query", button_type="primary", width=140, css_classes=["mv-run"])
         self.task = Task()
         self.message = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-query-message"])
         self.count = pn.pane.Markdown("", css_classes=["mv-hit-count"])
         self.quality = pn.pane.Markdown("", css_classes=["mv-hit-quality"])
         self.table = pn.widgets.Tabulator(pd.DataFrame(columns=HIT_COLUMNS), pagination="local", page_size=12,
                                           selectable=1, show_index=False, disabled=True, height=380,
-                                          sizing_mode="stretch_width", css_classes=["mv-hits"])
+                                          sizing_mode="stretch_width", visible=False, css_classes=["mv-hits"])
         self.curve = pn.pane.HoloViews(None, visible=False, css_classes=["mv-precision-recall"])
         self.player = SkeletonPlayer(size=(640, 360))
         self.player_caption = pn.pane.Markdown("", css_classes=["mv-hit-caption"])
@@ -187,7 +187,7 @@ class RelationalPage(pn.viewable.Viewer):
                               "label": hits["label"], "start (s)": (hits["start_frame"] / fps).round(2),
                               "end (s)": ((hits["end_frame"] + 1) / fps).round(2), "score": hits["score"].round(3)})
         self.table.selection = []
-        self.table.value = table
+        self.table.param.update(value=table, visible=True)
         n = len(hits)
         self.count.object = f"**{n} hit{'s' if n != 1 else ''}** for {len(q['features'])} features, " \
                             f"{self.mode.value} hits (score: seconds of segment-length difference, §6.2; lower " \

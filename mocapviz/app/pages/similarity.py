@@ -54,8 +54,8 @@ def _own_frames(backend, doc: int) -> tuple[int, int]:
     return frames.start, frames.stop
 
 
-def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own: bool) -> tuple[pd.DataFrame, bytes]:
-    """The k nearest database frames of one frame (Krüger et al. 2010 §3.3) and Fig. 1's picture of them.
+def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own: bool) -> pd.DataFrame:
+    """The k nearest database frames of one frame (Krüger et al. 2010 §3.3).
 
     Parameters
     ----------
@@ -67,9 +67,8 @@ def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own
 
     Returns
     -------
-    table : pd.DataFrame, :func:`mocapviz.knn.describe_frames` (rank, frame, doc_id, name, doc_frame, time_s,
-        distance, labels), nearest first.
-    image : PNG bytes of :func:`mocapviz.viz.skeleton.neighbour_poses` (the query red, the neighbours faint).
+    pd.DataFrame, :func:`mocapviz.knn.describe_frames` (rank, frame, doc_id, name, doc_frame, time_s, distance,
+    labels), nearest first.
     """
     start, stop = _own_frames(backend, doc)
     if not 0 <= frame < stop - start:
@@ -78,10 +77,16 @@ def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own
     k = _check_count(k, "k", min(MAX_NEIGHBOURS, index.n_indexed))
     query = backend.numeric(name)[start + frame]
     distances, frames = index.query(query, k, exclude=(start, stop) if exclude_own else None)
-    table = describe_frames(backend.db, frames, distances)
+    return describe_frames(backend.db, frames, distances)
+
+
+def neighbours_png(backend, doc: int, frame: int, neighbours: np.ndarray) -> bytes:
+    """Fig. 1 of Krüger et al. 2010 as PNG bytes: the pose of ``frame`` of document ``doc`` (red) and the poses of
+    the database frames ``neighbours`` ((k,) int) drawn together in the body frame
+    (:func:`mocapviz.viz.skeleton.neighbour_poses`)."""
     positions = backend.db.positions
-    image = neighbour_poses(positions[start + frame], positions[table["frame"].to_numpy()])
-    return table, png_bytes(image)
+    query, poses = positions[backend.db.frames(doc).start + frame], positions[neighbours]
+    return png_bytes(neighbour_poses(query, poses))
 
 
 def _query_span(backend, doc: int, span: tuple[int, int]) -> tuple[int, int]:
@@ -200,9 +205,9 @@ class SimilarityPage(pn.viewable.Viewer):
         super().__init__()
         self.backend, self.selection = backend, selection
         self.query = pn.pane.Markdown("", css_classes=["mv-similarity-query"], margin=(0, 10))
-        self.feature_set = pn.widgets.Select(name="numeric feature set", options=FEATURE_SETS, value="F15E",
+        self.feature_set = pn.widgets.Select(label="numeric feature set", options=FEATURE_SETS, value="F15E",
                                              width=160)
-        self.exclude_own = pn.widgets.Checkbox(name="exclude the query's own document", value=True, width=260,
+        self.exclude_own = pn.widgets.Checkbox(label="exclude the query's own document", value=True, width=260,
                                                align="end", css_classes=["mv-exclude-own"])
         self._build_knn()
         self._build_match()
@@ -211,7 +216,7 @@ class SimilarityPage(pn.viewable.Viewer):
         self.activate()
 
     def _build_knn(self) -> None:
-        self.knn_k = pn.widgets.IntInput(name="k (neighbours)", value=64, start=1, width=120,
+        self.knn_k = pn.widgets.IntInput(label="k (neighbours)", value=64, start=1, width=120,
                                          css_classes=["mv-knn-k"])
         self.knn_button = _button("Search", "mv-knn-search", self._search)
         self.knn_task = Task()
@@ -219,12 +224,12 @@ class SimilarityPage(pn.viewable.Viewer):
         self.knn_table = pn.widgets.Tabulator(pd.DataFrame(columns=list(KNN_TITLES)), titles=KNN_TITLES,
                                               pagination="local", page_size=12, show_index=False, disabled=True,
                                               sizing_mode="stretch_width", css_classes=["mv-knn-table"])
-        self.knn_poses = pn.pane.PNG(None, width=480, height=420, css_classes=["mv-knn-poses"])
+        self.knn_poses = pn.pane.PNG(None, width=480, height=420, visible=False, css_classes=["mv-knn-poses"])
 
     def _build_match(self) -> None:
-        self.match_k = pn.widgets.IntInput(name="k (neighbours per frame)", start=1, width=160,
+        self.match_k = pn.widgets.IntInput(label="k (neighbours per frame)", start=1, width=160,
                                            value=scaled_k(LNG_K_AT_30HZ, self.backend.fps), css_classes=["mv-match-k"])
-        self.match_count_k = pn.widgets.IntInput(name="K (matches)", value=10, start=1, width=110,
+        self.match_count_k = pn.widgets.IntInput(label="K (matches)", value=10, start=1, width=110,
                                                  css_classes=["mv-match-kk"])
         self.match_button = _button("Match", "mv-match-run", self._match)
         self.match_task = Task()
@@ -241,7 +246,7 @@ class SimilarityPage(pn.viewable.Viewer):
         self.player_box = pn.Column(self.player, visible=False, css_classes=["mv-match-player"])
 
     def _build_matrix(self) -> None:
-        self.matrix_k = pn.widgets.IntInput(name="k (neighbours per frame, small database)", start=1, width=260,
+        self.matrix_k = pn.widgets.IntInput(label="k (neighbours per frame, small database)", start=1, width=260,
                                             value=scaled_k(MATRIX_K_AT_30HZ, self.backend.fps),
                                             css_classes=["mv-matrix-k"])
         self.matrix_button = _button("Similarity matrix", "mv-matrix-run", self._matrix, width=160)
@@ -275,18 +280,22 @@ class SimilarityPage(pn.viewable.Viewer):
 
     # ------------------------------------------------------------------ kNN
     async def _search(self, event=None) -> None:
+        """The neighbours table as soon as the kNN is done; the Fig. 1 picture (slower to render) after it."""
         s = self.selection
         name, doc, frame, k, own = self.feature_set.value, s.doc, s.frame, self.knn_k.value, self.exclude_own.value
-        result = await _run(self.knn_button, self.knn_task, "Searching", self.backend.cached,
-                            ("similarity.knn", name, doc, frame, k, own),
-                            lambda: nearest_frames(self.backend, name, doc, frame, k, own))
-        if result is None:
+        key = ("similarity.knn", name, doc, frame, k, own)
+        table = await _run(self.knn_button, self.knn_task, "Searching", self.backend.cached, key,
+                           lambda: nearest_frames(self.backend, name, doc, frame, k, own))
+        if table is None:
             return
-        table, image = result
         self.knn_table.value = table[[c for c in KNN_TITLES if c in table]].round({"time_s": 3, "distance": 2})
-        self.knn_poses.object = image
+        self.knn_poses.visible = False  # until the picture of these neighbours is drawn
         self.knn_count.object = (f"**{len(table)} neighbours** of document {doc} frame {frame} by {name}"
                                  + (", its own document excluded" if own else ""))
+        image = await _run(self.knn_button, self.knn_task, "Drawing the neighbours", self.backend.cached,
+                           (*key, "png"), lambda: neighbours_png(self.backend, doc, frame, table["frame"].to_numpy()))
+        if image is not None:
+            self.knn_poses.param.update(object=image, visible=True)
 
     # ------------------------------------------------------------------ LNG
     def _match_key(self) -> tuple:
@@ -355,7 +364,7 @@ MATRIX_LEGEND = ("The span against the documents of its best matches (at most th
 
 
 def _button(name: str, css_class: str, callback, width: int = 100) -> pn.widgets.Button:
-    button = pn.widgets.Button(name=name, button_type="primary", width=width, align="end", css_classes=[css_class])
+    button = pn.widgets.Button(label=name, button_type="primary", width=width, align="end", css_classes=[css_class])
     button.on_click(callback)
     return button
 

@@ -23,6 +23,8 @@ from ...viz.statistics import query_time_scatter
 from ..progress import Task
 
 OURS = "this database"
+NA = "–"  # a missing value in a table
+LEGEND_OUTSIDE = {"legend_position": "right", "backend": "bokeh"}  # bar legends beside the bars, not over them
 SEED = 0
 QUERIES = 200  # random queries per (mode, L) cell of Table 3 (the paper: 10,000)
 TABLE3_LENGTHS = (5, 10, 20)  # the paper's query lengths |Q| in segments
@@ -30,23 +32,23 @@ SCATTER_LENGTHS = (1, 2, 3, 5, 10, 20)  # short queries too: on a small index th
 KNN_QUERIES = 200  # k-NN queries per feature set of Table 1 (batched, one thread)
 TABLE2_SHOWN = ["source", "index", "minutes", "f", "lists", "frames", "segments", "MB", "bytes/segment", "t_read",
                 "t_features", "t_index", "t_total"]  # fmt: skip
-TABLE3_RENAMED = {"queries": "queries", "mean_hits": "µh", "std_hits": "σh", "mean_ms": "µt (ms)",
+TABLE3_RENAMED = {"mean_hits": "µh", "std_hits": "σh", "mean_ms": "µt (ms)",
                   "median_ms": "median (ms)", "p90_ms": "p90 (ms)"}  # fmt: skip
 TABLE3_PAPER = {"mean_hits": "paper µh", "std_hits": "paper σh", "mean_ms": "paper µt (ms)"}
 
 
-def _number(x) -> str:
+def cell_text(x) -> str:
     """A table cell: integers with thousands separators, other numbers to 3 significant digits (at least 0.001)."""
     if pd.isna(x):
-        return "–"
-    if float(x).is_integer() and abs(x) >= 1:
+        return NA
+    if float(x).is_integer():
         return f"{int(x):,}"
     return f"{x:.3g}" if abs(x) >= 0.001 else f"{x:.2e}"
 
 
 def _table(frame: pd.DataFrame, css: str) -> pn.pane.DataFrame:
-    formatters = {c: _number for c in frame.columns if pd.api.types.is_numeric_dtype(frame[c])}
-    return pn.pane.DataFrame(frame, index=False, formatters=formatters, css_classes=[css, "mv-result-table"],
+    formatters = {c: cell_text for c in frame.columns if pd.api.types.is_numeric_dtype(frame[c])}
+    return pn.pane.DataFrame(frame, index=False, formatters=formatters, na_rep=NA, css_classes=[css, "mv-result-table"],
                              sizing_mode="stretch_width", margin=(0, 10))
 
 
@@ -100,7 +102,7 @@ class StatisticsPage(pn.viewable.Viewer):
         self.backend, self.selection = backend, selection
         self.task = Task()
         self.started = False
-        self.group = pn.widgets.Select(name="index of Table 3", options=["upper", "lower", "mix"], value="upper",
+        self.group = pn.widgets.Select(label="index of Table 3", options=["upper", "lower", "mix"], value="upper",
                                        width=160, disabled=True, css_classes=["mv-table3-group"])  # fmt: skip
         self.group.param.watch(lambda e: pn.state.execute(self._queries), "value")
         self.table2 = pn.Column(sizing_mode="stretch_width")
@@ -146,7 +148,7 @@ class StatisticsPage(pn.viewable.Viewer):
     @staticmethod
     def _table2_view(both: pd.DataFrame) -> list:
         both = both.assign(**{"segments per 100 frames": 100 * both["segments"] / both["frames"]})
-        bars = [comparison_bars(both, "index", column, title=title, width=560, height=300)
+        bars = [comparison_bars(both, "index", column, title=title, width=600, height=300).opts(**LEGEND_OUTSIDE)
                 for column, title in (("segments per 100 frames", "segments per 100 frames"),
                                       ("bytes/segment", "index bytes per segment"))]  # fmt: skip
         note = pn.pane.Markdown("Times in seconds (the paper: Matlab on a 3.6 GHz Pentium 4). ``t_read`` is the "
@@ -171,8 +173,9 @@ class StatisticsPage(pn.viewable.Viewer):
                        pn.pane.HoloViews(scatter, css_classes=["mv-query-times"]))]
 
     def _table1_view(self, long: pd.DataFrame) -> list:
-        bars = [comparison_bars(long[long["k"] == k], "set", "mean_ms", source="database", logy=True, width=560,
-                                height=320, ylabel="ms per query", title=f"k = {k}") for k in sorted(set(long["k"]))]
+        bars = [comparison_bars(long[long["k"] == k], "set", "mean_ms", source="database", logy=True, width=640,
+                                height=320, ylabel="ms per query", title=f"k = {k}").opts(**LEGEND_OUTSIDE)
+                for k in sorted(set(long["k"]))]
         note = pn.pane.Markdown(
             f"Mean milliseconds per exact k-NN query (scipy cKDTree, one thread; {KNN_QUERIES} queries) on this "
             f"database's {self.backend.db.n_frames:,} frames; the paper (ANN library, 2010): HDM05 380,813 and CMU "
