@@ -25,7 +25,9 @@ class Task(pn.viewable.Viewer):
 
     def __init__(self, **params):
         super().__init__(**params)
-        self.bar = pn.indicators.Progress(value=-1, active=False, visible=False, height=12, sizing_mode="stretch_width",
+        # the bar stays in the layout (empty when idle): showing and hiding it would make the browser lay out the
+        # whole page again on every run, which costs more than most searches
+        self.bar = pn.indicators.Progress(value=0, active=False, height=8, sizing_mode="stretch_width",
                                           bar_color="primary")
         self.status = pn.pane.Markdown("", margin=(0, 10), css_classes=["mv-status"])
         self.error = pn.pane.Alert("", alert_type="danger", visible=False, css_classes=["mv-error"])
@@ -41,7 +43,7 @@ class Task(pn.viewable.Viewer):
     async def run(self, label: str, fn, *args):
         self.error.visible = False
         self.status.object = f"{label} …"
-        self.bar.value, self.bar.active, self.bar.visible = -1, True, True
+        self.bar.param.update(value=-1, active=True)
         t0 = time.perf_counter()
         try:
             result = await asyncio.get_running_loop().run_in_executor(None, fn, *args)
@@ -52,7 +54,7 @@ class Task(pn.viewable.Viewer):
             self.status.object = ""
             return None
         finally:
-            self.bar.active, self.bar.visible = False, False
+            self.bar.param.update(value=0, active=False)
         self.seconds = time.perf_counter() - t0
         self.status.object = f"{label}: done in {self.seconds:.2f} s"
         return result

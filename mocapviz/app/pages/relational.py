@@ -11,6 +11,8 @@ the query document itself are left out; recall is over the other documents with 
 
 from __future__ import annotations
 
+import asyncio
+
 import pandas as pd
 import panel as pn
 
@@ -58,7 +60,7 @@ class RelationalPage(pn.viewable.Viewer):
         self.quality = pn.pane.Markdown("", css_classes=["mv-hit-quality"])
         self.table = pn.widgets.Tabulator(pd.DataFrame(columns=HIT_COLUMNS), pagination="local", page_size=12,
                                           selectable=1, show_index=False, disabled=True, height=380,
-                                          sizing_mode="stretch_width", visible=False, css_classes=["mv-hits"])
+                                          sizing_mode="stretch_width", css_classes=["mv-hits"])
         self.curve = pn.pane.HoloViews(None, visible=False, css_classes=["mv-precision-recall"])
         self.player = SkeletonPlayer(size=(640, 360))
         self.player_caption = pn.pane.Markdown("", css_classes=["mv-hit-caption"])
@@ -171,13 +173,14 @@ class RelationalPage(pn.viewable.Viewer):
         if reason:
             return
         self.run.disabled = True
-        self.count.object = ""
         try:
             hits = await self.task.run("Searching", self.search, q)
         finally:
             self.run.disabled = False
         if hits is not None:
             self._show_hits(q, hits)
+            await asyncio.sleep(0)  # let the table and count reach the browser before the plot is built
+            self._show_quality(q, hits)
 
     # ------------------------------------------------------------------ results
     def _show_hits(self, q: dict, hits: pd.DataFrame) -> None:
@@ -187,12 +190,11 @@ class RelationalPage(pn.viewable.Viewer):
                               "label": hits["label"], "start (s)": (hits["start_frame"] / fps).round(2),
                               "end (s)": ((hits["end_frame"] + 1) / fps).round(2), "score": hits["score"].round(3)})
         self.table.selection = []
-        self.table.param.update(value=table, visible=True)
+        self.table.value = table
         n = len(hits)
         self.count.object = f"**{n} hit{'s' if n != 1 else ''}** for {len(q['features'])} features, " \
                             f"{self.mode.value} hits (score: seconds of segment-length difference, §6.2; lower " \
                             "is better)"
-        self._show_quality(q, hits)
 
     def _show_quality(self, q: dict, hits: pd.DataFrame) -> None:
         """Precision and recall against the query document's label, as numbers and over the rank."""

@@ -224,7 +224,7 @@ class SimilarityPage(pn.viewable.Viewer):
         self.knn_table = pn.widgets.Tabulator(pd.DataFrame(columns=list(KNN_TITLES)), titles=KNN_TITLES,
                                               pagination="local", page_size=12, show_index=False, disabled=True,
                                               sizing_mode="stretch_width", css_classes=["mv-knn-table"])
-        self.knn_poses = pn.pane.PNG(None, width=480, height=420, visible=False, css_classes=["mv-knn-poses"])
+        self.knn_poses = pn.pane.PNG(None, width=480, height=420, css_classes=["mv-knn-poses"])
 
     def _build_match(self) -> None:
         self.match_k = pn.widgets.IntInput(label="k (neighbours per frame)", start=1, width=160,
@@ -289,13 +289,12 @@ class SimilarityPage(pn.viewable.Viewer):
         if table is None:
             return
         self.knn_table.value = table[[c for c in KNN_TITLES if c in table]].round({"time_s": 3, "distance": 2})
-        self.knn_poses.visible = False  # until the picture of these neighbours is drawn
         self.knn_count.object = (f"**{len(table)} neighbours** of document {doc} frame {frame} by {name}"
                                  + (", its own document excluded" if own else ""))
         image = await _run(self.knn_button, self.knn_task, "Drawing the neighbours", self.backend.cached,
                            (*key, "png"), lambda: neighbours_png(self.backend, doc, frame, table["frame"].to_numpy()))
         if image is not None:
-            self.knn_poses.param.update(object=image, visible=True)
+            self.knn_poses.object = image
 
     # ------------------------------------------------------------------ LNG
     def _match_key(self) -> tuple:
