@@ -77,6 +77,8 @@ def test_query_shows_the_library_hits_and_plays_one(name, sample_db, sample_dash
     _open_page(page, sample_dashboard)
     _set_query(page, sample_db, doc, span, features, mode, m)
     page.locator(".mv-run button").click()
+    kind = f"{MODES[mode]} hits" + (f" with m = {m}" if mode == "mismatch" else "")
+    expect(page.locator(COUNT)).to_contain_text(kind)  # the query the server ran had the widgets' settings
     shown = _shown_count(page)
     expected = _expected_hits(sample_db, doc, span, features, mode, m)
     assert shown == len(expected) > 1

@@ -19,8 +19,8 @@ LOG = logging.getLogger("mocapviz.app")
 class Task(pn.viewable.Viewer):
     """A status line and progress bar for one page's long computations.
 
-    ``await task.run("Searching", fn, *args)`` returns ``fn(*args)``, computed in a worker thread, or None after
-    showing its error. ``task.report(fraction)`` may be called from ``fn`` to show a percentage.
+    ``await task.run("Searching", fn, *args, busy=button)`` returns ``fn(*args)``, computed in a worker thread (the
+    ``busy`` widgets disabled meanwhile), or None after showing its error. ``task.report(fraction)`` may be called from ``fn`` to show a percentage.
     """
 
     def __init__(self, **params):
@@ -40,7 +40,10 @@ class Task(pn.viewable.Viewer):
         """Show ``fraction`` (0..1) done; safe to call from the worker thread."""
         self.bar.value = round(100 * min(max(fraction, 0.0), 1.0))
 
-    async def run(self, label: str, fn, *args):
+    async def run(self, label: str, fn, *args, busy=()):
+        busy = [busy] if isinstance(busy, pn.widgets.Widget) else list(busy)
+        for w in busy:
+            w.disabled = True
         self.error.visible = False
         self.status.object = f"{label} …"
         self.bar.param.update(value=-1, active=True)
@@ -55,6 +58,8 @@ class Task(pn.viewable.Viewer):
             return None
         finally:
             self.bar.param.update(value=0, active=False)
+            for w in busy:
+                w.disabled = False
         self.seconds = time.perf_counter() - t0
         self.status.object = f"{label}: done in {self.seconds:.2f} s"
         return result

@@ -17,6 +17,7 @@ import panel as pn
 from ...experiments.correlation import available_measures, correlation_sample, pose_correlations, segment_correlations
 from ...viz.correlation import correlation_heatmap
 from ..progress import Task
+from ..widgets import action_button
 
 SEED = 0
 DEFAULT_MEASURES = ("Fp16", "F15E", "F30E", "F39E", "F15x3E", "Dpc1")  # cheap on a small database: ~5 s in all
@@ -123,9 +124,7 @@ class CorrelationsPage(pn.viewable.Viewer):
         self.clips = pn.widgets.IntInput(label="clips per class", value=default_clips(db.documents), start=2, width=110,
                                          css_classes=["mv-clips"])  # fmt: skip
         self.n_first = pn.widgets.IntInput(label="first n", value=PAPER_CLIPS, start=2, width=90)
-        self.button = pn.widgets.Button(label="Compute", button_type="primary", width=110, align="end",
-                                        css_classes=["mv-compute"])  # fmt: skip
-        self.button.on_click(self._compute)
+        self.button = action_button("Compute", "mv-compute", self._compute, width=110)
         self.pose_task, self.segment_task = Task(), Task()
         self.pose, self.segment = MatrixView("pose"), MatrixView("segment")
         self.segment_note = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-segment-problem"])

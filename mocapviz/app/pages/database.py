@@ -11,6 +11,7 @@ from ...features import NUMERIC_SETS, numeric_columns
 from ...segment import segment
 from ...viz.timeline import numeric_curves, relational_timeline
 from ..player import SkeletonPlayer
+from ..widgets import results_table
 
 TABLE_COLUMNS = ("doc_id", "name", "label", "actor", "seconds", "n_frames", "fps")
 
@@ -31,9 +32,7 @@ class DatabasePage(pn.viewable.Viewer):
         longest = float(docs["seconds"].max())
         self.length_filter = pn.widgets.RangeSlider(label="length (s)", start=0.0, end=max(longest, 0.1),
                                                     value=(0.0, max(longest, 0.1)), step=0.1, width=220)
-        self.table = pn.widgets.Tabulator(self.table_data, pagination="local", page_size=12, selectable=1,
-                                          show_index=False, disabled=True, sizing_mode="stretch_width",
-                                          height=380, css_classes=["mv-documents"])
+        self.table = results_table(self.table_data, "mv-documents", selectable=True, height=380)
         self.count = pn.pane.Markdown("", css_classes=["mv-doc-count"])
         for w in (self.label_filter, self.actor_filter, self.length_filter):
             w.param.watch(self._filter, "value")

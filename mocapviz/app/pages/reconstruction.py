@@ -24,6 +24,7 @@ from ...skeleton import CANONICAL_JOINTS, heading
 from ...viz.reconstruction import error_curves, joint_error_bars
 from ..player import SkeletonPlayer
 from ..progress import Task
+from ..widgets import action_button
 
 SEED = 0  # the markers' noise comes from np.random.default_rng([SEED, doc_id]), as in the experiment
 DEFAULT_NOISE_CM = 0.1  # §5.2: +-1 mm
@@ -157,9 +158,7 @@ class ReconstructionPage(pn.viewable.Viewer):
                                      width=170, css_classes=["mv-recon-k"])
         self.noise = pn.widgets.FloatInput(label="marker noise (± cm)", value=DEFAULT_NOISE_CM, start=0.0, step=0.05,
                                            width=150, css_classes=["mv-recon-noise"])
-        self.run_button = pn.widgets.Button(label="Reconstruct", button_type="primary", width=140, align="end",
-                                            css_classes=["mv-recon-run"])
-        self.run_button.on_click(self._run)
+        self.run_button = action_button("Reconstruct", "mv-recon-run", self._run, width=140)
         self.message = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-recon-message"])
         self.task = Task()
         self.summary = pn.pane.Markdown("Choose a clip and press **Reconstruct**.", css_classes=["mv-recon-summary"])
@@ -197,12 +196,8 @@ class ReconstructionPage(pn.viewable.Viewer):
         self.message.object, self.message.visible = problem or "", problem is not None
         if problem:
             return
-        self.run_button.disabled = True
-        try:
-            result = await self.task.run("Reconstructing", run_reconstruction, self.backend, doc, kind, feature_set,
-                                         k, noise)
-        finally:
-            self.run_button.disabled = False
+        result = await self.task.run("Reconstructing", run_reconstruction, self.backend, doc, kind, feature_set, k,
+                                     noise, busy=self.run_button)
         if result is not None:
             self._show(result, doc, feature_set, k, noise)
 

@@ -20,6 +20,7 @@ from ...query import query_by_example
 from ...viz.query import precision_recall, precision_recall_plot
 from ..player import SkeletonPlayer
 from ..progress import Task
+from ..widgets import action_button, results_table
 
 FEATURE_SET = "2005"
 # the "kicking" query of Müller et al. 2005 §6.2 (Fig. 9): F_l3, F_l4, F_l7, F_l8
@@ -53,14 +54,12 @@ class RelationalPage(pn.viewable.Viewer):
                                                 css_classes=["mv-query-mode"])
         self.mismatches = pn.widgets.IntInput(label="m (mismatching segments)", start=1, end=20, value=1, width=170,
                                               disabled=True, css_classes=["mv-query-m"])
-        self.run = pn.widgets.Button(label="Run query", button_type="primary", width=140, css_classes=["mv-run"])
+        self.run = action_button("Run query", "mv-run", self._on_run, width=140)
         self.task = Task()
         self.message = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-query-message"])
         self.count = pn.pane.Markdown("", css_classes=["mv-hit-count"])
         self.quality = pn.pane.Markdown("", css_classes=["mv-hit-quality"])
-        self.table = pn.widgets.Tabulator(pd.DataFrame(columns=HIT_COLUMNS), pagination="local", page_size=12,
-                                          selectable=1, show_index=False, disabled=True, height=380,
-                                          sizing_mode="stretch_width", css_classes=["mv-hits"])
+        self.table = results_table(pd.DataFrame(columns=HIT_COLUMNS), "mv-hits", selectable=True, height=380)
         self.curve = pn.pane.HoloViews(None, visible=False, css_classes=["mv-precision-recall"])
         self.player = SkeletonPlayer(size=(640, 360))
         self.player_caption = pn.pane.Markdown("", css_classes=["mv-hit-caption"])
@@ -83,7 +82,6 @@ class RelationalPage(pn.viewable.Viewer):
         self.first.param.watch(self._on_bound, "value")
         self.last.param.watch(self._on_bound, "value")
         self.mode.param.watch(lambda e: setattr(self.mismatches, "disabled", e.new != "mismatch"), "value")
-        self.run.on_click(self._on_run)
         self.table.param.watch(self._on_select, "selection")
 
     # ------------------------------------------------------------------ the query clip and span
@@ -96,9 +94,7 @@ class RelationalPage(pn.viewable.Viewer):
 
     async def _load_indexes(self) -> None:
         """Load (or build, the first time) the relational indexes behind the progress bar; Run waits for them."""
-        self.run.disabled = True
-        await self.task.run("Loading the relational indexes", self.backend.indexes, FEATURE_SET)
-        self.run.disabled = False
+        await self.task.run("Loading the relational indexes", self.backend.indexes, FEATURE_SET, busy=self.run)
 
     def _set_query(self, doc: int, span) -> None:
         """Show document ``doc`` and ``span`` (first, last frames, inclusive; clipped to the document)."""
@@ -172,11 +168,7 @@ class RelationalPage(pn.viewable.Viewer):
         self.message.param.update(object=reason or "", visible=reason is not None)
         if reason:
             return
-        self.run.disabled = True
-        try:
-            hits = await self.task.run("Searching", self.search, q)
-        finally:
-            self.run.disabled = False
+        hits = await self.task.run("Searching", self.search, q, busy=self.run)
         if hits is not None:
             self._show_hits(q, hits)
             await asyncio.sleep(0)  # let the table and count reach the browser before the plot is built
@@ -192,8 +184,9 @@ class RelationalPage(pn.viewable.Viewer):
         self.table.selection = []
         self.table.value = table
         n = len(hits)
+        kind = f"{q['mode']} hits" + (f" with m = {q['mismatches']}" if q["mode"] == "mismatch" else "")
         self.count.object = f"**{n} hit{'s' if n != 1 else ''}** for {len(q['features'])} features, " \
-                            f"{self.mode.value} hits (score: seconds of segment-length difference, §6.2; lower " \
+                            f"{kind} (score: seconds of segment-length difference, §6.2; lower " \
                             "is better)"
 
     def _show_quality(self, q: dict, hits: pd.DataFrame) -> None:

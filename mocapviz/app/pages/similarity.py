@@ -25,6 +25,7 @@ from ...viz.matching import similarity_layout
 from ...viz.skeleton import neighbour_poses, png_bytes
 from ..player import SkeletonPlayer
 from ..progress import Task
+from ..widgets import action_button, results_table
 
 FEATURE_SETS = [s for s in NUMERIC_SETS if not s.startswith("Fp")]  # Fp sets need a PCA model of the database
 MAX_NEIGHBOURS = 256  # Fig. 1 draws 256 neighbours; more make an unreadable figure and a slow render
@@ -218,12 +219,10 @@ class SimilarityPage(pn.viewable.Viewer):
     def _build_knn(self) -> None:
         self.knn_k = pn.widgets.IntInput(label="k (neighbours)", value=64, start=1, width=120,
                                          css_classes=["mv-knn-k"])
-        self.knn_button = _button("Search", "mv-knn-search", self._search)
+        self.knn_button = action_button("Search", "mv-knn-search", self._search)
         self.knn_task = Task()
         self.knn_count = pn.pane.Markdown("", css_classes=["mv-knn-count"], margin=(0, 10))
-        self.knn_table = pn.widgets.Tabulator(pd.DataFrame(columns=list(KNN_TITLES)), titles=KNN_TITLES,
-                                              pagination="local", page_size=12, show_index=False, disabled=True,
-                                              sizing_mode="stretch_width", css_classes=["mv-knn-table"])
+        self.knn_table = results_table(pd.DataFrame(columns=list(KNN_TITLES)), "mv-knn-table", KNN_TITLES)
         self.knn_poses = pn.pane.PNG(None, width=480, height=420, css_classes=["mv-knn-poses"])
 
     def _build_match(self) -> None:
@@ -231,13 +230,11 @@ class SimilarityPage(pn.viewable.Viewer):
                                            value=scaled_k(LNG_K_AT_30HZ, self.backend.fps), css_classes=["mv-match-k"])
         self.match_count_k = pn.widgets.IntInput(label="K (matches)", value=10, start=1, width=110,
                                                  css_classes=["mv-match-kk"])
-        self.match_button = _button("Match", "mv-match-run", self._match)
+        self.match_button = action_button("Match", "mv-match-run", self._match)
         self.match_task = Task()
         self.match_count = pn.pane.Markdown("", css_classes=["mv-match-count"], margin=(0, 10))
-        self.match_table = pn.widgets.Tabulator(pd.DataFrame(columns=list(MATCH_TITLES)), titles=MATCH_TITLES,
-                                                pagination="local", page_size=10, selectable=1, show_index=False,
-                                                disabled=True, sizing_mode="stretch_width",
-                                                css_classes=["mv-match-table"])
+        self.match_table = results_table(pd.DataFrame(columns=list(MATCH_TITLES)), "mv-match-table", MATCH_TITLES,
+                                         page_size=10, selectable=True)
         self.match_table.param.watch(self._on_match_select, "selection")
         self.matches = None
         self.playing = pn.pane.Markdown("Click a match to play it beside the query, aligned by its warping path.",
@@ -249,7 +246,7 @@ class SimilarityPage(pn.viewable.Viewer):
         self.matrix_k = pn.widgets.IntInput(label="k (neighbours per frame, small database)", start=1, width=260,
                                             value=scaled_k(MATRIX_K_AT_30HZ, self.backend.fps),
                                             css_classes=["mv-matrix-k"])
-        self.matrix_button = _button("Similarity matrix", "mv-matrix-run", self._matrix, width=160)
+        self.matrix_button = action_button("Similarity matrix", "mv-matrix-run", self._matrix, width=160)
         self.matrix_task = Task()
         self.matrix = pn.pane.HoloViews(None, sizing_mode="stretch_width", css_classes=["mv-similarity-matrix"])
 
@@ -284,15 +281,17 @@ class SimilarityPage(pn.viewable.Viewer):
         s = self.selection
         name, doc, frame, k, own = self.feature_set.value, s.doc, s.frame, self.knn_k.value, self.exclude_own.value
         key = ("similarity.knn", name, doc, frame, k, own)
-        table = await _run(self.knn_button, self.knn_task, "Searching", self.backend.cached, key,
-                           lambda: nearest_frames(self.backend, name, doc, frame, k, own))
+        table = await self.knn_task.run("Searching", self.backend.cached, key,
+                                        lambda: nearest_frames(self.backend, name, doc, frame, k, own),
+                                        busy=self.knn_button)
         if table is None:
             return
         self.knn_table.value = table[[c for c in KNN_TITLES if c in table]].round({"time_s": 3, "distance": 2})
         self.knn_count.object = (f"**{len(table)} neighbours** of document {doc} frame {frame} by {name}"
                                  + (", its own document excluded" if own else ""))
-        image = await _run(self.knn_button, self.knn_task, "Drawing the neighbours", self.backend.cached,
-                           (*key, "png"), lambda: neighbours_png(self.backend, doc, frame, table["frame"].to_numpy()))
+        image = await self.knn_task.run("Drawing the neighbours", self.backend.cached, (*key, "png"),
+                                        lambda: neighbours_png(self.backend, doc, frame, table["frame"].to_numpy()),
+                                        busy=self.knn_button)
         if image is not None:
             self.knn_poses.object = image
 
@@ -309,7 +308,7 @@ class SimilarityPage(pn.viewable.Viewer):
 
     async def _match(self, event=None) -> None:
         key = self._match_key()
-        found = await _run(self.match_button, self.match_task, "Matching", self._cached_matches, key)
+        found = await self.match_task.run("Matching", self._cached_matches, key, busy=self.match_button)
         if found is None:
             return
         name, doc, (first, last), k, k_matches, own = key
@@ -350,8 +349,8 @@ class SimilarityPage(pn.viewable.Viewer):
         return similarity_layout(result, cols=2, width=560, height=360)
 
     async def _matrix(self, event=None) -> None:
-        layout = await _run(self.matrix_button, self.matrix_task, "Computing the similarity matrix",
-                            self._similarity, self._match_key(), self.matrix_k.value)
+        layout = await self.matrix_task.run("Computing the similarity matrix", self._similarity, self._match_key(),
+                                            self.matrix_k.value, busy=self.matrix_button)
         if layout is not None:
             self.matrix.object = layout
 
@@ -360,22 +359,6 @@ MATRIX_LEGEND = ("The span against the documents of its best matches (at most th
                  "distances the graph computed (darker = more similar); blue: cells it never computed; red: its "
                  "warping paths; orange: document boundaries. Second panel: subsequence DTW on the point-cloud "
                  "distance Dpc1, computed in full.")
-
-
-def _button(name: str, css_class: str, callback, width: int = 100) -> pn.widgets.Button:
-    button = pn.widgets.Button(label=name, button_type="primary", width=width, align="end", css_classes=[css_class])
-    button.on_click(callback)
-    return button
-
-
-async def _run(button: pn.widgets.Button, task: Task, label: str, fn, *args):
-    """``fn(*args)`` in a worker thread behind ``task``'s progress bar, ``button`` disabled meanwhile; None after an
-    error (shown by the task)."""
-    button.disabled = True
-    try:
-        return await task.run(label, fn, *args)
-    finally:
-        button.disabled = False
 
 
 def _scoped(task: Task, css_class: str) -> pn.Column:
