@@ -6,11 +6,23 @@ matching.py   Krüger et al. 2010 Fig. 3 (similarity_layout), §4.2 (accuracy_pl
 correlation.py Krüger et al. 2010 Fig. 2 (correlation_heatmap: a rank-correlation matrix with its values).
 reconstruction.py Krüger et al. 2010 Tables 3-4 (reconstruction_figures, joint_error_bars, error_curves, ...).
 paper.py      ours beside the paper's numbers (comparison_bars, curves): the figures of `mocapviz reproduce`.
+timeline.py   a clip's features over time: relational_timeline (Müller et al. 2005 §3-4), numeric_curves (Krüger
+              et al. 2010 §3.2).
+skeleton.py   PyVista offscreen drawings of canonical poses: render_skeletons (side by side or together),
+              neighbour_poses (Krüger et al. 2010 Fig. 1); the dashboard's player draws with them.
+query.py      precision_recall, precision_recall_plot: relational hits judged by the query's label.
+statistics.py query_time_scatter: query time against hit count (Müller et al. 2005 §6.2, Table 3).
 """
 from .correlation import correlation_heatmap
 from .matching import accuracy_plot, accuracy_table, alignment_layout, band_polygon, similarity_layout
 from .paper import comparison_bars, curves
+from .query import precision_recall, precision_recall_plot
 from .reconstruction import reconstruction_figures
+from .skeleton import neighbour_poses, render_skeletons
+from .statistics import query_time_scatter
+from .timeline import numeric_curves, relational_timeline
 
 __all__ = ["accuracy_plot", "accuracy_table", "alignment_layout", "band_polygon", "comparison_bars",
-           "correlation_heatmap", "curves", "reconstruction_figures", "similarity_layout"]
+           "correlation_heatmap", "curves", "neighbour_poses", "numeric_curves", "precision_recall",
+           "precision_recall_plot", "query_time_scatter", "reconstruction_figures", "relational_timeline",
+           "render_skeletons", "similarity_layout"]
