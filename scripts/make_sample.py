@@ -37,7 +37,7 @@ import pooch
 REPO_ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO_ROOT))
 
-from mocapviz.datasets import ARCHIVES, data_url  # noqa: E402
+from mocapviz.datasets import ARCHIVES, data_url
 
 TOP = "sample"
 MAX_BYTES = 5 * 1024 * 1024
