@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 import pandas as pd
+from scipy.spatial.distance import cdist
 from scipy.stats import spearmanr
 
 from ..features.distances import dpc_pairwise, window_clouds
@@ -220,7 +221,7 @@ def similarity_matrices(db, query_doc: int, query_frames: tuple[int, int] | None
     for name in sets:
         X = numeric_of(db, name)
         q, small = np.asarray(X[q_rows], dtype=np.float64), np.asarray(X[rows], dtype=np.float64)
-        dist = np.sqrt(((q[:, None, :] - small[None, :, :]) ** 2).sum(-1))
+        dist = cdist(q, small)  # (m, n) Euclidean, without an (m, n, d) temporary
         index = KnnIndex(small)
         d, f = neighbourhoods(q, index, min(k, len(small)), radius)
         computed = np.zeros(dist.shape, dtype=bool)
