@@ -16,7 +16,12 @@ def action_button(label: str, css_class: str, callback, width: int = 120) -> pn.
 def results_table(value: pd.DataFrame, css_class: str, titles: dict | None = None, page_size: int = 12,
                   selectable: bool = False, **params) -> pn.widgets.Tabulator:
     """A read-only, paginated table of ``value`` (a DataFrame; its columns renamed for display by ``titles``), one
-    row selectable when ``selectable`` (watch its ``selection``)."""
+    row selectable when ``selectable`` (watch its ``selection``).
+
+    Rows are drawn plainly rather than by Tabulator's virtual renderer: a page holds a dozen rows, and the virtual
+    renderer sometimes drew none after new data arrived while the page around it was laid out again (seen in the
+    browser tests; the rows appeared only on a resize)."""
     return pn.widgets.Tabulator(value, titles=titles or {}, pagination="local", page_size=page_size,
                                 selectable=1 if selectable else False, show_index=False, disabled=True,
-                                sizing_mode="stretch_width", css_classes=[css_class], **params)
+                                sizing_mode="stretch_width", css_classes=[css_class],
+                                configuration={"renderVertical": "basic"}, **params)

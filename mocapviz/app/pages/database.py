@@ -32,7 +32,7 @@ class DatabasePage(pn.viewable.Viewer):
         longest = float(docs["seconds"].max())
         self.length_filter = pn.widgets.RangeSlider(label="length (s)", start=0.0, end=max(longest, 0.1),
                                                     value=(0.0, max(longest, 0.1)), step=0.1, width=220)
-        self.table = results_table(self.table_data, "mv-documents", selectable=True, height=380)
+        self.table = results_table(self.table_data, "mv-documents", selectable=True)
         self.count = pn.pane.Markdown("", css_classes=["mv-doc-count"])
         for w in (self.label_filter, self.actor_filter, self.length_filter):
             w.param.watch(self._filter, "value")

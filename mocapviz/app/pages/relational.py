@@ -59,7 +59,7 @@ class RelationalPage(pn.viewable.Viewer):
         self.message = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-query-message"])
         self.count = pn.pane.Markdown("", css_classes=["mv-hit-count"])
         self.quality = pn.pane.Markdown("", css_classes=["mv-hit-quality"])
-        self.table = results_table(pd.DataFrame(columns=HIT_COLUMNS), "mv-hits", selectable=True, height=380)
+        self.table = results_table(pd.DataFrame(columns=HIT_COLUMNS), "mv-hits", selectable=True)
         self.curve = pn.pane.HoloViews(None, visible=False, css_classes=["mv-precision-recall"])
         self.player = SkeletonPlayer(size=(640, 360))
         self.player_caption = pn.pane.Markdown("", css_classes=["mv-hit-caption"])
