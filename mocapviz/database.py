@@ -292,7 +292,8 @@ class MotionDB:
         fps = f"{self.fps:g} fps" if self.fps else "mixed fps"
         return f"MotionDB({str(self.path)!r}: {len(self)} documents, {self.n_frames} frames, {fps})"
 
-    def _row(self, doc_id: int) -> pd.Series:
+    def document(self, doc_id: int) -> pd.Series:
+        """The document table's row of ``doc_id`` (KeyError naming the valid ids when there is none)."""
         rows = self.documents[self.documents["doc_id"] == doc_id]
         if rows.empty:
             raise KeyError(f"{self.path}: no document {doc_id} (ids {self.documents['doc_id'].min()}..{self.documents['doc_id'].max()})")
@@ -300,12 +301,12 @@ class MotionDB:
 
     def frames(self, doc_id: int) -> slice:
         """The slice of the concatenated arrays that holds document ``doc_id``."""
-        row = self._row(doc_id)
+        row = self.document(doc_id)
         return slice(int(row["start"]), int(row["start"] + row["n_frames"]))
 
     def motion(self, doc_id: int) -> Motion:
         """Document ``doc_id`` as a canonical Motion (arrays are views of the memory maps)."""
-        row = self._row(doc_id)
+        row = self.document(doc_id)
         sl = self.frames(doc_id)
         quat = self.quaternions[sl]
         labels = {"label": row["label"], **{c: row[c] for c in self.label_columns[1:] if not pd.isna(row[c])}}

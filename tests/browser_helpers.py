@@ -9,6 +9,15 @@ from pathlib import Path
 ARTIFACTS = Path(__file__).resolve().parent.parent / "build" / "test-artifacts" / "dashboard"
 
 
+def free_port() -> int:
+    """A TCP port of 127.0.0.1 that nothing listens on now."""
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
 def open_dashboard(page, url: str) -> float:
     """Load the dashboard; return the seconds until the first page (the player's first frame) is visible."""
     t0 = time.perf_counter()

@@ -11,6 +11,7 @@ import os
 from pathlib import Path
 
 import pytest
+from browser_helpers import ARTIFACTS, free_port  # screenshots and measured round trips go to ARTIFACTS
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -98,7 +99,6 @@ def cmu_db30(cmu_dir, tmp_path_factory):
 CHROMIUM = Path("/usr/bin/chromium")  # Debian's package; never `playwright install` (../shared/design/STACK.md)
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync"]
-ARTIFACTS = REPO / "build" / "test-artifacts" / "dashboard"  # screenshots and measured round trips
 
 
 @pytest.fixture(scope="session")
@@ -110,14 +110,6 @@ def sample_db(tmp_path_factory):
     return MotionDB.ingest([datasets.sample()], tmp_path_factory.mktemp("sample") / "db", progress=False)
 
 
-def _free_port() -> int:
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def _serve(db_path: Path, log_dir: Path):
     """Start ``mocapviz serve DB --port P`` in a subprocess; wait until it answers; return (url, process, log)."""
     import subprocess
@@ -125,7 +117,7 @@ def _serve(db_path: Path, log_dir: Path):
     import time
     import urllib.request
 
-    port = _free_port()
+    port = free_port()
     log = log_dir / f"serve-{port}.log"
     proc = subprocess.Popen([sys.executable, "-m", "mocapviz.cli", "serve", str(db_path), "--port", str(port)],
                             stdout=log.open("w"), stderr=subprocess.STDOUT, cwd=REPO)

@@ -5,14 +5,10 @@ from __future__ import annotations
 import re
 
 import pytest
-from browser_helpers import open_dashboard, record_timing, text_of
+from browser_helpers import free_port, open_dashboard, record_timing, text_of
 
 from mocapviz.features import relational
 from mocapviz.segment import segment
-
-
-def _doc_row(db, name: str):
-    return db.documents[db.documents["name"] == name].iloc[0]
 
 
 def test_first_page_lists_documents_and_plays_the_first_clip(sample_db, sample_dashboard, page, screenshot):
@@ -74,13 +70,5 @@ def test_serving_beyond_localhost_warns(sample_db):
     from mocapviz.app import serve
 
     with pytest.warns(UserWarning, match="anyone who can reach"):
-        server = serve(sample_db.path, port=_free_port(), address="0.0.0.0", threaded=True)
+        server = serve(sample_db.path, port=free_port(), address="0.0.0.0", threaded=True)
     server.stop()
-
-
-def _free_port() -> int:
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]

@@ -16,7 +16,7 @@ import pandas as pd
 from .. import index as index_mod
 from ..database import MotionDB
 from ..errors import MotionDBError
-from ..features import feature_groups, numeric_of, relational
+from ..features import numeric_of, relational
 from ..knn import KnnIndex
 
 _BACKENDS: dict = {}
@@ -97,23 +97,12 @@ class Backend:
         """The kd-tree over a numeric feature set (Krüger et al. 2010 §3.3)."""
         return self.cached(("knn", name), lambda: KnnIndex(self.numeric(name)))
 
-    def document(self, doc: int) -> pd.Series:
-        """The document table's row of ``doc``."""
-        rows = self.documents[self.documents["doc_id"] == doc]
-        if rows.empty:
-            raise KeyError(f"{self.db.path}: no document {doc}")
-        return rows.iloc[0]
-
     def doc_options(self) -> dict:
         """{"<id>: <name> (<label>)": doc_id} for a document selector, in document order."""
         docs = self.documents
         labels = docs["label"].fillna("") if "label" in docs else pd.Series("", index=docs.index)
         return {f"{d}: {n}" + (f" ({lab})" if lab else ""): int(d)
                 for d, n, lab in zip(docs["doc_id"], docs["name"], labels)}
-
-    @staticmethod
-    def groups(feature_set: str = "2005") -> dict[str, list[str]]:
-        return feature_groups(feature_set)
 
 
 def sample_database() -> Path:

@@ -1,8 +1,8 @@
 """Long computations of a page, run off the server's event loop with a progress bar, so the page never freezes.
 
-:class:`Task` shows an indeterminate bar (or a percentage when the computation reports one) and a status line while
-a function runs in a worker thread; when it ends, the line says how long it took, or shows its error as one red
-message naming the error's type (the server log keeps the traceback).
+:class:`Task` shows an indeterminate bar and a status line while a function runs in a worker thread; when it ends,
+the line says how long it took, or shows its error as one red message naming the error's type (the server log keeps
+the traceback).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ class Task(pn.viewable.Viewer):
     """A status line and progress bar for one page's long computations.
 
     ``await task.run("Searching", fn, *args, busy=button)`` returns ``fn(*args)``, computed in a worker thread (the
-    ``busy`` widgets disabled meanwhile), or None after showing its error. ``task.report(fraction)`` may be called from ``fn`` to show a percentage.
+    ``busy`` widgets disabled meanwhile), or None after showing its error.
     """
 
     def __init__(self, **params):
@@ -35,10 +35,6 @@ class Task(pn.viewable.Viewer):
 
     def __panel__(self):
         return pn.Column(self.bar, self.status, self.error, sizing_mode="stretch_width", margin=0)
-
-    def report(self, fraction: float) -> None:
-        """Show ``fraction`` (0..1) done; safe to call from the worker thread."""
-        self.bar.value = round(100 * min(max(fraction, 0.0), 1.0))
 
     async def run(self, label: str, fn, *args, busy=()):
         busy = [busy] if isinstance(busy, pn.widgets.Widget) else list(busy)

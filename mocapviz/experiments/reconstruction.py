@@ -104,6 +104,21 @@ def frame_actors(db) -> np.ndarray:
     return db.documents.set_index("doc_id").loc[db.document_of(np.arange(db.n_frames)), "actor"].to_numpy()
 
 
+def marker_clip(db, doc: int, noise_cm: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A document of ``db`` as reconstruction test data (Krüger et al. 2010 §5.2).
+
+    Returns
+    -------
+    truth : np.ndarray [shape=(T, 24, 3)], float64, cm, the clip's canonical joints.
+    markers : np.ndarray [shape=(T, 6, 3)], cm, the joints of :data:`mocapviz.reconstruct.MARKERS` with uniform noise
+        of +-``noise_cm`` per coordinate, drawn from ``np.random.default_rng([seed, doc])`` (reproducible per clip).
+    headings : np.ndarray [shape=(T,)], radians, the clip's heading.
+    """
+    truth = np.asarray(db.positions[db.frames(doc)], dtype=np.float64)
+    markers = synthetic_markers(truth, noise_cm, np.random.default_rng([seed, doc]))
+    return truth, markers, heading(truth)
+
+
 def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, feature_sets=NUMERIC_SETS,
                    table4_doc: int | None = None, noise_cm: float = 0.1, seed: int = 0, pca: PCAModel | None = None,
                    baselines: bool = True, full: bool = False, progress: bool = False, **options) -> dict[str, pd.DataFrame]:  # fmt: skip
@@ -190,16 +205,11 @@ def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, featur
             out["CMU"] = other
         return out
 
-    def clip(doc: int):
-        truth = np.asarray(db.positions[db.frames(doc)], dtype=np.float64)
-        markers = synthetic_markers(truth, noise_cm, np.random.default_rng([seed, doc]))
-        return truth, markers, heading(truth)
-
     rows, base_rows, frame_rows = [], [], []
     joint_sum = {v: np.zeros(len(CANONICAL_JOINTS)) for v in variants}
     work = tqdm(test_docs, desc="reconstructing", unit="clip") if progress else test_docs
     for doc in work:
-        truth, markers, h = clip(doc)
+        truth, markers, h = marker_clip(db, doc, noise_cm, seed)
         row = {"motion": docs.loc[doc, "name"], "doc_id": doc, "class": docs.loc[doc, "label"], "frames": len(truth)}
         for variant, pr in priors(doc).items():
             for method in BASELINES if baselines else ("llm",):
@@ -232,14 +242,14 @@ def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, featur
 
     out = {"table3": table3, "baselines": pd.DataFrame(base_rows), "joints": joints}
     if table4_doc not in test_docs:  # its per-frame errors were not computed above
-        truth, markers, h = clip(table4_doc)
+        truth, markers, h = marker_clip(db, table4_doc, noise_cm, seed)
         for variant, pr in priors(table4_doc).items():
             err = reconstruction_errors(truth, reconstruct(markers, h, pr, k=min(k, pr.n_valid), **options))
             frame_rows += [{"frame": i, "time_s": i / db.fps, "variant": variant, "error_cm": e}
                            for i, e in enumerate(err["per_frame_cm"])]  # fmt: skip
     out["frames"] = pd.DataFrame(frame_rows)
     if len(feature_sets):
-        truth, markers, h = clip(table4_doc)
+        truth, markers, h = marker_clip(db, table4_doc, noise_cm, seed)
         pr = priors(table4_doc)["HDM"]
         row = {"motion": docs.loc[table4_doc, "name"], "doc_id": table4_doc, "frames": len(truth), "prior": "HDM"}
         sets = tqdm(feature_sets, desc="Table 4", unit="set") if progress else feature_sets

@@ -29,12 +29,6 @@ _RENDER_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mocapviz-
 _PLOTTERS: dict = {}  # (viewports, size) -> pyvista.Plotter, created and used in _RENDER_THREAD only
 
 
-def _bones(parents: np.ndarray) -> np.ndarray:
-    """VTK line cells (2, parent, child) of a skeleton's bones, flattened."""
-    child = np.flatnonzero(parents >= 0)
-    return np.column_stack([np.full(len(child), 2), parents[child], child]).ravel()
-
-
 def _check_poses(poses, what: str = "poses") -> list[np.ndarray]:
     out = [np.asarray(p, dtype=np.float64) for p in poses]
     if not out:
@@ -127,7 +121,8 @@ def _render(poses, viewports, bounds, size, colours, opacities, titles, azimuth)
 
 def _bones_of(n_poses: int) -> np.ndarray:
     """VTK line cells of ``n_poses`` canonical skeletons stacked one after the other in one point array."""
-    one = _bones(CANONICAL_PARENTS).reshape(-1, 3)
+    child = np.flatnonzero(CANONICAL_PARENTS >= 0)
+    one = np.column_stack([np.full(len(child), 2), CANONICAL_PARENTS[child], child])  # cells (2, parent, child)
     shift = (np.arange(n_poses) * len(CANONICAL_PARENTS))[:, None, None] * np.array([0, 1, 1])
     return (one[None] + shift).ravel()
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import panel as pn
 
-from ...features import NUMERIC_SETS, numeric_columns
+from ...features import NUMERIC_SETS, feature_groups, numeric_columns
 from ...segment import segment
 from ...viz.timeline import numeric_curves, relational_timeline
 from ..player import SkeletonPlayer
@@ -87,7 +87,7 @@ class DatabasePage(pn.viewable.Viewer):
     def show_document(self, doc: int, span=None) -> None:
         """Load document ``doc`` into the player and the plots; ``span`` (first, last), default the whole clip,
         becomes the session's span."""
-        row = self.backend.document(doc)
+        row = self.backend.db.document(doc)
         n = int(row["n_frames"])
         if span is None or not 0 <= span[0] <= span[1] < n:
             span = (0, n - 1)
@@ -138,7 +138,7 @@ class DatabasePage(pn.viewable.Viewer):
             f"{len(names)} features of the 2005 set (lower blue, upper red, mix green), "
             f"{len(segment(values).starts)} segments in the clip, {len(segment(values[a:b + 1]).starts)} "
             f"in the span {a}..{b}")
-        self.timeline.object = relational_timeline(values, names, self.doc_fps, self.backend.groups(),
+        self.timeline.object = relational_timeline(values, names, self.doc_fps, feature_groups(),
                                                    span=self._partial_span())
 
     def _draw_curves(self) -> None:

@@ -17,10 +17,10 @@ import numpy as np
 import pandas as pd
 import panel as pn
 
-from ...experiments.reconstruction import frame_actors
+from ...experiments.reconstruction import frame_actors, marker_clip
 from ...features import NUMERIC_SETS
-from ...reconstruct import DEFAULT_K, MARKERS, PosePrior, reconstruct, reconstruction_errors, synthetic_markers
-from ...skeleton import CANONICAL_JOINTS, heading
+from ...reconstruct import DEFAULT_K, MARKERS, PosePrior, reconstruct, reconstruction_errors
+from ...skeleton import CANONICAL_JOINTS
 from ...viz.reconstruction import error_curves, joint_error_bars
 from ..player import SkeletonPlayer
 from ..progress import Task
@@ -86,21 +86,6 @@ def check_settings(db, doc: int, kind: str, k: int, noise_cm: float) -> str | No
     return None
 
 
-def clip_markers(db, doc: int, noise_cm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A clip as the reconstruction's test data (§5.2).
-
-    Returns
-    -------
-    truth : np.ndarray [shape=(T, 24, 3)], float64, cm, the clip's canonical joints.
-    markers : np.ndarray [shape=(T, 6, 3)], cm, the joints of :data:`MARKERS` with uniform noise of
-        +-``noise_cm`` per coordinate (seed ``[SEED, doc]``).
-    headings : np.ndarray [shape=(T,)], radians, the clip's heading (the root marker cluster's).
-    """
-    truth = np.asarray(db.positions[db.frames(doc)], dtype=np.float64)
-    markers = synthetic_markers(truth, noise_cm, np.random.default_rng([SEED, doc]))
-    return truth, markers, heading(truth)
-
-
 def prior_for(backend, doc: int, kind: str) -> tuple[PosePrior, str]:
     """The cached PosePrior of a test clip (one per left-out clip or actor, its kd-trees reused) and what it
     leaves out; every prior of the database shares the body-frame poses and feature values."""
@@ -121,7 +106,7 @@ def run_reconstruction(backend, doc: int, kind: str, feature_set: str, k: int, n
     def compute() -> dict:
         t0 = time.perf_counter()
         prior, left_out = prior_for(backend, doc, kind)
-        truth, markers, headings = clip_markers(backend.db, doc, noise_cm)
+        truth, markers, headings = marker_clip(backend.db, doc, noise_cm, SEED)
         estimate = reconstruct(markers, headings, prior, feature_set=feature_set, k=k)
         return {"truth": truth, "estimate": estimate, "errors": reconstruction_errors(truth, estimate),
                 "prior_frames": prior.n_valid, "left_out": left_out, "seconds": time.perf_counter() - t0}
@@ -202,7 +187,7 @@ class ReconstructionPage(pn.viewable.Viewer):
             self._show(result, doc, feature_set, k, noise)
 
     def _show(self, result: dict, doc: int, feature_set: str, k: int, noise: float) -> None:
-        name, fps = str(self.backend.document(doc)["name"]), self.backend.fps
+        name, fps = str(self.backend.db.document(doc)["name"]), self.backend.fps
         err = result["errors"]
         self.summary.object = (
             f"**{name}** · {len(result['truth'])} frames · prior: {result['prior_frames']:,} frames without "

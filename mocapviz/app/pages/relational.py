@@ -16,6 +16,7 @@ import asyncio
 import pandas as pd
 import panel as pn
 
+from ...features import feature_groups
 from ...query import query_by_example
 from ...viz.query import precision_recall, precision_recall_plot
 from ..player import SkeletonPlayer
@@ -49,7 +50,7 @@ class RelationalPage(pn.viewable.Viewer):
         self.features = {g: pn.widgets.CheckBoxGroup(label=GROUP_TITLES[g], options=names, inline=False,
                                                      value=[n for n in names if n in DEFAULT_FEATURES],
                                                      css_classes=[f"mv-features-{g}"])
-                         for g, names in backend.groups(FEATURE_SET).items()}
+                         for g, names in feature_groups(FEATURE_SET).items()}
         self.mode = pn.widgets.RadioButtonGroup(label="hits", options=list(MODES), value="adaptive fuzzy",
                                                 css_classes=["mv-query-mode"])
         self.mismatches = pn.widgets.IntInput(label="m (mismatching segments)", start=1, end=20, value=1, width=170,
@@ -98,7 +99,7 @@ class RelationalPage(pn.viewable.Viewer):
 
     def _set_query(self, doc: int, span) -> None:
         """Show document ``doc`` and ``span`` (first, last frames, inclusive; clipped to the document)."""
-        n = int(self.backend.document(doc)["n_frames"])
+        n = int(self.backend.db.document(doc)["n_frames"])
         first, last = sorted(min(max(int(v), 0), n - 1) for v in span)
         self._syncing = True
         try:
@@ -112,7 +113,7 @@ class RelationalPage(pn.viewable.Viewer):
 
     def _on_doc(self, event) -> None:
         if not self._syncing:
-            n = int(self.backend.document(event.new)["n_frames"])
+            n = int(self.backend.db.document(event.new)["n_frames"])
             self._set_query(event.new, (0, n - 1))
 
     def _on_span(self, event) -> None:
@@ -191,7 +192,7 @@ class RelationalPage(pn.viewable.Viewer):
 
     def _show_quality(self, q: dict, hits: pd.DataFrame) -> None:
         """Precision and recall against the query document's label, as numbers and over the rank."""
-        label = self.backend.document(q["doc"])["label"] if self.has_labels else None
+        label = self.backend.db.document(q["doc"])["label"] if self.has_labels else None
         if label is None or pd.isna(label):
             self.quality.object = "*No label on the query clip: the hits cannot be judged.*"
             self.curve.visible = False
@@ -229,7 +230,7 @@ class RelationalPage(pn.viewable.Viewer):
         return self.backend.db.positions[sl.start + first: sl.start + last + 1]
 
     def _doc_fps(self, doc: int) -> float:
-        return float(self.backend.document(int(doc))["fps"])
+        return float(self.backend.db.document(int(doc))["fps"])
 
     def _doc_name(self, doc: int) -> str:
-        return str(self.backend.document(int(doc))["name"])
+        return str(self.backend.db.document(int(doc))["name"])

@@ -268,7 +268,7 @@ class SimilarityPage(pn.viewable.Viewer):
     def activate(self) -> None:
         """Show the Database page's current example (called when the tab is shown and when the example changes)."""
         s = self.selection
-        row = self.backend.document(s.doc)
+        row = self.backend.db.document(s.doc)
         fps = float(row["fps"])
         first, last = s.span
         self.query.object = (f"**Query**: document {s.doc} ({row['name']}), frame {s.frame} ({s.frame / fps:.2f} s); "
