@@ -6,8 +6,9 @@ it onto 24 canonical joints, ``database`` concatenates many into a :class:`Motio
 __version__ = "0.1.0"
 
 from .database import MotionDB
-from .errors import MocapFormatError, MotionDBError, SkeletonMappingError
+from .errors import MocapFormatError, MocapvizError, MotionDBError, ParameterError, SkeletonMappingError
 from .io import load
 from .motion import Motion
 
-__all__ = ["MocapFormatError", "Motion", "MotionDB", "MotionDBError", "SkeletonMappingError", "__version__", "load"]
+__all__ = ["MocapFormatError", "MocapvizError", "Motion", "MotionDB", "MotionDBError", "ParameterError", "SkeletonMappingError",
+           "__version__", "load"]

@@ -9,6 +9,8 @@
     mocapviz knn DB --frame DOC:FRAME [--features F15E] [-k 16] [--radius R] [--eps E] [--exclude-document]
     mocapviz match DB --example FILE|DOC_ID [--frames A:B] [--features F15E] [-K 10] [-k 256] [--radius R] [--eps E]
                                                                                 [--method lng|dtw] [--paths]
+    mocapviz search DB --example FILE|DOC_ID [--frames A:B] [--features F15E] [-K 10] [--mode fast|exact|brute]
+                       [--stretches [--min-length 0.5]] [--exclude-document] [--csv FILE] [--paths]
     mocapviz reproduce NAME|all [--full] --out DIR   (NAME: an experiment, e.g. rank_correlations, reconstruction)
     mocapviz serve [DB] [--port 5006] [--address 127.0.0.1] [--show]   (no DB: the embedded sample)
     mocapviz datasets list
@@ -37,7 +39,7 @@ import pandas as pd
 from . import datasets
 from .cluster import LOCAL, dask_client, optional_client
 from .database import MotionDB
-from .errors import MocapFormatError, MotionDBError, SkeletonMappingError
+from .errors import MocapFormatError, MocapvizError, MotionDBError, ParameterError, SkeletonMappingError
 from .features import NUMERIC_SETS, PCAModel, fit_pca, load_numeric, numeric, numeric_of, relational, store_numeric
 from .index import build
 from .io import load
@@ -208,6 +210,8 @@ def _example_features(db: MotionDB, example: str, frames: str | None, name: str,
 
 
 def _match(args) -> None:
+    if args.K < 1:
+        raise ParameterError(f"-K must be at least 1 (matches to report); got {args.K}")
     db = MotionDB.open(args.db)
     name = _names(args.features, NUMERIC_SETS, "feature set")[0]
     X = load_numeric(db, name)  # a clear error naming `mocapviz features DB` when the set is not stored
@@ -236,12 +240,56 @@ def _match(args) -> None:
     })  # fmt: skip
     for col in db.label_columns:
         table[col] = docs[col].reindex(found["doc_id"]).to_numpy()
-    with pd.option_context("display.width", 160, "display.max_rows", args.K + 5):
-        print(table.round(3).to_string(index=False))
+    _print_ranked(table, args.K, "the lazy neighbourhood graph needs a neighbour of every query frame along a whole "
+                  "path: try a larger -k such as 1024, --method dtw, or `mocapviz search DB --stretches`"
+                  if args.method == "lng" else "no document long enough outside the query's own")  # fmt: skip
     if args.paths:
         for rank, doc, path in zip(table["rank"], table["doc_id"], found["path"]):
             first = int(docs.loc[doc, "start"])
             print(f"path {rank} (query frame:frame of document {doc}): " + " ".join(f"{i}:{j - first}" for i, j in path))
+
+
+def _print_ranked(table: pd.DataFrame, n_rows: int, empty: str) -> None:
+    """A ranked result table without its path column, or one line saying there is none and what to try."""
+    if table.empty:
+        print(f"no matches ({empty})")
+        return
+    with pd.option_context("display.width", 160, "display.max_rows", n_rows + 5):
+        shown = table.drop(columns=["path"], errors="ignore").dropna(axis=1, how="all")  # label columns of others
+        print(shown.round(3).to_string(index=False))
+
+
+def _search(args) -> None:
+    from .search import SimilaritySearch
+    from .store import atomic_write
+
+    if args.K < 1:
+        raise ParameterError(f"-K must be at least 1 (matches to report); got {args.K}")
+    if not 0 < args.min_length <= 1:
+        raise ParameterError(f"--min-length must be a share of the query's frames in (0, 1]; got {args.min_length}")
+    db = MotionDB.open(args.db)
+    example = int(args.example) if args.example.isdigit() else args.example
+    if isinstance(example, str) and not Path(example).is_file():
+        raise ParameterError(f"--example {example!r} is neither a document id of {args.db} nor a motion file")
+    search = SimilaritySearch(db, _names(args.features, NUMERIC_SETS, "feature set")[0])
+    options = {"n_matches": args.K, "mode": args.mode, "exclude_document": args.exclude_document, "paths": args.paths}
+    if args.stretches:
+        table = search.stretches(example, frames=_frames(args.frames), min_length=args.min_length, **options)
+    else:
+        table = search.clips(example, frames=_frames(args.frames), **options)
+    what = "stretches" if args.stretches else "clips"
+    print(f"{len(table)} {what} like {args.example} ({table.attrs['query_frames']} frames) by DTW on {search.feature_set}"
+          f", {args.mode} mode, in {table.attrs['ms']:.1f} ms" + (" (its own document excluded)" if
+                                                                 args.exclude_document else ""))  # fmt: skip
+    _print_ranked(table, args.K, "the query's own document is the only one long enough; try whole clips, a shorter "
+                  "--frames span or a smaller --min-length" if args.stretches else "no other document to compare")
+    if args.paths:
+        for rank, doc, path in zip(table["rank"], table["doc_id"], table["path"]):
+            if path is not None:
+                print(f"path {rank} (query frame:frame of document {doc}): " + " ".join(f"{i}:{j}" for i, j in path))
+    if args.csv:
+        atomic_write(args.csv, table.drop(columns=["path"], errors="ignore").to_csv(index=False).encode())
+        print(f"ranked table written to {args.csv}")
 
 
 def _reproduce(args) -> None:
@@ -348,6 +396,26 @@ def build_parser() -> argparse.ArgumentParser:
                     "frame pairs)")  # fmt: skip
     mt.set_defaults(func=_match)
 
+    se = sub.add_parser("search", help="the clips (or stretches of long takes) of the DB that move most like an "
+                        "example, ranked by DTW on a numeric feature set (exact or fast)")  # fmt: skip
+    se.add_argument("db")
+    se.add_argument("--example", required=True, help="a motion file, or a document id of the DB")
+    se.add_argument("--frames", help="frame span A:B of the example (default: all of it)")
+    se.add_argument("--features", default="F15E", help="numeric feature set (default F15E)")
+    se.add_argument("-K", type=int, default=10, help="matches to report (default 10)")
+    se.add_argument("--mode", choices=["fast", "exact", "brute"], default="fast", help="fast (default): aligns only "
+                    "where kNN and a coarse pass point; exact: brute force's answer, pruned by lower bounds; brute: "
+                    "every cell")  # fmt: skip
+    se.add_argument("--stretches", action="store_true", help="the K best non-overlapping stretches inside documents "
+                    "(subsequence DTW) instead of whole clips")  # fmt: skip
+    se.add_argument("--min-length", type=float, default=0.5, help="with --stretches: the shortest match as a share "
+                    "of the query's frames (default 0.5)")  # fmt: skip
+    se.add_argument("--exclude-document", action="store_true", help="leave out the example's own document")
+    se.add_argument("--csv", help="also write the ranked table (best first) to this CSV file")
+    se.add_argument("--paths", action="store_true", help="also print each match's alignment (query frame:document "
+                    "frame pairs)")  # fmt: skip
+    se.set_defaults(func=_search)
+
     rp = sub.add_parser("reproduce", help="re-run the papers' experiments on the shared data; write CSV tables and "
                         "PNG/HTML figures")  # fmt: skip
     rp.add_argument("names", nargs="+", metavar="NAME", help="experiment function name(s) (index_statistics, "
@@ -398,8 +466,8 @@ def main(argv=None) -> int:
         with warnings.catch_warnings():
             warnings.showwarning = _one_line_warning
             args.func(args)
-    except (MocapFormatError, SkeletonMappingError, MotionDBError, datasets.DatasetError, OSError, ValueError,
-            KeyError, TypeError) as exc:
+    except (MocapvizError, MocapFormatError, SkeletonMappingError, MotionDBError, datasets.DatasetError, OSError,
+            ValueError, KeyError, TypeError) as exc:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
         print(f"mocapviz: error: {msg}", file=sys.stderr)
         return 1

@@ -8,7 +8,16 @@ from __future__ import annotations
 import os
 
 
-class MocapFormatError(ValueError):
+class MocapvizError(Exception):
+    """The base of every error mocapviz raises on purpose (bad input, a bad file, a bad database)."""
+
+
+class ParameterError(MocapvizError, ValueError):
+    """A bad argument: a value outside its range, an unknown name, an array of the wrong shape or with non-finite
+    values. The message names the parameter, the value given and what to pass instead."""
+
+
+class MocapFormatError(MocapvizError, ValueError):
     """A motion file is malformed: truncated, wrong channel count, unknown bone, non-finite value, ...
 
     Attributes
@@ -31,9 +40,9 @@ class MocapFormatError(ValueError):
         super().__init__(f"{where}: {reason}")
 
 
-class SkeletonMappingError(ValueError):
+class SkeletonMappingError(MocapvizError, ValueError):
     """A skeleton's joints could not be mapped to the canonical joints (``mocapviz.skeleton``)."""
 
 
-class MotionDBError(ValueError):
+class MotionDBError(MocapvizError, ValueError):
     """A MotionDB on disk is missing, of another format version, or inconsistent."""

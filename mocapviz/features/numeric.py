@@ -70,6 +70,7 @@ from ..database import MotionDB, document_batches, read_batch
 from ..errors import MotionDBError
 from ..motion import Motion
 from ..skeleton import CANONICAL_JOINTS, body_frame, heading
+from ..store import atomic_write
 
 __all__ = [
     "NUMERIC_SETS",
@@ -263,7 +264,7 @@ class PCAModel:
 
     def save(self, path) -> None:
         """Write the model as an ``.npz`` (no pickled objects), atomically (temporary file, then rename)."""
-        _atomic_write(Path(path), self._npz_bytes())
+        atomic_write(Path(path), self._npz_bytes())
 
     def _npz_bytes(self) -> bytes:
         buf = io.BytesIO()
@@ -586,21 +587,6 @@ def numeric_columns(name: str) -> list[str]:
 # ================================================================================================== storage
 
 
-def _atomic_write(target: Path, data: bytes) -> None:
-    """Write ``data`` to a temporary file beside ``target``, fsync, rename it into place."""
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-
-
 @contextlib.contextmanager
 def _features_lock(folder: Path, exclusive: bool):
     """Hold the feature folder's lock: exclusive while files are swapped in, shared while a header and its
@@ -682,7 +668,7 @@ def _store_numeric(db: MotionDB, specs: dict, pca: PCAModel | None, progress: bo
             "fitted_on_this_database": fitted_here,
         }
         with _features_lock(folder, exclusive=True):
-            _atomic_write(folder / "pca.npz", blob)
+            atomic_write(folder / "pca.npz", blob)
     fps_values = sorted({float(f) for f in db.documents["fps"]})
     for name, spec in specs.items():
         data_path, header_path = _paths(db, name)
@@ -719,7 +705,7 @@ def _store_numeric(db: MotionDB, specs: dict, pca: PCAModel | None, progress: bo
             with _features_lock(folder, exclusive=True):
                 header_path.unlink(missing_ok=True)  # no header = missing: never an old header on new data
                 os.replace(tmp, data_path)
-                _atomic_write(header_path, json.dumps(header, indent=1).encode())
+                atomic_write(header_path, json.dumps(header, indent=1).encode())
         except BaseException:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)

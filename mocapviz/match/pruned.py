@@ -1,0 +1,267 @@
+"""DTW top-K search with admissible lower bounds: every document (or window of frames) is aligned with the query
+only as far as its lower bound and the running K-th best cost allow (Rakthanmanon et al., KDD 2012, generalised
+from one-dimensional series to d-dimensional feature sequences and to unconstrained DTW; cells are pruned as in
+PrunedDTW, Silva & Batista 2016).
+
+Cost model: :mod:`mocapviz.match.dtw`'s "basic" step set (diagonal, next query frame, next database frame, each
+adding the local Euclidean cost of the cell entered), so costs and matches are those of :func:`~mocapviz.match.dtw`
+and :func:`~mocapviz.match.subsequence_dtw`, to the last bit.
+
+Two tasks, one kernel (:func:`_align`, column by column over the database frames of one range):
+
+- *whole*: DTW of the query against a whole range (path from its first to its last frame), ranked by the
+  normalised cost cost / (m + n) (query frames m, range frames n).
+- *stretches*: subsequence DTW inside each range, the local minima of the end cost (ends whose match is shorter
+  than ``min_length`` frames never count), K non-overlapping matches of least cost.
+
+Pruning (admissible: the result is the brute-force result, tested). ``rows[r, i]`` is a lower bound of the
+least local cost of query frame i against any frame of range r (:mod:`mocapviz.match.bounds`). Every path holds
+at least one cell in each query row, so an alignment through cell (i, j) with accumulated cost A costs at least
+A + sum(rows[r, i+1:]); cells above the limit are dropped and never extended, and a range whose whole bound
+exceeds the limit is never opened (ranges may come in any order: the best first makes the limit fall fast).
+The limit is the running K-th best: of the normalised costs (whole) or of
+the best match per range (stretches: the K best per-range minima are K candidates in K different ranges, and
+the greedy choice of non-overlapping matches takes at least K matches no worse than the K-th of them, so the
+final K-th cost cannot exceed it).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, inline="always")
+def _local(q, x, i, j):  # pragma: no cover - compiled
+    s = 0.0
+    for t in range(q.shape[1]):
+        diff = np.float64(q[i, t]) - np.float64(x[j, t])
+        s += diff * diff
+    return np.sqrt(s)
+
+
+@numba.njit(cache=True)
+def _align(q, x, a, b, rest, limit, whole, end_cost, end_start):  # pragma: no cover - compiled
+    """Pruned DTW of query q (m, d) against frames x[a:b], column by column.
+
+    rest (m,): rest[i] = a lower bound of the cost still to come after query row i (0 for the last row).
+    limit: cells whose accumulated cost + rest exceed it are dropped (``whole``: compared to the raw cost).
+    whole: True = the path starts at (0, a) and ends at (m - 1, b - 1); False = subsequence DTW (starts anywhere).
+    end_cost, end_start (b - a,): written with the accumulated cost of the last query row at every frame (inf
+    where dropped) and the frame where that alignment starts (stretches only; -1 where none).
+    Returns the number of cells whose local cost was computed."""
+    m = q.shape[0]
+    prev = np.empty(m)
+    cur = np.empty(m)
+    prev_s = np.empty(m, dtype=np.int64)
+    cur_s = np.empty(m, dtype=np.int64)
+    lo_p, hi_p = 0, -1  # alive rows of the previous column: [lo_p, hi_p]
+    cells = 0
+    for j in range(a, b):
+        lo_c, hi_c = m, -1
+        first = lo_p if whole and j > a else 0
+        i = first
+        while i < m:
+            if i > hi_p + 1 and hi_c != i - 1:
+                break  # neither the previous column nor the cell above is alive: the rest of the column is dead
+            best = np.inf
+            arg = -1
+            if i == 0:
+                if not whole or j == a:
+                    best, arg = 0.0, 3
+                elif lo_p == 0 and hi_p >= 0:
+                    best, arg = prev[0], 2
+            else:
+                if lo_p <= i - 1 <= hi_p and prev[i - 1] < best:
+                    best, arg = prev[i - 1], 0
+                if i - 1 >= first and i - 1 <= hi_c and cur[i - 1] < best:
+                    best, arg = cur[i - 1], 1
+                if lo_p <= i <= hi_p and prev[i] < best:
+                    best, arg = prev[i], 2
+            if arg < 0:
+                cur[i] = np.inf
+                i += 1
+                continue
+            cells += 1
+            v = best + _local(q, x, i, j)
+            if v + rest[i] > limit:
+                v = np.inf
+            cur[i] = v
+            if v < np.inf:
+                if arg == 0:
+                    cur_s[i] = prev_s[i - 1]
+                elif arg == 1:
+                    cur_s[i] = cur_s[i - 1]
+                elif arg == 2:
+                    cur_s[i] = prev_s[i]
+                else:
+                    cur_s[i] = j
+                lo_c = min(lo_c, i)
+                hi_c = i
+            i += 1
+        if hi_c == m - 1:
+            end_cost[j - a] = cur[m - 1]
+            end_start[j - a] = cur_s[m - 1]
+        else:
+            end_cost[j - a] = np.inf
+            end_start[j - a] = -1
+        if hi_c < 0 and whole:
+            for t in range(j + 1, b):
+                end_cost[t - a] = np.inf
+                end_start[t - a] = -1
+            return cells
+        prev, cur = cur, prev
+        prev_s, cur_s = cur_s, prev_s
+        lo_p, hi_p = (lo_c, hi_c) if hi_c >= 0 else (0, -1)
+    return cells
+
+
+@numba.njit(cache=True)
+def _box_bound(x, a, b, qmin, qmax):  # pragma: no cover - compiled
+    """Sum over frames x[a:b] of their Euclidean distance to the box [qmin, qmax] (d,): a lower bound of the cost
+    of any path that visits every one of these frames."""
+    total = 0.0
+    for j in range(a, b):
+        s = 0.0
+        for t in range(x.shape[1]):
+            v = np.float64(x[j, t])
+            if v < qmin[t]:
+                s += (qmin[t] - v) ** 2
+            elif v > qmax[t]:
+                s += (v - qmax[t]) ** 2
+        total += np.sqrt(s)
+    return total
+
+
+@numba.njit(cache=True)
+def _insert(best, value):  # pragma: no cover - compiled
+    """Insert ``value`` into the increasing array ``best`` (the K least values so far), dropping the largest."""
+    k = best.shape[0]
+    if value >= best[k - 1]:
+        return
+    t = k - 1
+    while t > 0 and best[t - 1] > value:
+        best[t] = best[t - 1]
+        t -= 1
+    best[t] = value
+
+
+@numba.njit(cache=True)
+def _rest(row_bounds):  # pragma: no cover - compiled
+    """rest[i] = sum(row_bounds[i + 1:])."""
+    m = row_bounds.shape[0]
+    out = np.empty(m)
+    s = 0.0
+    for i in range(m - 1, -1, -1):
+        out[i] = s
+        s += row_bounds[i]
+    return out
+
+
+@numba.njit(cache=True)
+def search_whole(q, x, lo, hi, order, bound, rows, k, prune, budget, qmin, qmax):  # pragma: no cover - compiled
+    """Whole-range DTW of the query against ranges [lo[r], hi[r]) in ``order``, keeping the k best normalised
+    costs cost / (m + n).
+
+    bound (R,): a lower bound of each range's normalised cost; rows (R, m): per-range row bounds (raw cost).
+    qmin, qmax (d,): the query's bounding box (a range's frames are all on the path: each costs at least its
+    distance to the box; checked before a range is aligned). prune: use the bounds (False: brute force, every cell of every range). budget: ranges to align at most
+    (fast mode; -1: all). Returns raw costs (R,) (inf: not aligned or above the limit), the number of ranges
+    aligned and of cells computed."""
+    m = q.shape[0]
+    n_r = lo.shape[0]
+    costs = np.full(n_r, np.inf)
+    best = np.full(k, np.inf)
+    aligned = 0
+    cells = 0
+    buf_c = np.empty(0)
+    buf_s = np.empty(0, dtype=np.int64)
+    for t in range(order.shape[0]):
+        r = order[t]
+        if prune and bound[r] > best[k - 1]:
+            continue
+        if budget >= 0 and aligned >= budget:
+            break
+        n = hi[r] - lo[r]
+        if buf_c.shape[0] < n:
+            buf_c = np.empty(n)
+            buf_s = np.empty(n, dtype=np.int64)
+        norm = m + n
+        limit = best[k - 1] * norm if prune else np.inf
+        if prune and _box_bound(x, lo[r], hi[r], qmin, qmax) > limit:
+            continue  # every frame of the range lies on the path: the sum of their distances to the query's box
+        rest = _rest(rows[r]) if prune else np.zeros(m)
+        cells += _align(q, x, lo[r], hi[r], rest, limit, True, buf_c, buf_s)
+        aligned += 1
+        c = buf_c[n - 1]
+        costs[r] = c
+        if c < np.inf:
+            _insert(best, c / norm)
+    return costs, aligned, cells
+
+
+@numba.njit(cache=True)
+def _local_minima(end_cost, end_start, a, min_length, out_s, out_e, out_c, n_out):  # pragma: no cover - compiled
+    """Append the local minima of one range's end costs (ends with a match of at least min_length frames) to
+    out_*; returns the new count and the range's least such cost."""
+    n = end_cost.shape[0]
+    least = np.inf
+    for t in range(n):
+        c = end_cost[t]
+        if c == np.inf or a + t - end_start[t] + 1 < min_length:
+            continue
+        left = np.inf
+        if t > 0 and a + t - 1 - end_start[t - 1] + 1 >= min_length:
+            left = end_cost[t - 1]
+        right = np.inf
+        if t + 1 < n and a + t + 1 - end_start[t + 1] + 1 >= min_length:
+            right = end_cost[t + 1]
+        if c <= left and c <= right:
+            if n_out == out_s.shape[0]:
+                grow = out_s.shape[0] * 2
+                s2, e2, c2 = np.empty(grow, np.int64), np.empty(grow, np.int64), np.empty(grow)
+                s2[:n_out], e2[:n_out], c2[:n_out] = out_s, out_e, out_c
+                out_s, out_e, out_c = s2, e2, c2
+            out_s[n_out], out_e[n_out], out_c[n_out] = end_start[t], a + t, c
+            n_out += 1
+            least = min(least, c)
+    return out_s, out_e, out_c, n_out, least
+
+
+@numba.njit(cache=True)
+def search_stretches(q, x, lo, hi, order, bound, rows, k, min_length, prune, budget):  # pragma: no cover
+    """Subsequence DTW of the query inside ranges [lo[r], hi[r]) in ``order``; the candidates (local minima of
+    the end cost, matches of at least ``min_length`` frames) of every range aligned.
+
+    bound (R,): a lower bound of the least match cost in each range; rows (R, m) per-range row bounds. prune,
+    budget: as :func:`search_whole`. Returns candidate starts, ends (inclusive database frames), costs, the
+    number of ranges aligned and of cells computed."""
+    m = q.shape[0]
+    out_s = np.empty(64, np.int64)
+    out_e = np.empty(64, np.int64)
+    out_c = np.empty(64)
+    n_out = 0
+    best = np.full(k, np.inf)
+    aligned = 0
+    cells = 0
+    buf_c = np.empty(0)
+    buf_s = np.empty(0, dtype=np.int64)
+    for t in range(order.shape[0]):
+        r = order[t]
+        if prune and bound[r] > best[k - 1]:
+            continue
+        if budget >= 0 and aligned >= budget:
+            break
+        n = hi[r] - lo[r]
+        if buf_c.shape[0] < n:
+            buf_c = np.empty(n)
+            buf_s = np.empty(n, dtype=np.int64)
+        limit = best[k - 1] if prune else np.inf
+        rest = _rest(rows[r]) if prune else np.zeros(m)
+        cells += _align(q, x, lo[r], hi[r], rest, limit, False, buf_c, buf_s)
+        aligned += 1
+        out_s, out_e, out_c, n_out, least = _local_minima(buf_c[:n], buf_s[:n], lo[r], min_length, out_s, out_e,
+                                                          out_c, n_out)  # fmt: skip
+        if least < np.inf:
+            _insert(best, least)
+    return out_s[:n_out], out_e[:n_out], out_c[:n_out], aligned, cells

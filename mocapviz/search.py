@@ -1,0 +1,437 @@
+"""Similarity search: the clips, or stretches of long takes, of a MotionDB that move most like a query, ranked by
+DTW on a numeric feature set (Krüger et al. 2010 §3.2 features; DTW as in :mod:`mocapviz.match.dtw`).
+
+Two tasks:
+
+- :meth:`SimilaritySearch.clips`: whole documents ranked by DTW cost normalised by query + document frames.
+- :meth:`SimilaritySearch.stretches`: the K best non-overlapping stretches inside documents by subsequence DTW
+  (raw cost, as :func:`mocapviz.match.subsequence_dtw` ranks them), at least ``min_length`` × the query long.
+
+Three modes, one answer where they agree:
+
+- ``"exact"``: exactly the brute-force top K (tested against :func:`~mocapviz.match.dtw` per document and
+  :func:`~mocapviz.match.subsequence_dtw`), with admissible pruning (:mod:`mocapviz.match.pruned`): documents are
+  aligned most promising first (whole clips: by the coarse DTW below; stretches: by lower bound), a document
+  whose lower bound exceeds the running K-th best is skipped, and cells whose cost plus the bound of the rows
+  still to come exceed it are dropped. Lower bounds (:mod:`mocapviz.match.bounds`): each query frame's distance
+  to a document's bounding box (LB_Keogh's envelope with the whole document as envelope), each document frame's
+  distance to the query's box (whole clips: every document frame is on the path), the path's first and last
+  cells (LB_Kim), and, for stretches, the query frames' k nearest database frames (a document without a
+  neighbour of query frame i is at least the k-th neighbour's distance away from it).
+- ``"fast"``: exact DTW on a few candidates only. Whole clips: the ``budget`` documents of least DTW cost on the
+  block means of 0.2 s (``POOL_SECONDS``; 1/36 of the cells at 6 frames a block). Stretches: windows around every
+  kNN neighbour of a query frame (wide enough for a match from half to twice the query's speed) and around the
+  3 K best matches of subsequence DTW on the block means, merged, aligned with the exact mode's pruning. The
+  costs returned are exact; what can be missed is measured: recall of exact DTW's top K in ``mocapviz reproduce
+  retrieval_quality`` and ``benchmarks/bench_search.py``.
+- ``"brute"``: every cell of every document (the reference, for benchmarks).
+
+The paper's own method, the lazy neighbourhood graph (:func:`mocapviz.match.lng`), needs a neighbour for every
+query frame along the whole path; fast mode needs one anywhere in the match and then aligns exactly.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .errors import ParameterError
+from .features import numeric, numeric_of
+from .features.numeric import NUMERIC_SETS, default_pca
+from .knn import KnnIndex
+from .match.bounds import box_rows, range_of, row_bounds
+from .match.dtw import dtw, select_matches
+from .match.pruned import search_stretches, search_whole
+from .motion import Motion
+
+MODES = ("exact", "fast", "brute")
+NEIGHBOURS = 32  # k: nearest database frames per query frame (bounds and fast mode's seeds)
+CLIP_BUDGET = 24  # fast mode, whole clips: documents aligned at most (at least 2 x the matches asked for) ...
+POOL_SECONDS = 0.2  # ... chosen by DTW on the means of 0.2 s blocks of frames (6 frames at 30 Hz)
+WINDOW_SPEED = 2.0  # fast mode, stretches: windows fit a match from 1/2 to 2 x the query's speed ...
+WINDOW_PAD = 0.5  # ... plus this share of the query on both sides; and windows around the
+COARSE_CANDIDATES = 3  # ... 3 K best matches of subsequence DTW on the coarse database
+COLUMNS = ["rank", "doc_id", "name", "start", "end", "frames", "cost", "normalised_cost"]
+
+
+def _count(value, name: str, least: int = 1) -> int:
+    """``value`` as an int >= least, or a ParameterError naming it."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < least:
+        raise ParameterError(f"{name} must be an integer of at least {least}; got {value!r}")
+    return int(value)
+
+
+def _mode(mode) -> str:
+    if mode not in MODES:
+        raise ParameterError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
+    return mode
+
+
+class SimilaritySearch:
+    """DTW search over one numeric feature set of a MotionDB (see the module docstring).
+
+    Parameters
+    ----------
+    db : MotionDB
+    feature_set : str
+        A numeric feature set (:data:`mocapviz.features.NUMERIC_SETS`), the stored one when current (``mocapviz
+        features DB``), else computed now. Default F15E (cm).
+    documents : sequence of int, optional
+        The doc ids that may be returned (e.g. the other actors' clips in a leave-actor-out evaluation); default
+        every document.
+    k : int
+        Nearest database frames per query frame for the bounds and fast mode's seeds.
+
+    Attributes
+    ----------
+    features : np.ndarray [shape=(N, d)], float32, the feature set's values of every database frame.
+    documents : pd.DataFrame, the searchable documents (doc_id, name, start, n_frames, labels), by start.
+    """
+
+    def __init__(self, db, feature_set: str = "F15E", documents=None, k: int = NEIGHBOURS):
+        if feature_set not in NUMERIC_SETS:
+            raise ParameterError(f"unknown numeric feature set {feature_set!r}; choose one of {', '.join(NUMERIC_SETS)}")
+        self.db, self.feature_set, self.k = db, feature_set, _count(k, "k")
+        self.features = np.asarray(numeric_of(db, feature_set))
+        docs = db.documents.sort_values("start")
+        if documents is not None:
+            wanted = pd.Index(np.asarray(documents, dtype=np.int64).reshape(-1))
+            unknown = wanted.difference(docs["doc_id"])
+            if len(unknown):
+                raise ParameterError(f"documents {', '.join(map(str, unknown[:5]))} are not in {db.path} (doc ids "
+                                     f"{docs['doc_id'].min()}..{docs['doc_id'].max()})")  # fmt: skip
+            docs = docs[docs["doc_id"].isin(wanted)]
+        if docs.empty:
+            raise ParameterError(f"no document to search in {db.path}")
+        self.documents = docs.reset_index(drop=True)
+        every = db.documents
+        self._spans = dict(zip(every["doc_id"].tolist(), zip(every["start"].tolist(),
+                                                               (every["start"] + every["n_frames"]).tolist())))
+        self._lo = self.documents["start"].to_numpy(np.int64)
+        self._hi = self._lo + self.documents["n_frames"].to_numpy(np.int64)
+        self._low = np.minimum.reduceat(self.features, self._lo, axis=0).astype(np.float64)  # per document box
+        self._high = np.maximum.reduceat(self.features, self._lo, axis=0).astype(np.float64)
+        self._index = None
+        self._coarse = None
+        rate = db.fps or float(self.documents["fps"].median())
+        self.pool = max(1, round(POOL_SECONDS * rate))
+
+    @property
+    def coarse(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Fast mode's coarse database: the means of blocks of :attr:`pool` frames of every searchable document
+        (N', d) float32, and each document's [lo, hi) rows in it (built on first use)."""
+        if self._coarse is None:
+            self._coarse = _pooled(self.features, self._lo, self._hi, self.pool)
+        return self._coarse
+
+    @property
+    def knn_index(self) -> KnnIndex:
+        """The kd-tree over the searchable documents' frames (built on first use)."""
+        if self._index is None:
+            valid = np.zeros(len(self.features), dtype=bool)
+            for a, b in zip(self._lo, self._hi):
+                valid[a:b] = True
+            self._index = KnnIndex(self.features, valid=valid)
+        return self._index
+
+    # ------------------------------------------------------------------------ the query
+    def query_features(self, example, frames=None) -> tuple[np.ndarray, int | None]:
+        """The query's feature values and its document.
+
+        Parameters
+        ----------
+        example : int, Motion, str or Path
+            A doc id of the database, a Motion (resampled to the database's rate when it differs) or a motion
+            file (read with :func:`mocapviz.load`).
+        frames : (int, int) or slice, optional
+            [start, stop) frames of the example (default: all); at least 2, inside the example.
+
+        Returns
+        -------
+        query : np.ndarray [shape=(m, d)], float32 feature values.
+        doc_id : int or None, the example's document (None for a Motion or file).
+        """
+        doc_id = None
+        if isinstance(example, (int, np.integer)) and not isinstance(example, (bool, np.bool_)):
+            if int(example) not in self._spans:
+                raise ParameterError(f"document {example} is not in {self.db.path} (doc ids "
+                                     f"{min(self._spans)}..{max(self._spans)})")  # fmt: skip
+            doc_id = int(example)
+            start, stop = self._spans[doc_id]
+            a, b = _span(frames, stop - start, f"document {doc_id}")
+            values = self.features[start + a : start + b]
+        else:
+            if isinstance(example, (str, os.PathLike)):
+                from .io import load
+
+                example = load(Path(example))
+            if not isinstance(example, Motion):
+                raise ParameterError(f"example must be a doc id, a Motion or a motion file; got {type(example).__name__}")
+            rate = self.db.fps
+            if rate and abs(example.fps - rate) > 1e-6:
+                example = example.resample(rate)
+            a, b = _span(frames, example.n_frames, str(example.source or "the example"))
+            pca = default_pca(self.db) if self.feature_set.startswith("Fp") else None
+            try:
+                values = numeric(example[a:b], self.feature_set, pca=pca, progress=False)
+            except ValueError as exc:  # a non-finite position of the clip, named with its frame and joint
+                raise ParameterError(f"the query: {exc}") from None
+        bad = ~np.isfinite(values).all(axis=1)
+        if bad.any():
+            raise ParameterError(f"the query's {self.feature_set} features are not finite at frame "
+                                 f"{a + int(np.argmax(bad))}")  # fmt: skip
+        return np.ascontiguousarray(values, dtype=np.float32), doc_id
+
+    def _ranges(self, own: int | None, exclude_document: bool, candidates) -> np.ndarray:
+        """Rows of :attr:`documents` to search."""
+        keep = np.ones(len(self.documents), dtype=bool)
+        if exclude_document and own is not None:
+            keep &= self.documents["doc_id"].to_numpy() != own
+        if candidates is not None:
+            keep &= self.documents["doc_id"].isin(np.asarray(candidates, dtype=np.int64).reshape(-1)).to_numpy()
+        return np.flatnonzero(keep)
+
+    def _neighbours(self, q: np.ndarray):
+        """The exact k nearest searchable frames of every query frame, distances (m, k) and frames (m, k). Frames of
+        documents left out of a search (the query's own) are simply ignored by the bounds: the k-th distance still
+        bounds every frame not returned."""
+        index = self.knn_index
+        return index.query(q, min(self.k, index.n_indexed))
+
+    # ------------------------------------------------------------------------ whole clips
+    def clips(self, example, frames=None, n_matches: int = 10, mode: str = "fast", exclude_document: bool = False,
+              paths: bool = False, candidates=None, budget: int | None = None) -> pd.DataFrame:  # fmt: skip
+        """The documents that move most like the query, ranked by DTW cost / (query frames + document frames).
+
+        Parameters
+        ----------
+        example, frames : the query (:meth:`query_features`).
+        n_matches : int, documents to return (K >= 1).
+        mode : {"fast", "exact", "brute"}, see the module docstring.
+        exclude_document : bool, leave out the query's own document.
+        paths : bool, add each match's warping path ((L, 2) (query frame, document frame)).
+        candidates : sequence of int, optional: rank only these doc ids (e.g. relational hits).
+        budget : int, optional: fast mode's documents aligned at most (default max(CLIP_BUDGET, 2 K)).
+
+        Returns
+        -------
+        pd.DataFrame, best first: rank, doc_id, name, start (0), end (last frame), frames, cost (accumulated
+        Euclidean costs, feature units), normalised_cost (cost / (m + frames)), the label columns, [path].
+        ``attrs``: mode, query_frames, ms (search time), documents (searched), aligned (documents aligned),
+        cells (local costs computed), brute_cells (cells of brute force).
+        """
+        n_matches, mode = _count(n_matches, "n_matches"), _mode(mode)
+        q, own = self.query_features(example, frames)
+        t0 = time.perf_counter()
+        rows_idx = self._ranges(own, exclude_document, candidates)
+        lo, hi = self._lo[rows_idx], self._hi[rows_idx]
+        m = len(q)
+        bound = np.zeros(len(lo))
+        rows = np.zeros((len(lo), m))
+        order = np.arange(len(lo))
+        budget_n = -1
+        if mode == "exact" and len(lo):
+            rows = box_rows(q, self._low[rows_idx], self._high[rows_idx])
+            rows[:, 0] = _costs(q[0], self.features[lo])  # the path's first and last cells are known
+            if m > 1:
+                rows[:, -1] = _costs(q[-1], self.features[hi - 1])
+            bound = rows.sum(axis=1) / (m + hi - lo)
+            order, _ = self._coarse_order(q, rows_idx)  # likely matches first: the K-th best cost falls fast
+        coarse = None
+        if mode == "fast" and len(lo):
+            order, coarse = self._coarse_order(q, rows_idx)
+            budget_n = max(CLIP_BUDGET, 2 * n_matches) if budget is None else _count(budget, "budget")
+        costs, aligned, cells = search_whole(q, self.features, lo, hi, order, bound, rows, n_matches,
+                                             mode != "brute", budget_n, q.min(axis=0).astype(np.float64),
+                                             q.max(axis=0).astype(np.float64))  # fmt: skip
+        norm = costs / (m + hi - lo)
+        found = np.flatnonzero(np.isfinite(norm))
+        found = found[np.lexsort((self.documents["doc_id"].to_numpy()[rows_idx[found]], norm[found]))][:n_matches]
+        if coarse is not None and len(found) < n_matches:  # fast mode with a budget below K: the coarse order after
+            rest = order[~np.isin(order, found)][: n_matches - len(found)]
+            found = np.r_[found, rest]
+            costs[rest] = np.nan
+        ms = 1e3 * (time.perf_counter() - t0)
+        table = self._table(rows_idx[found], np.zeros(len(found), np.int64), hi[found] - lo[found] - 1,
+                            costs[found], m)  # fmt: skip
+        if paths:
+            table["path"] = [dtw(q, self.features[a:b])[1] if np.isfinite(c) else None
+                             for a, b, c in zip(lo[found], hi[found], costs[found])]  # fmt: skip
+        table.attrs.update(mode=mode, query_frames=m, ms=ms, documents=len(lo), aligned=int(aligned),
+                           cells=int(cells), brute_cells=int(m * (hi - lo).sum()))  # fmt: skip
+        return table
+
+    def _coarse_order(self, q: np.ndarray, rows_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fast mode's candidates: the searchable documents ``rows_idx`` in increasing normalised DTW cost of the
+        query's and their block means (:attr:`coarse`), and those costs."""
+        y, c_lo, c_hi = self.coarse
+        qc = _pooled(q, np.zeros(1, np.int64), np.array([len(q)]), self.pool)[0]
+        lo, hi = c_lo[rows_idx], c_hi[rows_idx]
+        costs, _, _ = search_whole(qc, y, lo, hi, np.arange(len(lo)), np.zeros(len(lo)), np.zeros((len(lo), len(qc))),
+                                   1, False, -1, qc.min(axis=0).astype(np.float64), qc.max(axis=0).astype(np.float64))
+        costs = costs / (len(qc) + hi - lo)
+        return np.argsort(costs, kind="stable"), costs
+
+    # ------------------------------------------------------------------------ stretches
+    def stretches(self, example, frames=None, n_matches: int = 10, mode: str = "fast", min_length: float = 0.5,
+                  exclude_document: bool = False, paths: bool = False) -> pd.DataFrame:  # fmt: skip
+        """The K best non-overlapping stretches of the documents by subsequence DTW (raw cost, as
+        :func:`mocapviz.match.subsequence_dtw` ranks them), each at least ``min_length`` × the query's frames.
+
+        Parameters
+        ----------
+        example, frames : the query (:meth:`query_features`), 2 <= m <= the longest searchable document.
+        n_matches : int, stretches to return (K >= 1; fewer when there are fewer).
+        mode : {"fast", "exact", "brute"}
+        min_length : float in (0, 1]: the shortest match, a share of the query's frames (0.5: half as long).
+        exclude_document, paths : as :meth:`clips`.
+
+        Returns
+        -------
+        pd.DataFrame as :meth:`clips` (start, end: the stretch's first and last frame in its document);
+        ``attrs`` also holds ``ranges`` (documents or fast mode's windows searched).
+        """
+        n_matches, mode = _count(n_matches, "n_matches"), _mode(mode)
+        if not isinstance(min_length, (int, float, np.floating, np.integer)) or not 0 < min_length <= 1:
+            raise ParameterError(f"min_length must be a share of the query's frames in (0, 1]; got {min_length!r}")
+        q, own = self.query_features(example, frames)
+        t0 = time.perf_counter()
+        rows_idx = self._ranges(own, exclude_document, None)
+        lo, hi = self._lo[rows_idx], self._hi[rows_idx]
+        m = len(q)
+        shortest = max(1, int(np.ceil(min_length * m)))
+        if not len(lo) or (hi - lo).max() < max(m, shortest):
+            longest = int((hi - lo).max()) if len(lo) else 0
+            raise ParameterError(f"the query has {m} frames, more than the longest searchable document ({longest} "
+                                 f"frames); choose a shorter span or search whole clips")  # fmt: skip
+        bound = np.zeros(len(lo))
+        rows = np.zeros((len(lo), m))
+        order = np.arange(len(lo))
+        if mode != "brute":
+            dist, nb = self._neighbours(q)
+            if mode == "fast":
+                seeds = _windows(nb, m, self._lo[rows_idx], self._hi[rows_idx])
+                lo, hi = _merge(*(np.r_[a, b] for a, b in zip(seeds, self._coarse_windows(q, rows_idx, n_matches,
+                                                                                          shortest))))  # fmt: skip
+            rows = row_bounds(dist, nb, lo, hi)
+            if mode == "exact":
+                rows = np.maximum(rows, box_rows(q, self._low[rows_idx], self._high[rows_idx]))
+            bound = rows.sum(axis=1)
+            order = np.argsort(bound, kind="stable")
+        starts, ends, costs, aligned, cells = search_stretches(q, self.features, lo, hi, order, bound, rows,
+                                                               n_matches, shortest, mode != "brute", -1)  # fmt: skip
+        chosen = select_matches(starts, ends, costs, n_matches)
+        ms = 1e3 * (time.perf_counter() - t0)
+        doc_row = np.searchsorted(self._lo, ends[chosen], side="right") - 1
+        first = starts[chosen] - self._lo[doc_row]
+        table = self._table(doc_row, first, ends[chosen] - self._lo[doc_row], costs[chosen], m)
+        if paths:
+            table["path"] = [dtw(q, self.features[s : e + 1])[1] + np.array([0, s - self._lo[r]])
+                             for s, e, r in zip(starts[chosen], ends[chosen], doc_row)]  # fmt: skip
+        searched = self._hi[rows_idx] - self._lo[rows_idx]
+        table.attrs.update(mode=mode, query_frames=m, ms=ms, documents=len(rows_idx), ranges=len(lo),
+                           aligned=int(aligned), cells=int(cells), brute_cells=int(m * searched.sum()))  # fmt: skip
+        return table
+
+    def _coarse_windows(self, q: np.ndarray, rows_idx: np.ndarray, n_matches: int, shortest: int):
+        """Fast mode's windows from the coarse database: the ``COARSE_CANDIDATES`` x K best non-overlapping matches
+        of the query's block means by subsequence DTW, as frames of the documents, padded by WINDOW_PAD x m."""
+        y, c_lo, c_hi = self.coarse
+        qc = _pooled(q, np.zeros(1, np.int64), np.array([len(q)]), self.pool)[0]
+        lo, hi = c_lo[rows_idx], c_hi[rows_idx]
+        want = COARSE_CANDIDATES * n_matches
+        starts, ends, costs, _, _ = search_stretches(qc, y, lo, hi, np.arange(len(lo)), np.zeros(len(lo)),
+                                                     np.zeros((len(lo), len(qc))), want, max(1, shortest // self.pool),
+                                                     True, -1)  # fmt: skip
+        chosen = select_matches(starts, ends, costs, want)
+        r = np.searchsorted(lo, ends[chosen], side="right") - 1
+        pad = int(np.ceil(WINDOW_PAD * len(q)))
+        f_lo, f_hi = self._lo[rows_idx][r], self._hi[rows_idx][r]
+        a = np.maximum(f_lo, f_lo + (starts[chosen] - lo[r]) * self.pool - pad)
+        b = np.minimum(f_hi, f_lo + (ends[chosen] + 1 - lo[r]) * self.pool + pad)
+        return _merge(a, b)
+
+    def _table(self, doc_rows, start, end, cost, m: int) -> pd.DataFrame:
+        """The ranked result table (see :meth:`clips`)."""
+        docs = self.documents.iloc[np.asarray(doc_rows, dtype=np.int64)].reset_index(drop=True)
+        frames = np.asarray(end) - np.asarray(start) + 1
+        table = pd.DataFrame({
+            "rank": np.arange(1, len(docs) + 1), "doc_id": docs["doc_id"].to_numpy(), "name": docs["name"].to_numpy(),
+            "start": np.asarray(start, dtype=np.int64), "end": np.asarray(end, dtype=np.int64), "frames": frames,
+            "cost": np.asarray(cost, dtype=np.float64), "normalised_cost": np.asarray(cost) / (m + frames),
+        })  # fmt: skip
+        for col in self.db.label_columns:
+            table[col] = docs[col].to_numpy()
+        return table
+
+
+def _span(frames, n: int, what: str) -> tuple[int, int]:
+    """[start, stop) of ``frames`` ((a, b), slice or None) inside 0..n, at least 2 frames, or a ParameterError."""
+    if frames is None:
+        a, b = 0, n
+    elif isinstance(frames, slice):
+        if frames.step not in (None, 1):
+            raise ParameterError(f"frames must be a contiguous range; got step {frames.step}")
+        a, b = 0 if frames.start is None else frames.start, n if frames.stop is None else frames.stop
+    else:
+        try:
+            a, b = frames
+        except (TypeError, ValueError):
+            raise ParameterError(f"frames must be (start, stop); got {frames!r}") from None
+    if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (a, b)):
+        raise ParameterError(f"frames must be integers (start, stop); got {a!r}, {b!r}")
+    if not 0 <= a < b <= n:
+        raise ParameterError(f"frames {a}:{b} are outside {what}, which has frames 0..{n - 1} (stop at most {n})")
+    if b - a < 2:
+        raise ParameterError(f"a query needs at least 2 frames; frames {a}:{b} of {what} hold {b - a}")
+    return int(a), int(b)
+
+
+def _costs(frame: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """Euclidean distances (n,) float64 of one feature vector to n others."""
+    return np.sqrt(((frames.astype(np.float64) - frame.astype(np.float64)) ** 2).sum(axis=1))
+
+
+def _windows(nb: np.ndarray, m: int, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Fast mode's windows: around every neighbour f of query frame i the frames a match through (i, f) can span
+    at 1/WINDOW_SPEED to WINDOW_SPEED x the query's speed, padded by WINDOW_PAD x m, clipped to its document,
+    merged where they overlap. Returns sorted, disjoint [lo, hi) arrays."""
+    i = np.broadcast_to(np.arange(m)[:, None], nb.shape)
+    r = range_of(nb, lo, hi)
+    keep = r >= 0
+    f, i, r = nb[keep], i[keep], r[keep]  # windows never cross a document: merging keeps them apart
+    pad = int(np.ceil(WINDOW_PAD * m))
+    a = np.maximum(lo[r], f - np.ceil(WINDOW_SPEED * i).astype(np.int64) - pad)
+    b = np.minimum(hi[r], f + np.ceil(WINDOW_SPEED * (m - 1 - i)).astype(np.int64) + pad + 1)
+    return _merge(a, b)
+
+
+def _merge(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Frame ranges [a, b) (each inside one document) merged where they overlap: sorted, disjoint [lo, hi)."""
+    order = np.argsort(a, kind="stable")
+    a, b = np.asarray(a, dtype=np.int64)[order], np.asarray(b, dtype=np.int64)[order]
+    if not len(a):
+        return a, b
+    reach = np.maximum.accumulate(b)
+    new = np.ones(len(a), dtype=bool)
+    new[1:] = a[1:] >= reach[:-1]
+    return a[new], np.maximum.reduceat(b, np.flatnonzero(new))
+
+
+def _pooled(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Means of consecutive blocks of ``size`` frames inside every range [lo, hi) of x (the last block of a range
+    may be shorter). Returns the block means (N', d) float32 and each range's [lo', hi') rows among them."""
+    firsts = [np.arange(a, b, size) for a, b in zip(lo, hi)]
+    counts = np.array([len(f) for f in firsts], dtype=np.int64)
+    starts = np.concatenate(firsts)
+    stops = np.concatenate([np.r_[f[1:], b] for f, b in zip(firsts, hi)])
+    total = np.zeros((len(x) + 1, x.shape[1]))
+    np.cumsum(x, axis=0, dtype=np.float64, out=total[1:])
+    sums = total[stops] - total[starts]
+    means = (sums / (stops - starts)[:, None]).astype(np.float32)
+    ends = np.cumsum(counts)
+    return means, ends - counts, ends

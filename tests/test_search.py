@@ -1,0 +1,210 @@
+"""mocapviz.search: exact mode against brute-force DTW on real clips, fast mode's answers exact where given, bad
+input refused with typed errors, and the `mocapviz search` command."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mocapviz import MocapFormatError, ParameterError
+from mocapviz.cli import main
+from mocapviz.match import best_ends, dtw, subsequence_costs, subsequence_dtw
+from mocapviz.search import SimilaritySearch
+
+QUERIES = (0, 37, 101, 150, 222, 286)  # clips of several classes and actors
+
+
+@pytest.fixture(scope="module")
+def search(hdm05_db30):
+    return SimilaritySearch(hdm05_db30, "F15E")
+
+
+def brute_clips(search, q: np.ndarray, own: int | None, k: int) -> pd.DataFrame:
+    """Every document aligned by mocapviz.match.dtw, ranked by cost / (m + n): the reference of whole-clip search."""
+    rows = []
+    for doc, start, n in search.documents[["doc_id", "start", "n_frames"]].itertuples(index=False):
+        if doc == own:
+            continue
+        cost, _ = dtw(q, search.features[start : start + n])
+        rows.append((cost / (len(q) + n), doc, cost))
+    rows.sort()
+    return pd.DataFrame(rows[:k], columns=["normalised_cost", "doc_id", "cost"])
+
+
+@pytest.mark.parametrize("doc", QUERIES)
+def test_exact_clips_equal_brute_force_dtw(search, doc):
+    q, _ = search.query_features(doc)
+    ref = brute_clips(search, q, doc, 10)
+    for mode in ("exact", "brute"):
+        got = search.clips(doc, n_matches=10, mode=mode, exclude_document=True)
+        assert got["doc_id"].tolist() == ref["doc_id"].tolist(), mode
+        np.testing.assert_allclose(got["normalised_cost"], ref["normalised_cost"], rtol=1e-12)
+        assert got.attrs["cells"] <= got.attrs["brute_cells"]
+    assert (got["start"] == 0).all() and (got["end"] == got["frames"] - 1).all()
+
+
+def test_exact_clips_of_a_span_with_candidates(search, hdm05_db30):
+    q, own = search.query_features(101, frames=(5, 40))
+    assert own == 101 and len(q) == 35
+    docs = hdm05_db30.documents["doc_id"].to_numpy()[::3]  # one document in three, the query's own included
+    ref = brute_clips(search, q, None, 300)
+    ref = ref[ref["doc_id"].isin(docs)].head(7)
+    got = search.clips(101, frames=(5, 40), n_matches=7, mode="exact", candidates=docs)
+    assert got["doc_id"].tolist() == ref["doc_id"].tolist()
+    np.testing.assert_allclose(got["cost"], ref["cost"], rtol=1e-12)
+
+
+def brute_stretches(search, q: np.ndarray, own: int, k: int, shortest: int) -> set:
+    """Subsequence DTW over the whole database (mocapviz.match.subsequence_costs), own document and matches shorter
+    than ``shortest`` frames left out, K best non-overlapping: the reference of stretch search."""
+    starts = search.documents["start"].to_numpy()
+    cost, first = subsequence_costs(q, search.features, starts)
+    span = search.db.frames(own)
+    ends = np.arange(len(cost))
+    cost[(ends >= span.start) & (ends < span.stop) | (ends - first + 1 < shortest)] = np.inf
+    chosen = best_ends(cost, first, starts, k)
+    doc_row = np.searchsorted(starts, chosen, side="right") - 1
+    return [(int(search.documents["doc_id"][r]), int(first[e] - starts[r]), int(e - starts[r]), cost[e])
+            for e, r in zip(chosen, doc_row)]  # fmt: skip
+
+
+@pytest.mark.parametrize(("doc", "frames", "min_length"), [(0, (0, 30), 0.5), (37, (10, 100), 0.5), (222, None, 0.8)])
+def test_exact_stretches_equal_subsequence_dtw(search, doc, frames, min_length):
+    q, _ = search.query_features(doc, frames)
+    ref = brute_stretches(search, q, doc, 10, int(np.ceil(min_length * len(q))))
+    for mode in ("exact", "brute"):
+        got = search.stretches(doc, frames=frames, n_matches=10, mode=mode, min_length=min_length,
+                               exclude_document=True)  # fmt: skip
+        assert list(zip(got["doc_id"], got["start"], got["end"])) == [r[:3] for r in ref], mode
+        np.testing.assert_allclose(got["cost"], [r[3] for r in ref], rtol=1e-12)
+        assert (got["frames"] >= np.ceil(min_length * len(q))).all()
+
+
+def test_stretches_agree_with_subsequence_dtw_without_length_limit(search):
+    """With no minimum length and nothing excluded, the K best stretches are subsequence_dtw's matches."""
+    q, _ = search.query_features(37, (3, 33))
+    ref = subsequence_dtw(q, search.features, search.documents["start"].to_numpy(), k=10, paths=True)
+    got = search.stretches(37, frames=(3, 33), n_matches=10, mode="exact", min_length=1 / 30, paths=True)
+    starts = search.documents.set_index("doc_id")["start"]
+    assert (got["start"] + starts[got["doc_id"]].to_numpy()).tolist() == ref["start"].tolist()
+    np.testing.assert_allclose(got["cost"], ref["cost"], rtol=1e-12)
+    for mine, theirs, offset in zip(got["path"], ref["path"], starts[got["doc_id"]]):
+        np.testing.assert_array_equal(mine + [0, offset], theirs)
+
+
+def test_fast_mode_costs_are_exact_and_find_most_of_exact(search):
+    recalls = []
+    for doc in QUERIES:
+        exact = search.clips(doc, n_matches=10, mode="exact", exclude_document=True)
+        fast = search.clips(doc, n_matches=10, mode="fast", exclude_document=True, paths=True)
+        q, _ = search.query_features(doc)
+        for d, cost, path in zip(fast["doc_id"], fast["cost"], fast["path"]):
+            span = search.db.frames(int(d))
+            ref_cost, ref_path = dtw(q, search.features[span])
+            assert cost == pytest.approx(ref_cost, rel=1e-12)
+            np.testing.assert_array_equal(path, ref_path)
+        assert fast.attrs["cells"] < exact.attrs["brute_cells"]
+        recalls.append(len(set(fast["doc_id"]) & set(exact["doc_id"])) / 10)
+    assert np.mean(recalls) >= 0.9
+
+
+def test_fast_stretches_find_most_of_exact(search):
+    recalls = []
+    for doc in QUERIES:
+        q, _ = search.query_features(doc)
+        frames = (0, min(30, len(q)))
+        exact = search.stretches(doc, frames=frames, n_matches=10, mode="exact", exclude_document=True)
+        fast = search.stretches(doc, frames=frames, n_matches=10, mode="fast", exclude_document=True)
+        exact_keys = set(zip(exact["doc_id"], exact["start"], exact["end"]))
+        recalls.append(len(exact_keys & set(zip(fast["doc_id"], fast["start"], fast["end"]))) / len(exact))
+        # a stretch fast mode returns has the cost exact mode gives the same stretch
+        both = fast.merge(exact, on=["doc_id", "start", "end"], suffixes=("", "_exact"))
+        np.testing.assert_allclose(both["cost"], both["cost_exact"], rtol=1e-12)
+    assert np.mean(recalls) >= 0.9
+
+
+def test_documents_restrict_the_search(hdm05_db30):
+    docs = hdm05_db30.documents
+    others = docs.loc[docs["actor"] != "bd", "doc_id"].to_numpy()
+    held_out = int(docs.loc[docs["actor"] == "bd", "doc_id"].iloc[0])
+    search = SimilaritySearch(hdm05_db30, documents=others)
+    for mode in ("fast", "exact"):
+        got = search.clips(held_out, n_matches=20, mode=mode)
+        assert set(got["doc_id"]) <= set(others.tolist())
+        got = search.stretches(held_out, frames=(0, 30), n_matches=5, mode=mode)
+        assert set(got["doc_id"]) <= set(others.tolist())
+
+
+def test_bad_input_is_refused_with_a_typed_error(search, hdm05_db30):
+    n = search.db.frames(0).stop - search.db.frames(0).start
+    cases = [
+        (lambda: search.clips(0, frames=(0, n + 1)), "outside document 0"),
+        (lambda: search.clips(0, frames=(5, 6)), "at least 2 frames"),
+        (lambda: search.clips(0, frames=(-50, 10)), "outside document 0"),
+        (lambda: search.clips(0, n_matches=0), "n_matches"),
+        (lambda: search.clips(0, n_matches=2.5), "n_matches"),
+        (lambda: search.clips(0, mode="approximate"), "mode"),
+        (lambda: search.clips(99999), "document 99999"),
+        (lambda: search.stretches(0, min_length=0), "min_length"),
+        (lambda: SimilaritySearch(hdm05_db30, "F99E"), "F99E"),
+        (lambda: SimilaritySearch(hdm05_db30, documents=[99999]), "99999"),
+    ]
+    for call, words in cases:
+        with pytest.raises(ParameterError, match=words):
+            call()
+    with pytest.raises(MocapFormatError, match="no/such/file.bvh: no such file"):
+        search.clips("no/such/file.bvh")
+    motion = hdm05_db30.motion(5)
+    positions = np.array(motion.positions)
+    positions[7, 0, 1] = np.nan
+    with pytest.raises(ParameterError, match="frame 7"):
+        search.clips(dataclasses.replace(motion, positions=positions))
+
+
+def test_a_query_longer_than_every_document_is_refused_for_stretches(hdm05_db30):
+    docs = hdm05_db30.documents
+    short = docs.nsmallest(20, "n_frames")["doc_id"].to_numpy()
+    longest = int(docs.set_index("doc_id").loc[short, "n_frames"].max())
+    search = SimilaritySearch(hdm05_db30, documents=short)
+    long_doc = int(docs.loc[docs["n_frames"] > longest, "doc_id"].iloc[0])
+    with pytest.raises(ParameterError, match=f"longest searchable document \\({longest} frames\\)"):
+        search.stretches(long_doc)
+
+
+def test_a_motion_file_as_query_matches_its_own_document(search, hdm05_db30):
+    doc = 37
+    path = hdm05_db30.documents.set_index("doc_id").loc[doc, "path"]
+    got = search.clips(str(path), n_matches=3, mode="exact")
+    assert got["doc_id"].iloc[0] == doc  # read from the file and resampled to 30 Hz: its own clip, at cost ~0
+    assert got["normalised_cost"].iloc[0] < 0.05 * got["normalised_cost"].iloc[1]
+
+
+def test_search_command(hdm05_db30, tmp_path, capsys):
+    out = tmp_path / "ranked.csv"
+    assert main(["search", str(hdm05_db30.path), "--example", "101", "-K", "5", "--mode", "exact",
+                 "--exclude-document", "--csv", str(out)]) == 0  # fmt: skip
+    printed = capsys.readouterr().out
+    table = pd.read_csv(out)
+    assert list(table.columns[:4]) == ["rank", "doc_id", "name", "start"] and {"end", "cost"} <= set(table.columns)
+    ref = SimilaritySearch(hdm05_db30).clips(101, n_matches=5, mode="exact", exclude_document=True)
+    assert table["doc_id"].tolist() == ref["doc_id"].tolist()
+    assert table["cost"].is_monotonic_increasing or table["normalised_cost"].is_monotonic_increasing
+    assert "5 clips like 101" in printed and ref["name"].iloc[0] in printed
+    assert main(["search", str(hdm05_db30.path), "--example", "101", "--frames", "0:30", "--stretches", "-K", "3",
+                 "--exclude-document"]) == 0  # fmt: skip
+    assert "3 stretches like 101 (30 frames)" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("args", "words"), [
+    (["-K", "0"], "-K must be at least 1"),
+    (["--frames", "0:999999"], "outside document 101"),
+    (["--features", "F15E,F99"], "unknown feature set F99"),
+    (["--stretches", "--min-length", "1.5"], "--min-length"),
+])  # fmt: skip
+def test_search_command_errors(hdm05_db30, capsys, args, words):
+    assert main(["search", str(hdm05_db30.path), "--example", "101", *args]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("mocapviz: error:") and words in err and len(err.splitlines()) == 1
