@@ -234,17 +234,20 @@ class SimilaritySearch:
         rows = np.zeros((len(lo), m))
         order = np.arange(len(lo))
         budget_n = -1
-        if mode == "exact" and len(lo):
-            rows = box_rows(q, self._low[rows_idx], self._high[rows_idx])
-            rows[:, 0] = _costs(q[0], self.features[lo])  # the path's first and last cells are known
-            if m > 1:
-                rows[:, -1] = _costs(q[-1], self.features[hi - 1])
-            bound = rows.sum(axis=1) / (m + hi - lo)
-            order, _ = self._coarse_order(q, rows_idx)  # likely matches first: the K-th best cost falls fast
         coarse = None
-        if mode == "fast" and len(lo):
-            order, coarse = self._coarse_order(q, rows_idx)
-            budget_n = max(CLIP_BUDGET, 2 * n_matches) if budget is None else _count(budget, "budget")
+        if mode != "brute" and len(lo):
+            if mode == "fast":
+                budget_n = max(CLIP_BUDGET, 2 * n_matches) if budget is None else _count(budget, "budget")
+                order, coarse = self._coarse_order(q, rows_idx, None if budget_n < n_matches else budget_n)
+                bounded = order[:budget_n]
+            else:  # likely matches first: the K-th best falls fast
+                order, _ = self._coarse_order(q, rows_idx, n_matches)
+                bounded = order
+            rows[bounded] = box_rows(q, self._low[rows_idx[bounded]], self._high[rows_idx[bounded]])
+            rows[bounded, 0] = _costs(q[0], self.features[lo[bounded]])  # the path's first and last cells
+            if m > 1:
+                rows[bounded, -1] = _costs(q[-1], self.features[hi[bounded] - 1])
+            bound = rows.sum(axis=1) / (m + hi - lo)
         costs, aligned, cells = search_whole(q, self.features, lo, hi, order, bound, rows, n_matches,
                                              mode != "brute", budget_n, q.min(axis=0).astype(np.float64),
                                              q.max(axis=0).astype(np.float64))  # fmt: skip
@@ -265,14 +268,17 @@ class SimilaritySearch:
                            cells=int(cells), brute_cells=int(m * (hi - lo).sum()))  # fmt: skip
         return table
 
-    def _coarse_order(self, q: np.ndarray, rows_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Fast mode's candidates: the searchable documents ``rows_idx`` in increasing normalised DTW cost of the
-        query's and their block means (:attr:`coarse`), and those costs."""
+    def _coarse_order(self, q: np.ndarray, rows_idx: np.ndarray, keep: int | None) -> tuple[np.ndarray, np.ndarray]:
+        """The searchable documents ``rows_idx`` in increasing normalised DTW cost of the query's and their block
+        means (:attr:`coarse`), and those costs. With ``keep``, only the ``keep`` best are certain to be costed
+        and in order (the others are abandoned early, inf, last)."""
         y, c_lo, c_hi = self.coarse
         qc = _pooled(q, np.zeros(1, np.int64), np.array([len(q)]), self.pool)[0]
         lo, hi = c_lo[rows_idx], c_hi[rows_idx]
+        prune = keep is not None and keep < len(lo)
         costs, _, _ = search_whole(qc, y, lo, hi, np.arange(len(lo)), np.zeros(len(lo)), np.zeros((len(lo), len(qc))),
-                                   1, False, -1, qc.min(axis=0).astype(np.float64), qc.max(axis=0).astype(np.float64))
+                                   keep if prune else 1, prune, -1, qc.min(axis=0).astype(np.float64),
+                                   qc.max(axis=0).astype(np.float64))  # fmt: skip
         costs = costs / (len(qc) + hi - lo)
         return np.argsort(costs, kind="stable"), costs
 
