@@ -300,12 +300,24 @@ def _reproduce(args) -> None:
 
 def _datasets(args) -> None:
     if args.action == "list":
-        with pd.option_context("display.width", 160, "display.max_colwidth", 40):
-            print(datasets.info().drop(columns=["sha256"]).to_string(index=False))
+        for row in datasets.info().itertuples(index=False):
+            where = "embedded in the package, no download" if row.embedded else "shared archive"
+            state = "unpacked in the cache" if row.cached else "not unpacked yet"
+            print(f"{row.name}: {row.description}")
+            print(f"    {row.files}; {row.frames:,} frames at {row.fps} Hz; {row.size / 1e6:.1f} MB .tar.xz; "
+                  f"{where}; {state}")
+            print(f"    licence: {row.licence}")
+            print(f"    source: {row.source}")
+        try:
+            located = f"shared archives from {datasets.data_url()}"
+        except datasets.DatasetError:
+            located = (f"shared archives not found: set {datasets.DATA_URL_ENV} to a folder or URL holding them "
+                       "(a source checkout also finds ../shared/data)")
+        print(f"{located}; cache {datasets.cache_dir()} ({datasets.HOME_ENV})")
     else:
         if not args.name:
-            raise ValueError("datasets fetch needs a NAME (see 'mocapviz datasets list', or 'sample')")
-        print(datasets.sample() if args.name == "sample" else datasets.fetch(args.name, progress=True))
+            raise ValueError(f"datasets fetch needs a NAME: {', '.join(datasets.names())} or {datasets.SAMPLE}")
+        print(datasets.fetch(args.name, progress=True))
 
 
 def _cluster_options(p: argparse.ArgumentParser) -> None:
@@ -353,7 +365,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--features", help="comma-separated relational feature names (default: all of the set)")
     q.add_argument("--mode", default="adaptive", choices=["adaptive", "fuzzy", "exact"],
                    help="adaptive fuzzy (default), plain fuzzy or exact hits")
-    q.add_argument("--mismatch", type=int, default=0, help="allow M query segments to disagree (exact mode)")
+    q.add_argument("--mismatch", type=int, default=0, help="allow M segments of the query (segmented on the chosen "
+                   "features) to disagree")
     q.add_argument("--mismatch-at", help="comma-separated 0-based query segments that may disagree (default any)")
     q.add_argument("--feature-set", default="2005", choices=["2005", "2006"])
     q.add_argument("--top", type=int, default=20, help="hits to print (default 20)")
@@ -437,9 +450,10 @@ def build_parser() -> argparse.ArgumentParser:
     sv.add_argument("--show", action="store_true", help="open the dashboard in a web browser")
     sv.set_defaults(func=_serve)
 
-    ds = sub.add_parser("datasets", help="list or fetch the registered motion-capture archives")
+    ds = sub.add_parser("datasets", help="list the registered motion-capture datasets (the shared archives and the "
+                        "embedded sample) with sizes, licences and sources, or fetch one")
     ds.add_argument("action", choices=["list", "fetch"])
-    ds.add_argument("name", nargs="?")
+    ds.add_argument("name", nargs="?", help="for fetch: a shared archive (see list) or 'sample' (embedded)")
     ds.set_defaults(func=_datasets)
     return p
 

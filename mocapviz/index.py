@@ -10,6 +10,8 @@ InvertedIndex                 the index of one feature set; query methods:
     fuzzy(sets)               w_{k+l} in V_l for every l, eq. (11)
     adaptive_fuzzy(sets)      §5.2: the database segmentation coarsened to the fuzzy sets
     mismatch(query, m)        at most m query segments may disagree (§5.2, last paragraph)
+    adaptive_mismatch(query, selected, m)
+                              m-mismatch hits on the segmentation coarsened to some features (§5.2)
 feature_group_values          the columns of each feature group of a set's values.
 build(db, feature_set)        one index per feature group (lower, upper, mix) over a MotionDB, saved with it.
 load(db, feature_set)         the saved indexes of a MotionDB (checked to be current).
@@ -23,7 +25,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from .errors import MotionDBError
+from .errors import MotionDBError, ParameterError
 from .segment import FeatureSequence, decode, encode, segment
 
 FORMAT = "mocapviz.InvertedIndex"
@@ -138,6 +140,68 @@ def _adaptive_walk(rank, segment_doc, member, cand, s, out):  # pragma: no cover
                 pos += 1
         if ok:
             out[h, n_sets] = pos
+            h += 1
+    return h
+
+
+@numba.njit(cache=True, nogil=True)
+def _run_first(codes, segment_doc, mask, pos):  # pragma: no cover - compiled
+    """First segment of the run of equal ``code & mask`` (in one document) that holds segment ``pos``."""
+    doc, run = segment_doc[pos], codes[pos] & mask
+    while pos > 0 and segment_doc[pos - 1] == doc and (codes[pos - 1] & mask) == run:
+        pos -= 1
+    return pos
+
+
+@numba.njit(cache=True, nogil=True)
+def _run_stop(codes, segment_doc, mask, pos):  # pragma: no cover - compiled
+    """One past the last segment of the run of equal ``code & mask`` (in one document) that holds ``pos``."""
+    doc, run = segment_doc[pos], codes[pos] & mask
+    while pos < codes.shape[0] and segment_doc[pos] == doc and (codes[pos] & mask) == run:
+        pos += 1
+    return pos
+
+
+@numba.njit(cache=True, nogil=True)
+def _mismatch_walk(codes, segment_doc, mask, query, free, m, cand, anchor, out):  # pragma: no cover - compiled
+    """m-mismatch hits on the segmentation coarsened to the bits of ``mask``, through candidate runs (§5.2).
+
+    codes : (M,) int64 stored codes; query : (L,) int64, only ``mask`` bits set; free : (L,) bool -- query
+    segment l may disagree; cand : (C,) int -- segments that start a coarsened run (a maximal run of equal
+    ``code & mask``) equal to ``query[anchor[i]]``; out : (C, L+1) int. Each candidate is walked over the
+    anchor's coarsened runs before and after it in its document, counting the runs that disagree with the query;
+    a walk with at most ``m`` of them, all at free positions, is one hit row of ``out`` (the first segment of each
+    coarsened run, then one past the last). Returns the number of hits.
+    """
+    n = query.shape[0]
+    h = 0
+    for i in range(cand.shape[0]):
+        c, s = cand[i], anchor[i]
+        doc = segment_doc[c]
+        out[h, s] = c
+        miss = 0
+        pos = c
+        for l in range(s - 1, -1, -1):
+            if pos == 0 or segment_doc[pos - 1] != doc:
+                miss = m + 1
+                break
+            pos = _run_first(codes, segment_doc, mask, pos - 1)
+            out[h, l] = pos
+            if (codes[pos] & mask) != query[l]:
+                miss += 1 if free[l] else m + 1
+            if miss > m:
+                break
+        pos = _run_stop(codes, segment_doc, mask, c)
+        for l in range(s + 1, n):
+            if miss > m or pos == codes.shape[0] or segment_doc[pos] != doc:
+                miss = m + 1
+                break
+            out[h, l] = pos
+            if (codes[pos] & mask) != query[l]:
+                miss += 1 if free[l] else m + 1
+            pos = _run_stop(codes, segment_doc, mask, pos)
+        if miss <= m:
+            out[h, n] = pos
             h += 1
     return h
 
@@ -404,6 +468,70 @@ class InvertedIndex:
         agree = self.codes[cand[:, None] + np.arange(n)] == q
         ok = agree[:, fixed].all(axis=1) & (agree[:, free].sum(axis=1) >= free.size - m)
         return self._valid(cand[ok], n)
+
+    def adaptive_mismatch(self, query, selected, m: int = 0, allowed=None) -> np.ndarray:
+        """m-mismatch hits on the database segmentation coarsened to the ``selected`` features (§5.2).
+
+        Only the selected features count: the stored segments are joined into maximal runs on which the selected
+        features are constant (the segmentation of D under the selected features alone, §4), and a hit is L
+        consecutive such runs in one document of which at most ``m`` differ from the query. With ``m = 0`` these
+        are the adaptive fuzzy hits of the sets "every vector that agrees with query[l] on the selected features"
+        (:meth:`adaptive_fuzzy`). Candidates come from the union lists of few query segments (a hit agrees with
+        every position where no mismatch is allowed; with mismatches allowed anywhere, with at least one of any
+        m + 1 positions, by pigeonhole); each candidate that starts a coarsened run is walked over its
+        neighbouring runs (a compiled loop over the stored sequence).
+
+        Parameters
+        ----------
+        query : np.ndarray [shape=(L, f)] bool vectors or [shape=(L,)] int codes
+            The query's runs under the selected features (bits of other features are ignored), e.g. the codes of
+            ``segment(values & keep)`` with ``keep`` true for the selected columns.
+        selected : sequence of int
+            0-based feature columns of this index that count (the others are "don't care").
+        m : int
+            0 <= m < L.
+        allowed : array-like of int, optional
+            0-based query positions where a mismatch may occur (default: anywhere).
+
+        Returns
+        -------
+        np.ndarray [shape=(H, L+1)], int64, rows sorted: per hit the 0-based stored segment where each coarsened
+        run starts, and the index one past the end of the last one (as :meth:`adaptive_fuzzy`).
+
+        Raises
+        ------
+        ParameterError
+            No or unknown selected features, ``m`` outside [0, L), allowed positions outside [0, L).
+        """
+        selected = np.unique(np.asarray(selected, dtype=np.int64))
+        if selected.size == 0 or selected.min() < 0 or selected.max() >= self.n_features:
+            raise ParameterError(f"selected must name some of the index's feature columns 0..{self.n_features - 1}, "
+                                 f"got {selected.tolist()}")  # fmt: skip
+        mask = int(np.sum(np.int64(1) << selected))
+        q = self._query_codes(query) & mask
+        n = q.size
+        if not 0 <= m < n:
+            raise ParameterError(f"m must satisfy 0 <= m < {n} (the query's segments), got {m}")
+        positions = np.arange(n) if allowed is None else np.unique(np.asarray(allowed, dtype=np.int64))
+        if positions.size and (positions.min() < 0 or positions.max() >= n):
+            raise ParameterError(f"allowed mismatch positions must lie in [0, {n}), got {positions.tolist()}")
+        free = np.isin(np.arange(n), positions)
+        lists = [np.flatnonzero((self.list_codes & mask) == c) for c in q]
+        sizes = np.array([np.diff(self.list_offsets)[i].sum() for i in lists])
+        fixed = np.flatnonzero(~free)
+        anchors = fixed[[np.argmin(sizes[fixed])]] if fixed.size else np.argsort(sizes, kind="stable")[: m + 1]
+        cand, anchor = [], []
+        for a in anchors:
+            segs = self._gather(lists[a])
+            prev = np.maximum(segs - 1, 0)
+            new_doc = self.segment_doc[prev] != self.segment_doc[segs]
+            new_run = (segs == 0) | new_doc | (self.codes[prev] & mask != q[a])
+            cand.append(segs[new_run])
+            anchor.append(np.full(cand[-1].size, a))
+        cand, anchor = np.concatenate(cand), np.concatenate(anchor)
+        out = np.empty((cand.size, n + 1), dtype=np.int64)
+        h = _mismatch_walk(self.codes, self.segment_doc, mask, q, free, m, cand, anchor, out)
+        return np.unique(out[:h], axis=0)
 
     # ------------------------------------------------------------------ frames
     def frame_spans(self, first: np.ndarray, stop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

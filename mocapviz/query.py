@@ -15,8 +15,9 @@ import numpy as np
 import pandas as pd
 
 from . import index as index_mod
+from .errors import ParameterError
 from .features import feature_groups, feature_names, relational
-from .segment import decode, segment
+from .segment import segment
 
 MODES = ("adaptive", "fuzzy", "exact", "mismatch")
 
@@ -35,35 +36,27 @@ def _check_features(features, feature_set: str) -> list[str]:
 
 
 def _group_hits(idx: index_mod.InvertedIndex, q_values: np.ndarray, chosen: list[int], mode: str,
-                mismatches: int, allowed=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Hits of one group: (first segment, stop segment (exclusive), (H, L) segment bounds), and query lengths.
+                mismatches: int, allowed=None) -> tuple[np.ndarray, np.ndarray]:
+    """Hits of one group as stored-segment bounds, and the query's segment lengths.
 
-    ``q_values`` (T, f_group) are the query's features of this group, ``chosen`` the selected columns.
-    Returns ``bounds`` [shape=(H, L+1)] (segment index where each hit segment starts, then the stop) and the
+    ``q_values`` (T, f_group) are the query's features of this group, ``chosen`` the selected columns; the query
+    is segmented on the chosen columns alone (the others set to 0, so codes keep the group's bit numbering).
+    Returns ``bounds`` [shape=(H, L+1)] (stored segment where each hit segment starts, then the stop) and the
     query's segment lengths in frames [shape=(L,)].
     """
-    if mode in ("exact", "mismatch"):
-        seq = segment(q_values)
-        lengths = seq.lengths
-        if mode == "exact":
-            k = idx.exact(seq.codes)
-        else:
-            k = idx.mismatch(seq.codes, min(mismatches, len(seq.codes) - 1), allowed)
-        bounds = k[:, None] + np.arange(len(seq.codes) + 1)
-        return bounds, lengths
-    seq = segment(q_values[:, chosen])
-    occurring = decode(idx.list_codes, idx.n_features)[:, chosen]
-    pattern = decode(seq.codes, len(chosen))
-    # V_l: every occurring code of the group whose chosen bits equal the query's pattern l
-    sets = [idx.list_codes[(occurring == p).all(axis=1)] for p in pattern]
+    keep = np.isin(np.arange(idx.n_features), chosen)
+    seq = segment(q_values & keep)
+    if mode == "mismatch":
+        return idx.adaptive_mismatch(seq.codes, chosen, min(mismatches, len(seq.codes) - 1), allowed), seq.lengths
+    mask = int(np.sum(np.int64(1) << np.asarray(chosen, dtype=np.int64)))
+    # V_l: every occurring code of the group that agrees with the query's segment l on the chosen features
+    sets = [idx.list_codes[(idx.list_codes & mask) == c] for c in seq.codes]
     if any(s.size == 0 for s in sets):
         return np.empty((0, len(sets) + 1), dtype=np.int64), seq.lengths
-    if mode == "adaptive":
-        bounds = idx.adaptive_fuzzy(sets)
-    else:
+    if mode == "fuzzy":
         k = idx.fuzzy(sets)
-        bounds = k[:, None] + np.arange(len(sets) + 1)
-    return bounds, seq.lengths
+        return k[:, None] + np.arange(len(sets) + 1), seq.lengths
+    return idx.adaptive_fuzzy(sets), seq.lengths
 
 
 def query_by_example(db, example, features=None, mode: str = "adaptive", mismatches: int = 1,
@@ -79,18 +72,26 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     features : list of str, optional
         Feature names of ``feature_set`` (any groups); the rest are "don't care". Default: all.
     mode : {"adaptive", "fuzzy", "exact", "mismatch"}
+        In every mode only the selected features count and the query is segmented on them alone.
         ``adaptive`` (default): adaptive fuzzy hits, the database segmentation coarsened to the query's
         don't-care sets (§5.2). The sets (every vector that agrees with the query on the selected features)
         partition the vectors, so the coarsened segmentation is the database's segmentation under the selected
-        features alone, and these are the *exact* hits of the selection. ``fuzzy``: plain fuzzy hits, the
-        database segmentation as it is (a change of a left-out feature splits a segment, so fewer hits).
-        ``exact``: every feature of the groups the selection touches must match (§5.1, eq. 7, on the stored
-        segmentation: the strict form). ``mismatch``: as exact, with up to ``mismatches`` query segments
-        allowed to disagree.
+        features alone, and these are the *exact* hits of the selection. ``exact``: those same hits (eq. 7 for
+        the feature function restricted to the selection, §5.2); selecting every feature of a group gives the
+        strict form of §5.1 on the stored segmentation. ``mismatch``: as exact, with at most ``mismatches``
+        of the query's segments allowed to disagree (each a run of the selected features in the database, as
+        :meth:`~mocapviz.index.InvertedIndex.adaptive_mismatch`); ``mismatches`` is capped at the query's
+        segments - 1. ``fuzzy``: plain fuzzy hits (§5.2, eq. 11) on the database segmentation as stored, i.e.
+        under *all* features of the group: query segment l must be exactly one stored segment. A left-out
+        feature that changes inside a query segment splits the database's segments there, so the query's
+        coarser segments do not line up with whole stored segments and the stretch is no hit -- plain fuzzy
+        hits therefore can miss the query's own clip (the four kick features on a kick clip find nothing, not
+        even the clip itself); adaptive fuzzy hits (§5.2) were made for exactly this.
     mismatches : int
-        m for ``mode="mismatch"``.
+        m for ``mode="mismatch"``, at least 0.
     allowed : list of int, optional
-        For ``mode="mismatch"``: the 0-based query segments that may disagree (default: any).
+        For ``mode="mismatch"``: the 0-based query segments (of the selected features' segmentation) that may
+        disagree (default: any).
     feature_set : {"2005", "2006"}
     indexes : dict, optional
         Group -> InvertedIndex, if already loaded (default :func:`mocapviz.index.load`).
@@ -106,11 +107,16 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     ------
     ValueError
         Unknown or no features, unknown mode, a query longer than every document.
+    ParameterError
+        ``mismatches`` below 0, ``allowed`` positions outside the query's segments.
     MotionDBError
         The database has no (current) index.
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+    if mode == "mismatch" and not (isinstance(mismatches, (int, np.integer)) and mismatches >= 0):
+        raise ParameterError(f"mismatches must be an integer >= 0 (query segments that may disagree), "
+                             f"got {mismatches!r}")
     chosen = _check_features(features, feature_set)
     indexes = index_mod.load(db, feature_set) if indexes is None else indexes
     docs = db.documents

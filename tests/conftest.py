@@ -1,8 +1,9 @@
 """Shared fixtures: the real archives (unpacked once into a cache) and small helpers over them.
 
-The archives come from :func:`mocapviz.datasets.fetch` (base location ``MOCAPVIZ_DATA_URL`` or the shared
-data folder beside the repository). The cache defaults to ``<repo>/.cache/mocapviz`` so that a second test
-run does not unpack again. Without the archives the tests that need them are skipped, with the reason.
+The archives come from :func:`mocapviz.datasets.fetch` (base location ``MOCAPVIZ_DATA_URL`` or ``../shared/data``
+beside the checkout). The cache defaults to ``<repo>/.cache/mocapviz`` so that a second test run does not unpack
+again. Without the archives the tests that need them are skipped, with the reason; the tests of the embedded
+sample (:func:`mocapviz.datasets.sample`) never need them.
 """
 
 from __future__ import annotations
@@ -21,6 +22,9 @@ def pytest_configure(config):
 
 
 def _fetch(name: str) -> Path:
+    """The unpacked shared archive ``name``; skips the calling test, with the reason, when the archives are absent
+    (``MOCAPVIZ_DATA_URL`` unset and no ``../shared/data``, or the archive missing from that folder). A corrupt or
+    undownloadable archive is an error, not a skip."""
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
     try:
         from mocapviz import datasets
@@ -28,15 +32,19 @@ def _fetch(name: str) -> Path:
         pytest.skip(f"mocapviz.datasets cannot be imported ({exc}); real-data tests need it")
     try:
         datasets.data_url()
-    except datasets.DatasetError as exc:
-        pytest.skip(f"real data archive {name!r} not available: {exc}")
-    try:
         folder = datasets.fetch(name)
     except datasets.DatasetError as exc:
         if "not found" in str(exc):
-            pytest.skip(f"real data archive {name!r} not available: {exc}")
+            pytest.skip(f"needs the shared archive {name!r}: {str(exc).splitlines()[0]}")
         raise
     return Path(folder)
+
+
+@pytest.fixture(scope="session")
+def fetch_archive():
+    """``fetch_archive(name) -> Path``: :func:`_fetch` for tests and fixtures that choose the archive (and the
+    ``MOCAPVIZ_HOME`` cache) themselves."""
+    return _fetch
 
 
 @pytest.fixture(scope="session")

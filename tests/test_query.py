@@ -1,29 +1,25 @@
 """Query by example over a MotionDB's relational indexes, checked against a direct scan of the features."""
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from mocapviz import MotionDB, MotionDBError, datasets
+from mocapviz import MotionDB, MotionDBError
 from mocapviz.cli import main
-from mocapviz.features import relational
-from mocapviz.index import build
+from mocapviz.errors import ParameterError
+from mocapviz.features import feature_groups, relational
+from mocapviz.index import build, load
 from mocapviz.query import query_by_example
 from mocapviz.segment import segment
 
-REPO = Path(__file__).resolve().parent.parent
+KICK = ["rfoot_raised", "lfoot_raised", "rknee_bent", "lknee_bent"]  # Fig. 9 of the paper (DEFAULT_QUERIES)
 
 
 @pytest.fixture(scope="module")
-def db(tmp_path_factory):
+def db(sample_db):
     """The embedded sample (22 HDM05 clips, 2 CMU trials) at 120 Hz with its 2005 indexes."""
-    os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
-    db = MotionDB.ingest(datasets.sample(), tmp_path_factory.mktemp("q") / "db", progress=False)
-    build(db, progress=False)
-    return db
+    build(sample_db, progress=False)
+    return sample_db
 
 
 @pytest.fixture(scope="module")
@@ -31,17 +27,28 @@ def db_values(db):
     return relational(db, progress=False)
 
 
-def scan_hits(db, values, names, example, chosen) -> set:
+@pytest.fixture(scope="module")
+def hdm(hdm05_db30):
+    """The 287 HDM05 clips at 30 Hz with their 2005 indexes, and their relational features (values, names)."""
+    build(hdm05_db30, progress=False)
+    return hdm05_db30, relational(hdm05_db30, progress=False)
+
+
+def scan_hits(db, values, names, example, chosen, m: int = 0, allowed=None) -> set:
     """Brute force: segment every document by the chosen features alone, and find the example's sequence
-    of chosen-feature vectors as consecutive runs (the restricted feature function of §5.2)."""
+    of chosen-feature vectors as consecutive runs (the restricted feature function of §5.2), at most ``m`` runs
+    differing, only at the ``allowed`` query positions (default: any)."""
     cols = [names.index(f) for f in chosen]
     ex_values, _ = relational(example)
     q = segment(ex_values[:, cols]).codes
+    free = np.zeros(len(q), dtype=bool)
+    free[list(range(len(q))) if allowed is None else allowed] = True
     hits = set()
     for row in db.documents.itertuples():
         seq = segment(values[row.start : row.start + row.n_frames, cols])
         for k in range(len(seq.codes) - len(q) + 1):
-            if np.array_equal(seq.codes[k : k + len(q)], q):
+            differ = seq.codes[k : k + len(q)] != q
+            if differ.sum() <= m and not (differ & ~free).any():
                 last = k + len(q) - 1
                 hits.add((row.doc_id, int(seq.starts[k]), int(seq.starts[last] + seq.lengths[last] - 1)))
     return hits
@@ -71,17 +78,100 @@ def test_adaptive_query_equals_the_restricted_scan(db, db_values, label, chosen)
     assert (np.diff(hits["score"]) >= 0).all() and hits["rank"].tolist() == list(range(1, len(hits) + 1))
 
 
-def test_exact_and_mismatch_modes(db):
-    doc = db.select(label="squat1Reps")["doc_id"].iloc[0]
+def spans(hits) -> set:
+    return set(zip(hits["doc_id"], hits["start_frame"], hits["end_frame"]))
+
+
+@pytest.mark.parametrize(
+    "label, chosen, mode, m, allowed",
+    [
+        ("kickLFront1Reps", ["rfoot_raised"], "exact", 0, None),
+        ("kickLFront1Reps", KICK, "exact", 0, None),
+        ("kickLFront1Reps", KICK, "mismatch", 0, None),
+        ("kickLFront1Reps", KICK, "mismatch", 1, None),
+        ("kickLFront1Reps", KICK, "mismatch", 2, None),
+        ("kickLFront1Reps", KICK, "mismatch", 2, [0, 3]),
+        ("kickLFront1Reps", KICK, "mismatch", 1, []),
+        ("throwBasketball", ["rhand_above_neck", "lhand_above_neck"], "mismatch", 1, None),
+        ("squat1Reps", ["rknee_bent", "rfoot_fast", "lfoot_fast"], "mismatch", 2, None),
+        ("grabHighR", ["rhand_above_neck", "rhand_in_front"], "exact", 0, None),
+        ("grabHighR", ["rhand_above_neck", "rhand_in_front"], "mismatch", 1, [1]),
+    ],
+)
+def test_exact_and_mismatch_count_only_the_selected_features(hdm, label, chosen, mode, m, allowed):
+    """Exact and m-mismatch hits over the 287 HDM05 clips = the runs of the selected features found by a scan of
+    the per-frame feature matrix; left-out features are don't care."""
+    db, (values, names) = hdm
+    for doc in db.select(label=label)["doc_id"].iloc[:3]:
+        example = db.motion(int(doc))
+        hits = query_by_example(db, example, chosen, mode=mode, mismatches=m, allowed=allowed)
+        expected = scan_hits(db, values, names, example, chosen, m, allowed)
+        assert spans(hits) == expected and len(hits) == len(expected)
+        assert ((hits["doc_id"] == doc) & (hits["start_frame"] == 0)).any()  # the query finds itself
+        n_runs = len(segment(relational(example)[0][:, [names.index(f) for f in chosen]]).codes)
+        assert (hits["n_segments"] == n_runs).all()  # the query is segmented on the selected features alone
+        if mode == "exact":  # the selection's exact hits are its adaptive fuzzy hits (§5.2)
+            assert spans(query_by_example(db, example, chosen, mode="adaptive")) == expected
+
+
+def test_each_allowed_mismatch_only_adds_hits(hdm):
+    db, _ = hdm
+    example = db.motion(int(db.select(label="kickLFront1Reps")["doc_id"].iloc[0]))
+    by_m = [spans(query_by_example(db, example, KICK, mode="mismatch", mismatches=m)) for m in range(3)]
+    assert by_m[0] == spans(query_by_example(db, example, KICK, mode="exact"))
+    assert by_m[0] <= by_m[1] <= by_m[2] and len(by_m[2]) > len(by_m[0])
+    nowhere = query_by_example(db, example, KICK, mode="mismatch", mismatches=2, allowed=[])
+    first = query_by_example(db, example, KICK, mode="mismatch", mismatches=2, allowed=[0])
+    assert spans(nowhere) == by_m[0] and by_m[0] <= spans(first) <= by_m[1]
+
+
+def test_a_whole_group_selected_is_the_strict_exact_query(hdm):
+    """All features of a group: the query's runs are the stored segments, and the hits those of eq. 7 (§5.1)."""
+    db, (_values, names) = hdm
+    lower = feature_groups("2005")["lower"]
+    idx = load(db)["lower"]
+    doc = int(db.select(label="hopBothLegs1hops")["doc_id"].iloc[0])
     example = db.motion(doc)
-    exact = query_by_example(db, example, ["rknee_bent"], mode="exact")  # all 11 lower features must match
-    assert ((exact["doc_id"] == doc) & (exact["start_frame"] == 0)).any()
-    loose = query_by_example(db, example, ["rknee_bent"], mode="mismatch", mismatches=1)
-    key = lambda t: set(zip(t["doc_id"], t["first_segment"]))
-    assert key(exact) <= key(loose)
-    nowhere = query_by_example(db, example, ["rknee_bent"], mode="mismatch", mismatches=1, allowed=[])
-    first = query_by_example(db, example, ["rknee_bent"], mode="mismatch", mismatches=1, allowed=[0])
-    assert key(nowhere) == key(exact) and key(exact) <= key(first) <= key(loose)
+    hits = query_by_example(db, example, lower, mode="exact")
+    q = segment(relational(example)[0][:, [names.index(f) for f in lower]]).codes
+    assert sorted(hits["first_segment"]) == idx.exact(q).tolist()
+
+
+def test_plain_fuzzy_needs_one_stored_segment_per_query_segment(hdm):
+    """Plain fuzzy hits (eq. 11) run on the stored segmentation under all features of the group: each query segment
+    must be exactly one stored segment. A left-out feature that changes inside a query segment splits the stored
+    segments there, so the query's own clip is no plain fuzzy hit (the kick query finds nothing at all), while the
+    adaptive fuzzy hits, which coarsen the stored segmentation, find it."""
+    db, (_values, names) = hdm
+    idx = load(db)["lower"]
+    lower = feature_groups("2005")["lower"]
+    mask = sum(1 << lower.index(f) for f in KICK)
+    kicks = db.select(label="kickLFront1Reps")["doc_id"].astype(int).tolist()
+    row_of = {int(d): i for i, d in enumerate(db.documents["doc_id"])}
+    for doc in kicks[:5]:
+        example = db.motion(doc)
+        q = segment(relational(example)[0][:, [names.index(f) for f in KICK]]).codes
+        q_lower = [sum(((int(c) >> j) & 1) << lower.index(f) for j, f in enumerate(KICK)) for c in q]
+        codes, seg_doc = idx.codes & mask, idx.segment_doc
+        expected = [k for k in range(idx.n_segments - len(q) + 1)
+                    if seg_doc[k] == seg_doc[k + len(q) - 1] and list(codes[k : k + len(q)]) == q_lower]
+        fuzzy = query_by_example(db, example, KICK, mode="fuzzy")
+        assert sorted(fuzzy["first_segment"]) == expected
+        own_segments = np.diff(idx.doc_first_segment)[row_of[doc]]
+        own = (fuzzy["doc_id"] == doc) & (fuzzy["start_frame"] == 0) & (fuzzy["end_frame"] == example.n_frames - 1)
+        assert own.any() == (own_segments == len(q))  # found itself only if no left-out feature splits a segment
+        adaptive = query_by_example(db, example, KICK, mode="adaptive")
+        assert ((adaptive["doc_id"] == doc) & (adaptive["start_frame"] == 0)).any()
+        if doc == kicks[0]:  # the documented example: nothing found, the clip's 7 runs are more stored segments
+            assert fuzzy.empty and own_segments > len(q)
+
+
+def test_bad_mismatch_arguments_say_what_to_pass(db):
+    example = db.motion(int(db.select(label="squat1Reps")["doc_id"].iloc[0]))
+    with pytest.raises(ParameterError, match="mismatches must be an integer >= 0.*got -1"):
+        query_by_example(db, example, ["rknee_bent"], mode="mismatch", mismatches=-1)
+    with pytest.raises(ParameterError, match=r"allowed mismatch positions must lie in \[0, \d+\), got \[99\]"):
+        query_by_example(db, example, ["rknee_bent", "rfoot_fast"], mode="mismatch", mismatches=1, allowed=[99])
 
 
 def test_features_from_two_groups_are_joined_by_overlap(db):

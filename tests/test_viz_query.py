@@ -1,4 +1,5 @@
-"""mocapviz.viz.query: precision and recall of ranked hits against hand-computed values, and the plot holding them."""
+"""mocapviz.viz.query: precision and recall of ranked hits (by mocapviz.evaluation) against hand-computed values, and
+the plot holding them."""
 
 from __future__ import annotations
 
@@ -7,35 +8,38 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from mocapviz.errors import ParameterError
 from mocapviz.viz.query import precision_recall, precision_recall_plot
 
 # doc 0 is the query (label A); the other A documents are 1 and 3; doc 4 has no label
 DOCUMENTS = pd.DataFrame({"doc_id": [0, 1, 2, 3, 4], "label": ["A", "A", "B", "A", None]})
 
 
-def test_precision_counts_hits_and_recall_counts_documents():
-    # hits by rank: the query's own doc (left out), 1 (A), 2 (B), 1 again (A), 4 (none), 3 (A)
+def test_hits_become_a_ranking_of_documents_judged_by_mocapviz_evaluation():
+    # hits by rank: the query's own doc (left out), 1 (A), 2 (B), 1 again (counted once), 4 (no label), 3 (A)
     curve = precision_recall([0, 1, 2, 1, 4, 3], DOCUMENTS, query_doc=0)
-    assert curve["doc_id"].tolist() == [1, 2, 1, 4, 3]
-    assert curve["rank"].tolist() == [2, 3, 4, 5, 6]  # ranks of the hits table
-    assert curve["relevant"].tolist() == [True, False, True, False, True]
-    np.testing.assert_allclose(curve["precision"], [1 / 1, 1 / 2, 2 / 3, 2 / 4, 3 / 5])
-    # two other A documents: doc 1 found at rank 1 (its second hit adds nothing), doc 3 at rank 5
-    np.testing.assert_allclose(curve["recall"], [1 / 2, 1 / 2, 1 / 2, 1 / 2, 2 / 2])
+    assert curve["doc_id"].tolist() == [1, 2, 4, 3]
+    assert curve["rank"].tolist() == [1, 2, 3, 4]  # ranks of documents
+    assert curve["hit_rank"].tolist() == [2, 3, 5, 6]  # each document's first hit in the hits table
+    assert curve["relevant"].tolist() == [True, False, False, True]
+    np.testing.assert_allclose(curve["precision"], [1 / 1, 1 / 2, 1 / 3, 2 / 4])
+    np.testing.assert_allclose(curve["recall"], [1 / 2, 1 / 2, 1 / 2, 2 / 2])  # two other A documents: 1 and 3
     assert curve.attrs["n_relevant"] == 2
+    assert curve.attrs["average_precision"] == pytest.approx((1 / 1 + 2 / 4) / 2)
 
 
 def test_recall_is_undefined_without_other_documents_of_the_label():
     curve = precision_recall([2, 0, 1], DOCUMENTS, query_doc=2)
-    assert curve["relevant"].tolist() == [False, False] and curve["rank"].tolist() == [2, 3]
+    assert curve["relevant"].tolist() == [False, False] and curve["hit_rank"].tolist() == [2, 3]
     np.testing.assert_allclose(curve["precision"], [0.0, 0.0])
     assert curve["recall"].isna().all() and curve.attrs["n_relevant"] == 0
+    assert np.isnan(curve.attrs["average_precision"])
 
 
 def test_an_unlabelled_or_unknown_query_cannot_be_judged():
-    with pytest.raises(ValueError, match="no label"):
+    with pytest.raises(ParameterError, match="no label"):
         precision_recall([1], DOCUMENTS, query_doc=4)
-    with pytest.raises(ValueError, match="not in the document table"):
+    with pytest.raises(ParameterError, match="query_doc 9 is not a document"):
         precision_recall([1], DOCUMENTS, query_doc=9)
 
 
@@ -44,9 +48,9 @@ def test_plot_holds_the_two_curves():
     plot = precision_recall_plot(curve, label="A")
     lines = {el.label: el for el in plot if isinstance(el, hv.Curve)}
     assert set(lines) == {"precision", "recall"}
-    np.testing.assert_allclose(lines["precision"].dimension_values("rank"), [2, 3, 4, 5, 6])
-    np.testing.assert_allclose(lines["precision"].dimension_values("fraction"), [1, 1 / 2, 2 / 3, 2 / 4, 3 / 5])
-    np.testing.assert_allclose(lines["recall"].dimension_values("fraction"), [0.5, 0.5, 0.5, 0.5, 1.0])
+    np.testing.assert_allclose(lines["precision"].dimension_values("rank"), [1, 2, 3, 4])
+    np.testing.assert_allclose(lines["precision"].dimension_values("fraction"), [1, 1 / 2, 1 / 3, 2 / 4])
+    np.testing.assert_allclose(lines["recall"].dimension_values("fraction"), [0.5, 0.5, 0.5, 1.0])
     assert len([el for el in plot if isinstance(el, hv.Scatter)]) == 2
     assert plot.opts.get().kwargs["title"].endswith(": A")
     hv.render(plot, backend="bokeh")  # renders without error

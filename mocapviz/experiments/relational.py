@@ -16,6 +16,7 @@ import time
 import numpy as np
 import pandas as pd
 
+from .. import evaluation
 from .. import index as index_mod
 from ..errors import MotionDBError
 from ..features import feature_names, relational
@@ -361,7 +362,7 @@ def relational_query(db, queries: dict | None = None, feature_set: str = "2005",
 
     For each class, one document of that class is the query clip and a few relational features are selected
     (the rest are "don't care"); :func:`mocapviz.query.query_by_example` finds its adaptive fuzzy hits. A
-    document counts as retrieved if any hit lies in it.
+    document counts as retrieved if any hit lies in it, ranked by its best hit.
 
     Parameters
     ----------
@@ -381,12 +382,13 @@ def relational_query(db, queries: dict | None = None, feature_set: str = "2005",
     -------
     pandas.DataFrame, one row per class: ``class``, ``query_doc``, ``query_name``, ``features`` (comma
     separated), ``query_frames``, ``n_segments`` (query segments, summed over the groups touched), ``hits``,
-    ``hit_docs`` (distinct documents with a hit), ``relevant`` (documents of the class), ``relevant_retrieved``,
-    ``precision`` (relevant_retrieved / hit_docs), ``recall`` (relevant_retrieved / relevant; the query
-    document counts, as it is always found), ``r_precision`` (the share of the class among the ``relevant``
-    best-ranked retrieved documents, documents ranked by their best hit's score), ``self_retrieved`` and
-    ``ms`` (query time: the query clip's features included; index loading and the first call's compilation of
-    the feature kernels excluded).
+    ``self_retrieved`` (a hit lies in the query document), then the retrieval quality by
+    :mod:`mocapviz.evaluation` (documents ranked by their best hit's score, the query document left out of the
+    ranking and of the relevant set): ``hit_docs`` (other documents with a hit), ``relevant`` (other documents
+    of the class), ``relevant_retrieved``, ``precision`` (relevant_retrieved / hit_docs, NaN without hits),
+    ``recall`` (relevant_retrieved / relevant), ``r_precision`` (precision at rank ``relevant``), ``ap``
+    (average precision; unfound relevant documents add 0), and ``ms`` (query time: the query clip's features
+    included; index loading and the first call's compilation of the feature kernels excluded).
 
     Raises
     ------
@@ -402,6 +404,7 @@ def relational_query(db, queries: dict | None = None, feature_set: str = "2005",
             indexes = index_mod.build(db, feature_set, progress=False)
     docs = db.documents
     labels = docs[label_column].astype("string")
+    labels_by_doc = pd.Series(labels.to_numpy(), index=docs["doc_id"].astype(np.int64))
     if queries is None:
         present = set(labels.dropna())
         queries = {c: (None, f) for c, f in DEFAULT_QUERIES.items() if c in present}
@@ -421,11 +424,9 @@ def relational_query(db, queries: dict | None = None, feature_set: str = "2005",
         hits = query_by_example(db, example, list(features), mode="adaptive", feature_set=feature_set,
                                 indexes=indexes)  # fmt: skip
         ms = (time.perf_counter() - t0) * 1e3
-        best = hits.groupby("doc_id", sort=False)["score"].min().sort_values(kind="stable")
-        retrieved = set(best.index.tolist())
-        relevant = set(members.tolist())
-        found = len(retrieved & relevant)
-        top = best.index[: len(relevant)]
+        # hits come best first, so each document is ranked by its best hit
+        ranking, n_relevant = evaluation.relevance(hits["doc_id"], labels_by_doc, doc_id)
+        curve = evaluation.precision_recall(ranking, n_relevant)
         rows.append({
             "class": cls,
             "query_doc": doc_id,
@@ -434,13 +435,14 @@ def relational_query(db, queries: dict | None = None, feature_set: str = "2005",
             "query_frames": example.n_frames,
             "n_segments": int(hits["n_segments"].iloc[0]) if len(hits) else 0,
             "hits": len(hits),
-            "hit_docs": len(retrieved),
-            "relevant": len(relevant),
-            "relevant_retrieved": found,
-            "precision": found / len(retrieved) if retrieved else float("nan"),
-            "recall": found / len(relevant),
-            "r_precision": sum(d in relevant for d in top) / len(relevant),
-            "self_retrieved": doc_id in retrieved,
+            "self_retrieved": bool((hits["doc_id"] == doc_id).any()),
+            "hit_docs": len(ranking),
+            "relevant": n_relevant,
+            "relevant_retrieved": int(ranking["relevant"].sum()),
+            "precision": curve["precision"].iloc[-1] if len(curve) else float("nan"),
+            "recall": ranking["relevant"].sum() / n_relevant if n_relevant else float("nan"),
+            "r_precision": evaluation.precision_at(ranking, n_relevant) if n_relevant else float("nan"),
+            "ap": evaluation.average_precision(ranking, n_relevant),
             "ms": ms,
         })  # fmt: skip
     return pd.DataFrame(rows)

@@ -1,13 +1,13 @@
 """Judging the hits of a query by example against the documents' labels (Müller, Röder & Clausen 2005 §6.2, where
 the hits of a query are counted as relevant or not by hand; here a label table decides).
 
-precision_recall        ranked hits + document labels -> precision and recall after each rank.
+precision_recall        ranked hits + document labels -> precision and recall after each ranked document.
 precision_recall_plot   that table as two curves over the rank.
 
-Relevance: a hit is *relevant* when its document carries the query document's label. Hits inside the query
-document itself are left out (the query always finds itself). Precision after rank k counts hits (the relevant ones
-among the first k); recall after rank k counts documents (the distinct relevant documents among the first k hits,
-over every other document that carries the label), since one document may hold several hits.
+Relevance, precision and recall are those of :mod:`mocapviz.evaluation`, the one definition of the product: the
+hits are turned into a ranking of documents (a document counts once, at its first hit), the query's own document is
+left out of the ranking and of the relevant set, and a document is relevant when it carries the query document's
+label.
 """
 
 from __future__ import annotations
@@ -16,6 +16,9 @@ import holoviews as hv
 import holoviews.plotting.bokeh  # registers the bokeh backend and its options
 import numpy as np
 import pandas as pd
+
+from .. import evaluation
+from ..errors import ParameterError
 
 
 def precision_recall(hit_docs, documents: pd.DataFrame, query_doc: int) -> pd.DataFrame:
@@ -29,38 +32,29 @@ def precision_recall(hit_docs, documents: pd.DataFrame, query_doc: int) -> pd.Da
 
     Returns
     -------
-    pandas.DataFrame, one row per hit outside the query document, in rank order: ``rank`` (the hit's 1-based
-    position in ``hit_docs``, as in the hits table), ``doc_id``, ``relevant`` (bool), ``precision`` and ``recall``
-    after this hit (fractions in [0, 1]; precision over the judged hits so far).
-    ``attrs["n_relevant"]`` is the number of other documents with the query's label (recall is NaN when 0).
+    pandas.DataFrame, one row per distinct document with a hit, other than the query's, in the order of its first
+    hit: ``rank`` (1-based rank of the document), ``doc_id``, ``relevant`` (bool), ``precision`` and ``recall``
+    after this document (:func:`mocapviz.evaluation.precision_recall`), ``hit_rank`` (1-based position of the
+    document's first hit in ``hit_docs``, as in the hits table). ``attrs["n_relevant"]`` is the number of other
+    documents with the query's label (recall is NaN when 0) and ``attrs["average_precision"]`` the ranking's AP
+    (:func:`mocapviz.evaluation.average_precision`).
 
     Raises
     ------
-    ValueError
+    ParameterError
         The query document has no label, or is not in ``documents``.
     """
-    labels = dict(zip(documents["doc_id"].astype(int), documents["label"]))
-    if query_doc not in labels:
-        raise ValueError(f"document {query_doc} is not in the document table")
-    label = labels[query_doc]
-    if pd.isna(label) or label == "":
-        raise ValueError(f"document {query_doc} has no label, so no hit can be judged")
-    all_docs = np.asarray([int(d) for d in hit_docs], dtype=np.int64)
-    judged = all_docs != query_doc
-    docs, ranks = all_docs[judged], np.flatnonzero(judged) + 1
-    relevant = np.array([labels.get(int(d)) == label for d in docs], dtype=bool)
-    n_relevant = sum(1 for d, lab in labels.items() if lab == label and d != query_doc)
-    first_time = ~pd.Series(docs).duplicated().to_numpy()
-    found = np.cumsum(relevant & first_time)
-    out = pd.DataFrame({
-        "rank": ranks,
-        "doc_id": docs,
-        "relevant": relevant,
-        "precision": np.cumsum(relevant) / np.arange(1, len(docs) + 1),
-        "recall": found / n_relevant if n_relevant else np.full(len(docs), np.nan),
-    })
-    out.attrs["n_relevant"] = n_relevant
-    return out
+    labels = pd.Series(documents["label"].to_numpy(), index=documents["doc_id"].astype(np.int64))
+    label = labels.get(query_doc)
+    if query_doc in labels.index and (pd.isna(label) or label == ""):
+        raise ParameterError(f"document {query_doc} has no label, so no hit can be judged; pick a labelled query clip")
+    ranking, n_relevant = evaluation.relevance(hit_docs, labels, query_doc)
+    docs = np.asarray(hit_docs, dtype=np.int64)
+    first_hit = pd.Series(np.arange(1, len(docs) + 1)).groupby(docs).min()
+    curve = evaluation.precision_recall(ranking, n_relevant)
+    curve["hit_rank"] = first_hit.reindex(curve["doc_id"]).to_numpy(dtype=np.int64)
+    curve.attrs["average_precision"] = evaluation.average_precision(ranking, n_relevant)
+    return curve
 
 
 def precision_recall_plot(curve: pd.DataFrame, label: str = "", width: int = 720, height: int = 280) -> hv.Overlay:
@@ -73,7 +67,7 @@ def precision_recall_plot(curve: pd.DataFrame, label: str = "", width: int = 720
 
     Returns
     -------
-    holoviews.Overlay of two step curves with markers (y: fraction 0..1, x: rank of the hit).
+    holoviews.Overlay of two step curves with markers (y: fraction 0..1, x: rank of the document).
     """
     y = hv.Dimension("fraction", range=(-0.04, 1.05))  # a line at 0 stays visible above the axis
     layers = []
@@ -85,4 +79,4 @@ def precision_recall_plot(curve: pd.DataFrame, label: str = "", width: int = 720
                       .opts(color=colour, size=5, tools=["hover"]))
     title = f"precision / recall over rank: {label}" if label else "precision / recall over rank"
     return hv.Overlay(layers).opts(width=width, height=height, title=title, legend_position="bottom_right",
-                                   xlabel="rank of hit", ylabel="fraction", show_grid=True, toolbar="above")
+                                   xlabel="rank of document", ylabel="fraction", show_grid=True, toolbar="above")

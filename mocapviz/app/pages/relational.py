@@ -5,8 +5,9 @@ The example is a frame span of one document (by default the session's clip and s
 player); the user ticks relational features of the three groups (lower, upper, mix; the rest are "don't care")
 and a kind of hit. The hits are ranked by :func:`mocapviz.query.query_by_example`; clicking one plays the query
 span beside it. When the database has labels, the hits are judged against the query document's label
-(:func:`mocapviz.viz.query.precision_recall`: a hit is relevant when its document has the query's label; hits in
-the query document itself are left out; recall is over the other documents with that label).
+(:func:`mocapviz.viz.query.precision_recall`, the definition of :mod:`mocapviz.evaluation`: documents are ranked by
+their first hit, the query document itself is left out, a document is relevant when it has the query's label; recall
+is over the other documents with that label).
 """
 
 from __future__ import annotations
@@ -199,16 +200,18 @@ class RelationalPage(pn.viewable.Viewer):
             return
         curve = precision_recall(hits["doc_id"], self.backend.documents, q["doc"])
         n_rel = curve.attrs["n_relevant"]
-        rule = (f"A hit is relevant when its document is labelled *{label}*; hits inside the query's own document "
-                f"are left out; recall counts the {n_rel} other document(s) with that label.")
+        rule = (f"Documents are ranked by their first hit; one is relevant when it is labelled *{label}*; the query's "
+                f"own document is left out; recall counts the {n_rel} other document(s) with that label.")
         if curve.empty:
             self.quality.object = f"No hit outside the query's document. {rule}"
             self.curve.visible = False
             return
         last = curve.iloc[-1]
         recall = "undefined (no other document has this label)" if not n_rel else f"{last['recall']:.2f}"
+        ap = curve.attrs["average_precision"]
         self.quality.object = (f"**Precision {last['precision']:.2f}** ({int(curve['relevant'].sum())} of "
-                               f"{len(curve)} hits) · **recall {recall}**. {rule}")
+                               f"{len(curve)} documents) · **recall {recall}** · **AP "
+                               f"{'undefined' if pd.isna(ap) else f'{ap:.2f}'}**. {rule}")
         self.curve.object = precision_recall_plot(curve, label=str(label))
         self.curve.visible = True
 

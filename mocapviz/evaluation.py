@@ -1,0 +1,104 @@
+"""Retrieval quality: the one definition of precision, recall and average precision used by the whole product.
+
+A search returns a ranking of *documents* (hits or matches in a document count once, at the rank of the first
+one). It is judged against the query document's label:
+
+- The query's own document is left out of the ranking and of the relevant set (finding the query itself says
+  nothing about a search method).
+- Relevant documents are the *other* documents with the query's label, among the documents that were searched
+  (``candidates``; default: all).
+- precision@k = relevant documents among the first k of the ranking / k (k at most the ranking's length);
+  recall@k = relevant documents among the first k / all relevant documents.
+- Average precision (AP) = the mean, over *all* relevant documents, of the precision at the rank where each is
+  found; a relevant document never found adds 0 (so a search that returns few hits is not rewarded for
+  stopping early). mAP is the mean AP over queries; R-precision is precision@(number of relevant documents).
+
+relevance        ranked document ids -> the judged ranking (doc_id, relevant) without the query document.
+precision_recall that ranking -> precision and recall after every rank (the curve of the dashboard and notebooks).
+average_precision, precision_at   single numbers from a judged ranking.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .errors import ParameterError
+
+
+def relevance(ranked_docs, labels: pd.Series, query_doc: int, candidates=None) -> tuple[pd.DataFrame, int]:
+    """Judge a ranking of documents by the query document's label.
+
+    Parameters
+    ----------
+    ranked_docs : sequence of int
+        Document ids, best first; repeats (several hits in one document) count at their first rank.
+    labels : pd.Series
+        Label of every document, indexed by doc_id (missing labels are never relevant).
+    query_doc : int
+        The query's document: left out of the ranking and of the relevant set.
+    candidates : sequence of int, optional
+        The documents the search could return (e.g. the other actors' documents in a leave-actor-out
+        evaluation); relevant documents outside them are not counted. Default: every document of ``labels``.
+
+    Returns
+    -------
+    ranking : pd.DataFrame, one row per distinct document other than the query's, in rank order: ``rank``
+        (1-based), ``doc_id``, ``relevant`` (bool).
+    n_relevant : int, documents with the query's label among the candidates, the query's own excluded.
+
+    Raises
+    ------
+    ParameterError
+        ``query_doc`` is not in ``labels``.
+    """
+    if query_doc not in labels.index:
+        raise ParameterError(f"query_doc {query_doc} is not a document of the labels given (doc ids "
+                             f"{labels.index.min()}..{labels.index.max()})")  # fmt: skip
+    label = labels.loc[query_doc]
+    pool = labels if candidates is None else labels.reindex(pd.Index(candidates).unique())
+    pool = pool.drop(index=query_doc, errors="ignore")
+    n_relevant = 0 if pd.isna(label) else int((pool == label).sum())
+    docs = pd.unique(np.asarray(ranked_docs, dtype=np.int64))
+    docs = docs[docs != query_doc]
+    judged = labels.reindex(docs)  # documents without a label (NaN / None / pd.NA) are never relevant
+    relevant = np.zeros(len(docs), dtype=bool) if pd.isna(label) else judged.eq(label).fillna(False).to_numpy(bool)
+    if candidates is not None:
+        relevant = relevant & np.isin(docs, np.asarray(pool.index))  # (to_numpy may give a read-only view)
+    ranking = pd.DataFrame({"rank": np.arange(1, len(docs) + 1), "doc_id": docs, "relevant": relevant})
+    return ranking, n_relevant
+
+
+def precision_recall(ranking: pd.DataFrame, n_relevant: int) -> pd.DataFrame:
+    """Precision and recall after every rank of a judged ranking (:func:`relevance`).
+
+    Returns
+    -------
+    pd.DataFrame: the ranking's columns plus ``precision`` and ``recall`` (fractions in [0, 1]; recall NaN when
+    no other document is relevant). ``attrs["n_relevant"]`` holds ``n_relevant``.
+    """
+    found = np.cumsum(ranking["relevant"].to_numpy(dtype=bool))
+    out = ranking.assign(
+        precision=found / np.arange(1, len(ranking) + 1),
+        recall=found / n_relevant if n_relevant else np.full(len(ranking), np.nan),
+    )
+    out.attrs["n_relevant"] = n_relevant
+    return out
+
+
+def average_precision(ranking: pd.DataFrame, n_relevant: int) -> float:
+    """AP of a judged ranking: mean precision at the ranks of the relevant documents over all ``n_relevant``
+    (unfound ones add 0). NaN when no other document is relevant."""
+    if n_relevant == 0:
+        return float("nan")
+    relevant = ranking["relevant"].to_numpy(dtype=bool)
+    ranks = np.flatnonzero(relevant) + 1
+    return float((np.arange(1, len(ranks) + 1) / ranks).sum() / n_relevant)
+
+
+def precision_at(ranking: pd.DataFrame, k: int) -> float:
+    """Relevant documents among the first ``k`` of the ranking / k; a ranking shorter than k counts its missing
+    ranks as not relevant (a search that returns nothing has precision 0, not NaN)."""
+    if k < 1:
+        raise ParameterError(f"k must be at least 1; got {k}")
+    return float(ranking["relevant"].to_numpy(dtype=bool)[:k].sum() / k)
