@@ -4,14 +4,17 @@ Four ``.tar.xz`` archives (see ``ARCHIVES``) are looked up under one base locati
 sha256 and unpacked once into a local cache:
 
 - base location: the environment variable ``MOCAPVIZ_DATA_URL``, an ``http(s)://`` URL, a ``file://`` URL or
-  a plain folder path; unset, the first existing folder among ``<repo root>/../shared/data`` and
-  ``/work/shared/data``.
+  a plain folder path; unset, and only when the package runs from a source checkout, the folder
+  ``<checkout>/../shared/data``. Nothing else is tried.
 - cache: the environment variable ``MOCAPVIZ_HOME``, else ``pooch.os_cache("mocapviz")``. Archive ``NAME``
   is stored as ``<cache>/NAME.tar.xz`` and unpacked into ``<cache>/NAME/``.
 
-``sample()`` needs no download: it unpacks the small sample (22 HDM05 clips, 2 CMU trials) shipped inside
-the package. Every unpack goes to a temporary folder renamed into place at the end, so an interrupted
-unpack never leaves a folder that a later call would take for complete.
+The archives repackage public data (``Archive.source``: HDM05, the CMU Graphics Lab database, the Bandai
+Namco Research motion dataset), each under its own licence (``Archive.licence``).
+
+``sample()`` (also ``fetch("sample")``) needs no download: it unpacks the small sample (22 HDM05 clips,
+2 CMU trials) shipped inside the package. Every unpack goes to a temporary folder renamed into place at the
+end, so an interrupted unpack never leaves a folder that a later call would take for complete.
 """
 
 from __future__ import annotations
@@ -57,6 +60,10 @@ class Archive:
         Licence and the attribution it requires.
     sha256 : str
         Hex sha256 of the archive file.
+    size : int
+        Size of the archive file in bytes.
+    source : str
+        Where the data come from originally (public URL) and the repository it was repackaged from.
     """
 
     name: str
@@ -66,6 +73,8 @@ class Archive:
     fps: int
     licence: str
     sha256: str
+    size: int
+    source: str
 
     @property
     def filename(self) -> str:
@@ -73,7 +82,15 @@ class Archive:
         return f"{self.name}.tar.xz"
 
 
-_BANDAI_LICENCE = "CC BY-NC 4.0 (Bandai Namco Research Inc.) — not for commercial use; do not bundle inside the package"
+_BANDAI_LICENCE = (
+    "CC BY-NC 4.0 (Bandai Namco Research Inc.) — not for commercial use; do not bundle inside the package; "
+    'cite Kobayashi, Liao, Inoue, Yojima, Takahashi, "Motion Capture Dataset for Practical Use of AI-based Motion '
+    'Editing and Stylization", arXiv:2306.08861, 2023'
+)
+_BANDAI_SOURCE = (
+    "https://github.com/BandaiNamcoResearchInc/Bandai-Namco-Research-Motiondataset (@ 74ead3b, where the licence "
+    "is CC BY-NC 4.0)"
+)
 
 ARCHIVES: dict[str, Archive] = {
     archive.name: archive
@@ -89,6 +106,11 @@ ARCHIVES: dict[str, Archive] = {
                 '"Documentation Mocap Database HDM05", Tech. Rep. CG-2007-2, Universität Bonn, 2007'
             ),
             sha256="701d394aef9dc50912f5a51d7dfc1d61a9a51b72a031f6735a0de934ddb490a5",
+            size=13_167_072,
+            source=(
+                "http://resources.mpi-inf.mpg.de/HDM05/ (cut clips as in github.com/zhangchi8620/JointLearning-HDM05 "
+                "@ b252ad6)"
+            ),
         ),
         Archive(
             name="cmu-asfamc",
@@ -102,6 +124,8 @@ ARCHIVES: dict[str, Archive] = {
                 'The database was created with funding from NSF EIA-0196217."'
             ),
             sha256="b63fc9b0dee98d5817e52acbe3be3c3d8db508c2d6ff9bf95c445a9311230200",
+            size=9_012_524,
+            source="http://mocap.cs.cmu.edu/ (trials as in github.com/encadyma/motion-out @ 4855c55)",
         ),
         Archive(
             name="bandai-namco-1",
@@ -111,6 +135,8 @@ ARCHIVES: dict[str, Archive] = {
             fps=30,
             licence=_BANDAI_LICENCE,
             sha256="e88067e44d25a41792de4eb0d9705f4590cacc9b208e67634544d1a60b4fac6f",
+            size=7_426_268,
+            source=_BANDAI_SOURCE,
         ),
         Archive(
             name="bandai-namco-2",
@@ -120,24 +146,44 @@ ARCHIVES: dict[str, Archive] = {
             fps=30,
             licence=_BANDAI_LICENCE,
             sha256="15a0229860c01b0d0a3f6585e005e3d9e5341fe786dc6aedfcd5899538ba23d5",
+            size=79_372_188,
+            source=_BANDAI_SOURCE,
         ),
     )
 }
 
 
+SAMPLE = "sample"
+"""Name of the sample embedded in the package (see :func:`sample`); not an entry of ``ARCHIVES``."""
+
+_SAMPLE_DESCRIPTION = "embedded sample: 22 HDM05 cut clips (actors dg, mm x 11 classes) + 2 CMU trials (ASF/AMC)"
+_SAMPLE_FILES = "22 HDM05 AMC + 2 CMU AMC + their 4 ASF"
+_SAMPLE_FRAMES = 5_543
+_SAMPLE_LICENCE = (
+    "HDM05 clips: CC BY-SA 3.0 (cite Müller et al., Tech. Rep. CG-2007-2, Universität Bonn, 2007); CMU trials: "
+    "credit mocap.cs.cmu.edu (NSF EIA-0196217); full text in its LICENSE.md"
+)
+_SAMPLE_SOURCE = "embedded in the package (mocapviz/data/sample.tar.xz), cut from hdm05-cut and cmu-asfamc"
+
+INFO_COLUMNS = ["name", "description", "files", "frames", "fps", "size", "embedded", "licence", "source", "sha256",
+                "cached"]
+
+
 def names() -> list[str]:
-    """Names of the registered archives, in registry order."""
+    """Names of the shared archives (``ARCHIVES``), in registry order; the embedded sample is :data:`SAMPLE`."""
     return list(ARCHIVES)
 
 
 def info() -> pd.DataFrame:
-    """The registry as a table.
+    """Every registered dataset as a table: the shared archives, then the embedded sample.
 
     Returns
     -------
     pandas.DataFrame
-        One row per archive, columns ``name, description, files, frames, fps, licence, sha256, cached``;
-        ``cached`` is True when the archive is already unpacked in the cache.
+        One row per dataset, columns ``INFO_COLUMNS``: ``name, description, files, frames, fps, size`` (bytes of
+        the ``.tar.xz``), ``embedded`` (True for the sample shipped inside the package, False for an archive
+        fetched from ``MOCAPVIZ_DATA_URL`` or ``../shared/data``), ``licence``, ``source`` (original public
+        source), ``sha256`` and ``cached`` (True when already unpacked in the cache).
     """
     cache = _cache_dir()
     rows = [
@@ -147,13 +193,31 @@ def info() -> pd.DataFrame:
             "files": a.files,
             "frames": a.frames,
             "fps": a.fps,
+            "size": a.size,
+            "embedded": False,
             "licence": a.licence,
+            "source": a.source,
             "sha256": a.sha256,
             "cached": (cache / a.name / a.name).is_dir(),
         }
         for a in ARCHIVES.values()
     ]
-    return pd.DataFrame(rows)
+    with resources.as_file(_sample_archive()) as archive:
+        digest = hashlib.sha256(archive.read_bytes()).hexdigest()
+        rows.append({
+            "name": SAMPLE,
+            "description": _SAMPLE_DESCRIPTION,
+            "files": _SAMPLE_FILES,
+            "frames": _SAMPLE_FRAMES,
+            "fps": 120,
+            "size": archive.stat().st_size,
+            "embedded": True,
+            "licence": _SAMPLE_LICENCE,
+            "source": _SAMPLE_SOURCE,
+            "sha256": digest,
+            "cached": (cache / f"{SAMPLE}-{digest[:12]}" / SAMPLE).is_dir(),
+        })
+    return pd.DataFrame(rows, columns=INFO_COLUMNS)
 
 
 def fetch(name: str, progress: bool = False) -> Path:
@@ -162,20 +226,24 @@ def fetch(name: str, progress: bool = False) -> Path:
     Parameters
     ----------
     name : str
-        A registered name (see :func:`names`).
+        A registered name (see :func:`names`), or ``"sample"`` for the embedded sample (:func:`sample`).
     progress : bool
         Show a progress bar while downloading over http(s) (needs ``tqdm``); ignored for local folders.
 
     Returns
     -------
     pathlib.Path
-        The archive's unpacked top folder, ``<cache>/<name>/<name>``.
+        The archive's unpacked top folder, ``<cache>/<name>/<name>`` (for ``"sample"``, what :func:`sample`
+        returns).
 
     Raises
     ------
     DatasetError
-        Unknown name, base location not found, download failure or sha256 mismatch.
+        Unknown name, base location not found (the message says where the archives come from and how to
+        provide them), download failure or sha256 mismatch.
     """
+    if name == SAMPLE:
+        return sample()
     archive = _archive(name)
     base = data_url()
     cache = _cache_dir()
@@ -200,13 +268,17 @@ def sample() -> Path:
         ``<cache>/sample-<12 hex digits of the archive's sha256>/sample``, holding ``hdm05-cut/``,
         ``cmu-asfamc/``, ``LICENSE.md`` and ``README.md``.
     """
-    source = resources.files("mocapviz") / "data" / "sample.tar.xz"
-    with resources.as_file(source) as archive:
+    with resources.as_file(_sample_archive()) as archive:
         digest = hashlib.sha256(archive.read_bytes()).hexdigest()
-        target = _cache_dir() / f"sample-{digest[:12]}"
+        target = _cache_dir() / f"{SAMPLE}-{digest[:12]}"
         if not target.is_dir():
             _unpack(archive, target, replace=False)
-    return target / "sample"
+    return target / SAMPLE
+
+
+def _sample_archive():
+    """The sample archive inside the package (an importlib.resources Traversable)."""
+    return resources.files("mocapviz") / "data" / f"{SAMPLE}.tar.xz"
 
 
 def data_url() -> str:
@@ -216,18 +288,19 @@ def data_url() -> str:
     -------
     str
         ``MOCAPVIZ_DATA_URL`` when set (a plain folder path becomes a ``file://`` URL), else the ``file://``
-        URL of the first existing default folder.
+        URL of ``../shared/data`` beside the source checkout the package runs from, if it exists.
 
     Raises
     ------
     DatasetError
-        The variable is unset and no default folder exists.
+        The variable is unset and there is no such folder. The message (two lines) says how to provide the
+        archives and where their data come from.
     """
     value = os.environ.get(DATA_URL_ENV, "").strip()
     if not value:
         folder = next((f for f in _default_folders() if f.is_dir()), None)
         if folder is None:
-            raise DatasetError(f"mocap archives not found: set {DATA_URL_ENV} to a folder or URL that holds them")
+            raise DatasetError(_not_found_message())
         value = str(folder)
     if "://" not in value:
         value = Path(value).expanduser().resolve().as_uri()
@@ -235,14 +308,32 @@ def data_url() -> str:
 
 
 def _default_folders() -> list[Path]:
-    """Folders tried, in order, when ``MOCAPVIZ_DATA_URL`` is unset."""
-    repo_root = Path(__file__).resolve().parent.parent
-    return [repo_root.parent / "shared" / "data", Path("/work/shared/data")]
+    """Folders tried, in order, when ``MOCAPVIZ_DATA_URL`` is unset: ``<checkout>/../shared/data`` when the
+    package runs from a source checkout (its parent folder holds ``pyproject.toml``), else none."""
+    checkout = Path(__file__).resolve().parent.parent
+    if not (checkout / "pyproject.toml").is_file():
+        return []
+    return [checkout.parent / "shared" / "data"]
 
 
-def _cache_dir() -> Path:
+def _not_found_message() -> str:
+    """The error when no base location is known: how to provide the archives, and where they come from."""
+    return (
+        f"mocap archives not found: set {DATA_URL_ENV} to a folder or http(s) URL holding NAME.tar.xz (names: "
+        f"'mocapviz datasets list'; a source checkout also finds ../shared/data); the embedded '{SAMPLE}' needs none.\n"
+        "They repackage public data: HDM05 cut clips (resources.mpi-inf.mpg.de/HDM05, CC BY-SA 3.0), the CMU "
+        "Graphics Lab database (mocap.cs.cmu.edu) and the Bandai Namco Research motion dataset "
+        "(github.com/BandaiNamcoResearchInc/Bandai-Namco-Research-Motiondataset, CC BY-NC 4.0); see the README, "
+        "'Data and licences'."
+    )
+
+
+def cache_dir() -> Path:
     """The cache folder: ``MOCAPVIZ_HOME`` or the user cache of the operating system."""
     return Path(os.environ.get(HOME_ENV) or pooch.os_cache("mocapviz")).expanduser().resolve()
+
+
+_cache_dir = cache_dir
 
 
 def _archive(name: str) -> Archive:
@@ -250,7 +341,7 @@ def _archive(name: str) -> Archive:
     try:
         return ARCHIVES[name]
     except KeyError:
-        raise DatasetError(f"unknown dataset {name!r}: known are {', '.join(ARCHIVES)}") from None
+        raise DatasetError(f"unknown dataset {name!r}: known are {', '.join(ARCHIVES)} and {SAMPLE} (embedded)") from None
 
 
 def _downloader(base: str, progress: bool):

@@ -1,12 +1,15 @@
-"""mocapviz.datasets on the real shared archives (located as mocapviz.datasets locates them).
+"""mocapviz.datasets on the real shared archives (located as mocapviz.datasets locates them) and the embedded sample.
 
-MOCAPVIZ_HOME always points into pytest's tmp folders, so the user's cache is never touched.
+MOCAPVIZ_HOME always points into pytest's tmp folders, so the user's cache is never touched. Without the shared
+archives (MOCAPVIZ_DATA_URL unset and no ../shared/data beside the checkout) the tests that need them are skipped
+with the reason; the tests of the embedded sample and of the error messages run anyway.
 """
 
 from __future__ import annotations
 
 import functools
 import http.server
+import re
 import shutil
 import threading
 import urllib.parse
@@ -18,16 +21,23 @@ import pooch
 import pytest
 
 from mocapviz import datasets
+from mocapviz.cli import main
 from mocapviz.datasets import DatasetError
 from mocapviz.labels import read_labels_tsv
+
+REPO = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture(scope="module")
 def archives_folder() -> Path:
-    """The local folder that holds the shared archives."""
-    url = urllib.parse.urlparse(datasets.data_url())
+    """The local folder that holds the shared archives (skips the test when there is none)."""
+    try:
+        base = datasets.data_url()
+    except DatasetError as exc:
+        pytest.skip(f"needs the shared archives: {str(exc).splitlines()[0]}")
+    url = urllib.parse.urlparse(base)
     if url.scheme != "file":
-        pytest.skip(f"these tests need the archives in a local folder, not at {datasets.data_url()}")
+        pytest.skip(f"these tests need the archives in a local folder, not at {base}")
     return Path(urllib.request.url2pathname(url.path))
 
 
@@ -41,8 +51,15 @@ def module_home(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def hdm05(module_home) -> Path:
-    return datasets.fetch("hdm05-cut")
+def hdm05(module_home, fetch_archive) -> Path:
+    return fetch_archive("hdm05-cut")
+
+
+@pytest.fixture
+def no_data(monkeypatch, tmp_path):
+    """No base location: MOCAPVIZ_DATA_URL unset and the package seen as installed outside a checkout."""
+    monkeypatch.delenv(datasets.DATA_URL_ENV, raising=False)
+    monkeypatch.setattr(datasets, "__file__", str(tmp_path / "site-packages" / "mocapviz" / "datasets.py"))
 
 
 @pytest.fixture
@@ -71,17 +88,47 @@ def test_fetch_again_reuses_the_cache_and_info_reports_it(hdm05):
 
 def test_registry_matches_the_manifest(archives_folder):
     manifest = (archives_folder / "MANIFEST.md").read_text(encoding="utf-8")
+    flat = " ".join(manifest.split())
     assert datasets.names() == ["hdm05-cut", "cmu-asfamc", "bandai-namco-1", "bandai-namco-2"]
-    for row in datasets.info().itertuples():
+    shared = datasets.info().query("not embedded")
+    assert shared["name"].tolist() == datasets.names()
+    for row in shared.itertuples():
         assert f"| {row.name} |" in manifest
         assert f"| {row.sha256} |" in manifest
         assert f"{row.frames:,}" in manifest
+        assert (archives_folder / f"{row.name}.tar.xz").stat().st_size == row.size
+        repo, commit = re.search(r"github\.com/([\w.-]+/[\w.-]+)\W*@ (\w+)", row.source).groups()
+        assert f"{repo} @ {commit}" in flat, row.source
 
 
 def test_info_in_an_empty_cache(home):
     table = datasets.info()
-    assert list(table.columns) == ["name", "description", "files", "frames", "fps", "licence", "sha256", "cached"]
+    assert list(table.columns) == datasets.INFO_COLUMNS
+    assert list(table.columns) == ["name", "description", "files", "frames", "fps", "size", "embedded", "licence",
+                                   "source", "sha256", "cached"]
     assert not table["cached"].any()
+    assert table["name"].tolist() == [*datasets.names(), "sample"]
+    assert table["embedded"].tolist() == [False] * len(datasets.names()) + [True]
+    assert table["source"].str.len().gt(0).all() and table["licence"].str.len().gt(0).all()
+
+
+def test_info_describes_the_embedded_sample(home, no_data):
+    sample = datasets.info().set_index("name").loc["sample"]
+    archive = resources.files("mocapviz") / "data" / "sample.tar.xz"
+    assert sample["embedded"] and not sample["cached"]
+    assert sample["size"] == archive.stat().st_size
+    assert sample["sha256"] == pooch.file_hash(str(archive))
+    folder = datasets.sample()
+    assert datasets.info().set_index("name").loc["sample", "cached"]
+    readme = (folder / "README.md").read_text(encoding="utf-8")
+    assert f"24 motion files, {sample['frames']} frames in total" in readme
+    assert sample["fps"] == 120
+    assert len(list(folder.rglob("*.amc"))) == 24 and len(list(folder.rglob("*.asf"))) == 4
+    assert "CC BY-SA 3.0" in sample["licence"] and "mocap.cs.cmu.edu" in sample["licence"]
+
+
+def test_fetch_sample_is_the_embedded_sample(home, no_data):
+    assert datasets.fetch("sample") == datasets.sample()
 
 
 def test_corrupted_archive_is_rejected(archives_folder, home, tmp_path, monkeypatch):
@@ -171,7 +218,60 @@ def test_no_base_location_says_to_set_the_variable(tmp_path, monkeypatch):
         datasets.data_url()
 
 
-def test_sample_holds_real_hdm05_and_cmu_files(hdm05, home):
+def test_no_base_location_says_where_the_archives_come_from(home, no_data):
+    with pytest.raises(DatasetError) as error:
+        datasets.fetch("hdm05-cut")
+    lines = str(error.value).splitlines()
+    assert len(lines) == 2
+    assert lines[0].startswith("mocap archives not found: set MOCAPVIZ_DATA_URL to a folder or http(s) URL")
+    assert "NAME.tar.xz" in lines[0] and "../shared/data" in lines[0] and "'sample' needs none" in lines[0]
+    for source in ("resources.mpi-inf.mpg.de/HDM05", "mocap.cs.cmu.edu",
+                   "github.com/BandaiNamcoResearchInc/Bandai-Namco-Research-Motiondataset"):
+        assert source in lines[1]
+        assert any(source in row for row in datasets.info()["source"])
+    assert "CC BY-SA 3.0" in lines[1] and "CC BY-NC 4.0" in lines[1]
+
+
+def test_default_folder_is_only_the_checkouts_shared_data(tmp_path, monkeypatch):
+    assert datasets._default_folders() == [REPO.parent / "shared" / "data"]
+    installed = tmp_path / "site-packages" / "mocapviz"
+    monkeypatch.setattr(datasets, "__file__", str(installed / "datasets.py"))
+    assert datasets._default_folders() == []
+    (tmp_path / "site-packages" / "pyproject.toml").parent.mkdir(parents=True, exist_ok=True)
+    (tmp_path / "site-packages" / "pyproject.toml").write_text("[project]\n")
+    assert datasets._default_folders() == [tmp_path / "shared" / "data"]
+
+
+def test_installed_package_without_the_variable_has_no_base_location(tmp_path, monkeypatch):
+    monkeypatch.delenv(datasets.DATA_URL_ENV, raising=False)
+    monkeypatch.setattr(datasets, "__file__", str(tmp_path / "site-packages" / "mocapviz" / "datasets.py"))
+    with pytest.raises(DatasetError, match="mocap archives not found"):
+        datasets.data_url()
+
+
+def test_cli_list_shows_every_dataset_with_the_sample_embedded(home, capsys):
+    assert main(["datasets", "list"]) == 0
+    out = capsys.readouterr().out
+    for row in datasets.info().itertuples():
+        assert f"{row.name}: {row.description}" in out
+        assert f"licence: {row.licence}" in out and f"source: {row.source}" in out
+    block = out.split("sample: ", 1)[1]
+    assert "5,543 frames at 120 Hz; 1.1 MB .tar.xz; embedded in the package, no download" in block
+    assert out.splitlines()[-1].endswith(f"cache {home.resolve()} (MOCAPVIZ_HOME)")
+
+
+def test_cli_list_and_fetch_without_the_archives(home, no_data, capsys):
+    assert main(["datasets", "list"]) == 0
+    assert "shared archives not found: set MOCAPVIZ_DATA_URL" in capsys.readouterr().out.splitlines()[-1]
+    assert main(["datasets", "fetch", "hdm05-cut"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("mocapviz: error: mocap archives not found: set MOCAPVIZ_DATA_URL")
+    assert "mocap.cs.cmu.edu" in err and len(err.splitlines()) == 2
+    assert main(["datasets", "fetch", "sample"]) == 0
+    assert Path(capsys.readouterr().out.strip()) == datasets.sample()
+
+
+def test_sample_holds_real_hdm05_and_cmu_files(home, no_data):
     archive = resources.files("mocapviz") / "data" / "sample.tar.xz"
     assert archive.stat().st_size <= 5 * 1024 * 1024
     folder = datasets.sample()
@@ -180,7 +280,6 @@ def test_sample_holds_real_hdm05_and_cmu_files(hdm05, home):
     assert datasets.sample() == folder
     amc = sorted((folder / "hdm05-cut" / "amc").glob("*.amc"))
     assert len(amc) == 22
-    assert all((p.read_bytes() == (hdm05 / "amc" / p.name).read_bytes()) for p in amc)
     cmu = sorted(p.relative_to(folder / "cmu-asfamc").as_posix() for p in folder.glob("cmu-asfamc/amc/*/*.amc"))
     assert cmu == ["amc/martialwalk/135_08.amc", "amc/mjackson/131_01.amc"]
     licence = (folder / "LICENSE.md").read_text(encoding="utf-8")
@@ -188,6 +287,16 @@ def test_sample_holds_real_hdm05_and_cmu_files(hdm05, home):
     assert not list(folder.rglob("*.bvh"))
     table = read_labels_tsv(folder / "hdm05-cut" / "labels.tsv")
     assert table.groupby("actor")["class"].nunique().to_dict() == {"dg": 11, "mm": 11}
+
+
+def test_sample_files_are_unchanged_files_of_the_shared_archives(hdm05, home, fetch_archive):
+    folder = datasets.sample()
+    amc = sorted((folder / "hdm05-cut" / "amc").glob("*.amc"))
+    assert len(amc) == 22
+    assert all(p.read_bytes() == (hdm05 / "amc" / p.name).read_bytes() for p in amc)
+    cmu = fetch_archive("cmu-asfamc")
+    for p in folder.glob("cmu-asfamc/amc/*/*.amc"):
+        assert p.read_bytes() == (cmu / p.relative_to(folder / "cmu-asfamc")).read_bytes()
 
 
 def test_unsupported_scheme(home, monkeypatch):

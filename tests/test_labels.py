@@ -1,4 +1,7 @@
-"""mocapviz.labels on real label tables: the packaged sample (HDM05, CMU) and the Bandai Namco 1 archive."""
+"""mocapviz.labels on real label tables: the packaged sample (HDM05, CMU) and the Bandai Namco 1 archive.
+
+The sample tests never need the shared archives; the Bandai tests are skipped, with the reason, without them.
+"""
 
 from __future__ import annotations
 
@@ -26,8 +29,8 @@ def sample(module_home) -> Path:
 
 
 @pytest.fixture(scope="module")
-def bandai1(module_home) -> Path:
-    return datasets.fetch("bandai-namco-1")
+def bandai1(module_home, fetch_archive) -> Path:
+    return fetch_archive("bandai-namco-1")
 
 
 @pytest.fixture

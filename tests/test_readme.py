@@ -18,7 +18,7 @@ MARKER = "<!-- demo commands: each line is run by tests/test_readme.py -->"
 
 def demo_commands() -> list[str]:
     text = README.read_text()
-    block = re.search(re.escape(MARKER) + r"\s*```sh\n(.*?)```", text, re.S)
+    block = re.search(re.escape(MARKER) + r"\s*```sh\n(.*?)```", text, re.DOTALL)
     assert block, f"README.md has no demo command block after {MARKER!r}"
     return [line.strip() for line in block.group(1).splitlines() if line.strip()]
 
