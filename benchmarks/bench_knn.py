@@ -9,7 +9,9 @@
     timing, ours and brute force must agree on the sampled queries (up to exact ties). Queries: random
     database frames. Each figure: median of ``repeats`` runs of the whole batch; the engines alternate
     within a repeat so that they see the same machine state. CPU ms/query (process time of all threads per
-    query) is printed too: it is less disturbed by other processes than wall time.
+    query) is printed too: it is less disturbed by other processes than wall time. Beside these batched
+    figures, the single-query latency: ``N_SINGLE`` queries one at a time (one row per call, ``workers=1``),
+    the engines alternating query by query; the median.
 (c) Fat-graph base poses (§5.3): ``base_poses`` against ``base_poses_quadratic`` on evenly spaced subsets of
     the real frames (identical results required), and ``base_poses`` on the whole database.
 (d) Table 1 for every feature set (F15E ... F30x3E, Fp8/16/25): :func:`mocapviz.experiments.knn_timings`, with
@@ -59,6 +61,8 @@ N_QUERIES = {16: 20_000, 256: 5_000}  # batch per figure; quick: N_QUERIES_QUICK
 N_QUERIES_QUICK = {16: 2_000, 256: 500}
 N_BRUTE = 200  # queries timed (and checked) with brute force; quick: N_BRUTE_QUICK
 N_BRUTE_QUICK = 50
+N_SINGLE = 200  # queries timed one at a time (single-query latency), per k; quick: N_SINGLE_QUICK
+N_SINGLE_QUICK = 50
 EPS = 0.5  # the approximation the paper found harmless for reconstruction (§5.2)
 N_SET_QUERIES = 500  # per feature set in (d); quick: N_SET_QUERIES_QUICK
 N_SET_QUERIES_QUICK = 100
@@ -141,8 +145,21 @@ def _disagreements(features, queries, d, i, d_ref, i_ref) -> int:
     return bad
 
 
+def single_latency(engines: dict, queries: np.ndarray, k: int, variants: list) -> dict:
+    """{variant name: median ms} of single queries, each alone (one row, ``workers=1`` where the engine takes it),
+    the variants alternating query by query; variants with no single-query options are left out."""
+    times = {name: [] for name, *_, single in variants if single is not None}
+    for q in queries:
+        for name, engine, _, _, single in variants:
+            if single is not None:
+                t0 = time.perf_counter()
+                engines[engine](q[None], k, **single)
+                times[name].append((time.perf_counter() - t0) * 1e3)
+    return {name: statistics.median(t) for name, t in times.items()}
+
+
 def bench_queries(features: np.ndarray, engines: dict, quick: bool, repeats: int, seed: int = 7):
-    """(b): per k, per-query times of each engine on the same random database frames."""
+    """(b): per k, per-query times of each engine on the same random database frames: batched, and single."""
     rng = np.random.default_rng(seed)
     n_queries = N_QUERIES_QUICK if quick else N_QUERIES
     n_brute = N_BRUTE_QUICK if quick else N_BRUTE
@@ -161,20 +178,26 @@ def bench_queries(features: np.ndarray, engines: dict, quick: bool, repeats: int
             notes.append(f"k={k}: pykdtree (float32 distances) and brute force on {n_brute} queries: "
                          + ("identical (up to exact ties)" if not bad_p else f"{bad_p} entries differ by > 1e-5 "
                             "or beyond a tie (float32 rounding)"))  # fmt: skip
-        variants = [("ours (ckdtree), all cores", "ckdtree", {}, queries),
-                    ("ours (ckdtree), 1 thread", "ckdtree", {"workers": 1}, queries),
-                    (f"ours (ckdtree), eps = {EPS}, all cores", "ckdtree", {"eps": EPS}, queries),
-                    ("numpy brute force, all cores", "brute", {}, sample)]  # fmt: skip
+        # (name, engine, batched options, batch, single-query options or None)
+        variants = [("ours (ckdtree), all cores", "ckdtree", {}, queries, {"workers": 1}),
+                    ("ours (ckdtree), 1 thread", "ckdtree", {"workers": 1}, queries, None),
+                    (f"ours (ckdtree), eps = {EPS}, all cores", "ckdtree", {"eps": EPS}, queries,
+                     {"eps": EPS, "workers": 1}),
+                    ("numpy brute force, all cores", "brute", {}, sample, {"workers": 1})]  # fmt: skip
         if "pykdtree" in engines:
-            variants.insert(3, ("pykdtree, all cores", "pykdtree", {}, queries))
+            variants.insert(3, ("pykdtree, all cores", "pykdtree", {}, queries, {}))
         runs = {name: [] for name, *_ in variants}
         for _ in range(repeats):
-            for name, engine, options, q in variants:
+            for name, engine, options, q, _ in variants:
                 log(f"k={k}: {name}, {len(q):,} queries")
                 wall, cpu, _ = _timed(lambda e=engine, q=q, o=options, k=k: engines[e](q, k, **o))
                 runs[name].append((wall / len(q) * 1e3, cpu / len(q) * 1e3))
+        n_single = N_SINGLE_QUICK if quick else N_SINGLE
+        log(f"k={k}: single-query latency, {n_single} queries")
+        single = single_latency(engines, queries[:n_single], k, variants)
         brute_ms = statistics.median(r[0] for r in runs["numpy brute force, all cores"])
-        for name, _, _, q in variants:
+        brute_single = single["numpy brute force, all cores"]
+        for name, _, _, q, _ in variants:
             ms = statistics.median(r[0] for r in runs[name])
             ours = name.startswith("ours") and "eps" not in name and "1 thread" not in name
             meets = ""
@@ -185,6 +208,9 @@ def bench_queries(features: np.ndarray, engines: dict, quick: bool, repeats: int
             rows.append({"k": k, "engine": name, "queries": len(q), "ms_per_query": ms,
                          "cpu_ms_per_query": statistics.median(r[1] for r in runs[name]),
                          "runs_ms": [r[0] for r in runs[name]], "vs_brute": brute_ms / ms,
+                         "single_queries": n_single if name in single else None,
+                         "single_ms": single.get(name), "single_vs_brute": brute_single / single[name]
+                         if name in single else None,
                          "paper_hdm05_ms": PAPER_MS[k][0], "paper_cmu_ms": PAPER_MS[k][1],
                          "target": f"≤ {TARGET_MS[k]:g} ms, ≥ {TARGET_SPEEDUP:.0f}× brute" if ours else "",
                          "meets": meets, "differ": bad})  # fmt: skip
@@ -254,11 +280,13 @@ def table_build(rows: list[dict]) -> str:
 
 def table_queries(rows: list[dict]) -> str:
     return markdown(
-        "| k | engine | queries | ms/query | CPU ms/query | runs ms/query | brute / this | paper ms HDM05 / CMU "
-        "| target | meets |",
-        "|---:|---|---:|---:|---:|---|---:|---|---|---|",
+        "| k | engine | batch of queries | batched, ms per query | batched, CPU ms per query | batched runs ms per "
+        "query | brute / this, batched | single query latency ms (median) | brute / this, single query "
+        "| paper ms HDM05 / CMU | target (batched) | meets |",
+        "|---:|---|---:|---:|---:|---|---:|---:|---:|---|---|---|",
         ([str(r["k"]), r["engine"], f"{r['queries']:,}", _f(r["ms_per_query"], 4), _f(r["cpu_ms_per_query"], 4),
-          ", ".join(f"{t:.4f}" for t in r["runs_ms"]), f"{r['vs_brute']:.0f}×",
+          ", ".join(f"{t:.4f}" for t in r["runs_ms"]), f"{r['vs_brute']:.0f}×", _f(r["single_ms"], 4),
+          "—" if r["single_vs_brute"] is None else f"{r['single_vs_brute']:.0f}×",
           f"{r['paper_hdm05_ms']:g} / {r['paper_cmu_ms']:g}", r["target"], r["meets"]] for r in rows),
     )  # fmt: skip
 
@@ -328,7 +356,12 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print()
     print("Queries: random database frames (each finds itself). Brute force: `KnnIndex(engine='brute')` — scipy "
           "`cdist` (sums of squared differences) + `np.argpartition`, 64 MB chunks of queries over threads; timed on "
-          "the first queries of the batch only. CPU ms/query: process CPU time (all threads) per query.")  # fmt: skip
+          "the first queries of the batch only. CPU ms/query: process CPU time (all threads) per query. Batched: "
+          "the whole batch in one call over all cores (ours 1 thread: `workers=1`), wall time / queries; "
+          f"throughput, not the wait for one answer. Single query latency: the first {query_rows[0]['single_queries']} "
+          "queries of the batch, each in its own call (one row; ours and brute force `workers=1`, pykdtree "
+          "parallelises over queries so uses one thread for one), engines alternating query by query; median "
+          "wall ms; shown on the row of the engine and eps it was measured with.")  # fmt: skip
     for n in query_notes:
         print(f"- {n}")
     print()

@@ -26,7 +26,14 @@ What is measured, per query length (1 s = 30 frames and 3 s = 90 frames at 30 Hz
     the optimal path there); recall: the fraction of subsequence DTW's top-10 non-overlapping matches outside
     the own document that an LNG match overlaps. The reference top 10 is chosen as ``subsequence_dtw`` does
     (local minima per document, ``select_matches``); on the baseline queries it is checked against
-    ``subsequence_dtw``'s own output.
+    ``subsequence_dtw``'s own output. Why matches are missed, for k = 256: the share of DTW's top-10 matches
+    whose optimal path (``mocapviz.match.dtw`` of the query against the matched stretch) lies wholly inside
+    LNG's neighbourhoods (the k nearest frames of each query frame, own document excluded) -- then the graph
+    has that path and its cost -- and the share of the path cells that do.
+    In (a) and (b), the row "k=256, real frames only" runs LNG k = 256 on the real frames alone: the first
+    ``real_frames`` frames of the same database (its real documents; the mirrored copies are appended after
+    them), with their own ``KnnIndex`` and subsequence-DTW reference, so that the effect of the mirrored copies
+    on recall is measured, not assumed.
 
 Queries: random 1 s / 3 s stretches of the real (not mirrored) documents, uniform over the possible stretches
 (seeded), each searched outside its own document. The database: the kNN benchmark's (``bench_knn.DATABASE``:
@@ -75,15 +82,19 @@ TARGET_RHO = 0.99
 EQUAL_RTOL = 1e-9
 PAPER_GRAPH_S = {1: 0.03, 3: 0.08}  # Krüger et al. 2010: LNG time without the kNN search, 1 s and 3 s queries
 SEED = 11
-# (label, k, eps, exclude own document, runs at most): the first row is the one the targets apply to
+REAL = "k=256, real frames only"
+# (label, k, eps, exclude own document, runs at most, on the real frames only): the first row is the one the
+# targets apply to
 CONFIGS = (
-    ("k=256", K_MAIN, 0.0, True, None),
-    ("k=64", 64, 0.0, True, None),
-    ("k=1024", 1024, 0.0, True, 1),
-    ("k=256, eps=0.1", K_MAIN, 0.1, True, None),
-    ("k=256, eps=0.5", K_MAIN, 0.5, True, None),
-    ("k=256, own document not excluded (timing only)", K_MAIN, 0.0, False, None),
+    ("k=256", K_MAIN, 0.0, True, None, False),
+    ("k=64", 64, 0.0, True, None, False),
+    ("k=1024", 1024, 0.0, True, 1, False),
+    ("k=256, eps=0.1", K_MAIN, 0.1, True, None, False),
+    ("k=256, eps=0.5", K_MAIN, 0.5, True, None, False),
+    ("k=256, own document not excluded (timing only)", K_MAIN, 0.0, False, None, False),
+    (REAL, K_MAIN, 0.0, True, None, True),
 )
+COVERED = {False: CONFIGS[0][0], True: REAL}  # {real frames only: the row whose neighbourhoods are checked}
 
 
 # ============================================================================ queries and reference
@@ -128,6 +139,23 @@ def quality(matches: pd.DataFrame, ref: dict) -> dict:
             "n_recalled": round(a["recall"] * n_ref) if n_ref else 0, "lower_than_dtw": a["below_dtw"]}
 
 
+def path_coverage(q: np.ndarray, index, own, features, ref: dict) -> dict:
+    """Of subsequence DTW's top matches, how many have their whole optimal path inside the k = K_MAIN
+    neighbourhoods of the query frames (the graph then finds that path), and how many path cells lie inside."""
+    from mocapviz.match import dtw
+    from mocapviz.match.lng import neighbourhoods
+
+    _, near = neighbourhoods(q, index, K_MAIN, exclude=own)
+    out = {"paths": len(ref["ends"]), "paths_inside": 0, "cells": 0, "cells_inside": 0}
+    for start, end in zip(ref["starts"], ref["ends"]):
+        _, path = dtw(q, np.asarray(features[start : end + 1], dtype=np.float64))
+        inside = (near[path[:, 0]] == start + path[:, 1, None]).any(axis=1)
+        out["paths_inside"] += int(inside.all())
+        out["cells"] += len(inside)
+        out["cells_inside"] += int(inside.sum())
+    return out
+
+
 # ============================================================================ timings
 def _timed(fn) -> tuple[float, float, object]:
     """Wall and CPU (all threads) seconds of fn(), and its result."""
@@ -155,22 +183,24 @@ def _library():
     return run, None
 
 
-def run_lng(index, queries: list[dict], features, starts, repeats: int) -> dict:
+def run_lng(searched: dict, queries: list[dict], features, repeats: int) -> dict:
     """{config label: per query {"wall": [...], "knn": [...], "graph": [...], "cpu": [...], "out": first result}}.
-    The configurations alternate within a repeat."""
+    ``searched``: {real frames only: (KnnIndex, document starts)}. The configurations alternate within a repeat."""
     from mocapviz.match import lng
 
     runs = {c[0]: [{"wall": [], "knn": [], "graph": [], "cpu": [], "out": None} for _ in queries] for c in CONFIGS}
+    index, starts = searched[False]
     lng(np.asarray(features[:30], dtype=np.float64), index, k=8, starts=starts)  # numba: load the compiled code
     for rep in range(repeats):
-        for label, k, eps, exclude, cap in CONFIGS:
+        for label, k, eps, exclude, cap, real in CONFIGS:
             if cap is not None and rep >= cap:
                 continue
+            index, starts = searched[real]
             log(f"LNG {label}, run {rep + 1}: {len(queries)} queries")
             for qi, query in enumerate(queries):
                 q = np.asarray(features[query["first"] : query["first"] + query["m"]], dtype=np.float64)
                 own = np.array([query["doc_start"], query["doc_stop"]]) if exclude else None
-                wall, cpu, out = _timed(lambda q=q, own=own, k=k, eps=eps: lng(
+                wall, cpu, out = _timed(lambda q=q, own=own, k=k, eps=eps, index=index, starts=starts: lng(
                     q, index, k=k, radius=None, k_matches=K_MATCHES, starts=starts, eps=eps, exclude=own))
                 r = runs[label][qi]
                 r["wall"].append(wall)
@@ -210,33 +240,36 @@ def _meets(ok: bool, miss: str) -> str:
     return "met" if ok else f"MISSED ({miss})"
 
 
-def summarise(queries, runs, refs, base) -> tuple[list[dict], list[dict], list[dict], list[str]]:
-    """Rows of the time/quality table (per config and length), of the baseline table, per-query rows, notes."""
+def summarise(queries, runs, refs, base, cover) -> tuple[list[dict], list[dict], list[dict], list[str]]:
+    """Rows of the time/quality table (per config and length), of the baseline table, per-query rows, notes.
+    ``refs``: {real frames only: per query reference}; ``cover``: {config label: per query path_coverage}."""
     rows, base_rows, query_rows, notes = [], [], [], []
     for seconds in SECONDS:
         m = seconds * FPS
         sel = [i for i, q in enumerate(queries) if q["m"] == m]
         bsel = [i for i in sel if i in base]
-        for label, k, eps, exclude, _ in CONFIGS:
+        for label, k, eps, exclude, _, real in CONFIGS:
             per = [runs[label][i] for i in sel]
             wall = [statistics.median(r["wall"]) for r in per]
             knn = [statistics.median(r["knn"]) for r in per]
             graph = [statistics.median(r["graph"]) for r in per]
             # baseline times hardly depend on the query's content (O(m n) whatever it is), LNG's do: the ratios
             # divide the baselines' median by LNG's median over all queries of the length
-            vs_dtw = [base[i]["dtw_s"] for i in bsel]
-            vs_lib = [base[i]["lib_s"] for i in bsel if base[i]["lib_s"] is not None]
-            row = {"query_s": seconds, "query_frames": m, "config": label, "k": k, "eps": eps,
+            # (the baselines searched the whole database: no ratio for the real frames alone)
+            vs_dtw = [base[i]["dtw_s"] for i in bsel if not real]
+            vs_lib = [base[i]["lib_s"] for i in bsel if base[i]["lib_s"] is not None and not real]
+            row = {"query_s": seconds, "query_frames": m, "config": label, "k": k, "eps": eps, "real_only": real,
                    "exclude_own_document": exclude, "queries": len(sel), "runs": len(per[0]["wall"]),
                    "lng_s": statistics.median(wall), "knn_s": statistics.median(knn),
                    "graph_s": statistics.median(graph), "lng_s_max": max(wall), "graph_s_max": max(graph),
+                   "knn_share": statistics.median(a / b for a, b in zip(knn, wall)),
                    "paper_graph_s": PAPER_GRAPH_S[seconds], "baseline_queries": len(bsel),
                    "dtw_s": statistics.median(vs_dtw) if vs_dtw else None,
                    "lib_s": statistics.median(vs_lib) if vs_lib else None,
                    "dtw_over_lng": statistics.median(vs_dtw) / statistics.median(wall) if vs_dtw else None,
                    "lib_over_lng": statistics.median(vs_lib) / statistics.median(wall) if vs_lib else None}  # fmt: skip
             if exclude:
-                qual = [quality(runs[label][i]["out"], refs[i]) for i in sel]
+                qual = [quality(runs[label][i]["out"], refs[real][i]) for i in sel]
                 rhos = [x["rho"] for x in qual if np.isfinite(x["rho"])]
                 matches = sum(x["n_matches"] for x in qual)
                 row |= {"rho_mean": float(np.mean(rhos)) if rhos else None, "rho_min": min(rhos) if rhos else None,
@@ -245,6 +278,10 @@ def summarise(queries, runs, refs, base) -> tuple[list[dict], list[dict], list[d
                         "equal_fraction": sum(x["n_equal"] for x in qual) / matches if matches else None,
                         "recall": sum(x["n_recalled"] for x in qual) / max(1, sum(x["n_ref"] for x in qual)),
                         "below_dtw": sum(x["lower_than_dtw"] for x in qual)}  # fmt: skip
+                if label in cover:
+                    c = {key: sum(cover[label][i][key] for i in sel) for key in cover[label][sel[0]]}
+                    row |= {"paths_inside": c["paths_inside"] / max(1, c["paths"]),
+                            "cells_inside": c["cells_inside"] / max(1, c["cells"])}
                 if label == CONFIGS[0][0]:
                     for i, x in zip(sel, qual):
                         q = queries[i]
@@ -253,7 +290,7 @@ def summarise(queries, runs, refs, base) -> tuple[list[dict], list[dict], list[d
                                            "lng_s": statistics.median(runs[label][i]["wall"]),
                                            "knn_s": statistics.median(runs[label][i]["knn"]),
                                            "graph_s": statistics.median(runs[label][i]["graph"]),
-                                           "subsequence_costs_s": refs[i]["seconds"], **x})  # fmt: skip
+                                           "subsequence_costs_s": refs[False][i]["seconds"], **x})  # fmt: skip
                 if label == CONFIGS[0][0]:
                     r = row
                     miss_dtw = f"{r['dtw_over_lng']:.0f}× < {TARGET_SPEEDUP:.0f}×" if vs_dtw else "not run"
@@ -266,7 +303,7 @@ def summarise(queries, runs, refs, base) -> tuple[list[dict], list[dict], list[d
                     r["meets_rho"] += f", on {r['queries_with_rho']} of {len(sel)} queries (>= 3 matches)"
             rows.append(row)
         for i in bsel:
-            b, ref, q = base[i], refs[i], queries[i]
+            b, ref, q = base[i], refs[False][i], queries[i]
             table = b["dtw_table"]
             outside = table[table["doc_id"] != q["doc"]]
             n_out = len(outside)
@@ -310,11 +347,13 @@ def table_lng(rows: list[dict]) -> str:
         return "—" if r[key] is None else f"{r[key]:.1f}×"
 
     return markdown(
-        "| query | LNG | queries | LNG s (end to end) | kNN s | graph s (excl. kNN) | paper excl. kNN s "
-        "| max LNG s | subseq. DTW / LNG | dtaidistance / LNG | target ≥ 100× DTW | target ≥ 100× library |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---|",
+        "| query | LNG | queries | LNG s (end to end) | kNN s | graph s (excl. kNN) | kNN share of LNG "
+        "| paper excl. kNN s | max LNG s | subseq. DTW / LNG | dtaidistance / LNG | target ≥ 100× DTW "
+        "| target ≥ 100× library |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|",
         ([f"{r['query_s']} s ({r['query_frames']} frames)", r["config"], f"{r['queries']}", _f(r["lng_s"], 3),
-          _f(r["knn_s"], 3), _f(r["graph_s"], 4), f"{r['paper_graph_s']:g}", _f(r["lng_s_max"], 3),
+          _f(r["knn_s"], 3), _f(r["graph_s"], 4), f"{r['knn_share']:.0%}", f"{r['paper_graph_s']:g}",
+          _f(r["lng_s_max"], 3),
           speed(r, "dtw_over_lng"), speed(r, "lib_over_lng"), r.get("meets_speedup_dtw", ""),
           r.get("meets_speedup_lib", "")] for r in rows),
     )  # fmt: skip
@@ -323,11 +362,14 @@ def table_lng(rows: list[dict]) -> str:
 def table_quality(rows: list[dict]) -> str:
     return markdown(
         "| query | LNG | queries | with rho | Spearman rho (mean) | min rho | LNG matches | queries without a match "
-        "| LNG cost = DTW cost | recall of DTW top 10 | target rho ≥ 0.99 |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+        "| LNG cost = DTW cost | recall of DTW top 10 | DTW top-10 paths wholly in the k-neighbourhoods "
+        "| DTW path cells in the k-neighbourhoods | target rho ≥ 0.99 |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
         ([f"{r['query_s']} s", r["config"], f"{r['queries']}", f"{r['queries_with_rho']}", _f(r["rho_mean"], 3),
           _f(r["rho_min"], 3), f"{r['matches']}", f"{r['no_match_queries']}",
           "—" if r["equal_fraction"] is None else f"{r['equal_fraction']:.0%}", f"{r['recall']:.0%}",
+          f"{r['paths_inside']:.0%}" if "paths_inside" in r else "—",
+          f"{r['cells_inside']:.0%}" if "cells_inside" in r else "—",
           r.get("meets_rho", "")] for r in rows if r["exclude_own_document"]),
     )  # fmt: skip
 
@@ -367,21 +409,33 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     index = KnnIndex(features)
     t_index = time.perf_counter() - t0
     starts = db.documents["start"].to_numpy()
+    # the real frames alone (REAL rows): the mirrored copies are appended after the real documents
+    n_real = record["real_frames"]
+    docs = db.documents
+    real_docs = docs["mirror_of"].isna().to_numpy() if "mirror_of" in docs else np.ones(len(docs), bool)
+    assert np.array_equal(real_docs, starts < n_real), "the real documents are not the first frames"
+    t0 = time.perf_counter()
+    searched = {False: (index, starts), True: (KnnIndex(features[:n_real]), starts[real_docs])}
+    t_index_real = time.perf_counter() - t0
     library, library_note = _library()
     x64 = np.asarray(features, dtype=np.float64) if library is not None else None
 
     rng = np.random.default_rng(SEED)
     n_q, n_b = (N_QUERIES_QUICK, N_BASELINE_QUICK) if quick else (N_QUERIES, N_BASELINE)
     queries = [q for s in SECONDS for q in pick_queries(db, s * FPS, n_q, rng)]
-    runs = run_lng(index, queries, features, starts, repeats)
+    runs = run_lng(searched, queries, features, repeats)
     base_ids = [i for s in SECONDS for i in [j for j, q in enumerate(queries) if q["m"] == s * FPS][:n_b]]
     base = dict(zip(base_ids, run_baselines([queries[i] for i in base_ids], features, starts, x64, library)))
-    refs = {}
+    refs, cover = {False: {}, True: {}}, {label: {} for label in COVERED.values()}
     for i, q in enumerate(queries):
-        log(f"subsequence-DTW reference, query {i + 1} of {len(queries)} ({q['m']} frames)")
+        log(f"subsequence-DTW references, query {i + 1} of {len(queries)} ({q['m']} frames)")
         qa = np.asarray(features[q["first"] : q["first"] + q["m"]], dtype=np.float64)
-        refs[i] = reference(qa, features, starts, q)
-    rows, base_rows, query_rows, notes = summarise(queries, runs, refs, base)
+        own = np.array([q["doc_start"], q["doc_stop"]])
+        for real, n in ((False, db.n_frames), (True, n_real)):
+            index_, starts_ = searched[real]
+            refs[real][i] = reference(qa, features[:n], starts_, q)
+            cover[COVERED[real]][i] = path_coverage(qa, index_, own, features, refs[real][i])
+    rows, base_rows, query_rows, notes = summarise(queries, runs, refs, base, cover)
     del refs, x64
     info["others"] = monitor.report()
 
@@ -394,6 +448,9 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print(f"- queries: {n_q} per length, random stretches of real documents (uniform over stretches, seed {SEED}); "
           f"own documents {min(lens):,}–{max(lens):,} frames (median {int(np.median(lens)):,}), excluded from the "
           f"search; baselines on the first {n_b} per length")  # fmt: skip
+    print(f"- real frames only ({REAL!r} rows): the first {n_real:,} frames of the database, its "
+          f"{int(real_docs.sum()):,} real documents (the mirrored copies come after them), with their own "
+          f"`KnnIndex` (built in {t_index_real:.1f} s) and subsequence-DTW reference; the same queries")  # fmt: skip
     print()
     print(f"## (a) Time per query (s, median; LNG: k neighbours per query frame, radius None, K = {K_MATCHES} "
           "matches)")
@@ -406,7 +463,8 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
           "over all queries of the length (targets: k=256 row). "
           "`KnnIndex.query(exclude=...)` searches k + 2^ceil(log2(own document frames)) neighbours and drops "
           "the own document's, so the kNN time grows with the length of the query's document (compare the "
-          "row without exclusion).")  # fmt: skip
+          "row without exclusion). kNN share: median over the queries of kNN s / LNG s. Real frames only: no "
+          "speed-up (the baselines searched the whole database).")  # fmt: skip
     for r in rows:
         if r["config"] == CONFIGS[0][0]:
             print(f"- baselines, {r['query_s']} s queries (median of {r['baseline_queries']}): subsequence_dtw "
@@ -419,7 +477,13 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print("Spearman rho: per query with >= 3 LNG matches, between LNG's match costs and subsequence DTW's "
           "accumulated cost at the same end frames (`subsequence_costs`); mean over those queries. LNG cost = DTW "
           "cost: LNG matches whose cost equals DTW's at their end (relative difference < 1e-9). Recall: subsequence "
-          "DTW's top-10 non-overlapping matches outside the own document that some LNG match overlaps. "
+          "DTW's top-10 non-overlapping matches outside the own document that some LNG match overlaps. Paths "
+          f"wholly in the k-neighbourhoods (k = {K_MAIN} rows): DTW's top-10 matches whose optimal path "
+          "(`mocapviz.match.dtw` of the query against the matched stretch) has, for every cell (query frame i, "
+          f"database frame j), j among the {K_MAIN} nearest frames of query frame i outside the own document: the "
+          "graph then has that path and its cost (its own choice of 10 non-overlapping matches may still leave "
+          "it out); path cells: the share of all their cells that are. Real frames only: the same queries, LNG "
+          "and the DTW reference on the real frames alone. "
           f"LNG costs below DTW's (impossible if both are right): {sum(r.get('below_dtw', 0) for r in rows)}.")
     print()
     print("## (c) Baselines per query: ours and the library's subsequence DTW")

@@ -12,10 +12,12 @@ be added; the output says which. The database is cached under ``<repo>/.cache/be
     per segment; Table 2 itself from :func:`mocapviz.experiments.index_statistics` beside ``paper_table2()``.
 (b) Exact, fuzzy (eq. 11), adaptive fuzzy (64 alternatives per set) and 1-mismatch queries, |Q| = 5, 10, 20
     segments, on the upper-body index (as the paper's Table 3 uses I_u): ``InvertedIndex.exact`` / ``fuzzy`` /
-    ``adaptive_fuzzy`` / ``mismatch`` against a numpy linear scan of the whole feature sequence (exact and
-    mismatch: ``sliding_window_view(codes, L) == q``; fuzzy: one ``np.isin(codes, V_l, kind="table")`` per query
-    set, shifted and combined; adaptive fuzzy: the same memberships, then the runs of each set chained as in
-    §5.2). Both must give identical hit sets on a sample of the queries before anything is timed.
+    ``adaptive_fuzzy`` / ``mismatch`` against a plain vectorised numpy scan of the feature sequence: one pass
+    for the query's first segment (exact: ``codes == q[0]``; fuzzy: ``np.isin(codes, V_1, kind="table")``;
+    mismatch: ``codes == q[0]`` or ``q[1]`` at the next position, pigeonhole), then every further query segment
+    checked at the survivors only (adaptive fuzzy: the survivors' runs walked forward as in §5.2; mismatch:
+    mismatches counted, survivors with more than m dropped). Index and scan must give identical hit sets on
+    every timed query (asserted) before anything is timed.
 (c) Table 3 (:func:`mocapviz.experiments.query_statistics`: random queries grouped by hit count) beside the
     paper's.
 """
@@ -53,12 +55,10 @@ FUZZY_SIZE = 64
 MISMATCHES = 1  # m of the m-mismatch queries
 N_TIMED = 1000  # queries per (mode, L) for (b); quick: N_TIMED_QUICK
 N_TIMED_QUICK = 30
-N_CHECKED = 100  # of which checked against the scan first
 N_TABLE3 = 10_000  # queries per (mode, L) for (c), as the paper
 N_TABLE3_QUICK = 200
 TARGET_FPS = 1_000_000  # features + index build, frames/s
 TARGET_MS = {"exact": 0.5, "fuzzy": 5.0}  # median query time
-TARGET_SPEEDUP = 20.0  # over the numpy scan
 PAPER_FRAMES = 1_288_846
 # Table 2, D^180: read once (71 s), then features and index build of each group (lower, upper, mix)
 PAPER_T_READ = 71.0
@@ -68,64 +68,71 @@ PAPER_T_INDEX = 13.0 + 25.0 + 12.0
 
 # ============================================================================ (b) numpy linear scans
 def scan_exact(codes: np.ndarray, segment_doc: np.ndarray, query: np.ndarray) -> np.ndarray:
-    """Exact hits by brute force: every window of L segments compared with the query, documents kept apart."""
+    """Exact hits by a plain vectorised scan: the windows whose first segment has the query's first code, narrowed
+    by each further query code at the survivors only; documents kept apart."""
     n = len(query)
-    k = np.flatnonzero((np.lib.stride_tricks.sliding_window_view(codes, n) == query).all(axis=1))
+    k = np.flatnonzero(codes[: codes.size - n + 1] == query[0])
+    for l in range(1, n):
+        k = k[codes[k + l] == query[l]]
     return k[segment_doc[k] == segment_doc[k + n - 1]]
 
 
 def scan_fuzzy(codes: np.ndarray, segment_doc: np.ndarray, sets) -> np.ndarray:
-    """Plain fuzzy hits (§5.2, eq. 11) by a linear scan: window k hits when w_{k+l} ∈ V_l for every (merged) set."""
+    """Plain fuzzy hits (§5.2, eq. 11) by the same scan: the windows whose first segment lies in V_1 (``np.isin``
+    over the sequence), narrowed by membership of segment k + l in V_l at the survivors only."""
     from mocapviz.index import merge_adjacent
 
     sets = merge_adjacent(sets)
-    n, m = len(sets), codes.size - len(sets) + 1
-    ok = np.ones(max(m, 0), dtype=bool)
-    for l, s in enumerate(sets):
-        ok &= np.isin(codes[l : l + m], s, kind="table")
-    k = np.flatnonzero(ok)
+    n = len(sets)
+    k = np.flatnonzero(np.isin(codes[: codes.size - n + 1], sets[0], kind="table"))
+    for l in range(1, n):
+        k = k[np.isin(codes[k + l], sets[l], kind="table")]
     return k[segment_doc[k] == segment_doc[k + n - 1]]
 
 
 def scan_mismatch(codes: np.ndarray, segment_doc: np.ndarray, query: np.ndarray, mismatches: int) -> np.ndarray:
-    """m-mismatch hits (§5.2) by a linear scan: windows that agree with the query in at least L - m segments."""
-    n = len(query)
-    agree = (np.lib.stride_tricks.sliding_window_view(codes, n) == query).sum(axis=1)
-    k = np.flatnonzero(agree >= n - mismatches)
+    """m-mismatch hits (§5.2) by the same scan: a window with at most m mismatches agrees with the query in one of
+    its first m + 1 segments (pigeonhole), so the windows that do are the candidates (one vectorised pass per
+    position); their mismatches are then counted query segment by query segment, dropping those with more than m."""
+    n, m = len(query), codes.size - len(query) + 1
+    near = codes[:m] == query[0]
+    for a in range(1, mismatches + 1):
+        near |= codes[a : a + m] == query[a]
+    k = np.flatnonzero(near)
+    missed = np.zeros(k.size, dtype=np.int64)
+    for l in range(n):
+        missed += codes[k + l] != query[l]
+        keep = missed <= mismatches
+        k, missed = k[keep], missed[keep]
     return k[segment_doc[k] == segment_doc[k + n - 1]]
 
 
 def scan_adaptive_fuzzy(codes: np.ndarray, new_doc: np.ndarray, segment_doc: np.ndarray, sets) -> np.ndarray:
-    """Adaptive fuzzy hits (§5.2) by a linear scan: membership of every segment in every (merged) set, then the
-    maximal runs of each set chained, all segments at once. ``new_doc[p]``: segment p starts a document.
+    """Adaptive fuzzy hits (§5.2) by the same scan: the run starts of V_1 (``np.isin`` over the sequence), then
+    per set the survivors' runs walked forward a segment at a time, all survivors at once, and the survivors kept
+    whose next run lies in the next set. ``new_doc``: (M + 1,) bool, segment p starts a document (True at M);
+    ``codes``: (M + 1,), any code at M.
 
     Returns the same (H, J+1) array as :meth:`InvertedIndex.adaptive_fuzzy` (J = sets after merging).
     """
     from mocapviz.index import merge_adjacent
 
     sets = merge_adjacent(sets)
-    m = codes.size
-    positions = np.arange(m + 1)
-    rows, k, doc = [], None, None
+    k = np.flatnonzero(np.isin(codes[:-1], sets[0], kind="table"))
+    k = k[new_doc[k] | ~np.isin(codes[k - 1], sets[0], kind="table")]  # run starts (k = 0 starts a document)
+    rows = []
     for j, s in enumerate(sets):
-        member = np.isin(codes, s, kind="table")
-        if k is None:
-            before = np.concatenate([[False], member[:-1]])
-            k = np.flatnonzero(member & (new_doc | ~before))  # run starts of V_1
-            doc = segment_doc[k]
-        else:
-            ok = k < m
-            ok[ok] = member[k[ok]] & (segment_doc[k[ok]] == doc[ok])
-            rows = [r[ok] for r in rows]
-            k, doc = k[ok], doc[ok]
+        if j:  # the run after the previous one must lie in V_j, in the same document
+            keep = ~new_doc[k] & np.isin(codes[k], s, kind="table")
+            rows, k = [r[keep] for r in rows], k[keep]
         rows.append(k)
-        # end of the run of V_j that starts at k: the first position after k outside V_j or starting a document
-        stop = np.append(~member, True)
-        stop[1:m] |= new_doc[1:]
-        nxt = np.minimum.accumulate(np.where(stop, positions, m)[::-1])[::-1]
-        k = nxt[np.minimum(k + 1, m)]
+        k = k + 1
+        live = ~new_doc[k] & np.isin(codes[k], s, kind="table")
+        while live.any():  # walk to the end of each run of V_j
+            k[live] += 1
+            live[live] = ~new_doc[k[live]] & np.isin(codes[k[live]], s, kind="table")
     rows.append(k)
-    return np.stack(rows, axis=1) if rows[0].size else np.empty((0, len(sets) + 1), dtype=np.int64)
+    return np.stack(rows, axis=1)
 
 
 def _same_hits(a: np.ndarray, b: np.ndarray) -> bool:
@@ -196,8 +203,9 @@ def bench_queries(index, quick: bool, seed: int = 1) -> tuple[list[dict], list[s
 
     n_timed = N_TIMED_QUICK if quick else N_TIMED
     codes, seg_doc = index.codes, index.segment_doc
-    new_doc = np.ones(codes.size, dtype=bool)
-    new_doc[1:] = seg_doc[1:] != seg_doc[:-1]
+    new_doc = np.ones(codes.size + 1, dtype=bool)  # segment p starts a document; one past the end for the walk
+    new_doc[1:-1] = seg_doc[1:] != seg_doc[:-1]
+    codes_end = np.append(codes, 0)
     paper = paper_table3()
     # name: (kind of random query, index method, numpy scan, target median ms or None, the paper's Table 3 mode)
     modes = {
@@ -205,7 +213,7 @@ def bench_queries(index, quick: bool, seed: int = 1) -> tuple[list[dict], list[s
         f"fuzzy (eq. 11), {FUZZY_SIZE} per set": ("fuzzy", index.fuzzy, lambda q: scan_fuzzy(codes, seg_doc, q),
                                                   TARGET_MS["fuzzy"], "fuzzy"),
         f"adaptive fuzzy, {FUZZY_SIZE} per set": (
-            "fuzzy", index.adaptive_fuzzy, lambda q: scan_adaptive_fuzzy(codes, new_doc, seg_doc, q),
+            "fuzzy", index.adaptive_fuzzy, lambda q: scan_adaptive_fuzzy(codes_end, new_doc, seg_doc, q),
             TARGET_MS["fuzzy"], "fuzzy"),
         f"{MISMATCHES}-mismatch": ("exact", lambda q: index.mismatch(q, MISMATCHES),
                                    lambda q: scan_mismatch(codes, seg_doc, q, MISMATCHES), None, None),
@@ -215,8 +223,8 @@ def bench_queries(index, quick: bool, seed: int = 1) -> tuple[list[dict], list[s
     for name, (kind, ours_fn, scan_fn, target, paper_mode) in modes.items():
         for length in LENGTHS:
             queries = [q for _, q in random_queries(index, n_timed, length, kind, FUZZY_SIZE, rng)]
-            checked = min(N_CHECKED, len(queries))
-            bad = sum(not _same_hits(ours_fn(q), scan_fn(q)) for q in queries[:checked])
+            bad = sum(not _same_hits(ours_fn(q), scan_fn(q)) for q in queries)
+            assert not bad, f"{name} |Q|={length}: index and scan give different hits on {bad} queries"
             ours_fn(queries[0]), scan_fn(queries[0])  # warm-up
             # each method over all queries in a block (as a user's session of queries runs, caches warm), the
             # blocks alternated twice so that both see the same machine state; per query the faster of two runs
@@ -228,19 +236,17 @@ def bench_queries(index, quick: bool, seed: int = 1) -> tuple[list[dict], list[s
             pt = paper[(paper["mode"] == paper_mode) & (paper["L"] == length)]["mean_ms"]
             med, scan_med = float(np.median(ours)), float(np.median(scan))
             speedup = scan_med / med
-            ok = (target is None or med <= target) and speedup >= TARGET_SPEEDUP
+            ok = target is None or med <= target  # the speed-up over the fair scan is reported, not targeted
             rows.append({
                 "mode": name, "L": length, "queries": len(queries), "median_hits": float(np.median(hits)),
                 "ours_median_ms": med, "ours_p90_ms": float(np.percentile(ours, 90)),
                 "scan_median_ms": scan_med, "scan_p90_ms": float(np.percentile(scan, 90)),
                 "speed-up": speedup, "paper_mean_ms": f"{pt.min():.0f}–{pt.max():.0f}" if len(pt) else "—",
-                "target": (f"median ≤ {target:g} ms, " if target else "") + f"≥ {TARGET_SPEEDUP:.0f}× scan",
-                "meets": ("yes" if ok else "NO") + ("" if not bad else f"; {bad} HIT SETS DIFFER"),
-                "checked": checked, "differ": bad,
+                "target": f"median ≤ {target:g} ms" if target else "—",
+                "meets": "yes" if ok else "NO", "checked": len(queries), "differ": bad,
             })  # fmt: skip
-            log(f"{name} L={length}: ours {med:.3f} ms, scan {scan_med:.2f} ms, {bad}/{checked} differ")
-            notes.append(f"{name} |Q|={length}: hit sets of index and scan compared on {checked} queries: "
-                         f"{'identical' if not bad else f'{bad} DIFFER'}")  # fmt: skip
+            log(f"{name} L={length}: ours {med:.3f} ms, scan {scan_med:.3f} ms")
+        notes.append(f"{name}: hit sets of index and scan identical on all {len(queries):,} queries of each |Q|")
     return rows, notes
 
 
@@ -304,7 +310,7 @@ def table_queries(rows: list[dict]) -> str:
         "| speed-up vs scan | paper µt ms (by hit group) | target | meets |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---|---|",
         ([r["mode"], str(r["L"]), f"{r['queries']:,}", _f(r["median_hits"], 0), _f(r["ours_median_ms"], 3),
-          _f(r["ours_p90_ms"], 3), _f(r["scan_median_ms"]), _f(r["scan_p90_ms"]), f"{r['speed-up']:.0f}×",
+          _f(r["ours_p90_ms"], 3), _f(r["scan_median_ms"], 3), _f(r["scan_p90_ms"], 3), f"{r['speed-up']:.1f}×",
           r["paper_mean_ms"], r["target"], r["meets"]] for r in rows),
     )  # fmt: skip
 
@@ -367,9 +373,13 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print(table_queries(query_rows))
     print()
     print(
-        "Scan: exact / mismatch = `sliding_window_view(codes, L) == q` over all segments + document check; fuzzy = "
-        "`np.isin(codes, V_l, kind='table')` per (merged) set, shifted and combined; adaptive fuzzy = the same "
-        "memberships, then maximal runs chained (§5.2); all vectorised. Same queries through both: each method "
+        "Scan (no index, vectorised numpy over the code sequence, each query segment checked only where all "
+        "before it matched): exact = `flatnonzero(codes == q[0])`, then `codes[k + l] == q[l]` at the survivors; "
+        "fuzzy = the same with `np.isin(..., V_l, kind='table')` per (merged) set; adaptive fuzzy = the run starts "
+        "of V_1, then the survivors' runs walked forward a segment at a time and kept if the next run lies in the "
+        "next set (§5.2); m-mismatch = the windows agreeing with the query in one of its first m + 1 segments (m + 1 "
+        "vectorised passes: by pigeonhole every hit is among them), then mismatches counted at the survivors, "
+        "segment by segment, dropping those with more than m. Same queries through both: each method "
         "over all queries in a block, blocks alternated twice, per query the faster run; random queries of "
         "segments that occur, each with ≥ 1 hit (mismatch: the same exact queries, m = 1). Paper µt: Table 3's "
         "mean time per hit-count group (min–max over its three groups; its fuzzy rows beside both fuzzy modes)."

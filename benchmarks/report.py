@@ -24,6 +24,7 @@ SECTIONS = (
     ("relational", "Relational features, index build and queries vs Müller et al. 2005 Tables 2–3 (bench_relational)"),
     ("knn", "k nearest neighbours vs Krüger et al. 2010 Table 1 and brute force (bench_knn)"),
     ("match", "LNG global matching vs subsequence DTW (bench_match)"),
+    ("search", "Similarity search: exact / fast DTW search vs brute force and dtaidistance (bench_search)"),
     ("scaling", "Cost growth at 250k / 1M / 4M frames (bench_scaling)"),
 )
 
