@@ -260,6 +260,34 @@ def _base_poses(data: _Data) -> Result:
                   settings={"radius_cm": 10.0, "k": 32, "database": data.describe(db)})  # fmt: skip
 
 
+def _retrieval_quality(data: _Data) -> Result:
+    from .experiments.retrieval import retrieval_quality
+    from .viz.retrieval import class_ap_bars, pr_curves, summary_bars
+
+    runs = {"hdm05": (data.hdm05(30.0), "label", None)}  # the HDM05 clips: class, leave-actor-out
+    if data.full:  # Bandai Namco 1 (one actor): content with leave-style-out, style with leave-content-out
+        bandai = data._ingest(("bandai-namco-1",), 30.0)
+        runs["bandai_content"] = (bandai, "label", "style")
+        runs["bandai_style"] = (bandai, "style", "label")
+    tables, figures, settings = {}, {}, {}
+    for name, (db, label, group) in runs.items():
+        res = retrieval_quality(db, label_column=label, group_column=group, progress=data.progress)
+        where = f"{name.replace('_', ' ')}: {label}"
+        for table, frame in res.items():
+            tables[f"{name}_{table}"] = frame
+        for protocol in ("loo", "lgo"):
+            if res["per_class"][f"ap_{protocol}"].notna().any():
+                figures[f"{name}_class_ap_{protocol}"] = class_ap_bars(res["per_class"], protocol,
+                                                                      title=f"{where}: AP per class ({protocol})")
+                figures[f"{name}_pr_{protocol}"] = pr_curves(res["curves"], protocol,
+                                                             title=f"{where}: precision / recall ({protocol})")
+        figures[f"{name}_map"] = summary_bars(res["summary"], "map_loo", title=f"{where}: mAP, leave-one-out")
+        figures[f"{name}_ms"] = summary_bars(res["summary"], "ms_per_query", logy=True,
+                                             title=f"{where}: ms per query (K = 10)")
+        settings[name] = {"database": data.describe(db), **res["summary"].attrs}
+    return Result(tables=tables, figures=figures, settings=settings)
+
+
 EXPERIMENTS: dict[str, Callable[[_Data], Result]] = {
     "index_statistics": _index_statistics,
     "query_statistics": _query_statistics,
@@ -272,6 +300,7 @@ EXPERIMENTS: dict[str, Callable[[_Data], Result]] = {
     "numerical_search": _numerical_search,
     "reconstruction": _reconstruction,
     "base_poses": _base_poses,
+    "retrieval_quality": _retrieval_quality,
 }
 
 

@@ -1,5 +1,6 @@
-"""The dashboard's Similarity search page in a real browser (Krüger et al. 2010 §3.3 kNN, §4.1 LNG, Fig. 1, Fig. 3):
-every result the page shows is checked against the library run here on the same database."""
+"""The dashboard's Similarity search page (DTW search of clips and stretches; Krüger et al. 2010 §3.3 kNN, §4.1 LNG,
+Fig. 1, Fig. 3) and Retrieval quality page in a real browser: every result the pages show is checked against the
+library run here on the same database."""
 
 from __future__ import annotations
 
@@ -10,13 +11,18 @@ import pandas as pd
 import pytest
 from browser_helpers import open_dashboard, open_tab, record_timing, text_of, timed
 
+from mocapviz.app.pages.retrieval import DEFAULT_METHODS, label_columns, summary_view
 from mocapviz.app.pages.similarity import LNG_K_AT_30HZ, match_alignment, matrix_docs, scaled_k
+from mocapviz.experiments.retrieval import retrieval_quality
 from mocapviz.features import numeric_of
 from mocapviz.knn import KnnIndex, describe_frames
 from mocapviz.match.lng import lng
+from mocapviz.search import SimilaritySearch
 
 QUERY_NAME = "HDM_dg_kickLFront1Reps"  # a kick of the sample: its mm twin must come first
 TAB = "Similarity search"
+RETRIEVAL_TAB = "Retrieval quality"
+RETRIEVAL_QUERIES = 12
 
 
 # ============================================================================ helpers
@@ -78,6 +84,20 @@ def test_matrix_docs_keeps_the_best_matches_documents_once_in_order():
 
 def test_scaled_k_grows_with_the_frame_rate_above_30_hz():
     assert (scaled_k(256, 30.0), scaled_k(256, 120.0), scaled_k(32, 25.0)) == (256, 1024, 32)
+
+
+def test_label_columns_need_a_value_shared_by_two_documents():
+    docs = pd.DataFrame({"label": ["a", "a", "b"], "take": ["1", "2", "3"], "actor": [None, None, None],
+                         "style": ["x", "", "x"]})
+    assert label_columns(docs, ["label", "take", "actor", "style"]) == ["label", "style"]
+
+
+def test_summary_view_rounds_and_marks_missing_values():
+    summary = pd.DataFrame({"method": ["dtw"], "queries": [3], "map_loo": [0.96349], "map_lgo": [np.nan],
+                            "p_at_1": [1.0], "p_at_10": [0.5], "recall_dtw_top10": [1.0], "ms_per_query": [12.345],
+                            "median_ms": [12.0], "note": [""]})
+    shown = summary_view(summary).iloc[0]
+    assert (shown["map_loo"], shown["map_lgo"], shown["ms_per_query"]) == ("0.963", "–", "12.3")
 
 
 # ============================================================================ the page in the browser
@@ -146,6 +166,83 @@ def test_lng_matches_equal_the_library_and_play_aligned(page, sample_dashboard, 
     error = page.locator(".mv-match-task .mv-error")
     error.wait_for(state="visible")
     assert "K must be between 1 and 100" in text_of(page, ".mv-match-task .mv-error")
+
+
+def test_search_of_clips_and_stretches_equals_the_library_and_plays_aligned(page, sample_dashboard, sample_db,
+                                                                             screenshot):  # fmt: skip
+    open_dashboard(page, sample_dashboard)
+    _choose(page, QUERY_NAME)
+    open_tab(page, TAB)
+    page.locator(".mv-similarity-query", has_text=QUERY_NAME).wait_for()
+    doc, _, (first, last) = _query(page)
+    search = SimilaritySearch(sample_db)
+
+    # whole clips, exact (the defaults), K = 10, the query's own document excluded
+    page.locator(".mv-search-run button").click()
+    page.locator(".mv-search-count", has_text="clips").wait_for()
+    expected = search.clips(doc, frames=(first, last + 1), n_matches=10, mode="exact", exclude_document=True,
+                            paths=True)
+    assert _leading_int(page, ".mv-search-count") == len(expected) == 10
+    assert _cells(page, ".mv-search-table", "doc_id", 10) == [str(d) for d in expected["doc_id"]]
+    assert str(doc) not in _cells(page, ".mv-search-table", "doc_id", 10)
+    assert "HDM_mm_kickLFront1Reps" in page.locator(".mv-search-table .tabulator-row").first.inner_text()
+    page.locator(".mv-search-table .tabulator-row").first.click()
+    page.locator(".mv-search-playing", has_text="Playing").wait_for()
+    assert f"(document {expected['doc_id'].iloc[0]}," in text_of(page, ".mv-search-playing")
+    steps = len(expected["path"].iloc[0])
+    page.locator(".mv-search-player .mv-player-caption", has_text=f"of {steps} ").wait_for()
+    screenshot("search-clips")
+
+    # stretches, fast mode, K = 5
+    page.locator(".mv-search-kind .bk-btn", has_text="stretches").click()
+    page.locator(".mv-search-mode .bk-btn", has_text="fast").click()
+    _set(page, ".mv-search-k", 5)
+    page.locator(".mv-search-run button").click()
+    page.locator(".mv-search-count", has_text="stretches").wait_for()
+    expected = search.stretches(doc, frames=(first, last + 1), n_matches=5, mode="fast", exclude_document=True,
+                                paths=True)
+    assert _leading_int(page, ".mv-search-count") == len(expected) > 0
+    rows = len(expected)
+    assert _cells(page, ".mv-search-table", "doc_id", rows) == [str(d) for d in expected["doc_id"]]
+    assert _cells(page, ".mv-search-table", "start", rows) == [str(f) for f in expected["start"]]
+    assert "fast DTW" in text_of(page, ".mv-search-count")
+    page.locator(".mv-search-table .tabulator-row").nth(1).click()
+    page.locator(".mv-search-playing", has_text="result 2").wait_for()
+    steps = len(expected["path"].iloc[1])
+    page.locator(".mv-search-player .mv-player-caption", has_text=f"of {steps} ").wait_for()
+    screenshot("search-stretches")
+
+    _set(page, ".mv-search-k", 1000)  # K too large: one clear line
+    page.locator(".mv-search-run button").click()
+    page.locator(".mv-search-task .mv-error").wait_for(state="visible")
+    assert "K must be between 1 and 100" in text_of(page, ".mv-search-task .mv-error")
+
+
+def test_retrieval_quality_equals_the_library(page, sample_dashboard, sample_db, screenshot):
+    open_dashboard(page, sample_dashboard)
+    open_tab(page, RETRIEVAL_TAB)
+    _set(page, ".mv-retrieval-n", RETRIEVAL_QUERIES)
+    page.locator(".mv-retrieval-run button").click()
+    page.locator(".mv-retrieval-count", has_text="queries").wait_for(timeout=120_000)
+    expected = retrieval_quality(sample_db, methods=DEFAULT_METHODS, n_queries=RETRIEVAL_QUERIES, progress=False,
+                                 timing=False)["summary"]  # fmt: skip
+    assert _leading_int(page, ".mv-retrieval-count") == RETRIEVAL_QUERIES
+    n = len(DEFAULT_METHODS)
+    assert _cells(page, ".mv-retrieval-summary", "method", n) == DEFAULT_METHODS
+    for column in ("map_loo", "map_lgo", "p_at_1", "recall_dtw_top10"):
+        assert _cells(page, ".mv-retrieval-summary", column, n) == [f"{v:.3f}" for v in expected[column]]
+    page.locator(".mv-retrieval-summary .tabulator-col-title", has_text="mAP (leave-actor-out)").wait_for()
+    for protocol in ("loo", "lgo"):
+        page.locator(f".mv-retrieval-bars-{protocol} canvas").first.wait_for(state="visible")
+        page.locator(f".mv-retrieval-curves-{protocol} canvas").first.wait_for(state="visible")
+    assert not page.locator(".mv-retrieval-task .mv-error").is_visible()
+    page.locator(".mv-retrieval-figures").scroll_into_view_if_needed()
+    screenshot("retrieval")
+
+    page.locator(".mv-retrieval-group select").select_option("label")  # the label as its own group: one clear line
+    page.locator(".mv-retrieval-run button").click()
+    page.locator(".mv-retrieval-task .mv-error").wait_for(state="visible")
+    assert "both 'label'" in text_of(page, ".mv-retrieval-task .mv-error")
 
 
 @pytest.mark.slow

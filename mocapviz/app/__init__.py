@@ -6,9 +6,10 @@ state.py       Selection: the session's clip, frame and span, shared by its page
 progress.py    Task: long computations in a worker thread behind a progress bar; errors as one red line.
 player.py      SkeletonPlayer: PyVista offscreen skeletons, one or more clips side by side, aligned playback.
 pages/         one module per page: database (documents, player, timelines, curves), relational (query by
-               example, Müller et al. 2005), similarity (kNN of a frame, LNG matching, similarity matrix; Krüger et
-               al. 2010), correlations (Fig. 2), statistics (Müller Tables 2-3, Krüger Table 1), reconstruction
-               (Krüger §5.2).
+               example, Müller et al. 2005), similarity (DTW search of clips and stretches, kNN of a frame, LNG
+               matching, similarity matrix; Krüger et al. 2010), retrieval (retrieval quality of every search
+               method: mAP, per-class AP, P/R curves), correlations (Fig. 2), statistics (Müller Tables 2-3,
+               Krüger Table 1), reconstruction (Krüger §5.2).
 
 :func:`dashboard` builds one session's page; :func:`serve` runs the server (bound to 127.0.0.1 unless told
 otherwise).
@@ -31,10 +32,11 @@ TITLE = "mocapviz"
 
 
 def _pages():
-    from .pages import correlations, database, reconstruction, relational, similarity, statistics
+    from .pages import correlations, database, reconstruction, relational, retrieval, similarity, statistics
 
     return [("Database", database.DatabasePage), ("Relational query", relational.RelationalPage),
-            ("Similarity search", similarity.SimilarityPage), ("Correlations", correlations.CorrelationsPage),
+            ("Similarity search", similarity.SimilarityPage), ("Retrieval quality", retrieval.RetrievalPage),
+            ("Correlations", correlations.CorrelationsPage),
             ("Index statistics", statistics.StatisticsPage), ("Reconstruction", reconstruction.ReconstructionPage)]
 
 

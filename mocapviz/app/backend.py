@@ -97,6 +97,26 @@ class Backend:
         """The kd-tree over a numeric feature set (Krüger et al. 2010 §3.3)."""
         return self.cached(("knn", name), lambda: KnnIndex(self.numeric(name)))
 
+    def search(self, name: str = "F15E"):
+        """The DTW search over a numeric feature set (:class:`mocapviz.search.SimilaritySearch`; its kd-tree and
+        coarse database are built on first use and kept with it)."""
+        from ..search import SimilaritySearch
+
+        return self.cached(("search", name), lambda: SimilaritySearch(self.db, name))
+
+    def retrieval(self, methods, label_column: str = "label", group_column=None, n_queries: int | None = None,
+                  seed: int = 0) -> dict:  # fmt: skip
+        """:func:`mocapviz.experiments.retrieval_quality` of the database (computed once per arguments; the
+        relational methods use this Backend's indexes)."""
+        from ..experiments.retrieval import retrieval_quality
+
+        methods = tuple(methods)
+        key = ("retrieval", methods, label_column, group_column, n_queries, seed)
+        relational_methods = {"relational", "hybrid"} & set(methods)
+        return self.cached(key, lambda: retrieval_quality(
+            self.db, methods, label_column=label_column, group_column=group_column, n_queries=n_queries, seed=seed,
+            indexes=self.indexes() if relational_methods else None, progress=False))
+
     def doc_options(self) -> dict:
         """{"<id>: <name> (<label>)": doc_id} for a document selector, in document order."""
         docs = self.documents

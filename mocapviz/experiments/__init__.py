@@ -15,6 +15,9 @@ reconstruction      Krüger et al. 2010, §5.2, Tables 3-4: full-body motion fro
                     models of the kNN poses, after Chai & Hodgins 2005) with priors from different databases.
 rank_correlations   Krüger et al. 2010, Fig. 2 / §3.3: Spearman rank-correlation matrices between feature sets and
                     distance measures, pose-based (sample and large database) and segment-based (DTW).
+retrieval_quality   every search method of the product (brute / exact / fast DTW, the lazy neighbourhood graph,
+                    relational query by example, hybrid) on a labelled database: mAP leave-one-out and
+                    leave-actor-out, P@1, P@10, per-class AP, P/R curves, recall of DTW's top 10, ms per query.
 
 The papers' own figures: :func:`mocapviz.experiments.relational.paper_table2` and ``paper_table3``,
 :func:`mocapviz.experiments.numeric.paper_table1`, :func:`mocapviz.experiments.matching.paper_table2`,
@@ -25,7 +28,8 @@ from .matching import alignment, lng_accuracy, numerical_search, similarity_matr
 from .numeric import base_poses, knn_timings
 from .reconstruction import reconstruction
 from .relational import index_statistics, query_statistics, relational_query
+from .retrieval import retrieval_quality
 
 __all__ = ["alignment", "base_poses", "index_statistics", "knn_timings", "lng_accuracy", "numerical_search",
            "paper_claims", "pose_correlations", "query_statistics", "rank_correlations", "reconstruction",
-           "relational_query", "segment_correlations", "similarity_matrices", "summarize_accuracy"]
+           "relational_query", "retrieval_quality", "segment_correlations", "similarity_matrices", "summarize_accuracy"]

@@ -11,6 +11,8 @@ timeline.py   a clip's features over time: relational_timeline (Müller et al. 2
 skeleton.py   PyVista offscreen drawings of canonical poses: render_skeletons (side by side or together),
               neighbour_poses (Krüger et al. 2010 Fig. 1); the dashboard's player draws with them.
 query.py      precision_recall, precision_recall_plot: relational hits judged by the query's label.
+retrieval.py  retrieval quality of the search methods: class_ap_bars (AP per class and method), pr_curves (mean
+              interpolated precision at 11 recall levels), summary_bars, retrieval_layout.
 statistics.py query_time_scatter: query time against hit count (Müller et al. 2005 §6.2, Table 3).
 """
 from .correlation import correlation_heatmap
@@ -18,11 +20,12 @@ from .matching import accuracy_plot, accuracy_table, alignment_layout, band_poly
 from .paper import comparison_bars, curves
 from .query import precision_recall, precision_recall_plot
 from .reconstruction import reconstruction_figures
+from .retrieval import class_ap_bars, pr_curves, retrieval_layout, summary_bars
 from .skeleton import neighbour_poses, render_skeletons
 from .statistics import query_time_scatter
 from .timeline import numeric_curves, relational_timeline
 
-__all__ = ["accuracy_plot", "accuracy_table", "alignment_layout", "band_polygon", "comparison_bars",
-           "correlation_heatmap", "curves", "neighbour_poses", "numeric_curves", "precision_recall",
-           "precision_recall_plot", "query_time_scatter", "reconstruction_figures", "relational_timeline",
-           "render_skeletons", "similarity_layout"]
+__all__ = ["accuracy_plot", "accuracy_table", "alignment_layout", "band_polygon", "class_ap_bars",
+           "comparison_bars", "correlation_heatmap", "curves", "neighbour_poses", "numeric_curves", "pr_curves",
+           "precision_recall", "precision_recall_plot", "query_time_scatter", "reconstruction_figures",
+           "relational_timeline", "render_skeletons", "retrieval_layout", "similarity_layout", "summary_bars"]

@@ -1,5 +1,8 @@
 """Similarity search page: numeric similarity searches of Krüger, Tautges, Weber & Zinke 2010 on the session's clip.
 
+0. Search (:class:`mocapviz.search.SimilaritySearch`): the whole clips, or the stretches of documents, that move
+   most like the current span by DTW, exact or fast; a chosen result plays beside the query, aligned by its DTW
+   warping path.
 1. Nearest neighbours of the current frame (§3.3): the k nearest database frames by a numeric feature set (kd-tree
    of :meth:`Backend.knn`), as a table and drawn together in the body frame as in Fig. 1.
 2. Global motion matching of the current span with the lazy neighbourhood graph (§4.1): the K best matches; a
@@ -21,6 +24,7 @@ from ...experiments.matching import similarity_matrices
 from ...features import NUMERIC_SETS
 from ...knn import describe_frames
 from ...match.lng import lng
+from ...search import MODES as SEARCH_MODES
 from ...viz.matching import similarity_layout
 from ...viz.skeleton import neighbour_poses, png_bytes
 from ..player import SkeletonPlayer
@@ -37,6 +41,11 @@ MATRIX_DOCS = 3  # documents of the best matches forming the small database of F
 KNN_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "doc_frame": "frame", "time_s": "time (s)",
               "distance": "distance", "label": "label"}
 SHOWN_DECIMALS = {"start_s": 2, "end_s": 2, "cost": 1, "cost_per_frame": 2}
+SEARCH_KINDS = {"whole clips": "clips", "stretches": "stretches"}
+SEARCH_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "label": "label", "start": "first frame",
+                 "end": "last frame", "start_s": "start (s)", "end_s": "end (s)", "frames": "frames", "cost": "cost",
+                 "normalised_cost": "cost / (m + n)"}  # fmt: skip
+SEARCH_DECIMALS = {"start_s": 2, "end_s": 2, "cost": 1, "normalised_cost": 3}
 MATCH_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "label": "label", "start_s": "start (s)",
                 "end_s": "end (s)", "frames": "frames", "cost": "cost", "cost_per_frame": "cost / frame"}
 
@@ -150,6 +159,41 @@ def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, k_ma
     return table
 
 
+def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, mode: str, k: int,
+                exclude_own: bool) -> pd.DataFrame:  # fmt: skip
+    """The documents (``kind="clips"``) or stretches (``"stretches"``) that move most like the span, by DTW on a
+    numeric feature set (:class:`mocapviz.search.SimilaritySearch`, cached per feature set by the Backend).
+
+    Parameters
+    ----------
+    backend : Backend
+    name : str, numeric feature set.
+    doc, span : the query: frames first..last (inclusive) of document ``doc``.
+    kind : {"clips", "stretches"}
+    mode : {"exact", "fast"} (or "brute").
+    k : int, results wanted (1..MAX_MATCHES).
+    exclude_own : bool, leave out the query's own document.
+
+    Returns
+    -------
+    pd.DataFrame, best first: :meth:`~mocapviz.search.SimilaritySearch.clips`' columns (rank, doc_id, name, start,
+    end (frames of the result's document), frames, cost, normalised_cost, labels, path ((L, 2) (query frame within
+    the span, document frame))) plus start_s and end_s (seconds). ``attrs``: the search's (ms, aligned, ...).
+    """
+    q0, q1 = _query_span(backend, doc, span)
+    k = _check_count(k, "K", MAX_MATCHES)
+    if kind not in SEARCH_KINDS.values():
+        raise ValueError(f"kind must be one of {', '.join(SEARCH_KINDS.values())}; got {kind!r}")
+    search = backend.search(name)
+    frames = (q0 - _own_frames(backend, doc)[0], q1 - _own_frames(backend, doc)[0])
+    run = search.clips if kind == "clips" else search.stretches
+    table = run(doc, frames=frames, n_matches=k, mode=mode, exclude_document=exclude_own, paths=True)
+    fps = backend.documents.set_index("doc_id").loc[table["doc_id"], "fps"].to_numpy(dtype=np.float64)
+    table.insert(table.columns.get_loc("frames"), "start_s", table["start"] / fps if len(table) else [])
+    table.insert(table.columns.get_loc("frames"), "end_s", table["end"] / fps if len(table) else [])
+    return table
+
+
 def scaled_k(k_at_30hz: int, fps: float) -> int:
     """Neighbours per query frame for the graph at ``fps``: ``k_at_30hz`` at 30 Hz or less, proportionally more at
     higher frame rates (a pose's nearest frames then include more of its own neighbouring frames, leaving fewer for
@@ -210,11 +254,32 @@ class SimilarityPage(pn.viewable.Viewer):
                                              width=160)
         self.exclude_own = pn.widgets.Checkbox(label="exclude the query's own document", value=True, width=260,
                                                align="end", css_classes=["mv-exclude-own"])
+        self._build_search()
         self._build_knn()
         self._build_match()
         self._build_matrix()
         selection.param.watch(lambda e: self.activate(), ["doc", "frame", "span"])
         self.activate()
+
+    def _build_search(self) -> None:
+        self.search_kind = pn.widgets.RadioButtonGroup(options=list(SEARCH_KINDS), value="whole clips", width=220,
+                                                       align="end", css_classes=["mv-search-kind"])
+        self.search_mode = pn.widgets.RadioButtonGroup(options=[m for m in SEARCH_MODES if m != "brute"],
+                                                       value="exact", width=140, align="end",
+                                                       css_classes=["mv-search-mode"])  # fmt: skip
+        self.search_k = pn.widgets.IntInput(label="K (results)", value=10, start=1, width=110,
+                                            css_classes=["mv-search-k"])
+        self.search_button = action_button("Search", "mv-search-run", self._run_search)
+        self.search_task = Task()
+        self.search_count = pn.pane.Markdown("", css_classes=["mv-search-count"], margin=(0, 10))
+        self.search_table = results_table(pd.DataFrame(columns=list(SEARCH_TITLES)), "mv-search-table",
+                                          SEARCH_TITLES, page_size=10, selectable=True)  # fmt: skip
+        self.search_table.param.watch(self._on_search_select, "selection")
+        self.results = None
+        self.search_playing = pn.pane.Markdown("Click a result to play it beside the query, aligned by its DTW "
+                                               "warping path.", margin=(0, 10), css_classes=["mv-search-playing"])
+        self.search_player = SkeletonPlayer(size=(760, 380))
+        self.search_player_box = pn.Column(self.search_player, visible=False, css_classes=["mv-search-player"])
 
     def _build_knn(self) -> None:
         self.knn_k = pn.widgets.IntInput(label="k (neighbours)", value=64, start=1, width=120,
@@ -251,6 +316,11 @@ class SimilarityPage(pn.viewable.Viewer):
         self.matrix = pn.pane.HoloViews(None, sizing_mode="stretch_width", css_classes=["mv-similarity-matrix"])
 
     def __panel__(self):
+        search = pn.Column("### Search: the clips or stretches that move most like the span (DTW)",
+                           pn.pane.Markdown(SEARCH_LEGEND, margin=(0, 10)),
+                           pn.Row(self.search_kind, self.search_mode, self.search_k, self.search_button),
+                           _scoped(self.search_task, "mv-search-task"), self.search_count, self.search_table,
+                           self.search_playing, self.search_player_box, sizing_mode="stretch_width")
         knn = pn.Column("### Nearest neighbours of the frame (Krüger et al. 2010 §3.3, Fig. 1)",
                         pn.Row(self.knn_k, self.knn_button), _scoped(self.knn_task, "mv-knn-task"),
                         pn.Row(pn.Column(self.knn_count, self.knn_table, sizing_mode="stretch_width"),
@@ -262,7 +332,7 @@ class SimilarityPage(pn.viewable.Viewer):
         matrix = pn.Column("### Similarity matrix of the span against the best matches' documents (Fig. 3)",
                            pn.pane.Markdown(MATRIX_LEGEND, margin=(0, 10)), pn.Row(self.matrix_k, self.matrix_button),
                            _scoped(self.matrix_task, "mv-matrix-task"), self.matrix, sizing_mode="stretch_width")
-        return pn.Column(pn.Row(self.feature_set, self.exclude_own), self.query, knn, match, matrix,
+        return pn.Column(pn.Row(self.feature_set, self.exclude_own), self.query, search, knn, match, matrix,
                          sizing_mode="stretch_width")
 
     def activate(self) -> None:
@@ -274,6 +344,54 @@ class SimilarityPage(pn.viewable.Viewer):
         self.query.object = (f"**Query**: document {s.doc} ({row['name']}), frame {s.frame} ({s.frame / fps:.2f} s); "
                              f"span {first}–{last} ({last - first + 1} frames, {(last - first + 1) / fps:.2f} s). "
                              "Choose the document, frame and span on the Database page.")
+
+    # ------------------------------------------------------------------ DTW search
+    def _search_key(self) -> tuple:
+        """(feature set, document, span, kind, mode, K, exclude own) of the search the widgets ask for."""
+        s = self.selection
+        return (self.feature_set.value, s.doc, tuple(s.span), SEARCH_KINDS[self.search_kind.value],
+                self.search_mode.value, self.search_k.value, self.exclude_own.value)
+
+    async def _run_search(self, event=None) -> None:
+        key = self._search_key()
+        found = await self.search_task.run("Searching", self.backend.cached, ("similarity.search", *key),
+                                           lambda: search_span(self.backend, *key), busy=self.search_button)
+        if found is None:
+            return
+        name, doc, (first, last), kind, mode, k, own = key
+        self.results, self.search_query = found, (doc, first, last)
+        shown = found[[c for c in SEARCH_TITLES if c in found]].round(SEARCH_DECIMALS)
+        self.search_table.param.update(selection=[], value=shown)
+        self.search_player_box.visible = False
+        what = "clips" if kind == "clips" else "stretches"
+        ms = found.attrs.get("ms")
+        self.search_count.object = (f"**{len(found)} {what}** like document {doc} frames {first}–{last} by {name}, "
+                                    f"{mode} DTW (K = {k})" + (", its own document excluded" if own else "")
+                                    + (f"; search {ms:.0f} ms, {found.attrs.get('aligned', 0)} alignments"
+                                       if ms is not None else ""))  # fmt: skip
+
+    def _on_search_select(self, event) -> None:
+        if not event.new or self.results is None:
+            return
+        row = self.results.iloc[event.new[0]]
+        doc, first, last = self.search_query
+        d0 = self.backend.db.frames(int(row["doc_id"])).start
+        self._play(self.search_player, self.search_player_box, doc, first, last, d0 + int(row["start"]),
+                   d0 + int(row["end"]), match_alignment(row["path"], int(row["start"])),
+                   f"result {row['rank']}: document {row['doc_id']}")
+        self.search_playing.object = (f"Playing the query (document {doc}, frames {first}–{last}) beside result "
+                                      f"{row['rank']} (document {row['doc_id']}, {row['name']}, frames "
+                                      f"{row['start']}–{row['end']}), aligned by its DTW warping path "
+                                      f"({len(row['path'])} steps).")
+
+    def _play(self, player, box, doc: int, first: int, last: int, m0: int, m1: int, alignment, title: str) -> None:
+        """Load the query span (frames first..last of ``doc``) beside database frames m0..m1 into ``player``, played
+        along ``alignment`` ((L, 2) frames of the two clips)."""
+        q0 = self.backend.db.frames(doc).start
+        positions = self.backend.db.positions
+        player.load([positions[q0 + first : q0 + last + 1], positions[m0 : m1 + 1]],
+                    titles=[f"query: document {doc}", title], fps=self.backend.fps, alignment=alignment)
+        box.visible = True
 
     # ------------------------------------------------------------------ kNN
     async def _search(self, event=None) -> None:
@@ -325,14 +443,10 @@ class SimilarityPage(pn.viewable.Viewer):
             return
         match = self.matches.iloc[event.new[0]]
         doc, first, last = self.match_query
-        q0 = self.backend.db.frames(doc).start
-        positions = self.backend.db.positions
-        clips = [positions[q0 + first : q0 + last + 1], positions[match["start"] : match["end"] + 1]]
         d0 = self.backend.db.frames(int(match["doc_id"])).start
-        titles = [f"query: document {doc}", f"match {match['rank']}: document {match['doc_id']}"]
-        self.player.load(clips, titles=titles, fps=self.backend.fps,
-                         alignment=match_alignment(match["path"], int(match["start"])))
-        self.player_box.visible = True
+        self._play(self.player, self.player_box, doc, first, last, int(match["start"]), int(match["end"]),
+                   match_alignment(match["path"], int(match["start"])),
+                   f"match {match['rank']}: document {match['doc_id']}")
         self.playing.object = (f"Playing the query (document {doc}, frames {first}–{last}) beside match "
                                f"{match['rank']} (document {match['doc_id']}, {match['name']}, frames "
                                f"{match['start'] - d0}–{match['end'] - d0}), aligned by its warping path "
@@ -355,6 +469,11 @@ class SimilarityPage(pn.viewable.Viewer):
             self.matrix.object = layout
 
 
+SEARCH_LEGEND = ("Whole clips: every document aligned with the whole span by DTW, ranked by cost / (span frames + "
+                 "document frames). Stretches: the K best non-overlapping stretches of the documents by subsequence "
+                 "DTW (raw cost), each at least half the span long. Exact: exactly the brute-force ranking, with "
+                 "admissible pruning; fast: only where the kNN search finds neighbours of the span's frames "
+                 "(measured recall on the Retrieval quality tab).")
 MATRIX_LEGEND = ("The span against the documents of its best matches (at most three, the small database). Grey: "
                  "distances the graph computed (darker = more similar); blue: cells it never computed; red: its "
                  "warping paths; orange: document boundaries. Second panel: subsequence DTW on the point-cloud "

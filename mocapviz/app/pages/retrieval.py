@@ -1,0 +1,137 @@
+"""Retrieval quality page: how well each search method of the product finds the documents of the query's class on
+the open database (:func:`mocapviz.experiments.retrieval_quality`).
+
+Labelled documents are the queries (a seeded sample of :data:`DEFAULT_QUERIES` by default, so the page answers in
+seconds on the demo database); each method ranks the other documents, judged by :mod:`mocapviz.evaluation`. The
+summary table (mAP leave-one-out and leave-group-out, P@1, P@10, recall of brute-force DTW's top 10, ms per query),
+the AP per class and method and the precision/recall curves appear behind the Evaluate button, computed in a worker
+thread and cached per database and settings (:meth:`Backend.retrieval`).
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+import panel as pn
+
+from ...experiments.retrieval import METHOD_LABELS, METHODS
+from ...viz.retrieval import class_ap_bars, pr_curves
+from ..progress import Task
+from ..widgets import action_button
+
+DEFAULT_METHODS = ["dtw", "exact", "fast", "lng256"]  # the relational ones build the indexes on first use
+DEFAULT_QUERIES = 24
+NO_GROUP = "(none)"
+SUMMARY_TITLES = {"method": "method", "queries": "queries", "map_loo": "mAP (leave-one-out)",
+                  "map_lgo": "mAP (leave-group-out)", "p_at_1": "P@1", "p_at_10": "P@10",
+                  "recall_dtw_top10": "recall of DTW top 10", "ms_per_query": "ms / query (K = 10)", "note": "note"}
+NA = "–"
+
+
+def label_columns(documents: pd.DataFrame, columns) -> list[str]:
+    """The label columns that can judge a search: some value shared by at least two documents."""
+    out = []
+    for c in columns:
+        counts = documents[c].dropna().astype(str).replace("", None).dropna().value_counts()
+        if len(counts) and counts.max() >= 2:
+            out.append(c)
+    return out
+
+
+def summary_titles(summary: pd.DataFrame) -> dict:
+    """Column titles of the summary table (the leave-group-out column named after its group)."""
+    titles = dict(SUMMARY_TITLES)
+    if summary.attrs.get("group_column"):
+        titles["map_lgo"] = f"mAP (leave-{summary.attrs['group_column']}-out)"
+    return titles
+
+
+def summary_view(summary: pd.DataFrame) -> pd.DataFrame:
+    """The summary table as shown (titles by :func:`summary_titles`): fractions to 3 decimals, ms to 0.1."""
+    shown = summary[list(SUMMARY_TITLES)].copy()
+    for c in ("map_loo", "map_lgo", "p_at_1", "p_at_10", "recall_dtw_top10"):
+        shown[c] = shown[c].map(lambda v: NA if pd.isna(v) else f"{v:.3f}")
+    shown["ms_per_query"] = shown["ms_per_query"].map(lambda v: NA if pd.isna(v) else f"{v:.1f}")
+    return shown
+
+
+class RetrievalPage(pn.viewable.Viewer):
+    """Evaluate the search methods on the open database: summary table, AP per class, P/R curves."""
+
+    def __init__(self, backend, selection):
+        super().__init__()
+        self.backend, self.selection = backend, selection
+        docs = backend.documents
+        labels = label_columns(docs, backend.db.label_columns)
+        groups = [c for c in backend.db.label_columns if docs[c].notna().any()]
+        self.methods = pn.widgets.MultiChoice(name="methods", options=list(METHODS), value=list(DEFAULT_METHODS),
+                                              width=460, css_classes=["mv-retrieval-methods"])
+        self.label = pn.widgets.Select(name="relevant = same", options=labels or ["label"],
+                                       value="label" if "label" in labels else (labels or ["label"])[0], width=160,
+                                       css_classes=["mv-retrieval-label"])  # fmt: skip
+        self.group = pn.widgets.Select(name="leave-group-out by", options=[NO_GROUP, *groups],
+                                       value="actor" if "actor" in groups else NO_GROUP, width=160,
+                                       css_classes=["mv-retrieval-group"])  # fmt: skip
+        self.n_queries = pn.widgets.IntInput(name="queries (0 = all)", value=DEFAULT_QUERIES, start=0, width=130,
+                                             css_classes=["mv-retrieval-n"])
+        self.button = action_button("Evaluate", "mv-retrieval-run", self._evaluate)
+        self.task = Task()
+        self.count = pn.pane.Markdown("", css_classes=["mv-retrieval-count"], margin=(0, 10))
+        self.summary = pn.widgets.Tabulator(pd.DataFrame(columns=list(SUMMARY_TITLES)), titles=dict(SUMMARY_TITLES),
+                                            show_index=False, selectable=False,
+                                            disabled=True, sizing_mode="stretch_width", layout="fit_data_table",
+                                            css_classes=["mv-retrieval-summary"],
+                                            configuration={"renderVertical": "basic"})  # fmt: skip
+        self.figures = pn.Column(sizing_mode="stretch_width", css_classes=["mv-retrieval-figures"])
+        self.result = None
+
+    def __panel__(self):
+        db = self.backend.db
+        intro = pn.pane.Markdown(
+            f"Every labelled document of **{db.path.name}** (or a seeded sample of them) is a query; each method "
+            "ranks the other documents, and a document is relevant when it carries the query's label. "
+            "**dtw**: brute-force whole-clip DTW (the reference); **exact** / **fast**: the Similarity page's search "
+            "modes; **lng256** / **lng1024**: the lazy neighbourhood graph (Krüger et al. 2010 §4.1), documents "
+            "ranked by their best match; **relational**: query by example with the class's feature selection "
+            "(Müller et al. 2005; HDM05 classes only); **hybrid**: relational hits re-ranked by DTW. "
+            "Leave-group-out: a query of actor A searches only the other actors' documents. Time: one search for the "
+            "10 best documents.",
+            sizing_mode="stretch_width")  # fmt: skip
+        return pn.Column(intro, pn.Row(self.methods, self.label, self.group, self.n_queries, self.button),
+                         pn.Column(self.task, css_classes=["mv-retrieval-task"], sizing_mode="stretch_width",
+                                   margin=0),
+                         self.count, self.summary, self.figures, sizing_mode="stretch_width")
+
+    def _settings(self) -> tuple:
+        n = int(self.n_queries.value or 0)
+        group = None if self.group.value == NO_GROUP else self.group.value
+        return tuple(self.methods.value), self.label.value, group if group else False, n or None
+
+    def _compute(self, methods, label, group, n_queries) -> dict:
+        if not methods:
+            raise ValueError("choose at least one method")
+        if group == label:
+            raise ValueError(f"the label and the leave-group-out column are both {label!r}; choose another group")
+        return self.backend.retrieval(methods, label_column=label, group_column=group, n_queries=n_queries)
+
+    async def _evaluate(self, event=None) -> None:
+        settings = self._settings()
+        result = await self.task.run("Evaluating", self._compute, *settings, busy=self.button)
+        if result is None:
+            return
+        self.result = result
+        summary = result["summary"]
+        self.summary.param.update(value=summary_view(summary), titles=summary_titles(summary))
+        methods, label, group, _ = settings
+        attrs = summary.attrs
+        self.count.object = (f"**{attrs['queries']} queries** of {attrs['documents']} documents, relevant = same "
+                             f"{label}" + (f", leave-{group}-out" if group else "")
+                             + ", " + ", ".join(f"{m}: {METHOD_LABELS.get(m, m)}" for m in methods))  # fmt: skip
+        panes = []
+        for protocol in ("loo", "lgo"):
+            if result["per_class"][f"ap_{protocol}"].notna().any():
+                panes.append(pn.Row(
+                    pn.pane.HoloViews(class_ap_bars(result["per_class"], protocol, width=760, height=340),
+                                      css_classes=[f"mv-retrieval-bars-{protocol}"]),
+                    pn.pane.HoloViews(pr_curves(result["curves"], protocol, width=460, height=340),
+                                      css_classes=[f"mv-retrieval-curves-{protocol}"])))  # fmt: skip
+        self.figures[:] = panes
