@@ -206,6 +206,29 @@ def _mismatch_walk(codes, segment_doc, mask, query, free, m, cand, anchor, out):
     return h
 
 
+def _mismatch_plan(sizes: np.ndarray, m: int, allowed) -> tuple[np.ndarray, np.ndarray]:
+    """For an m-mismatch query of L segments whose (union) lists hold ``sizes`` (L,) entries: which positions may
+    disagree (bool (L,)) and the positions whose lists give every candidate hit. A hit agrees with every position
+    where no mismatch is allowed, so the shortest such list holds them all; with mismatches allowed anywhere it
+    agrees with at least one of any m + 1 positions (pigeonhole), so the union of the m + 1 shortest lists does.
+
+    Raises
+    ------
+    ParameterError
+        ``m`` outside [0, L), allowed positions outside [0, L).
+    """
+    n = sizes.size
+    if not 0 <= m < n:
+        raise ParameterError(f"m must satisfy 0 <= m < {n} (the query's segments), got {m}")
+    positions = np.arange(n) if allowed is None else np.unique(np.asarray(allowed, dtype=np.int64))
+    if positions.size and (positions.min() < 0 or positions.max() >= n):
+        raise ParameterError(f"allowed mismatch positions must lie in [0, {n}), got {positions.tolist()}")
+    free = np.isin(np.arange(n), positions)
+    fixed = np.flatnonzero(~free)
+    anchors = fixed[[np.argmin(sizes[fixed])]] if fixed.size else np.argsort(sizes, kind="stable")[: m + 1]
+    return free, anchors
+
+
 class InvertedIndex:
     """Inverted lists of a feature sequence F[D] over one or more documents.
 
@@ -452,21 +475,11 @@ class InvertedIndex:
         """
         q = self._query_codes(query)
         n = q.size
-        if not 0 <= m < n:
-            raise ValueError(f"m must satisfy 0 <= m < {n} (the query's segments), got {m}")
-        free = np.arange(n) if allowed is None else np.unique(np.asarray(allowed, dtype=np.int64))
-        if free.size and (free.min() < 0 or free.max() >= n):
-            raise ValueError(f"allowed mismatch positions must lie in [0, {n})")
-        fixed = np.setdiff1d(np.arange(n), free)
-        sizes = np.array([self.inverted_list(int(c)).size for c in q])
-        if fixed.size:
-            anchors = fixed[[np.argmin(sizes[fixed])]]
-        else:
-            anchors = np.argsort(sizes, kind="stable")[: m + 1]
+        free, anchors = _mismatch_plan(np.array([self.inverted_list(int(c)).size for c in q]), m, allowed)
         cand = np.unique(np.concatenate([self.inverted_list(int(q[a])).astype(np.int64) - a for a in anchors]))
         cand = cand[(cand >= 0) & (cand + n <= self.n_segments)]
         agree = self.codes[cand[:, None] + np.arange(n)] == q
-        ok = agree[:, fixed].all(axis=1) & (agree[:, free].sum(axis=1) >= free.size - m)
+        ok = agree[:, ~free].all(axis=1) & (agree[:, free].sum(axis=1) >= free.sum() - m)
         return self._valid(cand[ok], n)
 
     def adaptive_mismatch(self, query, selected, m: int = 0, allowed=None) -> np.ndarray:
@@ -510,16 +523,8 @@ class InvertedIndex:
         mask = int(np.sum(np.int64(1) << selected))
         q = self._query_codes(query) & mask
         n = q.size
-        if not 0 <= m < n:
-            raise ParameterError(f"m must satisfy 0 <= m < {n} (the query's segments), got {m}")
-        positions = np.arange(n) if allowed is None else np.unique(np.asarray(allowed, dtype=np.int64))
-        if positions.size and (positions.min() < 0 or positions.max() >= n):
-            raise ParameterError(f"allowed mismatch positions must lie in [0, {n}), got {positions.tolist()}")
-        free = np.isin(np.arange(n), positions)
         lists = [np.flatnonzero((self.list_codes & mask) == c) for c in q]
-        sizes = np.array([np.diff(self.list_offsets)[i].sum() for i in lists])
-        fixed = np.flatnonzero(~free)
-        anchors = fixed[[np.argmin(sizes[fixed])]] if fixed.size else np.argsort(sizes, kind="stable")[: m + 1]
+        free, anchors = _mismatch_plan(np.array([np.diff(self.list_offsets)[i].sum() for i in lists]), m, allowed)
         cand, anchor = [], []
         for a in anchors:
             segs = self._gather(lists[a])

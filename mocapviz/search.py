@@ -45,7 +45,7 @@ from .features.numeric import NUMERIC_SETS, default_pca
 from .knn import KnnIndex
 from .match.bounds import box_rows, range_of, row_bounds
 from .match.dtw import dtw, select_matches
-from .match.pruned import search_stretches, search_whole
+from .match.pruned import search_ranges
 from .motion import Motion
 
 MODES = ("exact", "fast", "brute")
@@ -248,9 +248,8 @@ class SimilaritySearch:
             if m > 1:
                 rows[bounded, -1] = _costs(q[-1], self.features[hi[bounded] - 1])
             bound = rows.sum(axis=1) / (m + hi - lo)
-        costs, aligned, cells = search_whole(q, self.features, lo, hi, order, bound, rows, n_matches,
-                                             mode != "brute", budget_n, q.min(axis=0).astype(np.float64),
-                                             q.max(axis=0).astype(np.float64))  # fmt: skip
+        costs, aligned, cells = _whole_costs(q, self.features, lo, hi, order, bound, rows, n_matches, mode != "brute",
+                                             budget_n)  # fmt: skip
         norm = costs / (m + hi - lo)
         found = np.flatnonzero(np.isfinite(norm))
         found = found[np.lexsort((self.documents["doc_id"].to_numpy()[rows_idx[found]], norm[found]))][:n_matches]
@@ -276,9 +275,8 @@ class SimilaritySearch:
         qc = _pooled(q, np.zeros(1, np.int64), np.array([len(q)]), self.pool)[0]
         lo, hi = c_lo[rows_idx], c_hi[rows_idx]
         prune = keep is not None and keep < len(lo)
-        costs, _, _ = search_whole(qc, y, lo, hi, np.arange(len(lo)), np.zeros(len(lo)), np.zeros((len(lo), len(qc))),
-                                   keep if prune else 1, prune, -1, qc.min(axis=0).astype(np.float64),
-                                   qc.max(axis=0).astype(np.float64))  # fmt: skip
+        costs, _, _ = _whole_costs(qc, y, lo, hi, np.arange(len(lo)), np.zeros(len(lo)), np.zeros((len(lo), len(qc))),
+                                   keep if prune else 1, prune, -1)  # fmt: skip
         costs = costs / (len(qc) + hi - lo)
         return np.argsort(costs, kind="stable"), costs
 
@@ -328,8 +326,8 @@ class SimilaritySearch:
                 rows = np.maximum(rows, box_rows(q, self._low[rows_idx], self._high[rows_idx]))
             bound = rows.sum(axis=1)
             order = np.argsort(bound, kind="stable")
-        starts, ends, costs, aligned, cells = search_stretches(q, self.features, lo, hi, order, bound, rows,
-                                                               n_matches, shortest, mode != "brute", -1)  # fmt: skip
+        starts, ends, costs, aligned, cells = search_ranges(q, self.features, lo, hi, order, bound, rows, n_matches,
+                                                            False, shortest, mode != "brute", -1, *_box(q))  # fmt: skip
         chosen = select_matches(starts, ends, costs, n_matches)
         ms = 1e3 * (time.perf_counter() - t0)
         doc_row = np.searchsorted(self._lo, ends[chosen], side="right") - 1
@@ -350,9 +348,9 @@ class SimilaritySearch:
         qc = _pooled(q, np.zeros(1, np.int64), np.array([len(q)]), self.pool)[0]
         lo, hi = c_lo[rows_idx], c_hi[rows_idx]
         want = COARSE_CANDIDATES * n_matches
-        starts, ends, costs, _, _ = search_stretches(qc, y, lo, hi, np.arange(len(lo)), np.zeros(len(lo)),
-                                                     np.zeros((len(lo), len(qc))), want, max(1, shortest // self.pool),
-                                                     True, -1)  # fmt: skip
+        starts, ends, costs, _, _ = search_ranges(qc, y, lo, hi, np.arange(len(lo)), np.zeros(len(lo)),
+                                                  np.zeros((len(lo), len(qc))), want, False,
+                                                  max(1, shortest // self.pool), True, -1, *_box(qc))  # fmt: skip
         chosen = select_matches(starts, ends, costs, want)
         r = np.searchsorted(lo, ends[chosen], side="right") - 1
         pad = int(np.ceil(WINDOW_PAD * len(q)))
@@ -395,6 +393,22 @@ def _span(frames, n: int, what: str) -> tuple[int, int]:
     if b - a < 2:
         raise ParameterError(f"a query needs at least 2 frames; frames {a}:{b} of {what} hold {b - a}")
     return int(a), int(b)
+
+
+def _box(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The query's bounding box: least and greatest value of every feature, (d,) float64 each."""
+    return q.min(axis=0).astype(np.float64), q.max(axis=0).astype(np.float64)
+
+
+def _whole_costs(q, x, lo, hi, order, bound, rows, k: int, prune: bool, budget: int):
+    """Whole-range DTW costs (R,) of the query against ranges [lo, hi) (sorted by lo; inf: not aligned, or pruned
+    above the running k-th best normalised cost), the ranges aligned and the cells computed
+    (:func:`mocapviz.match.pruned.search_ranges`)."""
+    first, _, found, aligned, cells = search_ranges(q, x, lo, hi, order, bound, rows, k, True, 1, prune, budget,
+                                                    *_box(q))  # fmt: skip
+    costs = np.full(len(lo), np.inf)
+    costs[np.searchsorted(lo, first)] = found
+    return costs, aligned, cells
 
 
 def _costs(frame: np.ndarray, frames: np.ndarray) -> np.ndarray:

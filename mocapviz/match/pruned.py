@@ -159,51 +159,21 @@ def _rest(row_bounds):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def search_whole(q, x, lo, hi, order, bound, rows, k, prune, budget, qmin, qmax):  # pragma: no cover - compiled
-    """Whole-range DTW of the query against ranges [lo[r], hi[r]) in ``order``, keeping the k best normalised
-    costs cost / (m + n).
-
-    bound (R,): a lower bound of each range's normalised cost; rows (R, m): per-range row bounds (raw cost).
-    qmin, qmax (d,): the query's bounding box (a range's frames are all on the path: each costs at least its
-    distance to the box; checked before a range is aligned). prune: use the bounds (False: brute force, every cell of every range). budget: ranges to align at most
-    (fast mode; -1: all). Returns raw costs (R,) (inf: not aligned or above the limit), the number of ranges
-    aligned and of cells computed."""
-    m = q.shape[0]
-    n_r = lo.shape[0]
-    costs = np.full(n_r, np.inf)
-    best = np.full(k, np.inf)
-    aligned = 0
-    cells = 0
-    buf_c = np.empty(0)
-    buf_s = np.empty(0, dtype=np.int64)
-    for t in range(order.shape[0]):
-        r = order[t]
-        if prune and bound[r] > best[k - 1]:
-            continue
-        if budget >= 0 and aligned >= budget:
-            break
-        n = hi[r] - lo[r]
-        if buf_c.shape[0] < n:
-            buf_c = np.empty(n)
-            buf_s = np.empty(n, dtype=np.int64)
-        norm = m + n
-        limit = best[k - 1] * norm if prune else np.inf
-        if prune and _box_bound(x, lo[r], hi[r], qmin, qmax) > limit:
-            continue  # every frame of the range lies on the path: the sum of their distances to the query's box
-        rest = _rest(rows[r]) if prune else np.zeros(m)
-        cells += _align(q, x, lo[r], hi[r], rest, limit, True, buf_c, buf_s)
-        aligned += 1
-        c = buf_c[n - 1]
-        costs[r] = c
-        if c < np.inf:
-            _insert(best, c / norm)
-    return costs, aligned, cells
+def _append(out_s, out_e, out_c, n_out, start, end, cost):  # pragma: no cover - compiled
+    """Append one candidate (start, end, cost) to the growing arrays out_*; returns them and the new count."""
+    if n_out == out_s.shape[0]:
+        grow = out_s.shape[0] * 2
+        s2, e2, c2 = np.empty(grow, np.int64), np.empty(grow, np.int64), np.empty(grow)
+        s2[:n_out], e2[:n_out], c2[:n_out] = out_s, out_e, out_c
+        out_s, out_e, out_c = s2, e2, c2
+    out_s[n_out], out_e[n_out], out_c[n_out] = start, end, cost
+    return out_s, out_e, out_c, n_out + 1
 
 
 @numba.njit(cache=True)
 def _local_minima(end_cost, end_start, a, min_length, out_s, out_e, out_c, n_out):  # pragma: no cover - compiled
     """Append the local minima of one range's end costs (ends with a match of at least min_length frames) to
-    out_*; returns the new count and the range's least such cost."""
+    out_*; returns them, the new count and the range's least such cost."""
     n = end_cost.shape[0]
     least = np.inf
     for t in range(n):
@@ -217,25 +187,26 @@ def _local_minima(end_cost, end_start, a, min_length, out_s, out_e, out_c, n_out
         if t + 1 < n and a + t + 1 - end_start[t + 1] + 1 >= min_length:
             right = end_cost[t + 1]
         if c <= left and c <= right:
-            if n_out == out_s.shape[0]:
-                grow = out_s.shape[0] * 2
-                s2, e2, c2 = np.empty(grow, np.int64), np.empty(grow, np.int64), np.empty(grow)
-                s2[:n_out], e2[:n_out], c2[:n_out] = out_s, out_e, out_c
-                out_s, out_e, out_c = s2, e2, c2
-            out_s[n_out], out_e[n_out], out_c[n_out] = end_start[t], a + t, c
-            n_out += 1
+            out_s, out_e, out_c, n_out = _append(out_s, out_e, out_c, n_out, end_start[t], a + t, c)
             least = min(least, c)
     return out_s, out_e, out_c, n_out, least
 
 
 @numba.njit(cache=True)
-def search_stretches(q, x, lo, hi, order, bound, rows, k, min_length, prune, budget):  # pragma: no cover
-    """Subsequence DTW of the query inside ranges [lo[r], hi[r]) in ``order``; the candidates (local minima of
-    the end cost, matches of at least ``min_length`` frames) of every range aligned.
+def search_ranges(q, x, lo, hi, order, bound, rows, k, whole, min_length, prune, budget, qmin, qmax):  # pragma: no cover
+    """Align the query with ranges [lo[r], hi[r]) of x in ``order`` and collect the candidate matches.
 
-    bound (R,): a lower bound of the least match cost in each range; rows (R, m) per-range row bounds. prune,
-    budget: as :func:`search_whole`. Returns candidate starts, ends (inclusive database frames), costs, the
-    number of ranges aligned and of cells computed."""
+    whole: True = DTW of the query against each whole range, one candidate per range (lo, hi - 1, cost), the k
+    best kept by normalised cost cost / (m + n); False = subsequence DTW inside each range, the candidates the
+    local minima of the end cost among matches of at least ``min_length`` frames, the limit the k-th best
+    per-range minimum (see the module docstring).
+    bound (R,): a lower bound of each range's best (normalised, when ``whole``) cost; rows (R, m): per-range row
+    bounds (raw cost). qmin, qmax (d,): the query's bounding box (whole: every frame of a range is on the path,
+    each costs at least its distance to the box; checked before a range is aligned). prune: use the bounds and
+    the running limit (False: brute force, every cell of every range). budget: ranges to align at most (-1: all).
+
+    Returns candidate starts, ends (inclusive frames of x), raw costs, the number of ranges aligned and of cells
+    computed."""
     m = q.shape[0]
     out_s = np.empty(64, np.int64)
     out_e = np.empty(64, np.int64)
@@ -256,12 +227,20 @@ def search_stretches(q, x, lo, hi, order, bound, rows, k, min_length, prune, bud
         if buf_c.shape[0] < n:
             buf_c = np.empty(n)
             buf_s = np.empty(n, dtype=np.int64)
-        limit = best[k - 1] if prune else np.inf
+        norm = m + n if whole else 1
+        limit = best[k - 1] * norm if prune else np.inf
+        if whole and prune and _box_bound(x, lo[r], hi[r], qmin, qmax) > limit:
+            continue
         rest = _rest(rows[r]) if prune else np.zeros(m)
-        cells += _align(q, x, lo[r], hi[r], rest, limit, False, buf_c, buf_s)
+        cells += _align(q, x, lo[r], hi[r], rest, limit, whole, buf_c, buf_s)
         aligned += 1
-        out_s, out_e, out_c, n_out, least = _local_minima(buf_c[:n], buf_s[:n], lo[r], min_length, out_s, out_e,
-                                                          out_c, n_out)  # fmt: skip
+        if whole:
+            least = buf_c[n - 1]
+            if least < np.inf:
+                out_s, out_e, out_c, n_out = _append(out_s, out_e, out_c, n_out, lo[r], hi[r] - 1, least)
+        else:
+            out_s, out_e, out_c, n_out, least = _local_minima(buf_c[:n], buf_s[:n], lo[r], min_length, out_s, out_e,
+                                                              out_c, n_out)  # fmt: skip
         if least < np.inf:
-            _insert(best, least)
+            _insert(best, least / norm)
     return out_s[:n_out], out_e[:n_out], out_c[:n_out], aligned, cells
