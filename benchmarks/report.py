@@ -74,7 +74,8 @@ def build(quick: bool = False, out_dir: Path = RESULTS, command: str | None = No
             lines += [(f"not run: no `{path.relative_to(HERE.parent) if path.is_relative_to(HERE.parent) else path}`"
                       " — run `python -m benchmarks` (or this benchmark alone) first"), ""]  # fmt: skip
     out = report_path(quick)
-    out.write_text("\n".join(lines).rstrip() + "\n")
+    text = "\n".join(lines).replace(str(HERE.parent) + "/", "")  # paths relative to the repository, not this machine
+    out.write_text(text.rstrip() + "\n")
     return out
 
 
