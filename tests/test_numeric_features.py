@@ -379,8 +379,8 @@ def test_a_failed_store_keeps_the_previous_files_and_leaves_no_temporary_ones(hd
             raise KeyboardInterrupt
         return original_write(target, data)
 
-    original_write = nm._atomic_write
-    monkeypatch.setattr(nm, "_atomic_write", no_header)
+    original_write = nm.atomic_write
+    monkeypatch.setattr(nm, "atomic_write", no_header)
     with pytest.raises(KeyboardInterrupt):
         store_numeric(db, "F15x3E", progress=False)
     monkeypatch.undo()
