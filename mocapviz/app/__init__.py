@@ -76,6 +76,17 @@ def dashboard(db_path) -> pn.viewable.Viewable:
     return pn.Column(header, tabs, sizing_mode="stretch_width")
 
 
+def _warm_search(backend: Backend) -> None:
+    """One small search of each kind, so that the Similarity page's first search finds the DTW kernels compiled
+    (or loaded from numba's cache), the F15E kd-tree and the coarse database built."""
+    docs = backend.documents
+    doc = int(docs.loc[docs["n_frames"].idxmax(), "doc_id"])
+    search = backend.search("F15E")
+    for mode in ("fast", "exact"):
+        search.clips(doc, frames=(0, 2), n_matches=1, mode=mode)
+        search.stretches(doc, frames=(0, 2), n_matches=1, mode=mode)
+
+
 def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, threaded: bool = False):
     """Serve the dashboard of the MotionDB at ``db_path`` on http://address:port/ until interrupted.
 
@@ -90,6 +101,7 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, t
     """
     dashboard(db_path)  # once before listening: the first visitor then finds numba kernels, the EGL context,
     # HoloViews' option trees and the first clip's features ready
+    _warm_search(Backend.open(db_path))
     if address not in (LOCAL, "localhost"):
         warnings.warn(f"serving on {address}: anyone who can reach this machine's port {port} can browse "
                       f"{db_path}", UserWarning, stacklevel=2)

@@ -472,8 +472,9 @@ class SimilarityPage(pn.viewable.Viewer):
 SEARCH_LEGEND = ("Whole clips: every document aligned with the whole span by DTW, ranked by cost / (span frames + "
                  "document frames). Stretches: the K best non-overlapping stretches of the documents by subsequence "
                  "DTW (raw cost), each at least half the span long. Exact: exactly the brute-force ranking, with "
-                 "admissible pruning; fast: only where the kNN search finds neighbours of the span's frames "
-                 "(measured recall on the Retrieval quality tab).")
+                 "admissible pruning; fast: exact DTW on candidates only (whole clips: those of least DTW cost on 0.2 s "
+                 "block means; stretches: around the span frames' nearest neighbours and the best coarse matches), "
+                 "measured recall on the Retrieval quality tab.")
 MATRIX_LEGEND = ("The span against the documents of its best matches (at most three, the small database). Grey: "
                  "distances the graph computed (darker = more similar); blue: cells it never computed; red: its "
                  "warping paths; orange: document boundaries. Second panel: subsequence DTW on the point-cloud "
