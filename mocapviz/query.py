@@ -125,7 +125,7 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
         raise ValueError(f"the query lasts {example.duration:.2f} s, longer than every document of {db.path} "
                          f"(longest {longest:.2f} s); choose a shorter span")
     values, names = relational(example, feature_set)
-    fps = db.fps or float(docs["fps"].iloc[0])
+    doc_fps = docs["fps"].to_numpy(np.float64)  # per document: a database may mix frame rates
     tables = []
     for group, members in feature_groups(feature_set).items():
         picked = [members.index(f) for f in chosen if f in members]
@@ -137,9 +137,9 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
         first, stop = bounds[:, 0], bounds[:, -1]
         seg_frames = idx.starts[np.minimum(bounds, idx.n_segments - 1)]
         seg_frames[:, -1] = idx.starts[stop - 1] + idx.lengths[stop - 1] if len(stop) else seg_frames[:, -1]
-        hit_len = np.diff(seg_frames, axis=1) / fps
-        score = np.abs(hit_len - q_len / example.fps).sum(axis=1)
         doc_row = idx.segment_doc[first]
+        hit_len = np.diff(seg_frames, axis=1) / doc_fps[doc_row][:, None]  # seconds, at the hit document's rate
+        score = np.abs(hit_len - q_len / example.fps).sum(axis=1)
         doc_start = docs["start"].to_numpy()[doc_row]
         tables.append(pd.DataFrame({
             "doc_row": doc_row,

@@ -229,3 +229,16 @@ def test_cli_index_and_query_print_the_library_answer(db, tmp_path, capsys):
                  "--mismatch-at", "0"]) == 0  # fmt: skip
     at_first = query_by_example(copy, copy.motion(doc), ["rknee_bent"], mode="mismatch", allowed=[0])
     assert capsys.readouterr().out.startswith(f"{len(at_first)} hits")
+
+
+def test_hit_durations_use_each_documents_frame_rate(hdm05_dir, bandai1_files, tmp_path):
+    """A database mixing 120 Hz (HDM05) and 30 Hz (Bandai Namco) documents: a clip's hit in its own document lasts
+    as long as the clip, so its §6.2 score (sum of segment-duration differences, seconds) is 0 at either rate."""
+    amc = min((hdm05_dir / "amc").rglob("*.amc"))
+    mixed = MotionDB.ingest([amc, bandai1_files[0]], tmp_path / "mixed", progress=False)
+    assert sorted(mixed.documents["fps"]) == [30.0, 120.0] and mixed.fps is None
+    build(mixed, progress=False)
+    for doc in mixed.documents["doc_id"]:
+        hits = query_by_example(mixed, mixed.motion(int(doc)), ["rknee_bent", "lknee_bent", "rfoot_raised"])
+        own = hits[(hits["doc_id"] == doc) & (hits["start_frame"] == 0)]
+        assert len(own) == 1 and own["score"].iloc[0] == pytest.approx(0.0, abs=1e-9), hits.head()

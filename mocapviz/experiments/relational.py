@@ -105,8 +105,7 @@ def index_statistics(db, feature_set: str = "2005", values: np.ndarray | None = 
         raise ValueError(f"values must have shape ({db.n_frames}, {len(names)}) (frames of the database, features "
                          f"of the {feature_set} set), got {values.shape}")  # fmt: skip
     doc_starts = db.documents["start"].to_numpy(np.int64)
-    fps = (db.fps or float(db.documents["fps"].iloc[0])) if len(db) else float("nan")
-    minutes = db.n_frames / fps / 60.0
+    minutes = float((db.documents["n_frames"] / db.documents["fps"]).sum() / 60.0)  # per document: rates may mix
     t_read = float("nan") if t_read is None else float(t_read)
     t_features = float("nan") if t_features is None else float(t_features)
     rows = []
