@@ -38,7 +38,7 @@ import pandas as pd
 
 from . import datasets
 from .cluster import LOCAL, dask_client, optional_client
-from .database import MotionDB
+from .database import MotionDB, expand_paths
 from .errors import MocapFormatError, MocapvizError, MotionDBError, ParameterError, SkeletonMappingError
 from .features import NUMERIC_SETS, PCAModel, fit_pca, load_numeric, numeric, numeric_of, relational, store_numeric
 from .index import build
@@ -69,6 +69,8 @@ def _ingest(args) -> None:
     if args.jobs is not None and scheduler not in (None, LOCAL):
         raise ValueError("--jobs sizes the local cluster (or, with --no-cluster, the reader processes); the "
                          "workers of --scheduler are the scheduler's")
+    expand_paths(args.paths)  # the input and the output checked before any cluster starts
+    _check_out_folder(Path(args.out))
     with contextlib.ExitStack() as stack:
         if scheduler == LOCAL:  # the local cluster, with --jobs workers if given
             scheduler = stack.enter_context(dask_client(LOCAL, n_workers=args.jobs))
@@ -76,6 +78,15 @@ def _ingest(args) -> None:
                              skip_bad=args.skip_bad, n_jobs=args.jobs or 1, progress=not args.quiet,
                              scheduler=scheduler, **options)
     print(db)
+
+
+def _check_out_folder(out: Path) -> None:
+    """A NotADirectoryError unless ``out`` is a folder or can become one (no file in the way)."""
+    for folder in (out, *out.parents):
+        if folder.exists():
+            if not folder.is_dir():
+                raise NotADirectoryError(f"--out {out}: {folder} is a file, not a folder")
+            return
 
 
 def _info(args) -> None:

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocapviz import MotionDB, datasets
+from mocapviz import MotionDB, cli, datasets
 from mocapviz.cli import main
 
 REPO = Path(__file__).resolve().parent.parent
@@ -51,7 +51,9 @@ def test_datasets_list_and_fetch_sample(capsys):
         (["ingest", "{bad}", "--out", "{tmp}/db2", "--quiet"], "line 4: OFFSET needs three"),
     ],
 )
-def test_errors_are_one_line_and_exit_1(argv, needle, tmp_path, sample_dir, capsys):
+def test_errors_are_one_line_and_exit_1(argv, needle, tmp_path, sample_dir, capsys, monkeypatch):
+    if argv[0] == "ingest" and "{bad}" not in argv:  # bad arguments are refused before any Dask cluster starts
+        monkeypatch.setattr(cli, "dask_client", lambda *a, **k: pytest.fail("a cluster started on an error path"))
     bad = tmp_path / "broken.bvh"
     bad.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n}\n")
     argv = [a.format(tmp=tmp_path, bad=bad) for a in argv]
@@ -146,7 +148,8 @@ def test_skip_bad_and_label_table_from_the_command_line(sample_dir, tmp_path, ca
     assert docs["mood"].tolist() == ["calm"]
 
 
-def test_operating_system_errors_are_one_line(sample_dir, tmp_path, capsys):
+def test_operating_system_errors_are_one_line(sample_dir, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(cli, "dask_client", lambda *a, **k: pytest.fail("a cluster started on an error path"))
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     assert main(["ingest", str(sample_dir / "cmu-asfamc"), "--out", str(blocker / "db"), "--quiet"]) == 1
