@@ -21,6 +21,7 @@ from .errors import ParameterError
 from .motion import Motion
 from .query import MODES, query_by_example
 from .search import COLUMNS, SimilaritySearch
+from .validation import count
 
 # Lenient selections per HDM05 class for the hybrid, as keyword arguments of hybrid_search: fewer features than
 # DEFAULT_QUERIES (mocapviz.experiments.relational), so that the relational stage keeps (nearly) every clip of the
@@ -97,9 +98,8 @@ def hybrid_search(db, example, features=None, mode: str = "adaptive", mismatches
     """
     if mode not in MODES:
         raise ParameterError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
-    if n_matches is not None and (not isinstance(n_matches, (int, np.integer)) or n_matches < 1):
-        raise ParameterError(f"n_matches must be an integer of at least 1, or None for every candidate; "
-                             f"got {n_matches!r}")
+    if n_matches is not None:  # None: every candidate
+        count(n_matches, "n_matches")
     motion, own = _example_motion(db, example)
     if search is None:
         search = SimilaritySearch(db, numeric_set)

@@ -35,6 +35,8 @@ import pandas as pd
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
+from .validation import count
+
 ENGINES = ("ckdtree", "brute")
 LEAFSIZE = 16  # points per kd-tree leaf
 _NODE_BYTES = 72  # sizeof(ckdtreenode) in scipy: 9 fields of 8 bytes
@@ -102,14 +104,6 @@ def frames_mask(frames, n: int) -> np.ndarray:
     np.add.at(edges, arr[:, 0], 1)
     np.add.at(edges, arr[:, 1], -1)
     return np.cumsum(edges[:n]) > 0
-
-
-def _check_k(k, n_indexed: int) -> int:
-    if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)):
-        raise TypeError(f"k must be an integer; got {k!r}")
-    if not 1 <= k <= n_indexed:
-        raise ValueError(f"k must be between 1 and the number of indexed frames ({n_indexed:,}); got {k}")
-    return int(k)
 
 
 def _check_radius(radius) -> float | None:
@@ -329,7 +323,7 @@ class KnnIndex:
             k not an integer.
         """
         queries = _check_queries(x, self.dim)
-        k = _check_k(k, self.n_indexed)
+        k = count(k, "k", 1, self.n_indexed, "the number of indexed frames")
         radius, eps, workers = _check_radius(radius), _check_eps(eps), _check_workers(workers)
         if exclude is None:
             d, i = self._search(queries, k, radius, eps, workers)

@@ -86,6 +86,7 @@ from .features.numeric import NUMERIC_SETS, PCAModel, default_pca, numeric, nume
 from .knn import KnnIndex
 from .motion import Motion
 from .skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS, body_frame
+from .validation import count
 
 __all__ = [
     "BONES",
@@ -286,8 +287,7 @@ class PosePrior:
         return self._indexes[feature_set]
 
     def _check_k(self, k) -> int:
-        if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or k < 1:
-            raise ValueError(f"k must be a positive integer; got {k!r}")
+        k = count(k, "k")
         if k > self.n_valid:
             raise ValueError(f"k = {k} is larger than the prior ({self.n_valid:,} valid frames of {self.db.path})")
         return int(k)

@@ -47,6 +47,7 @@ from .match.bounds import box_rows, range_of, row_bounds
 from .match.dtw import dtw, select_matches
 from .match.pruned import search_ranges
 from .motion import Motion
+from .validation import count
 
 MODES = ("exact", "fast", "brute")
 NEIGHBOURS = 32  # k: nearest database frames per query frame (bounds and fast mode's seeds)
@@ -56,13 +57,6 @@ WINDOW_SPEED = 2.0  # fast mode, stretches: windows fit a match from 1/2 to 2 x 
 WINDOW_PAD = 0.5  # ... plus this share of the query on both sides; and windows around the
 COARSE_CANDIDATES = 3  # ... 3 K best matches of subsequence DTW on the coarse database
 COLUMNS = ["rank", "doc_id", "name", "start", "end", "frames", "cost", "normalised_cost"]
-
-
-def _count(value, name: str, least: int = 1) -> int:
-    """``value`` as an int >= least, or a ParameterError naming it."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < least:
-        raise ParameterError(f"{name} must be an integer of at least {least}; got {value!r}")
-    return int(value)
 
 
 def _mode(mode) -> str:
@@ -95,7 +89,7 @@ class SimilaritySearch:
     def __init__(self, db, feature_set: str = "F15E", documents=None, k: int = NEIGHBOURS):
         if feature_set not in NUMERIC_SETS:
             raise ParameterError(f"unknown numeric feature set {feature_set!r}; choose one of {', '.join(NUMERIC_SETS)}")
-        self.db, self.feature_set, self.k = db, feature_set, _count(k, "k")
+        self.db, self.feature_set, self.k = db, feature_set, count(k, "k")
         self.features = np.asarray(numeric_of(db, feature_set))
         docs = db.documents.sort_values("start")
         if documents is not None:
@@ -224,7 +218,7 @@ class SimilaritySearch:
         ``attrs``: mode, query_frames, ms (search time), documents (searched), aligned (documents aligned),
         cells (local costs computed), brute_cells (cells of brute force).
         """
-        n_matches, mode = _count(n_matches, "n_matches"), _mode(mode)
+        n_matches, mode = count(n_matches, "n_matches"), _mode(mode)
         q, own = self.query_features(example, frames)
         t0 = time.perf_counter()
         rows_idx = self._ranges(own, exclude_document, candidates)
@@ -237,7 +231,7 @@ class SimilaritySearch:
         coarse = None
         if mode != "brute" and len(lo):
             if mode == "fast":
-                budget_n = max(CLIP_BUDGET, 2 * n_matches) if budget is None else _count(budget, "budget")
+                budget_n = max(CLIP_BUDGET, 2 * n_matches) if budget is None else count(budget, "budget")
                 order, coarse = self._coarse_order(q, rows_idx, None if budget_n < n_matches else budget_n)
                 bounded = order[:budget_n]
             else:  # likely matches first: the K-th best falls fast
@@ -299,7 +293,7 @@ class SimilaritySearch:
         pd.DataFrame as :meth:`clips` (start, end: the stretch's first and last frame in its document);
         ``attrs`` also holds ``ranges`` (documents or fast mode's windows searched).
         """
-        n_matches, mode = _count(n_matches, "n_matches"), _mode(mode)
+        n_matches, mode = count(n_matches, "n_matches"), _mode(mode)
         if not isinstance(min_length, (int, float, np.floating, np.integer)) or not 0 < min_length <= 1:
             raise ParameterError(f"min_length must be a share of the query's frames in (0, 1]; got {min_length!r}")
         q, own = self.query_features(example, frames)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.spatial.distance import cdist
 
-from mocapviz import MotionDB
+from mocapviz import MotionDB, ParameterError
 from mocapviz.knn import KnnIndex, base_poses, base_poses_quadratic, frames_mask
 from mocapviz.skeleton import CANONICAL_JOINTS, body_frame, mirror
 
@@ -243,7 +243,7 @@ def test_bad_input_raises_clear_errors(features, tree):
     for call, message in cases:
         with pytest.raises(ValueError, match=message):
             call()
-    with pytest.raises(TypeError, match="k must be an integer"):
+    with pytest.raises(ParameterError, match="k must be an integer"):
         tree.query(features[:5], 2.5)
     k_small = KnnIndex(features, valid=np.arange(len(features)) < 10)
     with pytest.raises(ValueError, match=r"number of indexed frames \(10\)"):

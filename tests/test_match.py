@@ -13,7 +13,7 @@ import itertools
 import numpy as np
 import pytest
 
-from mocapviz import MotionDB
+from mocapviz import MotionDB, ParameterError
 from mocapviz.features.distances import dquat_pairwise
 from mocapviz.features.numeric import numeric
 from mocapviz.knn import KnnIndex
@@ -262,5 +262,5 @@ def test_bad_input_raises_clear_errors(X, starts, index):
         lng(X[:5000], index, k=16, starts=starts)
     with pytest.raises(ValueError, match="more than the longest document"):
         subsequence_dtw(X[:5000], X, starts)
-    with pytest.raises(TypeError, match="k must be an integer"):
+    with pytest.raises(ParameterError, match="k must be an integer"):
         subsequence_dtw(q, X, starts, k=2.5)

@@ -71,6 +71,7 @@ from ..errors import MotionDBError
 from ..motion import Motion
 from ..skeleton import CANONICAL_JOINTS, body_frame, heading
 from ..store import atomic_write
+from ..validation import finite_positions
 
 __all__ = [
     "NUMERIC_SETS",
@@ -395,22 +396,10 @@ def _describe(source) -> str:
     return f"{source.source or 'motion'} ({source.n_frames} frames at {source.fps:g} fps)"
 
 
-def _check_finite(positions: np.ndarray, joints, where: Callable[[int], str]) -> None:
-    """Raise ValueError naming the first frame (and joint) where one of ``joints`` (indices) is not finite.
-
-    positions : [shape=(N, 24, 3)], cm; ``where(frame) -> str`` names the source of a frame of ``positions``.
-    """
-    ok = np.isfinite(positions[:, joints]).all(axis=2)
-    if ok.all():
-        return
-    t, j = np.argwhere(~ok)[0]
-    raise ValueError(f"{where(int(t))}: joint {CANONICAL_JOINTS[joints[j]]} has a non-finite (NaN/inf) position")
-
-
 def _run_batch(db: MotionDB, docs, first: int, last: int, joints, work: Callable[[_Batch], object]) -> tuple:
     """work(documents first..last-1 of ``docs``) after the finiteness check: (frames slice, result, documents)."""
     batch = read_batch(db, docs, first, last)
-    _check_finite(batch.positions, list(joints), batch.where)
+    finite_positions(batch.positions, batch.where, list(joints))
     return slice(batch.start, batch.stop), work(_Batch(batch.positions, batch.bounds, batch.fps)), last - first
 
 
@@ -440,7 +429,7 @@ def _map_batches(
     if not isinstance(source, MotionDB):
         motion = source.canonical()
         name = source.source or "motion"
-        _check_finite(motion.positions, list(joints), lambda t: f"{name}, frame {t}")
+        finite_positions(motion.positions, lambda t: f"{name}, frame {t}", list(joints))
         yield (
             slice(0, motion.n_frames),
             work(_Batch(motion.positions, np.array([0, motion.n_frames]), np.array([motion.fps]))),

@@ -65,6 +65,7 @@ from ..cluster import optional_client
 from ..database import MotionDB, document_batches, read_batch
 from ..motion import Motion
 from ..skeleton import CANONICAL_JOINTS, body_size_table
+from ..validation import finite_positions
 
 __all__ = ["FEATURE_SETS", "feature_groups", "feature_names", "feature_table", "relational"]
 
@@ -1012,23 +1013,12 @@ def _evaluate(feats: tuple, batch: _Batch) -> np.ndarray:
     return out.T
 
 
-def _check_finite(positions: np.ndarray, where) -> None:
-    """Raise ValueError naming the first frame (and joint) with a non-finite position.
-
-    ``where(frame) -> str`` names the source of a frame of ``positions``.
-    """
-    if np.isfinite(positions).all():
-        return
-    t, j = np.argwhere(~np.isfinite(positions).all(axis=2))[0]
-    raise ValueError(f"{where(int(t))}: joint {CANONICAL_JOINTS[j]} has a non-finite (NaN/inf) position")
-
-
 def _motion_features(motion: Motion, feats: tuple) -> np.ndarray:
     name = motion.source or "motion"
     motion = motion.canonical()
     if motion.n_frames < 2:
         raise ValueError(f"{name}: {motion.n_frames} frame(s); relational features need at least 2 (velocities)")
-    _check_finite(motion.positions, lambda t: f"{name}, frame {t}")
+    finite_positions(motion.positions, lambda t: f"{name}, frame {t}")
     return _evaluate(feats, _Batch(motion.positions, [0, motion.n_frames], [motion.fps]))
 
 
@@ -1046,7 +1036,7 @@ def _document_batches(db: MotionDB) -> tuple:
 def _run_batch(db: MotionDB, docs, feats: tuple, first: int, last: int) -> tuple[int, int, np.ndarray]:
     """Feature values of documents first..last-1 of ``docs``: (first frame a, end frame b, values [shape=(b-a, f)])."""
     batch = read_batch(db, docs, first, last)
-    _check_finite(batch.positions, batch.where)
+    finite_positions(batch.positions, batch.where)
     return batch.start, batch.stop, _evaluate(feats, _Batch(batch.positions, batch.bounds, batch.fps))
 
 

@@ -31,6 +31,8 @@ import numba
 import numpy as np
 import pandas as pd
 
+from ..validation import count
+
 STEP_SETS = {
     "basic": ((1, 1, 1.0), (1, 0, 1.0), (0, 1, 1.0)),
     "symmetric": ((1, 1, 2.0), (1, 0, 1.0), (0, 1, 1.0)),
@@ -102,14 +104,6 @@ def check_query_length(m: int, doc_starts: np.ndarray, n: int) -> None:
     if m > longest:
         raise ValueError(f"the query has {m} frames, more than the longest document ({longest} frames); a match "
                          f"cannot be shorter than the query")  # fmt: skip
-
-
-def _check_count(value, name: str) -> int:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an integer; got {value!r}")
-    if value < 1:
-        raise ValueError(f"{name} must be at least 1; got {value}")
-    return int(value)
 
 
 # ============================================================================ local costs
@@ -413,7 +407,7 @@ def select_matches(starts, ends, costs, k: int) -> np.ndarray:
     if not len(finite):
         return np.empty(0, dtype=np.int64)
     order = finite[np.lexsort((ends[finite], costs[finite]))]
-    return _select(order, starts, ends, _check_count(k, "K"))
+    return _select(order, starts, ends, count(k, "K"))
 
 
 def best_ends(cost, first, starts, k: int) -> np.ndarray:
@@ -480,7 +474,7 @@ def subsequence_dtw(query, database, starts=None, k: int = 10, distance=None, st
         A query shorter than 2 frames or longer than the longest document, non-finite frames (named), feature
         dimensions that differ, bad document starts or step set, k not a positive integer.
     """
-    k = _check_count(k, "k")
+    k = count(k, "k")
     n = len(database)
     doc_starts = _check_document_starts(starts, n)
     check_query_length(len(query), doc_starts, n)

@@ -22,7 +22,8 @@ import numba
 import numpy as np
 import pandas as pd
 
-from .dtw import _check_count, _check_document_starts, _sequence, check_query_length, matches_frame, select_matches
+from ..validation import count
+from .dtw import _check_document_starts, _sequence, check_query_length, matches_frame, select_matches
 
 
 def neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: float = 0.0, exclude=None,
@@ -145,7 +146,7 @@ def graph_matches(distances, frames, starts=None, n_frames: int | None = None, k
     F, A, S, P, C, counts = _shortest_paths(f, d, docs)
     last = len(F) - 1
     cols = np.arange(counts[last])
-    chosen = cols[select_matches(S[last, cols], F[last, cols], A[last, cols], _check_count(k_matches, "K"))]
+    chosen = cols[select_matches(S[last, cols], F[last, cols], A[last, cols], count(k_matches, "K"))]
     found = [_graph_path(F, P, C, last, c) if paths else None for c in chosen]
     return matches_frame(doc_starts, S[last, chosen], F[last, chosen], A[last, chosen], found)
 

@@ -25,6 +25,7 @@ from ...features import NUMERIC_SETS
 from ...knn import describe_frames
 from ...match.lng import lng
 from ...search import MODES as SEARCH_MODES
+from ...validation import count
 from ...viz.matching import similarity_layout
 from ...viz.skeleton import neighbour_poses, png_bytes
 from ..player import SkeletonPlayer
@@ -51,13 +52,6 @@ MATCH_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "label": "
 
 
 # ============================================================================ computations (worker thread)
-def _check_count(value, name: str, most: int) -> int:
-    """``value`` as an int in 1..most, or a one-line ValueError naming ``name``."""
-    if value is None or not 1 <= int(value) <= most:
-        raise ValueError(f"{name} must be between 1 and {most:,}; got {value}")
-    return int(value)
-
-
 def _own_frames(backend, doc: int) -> tuple[int, int]:
     """The [start, stop) database frames of document ``doc``."""
     frames = backend.db.frames(doc)
@@ -84,7 +78,7 @@ def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own
     if not 0 <= frame < stop - start:
         raise ValueError(f"frame {frame} is outside document {doc} (frames 0..{stop - start - 1})")
     index = backend.knn(name)
-    k = _check_count(k, "k", min(MAX_NEIGHBOURS, index.n_indexed))
+    k = count(k, "k", 1, min(MAX_NEIGHBOURS, index.n_indexed))
     query = backend.numeric(name)[start + frame]
     distances, frames = index.query(query, k, exclude=(start, stop) if exclude_own else None)
     return describe_frames(backend.db, frames, distances)
@@ -136,8 +130,8 @@ def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, k_ma
     """
     q0, q1 = _query_span(backend, doc, span)
     index = backend.knn(name)
-    k = _check_count(k, "k", index.n_indexed)
-    k_matches = _check_count(k_matches, "K", MAX_MATCHES)
+    k = count(k, "k", 1, index.n_indexed)
+    k_matches = count(k_matches, "K", 1, MAX_MATCHES)
     docs = backend.documents
     starts = docs["start"].to_numpy()
     found = lng(backend.numeric(name)[q0:q1], index, k=k, k_matches=k_matches, starts=starts,
@@ -181,7 +175,7 @@ def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, 
     the span, document frame))) plus start_s and end_s (seconds). ``attrs``: the search's (ms, aligned, ...).
     """
     q0, q1 = _query_span(backend, doc, span)
-    k = _check_count(k, "K", MAX_MATCHES)
+    k = count(k, "K", 1, MAX_MATCHES)
     if kind not in SEARCH_KINDS.values():
         raise ValueError(f"kind must be one of {', '.join(SEARCH_KINDS.values())}; got {kind!r}")
     search = backend.search(name)
