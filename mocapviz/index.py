@@ -628,7 +628,7 @@ def feature_group_values(values: np.ndarray, feature_set: str = "2005") -> dict:
 
 
 def build(db, feature_set: str = "2005", progress: bool = True, values: np.ndarray | None = None,
-          scheduler=None) -> dict:
+          scheduler=None, save: bool = True) -> dict:
     """Build and save one inverted index per feature group (lower, upper, mix) over a MotionDB (§5.3).
 
     Parameters
@@ -642,6 +642,8 @@ def build(db, feature_set: str = "2005", progress: bool = True, values: np.ndarr
     scheduler : None, "local", str or dask.distributed.Client
         Compute the features as Dask tasks (see :func:`mocapviz.features.relational`); default: threads here.
         The index itself is built and written here, each file renamed into place when complete.
+    save : bool
+        Write the indexes into ``DB/index/`` (False: in memory only, e.g. for a read-only database).
 
     Returns
     -------
@@ -657,9 +659,24 @@ def build(db, feature_set: str = "2005", progress: bool = True, values: np.ndarr
         meta = {"generation": db.manifest["generation"], "n_frames": db.n_frames, "feature_set": feature_set,
                 "group": group}  # fmt: skip
         index = InvertedIndex.from_features(group_values, doc_starts, members, meta)
-        index.save(index_path(db, feature_set, group))
+        if save:
+            index.save(index_path(db, feature_set, group))
         out[group] = index
     return out
+
+
+def load_or_build(db, feature_set: str = "2005", save: bool = True, progress: bool = False) -> dict:
+    """The saved indexes of a MotionDB when current (:func:`load`), else built now (:func:`build`), and saved
+    unless ``save`` is False (then nothing is written: a read-only database can be queried).
+
+    Returns
+    -------
+    dict: group name -> InvertedIndex.
+    """
+    try:
+        return load(db, feature_set)
+    except MotionDBError:  # missing or stale
+        return build(db, feature_set, progress=progress, save=save)
 
 
 def load(db, feature_set: str = "2005") -> dict:

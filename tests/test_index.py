@@ -199,3 +199,23 @@ def test_frame_spans_recover_the_frames_of_adaptive_hits():
     ends = np.cumsum(lengths)
     assert start.tolist() == [ends[0], ends[4]]  # segments 2 and 6 (1-based) start after segments 1 and 5
     assert stop.tolist() == [ends[5], ends[9]]  # ... and the hits end with segments 6 and 10
+
+
+def test_load_or_build_saves_only_when_asked(sample_db, tmp_path):
+    import shutil
+
+    from mocapviz import MotionDB
+    from mocapviz.index import build, load, load_or_build
+
+    shutil.copytree(sample_db.path, tmp_path / "db")
+    db = MotionDB.open(tmp_path / "db")
+    shutil.rmtree(db.path / "index", ignore_errors=True)
+    in_memory = load_or_build(db, save=False)
+    assert not (db.path / "index").exists()  # nothing written: a read-only database can be queried
+    saved = load_or_build(db)
+    assert (db.path / "index").is_dir()
+    for got in (load(db), load_or_build(db, save=False)):
+        for group, idx in build(db, save=False, progress=False).items():
+            np.testing.assert_array_equal(got[group].codes, idx.codes)
+            np.testing.assert_array_equal(in_memory[group].codes, idx.codes)
+            np.testing.assert_array_equal(saved[group].starts, idx.starts)

@@ -77,12 +77,7 @@ class Backend:
     def indexes(self, feature_set: str = "2005") -> dict:
         """The relational inverted indexes (group -> InvertedIndex); built and saved in DB/index/ when missing or
         stale (Müller et al. 2005 §4), as ``mocapviz index DB`` would."""
-        def load_or_build():
-            try:
-                return index_mod.load(self.db, feature_set)
-            except MotionDBError:
-                return index_mod.build(self.db, feature_set, progress=False)
-        return self.cached(("indexes", feature_set), load_or_build)
+        return self.cached(("indexes", feature_set), lambda: index_mod.load_or_build(self.db, feature_set))
 
     def clip_relational(self, doc: int, feature_set: str = "2005") -> tuple[np.ndarray, list[str]]:
         """One document's relational features: (T, f) bool and the f names, computed on the clip (§3)."""

@@ -18,7 +18,6 @@ import pandas as pd
 
 from .. import evaluation
 from .. import index as index_mod
-from ..errors import MotionDBError
 from ..features import feature_names, relational
 
 __all__ = [
@@ -397,10 +396,7 @@ def relational_query(db, queries: dict | None = None, feature_set: str = "2005",
     from ..query import query_by_example
 
     if indexes is None:
-        try:
-            indexes = index_mod.load(db, feature_set)
-        except MotionDBError:
-            indexes = index_mod.build(db, feature_set, progress=False)
+        indexes = index_mod.load_or_build(db, feature_set)
     docs = db.documents
     labels = docs[label_column].astype("string")
     labels_by_doc = pd.Series(labels.to_numpy(), index=docs["doc_id"].astype(np.int64))

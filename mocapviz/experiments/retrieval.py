@@ -229,18 +229,9 @@ class _Runner:
 def relational_indexes(db, feature_set: str = "2005") -> dict:
     """The relational indexes of ``db`` (group -> InvertedIndex): the stored ones when current, else built in memory
     (nothing is written into the database, so a read-only database can be evaluated)."""
-    from .. import index as index_mod
-    from ..errors import MotionDBError
-    from ..features import relational
+    from ..index import load_or_build
 
-    try:
-        return index_mod.load(db, feature_set)
-    except MotionDBError:
-        pass
-    values, _ = relational(db, feature_set, progress=False)
-    doc_starts = db.documents["start"].to_numpy()
-    return {group: index_mod.InvertedIndex.from_features(group_values, doc_starts, members)
-            for group, (members, group_values) in index_mod.feature_group_values(values, feature_set).items()}
+    return load_or_build(db, feature_set, save=False)
 
 
 def _queries(labels: pd.Series, queries, n_queries, seed) -> np.ndarray:
