@@ -39,7 +39,7 @@ import pandas as pd
 from . import datasets
 from .cluster import LOCAL, dask_client, optional_client
 from .database import MotionDB, expand_paths
-from .errors import MocapFormatError, MocapvizError, MotionDBError, ParameterError, SkeletonMappingError
+from .errors import MocapvizError, ParameterError
 from .features import NUMERIC_SETS, PCAModel, fit_pca, load_numeric, numeric, numeric_of, relational, store_numeric
 from .index import build
 from .io import load
@@ -52,7 +52,7 @@ def _scheduler(args):
     """The ``scheduler=`` of the ingest / features / index commands: None (--no-cluster), an address, or local."""
     if args.no_cluster:
         if args.scheduler:
-            raise ValueError("--scheduler and --no-cluster exclude each other")
+            raise ParameterError("--scheduler and --no-cluster exclude each other")
         return None
     return args.scheduler or LOCAL
 
@@ -61,13 +61,16 @@ def _ingest(args) -> None:
     mapping = None
     if args.mapping:
         with open(args.mapping) as fh:
-            mapping = json.load(fh)
+            try:
+                mapping = json.load(fh)
+            except json.JSONDecodeError as exc:
+                raise ParameterError(f"--mapping {args.mapping}: not JSON ({exc})") from None
     options = {k: v for k, v in (("asf", args.asf), ("up", args.up)) if v is not None}
     if args.jobs is not None and args.jobs < 1:
-        raise ValueError(f"--jobs must be at least 1, got {args.jobs}")
+        raise ParameterError(f"--jobs must be at least 1, got {args.jobs}")
     scheduler = _scheduler(args)
     if args.jobs is not None and scheduler not in (None, LOCAL):
-        raise ValueError("--jobs sizes the local cluster (or, with --no-cluster, the reader processes); the "
+        raise ParameterError("--jobs sizes the local cluster (or, with --no-cluster, the reader processes); the "
                          "workers of --scheduler are the scheduler's")
     expand_paths(args.paths)  # the input and the output checked before any cluster starts
     _check_out_folder(Path(args.out))
@@ -118,8 +121,16 @@ def _frames(text: str | None) -> slice:
     try:
         a, b = (int(x) if x else None for x in text.split(":"))
     except ValueError:
-        raise ValueError(f"--frames must look like A:B (frame numbers), got {text!r}") from None
+        raise ParameterError(f"--frames must look like A:B (frame numbers), got {text!r}") from None
     return slice(a, b)
+
+
+def _integers(text: str, option: str) -> list[int]:
+    """Comma-separated integers, or a ParameterError naming the option."""
+    try:
+        return [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise ParameterError(f"{option} must be comma-separated integers, got {text!r}") from None
 
 
 def _query(args) -> None:
@@ -131,11 +142,11 @@ def _query(args) -> None:
     sl = _frames(args.frames)
     example = example[sl]
     if example.n_frames < 2:
-        raise ValueError(f"--frames {args.frames} selects {example.n_frames} frame(s) of {example.source}; need at least 2")
+        raise ParameterError(f"--frames {args.frames} selects {example.n_frames} frame(s) of {example.source}; need at least 2")
     features = None if args.features is None else [f.strip() for f in args.features.split(",") if f.strip()]
     mode = "mismatch" if args.mismatch else args.mode
     t0 = time.perf_counter()
-    allowed = None if args.mismatch_at is None else [int(x) for x in args.mismatch_at.split(",") if x.strip()]
+    allowed = None if args.mismatch_at is None else _integers(args.mismatch_at, "--mismatch-at")
     hits = query_by_example(db, example, features, mode=mode, mismatches=args.mismatch or 0,
                             feature_set=args.feature_set, allowed=allowed)
     ms = 1000 * (time.perf_counter() - t0)
@@ -152,7 +163,7 @@ def _names(text: str | None, known, what: str) -> list[str] | None:
     names = [n.strip() for n in text.split(",") if n.strip()]
     unknown = [n for n in names if n not in known]
     if unknown or not names:
-        raise ValueError(f"unknown {what} {', '.join(unknown) or repr(text)}; choose from {', '.join(known)}")
+        raise ParameterError(f"unknown {what} {', '.join(unknown) or repr(text)}; choose from {', '.join(known)}")
     return names
 
 
@@ -179,7 +190,7 @@ def _doc_frame(text: str) -> tuple[int, int]:
     try:
         doc, frame = (int(x) for x in text.split(":"))
     except ValueError:
-        raise ValueError(f"--frame must look like DOC:FRAME (document id and frame within it), got {text!r}") from None
+        raise ParameterError(f"--frame must look like DOC:FRAME (document id and frame within it), got {text!r}") from None
     return doc, frame
 
 
@@ -188,7 +199,7 @@ def _knn(args) -> None:
     doc, frame = _doc_frame(args.frame)
     span = db.frames(doc)
     if not 0 <= frame < span.stop - span.start:
-        raise ValueError(f"document {doc} has frames 0..{span.stop - span.start - 1}; --frame asks for {frame}")
+        raise ParameterError(f"document {doc} has frames 0..{span.stop - span.start - 1}; --frame asks for {frame}")
     features = numeric_of(db, _names(args.features, NUMERIC_SETS, "feature set")[0], progress=not args.quiet)
     index = KnnIndex(features)
     own = (span.start, span.stop) if args.exclude_document else None
@@ -327,7 +338,7 @@ def _datasets(args) -> None:
         print(f"{located}; cache {datasets.cache_dir()} ({datasets.HOME_ENV})")
     else:
         if not args.name:
-            raise ValueError(f"datasets fetch needs a NAME: {', '.join(datasets.names())} or {datasets.SAMPLE}")
+            raise ParameterError(f"datasets fetch needs a NAME: {', '.join(datasets.names())} or {datasets.SAMPLE}")
         print(datasets.fetch(args.name, progress=True))
 
 
@@ -475,7 +486,7 @@ def _serve(args) -> None:
 
     db = args.db if args.db else sample_database()
     if not 0 < args.port < 65536:
-        raise ValueError(f"--port must be 1..65535, got {args.port}")
+        raise ParameterError(f"--port must be 1..65535, got {args.port}")
     print(f"mocapviz: serving {db} on http://{args.address}:{args.port}/ (Ctrl-C stops)", flush=True)
     with contextlib.suppress(KeyboardInterrupt):
         serve(db, port=args.port, address=args.address, show=args.show)
@@ -491,10 +502,8 @@ def main(argv=None) -> int:
         with warnings.catch_warnings():
             warnings.showwarning = _one_line_warning
             args.func(args)
-    except (MocapvizError, MocapFormatError, SkeletonMappingError, MotionDBError, datasets.DatasetError, OSError,
-            ValueError, KeyError, TypeError) as exc:
-        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        print(f"mocapviz: error: {msg}", file=sys.stderr)
+    except (MocapvizError, OSError) as exc:  # bad input; anything else is a bug and shows its traceback
+        print(f"mocapviz: error: {exc}", file=sys.stderr)
         return 1
     return 0
 

@@ -33,6 +33,8 @@ import uuid
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
+from .errors import ParameterError
+
 LOCAL = "local"
 CONNECT_TIMEOUT = 10.0  # seconds to wait for a scheduler given by address
 
@@ -80,7 +82,7 @@ def dask_client(scheduler=LOCAL, n_workers: int | None = None, timeout: float | 
         yield scheduler
         return
     if not isinstance(scheduler, (str, os.PathLike)):
-        raise TypeError(f"scheduler must be 'local', a dask scheduler address or a dask Client, got {scheduler!r}")
+        raise ParameterError(f"scheduler must be 'local', a dask scheduler address or a dask Client, got {scheduler!r}")
     with contextlib.ExitStack() as stack:
         if str(scheduler) == LOCAL:
             cluster = stack.enter_context(

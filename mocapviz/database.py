@@ -32,7 +32,14 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from .errors import MocapFormatError, MotionDBError, SkeletonMappingError
+from .errors import (
+    LabelTableError,
+    MocapFormatError,
+    MotionDBError,
+    ParameterError,
+    SkeletonMappingError,
+    UnknownKeyError,
+)
 from .io import FORMATS, find_asf, load
 from .labels import MAIN_LABEL_COLUMNS, labels_for, read_labels_tsv
 from .motion import Motion
@@ -207,7 +214,7 @@ def _labels_table(labels) -> dict[str, dict] | None:
     else:
         table = pd.DataFrame(labels)
     if "file" not in table and "path" not in table:
-        raise ValueError("a label table needs a 'file' or 'path' column")
+        raise LabelTableError("a label table needs a 'file' or 'path' column")
     out = {}
     for row in table.to_dict("records"):
         key = row.pop("path", None) or row.get("file")
@@ -296,7 +303,7 @@ class MotionDB:
         """The document table's row of ``doc_id`` (KeyError naming the valid ids when there is none)."""
         rows = self.documents[self.documents["doc_id"] == doc_id]
         if rows.empty:
-            raise KeyError(f"{self.path}: no document {doc_id} (ids {self.documents['doc_id'].min()}..{self.documents['doc_id'].max()})")
+            raise UnknownKeyError(f"{self.path}: no document {doc_id} (ids {self.documents['doc_id'].min()}..{self.documents['doc_id'].max()})")
         return rows.iloc[0]
 
     def frames(self, doc_id: int) -> slice:
@@ -346,7 +353,7 @@ class MotionDB:
         mask = np.ones(len(self.documents), dtype=bool)
         for col, want in criteria.items():
             if col not in self.documents:
-                raise KeyError(f"no column {col!r}; the documents have {', '.join(self.documents.columns)}")
+                raise UnknownKeyError(f"no column {col!r}; the documents have {', '.join(self.documents.columns)}")
             values = want if isinstance(want, (list, tuple, set, np.ndarray, pd.Index)) else [want]
             mask &= self.documents[col].isin(list(values)).to_numpy()
         return self.documents[mask]
@@ -510,13 +517,13 @@ class MotionDB:
         motions = list(motions)
         metas = [{} for _ in motions] if metas is None else [dict(m) for m in metas]
         if len(metas) != len(motions):
-            raise ValueError(f"{len(motions)} motions but {len(metas)} metas")
+            raise ParameterError(f"{len(motions)} motions but {len(metas)} metas")
         rows = []
         for i, (m, meta) in enumerate(zip(motions, metas)):
             if tuple(m.joint_names) != tuple(CANONICAL_JOINTS):
-                raise ValueError(f"motion {i} ({m.source}): not on the canonical joints; use Motion.canonical()")
+                raise ParameterError(f"motion {i} ({m.source}): not on the canonical joints; use Motion.canonical()")
             if len(self) and self.fps is not None and m.fps != self.fps:
-                raise ValueError(f"motion {i} ({m.source}) is at {m.fps:g} fps; the database at {self.fps:g} fps")
+                raise ParameterError(f"motion {i} ({m.source}) is at {m.fps:g} fps; the database at {self.fps:g} fps")
             labels = {k: v for k, v in m.labels.items() if k not in _BASE_COLUMNS or k == "label"}
             rows.append({
                 "name": Path(m.source).stem if m.source else f"motion{i}", "path": m.source or "",

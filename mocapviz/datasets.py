@@ -32,11 +32,13 @@ from pathlib import Path
 import pandas as pd
 import pooch
 
+from .errors import MocapvizError
+
 DATA_URL_ENV = "MOCAPVIZ_DATA_URL"
 HOME_ENV = "MOCAPVIZ_HOME"
 
 
-class DatasetError(RuntimeError):
+class DatasetError(MocapvizError, RuntimeError):
     """An archive cannot be located, downloaded, verified or unpacked, or its name is unknown."""
 
 

@@ -17,6 +17,18 @@ class ParameterError(MocapvizError, ValueError):
     values. The message names the parameter, the value given and what to pass instead."""
 
 
+class UnknownKeyError(ParameterError, KeyError):
+    """A name or id that is not there: a document id, a joint name, a label column (also a KeyError, so that
+    ``except KeyError`` around a lookup keeps working). The message names the key and what exists."""
+
+    __str__ = Exception.__str__  # the message as written, not KeyError's quoted repr
+
+
+class LabelTableError(MocapvizError, ValueError):
+    """A label table or label file beside the data (``labels.tsv``, Bandai Namco ``.json``) is malformed; the message
+    names the file."""
+
+
 class MocapFormatError(MocapvizError, ValueError):
     """A motion file is malformed: truncated, wrong channel count, unknown bone, non-finite value, ...
 

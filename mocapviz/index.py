@@ -254,10 +254,10 @@ class InvertedIndex:
         m = self.codes.shape[0]
         self.doc_first_segment = np.asarray([0, m] if doc_first_segment is None else doc_first_segment, np.int64)
         if self.doc_first_segment[0] != 0 or self.doc_first_segment[-1] != m:
-            raise ValueError("doc_first_segment must start at 0 and end at the number of segments")
+            raise ParameterError("doc_first_segment must start at 0 and end at the number of segments")
         self.feature_names = tuple(feature_names or (f"f{k + 1}" for k in range(self.n_features)))
         if len(self.feature_names) != self.n_features:
-            raise ValueError(f"{len(self.feature_names)} feature names for {self.n_features} features")
+            raise ParameterError(f"{len(self.feature_names)} feature names for {self.n_features} features")
         self.meta = dict(meta or {})
         order = np.argsort(self.codes, kind="stable")  # by code, positions ascending within a code
         self.list_codes, counts = np.unique(self.codes[order], return_counts=True)
@@ -324,13 +324,13 @@ class InvertedIndex:
         q = np.asarray(query)
         if q.ndim == 2:
             if q.shape[1] != self.n_features:
-                raise ValueError(f"query vectors have {q.shape[1]} features, the index {self.n_features}")
+                raise ParameterError(f"query vectors have {q.shape[1]} features, the index {self.n_features}")
             q = encode(q)
         q = q.astype(np.int64).ravel()
         if q.size == 0:
-            raise ValueError("empty query: it needs at least one segment")
+            raise ParameterError("empty query: it needs at least one segment")
         if np.any((q < 0) | (q >= (1 << self.n_features))):
-            raise ValueError(f"query codes must lie in [0, 2^{self.n_features})")
+            raise ParameterError(f"query codes must lie in [0, 2^{self.n_features})")
         return q
 
     def _query_sets(self, sets) -> tuple[np.ndarray, np.ndarray, int]:
@@ -339,10 +339,10 @@ class InvertedIndex:
         Returns (codes, set_id, L): the distinct codes of each set V_l, with set_id l, l = 0..L-1.
         """
         if len(sets) == 0:
-            raise ValueError("empty fuzzy query: it needs at least one set")
+            raise ParameterError("empty fuzzy query: it needs at least one set")
         arrays = [np.asarray(s) for s in sets]
         if any(a.size == 0 for a in arrays):
-            raise ValueError("a fuzzy set is empty: every set needs at least one alternative")
+            raise ParameterError("a fuzzy set is empty: every set needs at least one alternative")
         arrays = [self._query_codes(a) if a.ndim == 2 else a.ravel() for a in arrays]
         codes = self._query_codes(np.concatenate(arrays))
         set_id = np.repeat(np.arange(len(arrays)), [a.size for a in arrays])

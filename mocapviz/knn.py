@@ -35,6 +35,7 @@ import pandas as pd
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
+from .errors import ParameterError
 from .validation import count
 
 ENGINES = ("ckdtree", "brute")
@@ -50,13 +51,13 @@ def _check_features(features) -> np.ndarray:
     """The feature array as a real (N, d) array (not copied), or a ValueError saying what is wrong."""
     arr = np.asarray(features)
     if arr.ndim != 2 or arr.shape[0] < 1 or arr.shape[1] < 1:
-        raise ValueError(f"features must be a 2-D array (frames, dimensions) with at least one of each; got shape "
+        raise ParameterError(f"features must be a 2-D array (frames, dimensions) with at least one of each; got shape "
                          f"{arr.shape}")  # fmt: skip
     if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
-        raise ValueError(f"features must be real numbers; got dtype {arr.dtype}")
+        raise ParameterError(f"features must be real numbers; got dtype {arr.dtype}")
     bad = ~np.isfinite(arr).all(axis=1)
     if bad.any():
-        raise ValueError(f"features: frame {int(np.argmax(bad))} is not finite (NaN or inf); "
+        raise ParameterError(f"features: frame {int(np.argmax(bad))} is not finite (NaN or inf); "
                          f"{int(bad.sum())} such frame(s)")  # fmt: skip
     return arr
 
@@ -67,10 +68,10 @@ def _check_valid(valid, n: int) -> np.ndarray:
         return np.ones(n, dtype=bool)
     mask = np.asarray(valid)
     if mask.dtype != bool or mask.shape != (n,):
-        raise ValueError(f"valid must be a bool mask of shape ({n},), one entry per frame; got {mask.dtype} "
+        raise ParameterError(f"valid must be a bool mask of shape ({n},), one entry per frame; got {mask.dtype} "
                          f"{mask.shape}")  # fmt: skip
     if not mask.any():
-        raise ValueError("valid selects no frame: there is nothing to search")
+        raise ParameterError("valid selects no frame: there is nothing to search")
     return mask
 
 
@@ -92,13 +93,13 @@ def frames_mask(frames, n: int) -> np.ndarray:
     arr = np.asarray(frames)
     if arr.dtype == bool:
         if arr.shape != (n,):
-            raise ValueError(f"a frame mask must have shape ({n},); got {arr.shape}")
+            raise ParameterError(f"a frame mask must have shape ({n},); got {arr.shape}")
         return arr
     if arr.ndim != 2 or arr.shape[1] != 2 or not np.issubdtype(arr.dtype, np.integer):
-        raise ValueError(f"frames must be a bool mask ({n},) or int [start, stop) ranges (B, 2); got {arr.dtype} "
+        raise ParameterError(f"frames must be a bool mask ({n},) or int [start, stop) ranges (B, 2); got {arr.dtype} "
                          f"{arr.shape}")  # fmt: skip
     if arr.size and (arr.min() < 0 or arr.max() > n or (arr[:, 0] > arr[:, 1]).any()):
-        raise ValueError(f"frame ranges must satisfy 0 <= start <= stop <= {n}")
+        raise ParameterError(f"frame ranges must satisfy 0 <= start <= stop <= {n}")
     # +1 at every start, -1 at every stop, summed: > 0 inside any range
     edges = np.zeros(n + 1, dtype=np.int64)
     np.add.at(edges, arr[:, 0], 1)
@@ -111,14 +112,14 @@ def _check_radius(radius) -> float | None:
         return None
     r = float(radius)
     if not r > 0 or np.isnan(r):
-        raise ValueError(f"radius must be a positive number (or None for no limit); got {radius!r}")
+        raise ParameterError(f"radius must be a positive number (or None for no limit); got {radius!r}")
     return r
 
 
 def _check_eps(eps) -> float:
     e = float(eps)
     if not e >= 0 or not np.isfinite(e):
-        raise ValueError(f"eps must be a finite number >= 0; got {eps!r}")
+        raise ParameterError(f"eps must be a finite number >= 0; got {eps!r}")
     return e
 
 
@@ -126,7 +127,7 @@ def _check_workers(workers) -> int:
     """Number of threads: ``-1`` all CPUs, otherwise a positive int."""
     if isinstance(workers, (bool, np.bool_)) or not isinstance(workers, (int, np.integer)) or not (
             workers == -1 or workers >= 1):  # fmt: skip
-        raise ValueError(f"workers must be -1 (all CPUs) or a positive integer; got {workers!r}")
+        raise ParameterError(f"workers must be -1 (all CPUs) or a positive integer; got {workers!r}")
     return (os.cpu_count() or 1) if workers == -1 else int(workers)
 
 
@@ -134,13 +135,13 @@ def _check_queries(x, dim: int) -> np.ndarray:
     """Queries as a float64 (q, d) array; a ValueError names the first non-finite query row."""
     arr = np.asarray(x)
     if arr.ndim not in (1, 2) or arr.shape[-1] != dim:
-        raise ValueError(f"queries must have shape ({dim},) or (q, {dim}) to match the index; got {arr.shape}")
+        raise ParameterError(f"queries must have shape ({dim},) or (q, {dim}) to match the index; got {arr.shape}")
     if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
-        raise ValueError(f"queries must be real numbers; got dtype {arr.dtype}")
+        raise ParameterError(f"queries must be real numbers; got dtype {arr.dtype}")
     arr = np.ascontiguousarray(np.atleast_2d(arr), dtype=np.float64)
     bad = ~np.isfinite(arr).all(axis=1)
     if bad.any():
-        raise ValueError(f"query row {int(np.argmax(bad))} is not finite (NaN or inf); {int(bad.sum())} such row(s)")
+        raise ParameterError(f"query row {int(np.argmax(bad))} is not finite (NaN or inf); {int(bad.sum())} such row(s)")
     return arr
 
 
@@ -150,7 +151,7 @@ def _check_exclude(exclude, n_queries: int) -> np.ndarray:
     if arr.ndim == 1:
         arr = arr[None]
     if arr.shape != (n_queries, 2) or not np.issubdtype(arr.dtype, np.integer) or (arr[:, 0] > arr[:, 1]).any():
-        raise ValueError(f"exclude must be one [start, stop) frame range per query, int ({n_queries}, 2) with start "
+        raise ParameterError(f"exclude must be one [start, stop) frame range per query, int ({n_queries}, 2) with start "
                          f"<= stop; got {arr.dtype} {arr.shape}")  # fmt: skip
     return arr.astype(np.int64)
 
@@ -266,9 +267,9 @@ class KnnIndex:
 
     def __init__(self, features, engine: str = "ckdtree", valid=None, leafsize: int = LEAFSIZE):
         if engine not in _ENGINES:
-            raise ValueError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINES)}")
+            raise ParameterError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINES)}")
         if isinstance(leafsize, (bool, np.bool_)) or not isinstance(leafsize, (int, np.integer)) or leafsize < 1:
-            raise ValueError(f"leafsize must be a positive integer; got {leafsize!r}")
+            raise ParameterError(f"leafsize must be a positive integer; got {leafsize!r}")
         self._features = _check_features(features)
         self.n_frames, self.dim = self._features.shape
         self.engine, self.leafsize = engine, int(leafsize)
@@ -391,7 +392,7 @@ def describe_frames(db, frames, distances=None) -> pd.DataFrame:
     frames = np.asarray(frames, dtype=np.int64).ravel()
     keep = frames >= 0
     if frames[keep].size and frames[keep].max() >= db.n_frames:
-        raise ValueError(f"frame {int(frames[keep].max())} is beyond the database's {db.n_frames:,} frames")
+        raise ParameterError(f"frame {int(frames[keep].max())} is beyond the database's {db.n_frames:,} frames")
     found = db.documents.set_index("doc_id").loc[db.document_of(frames[keep])].reset_index()
     out = pd.DataFrame({"rank": np.flatnonzero(keep) + 1, "frame": frames[keep], "doc_id": found["doc_id"],
                         "name": found["name"], "doc_frame": frames[keep] - found["start"].to_numpy()})  # fmt: skip
@@ -407,9 +408,9 @@ def describe_frames(db, frames, distances=None) -> pd.DataFrame:
 def _check_fat_graph(radius, k) -> tuple[float, int]:
     """The radius (> 0) and neighbour cap (>= 1) of the base-pose search, or a ValueError."""
     if radius is None or _check_radius(radius) is None:
-        raise ValueError("radius must be a positive number")
+        raise ParameterError("radius must be a positive number")
     if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or k < 1:
-        raise ValueError(f"k must be a positive integer; got {k!r}")
+        raise ParameterError(f"k must be a positive integer; got {k!r}")
     return float(radius), int(k)
 
 

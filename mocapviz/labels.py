@@ -19,6 +19,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from .errors import LabelTableError
+
 INT_COLUMNS = ("frames", "fps", "take")
 MAIN_LABEL_COLUMNS = ("class", "description", "content")
 TABLE_NAME = "labels.tsv"
@@ -49,7 +51,7 @@ def read_labels_tsv(path) -> pd.DataFrame:
     path = Path(path).resolve()
     table = pd.read_csv(path, sep="\t", dtype=str, keep_default_na=False, quoting=csv.QUOTE_NONE)
     if "file" not in table.columns:
-        raise ValueError(f"{path}: no 'file' column (columns: {', '.join(table.columns)})")
+        raise LabelTableError(f"{path}: no 'file' column (columns: {', '.join(table.columns)})")
     for column in INT_COLUMNS:
         if column in table.columns:
             table[column] = _int_column(path, table[column])
@@ -83,9 +85,9 @@ def bandai_labels(bvh_path) -> dict:
     try:
         indices = json.loads(meta.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{meta}: malformed label json ({exc})") from None
+        raise LabelTableError(f"{meta}: malformed label json ({exc})") from None
     if not isinstance(indices, dict):
-        raise ValueError(f"{meta}: label json is not an object")  # noqa: TRY004 - bad file content, not a bad argument
+        raise LabelTableError(f"{meta}: label json is not an object")
     cfg = bvh.parent.parent / "cfg"
     return {key: _bandai_name(meta, indices, key, cfg / f"{key}_label.txt") for key in ("content", "style")}
 
@@ -129,7 +131,7 @@ def _int_column(path: Path, column: pd.Series) -> pd.Series:
         return column.astype("int64")
     except ValueError:
         bad = next(value for value in column if not value.strip().lstrip("+-").isdigit())
-        raise ValueError(f"{path}: column {column.name!r} holds a non-integer value {bad!r}") from None
+        raise LabelTableError(f"{path}: column {column.name!r} holds a non-integer value {bad!r}") from None
 
 
 @functools.lru_cache(maxsize=64)
@@ -143,13 +145,13 @@ def _table_rows(table: str, mtime_ns: int) -> dict[str, dict]:
 def _bandai_name(meta: Path, indices: dict, key: str, names_file: Path) -> str:
     """The label name that ``indices[key]`` points to in ``names_file``."""
     if not names_file.is_file():
-        raise ValueError(f"{meta}: label names {names_file} not found")
+        raise LabelTableError(f"{meta}: label names {names_file} not found")
     names = _label_names(str(names_file), names_file.stat().st_mtime_ns)
     index = indices.get(key)
     if isinstance(index, bool) or not isinstance(index, int):
-        raise ValueError(f"{meta}: {key!r} must be an integer index, got {index!r}")  # noqa: TRY004 - file content
+        raise LabelTableError(f"{meta}: {key!r} must be an integer index, got {index!r}")
     if not 0 <= index < len(names):
-        raise ValueError(f"{meta}: {key} index {index} outside 0..{len(names) - 1} of {names_file}")
+        raise LabelTableError(f"{meta}: {key} index {index} outside 0..{len(names) - 1} of {names_file}")
     return names[index]
 
 

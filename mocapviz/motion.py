@@ -6,6 +6,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from . import rotations
+from .errors import ParameterError, UnknownKeyError
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,20 +49,20 @@ class Motion:
     def __post_init__(self):
         pos = np.asarray(self.positions, dtype=np.float32)
         if pos.ndim != 3 or pos.shape[2] != 3:
-            raise ValueError(f"Motion.positions must have shape (T, J, 3), got {pos.shape}")
+            raise ParameterError(f"Motion.positions must have shape (T, J, 3), got {pos.shape}")
         names = tuple(self.joint_names)
         parents = np.asarray(self.parents, dtype=np.int64)
         if len(names) != pos.shape[1] or parents.shape != (pos.shape[1],):
-            raise ValueError(
+            raise ParameterError(
                 f"Motion has {pos.shape[1]} joints in positions, {len(names)} names, {parents.shape} parents"
             )
         if not (np.isfinite(self.fps) and self.fps > 0):
-            raise ValueError(f"Motion.fps must be a positive number, got {self.fps}")
+            raise ParameterError(f"Motion.fps must be a positive number, got {self.fps}")
         quat = self.quaternions
         if quat is not None:
             quat = np.asarray(quat, dtype=np.float32)
             if quat.shape != pos.shape[:2] + (4,):
-                raise ValueError(f"Motion.quaternions must have shape {pos.shape[:2] + (4,)}, got {quat.shape}")
+                raise ParameterError(f"Motion.quaternions must have shape {pos.shape[:2] + (4,)}, got {quat.shape}")
         object.__setattr__(self, "positions", pos)
         object.__setattr__(self, "joint_names", names)
         object.__setattr__(self, "parents", parents)
@@ -69,7 +70,7 @@ class Motion:
         if euler is not None:
             euler = np.asarray(euler, dtype=np.float32)
             if euler.ndim != 2 or euler.shape[0] != pos.shape[0]:
-                raise ValueError(f"Motion.euler must have shape ({pos.shape[0]}, C), got {euler.shape}")
+                raise ParameterError(f"Motion.euler must have shape ({pos.shape[0]}, C), got {euler.shape}")
         object.__setattr__(self, "quaternions", quat)
         object.__setattr__(self, "euler", euler)
         object.__setattr__(self, "fps", float(self.fps))
@@ -92,7 +93,7 @@ class Motion:
         try:
             return self.positions[:, self.joint_names.index(name)]
         except ValueError:
-            raise KeyError(f"{self.source or 'motion'} has no joint {name!r}; it has {', '.join(self.joint_names)}")
+            raise UnknownKeyError(f"{self.source or 'motion'} has no joint {name!r}; it has {', '.join(self.joint_names)}")
 
     def canonical(self, mapping: dict | None = None) -> Motion:
         """This clip on the 24 canonical joints (``mocapviz.skeleton``), in their fixed order.
@@ -112,7 +113,7 @@ class Motion:
         """
         fps = float(fps)
         if not (np.isfinite(fps) and fps > 0):
-            raise ValueError(f"target fps must be a positive number, got {fps}")
+            raise ParameterError(f"target fps must be a positive number, got {fps}")
         if fps == self.fps:
             return self
         n_out = int(np.floor((self.n_frames - 1) * fps / self.fps + 1e-9)) + 1

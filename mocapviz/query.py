@@ -28,10 +28,10 @@ def _check_features(features, feature_set: str) -> list[str]:
         return list(names)
     features = [features] if isinstance(features, str) else list(features)
     if not features:
-        raise ValueError(f"no features selected; choose some of the {feature_set} set: {', '.join(names)}")
+        raise ParameterError(f"no features selected; choose some of the {feature_set} set: {', '.join(names)}")
     unknown = [f for f in features if f not in names]
     if unknown:
-        raise ValueError(f"unknown feature(s) {', '.join(unknown)}; the {feature_set} set has: {', '.join(names)}")
+        raise ParameterError(f"unknown feature(s) {', '.join(unknown)}; the {feature_set} set has: {', '.join(names)}")
     return features
 
 
@@ -113,7 +113,7 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
         The database has no (current) index.
     """
     if mode not in MODES:
-        raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+        raise ParameterError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
     if mode == "mismatch" and not (isinstance(mismatches, (int, np.integer)) and mismatches >= 0):
         raise ParameterError(f"mismatches must be an integer >= 0 (query segments that may disagree), "
                              f"got {mismatches!r}")
@@ -122,7 +122,7 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     docs = db.documents
     longest = float((docs["n_frames"] / docs["fps"]).max()) if len(docs) else 0.0
     if example.duration > longest:
-        raise ValueError(f"the query lasts {example.duration:.2f} s, longer than every document of {db.path} "
+        raise ParameterError(f"the query lasts {example.duration:.2f} s, longer than every document of {db.path} "
                          f"(longest {longest:.2f} s); choose a shorter span")
     values, names = relational(example, feature_set)
     doc_fps = docs["fps"].to_numpy(np.float64)  # per document: a database may mix frame rates

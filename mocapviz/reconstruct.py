@@ -82,6 +82,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .database import MotionDB
+from .errors import ParameterError
 from .features.numeric import NUMERIC_SETS, PCAModel, default_pca, numeric, numeric_of
 from .knn import KnnIndex
 from .motion import Motion
@@ -139,9 +140,9 @@ def synthetic_markers(positions, noise_cm: float = 0.1, seed=None) -> np.ndarray
     """
     pos = np.asarray(positions)
     if pos.ndim != 3 or pos.shape[1:] != (len(CANONICAL_JOINTS), 3):
-        raise ValueError(f"positions must have shape (T, {len(CANONICAL_JOINTS)}, 3); got {pos.shape}")
+        raise ParameterError(f"positions must have shape (T, {len(CANONICAL_JOINTS)}, 3); got {pos.shape}")
     if not (np.isfinite(noise_cm) and noise_cm >= 0):
-        raise ValueError(f"noise_cm must be a finite number >= 0; got {noise_cm!r}")
+        raise ParameterError(f"noise_cm must be a finite number >= 0; got {noise_cm!r}")
     rng = np.random.default_rng(seed)
     clean = pos[:, _MARKER_JOINTS].astype(np.float64)
     return clean + rng.uniform(-noise_cm, noise_cm, size=clean.shape)
@@ -150,22 +151,22 @@ def synthetic_markers(positions, noise_cm: float = 0.1, seed=None) -> np.ndarray
 def _check_markers(markers, headings) -> tuple[np.ndarray, np.ndarray]:
     m = np.asarray(markers)
     if m.ndim != 3 or m.shape[1:] != (len(MARKERS), 3) or m.shape[0] < 1:
-        raise ValueError(f"markers must have shape (T, {len(MARKERS)}, 3), T >= 1, in the order {MARKERS}; "
+        raise ParameterError(f"markers must have shape (T, {len(MARKERS)}, 3), T >= 1, in the order {MARKERS}; "
                          f"got {m.shape}")  # fmt: skip
     if not np.issubdtype(m.dtype, np.number):
-        raise ValueError(f"markers must be real numbers; got dtype {m.dtype}")
+        raise ParameterError(f"markers must be real numbers; got dtype {m.dtype}")
     m = m.astype(np.float64)
     bad = ~np.isfinite(m).all(axis=(1, 2))
     if bad.any():
         t = int(np.argmax(bad))
         which = [MARKERS[j] for j in np.flatnonzero(~np.isfinite(m[t]).all(axis=1))]
-        raise ValueError(f"markers: frame {t} has a NaN or infinite position (marker {', '.join(which)}); "
+        raise ParameterError(f"markers: frame {t} has a NaN or infinite position (marker {', '.join(which)}); "
                          f"{int(bad.sum())} such frame(s). Fill gaps before reconstructing")  # fmt: skip
     h = np.asarray(headings, dtype=np.float64)
     if h.shape != (m.shape[0],):
-        raise ValueError(f"headings must have shape ({m.shape[0]},), one angle per marker frame; got {h.shape}")
+        raise ParameterError(f"headings must have shape ({m.shape[0]},), one angle per marker frame; got {h.shape}")
     if not np.isfinite(h).all():
-        raise ValueError(f"headings: frame {int(np.argmax(~np.isfinite(h)))} is NaN or infinite")
+        raise ParameterError(f"headings: frame {int(np.argmax(~np.isfinite(h)))} is NaN or infinite")
     return m, h
 
 
@@ -231,17 +232,17 @@ class PosePrior:
     def __init__(self, db: MotionDB, valid=None, pca: PCAModel | None = None, engine: str = "ckdtree",
                  _shared: dict | None = None):  # fmt: skip
         if not isinstance(db, MotionDB):
-            raise TypeError(f"db must be a MotionDB; got {type(db).__name__}")
+            raise ParameterError(f"db must be a MotionDB; got {type(db).__name__}")
         self.db, self.engine = db, engine
         n = db.n_frames
         if valid is None:
             valid = np.ones(n, dtype=bool)
         valid = np.asarray(valid)
         if valid.dtype != bool or valid.shape != (n,):
-            raise ValueError(f"valid must be a bool mask of shape ({n},), one entry per frame of {db.path}; got "
+            raise ParameterError(f"valid must be a bool mask of shape ({n},), one entry per frame of {db.path}; got "
                              f"{valid.dtype} {valid.shape}")  # fmt: skip
         if not valid.any():
-            raise ValueError(f"valid excludes every frame of {db.path}: the prior would be empty")
+            raise ParameterError(f"valid excludes every frame of {db.path}: the prior would be empty")
         self.valid, self.n_valid = valid, int(valid.sum())
         self._shared = {"features": {}, "pca": pca} if _shared is None else _shared
         if "poses" not in self._shared:
@@ -273,7 +274,7 @@ class PosePrior:
     def features(self, feature_set: str) -> np.ndarray:
         """The database's values of a numeric set (N, d), computed once (``numeric_of``; Fp sets with :attr:`pca`)."""
         if feature_set not in NUMERIC_SETS:
-            raise ValueError(f"unknown feature set {feature_set!r}; known sets: {', '.join(NUMERIC_SETS)}")
+            raise ParameterError(f"unknown feature set {feature_set!r}; known sets: {', '.join(NUMERIC_SETS)}")
         cache = self._shared["features"]
         if feature_set not in cache:
             pca = self.pca if feature_set.startswith("Fp") else None
@@ -289,7 +290,7 @@ class PosePrior:
     def _check_k(self, k) -> int:
         k = count(k, "k")
         if k > self.n_valid:
-            raise ValueError(f"k = {k} is larger than the prior ({self.n_valid:,} valid frames of {self.db.path})")
+            raise ParameterError(f"k = {k} is larger than the prior ({self.n_valid:,} valid frames of {self.db.path})")
         return int(k)
 
 
@@ -447,22 +448,22 @@ def reconstruct(markers, headings, prior, feature_set: str = "F15E", k: int = DE
         prior = PosePrior(prior, valid=valid, pca=pca)
     elif isinstance(prior, PosePrior):
         if valid is not None or pca is not None:
-            raise ValueError("valid and pca go with a MotionDB prior; a PosePrior carries its own (restrict())")
+            raise ParameterError("valid and pca go with a MotionDB prior; a PosePrior carries its own (restrict())")
     else:
-        raise TypeError(f"prior must be a PosePrior or a MotionDB; got {type(prior).__name__}")
+        raise ParameterError(f"prior must be a PosePrior or a MotionDB; got {type(prior).__name__}")
     if feature_set not in NUMERIC_SETS:
-        raise ValueError(f"unknown feature set {feature_set!r}; known sets: {', '.join(NUMERIC_SETS)}")
+        raise ParameterError(f"unknown feature set {feature_set!r}; known sets: {', '.join(NUMERIC_SETS)}")
     if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+        raise ParameterError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     k = prior._check_k(k)
     if not 0 < variance <= 1:
-        raise ValueError(f"variance must be in (0, 1]; got {variance!r}")
+        raise ParameterError(f"variance must be in (0, 1]; got {variance!r}")
     if bandwidth is not None and not (np.isfinite(bandwidth) and bandwidth > 0):
-        raise ValueError(f"bandwidth must be a positive number or None; got {bandwidth!r}")
+        raise ParameterError(f"bandwidth must be a positive number or None; got {bandwidth!r}")
     if not (np.isfinite(marker_sigma) and marker_sigma > 0):
-        raise ValueError(f"marker_sigma must be a positive number (cm); got {marker_sigma!r}")
+        raise ParameterError(f"marker_sigma must be a positive number (cm); got {marker_sigma!r}")
     if smooth_sigma is not None and not smooth_sigma > 0:
-        raise ValueError(f"smooth_sigma must be a positive number (cm) or None; got {smooth_sigma!r}")
+        raise ParameterError(f"smooth_sigma must be a positive number (cm) or None; got {smooth_sigma!r}")
     query = marker_query(m, h)
     args = (query, k, method, variance, bandwidth, marker_sigma, smooth_sigma, progress)
     body, frames = _one_pass(prior, "F15E", query, *args)
@@ -471,7 +472,7 @@ def reconstruct(markers, headings, prior, feature_set: str = "F15E", k: int = DE
     if feature_set != "F15E":
         fps = prior.fps
         if fps is None:
-            raise ValueError(f"{prior.db.path} has documents at different frame rates; the two-pass search needs "
+            raise ParameterError(f"{prior.db.path} has documents at different frame rates; the two-pass search needs "
                              "one (the test motion's)")  # fmt: skip
         motion = Motion(world.astype(np.float32), fps, CANONICAL_JOINTS, CANONICAL_PARENTS)
         pca_model = prior.pca if feature_set.startswith("Fp") else None
@@ -510,7 +511,7 @@ def reconstruction_errors(truth, estimate) -> dict:
     """
     a, b = np.asarray(truth, dtype=np.float64), np.asarray(estimate, dtype=np.float64)
     if a.ndim != 3 or a.shape[1:] != (len(CANONICAL_JOINTS), 3) or a.shape != b.shape or len(a) == 0:
-        raise ValueError(f"truth and estimate must both have shape (T, 24, 3), T >= 1; got {a.shape} and {b.shape}")
+        raise ParameterError(f"truth and estimate must both have shape (T, 24, 3), T >= 1; got {a.shape} and {b.shape}")
     err = np.linalg.norm(a - b, axis=-1)  # (T, 24)
     per_frame = err.mean(axis=1)
     parent, child = np.array(BONES).T

@@ -30,6 +30,7 @@ import pandas as pd
 
 from . import datasets
 from .database import MotionDB
+from .errors import ParameterError
 
 __all__ = ["EXPERIMENTS", "Result", "reproduce", "write_result"]
 
@@ -375,7 +376,7 @@ def reproduce(names, out, full: bool = False, progress: bool = True, log: Callab
     names = list(EXPERIMENTS) if names in ("all", ["all"]) else [names] if isinstance(names, str) else list(names)
     unknown = [n for n in names if n not in EXPERIMENTS]
     if unknown:
-        raise ValueError(f"unknown experiment(s) {unknown}; known: all, {', '.join(EXPERIMENTS)}")
+        raise ParameterError(f"unknown experiment(s) {unknown}; known: all, {', '.join(EXPERIMENTS)}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     from . import __version__

@@ -17,6 +17,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from .errors import ParameterError
+
 _AXES = "xyz"
 
 
@@ -47,7 +49,7 @@ def from_euler(order: str, angles: np.ndarray, degrees: bool = True) -> np.ndarr
     axes = [_AXES.index(a) for a in order.lower()]
     half = np.asarray(angles, dtype=np.float64) * (0.5 * np.pi / 180.0 if degrees else 0.5)
     if half.shape[-1] != len(axes):
-        raise ValueError(f"from_euler: {len(axes)} axes in {order!r} but angles have {half.shape[-1]} columns")
+        raise ParameterError(f"from_euler: {len(axes)} axes in {order!r} but angles have {half.shape[-1]} columns")
     c, s = np.cos(half), np.sin(half)
     q = np.zeros(half.shape[:-1] + (4,))
     q[..., 0] = 1.0
@@ -238,7 +240,7 @@ def forward_kinematics(
     translations = np.ascontiguousarray(translations, dtype=np.float64)
     n_frames, n_joints = euler.shape[:2]
     if np.any(parents >= np.arange(n_joints)):
-        raise ValueError("forward_kinematics: every parent must come before its children")
+        raise ParameterError("forward_kinematics: every parent must come before its children")
     axes = np.full((n_joints, 3), -1, dtype=np.int64)
     for j, order in enumerate(orders):
         for k, a in enumerate(order.lower()):

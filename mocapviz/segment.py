@@ -16,6 +16,8 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from .errors import ParameterError
+
 MAX_FEATURES = 62  # codes are int64
 
 
@@ -43,11 +45,11 @@ class FeatureSequence(NamedTuple):
 def _check(values) -> np.ndarray:
     values = np.asarray(values)
     if values.ndim != 2:
-        raise ValueError(f"feature values must have shape (T, f), got {values.shape}")
+        raise ParameterError(f"feature values must have shape (T, f), got {values.shape}")
     if values.shape[1] == 0:
-        raise ValueError("no features selected: pick at least one feature")
+        raise ParameterError("no features selected: pick at least one feature")
     if values.shape[1] > MAX_FEATURES:
-        raise ValueError(f"at most {MAX_FEATURES} features per segmentation, got {values.shape[1]}")
+        raise ParameterError(f"at most {MAX_FEATURES} features per segmentation, got {values.shape[1]}")
     return values.astype(bool, copy=False)
 
 

@@ -206,3 +206,19 @@ def test_match_errors_are_one_line(sample_dir, sample_db, tmp_path, capsys):
         assert main(["match", *args]) == 1
         err = capsys.readouterr().err.strip()
         assert err.startswith("mocapviz: error:") and needle in err and "\n" not in err, (args, err)
+
+
+def test_malformed_option_values_are_one_line_errors(sample_db, tmp_path, capsys):
+    """Values the command parses itself (a JSON mapping, a list of integers) give typed one-line errors; the command
+    catches only mocapviz's typed errors and OSError, so anything else would be a bug with a traceback."""
+    mapping = tmp_path / "mapping.json"
+    mapping.write_text("{not json")
+    cases = [
+        (["ingest", str(tmp_path), "--out", str(tmp_path / "db"), "--mapping", str(mapping)], "not JSON"),
+        (["query", str(sample_db.path), "--example", "0", "--features", "rknee_bent", "--mismatch", "1",
+          "--mismatch-at", "x"], "--mismatch-at must be comma-separated integers"),
+    ]
+    for argv, needle in cases:
+        assert main(argv) == 1
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("mocapviz: error:") and needle in err and "\n" not in err

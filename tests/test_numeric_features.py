@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import mocapviz
-from mocapviz import MotionDB, MotionDBError
+from mocapviz import MotionDB, MotionDBError, ParameterError
 from mocapviz.features import (
     NUMERIC_SETS,
     PCAModel,
@@ -404,7 +404,7 @@ def test_bad_input_is_named(clip, pca, hdm05_files, tmp_path):
         numeric(m, "Fp16", pca=small)
     with pytest.raises(ValueError, match="n_components"):
         fit_pca(m, n_components=73)
-    with pytest.raises(TypeError, match="Motion or a MotionDB"):
+    with pytest.raises(ParameterError, match="Motion or a MotionDB"):
         numeric(m.positions, "F15E")
     # a NaN names the clip, the frame and the joint; a joint the set does not use is not checked
     bad = m.positions.copy()

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 import mocapviz
-from mocapviz import MotionDB
+from mocapviz import MotionDB, ParameterError
 from mocapviz.features import FEATURE_SETS, feature_groups, feature_names, feature_table, relational
 from mocapviz.skeleton import CANONICAL_JOINTS
 
@@ -481,5 +481,5 @@ def test_bad_input_is_named(clip):
     bad[37, CANONICAL_JOINTS.index("lwrist"), 1] = np.nan
     with pytest.raises(ValueError, match=r"squat1Reps.*frame 37.*lwrist"):
         relational(replace(m, positions=bad))
-    with pytest.raises(TypeError, match="Motion or a MotionDB"):
+    with pytest.raises(ParameterError, match="Motion or a MotionDB"):
         relational(m.positions)

@@ -12,6 +12,7 @@ import numpy as np
 import panel as pn
 import param
 
+from ..errors import ParameterError
 from ..viz.skeleton import png_bytes, render_skeletons, scene_bounds
 
 SPEEDS = {"0.25×": 0.25, "0.5×": 0.5, "1×": 1.0, "2×": 2.0}
@@ -77,7 +78,7 @@ class SkeletonPlayer(pn.viewable.Viewer):
         """
         clips = [np.asarray(c, dtype=np.float32) for c in clips]
         if not clips or any(c.ndim != 3 or len(c) == 0 for c in clips):
-            raise ValueError("the player needs one or more non-empty (T, 24, 3) clips")
+            raise ParameterError("the player needs one or more non-empty (T, 24, 3) clips")
         # each clip starts above the origin, so side-by-side viewports share one camera box
         clips = [c - np.array([c[0, 0, 0], 0.0, c[0, 0, 2]], dtype=np.float32) for c in clips]
         if alignment is None:
@@ -85,10 +86,10 @@ class SkeletonPlayer(pn.viewable.Viewer):
             alignment = np.column_stack([np.minimum(np.arange(length), len(c) - 1) for c in clips])
         alignment = np.asarray(alignment, dtype=np.int64)
         if alignment.ndim != 2 or alignment.shape[1] != len(clips) or not len(alignment):
-            raise ValueError(f"alignment must be (L, {len(clips)}) frame numbers; got shape {alignment.shape}")
+            raise ParameterError(f"alignment must be (L, {len(clips)}) frame numbers; got shape {alignment.shape}")
         for j, c in enumerate(clips):
             if alignment[:, j].min() < 0 or alignment[:, j].max() >= len(c):
-                raise ValueError(f"alignment column {j} leaves clip {j}'s frames 0..{len(c) - 1}")
+                raise ParameterError(f"alignment column {j} leaves clip {j}'s frames 0..{len(c) - 1}")
         self._clips, self._alignment, self.fps = clips, alignment, float(fps)
         self._titles = list(titles) if titles is not None else [f"clip {j + 1}" for j in range(len(clips))]
         self._bounds = scene_bounds(*clips)

@@ -49,6 +49,7 @@ from scipy.stats import rankdata
 from tqdm.auto import tqdm
 
 from ..database import read_document
+from ..errors import ParameterError
 from ..features.distances import deuler_pairwise, dpc_pairwise, dquat_pairwise, dwb_pairwise, lee_frames, window_clouds
 from ..features.numeric import default_pca, numeric_of
 from ..knn import KnnIndex
@@ -76,7 +77,7 @@ class _Descriptors:
 
     def __init__(self, db, measures, pca):
         if db.fps is None:
-            raise ValueError(f"{db.path}: the documents have different frame rates; ingest with one rate (fps=30)")
+            raise ParameterError(f"{db.path}: the documents have different frame rates; ingest with one rate (fps=30)")
         self.db, self.fps = db, float(db.fps)
         self.pca = default_pca(db) if pca is None and any(m.startswith("Fp") for m in measures) else pca
         self.starts = db.documents["start"].to_numpy(np.int64)
@@ -109,7 +110,7 @@ class _Descriptors:
         row = self.db.documents.iloc[d]
         motion, _ = read_document(row["path"], fps=self.fps)
         if motion.euler is None or motion.n_frames != row["n_frames"]:
-            raise ValueError(
+            raise ParameterError(
                 f"Deuler: {row['path']} read at {self.fps:g} Hz has "
                 f"{'no Euler channels' if motion.euler is None else f'{motion.n_frames} frames'}, the database's "
                 f"document {row['doc_id']} has {row['n_frames']} frames (the file changed since ingest?)"
@@ -117,7 +118,7 @@ class _Descriptors:
         if self._euler:
             d0, first = next(iter(self._euler.items()))
             if first.shape[1] != motion.euler.shape[1]:
-                raise ValueError(
+                raise ParameterError(
                     f"Deuler compares Euler channels of one skeleton, but {row['path']} has {motion.euler.shape[1]} "
                     f"channels and {self.db.documents.iloc[d0]['path']} {first.shape[1]}"
                 )
@@ -151,10 +152,10 @@ def _check_measures(names, what: str) -> tuple[str, ...]:
     names = (names,) if isinstance(names, str) else tuple(names)
     unknown = [m for m in names if m not in _MEASURES]
     if unknown:
-        raise ValueError(f"unknown measure(s) {', '.join(map(repr, unknown))} in {what}; known: "
+        raise ParameterError(f"unknown measure(s) {', '.join(map(repr, unknown))} in {what}; known: "
                          f"{', '.join(CORRELATION_MEASURES)}")  # fmt: skip
     if not names or len(set(names)) != len(names):
-        raise ValueError(f"{what} must name at least one measure, each once; got {names}")
+        raise ParameterError(f"{what} must name at least one measure, each once; got {names}")
     return names
 
 
@@ -196,11 +197,11 @@ def _documents(db, docs) -> tuple[pd.DataFrame, np.ndarray]:
         ids = docs["doc_id"] if isinstance(docs, pd.DataFrame) else pd.Series(np.asarray(docs).ravel())
         missing = sorted(set(ids.tolist()) - set(table["doc_id"].tolist()))
         if missing:
-            raise ValueError(f"{db.path}: no document(s) {missing[:10]}")
+            raise ParameterError(f"{db.path}: no document(s) {missing[:10]}")
         table = table[table["doc_id"].isin(ids.tolist())]
     table = table.sort_values("start")
     if table.empty:
-        raise ValueError("no documents selected")
+        raise ParameterError("no documents selected")
     starts, lengths = table["start"].to_numpy(np.int64), table["n_frames"].to_numpy(np.int64)
     return table, np.repeat(starts - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
 
@@ -208,7 +209,7 @@ def _documents(db, docs) -> tuple[pd.DataFrame, np.ndarray]:
 def _check_deuler(table: pd.DataFrame, measures) -> None:
     if "Deuler" in measures and not (table["format"] == "amc").all():
         bad = table[table["format"] != "amc"].iloc[0]
-        raise ValueError(
+        raise ParameterError(
             f"Deuler compares the Euler angles of ASF/AMC files (§3.1) but document {bad['doc_id']} ({bad['path']}) "
             f"is {bad['format']}; leave Deuler out of the measures for this database (see available_measures)"
         )
@@ -268,15 +269,15 @@ def correlation_sample(db, clips_per_class: int = 8, min_clips: int = 8, max_cla
         No labels, fewer than 2 qualifying classes, or counts < 1.
     """
     if clips_per_class < 1 or max_classes < 2:
-        raise ValueError(f"clips_per_class must be >= 1 and max_classes >= 2; got {clips_per_class}, {max_classes}")
+        raise ParameterError(f"clips_per_class must be >= 1 and max_classes >= 2; got {clips_per_class}, {max_classes}")
     labels = db.documents["label"]
     if labels.isna().all():
-        raise ValueError(f"{db.path}: the documents have no labels (ingest with a label table)")
+        raise ParameterError(f"{db.path}: the documents have no labels (ingest with a label table)")
     need = max(min_clips, clips_per_class)
     counts = labels.value_counts()
     counts = counts[counts >= need]
     if len(counts) < 2:
-        raise ValueError(f"{db.path}: {len(counts)} class(es) with at least {need} clips; the rank correlations "
+        raise ParameterError(f"{db.path}: {len(counts)} class(es) with at least {need} clips; the rank correlations "
                          f"of §3.3 need at least 2 (largest classes: {labels.value_counts().head(3).to_dict()})")  # fmt: skip
     classes = sorted(counts.index, key=lambda c: (-counts[c], str(c)))[:max_classes]
     rng = np.random.default_rng(seed)
@@ -386,10 +387,10 @@ def pose_correlations(db, rows=CORRELATION_MEASURES, columns=CORRELATION_MEASURE
     table, frames = _documents(db, docs)
     _check_deuler(table, rows + columns)
     if not 1 <= k < len(frames):
-        raise ValueError(f"k must be between 1 and {len(frames) - 1} (the frames of the documents, less the query); "
+        raise ParameterError(f"k must be between 1 and {len(frames) - 1} (the frames of the documents, less the query); "
                          f"got k={k} for {len(frames)} frames")  # fmt: skip
     if not 1 <= n_queries <= len(frames):
-        raise ValueError(f"n_queries must be between 1 and the {len(frames)} frames of the documents; got {n_queries}")
+        raise ParameterError(f"n_queries must be between 1 and the {len(frames)} frames of the documents; got {n_queries}")
     ctx = _Descriptors(db, rows + columns, pca)
     queries = np.sort(np.random.default_rng(seed).choice(frames, n_queries, replace=False))
     seconds = {"neighbours": {}, "distances": {}}
@@ -479,7 +480,7 @@ def segment_correlations(db, docs, measures=CORRELATION_MEASURES, n_first: int =
     _check_deuler(table, measures)
     n = len(table)
     if not 2 <= n_first < n:
-        raise ValueError(f"n_first must be between 2 and the number of other clips ({n - 1}); got {n_first}")
+        raise ParameterError(f"n_first must be between 2 and the number of other clips ({n - 1}); got {n_first}")
     ctx = _Descriptors(db, measures, pca)
     bounds = np.concatenate([[0], np.cumsum(table["n_frames"].to_numpy(np.int64))])
     clip_frames = [np.arange(a, b) for a, b in itertools.pairwise(bounds)]  # in the sample's frame numbers

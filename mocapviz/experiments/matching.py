@@ -23,6 +23,7 @@ import pandas as pd
 from scipy.spatial.distance import cdist
 from scipy.stats import spearmanr
 
+from ..errors import ParameterError
 from ..features.distances import dpc_pairwise, window_clouds
 from ..features.numeric import numeric_of
 from ..features.relational import relational
@@ -100,7 +101,7 @@ def lng_accuracy(db, feature_set: str = "F15E", n_queries: int = 128, seconds=(1
         m = max(2, round(sec * db.fps))
         long_enough = np.flatnonzero(stops - starts >= m)
         if not len(long_enough):
-            raise ValueError(f"no document of {db.path} has {m} frames for a {sec:g} s query")
+            raise ParameterError(f"no document of {db.path} has {m} frames for a {sec:g} s query")
         doc = int(rng.choice(long_enough))
         q0 = int(rng.integers(starts[doc], stops[doc] - m + 1))
         q = X[q0 : q0 + m]
@@ -204,14 +205,14 @@ def similarity_matrices(db, query_doc: int, query_frames: tuple[int, int] | None
     span = db.frames(query_doc)
     a, b = (0, span.stop - span.start) if query_frames is None else query_frames
     if not 0 <= a < b <= span.stop - span.start or b - a < 2:
-        raise ValueError(f"query frames {a}:{b} are not a span of >= 2 frames of document {query_doc} "
+        raise ParameterError(f"query frames {a}:{b} are not a span of >= 2 frames of document {query_doc} "
                          f"({span.stop - span.start} frames)")  # fmt: skip
     if database_docs is None:
         label = docs.loc[docs["doc_id"] == query_doc, "label"].iloc[0]
         database_docs = [int(d) for d in docs.loc[docs["label"] == label, "doc_id"] if d != query_doc][:3]
     database_docs = [int(d) for d in database_docs]
     if not database_docs:
-        raise ValueError("the small database needs at least one document")
+        raise ParameterError("the small database needs at least one document")
     rows = np.concatenate([np.arange(db.frames(d).start, db.frames(d).stop) for d in database_docs])
     lengths = np.array([db.frames(d).stop - db.frames(d).start for d in database_docs])
     local_starts = np.r_[0, np.cumsum(lengths)[:-1]]
@@ -366,7 +367,7 @@ def numerical_search(db, classes=None, sets=TABLE2_SETS, k: int = 256, k_matches
     ``recall_gain`` (logical_recall - recall).
     """
     if factor < 1:
-        raise ValueError(f"factor must be >= 1 (a threshold relative to the best match); got {factor}")
+        raise ParameterError(f"factor must be >= 1 (a threshold relative to the best match); got {factor}")
     docs = db.documents
     labels = docs[label_column].astype("string")
     present = sorted(set(labels.dropna()))
@@ -374,7 +375,7 @@ def numerical_search(db, classes=None, sets=TABLE2_SETS, k: int = 256, k_matches
         classes = [c for c in ("kickLFront1Reps", "elbowToKnee1RepsLelbowStart", "squat1Reps") if c in present]
     missing = [c for c in classes if c not in present]
     if missing or not classes:
-        raise ValueError(f"classes {missing or classes} not in {db.path}; classes there: {present}")
+        raise ParameterError(f"classes {missing or classes} not in {db.path}; classes there: {present}")
     starts, stops = _document_bounds(db)
     label_of = labels.to_numpy()
     rows, reference = [], {}

@@ -11,6 +11,7 @@ import time
 import numpy as np
 import pandas as pd
 
+from ..errors import ParameterError
 from ..features.numeric import NUMERIC_SETS, default_pca, numeric_of
 from ..knn import KnnIndex, base_poses_quadratic
 from ..knn import base_poses as knn_base_poses
@@ -77,7 +78,7 @@ def knn_timings(db, sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 1000, pca=N
     """
     unknown = [s for s in sets if s not in NUMERIC_SETS]
     if unknown:
-        raise ValueError(f"unknown feature set(s) {unknown}; known: {', '.join(NUMERIC_SETS)}")
+        raise ParameterError(f"unknown feature set(s) {unknown}; known: {', '.join(NUMERIC_SETS)}")
     rng = np.random.default_rng(seed)
     frames = rng.choice(db.n_frames, size=min(n_queries, db.n_frames), replace=False)
     name = database or getattr(db, "path", "db").name

@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
+from ..errors import ParameterError
 from ..features.numeric import NUMERIC_SETS, PCAModel
 from ..reconstruct import DEFAULT_K, PosePrior, reconstruct, reconstruction_errors, synthetic_markers
 from ..skeleton import CANONICAL_JOINTS, heading
@@ -94,7 +95,7 @@ def default_test_docs(db, actor: str = "bk", full: bool = False) -> list[int]:
     clips (65, 4,518 frames); doc_ids in increasing order."""
     docs = db.documents
     if "actor" not in docs or not (docs["actor"] == actor).any():
-        raise ValueError(f"{db.path} has no clip of actor {actor!r} (an 'actor' label column is needed)")
+        raise ParameterError(f"{db.path} has no clip of actor {actor!r} (an 'actor' label column is needed)")
     mine = docs[docs["actor"] == actor].sort_values("doc_id")
     return sorted(int(d) for d in (mine["doc_id"] if full else mine.groupby("label")["doc_id"].first()))
 
@@ -171,22 +172,22 @@ def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, featur
     """
     docs = db.documents.set_index("doc_id")
     if "actor" not in docs:
-        raise ValueError(f"{db.path}: the documents need an 'actor' label column for the HDM-actor prior")
+        raise ParameterError(f"{db.path}: the documents need an 'actor' label column for the HDM-actor prior")
     if db.fps is None:
-        raise ValueError(f"{db.path}: documents at different frame rates; resample the database to one")
+        raise ParameterError(f"{db.path}: documents at different frame rates; resample the database to one")
     if other_db is not None and other_db.fps != db.fps:
-        raise ValueError(f"other_db is at {other_db.fps} fps, db at {db.fps} fps: the markers must be at the "
+        raise ParameterError(f"other_db is at {other_db.fps} fps, db at {db.fps} fps: the markers must be at the "
                          "prior's rate")  # fmt: skip
     test_docs = default_test_docs(db, full=full) if test_docs is None else [int(d) for d in test_docs]
     unknown = [d for d in test_docs if d not in docs.index]
     if unknown or not test_docs:
-        raise ValueError(f"test_docs {unknown or test_docs} are not doc_ids of {db.path}")
+        raise ParameterError(f"test_docs {unknown or test_docs} are not doc_ids of {db.path}")
     bad_sets = [s for s in feature_sets if s not in NUMERIC_SETS]
     if bad_sets:
-        raise ValueError(f"unknown feature set(s) {bad_sets}; known: {', '.join(NUMERIC_SETS)}")
+        raise ParameterError(f"unknown feature set(s) {bad_sets}; known: {', '.join(NUMERIC_SETS)}")
     table4_doc = test_docs[0] if table4_doc is None else int(table4_doc)
     if table4_doc not in docs.index:
-        raise ValueError(f"table4_doc {table4_doc} is not a doc_id of {db.path}")
+        raise ParameterError(f"table4_doc {table4_doc} is not a doc_id of {db.path}")
 
     variants = [v for v in VARIANTS if v != "CMU" or other_db is not None]
     prior = PosePrior(db, pca=pca)

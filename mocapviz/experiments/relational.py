@@ -18,6 +18,7 @@ import pandas as pd
 
 from .. import evaluation
 from .. import index as index_mod
+from ..errors import ParameterError
 from ..features import feature_names, relational
 
 __all__ = [
@@ -101,7 +102,7 @@ def index_statistics(db, feature_set: str = "2005", values: np.ndarray | None = 
         t_features = time.perf_counter() - t0
     values = np.asarray(values)
     if values.shape != (db.n_frames, len(names)):
-        raise ValueError(f"values must have shape ({db.n_frames}, {len(names)}) (frames of the database, features "
+        raise ParameterError(f"values must have shape ({db.n_frames}, {len(names)}) (frames of the database, features "
                          f"of the {feature_set} set), got {values.shape}")  # fmt: skip
     doc_starts = db.documents["start"].to_numpy(np.int64)
     minutes = float((db.documents["n_frames"] / db.documents["fps"]).sum() / 60.0)  # per document: rates may mix
@@ -203,25 +204,25 @@ def random_queries(index, n_queries: int, length: int, mode: str = "exact", fuzz
         ``dont_care``).
     """
     if mode not in _MODES:
-        raise ValueError(f"mode must be one of {', '.join(_MODES)}, got {mode!r}")
+        raise ParameterError(f"mode must be one of {', '.join(_MODES)}, got {mode!r}")
     if alternatives not in ALTERNATIVES:
-        raise ValueError(f"alternatives must be one of {', '.join(ALTERNATIVES)}, got {alternatives!r}")
+        raise ParameterError(f"alternatives must be one of {', '.join(ALTERNATIVES)}, got {alternatives!r}")
     f = index.n_features
     n_codes = 2**f
     if mode == "fuzzy":
         if alternatives == "dont_care":
             if fuzzy_size < 1 or fuzzy_size & (fuzzy_size - 1) or fuzzy_size > n_codes:
-                raise ValueError(f"fuzzy_size must be a power of 2 up to 2^f = {n_codes} for alternatives="
+                raise ParameterError(f"fuzzy_size must be a power of 2 up to 2^f = {n_codes} for alternatives="
                                  f"'dont_care', got {fuzzy_size}")  # fmt: skip
         else:
             most = (n_codes - 1) // 2 if alternatives == "disjoint" else n_codes
             if not 1 <= fuzzy_size <= most:
-                raise ValueError(f"fuzzy_size must lie in [1, {most}] for 2^f = {n_codes} codes and "
+                raise ParameterError(f"fuzzy_size must lie in [1, {most}] for 2^f = {n_codes} codes and "
                                  f"alternatives={alternatives!r}, got {fuzzy_size}")  # fmt: skip
     rng = np.random.default_rng(rng)
     starts = _valid_starts(index, length)
     if starts.size == 0:
-        raise ValueError(f"no document has {length} consecutive segments; choose a shorter query length")
+        raise ParameterError(f"no document has {length} consecutive segments; choose a shorter query length")
     free_bits = fuzzy_size.bit_length() - 1
     # every combination of free_bits bits, as rows of 0/1: the offsets of a don't-care set
     combos = (np.arange(fuzzy_size)[:, None] >> np.arange(free_bits)) & 1
@@ -308,7 +309,7 @@ def query_statistics(index, n_queries: int = 10_000, lengths=(5, 10, 20), modes=
                 ms = (time.perf_counter() - t0) * 1e3
                 h = int(hits.shape[0])
                 if h == 0:
-                    raise RuntimeError(f"{mode} query of {length} segments taken at segment {k} found no hit")
+                    raise AssertionError(f"{mode} query of {length} segments taken at segment {k} found no hit")  # a bug
                 rows.append((mode, length, k, q, h, ms, _hit_group(h)))
     raw = pd.DataFrame(rows, columns=["mode", "L", "k", "query", "hits", "ms", "group"])
     if per_query:
@@ -410,10 +411,10 @@ def relational_query(db, queries: dict | None = None, feature_set: str = "2005",
         doc_id, features = spec if isinstance(spec, tuple) else (None, spec)
         members = docs.loc[(labels == cls).fillna(False).to_numpy(), "doc_id"].to_numpy()
         if members.size == 0:
-            raise ValueError(f"no document of class {cls!r} in {db.path}; classes: {sorted(set(labels.dropna()))}")
+            raise ParameterError(f"no document of class {cls!r} in {db.path}; classes: {sorted(set(labels.dropna()))}")
         doc_id = int(members.min()) if doc_id is None else int(doc_id)
         if doc_id not in set(members.tolist()):
-            raise ValueError(f"document {doc_id} is not of class {cls!r}")
+            raise ParameterError(f"document {doc_id} is not of class {cls!r}")
         example = db.motion(doc_id)
         t0 = time.perf_counter()
         hits = query_by_example(db, example, list(features), mode="adaptive", feature_set=feature_set,

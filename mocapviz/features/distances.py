@@ -46,6 +46,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import rotations
+from ..errors import ParameterError
 from ..skeleton import CANONICAL_JOINTS
 
 __all__ = [
@@ -90,18 +91,18 @@ def _array(x, name: str, ndim: int, last: int | None = None) -> np.ndarray:
     """``x`` as a finite float array of ``ndim`` dimensions (last axis ``last`` long), else a ValueError."""
     x = np.asarray(x)
     if x.dtype.kind not in "fiu":
-        raise ValueError(f"{name} must be a numeric array, got dtype {x.dtype}")
+        raise ParameterError(f"{name} must be a numeric array, got dtype {x.dtype}")
     if x.ndim != ndim or (last is not None and x.shape[-1] != last):
         want = ", ".join(["n"] * (ndim - 1) + [str(last) if last is not None else "c"])
-        raise ValueError(f"{name} must have shape ({want}), got {x.shape}")
+        raise ParameterError(f"{name} must have shape ({want}), got {x.shape}")
     if not np.isfinite(x).all():
-        raise ValueError(f"{name} contains NaN or infinite values (a MotionDB marks missing rotations with NaN)")
+        raise ParameterError(f"{name} contains NaN or infinite values (a MotionDB marks missing rotations with NaN)")
     return x
 
 
 def _same_frame_shape(a: np.ndarray, b: np.ndarray, a_name: str, b_name: str, skip_a: int) -> None:
     if a.shape[skip_a:] != b.shape[1:]:
-        raise ValueError(
+        raise ParameterError(
             f"{a_name} frames have shape {a.shape[skip_a:]} but {b_name} frames {b.shape[1:]}; "
             "both must come from the same skeleton (same joints / channels)"
         )
@@ -112,7 +113,7 @@ def _squared_norms(q: np.ndarray, name: str) -> np.ndarray:
     (float32 storage is to 1e-7)."""
     sq = np.einsum("...c,...c->...", q, q)
     if sq.size and np.abs(sq - 1.0).max() > 2 * _UNIT_TOLERANCE:
-        raise ValueError(f"{name} are not unit quaternions (a norm is {np.sqrt(sq.flat[np.abs(sq - 1).argmax()]):.4g})")
+        raise ParameterError(f"{name} are not unit quaternions (a norm is {np.sqrt(sq.flat[np.abs(sq - 1).argmax()]):.4g})")
     return sq
 
 
@@ -140,18 +141,18 @@ def joint_weights(weights, n_joints: int) -> np.ndarray:
         return np.ones(n_joints)
     if isinstance(weights, str):
         if weights not in _TABLES:
-            raise ValueError(f"unknown weight table {weights!r}; use 'lee', 'wb', None or an array of {n_joints}")
+            raise ParameterError(f"unknown weight table {weights!r}; use 'lee', 'wb', None or an array of {n_joints}")
         if n_joints != len(CANONICAL_JOINTS):
-            raise ValueError(
+            raise ParameterError(
                 f"weight table {weights!r} is over the {len(CANONICAL_JOINTS)} canonical joints but the frames have "
                 f"{n_joints} joints; use motion.canonical() (or MotionDB arrays) or pass an array of weights"
             )
         return np.array([_TABLES[weights][name] for name in CANONICAL_JOINTS])
     w = np.asarray(weights, dtype=np.float64)
     if w.shape != (n_joints,):
-        raise ValueError(f"weights must have shape ({n_joints},), one per joint, got {w.shape}")
+        raise ParameterError(f"weights must have shape ({n_joints},), one per joint, got {w.shape}")
     if not np.isfinite(w).all() or (w < 0).any() or not w.any():
-        raise ValueError("weights must be finite, non-negative and not all zero")
+        raise ParameterError("weights must be finite, non-negative and not all zero")
     return w
 
 
@@ -159,7 +160,7 @@ def _document_bounds(n_frames: int, lengths) -> tuple[np.ndarray, np.ndarray]:
     """First and last frame index of the document holding each of ``n_frames`` concatenated frames."""
     lengths = np.array([n_frames] if lengths is None else lengths)
     if lengths.ndim != 1 or lengths.dtype.kind not in "iu" or (lengths < 1).any() or lengths.sum() != n_frames:
-        raise ValueError(
+        raise ParameterError(
             f"lengths must be positive integer frame counts summing to the {n_frames} frames, got {lengths.tolist()}"
         )
     ends = np.cumsum(lengths)
@@ -361,18 +362,18 @@ def window_clouds(positions: np.ndarray, n: int, frames=None, lengths=None) -> n
     """
     positions = _array(positions, "positions", 3, 3)
     if not isinstance(n, (int, np.integer)) or n < 1 or n % 2 == 0:
-        raise ValueError(f"window length n must be a positive odd integer (1, 5, 11, ...), got {n!r}")
+        raise ParameterError(f"window length n must be a positive odd integer (1, 5, 11, ...), got {n!r}")
     first, last = _document_bounds(positions.shape[0], lengths)
     short = (last - first + 1) < n
     if short.any():
         k = int(np.argmax(short))
-        raise ValueError(
+        raise ParameterError(
             f"the clip starting at frame {first[k]} has {last[k] - first[k] + 1} frames, too few frames for a "
             f"window of n={n} frames"
         )
     frames = np.arange(positions.shape[0]) if frames is None else np.asarray(frames)
     if frames.ndim != 1 or frames.dtype.kind not in "iu" or (frames < 0).any() or (frames >= positions.shape[0]).any():
-        raise ValueError(f"frames must be a 1-D array of frame indices in [0, {positions.shape[0]})")
+        raise ParameterError(f"frames must be a 1-D array of frame indices in [0, {positions.shape[0]})")
     window = frames[:, None] + np.arange(n) - (n - 1) // 2
     window = np.clip(window, first[frames, None], last[frames, None])
     return positions[window].reshape(frames.size, n * positions.shape[1], 3).astype(np.float64, copy=False)
@@ -383,11 +384,11 @@ def _point_weights(weights, n_points: int) -> np.ndarray:
         return np.ones(n_points)
     w = np.asarray(weights, dtype=np.float64)
     if w.shape != (n_points,):
-        raise ValueError(
+        raise ParameterError(
             f"dpc weights must have shape ({n_points},), one per cloud point (np.tile(joint_weights, n)), got {w.shape}"
         )
     if not np.isfinite(w).all() or (w < 0).any() or not w.any():
-        raise ValueError("dpc weights must be finite, non-negative and not all zero")
+        raise ParameterError("dpc weights must be finite, non-negative and not all zero")
     return w
 
 
@@ -429,7 +430,7 @@ def pc_align(a: np.ndarray, b: np.ndarray, weights=None) -> tuple[np.ndarray, np
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
     if a.ndim < 2 or a.shape[-1] != 3 or b.ndim < 2 or b.shape[-2:] != a.shape[-2:]:
-        raise ValueError(f"pc_align needs clouds of shape (..., K, 3) with the same K, got {a.shape} and {b.shape}")
+        raise ParameterError(f"pc_align needs clouds of shape (..., K, 3) with the same K, got {a.shape} and {b.shape}")
     w = _point_weights(weights, a.shape[-2])
     w = w / w.sum()
     xa, za, xb, zb = a[..., 0], a[..., 2], b[..., 0], b[..., 2]
@@ -557,17 +558,17 @@ def lee_frames(quaternions: np.ndarray, fps: float, lengths=None, frames=None) -
         not summing to T, frame indices out of range.
     """
     if not (np.isfinite(fps) and fps > 0):
-        raise ValueError(f"fps must be a positive number, got {fps!r}")
+        raise ParameterError(f"fps must be a positive number, got {fps!r}")
     quaternions = np.asarray(quaternions)
     if quaternions.ndim != 3 or quaternions.shape[-1] != 4:
         _array(quaternions, "quaternions", 3, 4)  # raises, naming the shape
     first, last = _document_bounds(quaternions.shape[0], lengths)
     if (first == last).any():
         k = int(np.argmax(first == last))
-        raise ValueError(f"the clip at frame {k} has 1 frame; joint velocities need at least 2 frames")
+        raise ParameterError(f"the clip at frame {k} has 1 frame; joint velocities need at least 2 frames")
     t = np.arange(quaternions.shape[0]) if frames is None else np.asarray(frames)
     if t.ndim != 1 or t.dtype.kind not in "iu" or (t < 0).any() or (t >= quaternions.shape[0]).any():
-        raise ValueError(f"frames must be a 1-D array of frame indices in [0, {quaternions.shape[0]})")
+        raise ParameterError(f"frames must be a 1-D array of frame indices in [0, {quaternions.shape[0]})")
     before, after = np.maximum(t - 1, first[t]), np.minimum(t + 1, last[t])
     used, where = np.unique(np.concatenate([t, before, after]), return_inverse=True)  # each frame read once
     q = _array(quaternions[used], "quaternions", 3, 4).astype(np.float64, copy=False)
@@ -587,7 +588,7 @@ def _lee_inputs(a, b, a_ndim: int, weights, nu):
     b = _array(b, b_name, 3, 7).astype(np.float64, copy=False)
     _same_frame_shape(a, b, a_name, b_name, a_ndim - 2)
     if not (np.isfinite(nu) and nu >= 0):
-        raise ValueError(f"nu must be a non-negative number, got {nu!r}")
+        raise ParameterError(f"nu must be a non-negative number, got {nu!r}")
     parts = []
     for x, name in ((a, a_name), (b, b_name)):
         q, v = x[..., :4], x[..., 4:]

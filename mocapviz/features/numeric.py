@@ -67,7 +67,7 @@ from tqdm.auto import tqdm
 
 from ..cluster import optional_client
 from ..database import MotionDB, document_batches, read_batch
-from ..errors import MotionDBError
+from ..errors import MotionDBError, ParameterError
 from ..motion import Motion
 from ..skeleton import CANONICAL_JOINTS, body_frame, heading
 from ..store import atomic_write
@@ -124,7 +124,7 @@ _PCA_COMPONENTS = max(s.pcs for s in _SETS.values())  # a default model serves e
 
 def _spec(name: str) -> _Set:
     if name not in _SETS:
-        raise ValueError(f"unknown numeric feature set {name!r}; known sets: {', '.join(NUMERIC_SETS)}")
+        raise ParameterError(f"unknown numeric feature set {name!r}; known sets: {', '.join(NUMERIC_SETS)}")
     return _SETS[name]
 
 
@@ -225,7 +225,7 @@ class PCAModel:
             or n < 1
             or np.shape(self.explained_variance) != (n,)
         ):
-            raise ValueError(
+            raise ParameterError(
                 f"PCAModel needs mean (72,), components (n, 72), explained_variance (n,); got "
                 f"{np.shape(self.mean)}, {np.shape(self.components)}, {np.shape(self.explained_variance)}"
             )
@@ -251,7 +251,7 @@ class PCAModel:
         """
         n = self.n_components if n is None else n
         if not 1 <= n <= self.n_components:
-            raise ValueError(f"the PCA model ({self.reference}) has {self.n_components} components; asked for {n}")
+            raise ParameterError(f"the PCA model ({self.reference}) has {self.n_components} components; asked for {n}")
         x = np.asarray(poses, dtype=np.float64).reshape(-1, _POSE_DIMS)
         return (self.components[:n] @ (x - self.mean).T).T  # this way round BLAS is about 2x faster for small n
 
@@ -288,17 +288,17 @@ class PCAModel:
 
         Raises
         ------
-        ValueError
-            Not such a file (names the file and what is wrong).
+        MotionDBError
+            Not such a file (names the file and what is wrong), as for every other saved artefact.
         """
         path = Path(path)
         try:
             with np.load(path, allow_pickle=False) as z:
                 fields = {k: z[k] for k in z.files}
         except (OSError, ValueError, EOFError) as exc:
-            raise ValueError(f"{path}: cannot read a PCA model ({exc})") from None
+            raise MotionDBError(f"{path}: cannot read a PCA model ({exc})") from None
         if str(fields.get("format", "")) != _PCA_FORMAT or int(fields.get("version", -1)) != _FORMAT_VERSION:
-            raise ValueError(f"{path}: not a {_PCA_FORMAT} version {_FORMAT_VERSION} file")
+            raise MotionDBError(f"{path}: not a {_PCA_FORMAT} version {_FORMAT_VERSION} file")
         try:
             return cls(
                 mean=fields["mean"],
@@ -309,7 +309,7 @@ class PCAModel:
                 reference=str(fields["reference"]),
             )
         except (KeyError, ValueError) as exc:
-            raise ValueError(f"{path}: malformed PCA model ({exc})") from None
+            raise MotionDBError(f"{path}: malformed PCA model ({exc})") from None
 
 
 def fit_pca(
@@ -341,7 +341,7 @@ def fit_pca(
         ``n_components`` out of range, fewer than 2 frames, or a NaN / infinite position (names the frame).
     """
     if not 1 <= n_components <= _POSE_DIMS:
-        raise ValueError(f"n_components must be in 1..{_POSE_DIMS}, got {n_components}")
+        raise ParameterError(f"n_components must be in 1..{_POSE_DIMS}, got {n_components}")
     _n_frames(source)  # a Motion or a MotionDB
 
     count, total, outer = 0, np.zeros(_POSE_DIMS), np.zeros((_POSE_DIMS, _POSE_DIMS))
@@ -352,7 +352,7 @@ def fit_pca(
             x = poses.astype(np.float64)
             count, total, outer = count + x.shape[0], total + x.sum(axis=0), outer + x.T @ x
     if count < 2:
-        raise ValueError(f"{_describe(source)}: {count} frame(s); a PCA needs at least 2")
+        raise ParameterError(f"{_describe(source)}: {count} frame(s); a PCA needs at least 2")
     mean = total / count
     cov = (outer - count * np.outer(mean, mean)) / (count - 1)
     variance, axes = np.linalg.eigh(cov)  # ascending
@@ -484,12 +484,12 @@ def _fill(source, name: str, pca: PCAModel | None, out: np.ndarray, progress: bo
     desc = f"numeric features {name}"
     if spec.pcs:
         if pca is None:
-            raise ValueError(
+            raise ParameterError(
                 f"feature set {name} needs a PCA model: pass pca=fit_pca(reference) or "
                 f"pca=PCAModel.load(path) (the paper's reference is the whole HDM05 database)"
             )
         if pca.n_components < spec.pcs:
-            raise ValueError(
+            raise ParameterError(
                 f"feature set {name} needs {spec.pcs} components; the PCA model ({pca.reference}) "
                 f"has {pca.n_components}"
             )
@@ -507,7 +507,7 @@ def _fill(source, name: str, pca: PCAModel | None, out: np.ndarray, progress: bo
 def _n_frames(source) -> int:
     if isinstance(source, (Motion, MotionDB)):
         return source.n_frames
-    raise TypeError(f"numeric features need a Motion or a MotionDB, got {type(source).__name__}")
+    raise ParameterError(f"numeric features need a Motion or a MotionDB, got {type(source).__name__}")
 
 
 def numeric(

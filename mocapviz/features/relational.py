@@ -63,6 +63,7 @@ from tqdm.auto import tqdm
 
 from ..cluster import optional_client
 from ..database import MotionDB, document_batches, read_batch
+from ..errors import ParameterError
 from ..motion import Motion
 from ..skeleton import CANONICAL_JOINTS, body_size_table
 from ..validation import finite_positions
@@ -361,7 +362,7 @@ def _robust(lax: np.ndarray, strict: np.ndarray, bounds=None) -> np.ndarray:
     lax = np.asarray(lax, dtype=bool)
     strict = np.asarray(strict, dtype=bool)
     if lax.shape != strict.shape:
-        raise ValueError(f"lax and strict streams differ in shape: {lax.shape} vs {strict.shape}")
+        raise ParameterError(f"lax and strict streams differ in shape: {lax.shape} vs {strict.shape}")
     n = lax.shape[-1]
     bounds = np.array([0, n] if bounds is None else bounds, dtype=np.int64)
     lax2 = np.ascontiguousarray(lax.reshape(-1, n))
@@ -755,7 +756,7 @@ def _pair(right: _Feature, left_spec: str, left_unit: str | None = None) -> list
     twin unit (humerus_r -> humerus_l), unless ``left_unit`` gives the unit the toolbox actually uses.
     """
     if not right.name.startswith("r"):
-        raise ValueError(f"{right.name}: a right-side feature name starts with 'r'")
+        raise ParameterError(f"{right.name}: a right-side feature name starts with 'r'")
     left = replace(right, name="l" + right.name[1:], spec=left_spec, quantity=right.quantity.mirror(),
                    unit=left_unit or _TWIN_UNIT.get(right.unit, right.unit))  # fmt: skip
     return [right, left]
@@ -944,7 +945,7 @@ _check_sets()
 def _features(feature_set) -> tuple:
     key = str(feature_set)
     if key not in _SETS:
-        raise ValueError(f"unknown relational feature set {feature_set!r}; known sets: {', '.join(FEATURE_SETS)}")
+        raise ParameterError(f"unknown relational feature set {feature_set!r}; known sets: {', '.join(FEATURE_SETS)}")
     return _SETS[key]
 
 
@@ -1017,7 +1018,7 @@ def _motion_features(motion: Motion, feats: tuple) -> np.ndarray:
     name = motion.source or "motion"
     motion = motion.canonical()
     if motion.n_frames < 2:
-        raise ValueError(f"{name}: {motion.n_frames} frame(s); relational features need at least 2 (velocities)")
+        raise ParameterError(f"{name}: {motion.n_frames} frame(s); relational features need at least 2 (velocities)")
     finite_positions(motion.positions, lambda t: f"{name}, frame {t}")
     return _evaluate(feats, _Batch(motion.positions, [0, motion.n_frames], [motion.fps]))
 
@@ -1028,7 +1029,7 @@ def _document_batches(db: MotionDB) -> tuple:
     short = db.documents["n_frames"].to_numpy(np.int64) < 2
     if short.any():
         row = db.documents.iloc[int(np.argmax(short))]
-        raise ValueError(f"{db.path}: document {row['doc_id']} ({row['path']}) has {row['n_frames']} frame(s); "
+        raise ParameterError(f"{db.path}: document {row['doc_id']} ({row['path']}) has {row['n_frames']} frame(s); "
                          f"relational features need at least 2 per document")  # fmt: skip
     return document_batches(db, _BATCH_FRAMES)
 
@@ -1131,4 +1132,4 @@ def relational(source, feature_set: str = "2005", progress: bool = True, n_jobs:
     if isinstance(source, MotionDB):
         with optional_client(scheduler) as client:
             return _db_features(source, feature_set, progress, n_jobs or min(8, os.cpu_count() or 1), client), names
-    raise TypeError(f"relational features need a Motion or a MotionDB, got {type(source).__name__}")
+    raise ParameterError(f"relational features need a Motion or a MotionDB, got {type(source).__name__}")

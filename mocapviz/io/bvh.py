@@ -24,7 +24,7 @@ import re
 import numpy as np
 
 from .. import rotations
-from ..errors import MocapFormatError
+from ..errors import MocapFormatError, ParameterError
 from ..motion import Motion
 from .text import scan
 
@@ -215,7 +215,7 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
     """
     path = os.fspath(path)
     if up not in ("auto", "y", "z"):
-        raise ValueError(f"up must be 'auto', 'y' or 'z', got {up!r}")
+        raise ParameterError(f"up must be 'auto', 'y' or 'z', got {up!r}")
     try:
         with open(path, "rb") as fh:
             raw = fh.read()

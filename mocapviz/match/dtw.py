@@ -31,6 +31,7 @@ import numba
 import numpy as np
 import pandas as pd
 
+from ..errors import ParameterError
 from ..validation import count
 
 STEP_SETS = {
@@ -49,12 +50,12 @@ def _sequence(x, name: str, dim: int | None = None, other: str = "the query") ->
     if arr.ndim == 1:
         arr = arr[:, None]
     if arr.ndim != 2 or not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
-        raise ValueError(f"{name} must be a real (frames, dimensions) array; got {arr.dtype} {arr.shape}")
+        raise ParameterError(f"{name} must be a real (frames, dimensions) array; got {arr.dtype} {arr.shape}")
     if dim is not None and arr.shape[1] != dim:
-        raise ValueError(f"{name} has {arr.shape[1]} dimensions per frame but {other} has {dim}")
+        raise ParameterError(f"{name} has {arr.shape[1]} dimensions per frame but {other} has {dim}")
     bad = ~np.isfinite(arr).all(axis=1)
     if bad.any():
-        raise ValueError(f"{name}: frame {int(np.argmax(bad))} is not finite (NaN or inf)")
+        raise ParameterError(f"{name}: frame {int(np.argmax(bad))} is not finite (NaN or inf)")
     return arr if arr.dtype in (np.float32, np.float64) else arr.astype(np.float64)
 
 
@@ -65,7 +66,7 @@ def _pair(a, b, names: tuple[str, str], distance) -> tuple:
         a = _sequence(a, names[0])
         b = _sequence(b, names[1], a.shape[1])
     if len(a) < 1 or len(b) < 1:
-        raise ValueError(f"{names[0]} and {names[1]} need at least one frame each; got {len(a)} and {len(b)}")
+        raise ParameterError(f"{names[0]} and {names[1]} need at least one frame each; got {len(a)} and {len(b)}")
     return a, b
 
 
@@ -73,14 +74,14 @@ def _steps(steps) -> np.ndarray:
     """A step set name or ((di, dj, w), ...) as a float64 (S, 3) array, or a ValueError."""
     table = STEP_SETS.get(steps, steps) if isinstance(steps, str) else steps
     if isinstance(table, str):
-        raise ValueError(f"unknown step set {steps!r}; choose one of {', '.join(STEP_SETS)} or give (di, dj, w) rows")  # noqa: TRY004
+        raise ParameterError(f"unknown step set {steps!r}; choose one of {', '.join(STEP_SETS)} or give (di, dj, w) rows")
     arr = np.asarray(table, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
-        raise ValueError(f"steps must be rows (di, dj, weight); got shape {arr.shape}")
+        raise ParameterError(f"steps must be rows (di, dj, weight); got shape {arr.shape}")
     di, dj, w = arr.T
     if (di < 0).any() or (dj < 0).any() or ((di == 0) & (dj == 0)).any() or (di != np.round(di)).any() or (
             dj != np.round(dj)).any() or not (w > 0).all():  # fmt: skip
-        raise ValueError("each step needs non-negative integer (di, dj), not both 0, and a weight > 0")
+        raise ParameterError("each step needs non-negative integer (di, dj), not both 0, and a weight > 0")
     return arr
 
 
@@ -90,9 +91,9 @@ def _check_document_starts(starts, n: int) -> np.ndarray:
         return np.zeros(1, dtype=np.int64)
     arr = np.asarray(starts)
     if arr.ndim != 1 or len(arr) == 0 or not np.issubdtype(arr.dtype, np.integer):
-        raise ValueError(f"document starts must be a 1-D int array of first frames; got {arr.dtype} {arr.shape}")
+        raise ParameterError(f"document starts must be a 1-D int array of first frames; got {arr.dtype} {arr.shape}")
     if arr[0] != 0 or (np.diff(arr) <= 0).any() or arr[-1] >= n:
-        raise ValueError(f"document starts must increase strictly from 0 and stay below the {n:,} frames")
+        raise ParameterError(f"document starts must increase strictly from 0 and stay below the {n:,} frames")
     return arr.astype(np.int64)
 
 
@@ -100,9 +101,9 @@ def check_query_length(m: int, doc_starts: np.ndarray, n: int) -> None:
     """A ValueError unless 2 <= m <= the longest document's frame count (no match could exist)."""
     longest = int(np.diff(np.r_[doc_starts, n]).max())
     if m < 2:
-        raise ValueError(f"a query needs at least 2 frames; got {m}")
+        raise ParameterError(f"a query needs at least 2 frames; got {m}")
     if m > longest:
-        raise ValueError(f"the query has {m} frames, more than the longest document ({longest} frames); a match "
+        raise ParameterError(f"the query has {m} frames, more than the longest document ({longest} frames); a match "
                          f"cannot be shorter than the query")  # fmt: skip
 
 
@@ -133,9 +134,9 @@ def _cost_block(query: np.ndarray, frames: np.ndarray, distance, lo=None, hi=Non
         return _euclidean_block(query, frames, lo, hi)
     c = np.asarray(distance(query, frames), dtype=np.float64)
     if c.shape != (m, len(frames)):
-        raise ValueError(f"distance(query, frames) must return shape ({m}, {len(frames)}); got {c.shape}")
+        raise ParameterError(f"distance(query, frames) must return shape ({m}, {len(frames)}); got {c.shape}")
     if np.isnan(c).any() or (c < 0).any():
-        raise ValueError("distance(query, frames) returned a negative or NaN cost")
+        raise ParameterError("distance(query, frames) returned a negative or NaN cost")
     return np.ascontiguousarray(c.T)
 
 
@@ -188,13 +189,13 @@ def _check_band(band, m: int, n: int) -> tuple[np.ndarray, np.ndarray]:
     monotone path is) -> per frame j of b the [lo, hi) range of frames of a it may align to."""
     arr = np.asarray(band)
     if arr.shape != (m, 2) or not np.issubdtype(arr.dtype, np.integer):
-        raise ValueError(f"band must be int ({m}, 2): one [lo, hi) range of frames of b per frame of a; got "
+        raise ParameterError(f"band must be int ({m}, 2): one [lo, hi) range of frames of b per frame of a; got "
                          f"{arr.dtype} {arr.shape}")  # fmt: skip
     lo_row, hi_row = np.clip(arr[:, 0], 0, n), np.clip(arr[:, 1], 0, n)
     if (lo_row >= hi_row).any():
-        raise ValueError(f"band row {int(np.argmax(lo_row >= hi_row))} is empty after clipping to [0, {n})")
+        raise ParameterError(f"band row {int(np.argmax(lo_row >= hi_row))} is empty after clipping to [0, {n})")
     if (np.diff(lo_row) < 0).any() or (np.diff(hi_row) < 0).any():
-        raise ValueError("band bounds must not decrease from one frame of a to the next (a warping path is monotone)")
+        raise ParameterError("band bounds must not decrease from one frame of a to the next (a warping path is monotone)")
     cols = np.arange(n)
     # rows i with lo_row[i] <= j < hi_row[i]: from the first i whose hi_row exceeds j to the last whose lo_row <= j
     return np.searchsorted(hi_row, cols, side="right").astype(np.int64), np.searchsorted(
@@ -265,7 +266,7 @@ def band_from_path(path, shape: tuple[int, int], margin: int = 0) -> np.ndarray:
     np.minimum.at(lo, cells[:, 0], cells[:, 1])
     np.maximum.at(hi, cells[:, 0], cells[:, 1] + 1)
     if (hi == 0).any():
-        raise ValueError(f"the path misses row {int(np.argmax(hi == 0))}")
+        raise ParameterError(f"the path misses row {int(np.argmax(hi == 0))}")
     if margin:
         # rows within ``margin`` of each other share their ranges: a square dilation of the covered cells
         win = 2 * margin + 1

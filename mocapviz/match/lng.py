@@ -22,6 +22,7 @@ import numba
 import numpy as np
 import pandas as pd
 
+from ..errors import ParameterError
 from ..validation import count
 from .dtw import _check_document_starts, _sequence, check_query_length, matches_frame, select_matches
 
@@ -46,7 +47,7 @@ def neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: f
     """
     q = _sequence(query, "query", knn_index.dim, other="the index")
     if len(q) < 2:
-        raise ValueError(f"a query needs at least 2 frames; got {len(q)}")
+        raise ParameterError(f"a query needs at least 2 frames; got {len(q)}")
     if exclude is not None:
         exclude = np.broadcast_to(np.asarray(exclude, dtype=np.int64).reshape(-1)[:2], (len(q), 2))
     return knn_index.query(q, k, radius=radius, eps=eps, workers=workers, exclude=exclude)
@@ -138,7 +139,7 @@ def graph_matches(distances, frames, starts=None, n_frames: int | None = None, k
     d = np.asarray(distances, dtype=np.float64)
     f = np.asarray(frames, dtype=np.int64)
     if d.ndim != 2 or d.shape != f.shape or len(d) < 2:
-        raise ValueError(f"distances and frames must be (m, k) arrays of the same shape with m >= 2; got {d.shape} "
+        raise ParameterError(f"distances and frames must be (m, k) arrays of the same shape with m >= 2; got {d.shape} "
                          f"and {f.shape}")  # fmt: skip
     n = int(f.max()) + 1 if n_frames is None else int(n_frames)
     doc_starts = _check_document_starts(starts, max(n, 1))

@@ -19,6 +19,8 @@ import numpy as np
 import pandas as pd
 from bokeh.models import CustomJSHover
 
+from ..errors import ParameterError
+
 ROWS = "neighbours by"
 COLUMNS = "compared with"
 CMAP = "RdBu_r"  # diverging: blue -1, white 0, red +1
@@ -61,10 +63,10 @@ def correlation_heatmap(matrix: pd.DataFrame, title: str = "", cell: int = 46) -
         An empty matrix or non-numeric values.
     """
     if matrix.empty:
-        raise ValueError("the correlation matrix is empty")
+        raise ParameterError("the correlation matrix is empty")
     values = matrix.to_numpy()
     if values.dtype.kind not in "fiu":
-        raise ValueError(f"the correlation matrix must hold numbers; got dtype {values.dtype}")
+        raise ParameterError(f"the correlation matrix must hold numbers; got dtype {values.dtype}")
     rows, cols = [str(r) for r in matrix.index], [str(c) for c in matrix.columns]
     x, y = np.tile(np.arange(len(cols)), len(rows)), np.repeat(np.arange(len(rows)), len(cols))
     v = values.astype(np.float64).ravel()

@@ -22,6 +22,8 @@ import holoviews.plotting.mpl  # and the matplotlib one (the PNG files of `mocap
 import numpy as np
 import pandas as pd
 
+from ..errors import ParameterError
+
 NOT_COMPUTED = "#2b5fd9"  # Fig. 3's blue: cells the graph did not have to compute
 PATH_COLOUR = "red"
 BAND_PATH_COLOUR = "#00b7eb"
@@ -76,7 +78,7 @@ def similarity_layout(result: dict, cols: int = 3, width: int = 380, height: int
     """
     names = _panels(result)
     if not names:
-        raise ValueError("no panels: the result holds no dict with 'distance', 'computed' and 'matches'")
+        raise ParameterError("no panels: the result holds no dict with 'distance', 'computed' and 'matches'")
     starts = np.asarray(result.get("database_starts", [0]), dtype=np.int64)
     docs = result.get("database_docs")
     x = hv.Dimension("database_frame", label="small database frame" + (f" (documents {', '.join(map(str, docs))})"
@@ -89,7 +91,7 @@ def similarity_layout(result: dict, cols: int = 3, width: int = 380, height: int
         dist = np.asarray(part["distance"], dtype=np.float64)
         computed = np.asarray(part["computed"], dtype=bool)
         if computed.shape != dist.shape:
-            raise ValueError(f"{name}: 'computed' has shape {computed.shape}, 'distance' {dist.shape}")
+            raise ParameterError(f"{name}: 'computed' has shape {computed.shape}, 'distance' {dist.shape}")
         unit = "cm²" if name.startswith("Dpc") else "cm"
         value = hv.Dimension(f"distance_{name}", label=f"{name} distance", unit=unit)
         image = _image(np.where(computed, dist, np.nan), x, y, value).opts(
@@ -162,7 +164,7 @@ def alignment_layout(result: dict, width: int = 430, height: int = 400) -> hv.La
     m, n = cost.shape
     band = np.asarray(result["band"])
     if band.shape != (m, 2):
-        raise ValueError(f"band has shape {band.shape}; the cost matrix {cost.shape} needs ({m}, 2)")
+        raise ParameterError(f"band has shape {band.shape}; the cost matrix {cost.shape} needs ({m}, 2)")
     summary = result["summary"].iloc[0] if "summary" in result else None
     seg_a, seg_b = result["segments_a"], result["segments_b"]
     doc_a = f" (document {summary['doc_a']})" if summary is not None else ""
@@ -258,7 +260,7 @@ def accuracy_plot(per_query: pd.DataFrame, paper_seconds: dict | None = None, pa
     need = {"seconds", "eps", *MEASURES, *TIMES}
     missing = need - set(per_query.columns)
     if missing:
-        raise ValueError(f"per_query lacks columns {sorted(missing)}; pass lng_accuracy's output")
+        raise ParameterError(f"per_query lacks columns {sorted(missing)}; pass lng_accuracy's output")
     table = accuracy_table(per_query)
     setting = hv.Dimension("setting", label="query length, ε")
     measure = hv.Dimension("measure", values=list(MEASURES.values()))

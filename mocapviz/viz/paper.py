@@ -16,13 +16,15 @@ import holoviews.plotting.bokeh  # registers the bokeh backend and its options
 import holoviews.plotting.mpl  # and the matplotlib one (the PNG files of `mocapviz reproduce`)
 import pandas as pd
 
+from ..errors import ParameterError
+
 __all__ = ["comparison_bars", "curves"]
 
 
 def _check_columns(table: pd.DataFrame, columns, what: str) -> None:
     missing = [c for c in columns if c not in table.columns]
     if missing:
-        raise ValueError(f"{what}: the table has no column(s) {missing}; it has {list(table.columns)}")
+        raise ParameterError(f"{what}: the table has no column(s) {missing}; it has {list(table.columns)}")
 
 
 def comparison_bars(table: pd.DataFrame, category: str, value: str, source: str = "source", title: str = "",

@@ -18,6 +18,7 @@ from __future__ import annotations
 import holoviews as hv
 import pandas as pd
 
+from ..errors import ParameterError
 from ..skeleton import CANONICAL_JOINTS
 from .paper import comparison_bars, curves
 
@@ -35,10 +36,10 @@ ERROR_LABEL = "mean joint error (cm)"
 
 def _check(table: pd.DataFrame, columns, what: str) -> None:
     if not isinstance(table, pd.DataFrame) or table.empty:
-        raise ValueError(f"{what}: empty table")
+        raise ParameterError(f"{what}: empty table")
     missing = [c for c in columns if c not in table.columns]
     if missing:
-        raise ValueError(f"{what}: the table has no column(s) {missing}; it has {list(table.columns)}")
+        raise ParameterError(f"{what}: the table has no column(s) {missing}; it has {list(table.columns)}")
 
 
 # ============================================================================ tidy comparisons
@@ -66,7 +67,7 @@ def compare_table3(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
     _check(paper, ["motion"], "compare_table3 (paper)")
     avg = ours[ours["motion"] == "avg"]
     if avg.empty:
-        raise ValueError("compare_table3: our table has no 'avg' row")
+        raise ParameterError("compare_table3: our table has no 'avg' row")
     avg = avg.iloc[0]
     hdm = paper[paper["motion"].str.startswith("HDM_")]
     cmu = paper[paper["motion"] == "CMU_86_avg"]
@@ -208,6 +209,6 @@ def reconstruction_figures(result: dict, paper_table3: pd.DataFrame | None = Non
     if isinstance(result.get("baselines"), pd.DataFrame) and len(result["baselines"]):
         figures["baselines"] = baseline_bars(result["baselines"])
     if not figures:
-        raise ValueError("reconstruction_figures: the result holds none of table3, table4, joints, frames, baselines")
+        raise ParameterError("reconstruction_figures: the result holds none of table3, table4, joints, frames, baselines")
     return figures
 

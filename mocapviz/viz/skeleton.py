@@ -22,6 +22,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..skeleton import CANONICAL_PARENTS, body_frame
 
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
@@ -32,13 +33,13 @@ _PLOTTERS: dict = {}  # (viewports, size) -> pyvista.Plotter, created and used i
 def _check_poses(poses, what: str = "poses") -> list[np.ndarray]:
     out = [np.asarray(p, dtype=np.float64) for p in poses]
     if not out:
-        raise ValueError(f"no {what} to draw")
+        raise ParameterError(f"no {what} to draw")
     for i, p in enumerate(out):
         if p.shape != (len(CANONICAL_PARENTS), 3):
-            raise ValueError(f"{what}[{i}] has shape {p.shape}; expected ({len(CANONICAL_PARENTS)}, 3) canonical "
+            raise ParameterError(f"{what}[{i}] has shape {p.shape}; expected ({len(CANONICAL_PARENTS)}, 3) canonical "
                              "joint positions in cm")
         if not np.isfinite(p).all():
-            raise ValueError(f"{what}[{i}] holds NaN or infinite coordinates")
+            raise ParameterError(f"{what}[{i}] holds NaN or infinite coordinates")
     return out
 
 

@@ -15,6 +15,8 @@ import holoviews.plotting.bokeh  # registers the bokeh backend and its options
 import holoviews.plotting.mpl  # registers the matplotlib backend (PNG output) and its options
 import pandas as pd
 
+from ..errors import ParameterError
+
 __all__ = ["median_times", "query_time_scatter"]
 
 _COLUMNS = ("mode", "L", "hits", "ms")
@@ -54,9 +56,9 @@ def query_time_scatter(per_query: pd.DataFrame, title: str = "", width: int = 62
     """
     missing = [c for c in _COLUMNS if c not in per_query.columns]
     if missing:
-        raise ValueError(f"query_time_scatter: the table has no column(s) {missing}; it has {list(per_query.columns)}")
+        raise ParameterError(f"query_time_scatter: the table has no column(s) {missing}; it has {list(per_query.columns)}")
     if per_query.empty:
-        raise ValueError("query_time_scatter: no queries to plot")
+        raise ParameterError("query_time_scatter: no queries to plot")
     data = per_query[list(_COLUMNS)].astype({"hits": int, "ms": float})
     medians = median_times(data)
     x, y = hv.Dimension("hits", label="hits"), hv.Dimension("ms", label="query time (ms)")

@@ -17,6 +17,7 @@ import holoviews.plotting.bokeh
 import numpy as np
 import pandas as pd
 
+from ..errors import ParameterError
 from ..segment import segment
 
 GROUP_COLOURS = {"lower": "#1f77b4", "upper": "#d62728", "mix": "#2ca02c"}
@@ -36,7 +37,7 @@ def runs(values: np.ndarray) -> pd.DataFrame:
     """
     values = np.asarray(values, dtype=bool)
     if values.ndim != 2:
-        raise ValueError(f"values must be (T, f) booleans; got shape {values.shape}")
+        raise ParameterError(f"values must be (T, f) booleans; got shape {values.shape}")
     padded = np.zeros((values.shape[0] + 2, values.shape[1]), dtype=np.int8)
     padded[1:-1] = values
     edges = np.diff(padded, axis=0)
@@ -66,9 +67,9 @@ def relational_timeline(values: np.ndarray, names, fps: float, groups: dict | No
     values = np.asarray(values, dtype=bool)
     names = list(names)
     if values.ndim != 2 or values.shape[1] != len(names):
-        raise ValueError(f"values {values.shape} do not match {len(names)} feature names")
+        raise ParameterError(f"values {values.shape} do not match {len(names)} feature names")
     if fps <= 0:
-        raise ValueError(f"fps must be positive, got {fps}")
+        raise ParameterError(f"fps must be positive, got {fps}")
     group_of = {n: g for g, members in (groups or {}).items() for n in members}
     r = runs(values)
     f = len(names)
@@ -115,9 +116,9 @@ def numeric_curves(values: np.ndarray, columns, fps: float, title: str = "", wid
     values = np.asarray(values, dtype=np.float64)
     columns = list(columns)
     if values.ndim != 2 or values.shape[1] != len(columns):
-        raise ValueError(f"values {values.shape} do not match {len(columns)} column names")
+        raise ParameterError(f"values {values.shape} do not match {len(columns)} column names")
     if fps <= 0:
-        raise ValueError(f"fps must be positive, got {fps}")
+        raise ParameterError(f"fps must be positive, got {fps}")
     t = np.arange(values.shape[0]) / fps
     curves = [hv.Curve((t, values[:, j]), "time (s)", hv.Dimension("value", label="feature value"), label=c)
               for j, c in enumerate(columns)]

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 import panel as pn
 
+from ...errors import ParameterError
 from ...experiments.reconstruction import frame_actors, marker_clip
 from ...features import NUMERIC_SETS
 from ...reconstruct import DEFAULT_K, MARKERS, PosePrior, reconstruct, reconstruction_errors
@@ -62,7 +63,7 @@ def prior_mask(db, doc: int, kind: str) -> tuple[np.ndarray, str]:
     docs = db.documents.set_index("doc_id")
     actor = docs.at[doc, "actor"] if "actor" in docs else None
     if actor is None or pd.isna(actor):
-        raise ValueError(f"Document {doc} has no actor label: choose the prior without the test clip")
+        raise ParameterError(f"Document {doc} has no actor label: choose the prior without the test clip")
     return frame_actors(db) != actor, f"actor {actor}'s clips"
 
 

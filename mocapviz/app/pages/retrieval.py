@@ -13,6 +13,7 @@ from __future__ import annotations
 import pandas as pd
 import panel as pn
 
+from ...errors import ParameterError
 from ...experiments.retrieval import METHOD_LABELS, METHODS
 from ...viz.retrieval import class_ap_bars, pr_curves
 from ..progress import Task
@@ -108,9 +109,9 @@ class RetrievalPage(pn.viewable.Viewer):
 
     def _compute(self, methods, label, group, n_queries) -> dict:
         if not methods:
-            raise ValueError("choose at least one method")
+            raise ParameterError("choose at least one method")
         if group == label:
-            raise ValueError(f"the label and the leave-group-out column are both {label!r}; choose another group")
+            raise ParameterError(f"the label and the leave-group-out column are both {label!r}; choose another group")
         return self.backend.retrieval(methods, label_column=label, group_column=group, n_queries=n_queries)
 
     async def _evaluate(self, event=None) -> None:

@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 import panel as pn
 
+from ...errors import ParameterError
 from ...experiments.matching import similarity_matrices
 from ...features import NUMERIC_SETS
 from ...knn import describe_frames
@@ -76,7 +77,7 @@ def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own
     """
     start, stop = _own_frames(backend, doc)
     if not 0 <= frame < stop - start:
-        raise ValueError(f"frame {frame} is outside document {doc} (frames 0..{stop - start - 1})")
+        raise ParameterError(f"frame {frame} is outside document {doc} (frames 0..{stop - start - 1})")
     index = backend.knn(name)
     k = count(k, "k", 1, min(MAX_NEIGHBOURS, index.n_indexed))
     query = backend.numeric(name)[start + frame]
@@ -98,12 +99,12 @@ def _query_span(backend, doc: int, span: tuple[int, int]) -> tuple[int, int]:
     start, stop = _own_frames(backend, doc)
     first, last = int(span[0]), int(span[1])
     if not 0 <= first <= last < stop - start:
-        raise ValueError(f"span {first}..{last} is outside document {doc} (frames 0..{stop - start - 1})")
+        raise ParameterError(f"span {first}..{last} is outside document {doc} (frames 0..{stop - start - 1})")
     longest = int(backend.documents["n_frames"].max())
     if last - first + 1 < 2:
-        raise ValueError("the span is 1 frame long; matching needs at least 2 (set it on the Database page)")
+        raise ParameterError("the span is 1 frame long; matching needs at least 2 (set it on the Database page)")
     if last - first + 1 > longest:
-        raise ValueError(f"the span has {last - first + 1} frames, more than the longest document ({longest}); "
+        raise ParameterError(f"the span has {last - first + 1} frames, more than the longest document ({longest}); "
                          "no match can be found")
     return start + first, start + last + 1
 
@@ -177,7 +178,7 @@ def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, 
     q0, q1 = _query_span(backend, doc, span)
     k = count(k, "K", 1, MAX_MATCHES)
     if kind not in SEARCH_KINDS.values():
-        raise ValueError(f"kind must be one of {', '.join(SEARCH_KINDS.values())}; got {kind!r}")
+        raise ParameterError(f"kind must be one of {', '.join(SEARCH_KINDS.values())}; got {kind!r}")
     search = backend.search(name)
     frames = (q0 - _own_frames(backend, doc)[0], q1 - _own_frames(backend, doc)[0])
     run = search.clips if kind == "clips" else search.stretches
@@ -227,10 +228,10 @@ def similarity_result(backend, name: str, doc: int, span: tuple[int, int], k: in
     """
     q0, q1 = _query_span(backend, doc, span)
     if not database_docs:
-        raise ValueError("no match to compare with: the span matched nothing")
+        raise ParameterError("no match to compare with: the span matched nothing")
     n = sum(backend.db.frames(d).stop - backend.db.frames(d).start for d in database_docs)
     if (q1 - q0) * n > MAX_MATRIX_CELLS:
-        raise ValueError(f"the matrix would have {q1 - q0} x {n:,} cells (at most {MAX_MATRIX_CELLS:,}); choose a "
+        raise ParameterError(f"the matrix would have {q1 - q0} x {n:,} cells (at most {MAX_MATRIX_CELLS:,}); choose a "
                          f"span of at most {MAX_MATRIX_CELLS // n} frames")
     first = int(span[0])
     return similarity_matrices(backend.db, doc, (first, first + q1 - q0), database_docs, sets=(name,), k=k)
