@@ -46,6 +46,7 @@ from .io import load
 from .knn import KnnIndex, describe_frames
 from .match import lng, subsequence_dtw
 from .query import query_by_example
+from .validation import count
 
 
 def _scheduler(args):
@@ -232,8 +233,7 @@ def _example_features(db: MotionDB, example: str, frames: str | None, name: str,
 
 
 def _match(args) -> None:
-    if args.K < 1:
-        raise ParameterError(f"-K must be at least 1 (matches to report); got {args.K}")
+    count(args.K, "-K")  # matches to report
     db = MotionDB.open(args.db)
     name = _names(args.features, NUMERIC_SETS, "feature set")[0]
     X = load_numeric(db, name)  # a clear error naming `mocapviz features DB` when the set is not stored
@@ -285,8 +285,7 @@ def _search(args) -> None:
     from .search import SimilaritySearch
     from .store import atomic_write
 
-    if args.K < 1:
-        raise ParameterError(f"-K must be at least 1 (matches to report); got {args.K}")
+    count(args.K, "-K")  # matches to report
     if not 0 < args.min_length <= 1:
         raise ParameterError(f"--min-length must be a share of the query's frames in (0, 1]; got {args.min_length}")
     db = MotionDB.open(args.db)

@@ -107,8 +107,7 @@ class SimilaritySearch:
                                                                (every["start"] + every["n_frames"]).tolist())))
         self._lo = self.documents["start"].to_numpy(np.int64)
         self._hi = self._lo + self.documents["n_frames"].to_numpy(np.int64)
-        self._low = np.minimum.reduceat(self.features, self._lo, axis=0).astype(np.float64)  # per document box
-        self._high = np.maximum.reduceat(self.features, self._lo, axis=0).astype(np.float64)
+        self._low, self._high = _boxes(self.features, self._lo, self._hi)
         self._index = None
         self._coarse = None
         rate = db.fps or float(self.documents["fps"].median())
@@ -121,6 +120,10 @@ class SimilaritySearch:
         if self._coarse is None:
             self._coarse = _pooled(self.features, self._lo, self._hi, self.pool)
         return self._coarse
+
+    def _coarse_query(self, q: np.ndarray) -> np.ndarray:
+        """The query's block means (m', d), as :attr:`coarse` holds the database's."""
+        return _pooled(q, np.zeros(1, np.int64), np.array([len(q)]), self.pool)[0]
 
     @property
     def knn_index(self) -> KnnIndex:
@@ -266,7 +269,7 @@ class SimilaritySearch:
         means (:attr:`coarse`), and those costs. With ``keep``, only the ``keep`` best are certain to be costed
         and in order (the others are abandoned early, inf, last)."""
         y, c_lo, c_hi = self.coarse
-        qc = _pooled(q, np.zeros(1, np.int64), np.array([len(q)]), self.pool)[0]
+        qc = self._coarse_query(q)
         lo, hi = c_lo[rows_idx], c_hi[rows_idx]
         prune = keep is not None and keep < len(lo)
         costs, _, _ = _whole_costs(qc, y, lo, hi, np.arange(len(lo)), np.zeros(len(lo)), np.zeros((len(lo), len(qc))),
@@ -339,7 +342,7 @@ class SimilaritySearch:
         """Fast mode's windows from the coarse database: the ``COARSE_CANDIDATES`` x K best non-overlapping matches
         of the query's block means by subsequence DTW, as frames of the documents, padded by WINDOW_PAD x m."""
         y, c_lo, c_hi = self.coarse
-        qc = _pooled(q, np.zeros(1, np.int64), np.array([len(q)]), self.pool)[0]
+        qc = self._coarse_query(q)
         lo, hi = c_lo[rows_idx], c_hi[rows_idx]
         want = COARSE_CANDIDATES * n_matches
         starts, ends, costs, _, _ = search_ranges(qc, y, lo, hi, np.arange(len(lo)), np.zeros(len(lo)),
@@ -387,6 +390,15 @@ def _span(frames, n: int, what: str) -> tuple[int, int]:
     if b - a < 2:
         raise ParameterError(f"a query needs at least 2 frames; frames {a}:{b} of {what} hold {b - a}")
     return int(a), int(b)
+
+
+def _boxes(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per range [lo, hi) of x (sorted, disjoint, non-empty) the least and the greatest value of every feature,
+    (R, d) float64 each: the ranges' bounding boxes (frames between ranges are left out)."""
+    edges = np.column_stack([lo, hi]).ravel()
+    edges = edges[:-1] if edges[-1] == len(x) else edges  # reduceat runs the last range to the end by itself
+    return (np.minimum.reduceat(x, edges, axis=0)[::2].astype(np.float64),
+            np.maximum.reduceat(x, edges, axis=0)[::2].astype(np.float64))  # fmt: skip
 
 
 def _box(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

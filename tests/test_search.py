@@ -131,6 +131,11 @@ def test_documents_restrict_the_search(hdm05_db30):
     others = docs.loc[docs["actor"] != "bd", "doc_id"].to_numpy()
     held_out = int(docs.loc[docs["actor"] == "bd", "doc_id"].iloc[0])
     search = SimilaritySearch(hdm05_db30, documents=others)
+    brute = search.clips(held_out, n_matches=20, mode="brute")
+    brute_parts = search.stretches(held_out, frames=(0, 30), n_matches=5, mode="brute")
+    assert search.clips(held_out, n_matches=20, mode="exact")["doc_id"].tolist() == brute["doc_id"].tolist()
+    exact_parts = search.stretches(held_out, frames=(0, 30), n_matches=5, mode="exact")
+    assert list(zip(exact_parts["doc_id"], exact_parts["start"])) == list(zip(brute_parts["doc_id"], brute_parts["start"]))
     for mode in ("fast", "exact"):
         got = search.clips(held_out, n_matches=20, mode=mode)
         assert set(got["doc_id"]) <= set(others.tolist())

@@ -11,8 +11,8 @@ Methods (:data:`METHODS`):
   document aligned with the whole query, ranked by cost / (query frames + document frames). The reference
   ranking: "recall of DTW's top 10" is measured against it.
 - ``exact``: the same ranking with admissible pruning (``mode="exact"``); must equal ``dtw``.
-- ``fast``: ``mode="fast"``: the ``FAST_BUDGET`` documents of least DTW cost on 0.2 s block means aligned exactly
-  and ranked by their exact cost; the rest follow the coarse order (a full ranking, as the docstring of
+- ``fast``: ``mode="fast"``: the ``CLIP_BUDGET`` (:mod:`mocapviz.search`) documents of least DTW cost on 0.2 s
+  block means aligned exactly and ranked by their exact cost; the rest follow the coarse order (a full ranking, as the docstring of
   :meth:`~mocapviz.search.SimilaritySearch.clips` describes).
 - ``lng256``, ``lng1024``: the lazy neighbourhood graph of Krüger et al. 2010 §4.1 (:func:`mocapviz.match.lng`)
   with k = 256 / 1024 neighbours per query frame; each document ranked by its best match's cost. Documents
@@ -46,13 +46,13 @@ from tqdm.auto import tqdm
 
 from .. import evaluation
 from ..errors import ParameterError
+from ..search import CLIP_BUDGET
 
 __all__ = ["METHODS", "RECALL_LEVELS", "relational_indexes", "retrieval_quality"]
 
 METHODS = ("dtw", "exact", "fast", "lng256", "lng1024", "relational", "hybrid")
 RECALL_LEVELS = np.round(np.linspace(0.0, 1.0, 11), 2)  # the 11 standard recall levels of the P/R curves
 TIMING_K = 10  # documents asked for in the timed search
-FAST_BUDGET = 24  # fast mode's documents aligned for the full ranking (SimilaritySearch.clips' default at K = 10)
 TOP = 10  # the recall of DTW's top TOP documents
 SUMMARY_COLUMNS = ["method", "queries", "map_loo", "map_lgo", "p_at_1", "p_at_10", "recall_dtw_top10",
                    "ms_per_query", "median_ms", "note"]  # fmt: skip
@@ -155,7 +155,7 @@ class _Runner:
             s = self.search(group)
             mode = "brute" if method == "dtw" else method
             table = s.clips(q, n_matches=len(s.documents), mode=mode, exclude_document=True,
-                            budget=FAST_BUDGET if method == "fast" else None)  # fmt: skip
+                            budget=CLIP_BUDGET if method == "fast" else None)  # fmt: skip
             return table["doc_id"].to_numpy(np.int64)
         if _lng_k(method):
             out = self._lng(q, _lng_k(method), group, k_matches=None)
