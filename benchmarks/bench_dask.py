@@ -3,16 +3,17 @@
 Steps, each on the same data and timed ``repeats`` times (median):
 
 - ``MotionDB.ingest(files, fps=30)`` of the shared archives (all four; --quick: the quick subset) into a fresh
-  database: serial (``n_jobs=1``), 2 worker processes (``n_jobs=2``, multiprocessing), and on a local cluster
+  database: serial (``threads=1``), 2 threads (``threads=2``), and on a local cluster
   (``scheduler=client``: a ``dask.distributed.LocalCluster`` of 2 worker processes, 1 thread each, started once
   by ``mocapviz.cluster.dask_client("local", n_workers=2)``; its start-up time is reported on its own row);
-- ``mocapviz.features.store_numeric(db, "F15E")`` and ``mocapviz.features.relational(db)`` (31 features) of that
-  database: threads in this process (``n_jobs=1`` and ``n_jobs=2``) against the same local cluster.
+- ``mocapviz.features.store_numeric(db, "F15E")`` and ``mocapviz.features.relational_features(db)`` (31
+  features) of that database: threads in this process (``threads=1`` and ``threads=2``) against the same local
+  cluster.
 
-Peak memory: the largest sum of resident memory (RSS) of this process and all its descendants (the pool's and
-the cluster's worker processes), sampled every 50 ms by psutil during the step (the serial steps run before
+Peak memory: the largest sum of resident memory (RSS) of this process and all its descendants (the cluster's
+worker processes), sampled every 50 ms by psutil during the step (the serial steps run before
 the cluster is started, so their peaks do not include its idle workers) (getrusage's max RSS cannot sum
-concurrent processes; tracemalloc misses numpy memory maps). Ratio: cluster seconds / serial (n_jobs=1) seconds
+concurrent processes; tracemalloc misses numpy memory maps). Ratio: cluster seconds / serial (threads=1) seconds
 (< 1: the cluster is faster).
 """
 
@@ -101,7 +102,7 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
     from mocapviz.cluster import dask_client
     from mocapviz.database import MotionDB
-    from mocapviz.features import relational, store_numeric
+    from mocapviz.features import relational_features, store_numeric
 
     t_start = time.perf_counter()
     monitor = CpuMonitor()
@@ -124,14 +125,14 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     # warm-up: numba caches, imports, page cache of the archives
     fresh()
     MotionDB.ingest(paths[:20], target, fps=FPS, progress=False)
-    relational(MotionDB.open(target), progress=False)
+    relational_features(MotionDB.open(target), progress=False)
     store_numeric(MotionDB.open(target), "F15E", progress=False)
-    log(f"ingest of {len(paths)} files, serial and with n_jobs={WORKERS}")
-    for label, kw in (("serial (n_jobs=1)", {"n_jobs": 1}), (f"{WORKERS} processes (n_jobs={WORKERS})",
-                                                              {"n_jobs": WORKERS})):  # fmt: skip
+    log(f"ingest of {len(paths)} files, serial and with threads={WORKERS}")
+    for label, kw in (("serial (threads=1)", {"threads": 1}), (f"{WORKERS} threads (threads={WORKERS})",
+                                                               {"threads": WORKERS})):  # fmt: skip
         rows.append({"step": "ingest", "how": label, **_timed(ingest(**kw), repeats, fresh)})
     features = (("store_numeric F15E", lambda db, **kw: store_numeric(db, "F15E", progress=False, **kw)),
-                ("relational (31 features)", lambda db, **kw: relational(db, "2005", progress=False, **kw)))
+                ("relational (31 features)", lambda db, **kw: relational_features(db, "2005", progress=False, **kw)))
 
     def bench_features(db, configs):
         for step, fn in features:
@@ -143,7 +144,8 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     db = MotionDB.open(target)
     n_frames = db.n_frames
     log(f"features of {n_frames:,} frames, in this process")
-    bench_features(db, (("threads, n_jobs=1", {"n_jobs": 1}), (f"threads, n_jobs={WORKERS}", {"n_jobs": WORKERS})))
+    bench_features(db, (("serial (threads=1)", {"threads": 1}), (f"{WORKERS} threads (threads={WORKERS})",
+                                                                 {"threads": WORKERS})))  # fmt: skip
     with PeakRSS() as mem:
         t0 = time.perf_counter()
         cm = dask_client("local", n_workers=WORKERS)
@@ -163,7 +165,7 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
         cm.__exit__(None, None, None)
     shutil.rmtree(work, ignore_errors=True)
     rows.sort(key=lambda r: order.index(r["step"]))  # stable: serial rows before the cluster's
-    serial = {r["step"]: r["s"] for r in rows if "n_jobs=1" in r["how"]}
+    serial = {r["step"]: r["s"] for r in rows if "threads=1" in r["how"]}
     for r in rows:
         r["frames"] = n_frames
         r["frames/s"] = n_frames / r["s"] if r["step"] != "cluster start-up" else None
@@ -178,11 +180,11 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print(f"- data: {len(paths)} files (" + ", ".join(f"{k} {len(v)}" for k, v in files.items())
           + f") ingested at {FPS} Hz → {n_frames:,} frames" + (f"; missing: {'; '.join(missing)}" if missing else ""))
     print(f"- each figure: median of {repeats} runs; ingest into a fresh database each run")
-    print("- peak MB: largest summed RSS of this process and all its child processes (pool / cluster workers), "
+    print("- peak MB: largest summed RSS of this process and all its child processes (cluster workers), "
           "sampled every 50 ms with psutil")
     print(f"- {info['others']}")
     print()
-    print("| step | how | s (median) | frames/s | ratio vs serial (n_jobs=1) | peak MB | runs s |")
+    print("| step | how | s (median) | frames/s | ratio vs serial (threads=1) | peak MB | runs s |")
     print("|---|---|---:|---:|---:|---:|---|")
     for r in rows:
         print(f"| {r['step']} | {r['how']} | {_f(r['s'], 2)} | {_f(r['frames/s'])} | {_f(r['ratio_vs_serial'], 2)} "
@@ -203,11 +205,11 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
 def _warm_worker(path: str) -> None:
     import mocapviz.io  # noqa: F401 - the readers the ingest tasks use
     from mocapviz.database import MotionDB
-    from mocapviz.features import numeric, relational
+    from mocapviz.features import numeric_features, relational_features
 
     motion = MotionDB.open(path).motion(0)
-    relational(motion, progress=False)
-    numeric(motion, "F15E", progress=False)
+    relational_features(motion, progress=False)
+    numeric_features(motion, "F15E", progress=False)
 
 
 def _version(name: str) -> str:

@@ -6,7 +6,7 @@
 2. Parse + forward kinematics of BVH (all of Bandai Namco 1 and the first 500 files of Bandai Namco 2, sorted):
    ``mocapviz.io.load`` against the ``bvh`` package from PyPI for parsing plus the same kind of numpy/scipy
    forward kinematics.
-3. ``MotionDB.ingest`` of all the shared archives with ``n_jobs=1`` and ``n_jobs=2``.
+3. ``MotionDB.ingest`` of all the shared archives with ``threads=1`` and ``threads=2`` (reader threads).
 
 Each reader figure is the median wall time of ``repeats`` runs (frames/s = frames / median time), measured in
 one process and over a pool of 2 worker processes (``concurrent.futures.ProcessPoolExecutor``, one task per
@@ -403,7 +403,7 @@ def markdown_reader_table(rows: list[Row]) -> str:
 
 def markdown_ingest_table(rows: list[Row]) -> str:
     return markdown(
-        "| data | documents | frames | n_jobs | wall s | frames/s | speed-up vs n_jobs=1 | target | meets "
+        "| data | documents | frames | threads | wall s | frames/s | speed-up vs threads=1 | target | meets "
         "| frames/CPU-s | note |",
         "|---|---:|---:|---:|---:|---:|---:|---|---|---:|---|",
         (
@@ -603,12 +603,12 @@ def bench_ingest(quick: bool) -> tuple[list[Row], list[str]]:
     nbytes = sum(len(Path(f).read_bytes()) for f in files)
     notes.append(f"ingest input: {len(files)} files, {nbytes / 2**20:.0f} MiB (page cache warmed first), fps=None")
     rows = []
-    for n_jobs in (1, WORKERS):
+    for threads in (1, WORKERS):
         with tempfile.TemporaryDirectory(prefix="mocapviz-bench-") as tmp:
-            log(f"ingest {len(files)} files, n_jobs={n_jobs}")
+            log(f"ingest {len(files)} files, threads={threads}")
             c0 = CpuMonitor._ours()
             t0 = time.perf_counter()
-            db = MotionDB.ingest(files, Path(tmp) / "db", fps=None, n_jobs=n_jobs, progress=False)
+            db = MotionDB.ingest(files, Path(tmp) / "db", fps=None, threads=threads, progress=False)
             wall = time.perf_counter() - t0
             cpu = CpuMonitor._ours() - c0
             n_docs, n_frames = len(db), db.n_frames
@@ -622,7 +622,7 @@ def bench_ingest(quick: bool) -> tuple[list[Row], list[str]]:
                 data=data,
                 files=n_docs,
                 frames=n_frames,
-                workers=n_jobs,
+                workers=threads,
                 ours=fps,
                 baseline=rows[0].ours if rows else None,
                 unit="frames/s",

@@ -10,14 +10,14 @@
     database frames. Each figure: median of ``repeats`` runs of the whole batch; the engines alternate
     within a repeat so that they see the same machine state. CPU ms/query (process time of all threads per
     query) is printed too: it is less disturbed by other processes than wall time. Beside these batched
-    figures, the single-query latency: ``N_SINGLE`` queries one at a time (one row per call, ``workers=1``),
+    figures, the single-query latency: ``N_SINGLE`` queries one at a time (one row per call, ``threads=1``),
     the engines alternating query by query; the median.
 (c) Fat-graph base poses (§5.3): ``base_poses`` against ``base_poses_quadratic`` on evenly spaced subsets of
     the real frames (identical results required), and ``base_poses`` on the whole database.
 (d) Table 1 for every feature set (F15E ... F30x3E, Fp8/16/25): :func:`mocapviz.experiments.knn_timings`, with
     each set's slowdown against F15E beside the paper's (CMU column).
 
-The benchmark database: all four shared archives ingested at 30 Hz (``MotionDB.ingest(..., fps=30, n_jobs=2)``),
+The benchmark database: all four shared archives ingested at 30 Hz (``MotionDB.ingest(..., fps=30, threads=2)``),
 about 446k frames. The paper's scale (1-1.3M frames) is reached by appending left/right MIRRORED copies
 (``mocapviz.skeleton.mirror``) of the documents, archive by archive, until the database holds 1M frames; when
 every document has been mirrored once (about 892k frames) the next round repeats mirrored copies, i.e. exact
@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mocapviz.features import numeric
+from mocapviz.features import numeric_features
 
 from .common import (
     REPO,
@@ -114,7 +114,7 @@ def build_engines(features: np.ndarray, repeats: int) -> tuple[dict, list[dict]]
         index, times, rss = _build_timed(lambda engine=engine: KnnIndex(features, engine=engine), repeats)
         rows.append({"engine": label, "build_s": statistics.median(times), "runs_s": times,
                      "nbytes_MB": index.nbytes / 2**20, "rss_MB": rss / 2**20})  # fmt: skip
-        engines[engine] = lambda q, k, eps=0.0, workers=-1, index=index: index.query(q, k, eps=eps, workers=workers)
+        engines[engine] = lambda q, k, eps=0.0, threads=None, index=index: index.query(q, k, eps=eps, threads=threads)
     kdtree = _pykdtree()
     if kdtree is not None:
         data = np.ascontiguousarray(features, dtype=np.float32)
@@ -146,7 +146,7 @@ def _disagreements(features, queries, d, i, d_ref, i_ref) -> int:
 
 
 def single_latency(engines: dict, queries: np.ndarray, k: int, variants: list) -> dict:
-    """{variant name: median ms} of single queries, each alone (one row, ``workers=1`` where the engine takes it),
+    """{variant name: median ms} of single queries, each alone (one row, ``threads=1`` where the engine takes it),
     the variants alternating query by query; variants with no single-query options are left out."""
     times = {name: [] for name, *_, single in variants if single is not None}
     for q in queries:
@@ -179,11 +179,11 @@ def bench_queries(features: np.ndarray, engines: dict, quick: bool, repeats: int
                          + ("identical (up to exact ties)" if not bad_p else f"{bad_p} entries differ by > 1e-5 "
                             "or beyond a tie (float32 rounding)"))  # fmt: skip
         # (name, engine, batched options, batch, single-query options or None)
-        variants = [("ours (ckdtree), all cores", "ckdtree", {}, queries, {"workers": 1}),
-                    ("ours (ckdtree), 1 thread", "ckdtree", {"workers": 1}, queries, None),
+        variants = [("ours (ckdtree), all cores", "ckdtree", {}, queries, {"threads": 1}),
+                    ("ours (ckdtree), 1 thread", "ckdtree", {"threads": 1}, queries, None),
                     (f"ours (ckdtree), eps = {EPS}, all cores", "ckdtree", {"eps": EPS}, queries,
-                     {"eps": EPS, "workers": 1}),
-                    ("numpy brute force, all cores", "brute", {}, sample, {"workers": 1})]  # fmt: skip
+                     {"eps": EPS, "threads": 1}),
+                    ("numpy brute force, all cores", "brute", {}, sample, {"threads": 1})]  # fmt: skip
         if "pykdtree" in engines:
             variants.insert(3, ("pykdtree, all cores", "pykdtree", {}, queries, {}))
         runs = {name: [] for name, *_ in variants}
@@ -246,11 +246,11 @@ def bench_fat_graph(features: np.ndarray, real_frames: int, quick: bool) -> list
 def bench_sets(db, quick: bool) -> pd.DataFrame:
     """(d): :func:`mocapviz.experiments.knn_timings` on every set of Table 1, beside the paper's CMU column."""
     from mocapviz.experiments import knn_timings
-    from mocapviz.experiments.numeric import paper_table1
+    from mocapviz.experiments.numeric import krueger2010_table1
 
     log("Table 1: every feature set")
     ours = knn_timings(db, ks=KS, n_queries=N_SET_QUERIES_QUICK if quick else N_SET_QUERIES, database="benchmark")
-    paper = paper_table1().query("database == 'CMU'")[["set", "k", "mean_ms"]].rename(columns={"mean_ms": "paper_ms"})
+    paper = krueger2010_table1().query("database == 'CMU'")[["set", "k", "mean_ms"]].rename(columns={"mean_ms": "paper_ms"})
     out = ours.merge(paper, on=["set", "k"])
     f15 = out[out["set"] == "F15E"].set_index("k")
     out["slowdown"] = out["mean_ms"] / out["k"].map(f15["mean_ms"])
@@ -325,7 +325,7 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     db, record = benchmark_db(DATABASE, quick)
     log(f"F15E of {db.n_frames:,} frames")
     t0 = time.perf_counter()
-    features = numeric(db, "F15E", progress=False)
+    features = numeric_features(db, "F15E", progress=False)
     t_features = time.perf_counter() - t0
     engines, build_rows = build_engines(features, repeats)
     query_rows, query_notes = bench_queries(features, engines, quick, repeats)
@@ -338,7 +338,7 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print(_header(info, quick, repeats))
     for line in describe_db(db, record):
         print(f"- {line}")
-    print(f"- F15E features: `mocapviz.features.numeric(db, 'F15E')`, ({db.n_frames:,}, 15) float32 cm, "
+    print(f"- F15E features: `mocapviz.features.numeric_features(db, 'F15E')`, ({db.n_frames:,}, 15) float32 cm, "
           f"{t_features:.1f} s")  # fmt: skip
     print()
     print("## (a) Build time and memory")
@@ -357,9 +357,9 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print("Queries: random database frames (each finds itself). Brute force: `KnnIndex(engine='brute')` — scipy "
           "`cdist` (sums of squared differences) + `np.argpartition`, 64 MB chunks of queries over threads; timed on "
           "the first queries of the batch only. CPU ms/query: process CPU time (all threads) per query. Batched: "
-          "the whole batch in one call over all cores (ours 1 thread: `workers=1`), wall time / queries; "
+          "the whole batch in one call over all cores (ours 1 thread: `threads=1`), wall time / queries; "
           f"throughput, not the wait for one answer. Single query latency: the first {query_rows[0]['single_queries']} "
-          "queries of the batch, each in its own call (one row; ours and brute force `workers=1`, pykdtree "
+          "queries of the batch, each in its own call (one row; ours and brute force `threads=1`, pykdtree "
           "parallelises over queries so uses one thread for one), engines alternating query by query; median "
           "wall ms; shown on the row of the engine and eps it was measured with.")  # fmt: skip
     for n in query_notes:
@@ -379,7 +379,7 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print(table_sets(set_rows))
     print()
     print("Slowdown: ms per query of the set / ms of F15E, same k, same run; the paper's from its Table 1 (CMU). "
-          "Features s: computing the set for the whole database (`numeric`; Fp: projection with a PCA fitted on "
+          "Features s: computing the set for the whole database (`numeric_features`; Fp: projection with a PCA fitted on "
           "this database once, not counted).")  # fmt: skip
     out_dir = Path(out_dir) if out_dir is not None else Path(__file__).resolve().parent / "results"
     csv_path = out_dir / ("knn-quick.csv" if quick else "knn.csv")

@@ -3,13 +3,13 @@
 What is measured, per query length (1 s = 30 frames and 3 s = 90 frames at 30 Hz):
 
 (a) Times. The lazy neighbourhood graph ``mocapviz.match.lng(query, KnnIndex(F15E), k, radius=None,
-    k_matches=10, starts=..., exclude=own document)`` end to end (kNN search included), with its two parts from
+    n_matches=10, starts=..., exclude=own document)`` end to end (kNN search included), with its two parts from
     ``out.attrs["seconds"]``: the kNN search and the graph (construction + shortest paths + match selection,
     i.e. "LNG excluding kNN", beside the paper's 0.03 s for a 1 s query and 0.08 s for a 3 s query). k = 256
     is the configuration of the targets; k = 64, k = 1024 and eps = 0.1 / 0.5 (approximate kNN, k = 256) are
     printed beside it, and k = 256 without the exclusion of the own document as a timing diagnostic (the query
     then finds itself). Baselines on the first queries of each length: our subsequence DTW
-    ``mocapviz.match.subsequence_dtw(query, F15E, starts, k=10)`` (numba, compiled before timing) and the
+    ``mocapviz.match.subsequence_dtw(query, F15E, starts, n_matches=10)`` (numba, compiled before timing) and the
     dtaidistance library's C subsequence DTW: ``dtaidistance.dtw_ndim.warping_paths_fast(query, F15E64,
     penalty=0, psi=[0, 0, n, n], psi_neg=False, keep_int_repr=True, inner_dist="euclidean")`` — the call its
     ``subsequence_alignment(...).align()`` makes (psi relaxation of both ends of the series), with the local
@@ -53,7 +53,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mocapviz.features import numeric
+from mocapviz.features import numeric_features
 
 from .bench_knn import DATABASE, FPS
 from .common import (
@@ -143,7 +143,7 @@ def path_coverage(q: np.ndarray, index, own, features, ref: dict) -> dict:
     """Of subsequence DTW's top matches, how many have their whole optimal path inside the k = K_MAIN
     neighbourhoods of the query frames (the graph then finds that path), and how many path cells lie inside."""
     from mocapviz.match import dtw
-    from mocapviz.match.lng import neighbourhoods
+    from mocapviz.match.neighbourhood_graph import neighbourhoods
 
     _, near = neighbourhoods(q, index, K_MAIN, exclude=own)
     out = {"paths": len(ref["ends"]), "paths_inside": 0, "cells": 0, "cells_inside": 0}
@@ -201,7 +201,7 @@ def run_lng(searched: dict, queries: list[dict], features, repeats: int) -> dict
                 q = np.asarray(features[query["first"] : query["first"] + query["m"]], dtype=np.float64)
                 own = np.array([query["doc_start"], query["doc_stop"]]) if exclude else None
                 wall, cpu, out = _timed(lambda q=q, own=own, k=k, eps=eps, index=index, starts=starts: lng(
-                    q, index, k=k, radius=None, k_matches=K_MATCHES, starts=starts, eps=eps, exclude=own))
+                    q, index, k=k, radius=None, n_matches=K_MATCHES, starts=starts, eps=eps, exclude=own))
                 r = runs[label][qi]
                 r["wall"].append(wall)
                 r["cpu"].append(cpu)
@@ -216,14 +216,14 @@ def run_baselines(queries: list[dict], features, starts, x64, library) -> list[d
     """Per baseline query: our subsequence_dtw's and the library's seconds and results."""
     from mocapviz.match import subsequence_costs, subsequence_dtw
 
-    subsequence_dtw(np.asarray(features[:40], dtype=np.float64), features[:5_000], k=2)  # numba: compile / load
+    subsequence_dtw(np.asarray(features[:40], dtype=np.float64), features[:5_000], n_matches=2)  # numba: compile / load
     if library is not None:
         library(np.asarray(features[:40], dtype=np.float64), x64[:5_000])
     out = []
     for query in queries:
         q = np.asarray(features[query["first"] : query["first"] + query["m"]], dtype=np.float64)
         log(f"subsequence DTW, {query['m']}-frame query")
-        wall, cpu, table = _timed(lambda q=q: subsequence_dtw(q, features, starts, k=K_MATCHES))
+        wall, cpu, table = _timed(lambda q=q: subsequence_dtw(q, features, starts, n_matches=K_MATCHES))
         row = {"dtw_s": wall, "dtw_cpu_s": cpu, "dtw_table": table, "lib_s": None, "lib_cpu_s": None, "lib": None}
         if library is not None:
             log(f"dtaidistance, {query['m']}-frame query")
@@ -403,7 +403,7 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     db, record = benchmark_db(DATABASE, quick)
     log(f"F15E of {db.n_frames:,} frames")
     t0 = time.perf_counter()
-    features = numeric(db, "F15E", progress=False)
+    features = numeric_features(db, "F15E", progress=False)
     t_features = time.perf_counter() - t0
     t0 = time.perf_counter()
     index = KnnIndex(features)
@@ -442,7 +442,7 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print(_header(info, quick, repeats))
     for line in describe_db(db, record):
         print(f"- {line}")
-    print(f"- F15E features: `mocapviz.features.numeric(db, 'F15E')`, ({db.n_frames:,}, 15) float32 cm, "
+    print(f"- F15E features: `mocapviz.features.numeric_features(db, 'F15E')`, ({db.n_frames:,}, 15) float32 cm, "
           f"{t_features:.1f} s; `KnnIndex(F15E)` built in {t_index:.1f} s (not in the LNG times)")  # fmt: skip
     lens = [q["doc_stop"] - q["doc_start"] for q in queries]
     print(f"- queries: {n_q} per length, random stretches of real documents (uniform over stretches, seed {SEED}); "
@@ -501,8 +501,8 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
               "end frames whose costs agree to 1e-9 (the rest: a cheaper alignment across a document boundary); "
               "ours as one document: `subsequence_costs(query, F15E)` without document starts, which must equal "
               "the library's costs at every frame (same cost model; not timed).")
-    print("- subsequence_dtw: `mocapviz.match.subsequence_dtw(query, F15E, starts, k=10)` (numba; local costs "
-          "over both cores, accumulation on one). DTW top 10 = reference: its matches outside the own document "
+    print("- subsequence_dtw: `mocapviz.match.subsequence_dtw(query, F15E, starts, n_matches=10)` (numba; local "
+          "costs over both cores, accumulation on one). DTW top 10 = reference: its matches outside the own document "
           "equal the reference's first ones.")  # fmt: skip
     for n in notes:
         print(f"- {n}")

@@ -1,15 +1,15 @@
 """Relational indexing and retrieval benchmarks (Müller, Röder & Clausen 2005, Tables 2 and 3) on the shared data.
 
-The benchmark database: all four shared archives ingested at 120 Hz (``MotionDB.ingest(..., fps=120, n_jobs=2)``;
+The benchmark database: all four shared archives ingested at 120 Hz (``MotionDB.ingest(..., fps=120, threads=2)``;
 Bandai Namco is 30 Hz and is upsampled, linear positions / slerp rotations). If it still held fewer than 1M frames
 (an archive missing), left/right mirrored copies of the HDM05 / CMU documents (``mocapviz.skeleton.mirror``) would
 be added; the output says which. The database is cached under ``<repo>/.cache/bench/<tag>[-quick]/``
 (``benchmarks.common.benchmark_db``) with the wall time of the ingest that built it, so reruns skip the build.
 
-(a) Feature extraction (``mocapviz.features.relational(db)``, all 31 features) and index build
+(a) Feature extraction (``mocapviz.features.relational_features(db)``, all 31 features) and index build
     (``mocapviz.index.build(db, values=...)``: segmentation, inverted lists of the three groups, saved) in
     frames/s, beside the paper's Table 2 (1,288,846 frames, Matlab on a 3.6 GHz Pentium 4); index size in bytes
-    per segment; Table 2 itself from :func:`mocapviz.experiments.index_statistics` beside ``paper_table2()``.
+    per segment; Table 2 itself from :func:`mocapviz.experiments.index_statistics` beside ``mueller2005_table2()``.
 (b) Exact, fuzzy (eq. 11), adaptive fuzzy (64 alternatives per set) and 1-mismatch queries, |Q| = 5, 10, 20
     segments, on the upper-body index (as the paper's Table 3 uses I_u): ``InvertedIndex.exact`` / ``fuzzy`` /
     ``adaptive_fuzzy`` / ``mismatch`` against a plain vectorised numpy scan of the feature sequence: one pass
@@ -40,6 +40,7 @@ from .common import (
     benchmark_db,
     describe_db,
     header,
+    ingest_how,
     log,
     machine_info,
     markdown,
@@ -154,16 +155,16 @@ def _time(fn, arg) -> tuple[float, object]:
 def bench_build(db, record: dict, repeats: int) -> tuple[list[dict], np.ndarray, dict, pd.DataFrame]:
     """(a): features and index build, timed ``repeats`` times (median)."""
     from mocapviz.experiments import index_statistics
-    from mocapviz.features import relational
+    from mocapviz.features import relational_features
     from mocapviz.index import build
 
-    relational(db.motion(int(db.documents["doc_id"].iloc[0])))  # numba: compile or load from the disk cache
+    relational_features(db.motion(int(db.documents["doc_id"].iloc[0])))  # numba: compile or load from the disk cache
     t_feat, t_build, cpu_feat = [], [], []
     for _ in range(repeats):
         log(f"features of {db.n_frames:,} frames")
         c0 = CpuMonitor._ours()
         t0 = time.perf_counter()
-        values, _ = relational(db, "2005", progress=False)
+        values, _ = relational_features(db, "2005", progress=False)
         t_feat.append(time.perf_counter() - t0)
         cpu_feat.append(CpuMonitor._ours() - c0)
         log(f"  {t_feat[-1]:.2f} s; index build")
@@ -175,9 +176,9 @@ def bench_build(db, record: dict, repeats: int) -> tuple[list[dict], np.ndarray,
     n = db.n_frames
     paper_tf, paper_ti, paper_tr = PAPER_T_FEATURES, PAPER_T_INDEX, PAPER_T_READ
     rows = [
-        {"step": f"read: MotionDB.ingest at {FPS} Hz, n_jobs={record['n_jobs']} (paper: AMC read, t_r)",
+        {"step": f"read: MotionDB.ingest at {FPS} Hz, {ingest_how(record)} (paper: AMC read, t_r)",
          "s": record["t_ingest"], "paper_s": paper_tr, "target": ""},
-        {"step": "features: relational(db), all 31 (paper: t_f of I_l + I_u + I_m)", "s": tf, "paper_s": paper_tf,
+        {"step": "features: relational_features(db), all 31 (paper: t_f of I_l + I_u + I_m)", "s": tf, "paper_s": paper_tf,
          "target": ""},
         {"step": "index build: build(db, values=...), 3 groups, saved (paper: t_i of the three)", "s": tb,
          "paper_s": paper_ti, "target": ""},
@@ -199,14 +200,14 @@ def bench_build(db, record: dict, repeats: int) -> tuple[list[dict], np.ndarray,
 
 def bench_queries(index, quick: bool, seed: int = 1) -> tuple[list[dict], list[str]]:
     """(b): per query mode and L, the same random queries through the index and the numpy scan."""
-    from mocapviz.experiments.relational import paper_table3, random_queries
+    from mocapviz.experiments.relational import mueller2005_table3, random_queries
 
     n_timed = N_TIMED_QUICK if quick else N_TIMED
     codes, seg_doc = index.codes, index.segment_doc
     new_doc = np.ones(codes.size + 1, dtype=bool)  # segment p starts a document; one past the end for the walk
     new_doc[1:-1] = seg_doc[1:] != seg_doc[:-1]
     codes_end = np.append(codes, 0)
-    paper = paper_table3()
+    paper = mueller2005_table3()
     # name: (kind of random query, index method, numpy scan, target median ms or None, the paper's Table 3 mode)
     modes = {
         "exact": ("exact", index.exact, lambda q: scan_exact(codes, seg_doc, q), TARGET_MS["exact"], "exact"),
@@ -253,12 +254,12 @@ def bench_queries(index, quick: bool, seed: int = 1) -> tuple[list[dict], list[s
 def bench_table3(index, quick: bool) -> pd.DataFrame:
     """(c): Table 3 of ours beside the paper's."""
     from mocapviz.experiments import query_statistics
-    from mocapviz.experiments.relational import paper_table3
+    from mocapviz.experiments.relational import mueller2005_table3
 
     n = N_TABLE3_QUICK if quick else N_TABLE3
     log(f"Table 3: {n:,} queries per cell")
     ours = query_statistics(index, n_queries=n, lengths=LENGTHS, modes=("exact", "fuzzy"), fuzzy_size=FUZZY_SIZE)
-    paper = paper_table3()
+    paper = mueller2005_table3()
     return ours.merge(paper[["mode", "L", "hits", "mean_hits", "std_hits", "mean_ms"]], on=["mode", "L", "hits"],
                       suffixes=("", "_paper"))  # fmt: skip
 
@@ -340,7 +341,7 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     t3 = bench_table3(upper, quick)
     info["others"] = monitor.report()
 
-    from mocapviz.experiments.relational import paper_table2
+    from mocapviz.experiments.relational import mueller2005_table2
 
     print(_header(info, quick, repeats))
     for line in describe_db(db, record):
@@ -356,9 +357,9 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
           f"{', '.join(f'{t:.2f}' for t in build_rows[2]['runs_s'])}. The paper read the data once per index; "
           "its t_r (71 s) is counted once here.")  # fmt: skip
     print()
-    print("### Table 2: ours / paper (I^180), `index_statistics` beside `paper_table2`")
+    print("### Table 2: ours / paper (I^180), `index_statistics` beside `mueller2005_table2`")
     print()
-    print(table_sizes(table2, paper_table2()))
+    print(table_sizes(table2, mueller2005_table2()))
     print()
     print(
         "MB = bytes / 2^20 (the paper's unit: 4.33 MB / 135,742 segments = 33.4 bytes). Ours: sorted int32 segment "

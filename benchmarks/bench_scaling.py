@@ -11,13 +11,13 @@ frames. All are cached under ``<repo>/.cache/bench/scaling-v1[-quick]/``.
 
 Per size (each step timed ``repeats`` times, median; the LNG and query steps over many queries, median per query):
 
-- relational features (``mocapviz.features.relational(db)``, 31 features) + index build
+- relational features (``mocapviz.features.relational_features(db)``, 31 features) + index build
   (``mocapviz.index.build(db, values=...)``): seconds;
-- F15E features (``mocapviz.features.numeric(db, "F15E")``) + kd-tree build (``mocapviz.knn.KnnIndex``): seconds;
+- F15E features (``mocapviz.features.numeric_features(db, "F15E")``) + kd-tree build (``mocapviz.knn.KnnIndex``): seconds;
 - exact 16-NN: a batch of 1000 random database frames, ``KnnIndex.query(q, 16)``, all threads: ms per query;
 - exact relational query: 300 random |Q| = 10 queries on the upper-body index (``random_queries``,
   ``InvertedIndex.exact``): median ms per query, and the median hit count (which grows with the database);
-- LNG: 1 s queries (30 frames) from real documents, ``mocapviz.match.lng(q, KnnIndex, k=256, k_matches=10,
+- LNG: 1 s queries (30 frames) from real documents, ``mocapviz.match.lng(q, KnnIndex, k=256, n_matches=10,
   exclude=own document)``: median s per query.
 
 The exponent b of time ~ frames^b is the least-squares slope of log(time) on log(frames) over the sizes. The
@@ -129,7 +129,7 @@ def _median_runs(fn, repeats: int) -> tuple[float, list[float], object]:
 def measure(db, quick: bool, repeats: int) -> dict:
     """Every step's time on one database."""
     from mocapviz.experiments.relational import random_queries
-    from mocapviz.features import numeric, relational
+    from mocapviz.features import numeric_features, relational_features
     from mocapviz.index import build
     from mocapviz.knn import KnnIndex
     from mocapviz.match import lng
@@ -141,10 +141,10 @@ def measure(db, quick: bool, repeats: int) -> dict:
     rng = np.random.default_rng(SEED)
 
     def rel_build():
-        values, _ = relational(db, "2005", progress=False)
+        values, _ = relational_features(db, "2005", progress=False)
         return build(db, "2005", progress=False, values=values)
 
-    relational(db.motion(int(db.documents["doc_id"].iloc[0])))  # numba: compile or load from the disk cache
+    relational_features(db.motion(int(db.documents["doc_id"].iloc[0])))  # numba: compile or load from the disk cache
     log(f"{n:,} frames: relational features + index build")
     out["relational features + index build"], runs, indexes = _median_runs(rel_build, repeats)
     out["relational_runs"] = runs
@@ -156,7 +156,7 @@ def measure(db, quick: bool, repeats: int) -> dict:
 
     def knn_build():
         holder["features"] = None
-        holder["features"] = numeric(db, "F15E", progress=False)
+        holder["features"] = numeric_features(db, "F15E", progress=False)
         return KnnIndex(holder["features"])
 
     out["F15E features + kd-tree build"], runs, index = _median_runs(knn_build, repeats)
@@ -194,7 +194,7 @@ def measure(db, quick: bool, repeats: int) -> dict:
         best, best_knn = np.inf, np.inf
         for _ in range(max(1, min(repeats, 2))):
             t0 = time.perf_counter()
-            res = lng(q, index, k=K_LNG, radius=None, k_matches=10, starts=starts, exclude=own)
+            res = lng(q, index, k=K_LNG, radius=None, n_matches=10, starts=starts, exclude=own)
             wall = time.perf_counter() - t0
             if wall < best:
                 best, best_knn = wall, res.attrs["seconds"]["knn"]

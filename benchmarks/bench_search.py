@@ -14,10 +14,10 @@ against brute force, on F15E features at 30 Hz.
       that the problem is subsequence DTW's, which has no shortest match; the API's default 0.5 would forbid
       some of subsequence DTW's top 10), median of ``repeats`` runs (the modes alternate within a run), wall
       time of the whole call;
-      brute force: ``mocapviz.match.subsequence_dtw(query, F15E_kept, starts, k, paths=False)`` on the frames of
-      the kept documents (one copy, made once), one run. For in-database queries k = 2 K and the matches in the
-      own document are dropped afterwards: documents never overlap, so the first K left are exactly the K best
-      outside it (re-run, untimed, with a larger k in the rare case fewer than K are left);
+      brute force: ``mocapviz.match.subsequence_dtw(query, F15E_kept, starts, n_matches, paths=False)`` on the
+      frames of the kept documents (one copy, made once), one run. For in-database queries n_matches = 2 K and the
+      matches in the own document are dropped afterwards: documents never overlap, so the first K left are exactly
+      the K best outside it (re-run, untimed, with a larger n_matches in the rare case fewer than K are left);
       dtaidistance's C subsequence DTW (``bench_match._library``: the whole accumulated-cost matrix over the
       kept frames in float64, same cost model; documents unknown to it; top-K selection not timed) on the first
       ``N_LIB`` queries of each length and kind only (its time does not depend on the query's content).
@@ -148,9 +148,9 @@ def reference(q, x_kept, starts_kept, kept_docs: pd.DataFrame, query: dict) -> t
     from mocapviz.match import subsequence_dtw
 
     own = query["kind"] == "in database"
-    k = 2 * K if own else K
+    n_matches = 2 * K if own else K
     t0 = time.perf_counter()
-    table = subsequence_dtw(q, x_kept, starts_kept, k=k, paths=False)
+    table = subsequence_dtw(q, x_kept, starts_kept, n_matches=n_matches, paths=False)
     seconds = time.perf_counter() - t0
 
     def outside(table):
@@ -161,8 +161,9 @@ def reference(q, x_kept, starts_kept, kept_docs: pd.DataFrame, query: dict) -> t
         return out[out["doc_id"] != query["doc_id"]].head(K).reset_index(drop=True)  # fmt: skip
 
     out = outside(table)
-    if own and len(out) < K and len(table) == k:  # the own document took more than K of the k: untimed re-run
-        out = outside(subsequence_dtw(q, x_kept, starts_kept, k=k + query["doc_frames"], paths=False))
+    if own and len(out) < K and len(table) == n_matches:  # the own document took more than K of them: re-run,
+        more = n_matches + query["doc_frames"]  # untimed
+        out = outside(subsequence_dtw(q, x_kept, starts_kept, n_matches=more, paths=False))
     return seconds, out
 
 
@@ -190,7 +191,7 @@ def run_stretches(db, quick: bool, repeats: int, library, rng) -> dict:
     d0 = int(kept_docs["doc_id"].iloc[int(np.argmax(n))])
     for mode in ("exact", "fast"):
         search.stretches(d0, frames=(0, 20), n_matches=K, mode=mode, min_length=0.5 / 20, exclude_document=True)
-    subsequence_dtw(np.asarray(x[:20]), x_kept[:5_000], k=2, paths=False)
+    subsequence_dtw(np.asarray(x[:20]), x_kept[:5_000], n_matches=2, paths=False)
     if library is not None:
         library(np.asarray(x[:20], dtype=np.float64), x64[:5_000])
 
@@ -506,7 +507,8 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print(table_times(stretch_rows))
     print()
     print("ms: median / mean over the queries. subsequence_dtw: `mocapviz.match.subsequence_dtw(query, F15E_kept, "
-          f"starts, k, paths=False)` over the kept documents' frames (k = {2 * K} for in-database queries, then the "
+          f"starts, n_matches, paths=False)` over the kept documents' frames (n_matches = {2 * K} for in-database "
+          "queries, then the "
           "own document's matches dropped; the selection is negligible beside the cost matrix). dtaidistance: "
           "`dtw_ndim.warping_paths_fast(query, F15E_kept_float64, psi=[0, 0, n, n], inner_dist='euclidean', ...)` "
           "as in bench_match (C, one thread; the float64 copy and its top-K backtracking not timed). Cells: the "

@@ -26,7 +26,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
 ARCHIVES = ("hdm05-cut", "cmu-asfamc", "bandai-namco-1", "bandai-namco-2")
-N_JOBS = 2  # ingest processes
+INGEST_THREADS = 2  # threads reading the files (MotionDB.ingest)
 
 
 # ============================================================================ machine and output
@@ -383,9 +383,9 @@ def benchmark_db(spec: BenchDB, quick: bool):
         shutil.rmtree(old)
     tmp = folder / f"db.tmp-{os.getpid()}"
     all_files = [f for fs in files.values() for f in fs]
-    log(f"building the benchmark database: {len(all_files)} files at {spec.fps:g} Hz, n_jobs={N_JOBS} -> {folder}")
+    log(f"building the benchmark database: {len(all_files)} files at {spec.fps:g} Hz, threads={INGEST_THREADS} -> {folder}")
     t0 = time.perf_counter()
-    db = MotionDB.ingest(all_files, tmp, fps=spec.fps, n_jobs=N_JOBS, progress=False)
+    db = MotionDB.ingest(all_files, tmp, fps=spec.fps, threads=INGEST_THREADS, progress=False)
     t_ingest = time.perf_counter() - t0
     log(f"  ingest {t_ingest:.1f} s, {db.n_frames:,} frames")
     real_frames = db.n_frames
@@ -402,7 +402,7 @@ def benchmark_db(spec: BenchDB, quick: bool):
     tmp.rename(folder / "db")
     db = MotionDB.open(folder / "db")
     record = {
-        "tag": spec.tag, "t_ingest": t_ingest, "n_jobs": N_JOBS, "fps": spec.fps,
+        "tag": spec.tag, "t_ingest": t_ingest, "threads": INGEST_THREADS, "fps": spec.fps,
         "files": {k: len(v) for k, v in files.items()}, "missing": missing, "real_frames": real_frames,
         "mirrored_documents": mirrored["documents"], "mirrored_frames": mirrored["frames"],
         "repeated_frames": mirrored["repeated_frames"],
@@ -411,6 +411,12 @@ def benchmark_db(spec: BenchDB, quick: bool):
     }  # fmt: skip
     record_file.write_text(json.dumps(record, indent=2))
     return db, record | {"cached": False}
+
+
+def ingest_how(record: dict) -> str:
+    """How the benchmark database of ``record`` was read: ``threads=N``, or ``n_jobs=N`` (reader processes) for a
+    database cached before ingest ran on threads."""
+    return f"threads={record['threads']}" if "threads" in record else f"n_jobs={record['n_jobs']} (processes)"
 
 
 def describe_db(db, record: dict) -> list[str]:
@@ -459,5 +465,5 @@ def describe_db(db, record: dict) -> list[str]:
         lines.append("missing archives: " + "; ".join(record["missing"]))
     cached = " (database from the cache; measured when it was built)" if record["cached"] else ""
     lines.append(f"MotionDB.ingest of the {sum(record['files'].values())} source files at {fps:g} Hz, "
-                 f"n_jobs={record['n_jobs']}: {record['t_ingest']:.1f} s{cached}")  # fmt: skip
+                 f"{ingest_how(record)}: {record['t_ingest']:.1f} s{cached}")  # fmt: skip
     return lines

@@ -2,14 +2,14 @@
 
     mocapviz ingest PATH... --out DB [--fps N] [--labels FILE] [--skip-bad] [--scheduler ADDRESS | [--no-cluster] [--jobs N]]
     mocapviz info DB [--documents]
-    mocapviz index DB [--feature-set 2005|2006] [--scheduler ADDRESS | --no-cluster]
+    mocapviz index DB [--relational-set 2005|2006] [--scheduler ADDRESS | --no-cluster]
     mocapviz query DB --example FILE|DOC_ID [--frames A:B] --features NAMES [--mode M] [--mismatch M [--mismatch-at I,J]]
-                                                                                              [--top N]
-    mocapviz features DB [--sets F15E,F30E,...] [--pca FILE|DB] [--scheduler ADDRESS | --no-cluster]
-    mocapviz knn DB --frame DOC:FRAME [--features F15E] [-k 16] [--radius R] [--eps E] [--exclude-document]
-    mocapviz match DB --example FILE|DOC_ID [--frames A:B] [--features F15E] [-K 10] [-k 256] [--radius R] [--eps E]
-                                                                                [--method lng|dtw] [--paths]
-    mocapviz search DB --example FILE|DOC_ID [--frames A:B] [--features F15E] [-K 10] [--mode fast|exact|brute]
+                      [--relational-set 2005|2006] [-K 20]
+    mocapviz features DB [--numeric-sets F15E,F30E,...] [--pca FILE|DB] [--scheduler ADDRESS | --no-cluster]
+    mocapviz knn DB --frame DOC:FRAME [--numeric-set F15E] [-k 16] [--radius R] [--eps E] [--exclude-document]
+    mocapviz match DB --example FILE|DOC_ID [--frames A:B] [--numeric-set F15E] [-K 10] [-k 256] [--radius R] [--eps E]
+                                                                                    [--method lng|dtw] [--paths]
+    mocapviz search DB --example FILE|DOC_ID [--frames A:B] [--numeric-set F15E] [-K 10] [--mode fast|exact|brute]
                        [--stretches [--min-length 0.5]] [--exclude-document] [--csv FILE] [--paths]
     mocapviz reproduce NAME|all [--full] --out DIR   (NAME: an experiment, e.g. rank_correlations, reconstruction)
     mocapviz serve [DB] [--port 5006] [--address 127.0.0.1] [--show]   (no DB: the embedded sample)
@@ -18,8 +18,13 @@
 
 ``ingest``, ``features`` and ``index`` run their work as Dask tasks: on the scheduler at ``--scheduler ADDRESS``
 (``tcp://host:8786``), else on a local cluster started for the command (one single-threaded worker process per
-core, or ``ingest --jobs N`` workers; :mod:`mocapviz.cluster`). ``--no-cluster`` runs in this process instead
-(threads; for ``ingest``, ``--jobs N`` reader processes), as the library functions do by default.
+core, or ``ingest --jobs N`` workers; :mod:`mocapviz.cluster`). ``--no-cluster`` runs in this process instead, on
+threads (for ``ingest``, ``--jobs N`` of them), as the library functions do by default.
+
+Options follow docs/glossary.md: ``-K`` / ``--matches`` is how many results (hits, clips, stretches) to report,
+``-k`` how many neighbours per query frame, ``--relational-set`` / ``--numeric-set(s)`` which features. The older
+spellings still work: ``--top`` (query, for ``-K``), ``--feature-set`` (for ``--relational-set``), ``--features``
+(knn, match, search: for ``--numeric-set``) and ``--sets`` (features: for ``--numeric-sets``).
 
 Errors print one line (``mocapviz: error: ...``) and exit with status 1.
 """
@@ -40,7 +45,17 @@ from . import datasets
 from .cluster import LOCAL, dask_client, optional_client
 from .database import MotionDB, expand_paths
 from .errors import MocapvizError, ParameterError
-from .features import NUMERIC_SETS, PCAModel, fit_pca, load_numeric, numeric, numeric_of, relational, store_numeric
+from .features import (
+    NUMERIC_SETS,
+    PCAModel,
+    fit_pca,
+    load_numeric,
+    numeric_features,
+    numeric_of,
+    relational_features,
+    store_numeric,
+)
+from .features.numeric import default_pca
 from .index import build
 from .io import load
 from .knn import KnnIndex, describe_frames
@@ -71,7 +86,7 @@ def _ingest(args) -> None:
         raise ParameterError(f"--jobs must be at least 1, got {args.jobs}")
     scheduler = _scheduler(args)
     if args.jobs is not None and scheduler not in (None, LOCAL):
-        raise ParameterError("--jobs sizes the local cluster (or, with --no-cluster, the reader processes); the "
+        raise ParameterError("--jobs sizes the local cluster (or, with --no-cluster, the reader threads); the "
                          "workers of --scheduler are the scheduler's")
     expand_paths(args.paths)  # the input and the output checked before any cluster starts
     _check_out_folder(Path(args.out))
@@ -79,7 +94,7 @@ def _ingest(args) -> None:
         if scheduler == LOCAL:  # the local cluster, with --jobs workers if given
             scheduler = stack.enter_context(dask_client(LOCAL, n_workers=args.jobs))
         db = MotionDB.ingest(args.paths, args.out, fps=args.fps, labels=args.labels, mapping=mapping,
-                             skip_bad=args.skip_bad, n_jobs=args.jobs or 1, progress=not args.quiet,
+                             skip_bad=args.skip_bad, threads=args.jobs, progress=not args.quiet,
                              scheduler=scheduler, **options)
     print(db)
 
@@ -108,11 +123,11 @@ def _index(args) -> None:
 
     db = MotionDB.open(args.db)
     t0 = time.perf_counter()
-    values, _ = relational(db, args.feature_set, progress=not args.quiet, scheduler=_scheduler(args))
+    values, _ = relational_features(db, args.relational_set, progress=not args.quiet, scheduler=_scheduler(args))
     t_features = time.perf_counter() - t0
-    build(db, args.feature_set, values=values)
-    stats = index_statistics(db, args.feature_set, values=values, t_features=t_features)
-    print(f"{db}: {args.feature_set} relational indexes written to {Path(db.path) / 'index'}")
+    build(db, args.relational_set, values=values)
+    stats = index_statistics(db, args.relational_set, values=values, t_features=t_features)
+    print(f"{db}: {args.relational_set} relational indexes written to {Path(db.path) / 'index'}")
     print(stats.drop(columns=["t_read", "t_total"]).round(3).to_string(index=False))
 
 
@@ -149,12 +164,12 @@ def _query(args) -> None:
     t0 = time.perf_counter()
     allowed = None if args.mismatch_at is None else _integers(args.mismatch_at, "--mismatch-at")
     hits = query_by_example(db, example, features, mode=mode, mismatches=args.mismatch or 0,
-                            feature_set=args.feature_set, allowed=allowed)
+                            relational_set=args.relational_set, allowed=allowed)
     ms = 1000 * (time.perf_counter() - t0)
     print(f"{len(hits)} hits in {ms:.1f} ms ({mode}, features: {', '.join(features or ['all'])})")
     cols = [c for c in ("rank", "doc_id", "name", "start_frame", "end_frame", "score", "label") if c in hits]
-    with pd.option_context("display.width", 160, "display.max_rows", args.top + 5):
-        print(hits[cols].head(args.top).round(3).to_string(index=False))
+    with pd.option_context("display.width", 160, "display.max_rows", args.n_matches + 5):
+        print(hits[cols].head(args.n_matches).round(3).to_string(index=False))
 
 
 def _names(text: str | None, known, what: str) -> list[str] | None:
@@ -170,7 +185,7 @@ def _names(text: str | None, known, what: str) -> list[str] | None:
 
 def _features(args) -> None:
     db = MotionDB.open(args.db)
-    names = _names(args.sets, NUMERIC_SETS, "feature set")
+    names = _names(args.numeric_sets, NUMERIC_SETS, "numeric set")
     ref = Path(args.pca) if args.pca else None
     reference_db = MotionDB.open(ref) if ref is not None and ref.is_dir() else None
     t0 = time.perf_counter()
@@ -201,14 +216,14 @@ def _knn(args) -> None:
     span = db.frames(doc)
     if not 0 <= frame < span.stop - span.start:
         raise ParameterError(f"document {doc} has frames 0..{span.stop - span.start - 1}; --frame asks for {frame}")
-    features = numeric_of(db, _names(args.features, NUMERIC_SETS, "feature set")[0], progress=not args.quiet)
+    features = numeric_of(db, _names(args.numeric_set, NUMERIC_SETS, "numeric set")[0], progress=not args.quiet)
     index = KnnIndex(features)
     own = (span.start, span.stop) if args.exclude_document else None
     t0 = time.perf_counter()
     dist, idx = index.query(features[span.start + frame], args.k, radius=args.radius, eps=args.eps, exclude=own)
     ms = 1000 * (time.perf_counter() - t0)
     hits = describe_frames(db, idx, dist)
-    print(f"{len(hits)} neighbours of document {doc} frame {frame} by {args.features} in {ms:.2f} ms "
+    print(f"{len(hits)} neighbours of document {doc} frame {frame} by {args.numeric_set} in {ms:.2f} ms "
           f"({index})")
     cols = [c for c in ("rank", "doc_id", "name", "doc_frame", "time_s", "distance", "label") if c in hits]
     with pd.option_context("display.width", 160, "display.max_rows", args.k + 5):
@@ -224,30 +239,29 @@ def _example_features(db: MotionDB, example: str, frames: str | None, name: str,
         rows = range(span.start, span.stop)[sl]
         return np.asarray(X[rows.start : rows.stop]), (span.start, span.stop)
     motion = load(example)
-    if db.fps and abs(motion.fps - db.fps) > 1e-6:
-        motion = motion.resample(db.fps)
-    pca = None
-    if name.startswith("Fp"):
-        pca = PCAModel.load(Path(db.path) / "features" / "pca.npz")
-    return numeric(motion[sl], name, pca=pca, progress=False), None
+    if db.typical_fps and abs(motion.fps - db.typical_fps) > 1e-6:
+        motion = motion.resample(db.typical_fps)
+    pca = default_pca(db) if name.startswith("Fp") else None  # the model the database's features were computed with
+    return numeric_features(motion[sl], name, pca=pca, progress=False), None
 
 
 def _match(args) -> None:
-    count(args.K, "-K")  # matches to report
+    count(args.n_matches, "-K")  # matches to report
     db = MotionDB.open(args.db)
-    name = _names(args.features, NUMERIC_SETS, "feature set")[0]
+    name = _names(args.numeric_set, NUMERIC_SETS, "numeric set")[0]
     X = load_numeric(db, name)  # a clear error naming `mocapviz features DB` when the set is not stored
     query, own = _example_features(db, args.example, args.frames, name, X)
     starts = db.documents["start"].to_numpy()
     t0 = time.perf_counter()
     if args.method == "dtw":
-        found = subsequence_dtw(query, X, starts, k=args.K + (args.K if own else 0), paths=args.paths)
+        n = args.n_matches
+        found = subsequence_dtw(query, X, starts, n_matches=n + (n if own else 0), paths=args.paths)
         if own:
-            found = found[(found["end"] < own[0]) | (found["start"] >= own[1])].head(args.K)
+            found = found[(found["end"] < own[0]) | (found["start"] >= own[1])].head(n)
         what = "subsequence DTW"
     else:
-        found = lng(query, KnnIndex(X), k=args.k, radius=args.radius, k_matches=args.K, starts=starts, eps=args.eps,
-                    exclude=own, paths=args.paths)  # fmt: skip
+        found = lng(query, KnnIndex(X), k=args.k, radius=args.radius, n_matches=args.n_matches, starts=starts,
+                    eps=args.eps, exclude=own, paths=args.paths)  # fmt: skip
         what = f"lazy neighbourhood graph, k={args.k}" + (f", r={args.radius:g}" if args.radius else "")
     ms = 1000 * (time.perf_counter() - t0)
     print(f"{len(found)} matches of a {len(query)}-frame query by {name} ({what}) in {ms:.1f} ms"
@@ -262,7 +276,7 @@ def _match(args) -> None:
     })  # fmt: skip
     for col in db.label_columns:
         table[col] = docs[col].reindex(found["doc_id"]).to_numpy()
-    _print_ranked(table, args.K, "the lazy neighbourhood graph needs a neighbour of every query frame along a whole "
+    _print_ranked(table, args.n_matches, "the lazy neighbourhood graph needs a neighbour of every query frame along a whole "
                   "path: try a larger -k such as 1024, --method dtw, or `mocapviz search DB --stretches`"
                   if args.method == "lng" else "no document long enough outside the query's own")  # fmt: skip
     if args.paths:
@@ -285,24 +299,24 @@ def _search(args) -> None:
     from .search import SimilaritySearch
     from .store import atomic_write
 
-    count(args.K, "-K")  # matches to report
+    count(args.n_matches, "-K")  # matches to report
     if not 0 < args.min_length <= 1:
         raise ParameterError(f"--min-length must be a share of the query's frames in (0, 1]; got {args.min_length}")
     db = MotionDB.open(args.db)
     example = int(args.example) if args.example.isdigit() else args.example
     if isinstance(example, str) and not Path(example).is_file():
         raise ParameterError(f"--example {example!r} is neither a document id of {args.db} nor a motion file")
-    search = SimilaritySearch(db, _names(args.features, NUMERIC_SETS, "feature set")[0])
-    options = {"n_matches": args.K, "mode": args.mode, "exclude_document": args.exclude_document, "paths": args.paths}
+    search = SimilaritySearch(db, _names(args.numeric_set, NUMERIC_SETS, "numeric set")[0])
+    options = {"n_matches": args.n_matches, "mode": args.mode, "exclude_document": args.exclude_document, "paths": args.paths}
     if args.stretches:
         table = search.stretches(example, frames=_frames(args.frames), min_length=args.min_length, **options)
     else:
         table = search.clips(example, frames=_frames(args.frames), **options)
     what = "stretches" if args.stretches else "clips"
-    print(f"{len(table)} {what} like {args.example} ({table.attrs['query_frames']} frames) by DTW on {search.feature_set}"
+    print(f"{len(table)} {what} like {args.example} ({table.attrs['query_frames']} frames) by DTW on {search.numeric_set}"
           f", {args.mode} mode, in {table.attrs['ms']:.1f} ms" + (" (its own document excluded)" if
                                                                  args.exclude_document else ""))  # fmt: skip
-    _print_ranked(table, args.K, "the query's own document is the only one long enough; try whole clips, a shorter "
+    _print_ranked(table, args.n_matches, "the query's own document is the only one long enough; try whole clips, a shorter "
                   "--frames span or a smaller --min-length" if args.stretches else "no other document to compare")
     if args.paths:
         for rank, doc, path in zip(table["rank"], table["doc_id"], table["path"]):
@@ -314,7 +328,7 @@ def _search(args) -> None:
 
 
 def _reproduce(args) -> None:
-    from .reproduce import reproduce
+    from .reproduction import reproduce
 
     reproduce(args.names, args.out, full=args.full, progress=not args.quiet)
 
@@ -363,7 +377,7 @@ def build_parser() -> argparse.ArgumentParser:
     ing.add_argument("--skip-bad", action="store_true", help="skip unreadable files with a warning")
     _cluster_options(ing)
     ing.add_argument("--jobs", type=int, help="worker processes of the local cluster (default: one per core), or "
-                     "with --no-cluster reader processes (default 1)")
+                     "with --no-cluster reader threads (default: the cores, at most 8)")
     ing.add_argument("--quiet", action="store_true", help="no progress bar")
     ing.set_defaults(func=_ingest)
 
@@ -374,7 +388,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     idx = sub.add_parser("index", help="compute relational features and build the inverted indexes of a MotionDB")
     idx.add_argument("db")
-    idx.add_argument("--feature-set", default="2005", choices=["2005", "2006"])
+    idx.add_argument("--relational-set", "--feature-set", dest="relational_set", default="2005",
+                     choices=["2005", "2006"], help="relational set (default 2005; --feature-set: its old name)")
     _cluster_options(idx)
     idx.add_argument("--quiet", action="store_true", help="no progress bar")
     idx.set_defaults(func=_index)
@@ -389,13 +404,16 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--mismatch", type=int, default=0, help="allow M segments of the query (segmented on the chosen "
                    "features) to disagree")
     q.add_argument("--mismatch-at", help="comma-separated 0-based query segments that may disagree (default any)")
-    q.add_argument("--feature-set", default="2005", choices=["2005", "2006"])
-    q.add_argument("--top", type=int, default=20, help="hits to print (default 20)")
+    q.add_argument("--relational-set", "--feature-set", dest="relational_set", default="2005",
+                   choices=["2005", "2006"], help="relational set (default 2005; --feature-set: its old name)")
+    q.add_argument("-K", "--matches", "--top", dest="n_matches", type=int, default=20,
+                   help="hits to print (default 20; --top: its old name)")
     q.set_defaults(func=_query)
 
     feat = sub.add_parser("features", help="compute and store the numeric feature sets of a MotionDB (kNN search)")
     feat.add_argument("db")
-    feat.add_argument("--sets", help=f"comma-separated sets (default all: {','.join(NUMERIC_SETS)})")
+    feat.add_argument("--numeric-sets", "--sets", dest="numeric_sets", help=f"comma-separated numeric sets (default "
+                      f"all: {','.join(NUMERIC_SETS)}; --sets: its old name)")  # fmt: skip
     feat.add_argument("--pca", help="PCA reference for Fp8/16/25: a saved model (.npz) or a MotionDB to fit it on "
                                     "(default: fitted on DB itself)")
     _cluster_options(feat)
@@ -405,7 +423,8 @@ def build_parser() -> argparse.ArgumentParser:
     kn = sub.add_parser("knn", help="the k nearest frames of one frame of a MotionDB (kd-tree)")
     kn.add_argument("db")
     kn.add_argument("--frame", required=True, help="DOC:FRAME, a document id and a frame within it")
-    kn.add_argument("--features", default="F15E", help="numeric feature set (default F15E)")
+    kn.add_argument("--numeric-set", "--features", dest="numeric_set", default="F15E",
+                    help="numeric set (default F15E; --features: its old name)")
     kn.add_argument("-k", type=int, default=16, help="neighbours (default 16)")
     kn.add_argument("--radius", type=float, help="only neighbours closer than this (feature units, cm)")
     kn.add_argument("--eps", type=float, default=0.0, help="approximate search: k-th distance within (1+eps)")
@@ -419,9 +438,9 @@ def build_parser() -> argparse.ArgumentParser:
     mt.add_argument("--example", required=True, help="a motion file, or a document id of the DB (then its own "
                     "document is excluded from the matches)")  # fmt: skip
     mt.add_argument("--frames", help="frame span A:B of the example (default: all of it)")
-    mt.add_argument("--features", default="F15E", help="stored numeric feature set (default F15E; see "
-                    "`mocapviz features`)")  # fmt: skip
-    mt.add_argument("-K", type=int, default=10, help="matches to report (default 10)")
+    mt.add_argument("--numeric-set", "--features", dest="numeric_set", default="F15E", help="stored numeric set "
+                    "(default F15E; see `mocapviz features`; --features: its old name)")  # fmt: skip
+    mt.add_argument("-K", "--matches", dest="n_matches", type=int, default=10, help="matches to report (default 10)")
     mt.add_argument("-k", type=int, default=256, help="neighbours per query frame (default 256)")
     mt.add_argument("--radius", type=float, help="only neighbours closer than this (feature units)")
     mt.add_argument("--eps", type=float, default=0.0, help="approximate kNN: k-th distance within (1+eps)")
@@ -435,8 +454,9 @@ def build_parser() -> argparse.ArgumentParser:
     se.add_argument("db")
     se.add_argument("--example", required=True, help="a motion file, or a document id of the DB")
     se.add_argument("--frames", help="frame span A:B of the example (default: all of it)")
-    se.add_argument("--features", default="F15E", help="numeric feature set (default F15E)")
-    se.add_argument("-K", type=int, default=10, help="matches to report (default 10)")
+    se.add_argument("--numeric-set", "--features", dest="numeric_set", default="F15E",
+                    help="numeric set (default F15E; --features: its old name)")
+    se.add_argument("-K", "--matches", dest="n_matches", type=int, default=10, help="matches to report (default 10)")
     se.add_argument("--mode", choices=["fast", "exact", "brute"], default="fast", help="fast (default): aligns only "
                     "where kNN and a coarse pass point; exact: brute force's answer, pruned by lower bounds; brute: "
                     "every cell")  # fmt: skip
@@ -454,7 +474,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "PNG/HTML figures")  # fmt: skip
     rp.add_argument("names", nargs="+", metavar="NAME", help="experiment function name(s) (index_statistics, "
                     "query_statistics, relational_query, alignment, knn_timings, rank_correlations, "
-                    "similarity_matrices, lng_accuracy, numerical_search, reconstruction, base_poses) or 'all'")
+                    "similarity_matrices, lng_accuracy, numerical_search, reconstruction, base_poses, retrieval_quality) or "
+                    "'all'")
     rp.add_argument("--out", required=True, help="output folder; each experiment writes OUT/NAME/")
     rp.add_argument("--full", action="store_true", help="the papers' sizes (slow; every shared archive as the "
                     "large database)")  # fmt: skip

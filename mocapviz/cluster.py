@@ -1,7 +1,8 @@
 """Running ingest and feature extraction on Dask (a local cluster, or a ``dask.distributed`` scheduler).
 
 The one place that turns a ``scheduler`` argument into a :class:`dask.distributed.Client` and closes what it
-started, plus the ordered map the pipeline runs its tasks with.
+started, and where the workers open a MotionDB. The tasks themselves are run by :mod:`mocapviz.batch` (the same
+ordered map with bounded look-ahead as on threads).
 
 ``scheduler`` values understood by :func:`dask_client` (and by every ``scheduler=`` parameter of mocapviz, where
 ``None`` means "in this process, as without Dask"):
@@ -16,11 +17,12 @@ an address, e.g. ``"tcp://10.0.0.5:8786"`` or ``"10.0.0.5:8786"``
 a ``dask.distributed.Client``
     Used as it is, and left open.
 
-Tasks are small: a file path (ingest) or a database path, its generation and a range of whole documents
+Tasks are small: file paths (ingest) or a database path, its generation and a range of whole documents
 (features); the worker opens the memory-mapped :class:`~mocapviz.database.MotionDB` itself (:func:`open_db`) and
-returns numpy arrays. The client consumes the results in submission order (:func:`map_ordered`) and is the only
-writer of the database, so a failed or cancelled task leaves the database as it was. A worker that dies is
-replaced (the local cluster's nanny restarts it) and its tasks are run again elsewhere by the scheduler.
+returns numpy arrays. The client consumes the results in submission order (:func:`mocapviz.batch.map_ordered`)
+and is the only writer of the database, so a failed or cancelled task leaves the database as it was. A worker
+that dies is replaced (the local cluster's nanny restarts it) and its tasks are run again elsewhere by the
+scheduler.
 """
 from __future__ import annotations
 
@@ -29,8 +31,7 @@ import contextlib
 import logging
 import os
 import threading
-import uuid
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 from .errors import ParameterError
@@ -38,8 +39,7 @@ from .errors import ParameterError
 LOCAL = "local"
 CONNECT_TIMEOUT = 10.0  # seconds to wait for a scheduler given by address
 
-__all__ = ["LOCAL", "dask_client", "local_workers", "map_ordered", "n_threads", "open_db",
-           "optional_client"]
+__all__ = ["LOCAL", "dask_client", "local_workers", "n_threads", "open_db", "optional_client"]
 
 
 def local_workers() -> int:
@@ -114,54 +114,6 @@ def optional_client(scheduler) -> Iterator:
 def n_threads(client) -> int:
     """Worker threads of a Dask client's cluster now (at least 1)."""
     return max(1, sum(client.nthreads().values()))
-
-
-def map_ordered(client, fn: Callable, items: Iterable, ahead: int | None = None, name: str = "mocapviz") -> Iterator:
-    """``fn(item)`` of every item as Dask tasks, yielded in the order of ``items`` (not of completion).
-
-    At most ``ahead`` tasks (default: four per worker thread, at least 4) are submitted beyond the one being
-    waited for, so that results waiting to be consumed stay few. When the consumer stops early (an error, a
-    cancelled run, the generator closed) the tasks still pending are cancelled.
-
-    Parameters
-    ----------
-    client : dask.distributed.Client
-    fn : callable, importable on the workers (a module-level function of mocapviz, or a functools.partial of one)
-    items : iterable of picklable, small arguments
-    ahead : int, optional
-    name : str
-        Prefix of the task keys (shown on the dashboard).
-
-    Yields
-    ------
-    fn(item) for each item, in order. An exception raised by a task is raised here, for the first failing item in
-    order.
-    """
-    ahead = max(4, 4 * n_threads(client)) if ahead is None else max(1, ahead)
-    pending = collections.deque()
-    items = iter(items)
-    try:
-        exhausted = False
-        while True:
-            while not exhausted and len(pending) < ahead:
-                try:
-                    item = next(items)
-                except StopIteration:
-                    exhausted = True
-                    break
-                pending.append(client.submit(fn, item, key=f"{name}-{uuid.uuid4().hex}"))
-            if not pending:
-                return
-            future = pending.popleft()
-            try:
-                result = future.result()
-            finally:
-                future.release()
-            yield result
-    finally:
-        if pending and client.status == "running":  # (a client already closed has dropped its futures)
-            with contextlib.suppress(RuntimeError, OSError):
-                client.cancel(list(pending))
 
 
 # ------------------------------------------------------------------------------------------- worker side

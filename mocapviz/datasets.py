@@ -22,7 +22,6 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
-import tempfile
 import urllib.parse
 import urllib.request
 from dataclasses import dataclass
@@ -33,6 +32,7 @@ import pandas as pd
 import pooch
 
 from .errors import MocapvizError
+from .store import atomic_folder
 
 DATA_URL_ENV = "MOCAPVIZ_DATA_URL"
 HOME_ENV = "MOCAPVIZ_HOME"
@@ -418,14 +418,5 @@ def _unpack(archive: Path, target: Path, replace: bool) -> None:
     ``target`` at the end. With ``replace``, an existing ``target`` is moved aside first; without, a ``target``
     that appeared meanwhile (another process) is kept.
     """
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix=f".{target.name}-", dir=target.parent) as scratch:
-        staging = Path(scratch) / "unpacked"
+    with atomic_folder(target, replace=replace) as staging:
         pooch.Untar(extract_dir=str(staging))(str(archive), "download", None)
-        if replace and target.exists():
-            os.replace(target, Path(scratch) / "previous")
-        try:
-            os.replace(staging, target)
-        except OSError:
-            if not target.is_dir():
-                raise

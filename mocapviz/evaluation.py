@@ -7,8 +7,8 @@ one). It is judged against the query document's label:
   nothing about a search method).
 - Relevant documents are the *other* documents with the query's label, among the documents that were searched
   (``candidates``; default: all).
-- precision@k = relevant documents among the first k of the ranking / k (k at most the ranking's length);
-  recall@k = relevant documents among the first k / all relevant documents.
+- precision@n = relevant documents among the first n of the ranking / n (n at most the ranking's length);
+  recall@n = relevant documents among the first n / all relevant documents.
 - Average precision (AP) = the mean, over *all* relevant documents, of the precision at the rank where each is
   found; a relevant document never found adds 0 (so a search that returns few hits is not rewarded for
   stopping early). mAP is the mean AP over queries; R-precision is precision@(number of relevant documents).
@@ -96,9 +96,9 @@ def average_precision(ranking: pd.DataFrame, n_relevant: int) -> float:
     return float((np.arange(1, len(ranks) + 1) / ranks).sum() / n_relevant)
 
 
-def precision_at(ranking: pd.DataFrame, k: int) -> float:
-    """Relevant documents among the first ``k`` of the ranking / k; a ranking shorter than k counts its missing
-    ranks as not relevant (a search that returns nothing has precision 0, not NaN)."""
-    if k < 1:
-        raise ParameterError(f"k must be at least 1; got {k}")
-    return float(ranking["relevant"].to_numpy(dtype=bool)[:k].sum() / k)
+def precision_at(ranking: pd.DataFrame, n: int) -> float:
+    """Relevant documents among the first ``n`` of the ranking / n (precision@n); a ranking shorter than n counts
+    its missing ranks as not relevant (a search that returns nothing has precision 0, not NaN)."""
+    if n < 1:
+        raise ParameterError(f"n must be at least 1; got {n}")
+    return float(ranking["relevant"].to_numpy(dtype=bool)[:n].sum() / n)

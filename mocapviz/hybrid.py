@@ -47,10 +47,10 @@ def _example_motion(db, example) -> tuple[Motion, int | None]:
     raise ParameterError(f"example must be a doc id of {db.path} or a Motion; got {type(example).__name__}")
 
 
-def hybrid_search(db, example, features=None, mode: str = "adaptive", mismatches: int = 1, feature_set: str = "2005",
+def hybrid_search(db, example, features=None, mode: str = "adaptive", mismatches: int = 1, relational_set: str = "2005",
                   numeric_set: str = "F15E", n_matches: int | None = None, indexes: dict | None = None, search=None,
                   exclude_document: bool = True) -> pd.DataFrame:  # fmt: skip
-    """Relational hits as candidate documents, re-ranked by whole-clip DTW on a numeric feature set.
+    """Relational hits as candidate documents, re-ranked by whole-clip DTW on a numeric set.
 
     Parameters
     ----------
@@ -60,13 +60,13 @@ def hybrid_search(db, example, features=None, mode: str = "adaptive", mismatches
         The query clip: a doc id of ``db`` (the whole document) or a Motion (resampled for the DTW when its rate
         differs from the database's).
     features : list of str, optional
-        The relational selection (names of ``feature_set``); default all, as :func:`~mocapviz.query.query_by_example`
-        (strict: few candidates). :data:`HYBRID_QUERIES` holds lenient ones per HDM05 class.
+        The relational selection (names of ``relational_set``); default all, as
+        :func:`~mocapviz.query.query_by_example` (strict: few candidates). :data:`HYBRID_QUERIES` holds lenient ones per HDM05 class.
     mode : {"adaptive", "fuzzy", "exact", "mismatch"}
         The relational hits (see :func:`~mocapviz.query.query_by_example`); lenient: ``adaptive`` or ``mismatch``.
     mismatches : int
         m for ``mode="mismatch"``.
-    feature_set : {"2005", "2006"}
+    relational_set : {"2005", "2006"}
         The relational feature set.
     numeric_set : str
         The numeric set of the DTW (:data:`mocapviz.features.NUMERIC_SETS`; default F15E, cm); that of ``search``
@@ -103,10 +103,10 @@ def hybrid_search(db, example, features=None, mode: str = "adaptive", mismatches
     motion, own = _example_motion(db, example)
     if search is None:
         search = SimilaritySearch(db, numeric_set)
-    elif search.feature_set != numeric_set:
-        raise ParameterError(f"numeric_set {numeric_set!r} differs from the search's {search.feature_set!r}; pass "
-                             f"numeric_set={search.feature_set!r} or a SimilaritySearch over {numeric_set}")
-    hits = query_by_example(db, motion, features, mode=mode, mismatches=mismatches, feature_set=feature_set,
+    elif search.numeric_set != numeric_set:
+        raise ParameterError(f"numeric_set {numeric_set!r} differs from the search's {search.numeric_set!r}; pass "
+                             f"numeric_set={search.numeric_set!r} or a SimilaritySearch over {numeric_set}")
+    hits = query_by_example(db, motion, features, mode=mode, mismatches=mismatches, relational_set=relational_set,
                             indexes=indexes)  # fmt: skip
     # each document once, with its best hit (hits come best first)
     best = hits.drop_duplicates("doc_id").rename(columns=HIT_COLUMNS)[["doc_id", *HIT_COLUMNS.values()]]

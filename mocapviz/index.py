@@ -7,44 +7,47 @@ documents). Positions are 0-based here (the paper counts from 1).
 
 InvertedIndex                 the index of one feature set; query methods:
     exact(query)              segments k with F[Q] = (w_k, ..., w_{k+L-1}), eq. (7)
-    fuzzy(sets)               w_{k+l} in V_l for every l, eq. (11)
-    adaptive_fuzzy(sets)      §5.2: the database segmentation coarsened to the fuzzy sets
+    fuzzy(fuzzy_sets)         w_{k+l} in V_l for every l, eq. (11)
+    adaptive_fuzzy(fuzzy_sets)
+                              §5.2: the database segmentation coarsened to the fuzzy sets
     mismatch(query, m)        at most m query segments may disagree (§5.2, last paragraph)
     adaptive_mismatch(query, selected, m)
                               m-mismatch hits on the segmentation coarsened to some features (§5.2)
 feature_group_values          the columns of each feature group of a set's values.
-build(db, feature_set)        one index per feature group (lower, upper, mix) over a MotionDB, saved with it.
-load(db, feature_set)         the saved indexes of a MotionDB (checked to be current).
+build(db, relational_set)     one index per feature group (lower, upper, mix) over a MotionDB, saved with it.
+load(db, relational_set)      the saved indexes of a MotionDB (checked to be current).
 """
 from __future__ import annotations
 
 import json
-import os
+import zipfile
 from pathlib import Path
 
 import numba
 import numpy as np
 
+from . import store
 from .errors import MotionDBError, ParameterError
-from .segment import FeatureSequence, decode, encode, segment
+from .segmentation import FeatureSequence, decode, encode, segment
+from .store import atomic_file, check_format, stamp
 
 FORMAT = "mocapviz.InvertedIndex"
 VERSION = 1
 
 
-def merge_adjacent(sets: list[np.ndarray]) -> list[np.ndarray]:
+def merge_adjacent(fuzzy_sets: list[np.ndarray]) -> list[np.ndarray]:
     """Conjoin adjacent fuzzy sets with a common element until no two neighbours intersect (§5.2).
 
     Parameters
     ----------
-    sets : list of np.ndarray [shape=(n_l,)], int64 codes
+    fuzzy_sets : list of np.ndarray [shape=(n_l,)], int64 codes
 
     Returns
     -------
     list of sorted unique code arrays, V_l ∩ V_{l+1} = ∅ for all l.
     """
     out: list[np.ndarray] = []
-    for s in sets:
+    for s in fuzzy_sets:
         s = np.unique(np.asarray(s, dtype=np.int64))
         if out and np.intersect1d(out[-1], s).size:
             out[-1] = np.union1d(out[-1], s)
@@ -402,7 +405,7 @@ class InvertedIndex:
         q = self._query_codes(query)
         return self._fuzzy_hits(q, np.arange(q.size), q.size)
 
-    def fuzzy(self, sets) -> np.ndarray:
+    def fuzzy(self, fuzzy_sets) -> np.ndarray:
         """Fuzzy hits H_D(F[Q]_fuz) (§5.2, eq. 11): w_{k+l} ∈ V_l for all l.
 
         ∩_l (L(V_l) - l), computed from the smallest union list L(V_s): its positions shifted by -s are the
@@ -410,14 +413,14 @@ class InvertedIndex:
 
         Parameters
         ----------
-        sets : list of (codes [shape=(n_l,)] or bool vectors [shape=(n_l, f)])
+        fuzzy_sets : list of (codes [shape=(n_l,)] or bool vectors [shape=(n_l, f)])
             The fuzzy sets V_1..V_L; adjacent sets with a common element are conjoined first.
 
         Returns
         -------
         np.ndarray [shape=(H,)], int64: sorted 0-based positions k.
         """
-        return self._fuzzy_hits(*self._query_sets(sets))
+        return self._fuzzy_hits(*self._query_sets(fuzzy_sets))
 
     def _fuzzy_hits(self, codes: np.ndarray, set_id: np.ndarray, n_sets: int) -> np.ndarray:
         member, sizes = self._membership(codes, set_id, n_sets)
@@ -427,7 +430,7 @@ class InvertedIndex:
         out = np.empty(cand.size, dtype=np.int64)
         return out[: _verify_shifted(self.rank, self.segment_doc, member, cand, s, out)]
 
-    def adaptive_fuzzy(self, sets) -> np.ndarray:
+    def adaptive_fuzzy(self, fuzzy_sets) -> np.ndarray:
         """Adaptive fuzzy hits (§5.2): the segmentation of D coarsened to maximal runs within each V_l.
 
         A hit starts at a segment k_1 whose vector is in V_1 while its predecessor's is not (or that begins
@@ -437,14 +440,14 @@ class InvertedIndex:
 
         Parameters
         ----------
-        sets : as for :meth:`fuzzy`.
+        fuzzy_sets : as for :meth:`fuzzy`.
 
         Returns
         -------
         np.ndarray [shape=(H, L+1)], int64: per hit the 0-based segment indices k_1 < ... < k_L where each
         coarsened segment starts, and the index one past the end of the last one.
         """
-        codes, set_id, n_sets = self._query_sets(sets)
+        codes, set_id, n_sets = self._query_sets(fuzzy_sets)
         member, sizes = self._membership(codes, set_id, n_sets)
         if self.n_segments == 0 or sizes.min() == 0:
             return np.empty((0, n_sets + 1), dtype=np.int64)
@@ -564,14 +567,10 @@ class InvertedIndex:
         """Write the index to ``path`` (.npz, no pickle) atomically: a temporary file renamed into place."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        header = {"format": FORMAT, "version": VERSION, "n_features": self.n_features,
+        header = {**stamp(FORMAT, VERSION), "n_features": self.n_features,
                   "feature_names": list(self.feature_names), "meta": self.meta}  # fmt: skip
-        tmp = path.with_name(path.name + ".tmp")
-        with open(tmp, "wb") as fh:
+        with atomic_file(path) as tmp, open(tmp, "wb") as fh:  # (np.savez would add ".npz" to a bare name)
             np.savez(fh, header=np.array(json.dumps(header)), **self._stored())
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
 
     @classmethod
     def load(cls, path) -> InvertedIndex:
@@ -587,11 +586,9 @@ class InvertedIndex:
             with np.load(path, allow_pickle=False) as z:
                 header = json.loads(str(z["header"]))
                 arrays = {k: z[k] for k in z.files if k != "header"}
-        except (OSError, ValueError, KeyError) as exc:
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
             raise MotionDBError(f"{path}: not a readable index ({exc})") from None
-        if header.get("format") != FORMAT or header.get("version") != VERSION:
-            raise MotionDBError(f"{path}: index format {header.get('format')} v{header.get('version')}, "
-                                f"this mocapviz reads {FORMAT} v{VERSION}; rebuild it with `mocapviz index`")
+        check_format(header, FORMAT, VERSION, path, "rebuild it with `mocapviz index DB`")
         codes = np.repeat(arrays["list_codes"], np.diff(arrays["list_offsets"]))
         seq_codes = np.empty_like(codes)
         seq_codes[arrays["positions"]] = codes
@@ -600,17 +597,17 @@ class InvertedIndex:
 
 
 # ---------------------------------------------------------------------- MotionDB indexes
-def index_path(db, feature_set: str, group: str) -> Path:
+def index_path(db, relational_set: str, group: str) -> Path:
     """Where the index of one feature group of a MotionDB is stored."""
-    return Path(db.path) / "index" / f"relational-{feature_set}-{group}.npz"
+    return Path(db.path) / "index" / f"relational-{relational_set}-{group}.npz"
 
 
-def feature_group_values(values: np.ndarray, feature_set: str = "2005") -> dict:
+def feature_group_values(values: np.ndarray, relational_set: str = "2005") -> dict:
     """The columns of each feature group (lower, upper, mix) of a set's feature values.
 
     Parameters
     ----------
-    values : np.ndarray [shape=(N, f)], bool -- :func:`mocapviz.features.relational` of the set.
+    values : np.ndarray [shape=(N, f)], bool -- :func:`mocapviz.features.relational_features` of the set.
 
     Returns
     -------
@@ -618,29 +615,29 @@ def feature_group_values(values: np.ndarray, feature_set: str = "2005") -> dict:
     """
     from .features import feature_groups, feature_names
 
-    names = feature_names(feature_set)
+    names = feature_names(relational_set)
     out = {}
-    for group, members in feature_groups(feature_set).items():
+    for group, members in feature_groups(relational_set).items():
         cols = [names.index(n) for n in members]
         adjacent = cols == list(range(cols[0], cols[0] + len(cols)))
         out[group] = (members, values[:, cols[0] : cols[0] + len(cols)] if adjacent else values[:, cols])
     return out
 
 
-def build(db, feature_set: str = "2005", progress: bool = True, values: np.ndarray | None = None,
+def build(db, relational_set: str = "2005", progress: bool = True, values: np.ndarray | None = None,
           scheduler=None, save: bool = True) -> dict:
     """Build and save one inverted index per feature group (lower, upper, mix) over a MotionDB (§5.3).
 
     Parameters
     ----------
     db : MotionDB
-    feature_set : {"2005", "2006"}
+    relational_set : {"2005", "2006"}
     progress : bool
         Progress bar over the documents while the features are computed.
     values : np.ndarray [shape=(N, f)], bool, optional
         The database's relational features if already computed.
     scheduler : None, "local", str or dask.distributed.Client
-        Compute the features as Dask tasks (see :func:`mocapviz.features.relational`); default: threads here.
+        Compute the features as Dask tasks (see :func:`mocapviz.features.relational_features`); default: threads here.
         The index itself is built and written here, each file renamed into place when complete.
     save : bool
         Write the indexes into ``DB/index/`` (False: in memory only, e.g. for a read-only database).
@@ -649,23 +646,23 @@ def build(db, feature_set: str = "2005", progress: bool = True, values: np.ndarr
     -------
     dict: group name -> InvertedIndex (segment positions over the whole database; documents kept apart).
     """
-    from .features import relational
+    from .features import relational_features
 
     if values is None:
-        values, _ = relational(db, feature_set, progress=progress, scheduler=scheduler)
+        values, _ = relational_features(db, relational_set, progress=progress, scheduler=scheduler)
     doc_starts = db.documents["start"].to_numpy()
     out = {}
-    for group, (members, group_values) in feature_group_values(values, feature_set).items():
-        meta = {"generation": db.manifest["generation"], "n_frames": db.n_frames, "feature_set": feature_set,
+    for group, (members, group_values) in feature_group_values(values, relational_set).items():
+        meta = {"generation": db.manifest["generation"], "n_frames": db.n_frames, "relational_set": relational_set,
                 "group": group}  # fmt: skip
         index = InvertedIndex.from_features(group_values, doc_starts, members, meta)
         if save:
-            index.save(index_path(db, feature_set, group))
+            index.save(index_path(db, relational_set, group))
         out[group] = index
     return out
 
 
-def load_or_build(db, feature_set: str = "2005", save: bool = True, progress: bool = False) -> dict:
+def load_or_build(db, relational_set: str = "2005", save: bool = True, progress: bool = False) -> dict:
     """The saved indexes of a MotionDB when current (:func:`load`), else built now (:func:`build`), and saved
     unless ``save`` is False (then nothing is written: a read-only database can be queried).
 
@@ -673,13 +670,11 @@ def load_or_build(db, feature_set: str = "2005", save: bool = True, progress: bo
     -------
     dict: group name -> InvertedIndex.
     """
-    try:
-        return load(db, feature_set)
-    except MotionDBError:  # missing or stale
-        return build(db, feature_set, progress=progress, save=save)
+    return store.load_or_build(lambda: load(db, relational_set),
+                               lambda: build(db, relational_set, progress=progress, save=save))
 
 
-def load(db, feature_set: str = "2005") -> dict:
+def load(db, relational_set: str = "2005") -> dict:
     """The saved indexes of a MotionDB, one per feature group.
 
     Raises
@@ -690,13 +685,13 @@ def load(db, feature_set: str = "2005") -> dict:
     """
     from .features import feature_groups
 
-    option = "" if feature_set == "2005" else f" --feature-set {feature_set}"
-    how = f"`mocapviz index {db.path}{option}` or mocapviz.index.build(db, {feature_set!r})"
+    option = "" if relational_set == "2005" else f" --relational-set {relational_set}"
+    how = f"`mocapviz index {db.path}{option}` or mocapviz.index.build(db, {relational_set!r})"
     out = {}
-    for group in feature_groups(feature_set):
-        path = index_path(db, feature_set, group)
+    for group in feature_groups(relational_set):
+        path = index_path(db, relational_set, group)
         if not path.is_file():
-            raise MotionDBError(f"{db.path} has no {feature_set} relational index; build it with {how}")
+            raise MotionDBError(f"{db.path} has no {relational_set} relational index; build it with {how}")
         index = InvertedIndex.load(path)
         if index.meta.get("generation") != db.manifest["generation"] or index.meta.get("n_frames") != db.n_frames:
             raise MotionDBError(f"{path} was built before the database last changed; rebuild it with {how}")

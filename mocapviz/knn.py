@@ -2,7 +2,7 @@
 
 KnnIndex               a search structure over the frames of a feature array (N, d), e.g. F15E (N, 15) in cm:
                        exact and eps-approximate k nearest neighbours (§3.3, Table 1), "radius r, at most k"
-                       (§4.1, the search step of the lazy neighbourhood graph), batched over all cores. Engines:
+                       (§4.1, the search step of the lazy neighbourhood graph), batched over threads. Engines:
                        "ckdtree" (scipy.spatial.cKDTree, the preprocessing of §4.1) and "brute" (numpy/scipy,
                        chunked, exact: the reference in the tests and the baseline of the benchmark).
 describe_frames        database frames -> a table of documents, frames within them and labels (for results).
@@ -25,9 +25,7 @@ Conventions shared by all functions:
 from __future__ import annotations
 
 import heapq
-import os
 import time
-from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
@@ -35,8 +33,9 @@ import pandas as pd
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
+from .batch import map_ordered, parallelism
 from .errors import ParameterError
-from .validation import count
+from .validation import count, one_of, renamed
 
 ENGINES = ("ckdtree", "brute")
 LEAFSIZE = 16  # points per kd-tree leaf
@@ -123,14 +122,6 @@ def _check_eps(eps) -> float:
     return e
 
 
-def _check_workers(workers) -> int:
-    """Number of threads: ``-1`` all CPUs, otherwise a positive int."""
-    if isinstance(workers, (bool, np.bool_)) or not isinstance(workers, (int, np.integer)) or not (
-            workers == -1 or workers >= 1):  # fmt: skip
-        raise ParameterError(f"workers must be -1 (all CPUs) or a positive integer; got {workers!r}")
-    return (os.cpu_count() or 1) if workers == -1 else int(workers)
-
-
 def _check_queries(x, dim: int) -> np.ndarray:
     """Queries as a float64 (q, d) array; a ValueError names the first non-finite query row."""
     arr = np.asarray(x)
@@ -167,22 +158,22 @@ def _build_ckdtree(data: np.ndarray, leafsize: int) -> tuple[cKDTree, np.ndarray
     return tree, rank
 
 
-def _leaf_order(tree: cKDTree, rank: np.ndarray, x: np.ndarray, workers: int) -> np.ndarray:
+def _leaf_order(tree: cKDTree, rank: np.ndarray, x: np.ndarray, threads: int) -> np.ndarray:
     """A permutation of the queries x (q, d) in the tree's leaf order (of a roughly nearest point, found by a
     cheap approximate 1-NN search), so that consecutive queries visit the same nodes and points: on a 1M-frame
     F15E tree a batch of random queries then takes about a third less time."""
-    _, near = tree.query(x, k=1, eps=_ORDER_EPS, workers=workers)
+    _, near = tree.query(x, k=1, eps=_ORDER_EPS, workers=threads)
     return np.argsort(rank[near], kind="stable")
 
 
-def _query_ckdtree(structure, x: np.ndarray, k: int, radius: float | None, eps: float, workers: int):
+def _query_ckdtree(structure, x: np.ndarray, k: int, radius: float | None, eps: float, threads: int):
     """k nearest (within radius) of queries x (q, d): distances (q, k) float64, positions in the tree's data
     (q, k) int64 with -1 for missing neighbours. Rows sorted by distance (ties in any order). Batches of at
     least ``_ORDER_MIN`` queries are searched in leaf order."""
     tree, rank = structure
     bound = np.inf if radius is None else radius
-    order = _leaf_order(tree, rank, x, workers) if len(x) >= _ORDER_MIN else np.arange(len(x))
-    d_sorted, i_sorted = tree.query(x[order], k=k, eps=eps, distance_upper_bound=bound, workers=workers)
+    order = _leaf_order(tree, rank, x, threads) if len(x) >= _ORDER_MIN else np.arange(len(x))
+    d_sorted, i_sorted = tree.query(x[order], k=k, eps=eps, distance_upper_bound=bound, workers=threads)
     d, i = np.empty((len(x), k)), np.empty((len(x), k), dtype=np.int64)
     d[order], i[order] = d_sorted.reshape(len(x), k), i_sorted.reshape(len(x), k)
     i[i == tree.n] = -1
@@ -207,13 +198,13 @@ def _brute_chunk(data: np.ndarray, x: np.ndarray, k: int, radius: float | None):
     return np.sqrt(d2k), idx
 
 
-def _query_brute(data: np.ndarray, x: np.ndarray, k: int, radius: float | None, eps: float, workers: int):
-    """Brute-force search (exact whatever ``eps``), chunks of queries over ``workers`` threads; see
+def _query_brute(data: np.ndarray, x: np.ndarray, k: int, radius: float | None, eps: float, threads: int):
+    """Brute-force search (exact whatever ``eps``), chunks of queries over ``threads`` threads; see
     :func:`_brute_chunk` for the arrays returned."""
     size = max(1, _BRUTE_CHUNK_BYTES // (8 * len(data)))
     starts = range(0, max(len(x), 1), size)  # one (empty) chunk for an empty batch
-    with ThreadPoolExecutor(min(workers, len(starts))) as pool:
-        parts = list(pool.map(lambda s: _brute_chunk(data, x[s : s + size], k, radius), starts))
+    parts = list(map_ordered(lambda s: _brute_chunk(data, x[s : s + size], k, radius), starts,
+                             threads=min(threads, len(starts)), name="mocapviz-knn"))  # fmt: skip
     return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
@@ -266,8 +257,7 @@ class KnnIndex:
     """
 
     def __init__(self, features, engine: str = "ckdtree", valid=None, leafsize: int = LEAFSIZE):
-        if engine not in _ENGINES:
-            raise ParameterError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINES)}")
+        one_of(engine, "engine", ENGINES)
         if isinstance(leafsize, (bool, np.bool_)) or not isinstance(leafsize, (int, np.integer)) or leafsize < 1:
             raise ParameterError(f"leafsize must be a positive integer; got {leafsize!r}")
         self._features = _check_features(features)
@@ -290,7 +280,9 @@ class KnnIndex:
         return (f"KnnIndex({self.engine}: {self.n_indexed:,} of {self.n_frames:,} frames, d={self.dim}, "
                 f"{self.nbytes / 2**20:.1f} MiB, built in {self.build_seconds:.2f} s)")  # fmt: skip
 
-    def query(self, x, k: int, radius: float | None = None, eps: float = 0.0, workers: int = -1, exclude=None):
+    @renamed(workers="threads")
+    def query(self, x, k: int, radius: float | None = None, eps: float = 0.0, threads: int | None = None,
+              exclude=None):
         """The k nearest valid frames of each query (§3.3); with ``radius``, at most k within r (§4.1).
 
         Parameters
@@ -303,8 +295,9 @@ class KnnIndex:
         eps : float
             Approximation: the k-th returned distance is at most (1 + eps) times the true k-th nearest distance
             (0: exact). The brute engine is always exact.
-        workers : int
-            Threads, -1 for all CPUs.
+        threads : int, optional
+            Threads of the search (default :func:`mocapviz.batch.default_threads`: the cores this process may use,
+            at most 8). (Formerly ``workers``: still accepted, with a FutureWarning.)
         exclude : np.ndarray [shape=(q, 2) or (2,)], int, optional
             Per query, a [start, stop) range of frames it must not return (e.g. the query's own document, so that
             its neighbouring frames do not fill the list). Searched as k + (frames of the range) neighbours and
@@ -319,26 +312,26 @@ class KnnIndex:
         ------
         ValueError
             x not of dimension d or not finite (the query row is named), k out of range, radius <= 0, eps < 0,
-            bad workers, ``exclude`` not one [start, stop) range per query.
+            bad threads, ``exclude`` not one [start, stop) range per query.
         TypeError
             k not an integer.
         """
         queries = _check_queries(x, self.dim)
         k = count(k, "k", 1, self.n_indexed, "the number of indexed frames")
-        radius, eps, workers = _check_radius(radius), _check_eps(eps), _check_workers(workers)
+        radius, eps, threads = _check_radius(radius), _check_eps(eps), parallelism(threads)
         if exclude is None:
-            d, i = self._search(queries, k, radius, eps, workers)
+            d, i = self._search(queries, k, radius, eps, threads)
         else:
-            d, i = self._search_excluding(queries, k, radius, eps, workers, _check_exclude(exclude, len(queries)))
+            d, i = self._search_excluding(queries, k, radius, eps, threads, _check_exclude(exclude, len(queries)))
         return (d[0], i[0]) if np.ndim(x) == 1 else (d, i)
 
-    def _search(self, queries: np.ndarray, k: int, radius, eps: float, workers: int):
+    def _search(self, queries: np.ndarray, k: int, radius, eps: float, threads: int):
         """Checked queries (q, d) -> distances (q, k), database frame numbers (q, k) (-1 missing)."""
-        d, i = _ENGINES[self.engine][1](self._structure, queries, k, radius, eps, workers)
+        d, i = _ENGINES[self.engine][1](self._structure, queries, k, radius, eps, threads)
         d, i = _ties_by_frame(d, i)
         return d, np.where(i >= 0, self.frames[np.maximum(i, 0)], -1)
 
-    def _search_excluding(self, queries, k: int, radius, eps: float, workers: int, ranges: np.ndarray):
+    def _search_excluding(self, queries, k: int, radius, eps: float, threads: int, ranges: np.ndarray):
         """:meth:`_search` leaving out each query's [start, stop) frame range. Queries are searched in groups of
         similar range length (next power of two), each asking for k + that many neighbours."""
         d_out = np.full((len(queries), k), np.inf)
@@ -348,7 +341,7 @@ class KnnIndex:
         for w in np.unique(width):
             rows = np.flatnonzero(width == w)
             wide = min(k + int(w), self.n_indexed)
-            d, i = self._search(queries[rows], wide, radius, eps, workers)
+            d, i = self._search(queries[rows], wide, radius, eps, threads)
             keep = (i >= 0) & ~((i >= ranges[rows, :1]) & (i < ranges[rows, 1:]))
             order = np.argsort(~keep, axis=1, kind="stable")[:, :k]  # kept entries first, in distance order
             kept = np.take_along_axis(keep, order, axis=1)
@@ -414,7 +407,7 @@ def _check_fat_graph(radius, k) -> tuple[float, int]:
     return float(radius), int(k)
 
 
-def _neighbour_table(features, radius: float, k: int, valid, workers: int, chunk: int = 1 << 16):
+def _neighbour_table(features, radius: float, k: int, valid, threads: int, chunk: int = 1 << 16):
     """Each valid frame's at most k nearest *other* valid frames within ``radius`` (§5.3 step 1, kd-tree).
 
     Returns ``frames`` (M,) int64, the valid frame numbers, and ``nb`` (M, k) int64 positions in ``frames`` of
@@ -430,7 +423,7 @@ def _neighbour_table(features, radius: float, k: int, valid, workers: int, chunk
     data = index._features
     for s in range(0, len(frames), chunk):
         rows = frames[s : s + chunk]
-        _, found = index.query(data[rows], k + 1, radius=radius, workers=workers)
+        _, found = index.query(data[rows], k + 1, radius=radius, threads=threads)
         found[found == rows[:, None]] = -1  # the frame itself
         kept = (found >= 0) & (np.cumsum(found >= 0, axis=1) <= k)
         positions = np.searchsorted(frames, found)
@@ -494,7 +487,7 @@ def _full_cluster(n: int, frames: np.ndarray, cluster: np.ndarray, bases: np.nda
     return frames[bases], out
 
 
-def base_poses(features, radius: float, k: int = 32, valid=None, workers: int = -1):
+def base_poses(features, radius: float, k: int = 32, valid=None, threads: int | None = None):
     """Fat-graph base poses in O(k n log n) (Krüger et al. 2010 §5.3, replacing the O(n^2) step of [SO06]).
 
     1. A radius search from every valid frame: its at most k nearest other frames at distance < radius
@@ -513,8 +506,8 @@ def base_poses(features, radius: float, k: int = 32, valid=None, workers: int = 
         Most neighbours per frame. Memory: 8 k N bytes for the neighbour table.
     valid : np.ndarray [shape=(N,)], bool, optional
         Frames to cluster (default all).
-    workers : int
-        Threads of the radius search, -1 for all CPUs.
+    threads : int, optional
+        Threads of the radius search (default :func:`mocapviz.batch.default_threads`).
 
     Returns
     -------
@@ -522,7 +515,7 @@ def base_poses(features, radius: float, k: int = 32, valid=None, workers: int = 
     cluster : np.ndarray [shape=(N,)], int64, the base pose of each frame; -1 for frames not valid.
     """
     radius, k = _check_fat_graph(radius, k)
-    frames, nb = _neighbour_table(features, radius, k, valid, workers)
+    frames, nb = _neighbour_table(features, radius, k, valid, threads)
     rev, ptr = _reverse_lists(nb)
     cluster, bases = _greedy_cover(nb, rev, ptr)
     return _full_cluster(len(np.asarray(features)), frames, cluster, bases)

@@ -16,22 +16,23 @@ import pandas as pd
 
 from . import index as index_mod
 from .errors import ParameterError
-from .features import feature_groups, feature_names, relational
-from .segment import segment
+from .features import feature_groups, feature_names, relational_features
+from .segmentation import segment
 
 MODES = ("adaptive", "fuzzy", "exact", "mismatch")
 
 
-def _check_features(features, feature_set: str) -> list[str]:
-    names = feature_names(feature_set)
+def _check_features(features, relational_set: str) -> list[str]:
+    names = feature_names(relational_set)
     if features is None:
         return list(names)
     features = [features] if isinstance(features, str) else list(features)
     if not features:
-        raise ParameterError(f"no features selected; choose some of the {feature_set} set: {', '.join(names)}")
+        raise ParameterError(f"no features selected; choose some of the {relational_set} set: {', '.join(names)}")
     unknown = [f for f in features if f not in names]
     if unknown:
-        raise ParameterError(f"unknown feature(s) {', '.join(unknown)}; the {feature_set} set has: {', '.join(names)}")
+        raise ParameterError(f"unknown feature(s) {', '.join(unknown)}; the {relational_set} set has: "
+                             f"{', '.join(names)}")
     return features
 
 
@@ -60,7 +61,7 @@ def _group_hits(idx: index_mod.InvertedIndex, q_values: np.ndarray, chosen: list
 
 
 def query_by_example(db, example, features=None, mode: str = "adaptive", mismatches: int = 1,
-                     feature_set: str = "2005", indexes: dict | None = None, allowed=None) -> pd.DataFrame:
+                     relational_set: str = "2005", indexes: dict | None = None, allowed=None) -> pd.DataFrame:
     """Find the stretches of a MotionDB that move like ``example`` in the chosen feature aspects.
 
     Parameters
@@ -70,7 +71,7 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     example : Motion
         The query clip (any skeleton; e.g. ``db.motion(3)[120:360]`` or ``mocapviz.load(path)``).
     features : list of str, optional
-        Feature names of ``feature_set`` (any groups); the rest are "don't care". Default: all.
+        Feature names of ``relational_set`` (any groups); the rest are "don't care". Default: all.
     mode : {"adaptive", "fuzzy", "exact", "mismatch"}
         In every mode only the selected features count and the query is segmented on them alone.
         ``adaptive`` (default): adaptive fuzzy hits, the database segmentation coarsened to the query's
@@ -92,7 +93,7 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     allowed : list of int, optional
         For ``mode="mismatch"``: the 0-based query segments (of the selected features' segmentation) that may
         disagree (default: any).
-    feature_set : {"2005", "2006"}
+    relational_set : {"2005", "2006"}
     indexes : dict, optional
         Group -> InvertedIndex, if already loaded (default :func:`mocapviz.index.load`).
 
@@ -117,17 +118,17 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     if mode == "mismatch" and not (isinstance(mismatches, (int, np.integer)) and mismatches >= 0):
         raise ParameterError(f"mismatches must be an integer >= 0 (query segments that may disagree), "
                              f"got {mismatches!r}")
-    chosen = _check_features(features, feature_set)
-    indexes = index_mod.load(db, feature_set) if indexes is None else indexes
+    chosen = _check_features(features, relational_set)
+    indexes = index_mod.load(db, relational_set) if indexes is None else indexes
     docs = db.documents
     longest = float((docs["n_frames"] / docs["fps"]).max()) if len(docs) else 0.0
     if example.duration > longest:
         raise ParameterError(f"the query lasts {example.duration:.2f} s, longer than every document of {db.path} "
                          f"(longest {longest:.2f} s); choose a shorter span")
-    values, names = relational(example, feature_set)
+    values, names = relational_features(example, relational_set)
     doc_fps = docs["fps"].to_numpy(np.float64)  # per document: a database may mix frame rates
     tables = []
-    for group, members in feature_groups(feature_set).items():
+    for group, members in feature_groups(relational_set).items():
         picked = [members.index(f) for f in chosen if f in members]
         if not picked:
             continue

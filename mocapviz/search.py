@@ -1,5 +1,5 @@
 """Similarity search: the clips, or stretches of long takes, of a MotionDB that move most like a query, ranked by
-DTW on a numeric feature set (Krüger et al. 2010 §3.2 features; DTW as in :mod:`mocapviz.match.dtw`).
+DTW on a numeric feature set (Krüger et al. 2010 §3.2 features; DTW as in :mod:`mocapviz.match.time_warping`).
 
 Two tasks:
 
@@ -40,14 +40,14 @@ import numpy as np
 import pandas as pd
 
 from .errors import ParameterError
-from .features import numeric, numeric_of
+from .features import numeric_features, numeric_of
 from .features.numeric import NUMERIC_SETS, default_pca
 from .knn import KnnIndex
 from .match.bounds import box_rows, range_of, row_bounds
-from .match.dtw import dtw, select_matches
 from .match.pruned import search_ranges
+from .match.time_warping import dtw, select_matches
 from .motion import Motion
-from .validation import count
+from .validation import count, one_of
 
 MODES = ("exact", "fast", "brute")
 NEIGHBOURS = 32  # k: nearest database frames per query frame (bounds and fast mode's seeds)
@@ -66,14 +66,14 @@ def _mode(mode) -> str:
 
 
 class SimilaritySearch:
-    """DTW search over one numeric feature set of a MotionDB (see the module docstring).
+    """DTW search over one numeric set of a MotionDB (see the module docstring).
 
     Parameters
     ----------
     db : MotionDB
-    feature_set : str
-        A numeric feature set (:data:`mocapviz.features.NUMERIC_SETS`), the stored one when current (``mocapviz
-        features DB``), else computed now. Default F15E (cm).
+    numeric_set : str
+        A numeric set (:data:`mocapviz.features.NUMERIC_SETS`), the stored one when current (``mocapviz features
+        DB``), else computed now. Default F15E (cm).
     documents : sequence of int, optional
         The doc ids that may be returned (e.g. the other actors' clips in a leave-actor-out evaluation); default
         every document.
@@ -82,15 +82,14 @@ class SimilaritySearch:
 
     Attributes
     ----------
-    features : np.ndarray [shape=(N, d)], float32, the feature set's values of every database frame.
+    numeric_set : str, the numeric set searched.
+    features : np.ndarray [shape=(N, d)], float32, the numeric set's values of every database frame.
     documents : pd.DataFrame, the searchable documents (doc_id, name, start, n_frames, labels), by start.
     """
 
-    def __init__(self, db, feature_set: str = "F15E", documents=None, k: int = NEIGHBOURS):
-        if feature_set not in NUMERIC_SETS:
-            raise ParameterError(f"unknown numeric feature set {feature_set!r}; choose one of {', '.join(NUMERIC_SETS)}")
-        self.db, self.feature_set, self.k = db, feature_set, count(k, "k")
-        self.features = np.asarray(numeric_of(db, feature_set))
+    def __init__(self, db, numeric_set: str = "F15E", documents=None, k: int = NEIGHBOURS):
+        self.db, self.numeric_set, self.k = db, one_of(numeric_set, "numeric set", NUMERIC_SETS), count(k, "k")
+        self.features = np.asarray(numeric_of(db, numeric_set))
         docs = db.documents.sort_values("start")
         if documents is not None:
             wanted = pd.Index(np.asarray(documents, dtype=np.int64).reshape(-1))
@@ -110,7 +109,7 @@ class SimilaritySearch:
         self._low, self._high = _boxes(self.features, self._lo, self._hi)
         self._index = None
         self._coarse = None
-        rate = db.fps or float(self.documents["fps"].median())
+        rate = db.typical_fps
         self.pool = max(1, round(POOL_SECONDS * rate))
 
     @property
@@ -168,18 +167,18 @@ class SimilaritySearch:
                 example = load(Path(example))
             if not isinstance(example, Motion):
                 raise ParameterError(f"example must be a doc id, a Motion or a motion file; got {type(example).__name__}")
-            rate = self.db.fps
+            rate = self.db.typical_fps
             if rate and abs(example.fps - rate) > 1e-6:
                 example = example.resample(rate)
             a, b = _span(frames, example.n_frames, str(example.source or "the example"))
-            pca = default_pca(self.db) if self.feature_set.startswith("Fp") else None
+            pca = default_pca(self.db) if self.numeric_set.startswith("Fp") else None
             try:
-                values = numeric(example[a:b], self.feature_set, pca=pca, progress=False)
+                values = numeric_features(example[a:b], self.numeric_set, pca=pca, progress=False)
             except ValueError as exc:  # a non-finite position of the clip, named with its frame and joint
                 raise ParameterError(f"the query: {exc}") from None
         bad = ~np.isfinite(values).all(axis=1)
         if bad.any():
-            raise ParameterError(f"the query's {self.feature_set} features are not finite at frame "
+            raise ParameterError(f"the query's {self.numeric_set} features are not finite at frame "
                                  f"{a + int(np.argmax(bad))}")  # fmt: skip
         return np.ascontiguousarray(values, dtype=np.float32), doc_id
 
@@ -406,12 +405,12 @@ def _box(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return q.min(axis=0).astype(np.float64), q.max(axis=0).astype(np.float64)
 
 
-def _whole_costs(q, x, lo, hi, order, bound, rows, k: int, prune: bool, budget: int):
+def _whole_costs(q, x, lo, hi, order, bound, rows, n_matches: int, prune: bool, budget: int):
     """Whole-range DTW costs (R,) of the query against ranges [lo, hi) (sorted by lo; inf: not aligned, or pruned
-    above the running k-th best normalised cost), the ranges aligned and the cells computed
+    above the running n_matches-th best normalised cost), the ranges aligned and the cells computed
     (:func:`mocapviz.match.pruned.search_ranges`)."""
-    first, _, found, aligned, cells = search_ranges(q, x, lo, hi, order, bound, rows, k, True, 1, prune, budget,
-                                                    *_box(q))  # fmt: skip
+    first, _, found, aligned, cells = search_ranges(q, x, lo, hi, order, bound, rows, n_matches, True, 1, prune,
+                                                    budget, *_box(q))  # fmt: skip
     costs = np.full(len(lo), np.inf)
     costs[np.searchsorted(lo, first)] = found
     return costs, aligned, cells

@@ -1,34 +1,188 @@
-"""Files on disk written so that a reader never sees a half-written one.
+"""Everything mocapviz writes to disk goes through here, so that a reader never sees a half-written file.
 
-atomic_write   bytes -> a temporary file with a unique name beside the target, fsync'ed, renamed into place
-               (two writers never share a temporary file; a killed writer leaves the previous file intact).
+atomic_write   bytes -> ``target``, atomically (see :func:`atomic_file`).
+atomic_file    a unique temporary path beside a target to write to; fsync'ed and renamed onto the target when the
+               block succeeds, removed when it fails (two writers never share a temporary file; a killed writer
+               leaves the previous file intact, plus at most a ``.<name>.*.tmp`` that the next write ignores).
+temporary_file the unique temporary path alone, and commit (fsync + rename), for a rename that must happen
+commit         under a lock (numeric features swap data and header together).
+atomic_folder  the same for a folder (a reproduced experiment, an unpacked archive).
+locked         an advisory lock (``fcntl.flock`` on ``<folder>/.lock``): exclusive for writers of a MotionDB or of its
+               derived data, shared for readers that must pair files written together.
+stamp          the header fields every stored format carries (format, version, written_by).
+check_format   the one format / version check of a stored header.
+load_or_build  a derived artefact from disk when it is current, else built (and, by the builder, stored).
+
+Formats stored: the MotionDB manifest (``mocapviz.MotionDB``), relational indexes (``mocapviz.InvertedIndex``),
+numeric-feature headers (``mocapviz.numeric-features``) and PCA models (``mocapviz.PCAModel``).
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
+import shutil
 import tempfile
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TypeVar
+
+from .errors import MotionDBError
+
+T = TypeVar("T")
+LOCK_FILE = ".lock"
 
 
 def atomic_write(target: str | os.PathLike, data: bytes) -> None:
-    """Replace ``target`` by ``data`` atomically: a unique temporary file in the same folder, fsync, rename.
+    """Replace ``target`` by ``data`` atomically (:func:`atomic_file`).
 
     Raises
     ------
     OSError
         The folder does not exist or is not writable (the temporary file is removed).
     """
+    with atomic_file(target) as tmp:
+        tmp.write_bytes(data)
+
+
+@contextlib.contextmanager
+def atomic_file(target: str | os.PathLike) -> Iterator[Path]:
+    """A new, empty temporary file beside ``target`` for the block to write; when the block returns it is
+    committed onto ``target`` (:func:`commit`), when the block raises it is removed and ``target`` is untouched.
+
+    Yields
+    ------
+    pathlib.Path of the temporary file (write it by path: ``np.save``, ``to_parquet``, ``open_memmap``, ...).
+    """
+    with temporary_file(target) as tmp:
+        yield tmp
+        commit(tmp, target)
+
+
+@contextlib.contextmanager
+def temporary_file(target: str | os.PathLike) -> Iterator[Path]:
+    """A new, empty file beside ``target`` with a unique name (``.<target name>.<random>.tmp``), removed when the
+    block ends unless the block has committed it (:func:`commit`). For writers that must rename under a lock."""
     target = Path(target)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    fd, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    os.close(fd)
+    tmp = Path(name)
     try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, target)
-    except BaseException:
+        yield tmp
+    finally:
         with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+            tmp.unlink()
+
+
+def commit(tmp: str | os.PathLike, target: str | os.PathLike) -> None:
+    """Make the written file ``tmp`` durable (fsync) and rename it onto ``target`` (the folder entry fsync'ed)."""
+    with open(tmp, "rb+") as fh:
+        os.fsync(fh.fileno())
+    os.replace(tmp, target)
+    _fsync_folder(Path(target).parent)
+
+
+@contextlib.contextmanager
+def atomic_folder(target: str | os.PathLike, replace: bool = True) -> Iterator[Path]:
+    """A new, empty temporary folder beside ``target`` for the block to fill; renamed to ``target`` when the block
+    returns, removed when it raises.
+
+    An existing ``target`` is replaced only once the new folder is complete (moved aside, then deleted). With
+    ``replace=False`` a ``target`` that exists by then (another process finished first) is kept and the new
+    folder discarded.
+    """
+    target = Path(target)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+    old = None
+    try:
+        yield tmp
+        if target.exists():
+            if not replace:
+                return
+            old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
+            os.replace(target, old / "previous")
+        os.replace(tmp, target)
+        _fsync_folder(target.parent)
+    finally:
+        for leftover in (tmp, old):
+            if leftover is not None and leftover.exists():
+                shutil.rmtree(leftover, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def locked(folder: str | os.PathLike, shared: bool = False, wait: bool = True, what: str = "") -> Iterator[None]:
+    """Hold the advisory lock of ``folder`` (``flock`` on ``<folder>/.lock``) for the block.
+
+    Parameters
+    ----------
+    folder : the folder the lock protects (a MotionDB, its ``features/`` or ``index/`` folder); must exist.
+    shared : bool
+        A reader's shared lock (many at once) instead of a writer's exclusive one.
+    wait : bool
+        Wait for another holder to finish (default), or fail at once.
+    what : str
+        What the folder is, for the error message (default: the folder's path).
+
+    Raises
+    ------
+    MotionDBError
+        ``wait=False`` and another process holds the lock.
+    """
+    folder = Path(folder)
+    with open(folder / LOCK_FILE, "a") as fh:
+        mode = fcntl.LOCK_SH if shared else fcntl.LOCK_EX
+        try:
+            fcntl.flock(fh, mode if wait else mode | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise MotionDBError(f"{what or folder}: another process is writing to it; try again when it has finished") from None
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def stamp(format_name: str, version: int) -> dict:
+    """The header fields of a stored format: ``{"format", "version", "written_by": "mocapviz X.Y.Z"}``."""
+    from . import __version__
+
+    return {"format": format_name, "version": int(version), "written_by": f"mocapviz {__version__}"}
+
+
+def check_format(header, format_name: str, version: int, where: str | os.PathLike, rebuild: str = "") -> dict:
+    """``header`` (a dict read from a stored file) when it is ``format_name`` at ``version``, else MotionDBError.
+
+    Parameters
+    ----------
+    header : the stored header (anything: a damaged file may hold a list or a string).
+    format_name, version : what this mocapviz reads.
+    where : the file (or folder) for the message.
+    rebuild : how to write it again, e.g. "rebuild it with `mocapviz index DB`" (appended to the message).
+    """
+    found_format = header.get("format") if isinstance(header, dict) else None
+    found_version = header.get("version") if isinstance(header, dict) else None
+    if found_format == format_name and found_version == version:
+        return header
+    found = f"{found_format} version {found_version}" if found_format else "no mocapviz format header"
+    hint = f"; {rebuild}" if rebuild else ""
+    raise MotionDBError(f"{where}: not a {format_name} version {version} file ({found} found){hint}")
+
+
+def load_or_build(load: Callable[[], T], build: Callable[[], T]) -> T:
+    """``load()``, or ``build()`` when the artefact is missing, stale or unreadable (``load`` raised
+    MotionDBError): derived data can always be computed again from its MotionDB."""
+    try:
+        return load()
+    except MotionDBError:
+        return build()
+
+
+def _fsync_folder(folder: Path) -> None:
+    """Make a rename in ``folder`` durable (a no-op where folders cannot be opened)."""
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)

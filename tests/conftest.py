@@ -92,7 +92,7 @@ def hdm05_db30(hdm05_dir, tmp_path_factory):
     """All 287 HDM05 cut clips ingested at 30 Hz (the papers' kNN rate), labelled; shared by the test modules."""
     from mocapviz import MotionDB
 
-    return MotionDB.ingest([hdm05_dir], tmp_path_factory.mktemp("hdm05-30") / "db", fps=30, progress=False, n_jobs=2)
+    return MotionDB.ingest([hdm05_dir], tmp_path_factory.mktemp("hdm05-30") / "db", fps=30, progress=False)
 
 
 @pytest.fixture(scope="session")
@@ -100,7 +100,7 @@ def cmu_db30(cmu_dir, tmp_path_factory):
     """The 32 shared CMU trials ingested at 30 Hz."""
     from mocapviz import MotionDB
 
-    return MotionDB.ingest([cmu_dir], tmp_path_factory.mktemp("cmu-30") / "db", fps=30, progress=False, n_jobs=2)
+    return MotionDB.ingest([cmu_dir], tmp_path_factory.mktemp("cmu-30") / "db", fps=30, progress=False)
 
 
 # ---------------------------------------------------------------------------------------------- dashboard (browser)

@@ -7,8 +7,8 @@ import re
 import pytest
 from browser_helpers import free_port, open_dashboard, record_timing, text_of
 
-from mocapviz.features import relational
-from mocapviz.segment import segment
+from mocapviz.features import relational_features
+from mocapviz.segmentation import segment
 
 
 def test_first_page_lists_documents_and_plays_the_first_clip(sample_db, sample_dashboard, page, screenshot):
@@ -19,7 +19,7 @@ def test_first_page_lists_documents_and_plays_the_first_clip(sample_db, sample_d
     first = docs.iloc[0]
     caption = text_of(page, ".mv-player-caption")
     assert f"of {first['n_frames']}" in caption  # one step per frame of the first document
-    values, _ = relational(sample_db.motion(int(first["doc_id"])), progress=False)
+    values, _ = relational_features(sample_db.motion(int(first["doc_id"])), progress=False)
     assert f"{len(segment(values).starts)} segments in the clip" in text_of(page, ".mv-timeline-info")
     screenshot("database")
 
@@ -43,7 +43,7 @@ def test_filter_and_select_a_document(sample_db, sample_dashboard, page, screens
     page.locator(".mv-documents").get_by_text(target["name"], exact=True).click()
     caption = page.locator(".mv-player-caption")
     caption.get_by_text(re.compile(rf"of {target['n_frames']} ")).wait_for()
-    values, _ = relational(sample_db.motion(int(target["doc_id"])), progress=False)
+    values, _ = relational_features(sample_db.motion(int(target["doc_id"])), progress=False)
     page.locator(".mv-timeline-info").get_by_text(f"{len(segment(values).starts)} segments in the clip").wait_for()
     assert page.locator(".mv-player-image img").get_attribute("src").startswith("data:image/png")
     screenshot("selected")

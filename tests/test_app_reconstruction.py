@@ -6,7 +6,7 @@ import numpy as np
 from browser_helpers import open_dashboard, open_tab, record_timing, timed
 
 from mocapviz.app.pages.reconstruction import DEFAULT_NOISE_CM, SEED, default_k
-from mocapviz.reconstruct import PosePrior, reconstruct, reconstruction_errors, synthetic_markers
+from mocapviz.reconstruction import PosePrior, reconstruct, reconstruction_errors, synthetic_markers
 from mocapviz.skeleton import heading
 
 TEST_DOC = 3  # HDM_dg_elbowToKnee1RepsLelbowStart_017_120: 100 frames of actor dg
@@ -35,7 +35,7 @@ def _expected_mean_cm(db, doc: int) -> float:
     docs = db.documents.set_index("doc_id")
     frame_actor = docs["actor"].to_numpy()[docs.index.get_indexer(db.document_of(np.arange(db.n_frames)))]
     prior = PosePrior(db, valid=frame_actor != docs.at[doc, "actor"])
-    estimate = reconstruct(markers, heading(truth), prior, feature_set="F15E", k=default_k(db.n_frames))
+    estimate = reconstruct(markers, heading(truth), prior, numeric_set="F15E", k=default_k(db.n_frames))
     return reconstruction_errors(truth, estimate)["mean_cm"]
 
 

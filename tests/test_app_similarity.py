@@ -16,7 +16,7 @@ from mocapviz.app.pages.similarity import LNG_K_AT_30HZ, match_alignment, matrix
 from mocapviz.experiments.retrieval import retrieval_quality
 from mocapviz.features import numeric_of
 from mocapviz.knn import KnnIndex, describe_frames
-from mocapviz.match.lng import lng
+from mocapviz.match.neighbourhood_graph import lng
 from mocapviz.search import SimilaritySearch
 
 QUERY_NAME = "HDM_dg_kickLFront1Reps"  # a kick of the sample: its mm twin must come first
@@ -64,11 +64,11 @@ def _knn_library(db, doc: int, frame: int, k: int) -> pd.DataFrame:
     return describe_frames(db, frames, distances)
 
 
-def _lng_library(db, doc: int, span: tuple[int, int], k: int, k_matches: int = 10) -> pd.DataFrame:
+def _lng_library(db, doc: int, span: tuple[int, int], k: int, n_matches: int = 10) -> pd.DataFrame:
     """LNG matches of a span of a document by F15E, its own document excluded, as ``mocapviz match`` computes them."""
     X = numeric_of(db, "F15E")
     rows = db.frames(doc)
-    return lng(X[rows.start + span[0] : rows.start + span[1] + 1], KnnIndex(X), k=k, k_matches=k_matches,
+    return lng(X[rows.start + span[0] : rows.start + span[1] + 1], KnnIndex(X), k=k, n_matches=n_matches,
                starts=db.documents["start"].to_numpy(), exclude=(rows.start, rows.stop))
 
 

@@ -13,8 +13,8 @@ from mocapviz.app.backend import Backend
 from mocapviz.app.pages import correlations as corr_page
 from mocapviz.app.pages import statistics as stats_page
 from mocapviz.experiments.correlation import correlation_sample, pose_correlations, segment_correlations
-from mocapviz.experiments.numeric import paper_table1
-from mocapviz.experiments.relational import index_statistics, paper_table2, query_statistics
+from mocapviz.experiments.numeric import krueger2010_table1
+from mocapviz.experiments.relational import index_statistics, mueller2005_table2, query_statistics
 
 WAIT_MS = 240_000  # the server shares two cores with other test runs
 
@@ -132,7 +132,7 @@ def test_statistics_tables_match_the_library(sample_db, sample_dashboard, sample
 
     # Table 2: our three group indexes, then the paper's six rows
     rows = _rows(page, ".mv-table2")
-    ours, paper = index_statistics(sample_db), paper_table2()
+    ours, paper = index_statistics(sample_db), mueller2005_table2()
     assert [r["source"] for r in rows] == ["this database"] * 3 + ["paper"] * 6
     for shown, (_, want) in zip(rows, [*ours.iterrows(), *paper.iterrows()]):
         for col in ("index", "f", "lists", "frames", "segments"):
@@ -151,7 +151,7 @@ def test_statistics_tables_match_the_library(sample_db, sample_dashboard, sample
 
     # Table 1: one row per feature set with its dimension, our times beside the paper's
     rows = _rows(page, ".mv-table1")
-    paper = paper_table1()
+    paper = krueger2010_table1()
     dims = {"Fp8": 8, "Fp16": 16, "Fp25": 25, "F15E": 15, "F30E": 30, "F39E": 39, "F15x3E": 45, "F15x5E": 75,
             "F30x3E": 90}  # fmt: skip
     assert [(r["set"], r["d"]) for r in rows] == [(s, str(d)) for s, d in dims.items()]

@@ -94,7 +94,7 @@ def test_features_then_knn_prints_the_index_answer(sample_db, capsys):
 
     doc = int(sample_db.select(label="squat1Reps")["doc_id"].iloc[0])
     span = sample_db.frames(doc)
-    assert main(["knn", str(sample_db.path), "--frame", f"{doc}:12", "-k", "7", "--features", "F30E",
+    assert main(["knn", str(sample_db.path), "--frame", f"{doc}:12", "-k", "7", "--numeric-set", "F30E",
                  "--exclude-document"]) == 0  # fmt: skip
     rows = _table(capsys.readouterr().out)
     valid = np.ones(sample_db.n_frames, bool)
@@ -120,7 +120,7 @@ def test_knn_radius_prints_only_neighbours_within_it(sample_db, capsys):
         (["--frame", "0:100000"], "document 0 has frames 0.."),
         (["--frame", "3"], "DOC:FRAME"),
         (["--frame", "999:0"], "no document 999"),
-        (["--frame", "0:1", "--features", "F16E"], "unknown feature set F16E"),
+        (["--frame", "0:1", "--numeric-set", "F16E"], "unknown numeric set F16E"),
         (["--frame", "0:1", "-k", "0"], "k must be between 1"),
     ],
 )
@@ -164,7 +164,7 @@ def test_match_prints_the_library_matches(sample_db, capsys):
     from mocapviz.knn import KnnIndex
     from mocapviz.match import lng, subsequence_dtw
 
-    assert main(["features", str(sample_db.path), "--sets", "F15E", "--quiet"]) == 0
+    assert main(["features", str(sample_db.path), "--numeric-sets", "F15E", "--quiet"]) == 0
     capsys.readouterr()
     X = load_numeric(sample_db, "F15E")
     starts = sample_db.documents["start"].to_numpy()
@@ -173,7 +173,7 @@ def test_match_prints_the_library_matches(sample_db, capsys):
     q = X[span.start + 5 : span.start + 35]
     assert main(["match", str(sample_db.path), "--example", str(doc), "--frames", "5:35", "-K", "4", "-k", "64"]) == 0
     rows = _table(capsys.readouterr().out)
-    ref = lng(q, KnnIndex(X), k=64, k_matches=4, starts=starts, exclude=[span.start, span.stop])
+    ref = lng(q, KnnIndex(X), k=64, n_matches=4, starts=starts, exclude=[span.start, span.stop])
     assert len(rows) == len(ref) >= 1
     assert [int(r[1]) for r in rows] == ref["doc_id"].tolist()
     assert [int(r[3]) for r in rows] == (ref["start"] - starts[ref["doc_id"]]).tolist()
@@ -182,7 +182,7 @@ def test_match_prints_the_library_matches(sample_db, capsys):
     assert main(["match", str(sample_db.path), "--example", str(doc), "--frames", "5:35", "-K", "3", "--method",
                  "dtw", "--paths"]) == 0  # fmt: skip
     text = capsys.readouterr().out
-    ref = subsequence_dtw(q, X, starts, k=20)
+    ref = subsequence_dtw(q, X, starts, n_matches=20)
     ref = ref[ref["doc_id"] != doc].head(3)
     rows = _table(text.split("\npath 1")[0])
     assert [int(r[4]) for r in rows] == (ref["end"] - starts[ref["doc_id"]]).tolist()
@@ -198,9 +198,9 @@ def test_match_errors_are_one_line(sample_dir, sample_db, tmp_path, capsys):
         ([str(sample_db.path), "--example", "0", "--frames", "5:6"], "at least 2 frames"),
         ([str(sample_db.path), "--example", "0", "-k", "0"], "k must be between 1"),
         ([str(sample_db.path), "--example", "0", "--radius", "-2"], "radius must be a positive"),
-        ([str(sample_db.path), "--example", "0", "--features", "F16E"], "unknown feature set F16E"),
+        ([str(sample_db.path), "--example", "0", "--numeric-set", "F16E"], "unknown numeric set F16E"),
     ]
-    main(["features", str(sample_db.path), "--sets", "F15E", "--quiet"])
+    main(["features", str(sample_db.path), "--numeric-sets", "F15E", "--quiet"])
     capsys.readouterr()
     for args, needle in cases:
         assert main(["match", *args]) == 1

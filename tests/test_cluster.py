@@ -15,14 +15,13 @@ import pytest
 distributed = pytest.importorskip("distributed")
 cloudpickle = pytest.importorskip("cloudpickle")
 
-from mocapviz import MotionDB, cluster
+from mocapviz import MotionDB, batch, cluster
 from mocapviz.cli import main
 from mocapviz.database import document_batches
 from mocapviz.errors import MocapFormatError
-from mocapviz.features import load_numeric, relational, store_numeric
+from mocapviz.features import load_numeric, relational_features, store_numeric
 from mocapviz.index import build
 
-# (the package exports functions of these names, not the modules)
 numeric_module = importlib.import_module("mocapviz.features.numeric")
 relational_module = importlib.import_module("mocapviz.features.relational")
 
@@ -95,8 +94,8 @@ def test_numeric_features_on_the_cluster_equal_serial(serial_db, cluster_db, cli
 
 
 def test_relational_features_and_index_on_the_cluster_equal_serial(serial_db, cluster_db, client):
-    values, names = relational(serial_db, "2005", progress=False)
-    on_cluster, names_cluster = relational(cluster_db, "2005", progress=False, scheduler=client)
+    values, names = relational_features(serial_db, "2005", progress=False)
+    on_cluster, names_cluster = relational_features(cluster_db, "2005", progress=False, scheduler=client)
     assert names == names_cluster and values.shape == (serial_db.n_frames, 31)
     assert np.array_equal(values, on_cluster)
     serial_index = build(serial_db, "2005", progress=False, values=values)
@@ -107,6 +106,37 @@ def test_relational_features_and_index_on_the_cluster_equal_serial(serial_db, cl
         assert mine.keys() == theirs.keys()
         for key in mine:
             assert np.array_equal(mine[key], theirs[key]), (group, key)
+
+
+
+def _square_late(x: int) -> int:
+    """A task that often finishes after the ones submitted after it; 5 fails late and 7 early."""
+    import time
+
+    time.sleep(0.2 if x == 5 else 0.02 * (x % 3))
+    if x in (5, 7):
+        raise ValueError(f"item {x}")
+    return x * x
+
+
+def test_map_ordered_on_dask_keeps_order_bounds_look_ahead_and_raises_the_first_failure(client):
+    assert list(batch.map_ordered(_square_late, [0, 1, 2, 3, 4, 6, 8, 9], client=client)) == [0, 1, 4, 9, 16, 36, 64, 81]
+    got = []
+    with pytest.raises(ValueError, match="item 5"):
+        for value in batch.map_ordered(_square_late, range(20), client=client, name="mocapviz-test"):
+            got.append(value)  # noqa: PERF402 - the values before the exception
+    assert got == [x * x for x in range(5)]
+    pulled = []
+
+    def items():
+        for i in (0, 1, 2, 3, 4, 6, 8, 9, 10, 11, 12, 13, 14, 15, 16):
+            pulled.append(i)
+            yield i
+
+    results = batch.map_ordered(_square_late, items(), client=client)
+    assert next(results) == 0
+    assert len(pulled) <= batch.AHEAD_PER_THREAD * cluster.n_threads(client) + 1
+    results.close()
 
 
 class _KillOnce(distributed.WorkerPlugin):

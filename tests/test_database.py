@@ -151,7 +151,7 @@ _INTERRUPTED = textwrap.dedent(
     import mocapviz.database as d
     where = sys.argv[3]
     if where == "before-manifest":      # every new file written, the manifest not yet switched
-        d._fsync_write = lambda *a, **k: os._exit(3)
+        d.atomic_write = lambda *a, **k: os._exit(3)
     elif where == "mid-array":          # killed while writing the grown positions array
         real = d._write_grown
         def half(old, n_old, new, width, target):
@@ -249,11 +249,25 @@ def test_bandai_labels_and_mixed_sources(bandai1_files, sample_dir, tmp_path):
 
 
 def test_ingest_all_hdm05_frames_at_120(hdm05_dir, hdm05_labels, tmp_path):
-    db = MotionDB.ingest(hdm05_dir, tmp_path / "db", progress=False, n_jobs=2)
+    db = MotionDB.ingest(hdm05_dir, tmp_path / "db", progress=False, threads=2)
     assert len(db) == 287 and db.n_frames == hdm05_labels["frames"].sum() == 70_996
     counts = db.documents.set_index("name")["n_frames"]
     expect = hdm05_labels.assign(name=[Path(f).stem for f in hdm05_labels["file"]]).set_index("name")["frames"]
     pd.testing.assert_series_equal(counts.sort_index(), expect.sort_index(), check_names=False, check_dtype=False)
+
+
+def test_ingest_on_threads_equals_serial_and_n_jobs_is_threads_with_a_warning(sample_dir, sample_db, tmp_path):
+    """Threads read the files (docs/glossary.md: processes only as Dask workers); the old ``n_jobs=`` still works."""
+    on_threads = MotionDB.ingest(sample_dir, tmp_path / "threads", progress=False, threads=3)
+    with pytest.warns(FutureWarning, match="n_jobs= is deprecated; pass threads="):
+        old = MotionDB.ingest(sample_dir, tmp_path / "old", progress=False, n_jobs=2)
+    for db in (on_threads, old):
+        assert np.array_equal(db.positions, sample_db.positions)
+        assert np.array_equal(db.quaternions, sample_db.quaternions, equal_nan=True)
+        pd.testing.assert_frame_equal(db.documents.drop(columns="path"), sample_db.documents.drop(columns="path"))
+    with pytest.raises(mocapviz.ParameterError, match="threads must be"):
+        MotionDB.ingest(sample_dir, tmp_path / "bad", progress=False, threads=0)
+    assert not (tmp_path / "bad").exists()
 
 
 def test_append_motions_adds_derived_clips(sample_dir, tmp_path):
@@ -303,7 +317,7 @@ def test_skip_bad_also_skips_an_amc_without_its_skeleton(sample_dir, tmp_path):
 
 def test_open_refuses_a_manifest_that_is_not_an_object(tmp_path):
     (tmp_path / "manifest.json").write_text("[1, 2]")
-    with pytest.raises(MotionDBError, match="not a MotionDB"):
+    with pytest.raises(MotionDBError, match="not a mocapviz.MotionDB"):
         MotionDB.open(tmp_path)
 
 

@@ -67,7 +67,7 @@ def test_bad_arguments_say_what_to_pass():
     with pytest.raises(ParameterError, match="query_doc 9 is not a document"):
         relevance(HITS, LABELS, query_doc=9)
     ranking, _ = relevance(HITS, LABELS, query_doc=0)
-    with pytest.raises(ParameterError, match="k must be at least 1; got 0"):
+    with pytest.raises(ParameterError, match="n must be at least 1; got 0"):
         precision_at(ranking, 0)
 
 

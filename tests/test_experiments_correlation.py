@@ -17,8 +17,8 @@ from mocapviz.database import read_document
 from mocapviz.experiments import correlation as corr
 from mocapviz.experiments.correlation import (
     CORRELATION_MEASURES,
-    FEATURE_SETS,
     PAPER_FIG2_CLAIMS,
+    TABLE1_SETS,
     available_measures,
     correlation_sample,
     paper_claims,
@@ -27,7 +27,7 @@ from mocapviz.experiments.correlation import (
 )
 from mocapviz.features.distances import deuler, dpc, dpc_pairwise, dquat, dwb_pairwise, lee_frames, window_clouds
 from mocapviz.features.numeric import numeric_of
-from mocapviz.match.dtw import dtw
+from mocapviz.match.time_warping import dtw
 from mocapviz.viz.correlation import correlation_heatmap
 
 SEGMENT_MEASURES = ("Fp16", "F15E", "F15x3E", "Dquat", "Dpc11", "Dwb")
@@ -179,9 +179,9 @@ def test_pose_blocks_do_not_change_the_result(db, sample, monkeypatch):
 def test_pose_large_variant_on_all_frames(db):
     """The second variant: every frame of the database, rows the kd-tree feature sets, columns every measure."""
     assert available_measures(db) == CORRELATION_MEASURES
-    m = pose_correlations(db, rows=FEATURE_SETS, columns=available_measures(db), n_queries=24, k=32, seed=2)
+    m = pose_correlations(db, rows=TABLE1_SETS, columns=available_measures(db), n_queries=24, k=32, seed=2)
     assert m.shape == (9, 14) and m.attrs["frames"] == db.n_frames
-    assert all(m.loc[s, s] == 1.0 for s in FEATURE_SETS) and (m.abs() <= 1).all().all()
+    assert all(m.loc[s, s] == 1.0 for s in TABLE1_SETS) and (m.abs() <= 1).all().all()
 
 
 def test_pose_errors(db, sample):

@@ -9,13 +9,13 @@ import pytest
 
 from mocapviz import MotionDB
 from mocapviz.experiments import alignment, lng_accuracy, numerical_search, similarity_matrices, summarize_accuracy
-from mocapviz.experiments.matching import paper_table2
+from mocapviz.experiments.matching import krueger2010_table2
 from mocapviz.features.numeric import numeric_of
 
 
 @pytest.fixture(scope="module")
 def db(hdm05_dir, tmp_path_factory):
-    return MotionDB.ingest([hdm05_dir], tmp_path_factory.mktemp("expmatch") / "db", fps=30, progress=False, n_jobs=2)
+    return MotionDB.ingest([hdm05_dir], tmp_path_factory.mktemp("expmatch") / "db", fps=30, progress=False)
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +47,7 @@ def test_lng_accuracy_falls_with_small_neighbourhoods(db):
 
 
 def test_similarity_matrices_hold_distances_kNN_cells_and_paths(db, jog):
-    out = similarity_matrices(db, jog[0], (0, 40), jog[1:4], sets=("F15E", "F15x3E"), k=24)
+    out = similarity_matrices(db, jog[0], (0, 40), jog[1:4], numeric_sets=("F15E", "F15x3E"), k=24)
     rows = np.concatenate([np.arange(db.frames(d).start, db.frames(d).stop) for d in jog[1:4]])
     X = np.asarray(numeric_of(db, "F15E"), dtype=np.float64)
     q = X[db.frames(jog[0]).start : db.frames(jog[0]).start + 40]
@@ -91,8 +91,8 @@ def test_alignment_band_dtw_finds_the_full_dtw_path(db, jog):
 
 
 def test_numerical_search_counts_hits_against_the_labels(db):
-    out = numerical_search(db, classes=["squat1Reps", "elbowToKnee1RepsLelbowStart"], sets=("F15E", "F15x3E"),
-                           k=1024, k_matches=30, iterations=1)  # fmt: skip
+    out = numerical_search(db, classes=["squat1Reps", "elbowToKnee1RepsLelbowStart"],
+                           numeric_sets=("F15E", "F15x3E"), k=1024, n_matches=30, iterations=1)  # fmt: skip
     assert len(out) == 4 and set(out["set"]) == {"F15E", "F15x3E"}
     squat = out[out["class"] == "squat1Reps"]
     relevant = int((db.documents["label"] == "squat1Reps").sum()) - 1
@@ -105,5 +105,24 @@ def test_numerical_search_counts_hits_against_the_labels(db):
     assert (out["recall"] <= 1).all()
     with pytest.raises(ValueError, match="not in"):
         numerical_search(db, classes=["moonwalk"])
-    table = paper_table2()
+    table = krueger2010_table2()
     assert len(table) == 18 and table.loc[(table["set"] == "F30x3E") & (table["correct"] == 9), "wrong"].item() == 2
+
+
+def test_lng_accuracy_queries_last_their_seconds_at_each_documents_own_rate(tmp_path):
+    """A database mixing 120 Hz and 30 Hz documents (the embedded sample's HDM05 clips, two CMU trials resampled
+    to 30 Hz): a 1 s query is 120 frames in the former and 30 in the latter; typical_fps is the rate of most
+    frames."""
+    from mocapviz import datasets
+
+    sample = datasets.sample()
+    hdm = MotionDB.ingest(sample / "hdm05-cut", tmp_path / "hdm", progress=False)
+    cmu = MotionDB.ingest(sample / "cmu-asfamc", tmp_path / "cmu", progress=False)
+    db = MotionDB.create(tmp_path / "mixed").append_motions(  # (appending refuses another rate; creating mixes)
+        [hdm.motion(int(d)) for d in hdm.documents["doc_id"]]
+        + [cmu.motion(int(d)).resample(30.0) for d in cmu.documents["doc_id"]])
+    assert db.fps is None and sorted(set(db.documents["fps"])) == [30.0, 120.0] and db.typical_fps == 120.0
+    rows = lng_accuracy(db, n_queries=24, seconds=(1.0,), k=16, eps=(0.0,), seed=1)
+    rates = db.documents.set_index("doc_id").loc[rows["query_doc"], "fps"].to_numpy()
+    assert set(rates) == {30.0, 120.0}
+    np.testing.assert_array_equal(rows["m"].to_numpy(), np.round(rates).astype(int))

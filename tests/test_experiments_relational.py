@@ -13,11 +13,17 @@ import pytest
 
 from mocapviz import MotionDB
 from mocapviz.experiments import index_statistics, query_statistics, relational_query
-from mocapviz.experiments.relational import DEFAULT_QUERIES, HIT_GROUPS, TABLE2_COLUMNS, paper_table2, paper_table3
-from mocapviz.features import feature_groups, feature_names, relational
+from mocapviz.experiments.relational import (
+    DEFAULT_QUERIES,
+    HIT_GROUPS,
+    TABLE2_COLUMNS,
+    mueller2005_table2,
+    mueller2005_table3,
+)
+from mocapviz.features import feature_groups, feature_names, relational_features
 from mocapviz.index import build
 from mocapviz.query import query_by_example
-from mocapviz.segment import encode
+from mocapviz.segmentation import encode
 
 PER_CLASS = 5  # 11 classes: 55 clips
 
@@ -27,12 +33,12 @@ def db(hdm05_dir, hdm05_labels, tmp_path_factory):
     """About 60 HDM05 cut clips (the first 5 of each class), ingested at 120 Hz."""
     rows = hdm05_labels.sort_values("file").groupby("class").head(PER_CLASS)
     files = [hdm05_dir / f for f in rows["file"]]
-    return MotionDB.ingest(files, tmp_path_factory.mktemp("exp") / "db", fps=120, n_jobs=1, progress=False)
+    return MotionDB.ingest(files, tmp_path_factory.mktemp("exp") / "db", fps=120, threads=1, progress=False)
 
 
 @pytest.fixture(scope="module")
 def values(db):
-    return relational(db, progress=False)[0]
+    return relational_features(db, progress=False)[0]
 
 
 @pytest.fixture(scope="module")
@@ -77,9 +83,9 @@ def test_index_statistics_times_the_features_and_matches_the_saved_index(db, val
         index_statistics(db, values=values[:, :5])
 
 
-def test_paper_table2_is_consistent():
+def test_mueller2005_table2_is_consistent():
     """The transcription of Table 2: MB / segments = bytes per segment, the times add up, the columns match."""
-    paper = paper_table2()
+    paper = mueller2005_table2()
     assert paper.columns.tolist() == TABLE2_COLUMNS
     assert len(paper) == 6 and (paper["2^f"] == 2 ** paper["f"]).all()
     bps = paper["MB"] * 2**20 / paper["segments"]
@@ -164,8 +170,8 @@ def test_query_statistics_groups(upper):
     assert lo["mean_hits"].dropna().between(1, 9).all() and mid["mean_hits"].dropna().between(10, 99).all()
     assert hi["mean_hits"].dropna().ge(100).all()
     assert table.loc[table["queries"] > 0, "mean_ms"].gt(0).all()
-    assert table.columns.tolist() == paper_table3().columns.tolist()
-    assert len(paper_table3()) == 18
+    assert table.columns.tolist() == mueller2005_table3().columns.tolist()
+    assert len(mueller2005_table3()) == 18
 
 
 def test_random_queries_reject_bad_parameters(upper):

@@ -178,7 +178,7 @@ def test_bad_arguments_are_clear_errors(hdm05_db30):
 
 def test_reproduce_writes_tables_figures_and_settings(hdm05_dir, tmp_path, monkeypatch):
     """`mocapviz reproduce retrieval_quality` (its queries cut down here to keep the test short)."""
-    from mocapviz import reproduce as rp
+    from mocapviz import reproduction as rp
     from mocapviz.experiments import retrieval
 
     original = retrieval.retrieval_quality

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from mocapviz.index import InvertedIndex, merge_adjacent
-from mocapviz.segment import decode, encode, segment
+from mocapviz.segmentation import decode, encode, segment
 
 
 def vecs(text: str) -> np.ndarray:
@@ -111,11 +111,11 @@ def bf_mismatch(codes, doc, q, m, allowed):
 def real_index(hdm05_dir, hdm05_labels, tmp_path_factory):
     """The 2005 upper-body index over 40 HDM05 clips (documents kept apart)."""
     import mocapviz
-    from mocapviz.features import feature_groups, relational
+    from mocapviz.features import feature_groups, relational_features
 
     files = [hdm05_dir / f for f in hdm05_labels["file"].iloc[::7][:40]]
     db = mocapviz.MotionDB.ingest(files, tmp_path_factory.mktemp("idx") / "db", progress=False)
-    values, names = relational(db, "2005", progress=False)
+    values, names = relational_features(db, "2005", progress=False)
     cols = [names.index(n) for n in feature_groups("2005")["upper"]]
     return InvertedIndex.from_features(values[:, cols], db.documents["start"].to_numpy())
 

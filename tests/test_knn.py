@@ -27,7 +27,7 @@ def f15e(positions: np.ndarray) -> np.ndarray:
 @pytest.fixture(scope="module")
 def db(hdm05_dir, cmu_dir, tmp_path_factory):
     return MotionDB.ingest([hdm05_dir, cmu_dir], tmp_path_factory.mktemp("knn") / "db", fps=30, progress=False,
-                           n_jobs=2)  # fmt: skip
+                           threads=2)  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -109,7 +109,7 @@ def test_single_query_and_small_batches_match_the_batch(tree, brute, queries):
     d1, i1 = tree.query(queries[7], 16)
     assert d1.shape == i1.shape == (16,)
     np.testing.assert_array_equal(i1, i[7])
-    d_small, i_small = tree.query(queries[:10], 16, workers=1)  # fewer queries than the leaf-order threshold
+    d_small, i_small = tree.query(queries[:10], 16, threads=1)  # fewer queries than the leaf-order threshold
     np.testing.assert_array_equal(i_small, i[:10])
     np.testing.assert_array_equal(d_small, d[:10])
     for index in (tree, brute):
@@ -215,6 +215,24 @@ def test_base_poses_of_far_apart_frames_are_singletons(features):
         np.testing.assert_array_equal(np.concatenate(fn(features[:1], 5.0)), [0, 0])
 
 
+def test_workers_is_threads_with_a_warning(tree, queries):
+    d, i = tree.query(queries, 8, threads=2)
+    with pytest.warns(FutureWarning, match="workers= is deprecated; pass threads="):
+        d_old, i_old = tree.query(queries, 8, workers=1)
+    np.testing.assert_array_equal(i_old, i)
+    np.testing.assert_array_equal(d_old, d)
+    with pytest.raises(ParameterError, match="pass threads= only"):
+        tree.query(queries, 8, workers=1, threads=1)
+
+
+def test_knn_timings_workers_is_threads_with_a_warning(sample_db):
+    from mocapviz.experiments import knn_timings
+
+    with pytest.warns(FutureWarning, match="workers= is deprecated; pass threads="):
+        table = knn_timings(sample_db, numeric_sets=["F15E"], ks=(4,), n_queries=20, workers=1, repeats=1)
+    assert table[["set", "k", "queries"]].values.tolist() == [["F15E", 4, 20]]
+
+
 # ============================================================================ errors
 def test_bad_input_raises_clear_errors(features, tree):
     q = features[:5].copy()
@@ -232,7 +250,7 @@ def test_bad_input_raises_clear_errors(features, tree):
         (lambda: tree.query(features[:5], len(features) + 1), "k must be between 1"),
         (lambda: tree.query(features[:5], 4, radius=0), "radius must be a positive"),
         (lambda: tree.query(features[:5], 4, eps=-1), "eps must be"),
-        (lambda: tree.query(features[:5], 4, workers=0), "workers"),
+        (lambda: tree.query(features[:5], 4, threads=0), "threads"),
         (lambda: tree.exclude(np.array([[5, 2]])), "start <= stop"),
         (lambda: tree.exclude(np.ones(4, bool)), "frame mask must have shape"),
         (lambda: base_poses(features[:100], -1.0), "radius must be a positive"),

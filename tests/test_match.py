@@ -15,22 +15,22 @@ import pytest
 
 from mocapviz import MotionDB, ParameterError
 from mocapviz.features.distances import dquat_pairwise
-from mocapviz.features.numeric import numeric
+from mocapviz.features.numeric import numeric_features
 from mocapviz.knn import KnnIndex
 from mocapviz.match import STEP_SETS, band_from_path, dtw, lng, select_matches, subsequence_costs, subsequence_dtw
-from mocapviz.match.lng import graph_matches, neighbourhoods
+from mocapviz.match.neighbourhood_graph import graph_matches, neighbourhoods
 
-dtw_mod = importlib.import_module("mocapviz.match.dtw")  # the module, not the function the package exports
+dtw_mod = importlib.import_module("mocapviz.match.time_warping")  # the module, not the function the package exports
 
 
 @pytest.fixture(scope="module")
 def db(hdm05_dir, tmp_path_factory):
-    return MotionDB.ingest([hdm05_dir], tmp_path_factory.mktemp("match") / "db", fps=30, progress=False, n_jobs=2)
+    return MotionDB.ingest([hdm05_dir], tmp_path_factory.mktemp("match") / "db", fps=30, progress=False)
 
 
 @pytest.fixture(scope="module")
 def X(db) -> np.ndarray:
-    return numeric(db, "F15E")
+    return numeric_features(db, "F15E")
 
 
 @pytest.fixture(scope="module")
@@ -137,7 +137,7 @@ def test_subsequence_costs_equal_the_recursion_per_document(X, starts, steps, mo
 
 def test_subsequence_dtw_matches_are_optimal_non_overlapping_and_within_documents(X, starts):
     q = X[starts[30] + 10 : starts[30] + 40]
-    out = subsequence_dtw(q, X, starts, k=15)
+    out = subsequence_dtw(q, X, starts, n_matches=15)
     assert len(out) == 15
     assert (np.diff(out["cost"]) >= 0).all()
     spans = sorted(zip(out["start"], out["end"]))
@@ -172,7 +172,7 @@ def test_lng_equals_subsequence_dtw_where_the_dtw_path_lies_in_the_neighbourhood
     stop = starts[doc + 1]
     q = X[starts[doc] + 5 : starts[doc] + 35]
     d, f = neighbourhoods(q, index, k=2048, exclude=[starts[doc], stop])
-    out = graph_matches(d, f, starts, len(X), k_matches=10)
+    out = graph_matches(d, f, starts, len(X), n_matches=10)
     cost, first = subsequence_costs(q, X, starts)
     assert len(out) == 10
     checked = 0
@@ -197,8 +197,8 @@ def test_lng_finds_the_best_dtw_matches_whose_paths_lie_in_the_neighbourhoods(X,
         stop = starts[doc + 1]
         q = X[starts[doc] + 5 : starts[doc] + 35]
         d, f = neighbourhoods(q, index, k=2048, exclude=[starts[doc], stop])
-        found = graph_matches(d, f, starts, len(X), k_matches=20, paths=False)
-        best = subsequence_dtw(q, X, starts, k=40)  # matches never span documents: filter the own one
+        found = graph_matches(d, f, starts, len(X), n_matches=20, paths=False)
+        best = subsequence_dtw(q, X, starts, n_matches=40)  # matches never span documents: filter the own one
         best = best[(best["end"] < starts[doc]) | (best["start"] >= stop)].head(10)
         cost_at = dict(zip(found["end"], found["cost"]))
         inside = [all(fr in set(f[i]) for i, fr in row.path) for row in best.itertuples()]
@@ -212,7 +212,7 @@ def test_lng_paths_are_valid_steps_inside_one_document(X, starts, index):
     lengths = np.diff(np.r_[starts, len(X)])
     doc = 77 + int(np.argmax(lengths[77:] >= 100))
     q = X[starts[doc] + 2 : starts[doc] + 62]
-    out = lng(q, index, k=128, radius=60.0, k_matches=20, starts=starts)
+    out = lng(q, index, k=128, radius=60.0, n_matches=20, starts=starts)
     assert len(out) > 1 and set(out.attrs["seconds"]) == {"knn", "graph"}
     doc_of = np.searchsorted(starts, np.arange(len(X)), side="right") - 1
     for row in out.itertuples():
@@ -262,5 +262,5 @@ def test_bad_input_raises_clear_errors(X, starts, index):
         lng(X[:5000], index, k=16, starts=starts)
     with pytest.raises(ValueError, match="more than the longest document"):
         subsequence_dtw(X[:5000], X, starts)
-    with pytest.raises(ParameterError, match="k must be an integer"):
-        subsequence_dtw(q, X, starts, k=2.5)
+    with pytest.raises(ParameterError, match="n_matches must be an integer"):
+        subsequence_dtw(q, X, starts, n_matches=2.5)

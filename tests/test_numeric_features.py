@@ -19,14 +19,14 @@ from mocapviz.features import (
     PCAModel,
     fit_pca,
     load_numeric,
-    numeric,
     numeric_columns,
+    numeric_features,
     store_numeric,
     window_offsets,
 )
 from mocapviz.skeleton import CANONICAL_JOINTS, body_frame, heading
 
-nm = import_module("mocapviz.features.numeric")  # the module; the package's name `numeric` is the function
+nm = import_module("mocapviz.features.numeric")  # the module (its function is `numeric_features`)
 
 F15 = ["lwrist", "rwrist", "lankle", "rankle", "head"]
 F30 = F15 + ["lelbow", "relbow", "lknee", "rknee", "chest"]
@@ -96,7 +96,7 @@ def test_every_set_has_its_dimension_on_hdm05_and_cmu(clip, cmu_dir, pca):
     cmu = mocapviz.load(cmu_dir / "amc" / "martialwalk" / "135_02.amc")  # CMU ASF skeleton, not yet canonical
     assert NUMERIC_SETS == tuple(DIMS)
     for motion in (clip("kickLFront1Reps"), cmu):
-        values = {name: numeric(motion, name, pca=pca) for name in NUMERIC_SETS}
+        values = {name: numeric_features(motion, name, pca=pca) for name in NUMERIC_SETS}
         for name, v in values.items():
             assert v.shape == (motion.n_frames, DIMS[name]) and v.dtype == np.float32, name
             assert np.isfinite(v).all() and len(numeric_columns(name)) == DIMS[name], name
@@ -104,7 +104,7 @@ def test_every_set_has_its_dimension_on_hdm05_and_cmu(clip, cmu_dir, pca):
         np.testing.assert_array_equal(values["F30E"][:, :15], values["F15E"])
         np.testing.assert_array_equal(values["F39E"][:, :30], values["F30E"])
         np.testing.assert_array_equal(values["Fp25"][:, :8], values["Fp8"])
-    np.testing.assert_array_equal(numeric(cmu, "F39E"), numeric(cmu.canonical(), "F39E"))
+    np.testing.assert_array_equal(numeric_features(cmu, "F39E"), numeric_features(cmu.canonical(), "F39E"))
     assert numeric_columns("F15E")[:4] == ["lwrist.x", "lwrist.y", "lwrist.z", "rwrist.x"]
     assert numeric_columns("F15x3E")[0] == "lwrist.x@-0.150s" and numeric_columns("F15x3E")[-1] == "head.z@+0.150s"
     assert numeric_columns("Fp8") == [f"pc{k}" for k in range(1, 9)]
@@ -115,19 +115,20 @@ def test_frame_sets_are_the_body_frame_positions_of_their_joints(clip):
         m = clip(label)
         bf = body_frame(m.positions)
         for name, joints in (("F15E", F15), ("F30E", F30), ("F39E", F39)):
-            np.testing.assert_array_equal(numeric(m, name), bf[:, idx(joints)].reshape(m.n_frames, -1), err_msg=name)
+            np.testing.assert_array_equal(numeric_features(m, name), bf[:, idx(joints)].reshape(m.n_frames, -1),
+                                          err_msg=name)  # fmt: skip
     # the body frame itself: left joints at x > 0 (standing clips), the head above the root, and leaning forward
     # to put something on the floor moves the head to +z
     for label in ("grabHighR", "squat1Reps"):
-        f15 = numeric(clip(label), "F15E").reshape(-1, 5, 3)
+        f15 = numeric_features(clip(label), "F15E").reshape(-1, 5, 3)
         assert (f15[:, [0, 2], 0] > 0).all() and (f15[:, [1, 3], 0] < 0).all(), label
         assert (f15[:, 4, 1] > 30).all(), label
-    assert numeric(clip("depositFloorR"), "F15E")[:, 14].max() > 30
+    assert numeric_features(clip("depositFloorR"), "F15E")[:, 14].max() > 30
     # a jog around a circle turns the body by more than 1 rad; F15E against an explicit rotation matrix
     m = clip("jogLeftCircle4StepsRstart")
     assert np.ptp(np.unwrap(heading(m.positions))) > 1.0
     for t in (0, 100, m.n_frames - 1):
-        np.testing.assert_allclose(numeric(m, "F15E")[t], by_hand(m.positions, t, t, F15), atol=1e-4)
+        np.testing.assert_allclose(numeric_features(m, "F15E")[t], by_hand(m.positions, t, t, F15), atol=1e-4)
 
 
 def test_f15e_is_invariant_to_turning_and_moving_on_the_floor(clip, pca):
@@ -138,8 +139,10 @@ def test_f15e_is_invariant_to_turning_and_moving_on_the_floor(clip, pca):
         moved = replace(m, positions=(p @ rot.T + shift).astype(np.float32))
         assert np.abs(moved.positions - m.positions).max() > 100  # really moved
         for name in ("F15E", "F39E", "F15x5E"):
-            np.testing.assert_allclose(numeric(moved, name), numeric(m, name), atol=1e-3, err_msg=f"{name} {phi}")
-        np.testing.assert_allclose(numeric(moved, "Fp25", pca=pca), numeric(m, "Fp25", pca=pca), atol=1e-3)
+            np.testing.assert_allclose(numeric_features(moved, name), numeric_features(m, name), atol=1e-3,
+                                       err_msg=f"{name} {phi}")  # fmt: skip
+        np.testing.assert_allclose(numeric_features(moved, "Fp25", pca=pca), numeric_features(m, "Fp25", pca=pca),
+                                   atol=1e-3)  # fmt: skip
 
 
 # ----------------------------------------------------------------------------------------------- windows
@@ -159,8 +162,8 @@ def test_window_offsets_are_seconds_rounded_to_frames():
 
 def test_windowed_samples_are_the_offset_frames_in_the_centre_body_frame(clip):
     m = clip("jogLeftCircle4StepsRstart")
-    f15, f30 = numeric(m, "F15E"), numeric(m, "F30E")
-    x3, x5, y3 = numeric(m, "F15x3E"), numeric(m, "F15x5E"), numeric(m, "F30x3E")
+    f15, f30 = numeric_features(m, "F15E"), numeric_features(m, "F30E")
+    x3, x5, y3 = numeric_features(m, "F15x3E"), numeric_features(m, "F15x5E"), numeric_features(m, "F30x3E")
     # the centre sample is the frame's own pose
     np.testing.assert_array_equal(x3[:, 15:30], f15)
     np.testing.assert_array_equal(x5[:, 30:45], f15)
@@ -178,7 +181,7 @@ def test_window_offsets_agree_between_120_and_30_hz(clip):
     m120 = clip("jogLeftCircle4StepsRstart")
     m30 = m120.resample(30)
     np.testing.assert_array_equal(m30.positions, m120.positions[::4][: m30.n_frames])  # frame k = frame 4k
-    a30, a120 = numeric(m30, "F15x3E"), numeric(m120, "F15x3E")
+    a30, a120 = numeric_features(m30, "F15x3E"), numeric_features(m120, "F15x3E")
     inner = np.arange(5, m30.n_frames - 5)
     # exactly: the 30 Hz samples are 120 Hz frames 4(k - 4), 4k, 4(k + 4) in the body frame of frame 4k
     for k in inner[::17]:
@@ -198,7 +201,7 @@ def test_window_offsets_agree_between_120_and_30_hz(clip):
 def test_windows_are_clamped_at_the_document_ends(clip):
     m = clip("squat1Reps")
     for name, samples in (("F15x3E", 3), ("F15x5E", 5)):
-        v = numeric(m, name).reshape(m.n_frames, samples, 15)
+        v = numeric_features(m, name).reshape(m.n_frames, samples, 15)
         centre = samples // 2
         np.testing.assert_array_equal(v[0, 0], v[0, centre])  # the first frame's earliest sample is itself
         np.testing.assert_array_equal(v[-1, -1], v[-1, centre])
@@ -206,16 +209,16 @@ def test_windows_are_clamped_at_the_document_ends(clip):
         np.testing.assert_allclose(v[5, 0], by_hand(m.positions, 5, 0, F15), atol=2e-4)
         np.testing.assert_allclose(v[-3, -1], by_hand(m.positions, m.n_frames - 3, m.n_frames - 1, F15), atol=2e-4)
     # a one-frame clip is a window of one pose
-    one = numeric(m[:1], "F15x5E")
-    np.testing.assert_array_equal(one, np.tile(numeric(m[:1], "F15E"), 5))
+    one = numeric_features(m[:1], "F15x5E")
+    np.testing.assert_array_equal(one, np.tile(numeric_features(m[:1], "F15E"), 5))
 
 
 def test_no_window_reads_the_neighbouring_document(hdm05_files, tmp_path, monkeypatch):
     db = two_documents(hdm05_files, tmp_path / "db")
     split = int(db.documents["n_frames"].iloc[0])
     for name in ("F15E", "F15x3E", "F15x5E", "F30x3E"):
-        whole = numeric(db, name, progress=False)
-        per_doc = np.concatenate([numeric(db.motion(d), name) for d in db.documents["doc_id"]])
+        whole = numeric_features(db, name, progress=False)
+        per_doc = np.concatenate([numeric_features(db.motion(d), name) for d in db.documents["doc_id"]])
         np.testing.assert_array_equal(whole, per_doc, err_msg=name)
         # the frames on either side of the boundary only see their own document
         v = whole.reshape(db.n_frames, -1, 3 * (len(F30) if name == "F30x3E" else len(F15)))
@@ -224,7 +227,7 @@ def test_no_window_reads_the_neighbouring_document(hdm05_files, tmp_path, monkey
         np.testing.assert_array_equal(v[split, 0], v[split, c])
         # and several batches (whole documents each) give the same
         monkeypatch.setattr(nm, "_BATCH_FRAMES", 10)
-        np.testing.assert_array_equal(numeric(db, name, progress=False, n_jobs=2), whole)
+        np.testing.assert_array_equal(numeric_features(db, name, progress=False, threads=2), whole)
         monkeypatch.undo()
 
 
@@ -232,10 +235,10 @@ def test_a_database_in_many_batches_equals_its_documents(reference_db, pca, monk
     monkeypatch.setattr(nm, "_BATCH_FRAMES", 10)  # 22 batches of one document, more than the threads keep in flight
     for name in ("F30x3E", "Fp8"):
         per_doc = np.concatenate(
-            [numeric(reference_db.motion(d), name, pca=pca) for d in reference_db.documents["doc_id"]]
+            [numeric_features(reference_db.motion(d), name, pca=pca) for d in reference_db.documents["doc_id"]]
         )
-        np.testing.assert_array_equal(numeric(reference_db, name, pca=pca, progress=False, n_jobs=2), per_doc)
-    again = fit_pca(reference_db, progress=False, n_jobs=2)
+        np.testing.assert_array_equal(numeric_features(reference_db, name, pca=pca, progress=False, threads=2), per_doc)
+    again = fit_pca(reference_db, progress=False, threads=2)
     np.testing.assert_allclose(again.explained_variance, pca.explained_variance, rtol=1e-9)
     np.testing.assert_allclose(np.abs(again.components @ pca.components.T), np.eye(25), atol=1e-6)
 
@@ -267,7 +270,7 @@ def test_more_components_reconstruct_poses_better(pca, hdm05_files, cmu_dir):
         poses = body_frame(motion.canonical().positions).reshape(-1, 72).astype(np.float64)
         errors = []
         for n in (8, 16, 25):
-            coef = numeric(motion, f"Fp{n}", pca=pca)
+            coef = numeric_features(motion, f"Fp{n}", pca=pca)
             np.testing.assert_allclose(coef, pca.project(poses, n), atol=1e-3)
             rec = pca.reconstruct(coef)
             errors.append(np.sqrt(((rec - poses) ** 2).reshape(-1, 24, 3).sum(axis=2).mean()))  # RMS joint error, cm
@@ -311,7 +314,7 @@ def test_store_and_load_round_trip(hdm05_files, pca, tmp_path):
     for name in ("F15E", "F15x3E", "Fp8", "Fp25"):
         loaded = load_numeric(db, name)
         assert isinstance(loaded, np.memmap) and loaded.dtype == np.float32
-        np.testing.assert_array_equal(loaded, numeric(db, name, pca=own, progress=False))
+        np.testing.assert_array_equal(loaded, numeric_features(db, name, pca=own, progress=False))
         np.testing.assert_array_equal(stored[name], loaded)
     # storing another Fp set later reuses the database's own model: the sets stored before stay valid
     store_numeric(db, "Fp16", progress=False)
@@ -321,7 +324,7 @@ def test_store_and_load_round_trip(hdm05_files, pca, tmp_path):
     store_numeric(db, "Fp16", pca=pca, progress=False)
     header = json.loads((folder / "numeric-Fp16.json").read_text())
     assert not header["pca"]["fitted_on_this_database"] and header["pca"]["reference"] == pca.reference
-    np.testing.assert_array_equal(load_numeric(db, "Fp16"), numeric(db, "Fp16", pca=pca, progress=False))
+    np.testing.assert_array_equal(load_numeric(db, "Fp16"), numeric_features(db, "Fp16", pca=pca, progress=False))
     # pca.npz was replaced: the Fp sets stored with the old model are stale, the others not
     with pytest.raises(MotionDBError, match=r"Fp8 is stale.*pca\.npz.*run `mocapviz features DB`"):
         load_numeric(db, "Fp8")
@@ -343,7 +346,8 @@ def test_stored_features_go_stale_when_the_database_grows(hdm05_files, tmp_path)
         ):
             load_numeric(grown, name)
     store_numeric(grown, "F15E", progress=False)
-    np.testing.assert_array_equal(load_numeric(grown, "F15E")[: db.n_frames], numeric(db, "F15E", progress=False))
+    np.testing.assert_array_equal(load_numeric(grown, "F15E")[: db.n_frames],
+                                  numeric_features(db, "F15E", progress=False))  # fmt: skip
     assert load_numeric(grown, "F15E").shape == (grown.n_frames, 15)
 
 
@@ -363,7 +367,7 @@ def test_a_failed_store_keeps_the_previous_files_and_leaves_no_temporary_ones(hd
     monkeypatch.setattr(nm, "_joint_features", failing)
     monkeypatch.setattr(nm, "_BATCH_FRAMES", 10)  # one batch per document
     with pytest.raises(RuntimeError, match="disk on fire"):
-        store_numeric(db, "F15x3E", progress=False, n_jobs=1)
+        store_numeric(db, "F15x3E", progress=False, threads=1)
     monkeypatch.undo()
     np.testing.assert_array_equal(load_numeric(db, "F15x3E"), before)
     assert sorted(p.name for p in (db.path / "features").iterdir()) == [
@@ -392,34 +396,34 @@ def test_a_failed_store_keeps_the_previous_files_and_leaves_no_temporary_ones(hd
 # ------------------------------------------------------------------------------------------------ bad input
 def test_bad_input_is_named(clip, pca, hdm05_files, tmp_path):
     m = clip("squat1Reps")
-    with pytest.raises(ValueError, match="unknown numeric feature set 'F16E'; known sets: " + ", ".join(NUMERIC_SETS)):
-        numeric(m, "F16E")
-    with pytest.raises(ValueError, match="unknown numeric feature set"):
+    with pytest.raises(ValueError, match="unknown numeric set 'F16E'; choose one of " + ", ".join(NUMERIC_SETS)):
+        numeric_features(m, "F16E")
+    with pytest.raises(ValueError, match="unknown numeric set"):
         load_numeric(MotionDB.create(tmp_path / "empty"), "f15e")
     with pytest.raises(ValueError, match="Fp16 needs a PCA model"):
-        numeric(m, "Fp16")
+        numeric_features(m, "Fp16")
     small = fit_pca(m, n_components=8)
     assert "squat1Reps" in small.reference
     with pytest.raises(ValueError, match="Fp16 needs 16 components.*has 8"):
-        numeric(m, "Fp16", pca=small)
+        numeric_features(m, "Fp16", pca=small)
     with pytest.raises(ValueError, match="n_components"):
         fit_pca(m, n_components=73)
     with pytest.raises(ParameterError, match="Motion or a MotionDB"):
-        numeric(m.positions, "F15E")
+        numeric_features(m.positions, "F15E")
     # a NaN names the clip, the frame and the joint; a joint the set does not use is not checked
     bad = m.positions.copy()
     bad[37, CANONICAL_JOINTS.index("rwrist")] = np.nan
     bad[50, CANONICAL_JOINTS.index("lfingers")] = np.inf
     broken = replace(m, positions=bad)
     with pytest.raises(ValueError, match=r"HDM_.*squat1Reps.*frame 37: joint rwrist has a non-finite"):
-        numeric(broken, "F15x3E")
-    assert np.isfinite(numeric(broken[38:], "F15E")).all()
+        numeric_features(broken, "F15x3E")
+    assert np.isfinite(numeric_features(broken[38:], "F15E")).all()
     with pytest.raises(ValueError, match=r"frame 12: joint lfingers"):
-        numeric(broken[38:], "Fp8", pca=pca)
+        numeric_features(broken[38:], "Fp8", pca=pca)
     # in a MotionDB: the document, its file and the frame within it
     db = two_documents(hdm05_files, tmp_path / "db")
     positions = np.array(db.positions)
     positions[int(db.documents["start"].iloc[1]) + 21, CANONICAL_JOINTS.index("head")] = np.nan
     db.positions = positions
     with pytest.raises(ValueError, match=r"document 1 \(.*HDM_.*kickLFront.*\), frame 21: joint head"):
-        numeric(db, "F15E", progress=False)
+        numeric_features(db, "F15E", progress=False)

@@ -7,10 +7,10 @@ import pytest
 from mocapviz import MotionDB, MotionDBError
 from mocapviz.cli import main
 from mocapviz.errors import ParameterError
-from mocapviz.features import feature_groups, relational
+from mocapviz.features import feature_groups, relational_features
 from mocapviz.index import build, load
 from mocapviz.query import query_by_example
-from mocapviz.segment import segment
+from mocapviz.segmentation import segment
 
 KICK = ["rfoot_raised", "lfoot_raised", "rknee_bent", "lknee_bent"]  # Fig. 9 of the paper (DEFAULT_QUERIES)
 
@@ -24,14 +24,14 @@ def db(sample_db):
 
 @pytest.fixture(scope="module")
 def db_values(db):
-    return relational(db, progress=False)
+    return relational_features(db, progress=False)
 
 
 @pytest.fixture(scope="module")
 def hdm(hdm05_db30):
     """The 287 HDM05 clips at 30 Hz with their 2005 indexes, and their relational features (values, names)."""
     build(hdm05_db30, progress=False)
-    return hdm05_db30, relational(hdm05_db30, progress=False)
+    return hdm05_db30, relational_features(hdm05_db30, progress=False)
 
 
 def scan_hits(db, values, names, example, chosen, m: int = 0, allowed=None) -> set:
@@ -39,7 +39,7 @@ def scan_hits(db, values, names, example, chosen, m: int = 0, allowed=None) -> s
     of chosen-feature vectors as consecutive runs (the restricted feature function of §5.2), at most ``m`` runs
     differing, only at the ``allowed`` query positions (default: any)."""
     cols = [names.index(f) for f in chosen]
-    ex_values, _ = relational(example)
+    ex_values, _ = relational_features(example)
     q = segment(ex_values[:, cols]).codes
     free = np.zeros(len(q), dtype=bool)
     free[list(range(len(q))) if allowed is None else allowed] = True
@@ -108,7 +108,7 @@ def test_exact_and_mismatch_count_only_the_selected_features(hdm, label, chosen,
         expected = scan_hits(db, values, names, example, chosen, m, allowed)
         assert spans(hits) == expected and len(hits) == len(expected)
         assert ((hits["doc_id"] == doc) & (hits["start_frame"] == 0)).any()  # the query finds itself
-        n_runs = len(segment(relational(example)[0][:, [names.index(f) for f in chosen]]).codes)
+        n_runs = len(segment(relational_features(example)[0][:, [names.index(f) for f in chosen]]).codes)
         assert (hits["n_segments"] == n_runs).all()  # the query is segmented on the selected features alone
         if mode == "exact":  # the selection's exact hits are its adaptive fuzzy hits (§5.2)
             assert spans(query_by_example(db, example, chosen, mode="adaptive")) == expected
@@ -133,7 +133,7 @@ def test_a_whole_group_selected_is_the_strict_exact_query(hdm):
     doc = int(db.select(label="hopBothLegs1hops")["doc_id"].iloc[0])
     example = db.motion(doc)
     hits = query_by_example(db, example, lower, mode="exact")
-    q = segment(relational(example)[0][:, [names.index(f) for f in lower]]).codes
+    q = segment(relational_features(example)[0][:, [names.index(f) for f in lower]]).codes
     assert sorted(hits["first_segment"]) == idx.exact(q).tolist()
 
 
@@ -150,7 +150,7 @@ def test_plain_fuzzy_needs_one_stored_segment_per_query_segment(hdm):
     row_of = {int(d): i for i, d in enumerate(db.documents["doc_id"])}
     for doc in kicks[:5]:
         example = db.motion(doc)
-        q = segment(relational(example)[0][:, [names.index(f) for f in KICK]]).codes
+        q = segment(relational_features(example)[0][:, [names.index(f) for f in KICK]]).codes
         q_lower = [sum(((int(c) >> j) & 1) << lower.index(f) for j, f in enumerate(KICK)) for c in q]
         codes, seg_doc = idx.codes & mask, idx.segment_doc
         expected = [k for k in range(idx.n_segments - len(q) + 1)
@@ -202,8 +202,8 @@ def test_bad_queries_say_what_to_do(db, tmp_path, db_values):
     bare = MotionDB.ingest(db.documents["path"].iloc[:2].tolist(), tmp_path / "bare", progress=False)
     with pytest.raises(MotionDBError, match="mocapviz index"):
         query_by_example(bare, example, ["rknee_bent"])
-    with pytest.raises(MotionDBError, match="--feature-set 2006"):
-        query_by_example(bare, example, None, feature_set="2006")
+    with pytest.raises(MotionDBError, match="--relational-set 2006"):
+        query_by_example(bare, example, None, relational_set="2006")
     build(bare, progress=False)
     bare = bare.append(db.documents["path"].iloc[2:3].tolist(), progress=False)
     with pytest.raises(MotionDBError, match="rebuild"):

@@ -1,5 +1,5 @@
 """Reconstruction of full-body motion from six sparse markers (Krüger et al. 2010 §5.2, Tables 3-4; Chai & Hodgins
-2005): mocapviz.reconstruct, mocapviz.experiments.reconstruction, mocapviz.viz.reconstruction.
+2005): mocapviz.reconstruction, mocapviz.experiments.marker_reconstruction, mocapviz.viz.reconstruction.
 
 Data: the 287 HDM05 cut clips at 30 Hz (``hdm05_db30``) and the 32 CMU trials at 30 Hz (``cmu_db30``). The test
 clips are actor bk's first clips of four classes (a jog, a squat, an elbow-to-knee exercise, a hop), as the paper's
@@ -15,9 +15,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mocapviz.experiments.reconstruction import VARIANTS, paper_table3, paper_table4, reconstruction
+from mocapviz.experiments.marker_reconstruction import VARIANTS, krueger2010_table3, krueger2010_table4, reconstruction
 from mocapviz.features.numeric import numeric_of
-from mocapviz.reconstruct import (
+from mocapviz.reconstruction import (
     BONES,
     MARKERS,
     PosePrior,
@@ -167,7 +167,7 @@ def test_bone_lengths_match_the_actor(errors, clips, priors):
     assert e["per_bone_cm"].shape == (len(BONES),) == (23,) and np.isclose(e["per_bone_cm"].mean(), e["bone_cm"])
 
 
-def test_two_pass_feature_sets(clips, priors):
+def test_two_pass_numeric_sets(clips, priors):
     """Table 4's other feature sets (pass 2 searches the set computed on the F15E reconstruction): a windowed set
     and a PCA set give finite errors of the order of F15E's (measured within about 15 %)."""
     d = next(iter(clips))
@@ -175,7 +175,7 @@ def test_two_pass_feature_sets(clips, priors):
     pr = priors[d]["HDM"]
     one = reconstruction_errors(truth, reconstruct(markers, h, pr))["mean_cm"]
     for name in ("F15x3E", "Fp16"):
-        est, info = reconstruct(markers, h, pr, feature_set=name, return_info=True)
+        est, info = reconstruct(markers, h, pr, numeric_set=name, return_info=True)
         e = reconstruction_errors(truth, est)
         assert np.isfinite(est).all() and 0.6 * one < e["mean_cm"] < 1.5 * one, (name, e["mean_cm"], one)
         assert info["pass1"].shape == truth.shape and not np.array_equal(info["pass1"], est)
@@ -196,8 +196,8 @@ def test_input_errors(db, prior, clips):
         reconstruct(markers, h, prior.restrict(db.document_of(np.arange(db.n_frames)) == 0), k=500)
     with pytest.raises(ValueError, match="excludes every frame"):
         reconstruct(markers, h, db, valid=np.zeros(db.n_frames, dtype=bool))
-    with pytest.raises(ValueError, match="unknown feature set"):
-        reconstruct(markers, h, prior, feature_set="F99E")
+    with pytest.raises(ValueError, match="unknown numeric set"):
+        reconstruct(markers, h, prior, numeric_set="F99E")
     with pytest.raises(ValueError, match="unknown method"):
         reconstruct(markers, h, prior, method="magic")
     with pytest.raises(ValueError, match="shape"):
@@ -206,7 +206,7 @@ def test_input_errors(db, prior, clips):
 
 # ============================================================================ experiment and plots
 def test_experiment_tables_and_figures(db, cmu_db30, test_docs, tmp_path):
-    res = reconstruction(db, cmu_db30, test_docs=test_docs[:2], feature_sets=("F15E", "F30E"), baselines=False)
+    res = reconstruction(db, cmu_db30, test_docs=test_docs[:2], numeric_sets=("F15E", "F30E"), baselines=False)
     t3 = res["table3"]
     assert list(t3["motion"])[-1] == "avg" and len(t3) == 3
     assert t3["frames"].iloc[-1] == t3["frames"].iloc[:2].sum()
@@ -220,11 +220,11 @@ def test_experiment_tables_and_figures(db, cmu_db30, test_docs, tmp_path):
     assert len(res["frames"]) == 3 * n0 and set(res["frames"]["variant"]) == set(VARIANTS)
     assert len(res["joints"]) == 3 * 24
     np.testing.assert_allclose(res["frames"].groupby("variant")["error_cm"].mean()["HDM"], t3["HDM_mean"].iloc[0])
-    both = compare_table3(t3, paper_table3())
+    both = compare_table3(t3, krueger2010_table3())
     assert set(both["source"]) == {f"ours ({t3['frames'].iloc[-1]} frames)", "paper, HDM05 test motions",
                                    "paper, CMU_86_avg"}  # fmt: skip
-    assert compare_table4(t4, paper_table4())["set"].tolist()[:2] == ["F15E", "F15E"]
-    figures = reconstruction_figures(res, paper_table3(), paper_table4())
+    assert compare_table4(t4, krueger2010_table4())["set"].tolist()[:2] == ["F15E", "F15E"]
+    figures = reconstruction_figures(res, krueger2010_table3(), krueger2010_table4())
     assert set(figures) == {"table3", "table3_max", "table4", "joints", "frames", "baselines"}
     for name, fig in figures.items():
         hv.render(fig, backend="bokeh")
@@ -233,9 +233,9 @@ def test_experiment_tables_and_figures(db, cmu_db30, test_docs, tmp_path):
 
 
 def test_paper_tables():
-    t3 = paper_table3().set_index("motion")
+    t3 = krueger2010_table3().set_index("motion")
     assert t3.loc["CMU_86_01", "frames"] == 1145 and t3.loc["CMU_86_01", "CMU_mean"] == 1.30
     assert tuple(t3.loc["HDM_bk_02-01_01", ["frames", "HDM_mean", "HDM_max", "CMU-_mean", "CMU_max"]]) == (
         912, 2.17, 6.45, 3.23, 8.65)  # fmt: skip
-    t4 = paper_table4()
+    t4 = krueger2010_table4()
     assert t4["motion"].iloc[0] == "CMU_86_03" and t4["F15E_mean"].iloc[0] == 1.66 and t4["F30x3E_max"].iloc[0] == 4.35

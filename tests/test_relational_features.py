@@ -13,11 +13,11 @@ import pandas as pd
 import pytest
 
 import mocapviz
-from mocapviz import MotionDB, ParameterError
-from mocapviz.features import FEATURE_SETS, feature_groups, feature_names, feature_table, relational
+from mocapviz import MotionDB, ParameterError, batch
+from mocapviz.features import RELATIONAL_SETS, feature_groups, feature_names, feature_table, relational_features
 from mocapviz.skeleton import CANONICAL_JOINTS
 
-rf = import_module("mocapviz.features.relational")  # the module; the package's name `relational` is the function
+rf = import_module("mocapviz.features.relational")  # the module (its function is `relational_features`)
 
 # spec §1.7 (motionTemplateFlipFeatureStructs.m): the 2006 left/right mirror permutation over F1-F39
 MIRROR_2006 = [(1, 2), (3, 4), (5, 6), (7, 8), (11, 12), (13, 14), (15, 16), (17, 18), (20, 21), (25, 26), (27, 28),
@@ -53,11 +53,11 @@ def clip(hdm05_dir, hdm05_labels):
 
 @pytest.fixture(scope="module")
 def features(clip):
-    """features(label, k, feature_set) -> (values, names) of a clip (cached)."""
+    """features(label, k, relational_set) -> (values, names) of a clip (cached)."""
 
     @cache
-    def get(label: str, k: int = 0, feature_set: str = "2005"):
-        return relational(clip(label, k), feature_set)
+    def get(label: str, k: int = 0, relational_set: str = "2005"):
+        return relational_features(clip(label, k), relational_set)
 
     return get
 
@@ -88,21 +88,21 @@ def symmetric_asf(src, dst) -> None:
 
 
 # ----------------------------------------------------------------------------------------- the feature sets
-@pytest.mark.parametrize("feature_set, sizes", [("2005", (11, 12, 8)), ("2006", (12, 14, 13))])
-def test_names_and_groups(feature_set, sizes):
-    names = feature_names(feature_set)
-    groups = feature_groups(feature_set)
-    assert FEATURE_SETS == ("2005", "2006")
+@pytest.mark.parametrize("relational_set, sizes", [("2005", (11, 12, 8)), ("2006", (12, 14, 13))])
+def test_names_and_groups(relational_set, sizes):
+    names = feature_names(relational_set)
+    groups = feature_groups(relational_set)
+    assert RELATIONAL_SETS == ("2005", "2006")
     assert len(names) == sum(sizes) and len(set(names)) == len(names)
     assert all(re.fullmatch(r"[a-z][a-z0-9]*(_[a-z0-9]+)*", n) for n in names), names
     assert list(groups) == ["lower", "upper", "mix"]
     assert tuple(len(groups[g]) for g in ("lower", "upper", "mix")) == sizes
-    order = ("lower", "upper", "mix") if feature_set == "2005" else ("upper", "lower", "mix")
+    order = ("lower", "upper", "mix") if relational_set == "2005" else ("upper", "lower", "mix")
     assert [n for g in order for n in groups[g]] == names  # columns: 2005 toolbox order, 2006 F1-F39
-    table = feature_table(feature_set)
+    table = feature_table(relational_set)
     assert table["name"].tolist() == names
     # each column names its spec row, in order: 2005 toolbox #1..#31, 2006 F1..F39
-    key = r"2005 #(\d+)\b" if feature_set == "2005" else r"2006 F(\d+)\b"
+    key = r"2005 #(\d+)\b" if relational_set == "2005" else r"2006 F(\d+)\b"
     assert [int(re.match(key, s).group(1)) for s in table["spec"]] == list(range(1, len(names) + 1))
     # sided features come in r/l pairs
     for n in names:
@@ -135,7 +135,8 @@ def test_names_say_what_one_means_and_shared_names_mean_the_same():
 
 
 def test_unknown_feature_set_lists_the_known_ones(clip):
-    for call in (lambda: feature_names("2007"), lambda: feature_groups("x"), lambda: relational(clip("squat1Reps"), "1999")):
+    for call in (lambda: feature_names("2007"), lambda: feature_groups("x"),
+                 lambda: relational_features(clip("squat1Reps"), "1999")):  # fmt: skip
         with pytest.raises(ValueError, match="2005, 2006"):
             call()
 
@@ -271,7 +272,7 @@ def test_features_follow_the_spec_formulas(clip):
         m = replace(m, positions=pos.astype(np.float32))
         pos = m.positions.astype(np.float64)
         joints = {n: pos[:, k] for k, n in enumerate(CANONICAL_JOINTS)}
-        return m, pos, joints, body_sizes(m.positions), *relational(m, "2005"), *relational(m, "2006")
+        return m, pos, joints, body_sizes(m.positions), *relational_features(m, "2005"), *relational_features(m, "2006")
 
     robust = rf._robust
     # 2005 #13: plane (root, lshoulder, rshoulder), normal (root - rsh) x (lsh - rsh), lwrist 1.0 / 1.15 hum_L in front
@@ -306,31 +307,31 @@ def test_features_follow_the_spec_formulas(clip):
     speed = np.linalg.norm(j["root"][2:] - j["root"][:-2], axis=1) / 2 * m.fps
     assert np.array_equal(column(v05, n05, "root_moving")[:-2], speed > 1.0)
     # the scaled first frame matters: with the clip's own first frame the thresholds differ
-    unscaled, _ = relational(clip("kickLFront1Reps"), "2006")
+    unscaled, _ = relational_features(clip("kickLFront1Reps"), "2006")
     assert not np.array_equal(unscaled[:, n06.index("lfoot_raised_2006")], column(v06, n06, "lfoot_raised_2006"))
 
 
 # ---------------------------------------------------------------------------------- behaviour on real clips
-@pytest.mark.parametrize("feature_set", FEATURE_SETS)
-def test_output_shape_dtype_and_any_skeleton(hdm05_dir, hdm05_labels, clip, feature_set):
+@pytest.mark.parametrize("relational_set", RELATIONAL_SETS)
+def test_output_shape_dtype_and_any_skeleton(hdm05_dir, hdm05_labels, clip, relational_set):
     raw = mocapviz.load(hdm05_dir / hdm05_labels["file"].iloc[0])  # ASF bone names, not canonical
-    values, names = relational(raw, feature_set)
-    assert values.dtype == np.bool_ and values.shape == (raw.n_frames, len(feature_names(feature_set)))
-    assert names == feature_names(feature_set)
-    same, _ = relational(raw.canonical(), feature_set)
+    values, names = relational_features(raw, relational_set)
+    assert values.dtype == np.bool_ and values.shape == (raw.n_frames, len(feature_names(relational_set)))
+    assert names == feature_names(relational_set)
+    same, _ = relational_features(raw.canonical(), relational_set)
     assert np.array_equal(values, same)
 
 
 def test_bvh_rig(bandai1_files):
     m = mocapviz.load(bandai1_files[0])
-    for s in FEATURE_SETS:
-        values, names = relational(m, s)
+    for s in RELATIONAL_SETS:
+        values, names = relational_features(m, s)
         assert values.shape == (m.n_frames, len(names)) and values.any() and not values.all()
 
 
 def test_squat_bends_both_knees_but_not_at_the_start(features):
     for k in range(4):
-        for s in FEATURE_SETS:
+        for s in RELATIONAL_SETS:
             values, names = features("squat1Reps", k, s)
             both = column(values, names, "rknee_bent") & column(values, names, "lknee_bent")
             assert both.mean() > 0.3, (k, s)
@@ -402,12 +403,12 @@ def test_standing_still_at_the_start(features):
             assert column(v05, n05, "root_moving").mean() > 0.5
 
 
-@pytest.mark.parametrize("feature_set", FEATURE_SETS)
-def test_mirror_symmetry(hdm05_dir, hdm05_labels, tmp_path, feature_set):
+@pytest.mark.parametrize("relational_set", RELATIONAL_SETS)
+def test_mirror_symmetry(hdm05_dir, hdm05_labels, tmp_path, relational_set):
     """Features of the mirrored clip, permuted left<->right, equal the clip's own (skeleton made symmetric, so the
     toolbox's one-sided units cannot differ)."""
-    pairs = MIRROR_2005 if feature_set == "2005" else MIRROR_2006
-    names = feature_names(feature_set)
+    pairs = MIRROR_2005 if relational_set == "2005" else MIRROR_2006
+    names = feature_names(relational_set)
     perm = permutation(pairs, len(names))
     for a, b in pairs:  # the spec's pairs are our r/l name pairs (and the two shoulder rotations)
         right, left = names[a - 1], names[b - 1]
@@ -421,13 +422,13 @@ def test_mirror_symmetry(hdm05_dir, hdm05_labels, tmp_path, feature_set):
             if not asf.exists():
                 symmetric_asf(hdm05_dir / "asf" / f"HDM_{actor}.asf", asf)
             m = mocapviz.load(hdm05_dir / f, asf=asf).canonical()
-            a, _ = relational(m, feature_set)
-            b, _ = relational(mirrored(m), feature_set)
+            a, _ = relational_features(m, relational_set)
+            b, _ = relational_features(mirrored(m), relational_set)
             agree.append(a == b[:, perm])
     agree = pd.Series(np.concatenate(agree).mean(axis=0), index=names)
     # 2006 F1/F2 take the hand's velocity relative to the LEFT hip for both hands (toolbox), which a mirror
     # turns into the right hip: they differ when the pelvis turns
-    loose = ["rhand_moving_forward", "lhand_moving_forward"] if feature_set == "2006" else []
+    loose = ["rhand_moving_forward", "lhand_moving_forward"] if relational_set == "2006" else []
     assert (agree.drop(loose) > 0.99).all(), agree[agree <= 0.99]
     assert (agree[loose] > 0.9).all(), agree[loose]
 
@@ -440,8 +441,8 @@ def test_frame_rate_independence(clip):
         m = clip(label)
         m60 = m.resample(60)
         for s, chosen in velocity.items():
-            a, names = relational(m, s)
-            b, _ = relational(m60, s)
+            a, names = relational_features(m, s)
+            b, _ = relational_features(m60, s)
             a = a[::2][: len(b)]  # frame k at 60 Hz is frame 2k at 120 Hz
             cols = [names.index(n) for n in chosen]
             agree = (a[:, cols] == b[:, cols]).mean(axis=0)
@@ -454,32 +455,40 @@ def test_motiondb_equals_its_documents(hdm05_dir, hdm05_labels, tmp_path, monkey
     files = [hdm05_dir / hdm05_labels.loc[hdm05_labels["class"] == c, "file"].iloc[0]
              for c in ("squat1Reps", "hopBothLegs1hops", "kickLFront1Reps", "grabHighR")]  # fmt: skip
     db = MotionDB.ingest(files, tmp_path / "db", progress=False)
-    for s in FEATURE_SETS:
-        values, names = relational(db, s, progress=False)
+    for s in RELATIONAL_SETS:
+        values, names = relational_features(db, s, progress=False)
         assert values.shape == (db.n_frames, len(names)) and names == feature_names(s)
-        per_doc = np.concatenate([relational(db.motion(d), s)[0] for d in db.documents["doc_id"]])
+        per_doc = np.concatenate([relational_features(db.motion(d), s)[0] for d in db.documents["doc_id"]])
         assert np.array_equal(values, per_doc)
         # in several batches (documents never split) the result is the same
         monkeypatch.setattr(rf, "_BATCH_FRAMES", 150)
-        assert np.array_equal(relational(db, s, progress=False)[0], values)
+        assert np.array_equal(relational_features(db, s, progress=False)[0], values)
         monkeypatch.undo()
     # the documents are computed apart: a hysteresis, a velocity window or a body size across a boundary would
     # make the concatenation differ from the single clips (checked above); the progress bar appears for many docs
-    monkeypatch.setattr(rf, "_PROGRESS_MIN_DOCUMENTS", 2)
-    relational(db, progress=True)
+    monkeypatch.setattr(batch, "PROGRESS_MIN_DOCUMENTS", 2)
+    relational_features(db, progress=True)
     assert "relational features" in capsys.readouterr().err
-    relational(db, progress=False)
+    relational_features(db, progress=False)
     assert capsys.readouterr().err == ""
+
+
+def test_feature_set_is_relational_set_with_a_warning(clip):
+    m = clip("squat1Reps")
+    new, names = relational_features(m, relational_set="2006")
+    with pytest.warns(FutureWarning, match="feature_set= is deprecated; pass relational_set="):
+        old, old_names = relational_features(m, feature_set="2006")
+    assert names == old_names == feature_names("2006") and np.array_equal(old, new)
 
 
 # --------------------------------------------------------------------------------------------- bad input
 def test_bad_input_is_named(clip):
     m = clip("squat1Reps")
     with pytest.raises(ValueError, match=r"HDM_.*squat1Reps.*1 frame"):
-        relational(m[:1])
+        relational_features(m[:1])
     bad = m.positions.copy()
     bad[37, CANONICAL_JOINTS.index("lwrist"), 1] = np.nan
     with pytest.raises(ValueError, match=r"squat1Reps.*frame 37.*lwrist"):
-        relational(replace(m, positions=bad))
+        relational_features(replace(m, positions=bad))
     with pytest.raises(ParameterError, match="Motion or a MotionDB"):
-        relational(m.positions)
+        relational_features(m.positions)

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mocapviz import reproduce as rp
+from mocapviz import reproduction as rp
 from mocapviz.cli import main
 from mocapviz.experiments.matching import similarity_matrices
 from mocapviz.experiments.relational import index_statistics
@@ -38,7 +38,7 @@ def test_tables_equal_the_experiment_functions(written, hdm05_db30):
     matches = pd.read_csv(out / "similarity_matrices" / "matches.csv")
     assert "path" not in matches.columns, "array columns are left out of the CSV"
     jog = hdm05_db30.select(label="jogLeftCircle4StepsRstart")["doc_id"].astype(int).tolist()
-    ref = similarity_matrices(hdm05_db30, jog[0], k=64, k_matches=3)
+    ref = similarity_matrices(hdm05_db30, jog[0], k=64, n_matches=3)
     for name, part in matches.groupby("set"):
         expected = ref[name]["matches"]
         assert np.array_equal(part["start"], expected["start"]) and np.allclose(part["cost"], expected["cost"])
@@ -48,7 +48,7 @@ def test_index_statistics_table_matches_function(written, hdm05_dir, tmp_path):
     from mocapviz import MotionDB
 
     out, _, _ = written
-    db = MotionDB.ingest([hdm05_dir], tmp_path / "db120", progress=False, n_jobs=2)
+    db = MotionDB.ingest([hdm05_dir], tmp_path / "db120", progress=False)
     ours = index_statistics(db, "2005")
     table2 = pd.read_csv(out / "index_statistics" / "table2.csv")
     written_ours = table2[table2["source"] != "paper"].reset_index(drop=True)

@@ -57,7 +57,7 @@ def test_exact_clips_of_a_span_with_candidates(search, hdm05_db30):
     np.testing.assert_allclose(got["cost"], ref["cost"], rtol=1e-12)
 
 
-def brute_stretches(search, q: np.ndarray, own: int, k: int, shortest: int) -> set:
+def brute_stretches(search, q: np.ndarray, own: int, n_matches: int, shortest: int) -> set:
     """Subsequence DTW over the whole database (mocapviz.match.subsequence_costs), own document and matches shorter
     than ``shortest`` frames left out, K best non-overlapping: the reference of stretch search."""
     starts = search.documents["start"].to_numpy()
@@ -65,7 +65,7 @@ def brute_stretches(search, q: np.ndarray, own: int, k: int, shortest: int) -> s
     span = search.db.frames(own)
     ends = np.arange(len(cost))
     cost[(ends >= span.start) & (ends < span.stop) | (ends - first + 1 < shortest)] = np.inf
-    chosen = best_ends(cost, first, starts, k)
+    chosen = best_ends(cost, first, starts, n_matches)
     doc_row = np.searchsorted(starts, chosen, side="right") - 1
     return [(int(search.documents["doc_id"][r]), int(first[e] - starts[r]), int(e - starts[r]), cost[e])
             for e, r in zip(chosen, doc_row)]  # fmt: skip
@@ -86,7 +86,7 @@ def test_exact_stretches_equal_subsequence_dtw(search, doc, frames, min_length):
 def test_stretches_agree_with_subsequence_dtw_without_length_limit(search):
     """With no minimum length and nothing excluded, the K best stretches are subsequence_dtw's matches."""
     q, _ = search.query_features(37, (3, 33))
-    ref = subsequence_dtw(q, search.features, search.documents["start"].to_numpy(), k=10, paths=True)
+    ref = subsequence_dtw(q, search.features, search.documents["start"].to_numpy(), n_matches=10, paths=True)
     got = search.stretches(37, frames=(3, 33), n_matches=10, mode="exact", min_length=1 / 30, paths=True)
     starts = search.documents.set_index("doc_id")["start"]
     assert (got["start"] + starts[got["doc_id"]].to_numpy()).tolist() == ref["start"].tolist()
@@ -206,7 +206,7 @@ def test_search_command(hdm05_db30, tmp_path, capsys):
 @pytest.mark.parametrize(("args", "words"), [
     (["-K", "0"], "-K must be at least 1"),
     (["--frames", "0:999999"], "outside document 101"),
-    (["--features", "F15E,F99"], "unknown feature set F99"),
+    (["--numeric-set", "F15E,F99"], "unknown numeric set F99"),
     (["--stretches", "--min-length", "1.5"], "--min-length"),
 ])  # fmt: skip
 def test_search_command_errors(hdm05_db30, capsys, args, words):

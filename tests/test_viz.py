@@ -25,7 +25,7 @@ LOWER = ["rfoot_behind", "lfoot_behind", "rfoot_raised", "lfoot_raised"]
 
 @pytest.fixture(scope="module")
 def db(hdm05_dir, tmp_path_factory):
-    return MotionDB.ingest([hdm05_dir], tmp_path_factory.mktemp("viz") / "db", fps=30, progress=False, n_jobs=2)
+    return MotionDB.ingest([hdm05_dir], tmp_path_factory.mktemp("viz") / "db", fps=30, progress=False)
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +35,7 @@ def jog(db) -> list[int]:
 
 @pytest.fixture(scope="module")
 def similarity(db, jog) -> dict:
-    return similarity_matrices(db, jog[0], sets=SETS, k=32)
+    return similarity_matrices(db, jog[0], numeric_sets=SETS, k=32)
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ import holoviews as hv
 import numpy as np
 import pytest
 
-from mocapviz.features import feature_groups, numeric, numeric_columns, relational
+from mocapviz.features import feature_groups, numeric_columns, numeric_features, relational_features
 from mocapviz.viz.timeline import numeric_curves, relational_timeline, runs
 
 
@@ -32,7 +32,7 @@ def _runs_by_loop(values: np.ndarray) -> list[tuple[int, int, int]]:
 
 
 def test_runs_equal_a_loop_over_real_features(kick):
-    values, _ = relational(kick, progress=False)
+    values, _ = relational_features(kick, progress=False)
     table = runs(values)
     assert list(table.itertuples(index=False, name=None)) == _runs_by_loop(values)
     assert (table["stop"] > table["start"]).all()
@@ -44,7 +44,7 @@ def test_runs_rejects_a_vector():
 
 
 def test_relational_timeline_draws_every_run_in_seconds(kick):
-    values, names = relational(kick, progress=False)
+    values, names = relational_features(kick, progress=False)
     groups = feature_groups()
     plot = relational_timeline(values, names, kick.fps, groups, span=(10, 40))
     rects = plot.get(0)
@@ -63,7 +63,7 @@ def test_relational_timeline_draws_every_run_in_seconds(kick):
 
 
 def test_relational_timeline_checks_its_input(kick):
-    values, names = relational(kick, progress=False)
+    values, names = relational_features(kick, progress=False)
     with pytest.raises(ValueError, match="do not match"):
         relational_timeline(values, names[:-1], kick.fps)
     with pytest.raises(ValueError, match="fps"):
@@ -71,7 +71,7 @@ def test_relational_timeline_checks_its_input(kick):
 
 
 def test_numeric_curves_one_curve_per_coordinate(kick):
-    X = numeric(kick, "F15E", progress=False)
+    X = numeric_features(kick, "F15E", progress=False)
     cols = numeric_columns("F15E")
     plot = numeric_curves(X, cols, kick.fps, span=(0, 5))
     curves = [c for c in plot if isinstance(c, hv.Curve)]

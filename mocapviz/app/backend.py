@@ -16,7 +16,7 @@ import pandas as pd
 from .. import index as index_mod
 from ..database import MotionDB
 from ..errors import MotionDBError
-from ..features import numeric_of, relational
+from ..features import numeric_of, relational_features
 from ..knn import KnnIndex
 
 _BACKENDS: dict = {}
@@ -30,16 +30,22 @@ class Backend:
     ----------
     db : MotionDB
     documents : pandas.DataFrame, the database's document table.
-    fps : float, the database's frame rate (the first document's when they differ).
+    fps : float, the database's typical frame rate: the rate of most of its frames (for defaults that scale with
+        the rate, such as the neighbours k at 30 Hz); a duration or playback of a document uses
+        :meth:`fps_of` that document.
     """
 
     def __init__(self, db: MotionDB):
         self.db = db
         self.documents = db.documents
-        self.fps = db.fps or float(db.documents["fps"].iloc[0])
+        self.fps = db.typical_fps
         self._results: dict = {}
         self._locks: dict = {}
         self._guard = threading.Lock()
+
+    def fps_of(self, doc_id: int) -> float:
+        """The frame rate of document ``doc_id`` (frames per second)."""
+        return float(self.db.document(doc_id)["fps"])
 
     @classmethod
     def open(cls, path) -> Backend:
@@ -74,26 +80,26 @@ class Backend:
         return key in self._results
 
     # ------------------------------------------------------------------ derived data
-    def indexes(self, feature_set: str = "2005") -> dict:
+    def indexes(self, relational_set: str = "2005") -> dict:
         """The relational inverted indexes (group -> InvertedIndex); built and saved in DB/index/ when missing or
         stale (Müller et al. 2005 §4), as ``mocapviz index DB`` would."""
-        return self.cached(("indexes", feature_set), lambda: index_mod.load_or_build(self.db, feature_set))
+        return self.cached(("indexes", relational_set), lambda: index_mod.load_or_build(self.db, relational_set))
 
-    def clip_relational(self, doc: int, feature_set: str = "2005") -> tuple[np.ndarray, list[str]]:
+    def clip_relational(self, doc: int, relational_set: str = "2005") -> tuple[np.ndarray, list[str]]:
         """One document's relational features: (T, f) bool and the f names, computed on the clip (§3)."""
-        return self.cached(("relational", doc, feature_set),
-                           lambda: relational(self.db.motion(doc), feature_set, progress=False))
+        return self.cached(("relational", doc, relational_set),
+                           lambda: relational_features(self.db.motion(doc), relational_set, progress=False))
 
     def numeric(self, name: str) -> np.ndarray:
-        """A numeric feature set of every frame, (N, d) float32 cm (stored when current, else computed)."""
+        """A numeric set of every frame, (N, d) float32 cm (stored when current, else computed)."""
         return self.cached(("numeric", name), lambda: numeric_of(self.db, name))
 
     def knn(self, name: str) -> KnnIndex:
-        """The kd-tree over a numeric feature set (Krüger et al. 2010 §3.3)."""
+        """The kd-tree over a numeric set (Krüger et al. 2010 §3.3)."""
         return self.cached(("knn", name), lambda: KnnIndex(self.numeric(name)))
 
     def search(self, name: str = "F15E"):
-        """The DTW search over a numeric feature set (:class:`mocapviz.search.SimilaritySearch`; its kd-tree and
+        """The DTW search over a numeric set (:class:`mocapviz.search.SimilaritySearch`; its kd-tree and
         coarse database are built on first use and kept with it)."""
         from ..search import SimilaritySearch
 

@@ -1,7 +1,9 @@
 """Rank correlations between feature sets and distance measures: Krüger, Tautges, Weber & Zinke 2010, §3.3, Fig. 2.
 
-CORRELATION_MEASURES   the 14 measures of Fig. 2 in the figure's order: the nine feature sets of Table 1 and the
-                       five distance measures of §3.1.
+TABLE1_SETS            the nine numeric sets of Table 1, in its order (the rows of the pose-based comparison on a
+                       large database).
+CORRELATION_MEASURES   the 14 measures of Fig. 2 in the figure's order: TABLE1_SETS and the five distance measures of
+                       §3.1.
 available_measures     the measures a MotionDB supports (Deuler needs AMC files; Dquat, Dwb need rotations).
 correlation_sample     the sample database: clips of the labelled classes with at least 8 clips (the paper: 76
                        hand-cut HDM05 clips of 9 classes).
@@ -53,16 +55,16 @@ from ..errors import ParameterError
 from ..features.distances import deuler_pairwise, dpc_pairwise, dquat_pairwise, dwb_pairwise, lee_frames, window_clouds
 from ..features.numeric import default_pca, numeric_of
 from ..knn import KnnIndex
-from ..match.dtw import dtw
+from ..match.time_warping import dtw
 
 __all__ = [
-    "CORRELATION_MEASURES", "DISTANCE_MEASURES", "FEATURE_SETS", "PAPER_FIG2_CLAIMS", "available_measures",
+    "CORRELATION_MEASURES", "DISTANCE_MEASURES", "PAPER_FIG2_CLAIMS", "TABLE1_SETS", "available_measures",
     "correlation_sample", "paper_claims", "pose_correlations", "rank_correlations", "segment_correlations",
 ]  # fmt: skip
 
-FEATURE_SETS = ("Fp8", "Fp16", "Fp25", "F15E", "F30E", "F39E", "F15x3E", "F15x5E", "F30x3E")  # Table 1's order
+TABLE1_SETS = ("Fp8", "Fp16", "Fp25", "F15E", "F30E", "F39E", "F15x3E", "F15x5E", "F30x3E")  # Table 1's order
 DISTANCE_MEASURES = ("Deuler", "Dquat", "Dpc1", "Dpc11", "Dwb")
-CORRELATION_MEASURES = FEATURE_SETS + DISTANCE_MEASURES  # Fig. 2's order
+CORRELATION_MEASURES = TABLE1_SETS + DISTANCE_MEASURES  # Fig. 2's order
 _BLOCK_FRAMES = 1 << 15  # descriptors of at most this many frames at once (Dpc11: 32768 x 264 x 3 float64 = 200 MB)
 _BLOCK_PAIRS = 1 << 22  # distances of at most this many (query, frame) pairs at once (32 MB)
 
@@ -139,7 +141,7 @@ def _euclidean(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 _MEASURES = {
-    **{name: (lambda ctx, f, name=name: ctx.numeric(name)[f], _euclidean) for name in FEATURE_SETS},
+    **{name: (lambda ctx, f, name=name: ctx.numeric(name)[f], _euclidean) for name in TABLE1_SETS},
     "Deuler": (lambda ctx, f: ctx.euler(f), deuler_pairwise),
     "Dquat": (lambda ctx, f: ctx.db.quaternions[f], dquat_pairwise),
     "Dpc1": (lambda ctx, f: window_clouds(ctx.db.positions, 1, f, ctx.lengths), dpc_pairwise),
@@ -308,7 +310,7 @@ def _nearest(ctx: _Descriptors, measure: str, queries: np.ndarray, frames: np.nd
     distances : np.ndarray [shape=(Q, k)], float64, increasing (units of the measure).
     neighbours : np.ndarray [shape=(Q, k)], int64 database frames; equal distances by frame number (brute force).
     """
-    if measure in FEATURE_SETS:
+    if measure in TABLE1_SETS:
         x = ctx.numeric(measure)
         valid = np.zeros(len(x), dtype=bool)
         valid[frames] = True
@@ -561,7 +563,7 @@ def rank_correlations(db, large_db=None, clips_per_class: int = 8, n_queries: in
     sample = correlation_sample(db, clips_per_class=clips_per_class, seed=seed)
     large = db if large_db is None else large_db
     pose = pose_correlations(db, docs=sample, n_queries=n_queries, k=k, pca=pca, seed=seed, progress=progress)
-    pose_large = pose_correlations(large, rows=FEATURE_SETS, columns=available_measures(large), n_queries=n_queries,
+    pose_large = pose_correlations(large, rows=TABLE1_SETS, columns=available_measures(large), n_queries=n_queries,
                                    k=k, pca=pca, seed=seed, progress=progress)  # fmt: skip
     segment = segment_correlations(db, sample, n_first=n_first, pca=pca, progress=progress)
     precision = segment.attrs["precision"].to_frame().assign(chance=segment.attrs["chance"])

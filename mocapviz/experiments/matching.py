@@ -4,12 +4,12 @@ Müller, Röder & Clausen 2005 §7 (Fig. 11).
 lng_accuracy          §4.2: the lazy neighbourhood graph against subsequence DTW on random 1 s and 3 s queries:
                       Spearman's rho of the global distances of the retrieved matches, equal costs, recall of
                       DTW's best matches, and the effect of eps-approximate kNN; times of both.
-similarity_matrices   Fig. 3: a query clip against a small database, per feature set the distance matrix, the cells
+similarity_matrices   Fig. 3: a query clip against a small database, per numeric set the distance matrix, the cells
                       the graph computed (kNN cells), its paths; subsequence DTW on Dpc1 for comparison.
 alignment             Müller 2005 §7, Fig. 11: two logically similar clips aligned segment-wise from their relational
                       feature sequences, then refined by DTW restricted to the enlarged band of matched segments,
                       against full DTW (cost, time, path difference).
-numerical_search      Table 2: per query class and feature set, correct and wrong hits of the graph's matches against
+numerical_search      Table 2: per query class and numeric set, correct and wrong hits of the graph's matches against
                       the labels, and the iterated "logical" search (Kovar & Gleicher 2004) with its gain in recall.
 """
 
@@ -26,11 +26,12 @@ from scipy.stats import spearmanr
 from ..errors import ParameterError
 from ..features.distances import dpc_pairwise, window_clouds
 from ..features.numeric import numeric_of
-from ..features.relational import relational
+from ..features.relational import relational_features
 from ..knn import KnnIndex
-from ..match.dtw import band_from_path, best_ends, dtw, subsequence_costs, subsequence_dtw
-from ..match.lng import graph_matches, neighbourhoods
-from ..segment import segment
+from ..match.neighbourhood_graph import graph_matches, neighbourhoods
+from ..match.time_warping import band_from_path, best_ends, dtw, subsequence_costs, subsequence_dtw
+from ..segmentation import segment
+from ..validation import renamed
 
 # §4.2: "For the queries of length 1 sec (3 sec) it took on average 0.03 sec (0.08 sec.) to construct the
 # alignments using exact nearest-neighbor-searches for the feature set Fp16"; rank correlation > 0.99.
@@ -52,8 +53,9 @@ def _overlaps(a_start, a_end, b_start, b_end) -> np.ndarray:
 
 
 # ============================================================================ §4.2: LNG against subsequence DTW
-def lng_accuracy(db, feature_set: str = "F15E", n_queries: int = 128, seconds=(1.0, 3.0), k: int = 256,
-                 radius: float | None = None, eps=(0.0, 0.1, 0.5), k_matches: int = 10, seed: int = 0,
+@renamed(feature_set="numeric_set")
+def lng_accuracy(db, numeric_set: str = "F15E", n_queries: int = 128, seconds=(1.0, 3.0), k: int = 256,
+                 radius: float | None = None, eps=(0.0, 0.1, 0.5), n_matches: int = 10, seed: int = 0,
                  features: np.ndarray | None = None, progress: bool = False) -> pd.DataFrame:  # fmt: skip
     """The lazy neighbourhood graph against subsequence DTW on random queries (Krüger et al. 2010 §4.2).
 
@@ -64,12 +66,13 @@ def lng_accuracy(db, feature_set: str = "F15E", n_queries: int = 128, seconds=(1
     Parameters
     ----------
     db : MotionDB, e.g. the HDM05 cut clips at 30 Hz.
-    feature_set : str, a numeric set (:data:`mocapviz.features.NUMERIC_SETS`).
+    numeric_set : str, a numeric set (:data:`mocapviz.features.NUMERIC_SETS`); its old name ``feature_set`` still
+        works, with a FutureWarning.
     n_queries : int, per query length.
     seconds : tuple of float, query lengths in seconds.
     k, radius : the graph's neighbourhoods.
     eps : tuple of float, kNN approximations tried.
-    k_matches : int, matches kept by both methods (K).
+    n_matches : int, matches kept by both methods.
     seed : int
     features : np.ndarray [shape=(N, d)], optional, the set's values for every frame (default ``numeric_of``).
     progress : bool
@@ -80,11 +83,11 @@ def lng_accuracy(db, feature_set: str = "F15E", n_queries: int = 128, seconds=(1
     frame), ``m`` (query frames), ``lng_matches``, ``spearman`` (rho between the graph's costs of its matches and
     subsequence DTW's accumulated cost at the same end frames; NaN with fewer than 3 matches or a constant
     side), ``equal`` (share of the graph's matches whose cost equals DTW's at their end, relative difference <
-    1e-9), ``below_dtw``, ``recall`` (share of DTW's best ``k_matches`` matches overlapped by a graph match),
+    1e-9), ``below_dtw``, ``recall`` (share of DTW's best ``n_matches`` matches overlapped by a graph match),
     ``same_best`` (the best matches overlap): see :func:`agreement`; ``knn_s``, ``graph_s``, ``dtw_s`` (subsequence DTW over the whole
     database, seconds).
     """
-    X = numeric_of(db, feature_set) if features is None else features
+    X = numeric_of(db, numeric_set) if features is None else features
     index = KnnIndex(X)
     starts, stops = _document_bounds(db)
     rng = np.random.default_rng(seed)
@@ -97,24 +100,26 @@ def lng_accuracy(db, feature_set: str = "F15E", n_queries: int = 128, seconds=(1
         from tqdm.auto import tqdm
 
         work = tqdm(work, desc="LNG vs subsequence DTW", unit="query")
+    fps = db.documents["fps"].to_numpy(np.float64)  # each query's length at its own document's rate
     for sec, _ in work:
-        m = max(2, round(sec * db.fps))
-        long_enough = np.flatnonzero(stops - starts >= m)
+        m_of = np.maximum(2, np.round(sec * fps).astype(np.int64))
+        long_enough = np.flatnonzero(stops - starts >= m_of)
         if not len(long_enough):
-            raise ParameterError(f"no document of {db.path} has {m} frames for a {sec:g} s query")
+            raise ParameterError(f"no document of {db.path} is {sec:g} s long")
         doc = int(rng.choice(long_enough))
+        m = int(m_of[doc])
         q0 = int(rng.integers(starts[doc], stops[doc] - m + 1))
         q = X[q0 : q0 + m]
         t0 = time.perf_counter()
         cost, first = subsequence_costs(q, X, starts)
         t_dtw = time.perf_counter() - t0
         cost[starts[doc] : stops[doc]] = np.inf  # the query's own document is excluded from both
-        ref_ends = best_ends(cost, first, starts, k_matches)
+        ref_ends = best_ends(cost, first, starts, n_matches)
         for e in eps:
             t0 = time.perf_counter()
             d, f = neighbourhoods(q, index, k, radius, e, exclude=[starts[doc], stops[doc]])
             t1 = time.perf_counter()
-            found = graph_matches(d, f, starts, len(X), k_matches, paths=False)
+            found = graph_matches(d, f, starts, len(X), n_matches, paths=False)
             t2 = time.perf_counter()
             rows.append({"seconds": sec, "eps": e, "query_doc": doc, "query_start": q0, "m": m,
                          "lng_matches": len(found), **agreement(found, cost, first[ref_ends], ref_ends),
@@ -173,11 +178,12 @@ def summarize_accuracy(per_query: pd.DataFrame) -> pd.DataFrame:
 
 
 # ============================================================================ Fig. 3: similarity matrices
+@renamed(sets="numeric_sets", k_matches="n_matches")
 def similarity_matrices(db, query_doc: int, query_frames: tuple[int, int] | None = None, database_docs=None,
-                        sets=FIG3_SETS, k: int = 32, radius: float | None = None, k_matches: int = 3,
+                        numeric_sets=FIG3_SETS, k: int = 32, radius: float | None = None, n_matches: int = 3,
                         dpc_window: int = 1) -> dict:  # fmt: skip
     """Fig. 3 of Krüger et al. 2010: a query aligned to the motions of a small database with the lazy
-    neighbourhood graph on several feature sets, and by subsequence DTW on Dpc for comparison.
+    neighbourhood graph on several numeric sets, and by subsequence DTW on Dpc for comparison.
 
     The paper's example is a two-step left-turning walk against six steps of one; HDM05's
     ``jogLeftCircle4StepsRstart`` clips (a left-turning jog starting with the right foot) serve the same purpose.
@@ -188,15 +194,15 @@ def similarity_matrices(db, query_doc: int, query_frames: tuple[int, int] | None
     query_doc : int, the document the query comes from.
     query_frames : (a, b), optional, frames [a, b) within it (default the whole document).
     database_docs : list of int, the small database (default every other document of the query's label, at most 3).
-    sets : numeric feature sets.
+    numeric_sets : numeric sets (old name ``sets``, with a FutureWarning).
     k, radius : the graph's neighbourhoods (on the small database).
-    k_matches : int, graph / DTW matches kept.
+    n_matches : int, graph / DTW matches kept (old name ``k_matches``, with a FutureWarning).
     dpc_window : int, frames of the Dpc window (1: Dpc1, the paper's choice for Fig. 3).
 
     Returns
     -------
     dict: ``"query"`` ({doc, frames}), ``"database_docs"``, ``"database_starts"`` (first frame of each database
-    document in the small database's frame numbers), and per feature set name and ``"Dpc{n}"``: a dict with
+    document in the small database's frame numbers), and per numeric set name and ``"Dpc{n}"``: a dict with
     ``"distance"`` ((m, n) local costs: Euclidean in the set's units; cm² for Dpc), ``"computed"`` ((m, n) bool,
     the kNN cells the graph visited; all True for Dpc, which DTW computes in full) and ``"matches"`` (a matches
     DataFrame, frames of the small database, with paths).
@@ -219,7 +225,7 @@ def similarity_matrices(db, query_doc: int, query_frames: tuple[int, int] | None
     q_rows = np.arange(span.start + a, span.start + b)
     out = {"query": {"doc": int(query_doc), "frames": (int(a), int(b))}, "database_docs": database_docs,
            "database_starts": local_starts}  # fmt: skip
-    for name in sets:
+    for name in numeric_sets:
         X = numeric_of(db, name)
         q, small = np.asarray(X[q_rows], dtype=np.float64), np.asarray(X[rows], dtype=np.float64)
         dist = cdist(q, small)  # (m, n) Euclidean, without an (m, n, d) temporary
@@ -229,13 +235,13 @@ def similarity_matrices(db, query_doc: int, query_frames: tuple[int, int] | None
         qi = np.repeat(np.arange(len(q)), f.shape[1])
         computed[qi[f.ravel() >= 0], f.ravel()[f.ravel() >= 0]] = True
         out[name] = {"distance": dist, "computed": computed,
-                     "matches": graph_matches(d, f, local_starts, len(small), k_matches)}  # fmt: skip
+                     "matches": graph_matches(d, f, local_starts, len(small), n_matches)}  # fmt: skip
     positions = np.asarray(db.positions)
     q_clouds = window_clouds(positions[span.start : span.stop], dpc_window)[a:b]
     clouds = np.concatenate([window_clouds(positions[db.frames(d)], dpc_window) for d in database_docs])
     out[f"Dpc{dpc_window}"] = {
         "distance": dpc_pairwise(q_clouds, clouds), "computed": np.ones((b - a, len(rows)), dtype=bool),
-        "matches": subsequence_dtw(q_clouds, clouds, local_starts, k=k_matches, distance=dpc_pairwise),
+        "matches": subsequence_dtw(q_clouds, clouds, local_starts, n_matches=n_matches, distance=dpc_pairwise),
     }  # fmt: skip
     return out
 
@@ -260,7 +266,7 @@ def _median_seconds(fn, repeats: int):
     return statistics.median(times), result
 
 
-def alignment(db, doc_a: int, doc_b: int, features=None, feature_set: str = "2005", numeric_set: str = "F15E",
+def alignment(db, doc_a: int, doc_b: int, features=None, relational_set: str = "2005", numeric_set: str = "F15E",
               margin: int = 4, repeats: int = 5) -> dict:  # fmt: skip
     """Two-stage time alignment of two logically similar clips (Müller, Röder & Clausen 2005 §7, Fig. 11).
 
@@ -275,7 +281,7 @@ def alignment(db, doc_a: int, doc_b: int, features=None, feature_set: str = "200
     db : MotionDB
     doc_a, doc_b : int, the two clips (a: rows of the cost matrix, b: columns).
     features : list of str, optional, relational features (default all of the set).
-    feature_set : "2005" or "2006".
+    relational_set : "2005" or "2006".
     numeric_set : str, the features of the fine DTW (Euclidean local cost).
     margin : int, frames.
     repeats : int, runs timed per method (median).
@@ -290,8 +296,8 @@ def alignment(db, doc_a: int, doc_b: int, features=None, feature_set: str = "200
     """
     X = numeric_of(db, numeric_set)
     fa, fb = np.asarray(X[db.frames(doc_a)], np.float64), np.asarray(X[db.frames(doc_b)], np.float64)
-    values_a, names = relational(db.motion(doc_a), feature_set, progress=False)
-    values_b, _ = relational(db.motion(doc_b), feature_set, progress=False)
+    values_a, names = relational_features(db.motion(doc_a), relational_set, progress=False)
+    values_b, _ = relational_features(db.motion(doc_b), relational_set, progress=False)
     pick = list(range(len(names))) if features is None else [names.index(f) for f in features]
     shape = (len(fa), len(fb))
 
@@ -325,23 +331,25 @@ def alignment(db, doc_a: int, doc_b: int, features=None, feature_set: str = "200
 
 
 # ============================================================================ Table 2: numerical / logical search
-def _hits(X, index, starts, stops, q_rows: np.ndarray, own_doc: int, k: int, k_matches: int, factor: float):
+def _hits(X, index, starts, stops, q_rows: np.ndarray, own_doc: int, k: int, n_matches: int, factor: float):
     """Graph matches of the database frames ``q_rows`` outside document ``own_doc`` whose cost is at most
     ``factor`` times the best one's."""
     d, f = neighbourhoods(X[q_rows], index, k, exclude=[starts[own_doc], stops[own_doc]])
-    found = graph_matches(d, f, starts, len(X), k_matches, paths=False)
+    found = graph_matches(d, f, starts, len(X), n_matches, paths=False)
     if len(found):
         found = found[found["cost"] <= factor * found["cost"].iloc[0]]
     return found
 
 
-def numerical_search(db, classes=None, sets=TABLE2_SETS, k: int = 256, k_matches: int = 50, factor: float = 1.5,
-                     iterations: int = 1, label_column: str = "label") -> pd.DataFrame:  # fmt: skip
+@renamed(k_matches="n_matches")
+def numerical_search(db, classes=None, numeric_sets=TABLE2_SETS, k: int = 256, n_matches: int = 50,
+                     factor: float = 1.5, iterations: int = 1,
+                     label_column: str = "label") -> pd.DataFrame:  # fmt: skip
     """Numerical and "logical" similarity search (Krüger et al. 2010 §5.1, Table 2; Kovar & Gleicher 2004).
 
     For each class, its first document (whole clip) is the query. Numerical search: the graph's matches over
     the database (the query's document excluded) whose cost is at most ``factor`` times the best match's — a
-    threshold relative to the best match, so that it means the same in every feature set's units (the paper
+    threshold relative to the best match, so that it means the same in every numeric set's units (the paper
     does not state its threshold). A hit is correct when its document has the query's label. Logical search:
     every hit found so far is used as a new query (its own document excluded), for ``iterations`` rounds; new
     hits are those not overlapping a hit already found.
@@ -351,9 +359,9 @@ def numerical_search(db, classes=None, sets=TABLE2_SETS, k: int = 256, k_matches
     db : MotionDB with labels (e.g. HDM05 cut clips at 30 Hz).
     classes : list of str, optional (default: kickLFront1Reps, elbowToKnee1RepsLelbowStart and squat1Reps when
         present: a kick, an arm-and-leg motion and a whole-body motion, like the paper's kick, punch and skier).
-    sets : numeric feature sets (default Table 2's).
+    numeric_sets : numeric sets (default Table 2's).
     k : int, neighbours per query frame.
-    k_matches : int, matches per search.
+    n_matches : int, matches per search (old name ``k_matches``, with a FutureWarning).
     factor : float >= 1, the relative cost threshold.
     iterations : int >= 0, rounds of logical search.
     label_column : str
@@ -379,14 +387,14 @@ def numerical_search(db, classes=None, sets=TABLE2_SETS, k: int = 256, k_matches
     starts, stops = _document_bounds(db)
     label_of = labels.to_numpy()
     rows, reference = [], {}
-    for name in sets:
+    for name in numeric_sets:
         X = numeric_of(db, name)
         index = KnnIndex(X)
         for cls in classes:
             members = docs.loc[(labels == cls).fillna(False).to_numpy(), "doc_id"].to_numpy()
             query_doc = int(members.min())
             hits = _hits(X, index, starts, stops, np.arange(starts[query_doc], stops[query_doc]), query_doc, k,
-                         k_matches, factor)  # fmt: skip
+                         n_matches, factor)  # fmt: skip
             correct = label_of[hits["doc_id"].to_numpy()] == cls
             found = hits.copy()
             frontier = hits
@@ -394,7 +402,7 @@ def numerical_search(db, classes=None, sets=TABLE2_SETS, k: int = 256, k_matches
                 new = []
                 for row in frontier.itertuples():
                     more = _hits(X, index, starts, stops, np.arange(row.start, row.end + 1), int(row.doc_id), k,
-                                 k_matches, factor)  # fmt: skip
+                                 n_matches, factor)  # fmt: skip
                     more = more[~more["doc_id"].eq(query_doc)]
                     if len(found) and len(more):
                         more = more[~_overlaps(more["start"], more["end"], found["start"], found["end"]).any(axis=1)]
@@ -406,7 +414,7 @@ def numerical_search(db, classes=None, sets=TABLE2_SETS, k: int = 256, k_matches
                 found = pd.concat([found, frontier], ignore_index=True)
             l_correct = label_of[found["doc_id"].to_numpy()] == cls
             relevant = len(members) - 1
-            if name == sets[0]:
+            if name == numeric_sets[0]:
                 reference[cls] = hits
             ref = reference[cls]
             novel = ~_overlaps(hits["start"], hits["end"], ref["start"], ref["end"]).any(axis=1) if len(ref) else (
@@ -423,7 +431,7 @@ def numerical_search(db, classes=None, sets=TABLE2_SETS, k: int = 256, k_matches
     return pd.DataFrame(rows)
 
 
-def paper_table2() -> pd.DataFrame:
+def krueger2010_table2() -> pd.DataFrame:
     """Table 2 of Krüger et al. 2010 (whole HDM05): correct and wrong hits, in brackets those F15E did not find."""
     data = {
         "HDM_bk_kickRSide1Reps_007": ([5, 1, 4, 5, 3, 4], [0, 0, 0, 0, 0, 0], [None, 0, 0, 0, 0, 0], [None, 0, 0, 0, 0, 0]),

@@ -1,8 +1,9 @@
 """Experiments of Krüger, Tautges, Weber & Zinke 2010 on numeric similarity search, as DataFrames.
 
-knn_timings     Table 1 (§3.3): k-nearest-neighbour search times per feature set, ours beside the paper's.
-paper_table1    Table 1 as printed in the paper (HDM05 380,813 frames and CMU 1,038,388 frames at 30 Hz).
-base_poses      §5.3: fat-graph base poses with kd-tree radius searches, against the O(n²) construction.
+knn_timings             Table 1 (§3.3): k-nearest-neighbour search times per numeric set, ours beside the paper's.
+krueger2010_table1      Table 1 as printed in the paper (HDM05 380,813 frames and CMU 1,038,388 frames at 30 Hz).
+base_pose_experiment    §5.3: fat-graph base poses with kd-tree radius searches, against the O(n²) construction
+                        (the algorithm itself: :func:`mocapviz.knn.base_poses`).
 """
 from __future__ import annotations
 
@@ -11,12 +12,11 @@ import time
 import numpy as np
 import pandas as pd
 
-from ..errors import ParameterError
 from ..features.numeric import NUMERIC_SETS, default_pca, numeric_of
-from ..knn import KnnIndex, base_poses_quadratic
-from ..knn import base_poses as knn_base_poses
+from ..knn import KnnIndex, base_poses, base_poses_quadratic
+from ..validation import renamed, some_of
 
-__all__ = ["base_poses", "knn_timings", "paper_table1"]
+__all__ = ["base_pose_experiment", "knn_timings", "krueger2010_table1"]
 
 # Table 1 (ms per query, exact search, ANN library on 2010 hardware): rows (database, k), columns the sets
 _PAPER_TABLE1 = {
@@ -29,8 +29,8 @@ _PAPER_SETS = ("Fp8", "Fp16", "Fp25", "F15E", "F30E", "F39E", "F15x3E", "F15x5E"
 _PAPER_FRAMES = {"HDM05": 380_813, "CMU": 1_038_388}
 
 
-def paper_table1() -> pd.DataFrame:
-    """Table 1 of Krüger et al. 2010: mean ms per exact k-NN query, per database, k and feature set.
+def krueger2010_table1() -> pd.DataFrame:
+    """Table 1 of Krüger et al. 2010: mean ms per exact k-NN query, per database, k and numeric set.
 
     Returns
     -------
@@ -42,20 +42,22 @@ def paper_table1() -> pd.DataFrame:
     )  # fmt: skip
 
 
-def knn_timings(db, sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 1000, pca=None, database: str | None = None,
-                seed: int = 0, workers: int = -1, repeats: int = 3) -> pd.DataFrame:  # fmt: skip
-    """k-NN search times per feature set (Krüger et al. 2010 §3.3, Table 1).
+@renamed(workers="threads")
+def knn_timings(db, numeric_sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 1000, pca=None,
+                database: str | None = None,
+                seed: int = 0, threads: int | None = None, repeats: int = 3) -> pd.DataFrame:  # fmt: skip
+    """k-NN search times per numeric set (Krüger et al. 2010 §3.3, Table 1).
 
     For each set a :class:`mocapviz.knn.KnnIndex` (scipy cKDTree) is built over all frames of ``db``, then
     ``n_queries`` random frames of the database are searched for their k nearest neighbours, exactly (ε = 0),
-    as one batch on ``workers`` threads; the mean time per query is the batch's wall time / n_queries, the
+    as one batch on ``threads`` threads; the mean time per query is the batch's wall time / n_queries, the
     median of ``repeats`` runs.
 
     Parameters
     ----------
     db : MotionDB
         Features are taken from ``<db>/features`` when stored and current, else computed.
-    sets : sequence of str
+    numeric_sets : sequence of str
         Names of :data:`mocapviz.features.numeric.NUMERIC_SETS`; default the nine sets of Table 1.
     ks : sequence of int
     n_queries : int
@@ -65,8 +67,9 @@ def knn_timings(db, sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 1000, pca=N
     database : str, optional
         Name of the database for the table (default: the folder name of ``db``).
     seed : int
-    workers : int
-        Threads of the batched query (-1: all cores; the paper's searches ran on one).
+    threads : int, optional
+        Threads of the batched query (default :func:`mocapviz.batch.default_threads`: the cores, at most 8; the
+        paper's searches ran on one). (Formerly ``workers``: still accepted, with a FutureWarning.)
     repeats : int
         Runs of each batch; the median is reported.
 
@@ -76,16 +79,14 @@ def knn_timings(db, sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 1000, pca=N
     (loading the stored features, or computing them), ``build_s`` (tree construction), ``mean_ms`` (per query),
     ``queries``.
     """
-    unknown = [s for s in sets if s not in NUMERIC_SETS]
-    if unknown:
-        raise ParameterError(f"unknown feature set(s) {unknown}; known: {', '.join(NUMERIC_SETS)}")
+    some_of(numeric_sets, "numeric set(s)", NUMERIC_SETS)
     rng = np.random.default_rng(seed)
     frames = rng.choice(db.n_frames, size=min(n_queries, db.n_frames), replace=False)
     name = database or getattr(db, "path", "db").name
-    if pca is None and any(s.startswith("Fp") for s in sets):
+    if pca is None and any(s.startswith("Fp") for s in numeric_sets):
         pca = default_pca(db)
     rows = []
-    for s in sets:
+    for s in numeric_sets:
         t0 = time.perf_counter()
         x = np.ascontiguousarray(numeric_of(db, s, pca))
         t_features = time.perf_counter() - t0
@@ -94,11 +95,11 @@ def knn_timings(db, sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 1000, pca=N
         build = time.perf_counter() - t0
         queries = x[frames]
         for k in ks:
-            index.query(queries[:10], k, workers=workers)  # warm-up
+            index.query(queries[:10], k, threads=threads)  # warm-up
             runs = []
             for _ in range(repeats):
                 t0 = time.perf_counter()
-                index.query(queries, k, workers=workers)
+                index.query(queries, k, threads=threads)
                 runs.append(time.perf_counter() - t0)
             elapsed = float(np.median(runs))
             rows.append({"database": name, "frames": db.n_frames, "set": s, "d": x.shape[1], "k": k,
@@ -107,8 +108,10 @@ def knn_timings(db, sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 1000, pca=N
     return pd.DataFrame(rows)
 
 
-def base_poses(features: np.ndarray, radius: float, k: int = 32, quadratic_frames: int = 5000) -> pd.DataFrame:
-    """Fat-graph base poses (Krüger et al. 2010 §5.3): kd-tree construction vs the O(n²) one.
+def base_pose_experiment(features: np.ndarray, radius: float, k: int = 32,
+                         quadratic_frames: int = 5000) -> pd.DataFrame:  # fmt: skip
+    """Fat-graph base poses (Krüger et al. 2010 §5.3): the kd-tree construction (:func:`mocapviz.knn.base_poses`)
+    against the O(n²) one.
 
     Parameters
     ----------
@@ -134,7 +137,7 @@ def base_poses(features: np.ndarray, radius: float, k: int = 32, quadratic_frame
     base_q, cluster_q = base_poses_quadratic(sub, radius, k=k)
     t_q = time.perf_counter() - t0
     t0 = time.perf_counter()
-    base_s, cluster_s = knn_base_poses(sub, radius, k=k)
+    base_s, cluster_s = base_poses(sub, radius, k=k)
     t_s = time.perf_counter() - t0
     same = bool(np.array_equal(base_q, base_s) and np.array_equal(cluster_q, cluster_s))
     rows = [{"method": "O(n²) distance matrix", "frames": len(sub), "base_poses": len(base_q), "seconds": t_q,
@@ -143,7 +146,7 @@ def base_poses(features: np.ndarray, radius: float, k: int = 32, quadratic_frame
              "same_as_quadratic": same}]  # fmt: skip
     if len(features) > len(sub):
         t0 = time.perf_counter()
-        base_all, _ = knn_base_poses(features, radius, k=k)
+        base_all, _ = base_poses(features, radius, k=k)
         rows.append({"method": "kd-tree, O(n log n)", "frames": len(features), "base_poses": len(base_all),
                      "seconds": time.perf_counter() - t0, "same_as_quadratic": None})  # fmt: skip
     return pd.DataFrame(rows)

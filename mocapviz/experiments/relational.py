@@ -2,10 +2,10 @@
 
 index_statistics    Table 2: per group index (lower, upper, mix) the number of features f, lists, frames,
                     segments, size and the times to read, compute features and build the index.
-paper_table2        Table 2 as printed in the paper (I^60 and I^180 indexes), in the same columns.
+mueller2005_table2  Table 2 as printed in the paper (I^60 and I^180 indexes), in the same columns.
 random_queries      random query sequences of a database that are guaranteed at least one hit (§6.2).
 query_statistics    Table 3: exact and adaptive fuzzy random queries on one index, grouped by hit count.
-paper_table3        Table 3 as printed in the paper, in the same columns.
+mueller2005_table3  Table 3 as printed in the paper, in the same columns.
 relational_query    Figs. 7-9 (§6.2): query by example for each labelled class, with precision and recall.
 DEFAULT_QUERIES     the feature selection per HDM05 class used by :func:`relational_query`.
 """
@@ -19,15 +19,15 @@ import pandas as pd
 from .. import evaluation
 from .. import index as index_mod
 from ..errors import ParameterError
-from ..features import feature_names, relational
+from ..features import feature_names, relational_features
 
 __all__ = [
     "ALTERNATIVES",
     "DEFAULT_QUERIES",
     "HIT_GROUPS",
     "index_statistics",
-    "paper_table2",
-    "paper_table3",
+    "mueller2005_table2",
+    "mueller2005_table3",
     "query_statistics",
     "random_queries",
     "relational_query",
@@ -62,7 +62,7 @@ DEFAULT_QUERIES: dict[str, list[str]] = {
 
 
 # ============================================================================ Table 2
-def index_statistics(db, feature_set: str = "2005", values: np.ndarray | None = None, t_read: float | None = None,
+def index_statistics(db, relational_set: str = "2005", values: np.ndarray | None = None, t_read: float | None = None,
                      t_features: float | None = None) -> pd.DataFrame:  # fmt: skip
     """Feature computation and index construction statistics (Müller, Röder & Clausen 2005, Table 2).
 
@@ -73,10 +73,10 @@ def index_statistics(db, feature_set: str = "2005", values: np.ndarray | None = 
     Parameters
     ----------
     db : MotionDB
-    feature_set : {"2005", "2006"}
+    relational_set : {"2005", "2006"}
     values : np.ndarray [shape=(N, f)], bool, optional
         The database's relational features if already computed (then ``t_features`` is the caller's figure, or
-        NaN); default: computed here with :func:`mocapviz.features.relational` and timed.
+        NaN); default: computed here with :func:`mocapviz.features.relational_features` and timed.
     t_read : float, optional
         Seconds spent reading the data, measured by the caller: e.g. the wall time of ``MotionDB.ingest`` that
         built ``db`` from the motion files. NaN when not given (the database was already read).
@@ -95,21 +95,21 @@ def index_statistics(db, feature_set: str = "2005", values: np.ndarray | None = 
     paper computed each group on its own), so the same value appears on every row. ``t_index`` is the group's
     segmentation plus inverted-list construction (``time.perf_counter``), without writing the file.
     """
-    names = feature_names(feature_set)
+    names = feature_names(relational_set)
     if values is None:
         t0 = time.perf_counter()
-        values, names = relational(db, feature_set, progress=False)
+        values, names = relational_features(db, relational_set, progress=False)
         t_features = time.perf_counter() - t0
     values = np.asarray(values)
     if values.shape != (db.n_frames, len(names)):
         raise ParameterError(f"values must have shape ({db.n_frames}, {len(names)}) (frames of the database, features "
-                         f"of the {feature_set} set), got {values.shape}")  # fmt: skip
+                         f"of the {relational_set} set), got {values.shape}")  # fmt: skip
     doc_starts = db.documents["start"].to_numpy(np.int64)
     minutes = float((db.documents["n_frames"] / db.documents["fps"]).sum() / 60.0)  # per document: rates may mix
     t_read = float("nan") if t_read is None else float(t_read)
     t_features = float("nan") if t_features is None else float(t_features)
     rows = []
-    for group, (members, group_values) in index_mod.feature_group_values(values, feature_set).items():
+    for group, (members, group_values) in index_mod.feature_group_values(values, relational_set).items():
         t0 = time.perf_counter()
         idx = index_mod.InvertedIndex.from_features(group_values, doc_starts, members)
         t_index = time.perf_counter() - t0
@@ -133,7 +133,7 @@ def index_statistics(db, feature_set: str = "2005", values: np.ndarray | None = 
     return pd.DataFrame(rows, columns=TABLE2_COLUMNS)
 
 
-def paper_table2() -> pd.DataFrame:
+def mueller2005_table2() -> pd.DataFrame:
     """Table 2 of Müller, Röder & Clausen 2005 (Matlab, 3.6 GHz Pentium 4), in the columns of
     :func:`index_statistics`: the indexes of the 60-minute subset D^60 and the 180-minute database D^180 (120 Hz).
     """
@@ -332,7 +332,7 @@ def query_statistics(index, n_queries: int = 10_000, lengths=(5, 10, 20), modes=
     return pd.DataFrame(out, columns=TABLE3_COLUMNS)
 
 
-def paper_table3() -> pd.DataFrame:
+def mueller2005_table3() -> pd.DataFrame:
     """Table 3 of Müller, Röder & Clausen 2005: 10,000 random queries per row on I_u^180 (Matlab, Pentium 4),
     in the columns of :func:`query_statistics` (``mean_ms`` = the paper's µt; it gives no query counts, medians
     or p90, which are NaN). Fuzzy rows are adaptive fuzzy queries with 64 alternatives per set.
@@ -354,7 +354,7 @@ def paper_table3() -> pd.DataFrame:
 
 
 # ============================================================================ Figs. 7-9
-def relational_query(db, queries: dict | None = None, feature_set: str = "2005", indexes: dict | None = None,
+def relational_query(db, queries: dict | None = None, relational_set: str = "2005", indexes: dict | None = None,
                      label_column: str = "label") -> pd.DataFrame:  # fmt: skip
     """Query by example per motion class, with precision and recall (Müller, Röder & Clausen 2005, §6.2,
     Figs. 7-9).
@@ -371,7 +371,7 @@ def relational_query(db, queries: dict | None = None, feature_set: str = "2005",
     queries : dict, optional
         {class: (doc_id or None, [feature names])}; doc_id None = the class's first document. Default: every
         class of :data:`DEFAULT_QUERIES` that ``db`` holds, each queried with its first document (lowest doc_id).
-    feature_set : {"2005", "2006"}
+    relational_set : {"2005", "2006"}
     indexes : dict, optional
         Group -> InvertedIndex, if already loaded.
     label_column : str
@@ -397,7 +397,7 @@ def relational_query(db, queries: dict | None = None, feature_set: str = "2005",
     from ..query import query_by_example
 
     if indexes is None:
-        indexes = index_mod.load_or_build(db, feature_set)
+        indexes = index_mod.load_or_build(db, relational_set)
     docs = db.documents
     labels = docs[label_column].astype("string")
     labels_by_doc = pd.Series(labels.to_numpy(), index=docs["doc_id"].astype(np.int64))
@@ -406,7 +406,7 @@ def relational_query(db, queries: dict | None = None, feature_set: str = "2005",
         queries = {c: (None, f) for c, f in DEFAULT_QUERIES.items() if c in present}
     rows = []
     if len(docs):  # untimed warm-up: the feature kernels compile (or load from numba's cache) on first use
-        relational(db.motion(int(docs["doc_id"].iloc[0]))[:2], feature_set)
+        relational_features(db.motion(int(docs["doc_id"].iloc[0]))[:2], relational_set)
     for cls, spec in queries.items():
         doc_id, features = spec if isinstance(spec, tuple) else (None, spec)
         members = docs.loc[(labels == cls).fillna(False).to_numpy(), "doc_id"].to_numpy()
@@ -417,7 +417,7 @@ def relational_query(db, queries: dict | None = None, feature_set: str = "2005",
             raise ParameterError(f"document {doc_id} is not of class {cls!r}")
         example = db.motion(doc_id)
         t0 = time.perf_counter()
-        hits = query_by_example(db, example, list(features), mode="adaptive", feature_set=feature_set,
+        hits = query_by_example(db, example, list(features), mode="adaptive", relational_set=relational_set,
                                 indexes=indexes)  # fmt: skip
         ms = (time.perf_counter() - t0) * 1e3
         # hits come best first, so each document is ranked by its best hit

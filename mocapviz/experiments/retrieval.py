@@ -22,7 +22,7 @@ Methods (:data:`METHODS`):
   query's class, documents ranked by their best hit's score. Classes without a selection are skipped (noted).
 - ``hybrid``: :func:`mocapviz.hybrid.hybrid_search`: relational hits (the lenient
   :data:`~mocapviz.hybrid.HYBRID_QUERIES` settings of the class, with their numeric set, else its
-  ``DEFAULT_QUERIES`` selection, adaptive, on ``feature_set``) re-ranked by exact whole-clip DTW.
+  ``DEFAULT_QUERIES`` selection, adaptive, on ``numeric_set``) re-ranked by exact whole-clip DTW.
 
 Protocols: *leave-one-out* (LOO): the query's document is left out, every other document searched.
 *Leave-group-out* (LGO, e.g. leave-actor-out): a query of group A searches only the documents of other groups
@@ -94,10 +94,10 @@ class _Runner:
     """The searches of one evaluation: one SimilaritySearch (with its kd-tree) per protocol context (None = every
     document, else the documents outside one group), the relational indexes, the query motions."""
 
-    def __init__(self, db, feature_set: str, labels: pd.Series, groups: pd.Series | None, indexes):
+    def __init__(self, db, numeric_set: str, labels: pd.Series, groups: pd.Series | None, indexes):
         from ..search import SimilaritySearch
 
-        self.db, self.feature_set, self.labels, self.groups = db, feature_set, labels, groups
+        self.db, self.numeric_set, self.labels, self.groups = db, numeric_set, labels, groups
         self._make = SimilaritySearch
         self._searches: dict = {}
         self._indexes = indexes
@@ -114,8 +114,8 @@ class _Runner:
             return None
         return self.groups.index[(self.groups != group) | self.groups.isna()].to_numpy(np.int64)
 
-    def search(self, group=None, feature_set: str | None = None):
-        key = (group, feature_set or self.feature_set)
+    def search(self, group=None, numeric_set: str | None = None):
+        key = (group, numeric_set or self.numeric_set)
         if key not in self._searches:
             self._searches[key] = self._make(self.db, key[1], documents=self.candidates(group))
         return self._searches[key]
@@ -158,7 +158,7 @@ class _Runner:
                             budget=CLIP_BUDGET if method == "fast" else None)  # fmt: skip
             return table["doc_id"].to_numpy(np.int64)
         if _lng_k(method):
-            out = self._lng(q, _lng_k(method), group, k_matches=None)
+            out = self._lng(q, _lng_k(method), group, n_matches=None)
             return pd.unique(self.by_start[out["doc_id"].to_numpy(np.int64)])
         if method == "relational":
             hits = self._relational_hits(q)
@@ -182,21 +182,21 @@ class _Runner:
             self.search(None).clips(q, n_matches=TIMING_K, mode="brute" if method == "dtw" else method,
                                     exclude_document=True)  # fmt: skip
         elif _lng_k(method):
-            self._lng(q, _lng_k(method), None, k_matches=TIMING_K)
+            self._lng(q, _lng_k(method), None, n_matches=TIMING_K)
         elif method == "hybrid" and self._hybrid(q, None, n_matches=TIMING_K) is None:
             return float("nan")
         return 1e3 * (time.perf_counter() - t0)
 
-    def _lng(self, q: int, k: int, group, k_matches: int | None) -> pd.DataFrame:
+    def _lng(self, q: int, k: int, group, n_matches: int | None) -> pd.DataFrame:
         from ..match import lng
 
         s = self.search(group)
         index = s.knn_index
         k = min(k, index.n_indexed)
         span = self.db.frames(q)
-        # every end node of the graph is a candidate match; k_matches = k keeps them all (each document's best
+        # every end node of the graph is a candidate match; n_matches = k keeps them all (each document's best
         # match comes first in cost order, so ranking documents by it needs no more)
-        return lng(s.features[span.start : span.stop], index, k=k, k_matches=k if k_matches is None else k_matches,
+        return lng(s.features[span.start : span.stop], index, k=k, n_matches=k if n_matches is None else n_matches,
                    starts=self.starts, exclude=(span.start, span.stop), paths=False)  # fmt: skip
 
     def _relational_hits(self, q: int) -> pd.DataFrame | None:
@@ -220,18 +220,18 @@ class _Runner:
         selection = self.hybrid_selection(q)
         if selection is None:
             return None
-        numeric_set = selection.pop("numeric_set", self.feature_set)  # a class's own set, e.g. F15x3E for throws
+        numeric_set = selection.pop("numeric_set", self.numeric_set)  # a class's own set, e.g. F15x3E for throws
         ranked = hybrid_search(self.db, q, **selection, numeric_set=numeric_set, n_matches=n_matches,
                                indexes=self.indexes(), search=self.search(group, numeric_set), exclude_document=True)
         return ranked["doc_id"].to_numpy(np.int64)
 
 
-def relational_indexes(db, feature_set: str = "2005") -> dict:
+def relational_indexes(db, relational_set: str = "2005") -> dict:
     """The relational indexes of ``db`` (group -> InvertedIndex): the stored ones when current, else built in memory
     (nothing is written into the database, so a read-only database can be evaluated)."""
     from ..index import load_or_build
 
-    return load_or_build(db, feature_set, save=False)
+    return load_or_build(db, relational_set, save=False)
 
 
 def _queries(labels: pd.Series, queries, n_queries, seed) -> np.ndarray:
@@ -253,7 +253,7 @@ def _queries(labels: pd.Series, queries, n_queries, seed) -> np.ndarray:
 
 
 def retrieval_quality(db, methods=None, label_column: str = "label", group_column: str | bool | None = None,
-                      feature_set: str = "F15E", n_queries: int | None = None, seed: int = 0, queries=None,
+                      numeric_set: str = "F15E", n_queries: int | None = None, seed: int = 0, queries=None,
                       indexes: dict | None = None, timing: bool = True, progress: bool = True) -> dict:  # fmt: skip
     """Retrieval quality of the search methods on a labelled MotionDB (see the module docstring).
 
@@ -272,8 +272,8 @@ def retrieval_quality(db, methods=None, label_column: str = "label", group_colum
         Leave-group-out protocol: a query of group g searches only documents of other groups (documents with no
         group are searchable by all). None (default): ``"actor"`` when the documents have that column, else
         none; False: no leave-group-out (``map_lgo`` NaN).
-    feature_set : str
-        The numeric feature set of DTW, fast mode and the graph (default F15E, cm).
+    numeric_set : str
+        The numeric set of DTW, fast mode and the graph (default F15E, cm).
     n_queries : int, optional
         Evaluate a seeded random sample of the labelled documents (default all).
     seed : int
@@ -296,7 +296,7 @@ def retrieval_quality(db, methods=None, label_column: str = "label", group_colum
       leave-group-out, queries with a relevant document in other groups), ``p_at_1``, ``p_at_10`` (LOO),
       ``recall_dtw_top10`` (mean share of brute-force DTW's 10 best documents among the method's first 10, LOO),
       ``ms_per_query`` (mean) and ``median_ms`` (K = 10, LOO), ``note``. ``attrs``: label_column,
-      group_column, feature_set, queries, notes.
+      group_column, numeric_set, queries, notes.
     - ``per_class``: per (method, class): ``queries``, ``ap_loo`` (mean), ``n_loo`` (queries with a defined AP),
       ``ap_lgo``, ``n_lgo``, ``p_at_1``. The summary's ``map_loo`` is the ``n_loo``-weighted mean of ``ap_loo``.
     - ``curves``: per (method, protocol "loo" / "lgo", recall level of :data:`RECALL_LEVELS`): ``precision``,
@@ -321,7 +321,7 @@ def retrieval_quality(db, methods=None, label_column: str = "label", group_colum
                        index=ids).replace("", None)  # fmt: skip
     groups = None if group_column is False else pd.Series(docs[group_column].astype(object).to_numpy(), index=ids)
     chosen = _queries(labels, queries, n_queries, seed)
-    runner = _Runner(db, feature_set, labels, groups, indexes)
+    runner = _Runner(db, numeric_set, labels, groups, indexes)
     notes: dict[str, str] = {}
     broken: dict[str, str] = {}
 
@@ -419,7 +419,7 @@ def retrieval_quality(db, methods=None, label_column: str = "label", group_colum
     curves = [{"method": method, "protocol": protocol, "recall": r, "precision": total[i] / n, "queries": n}
               for (method, protocol), (total, n) in sums.items() for i, r in enumerate(RECALL_LEVELS)]  # fmt: skip
     curves = pd.DataFrame(curves, columns=["method", "protocol", "recall", "precision", "queries"])
-    settings = {"label_column": label_column, "group_column": group_column or None, "feature_set": feature_set,
+    settings = {"label_column": label_column, "group_column": group_column or None, "numeric_set": numeric_set,
                 "queries": len(chosen), "documents": len(docs), "notes": notes}  # fmt: skip
     for frame in (summary, per_class, curves, per_query):
         frame.attrs.update(settings)

@@ -1,13 +1,13 @@
 """Per-frame motion features (ARCHITECTURE: MotionDB -> mocapviz.features -> per-frame feature arrays).
 
-relational        boolean relational features of Müller, Röder & Clausen 2005 (31) and Müller & Röder 2006 (39).
-feature_names     the column names of a relational feature set.
-feature_groups    lower / upper / mix members of a set, in column order.
-feature_table     one row per feature: name, group, spec row, definition, thresholds, unit.
-FEATURE_SETS      the known relational feature sets, ("2005", "2006").
+relational_features  boolean relational features of Müller, Röder & Clausen 2005 (31) and Müller & Röder 2006 (39).
+feature_names        the column names of a relational set.
+feature_groups       lower / upper / mix members of a relational set, in column order.
+feature_table        one row per feature: name, group, spec row, definition, thresholds, unit.
+RELATIONAL_SETS      the relational sets, ("2005", "2006").
 
-numeric           float numeric features of Krüger et al. 2010 §3.2 (F15E ... F30x3E, PCA Fp8 Fp16 Fp25).
-numeric_columns   the column names of a numeric feature set.
+numeric_features  float numeric features of Krüger et al. 2010 §3.2 (F15E ... F30x3E, PCA Fp8 Fp16 Fp25).
+numeric_columns   the column names of a numeric set.
 window_offsets    frame offsets of the windowed sets' samples (0.3 s window) at a frame rate.
 fit_pca           PCAModel of body-frame poses of a reference set (the Fp baselines, §3.1).
 PCAModel          mean, principal axes, variances; project / reconstruct; save / load (.npz).
@@ -22,27 +22,27 @@ from .numeric import (
     PCAModel,
     fit_pca,
     load_numeric,
-    numeric,
     numeric_columns,
+    numeric_features,
     numeric_of,
     store_numeric,
     window_offsets,
 )
-from .relational import FEATURE_SETS, feature_groups, feature_names, feature_table, relational
+from .relational import RELATIONAL_SETS, feature_groups, feature_names, feature_table, relational_features
 
 __all__ = [
-    "FEATURE_SETS",
     "NUMERIC_SETS",
+    "RELATIONAL_SETS",
     "PCAModel",
     "feature_groups",
     "feature_names",
     "feature_table",
     "fit_pca",
     "load_numeric",
-    "numeric",
     "numeric_columns",
+    "numeric_features",
     "numeric_of",
-    "relational",
+    "relational_features",
     "store_numeric",
     "window_offsets",
 ]

@@ -6,7 +6,7 @@ about the vertical axis so that the body faces +z: :func:`mocapviz.skeleton.head
 
 Public API
 ----------
-numeric           Motion or MotionDB -> (T, d) float32 values of one feature set.
+numeric_features  Motion or MotionDB -> (T, d) float32 values of one numeric set.
 numeric_columns   the d column names of a set.
 window_offsets    the frame offsets of the windowed sets' samples at a frame rate.
 fit_pca           PCAModel of body-frame poses of a reference set (the Fp_n baselines).
@@ -41,37 +41,34 @@ so a header on disk always describes the data beside it.
 
 Implementation
 --------------
-A MotionDB is processed in batches of whole documents (about ``_BATCH_FRAMES`` frames each) on a thread pool;
-within a batch everything is vectorised numpy over all frames (the heading once per frame, one gather and one
-rotation per window sample), in float32 like :func:`mocapviz.skeleton.body_frame`; the PCA in float64.
+A MotionDB is processed in batches of whole documents (about ``_BATCH_FRAMES`` frames each) on threads or as
+Dask tasks (:func:`mocapviz.batch.map_documents`); within a batch everything is vectorised numpy over all frames
+(the heading once per frame, one gather and one rotation per window sample), in float32 like
+:func:`mocapviz.skeleton.body_frame`; the PCA in float64.
 """
 
 from __future__ import annotations
 
-import collections
 import contextlib
-import fcntl
 import functools
 import hashlib
 import io
 import json
-import os
-import tempfile
+import zipfile
 from collections.abc import Callable, Iterator
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from tqdm.auto import tqdm
 
+from ..batch import map_documents
 from ..cluster import optional_client
-from ..database import MotionDB, document_batches, read_batch
+from ..database import MotionDB
 from ..errors import MotionDBError, ParameterError
 from ..motion import Motion
 from ..skeleton import CANONICAL_JOINTS, body_frame, heading
-from ..store import atomic_write
-from ..validation import finite_positions
+from ..store import atomic_write, check_format, commit, load_or_build, locked, stamp, temporary_file
+from ..validation import finite_positions, one_of
 
 __all__ = [
     "NUMERIC_SETS",
@@ -79,8 +76,8 @@ __all__ = [
     "default_pca",
     "fit_pca",
     "load_numeric",
-    "numeric",
     "numeric_columns",
+    "numeric_features",
     "numeric_of",
     "store_numeric",
     "window_offsets",
@@ -93,7 +90,6 @@ _F39 = _F30 + ("lshoulder", "rshoulder", "belly")
 _POSE_DIMS = 3 * len(CANONICAL_JOINTS)  # 72: the PCA's input, all canonical joints in the body frame
 _FRAME_JOINTS = ("root", "lhip", "rhip")  # what the body frame itself is computed from
 _BATCH_FRAMES = 1 << 15  # a MotionDB is processed in batches of whole documents of about this many frames
-_PROGRESS_MIN_DOCUMENTS = 50
 _HEADER_FORMAT = "mocapviz.numeric-features"
 _PCA_FORMAT = "mocapviz.PCAModel"
 _FORMAT_VERSION = 1
@@ -122,10 +118,8 @@ NUMERIC_SETS = tuple(_SETS)
 _PCA_COMPONENTS = max(s.pcs for s in _SETS.values())  # a default model serves every Fp set
 
 
-def _spec(name: str) -> _Set:
-    if name not in _SETS:
-        raise ParameterError(f"unknown numeric feature set {name!r}; known sets: {', '.join(NUMERIC_SETS)}")
-    return _SETS[name]
+def _spec(numeric_set: str) -> _Set:
+    return _SETS[one_of(numeric_set, "numeric set", NUMERIC_SETS)]
 
 
 # ================================================================================================ geometry
@@ -295,10 +289,10 @@ class PCAModel:
         try:
             with np.load(path, allow_pickle=False) as z:
                 fields = {k: z[k] for k in z.files}
-        except (OSError, ValueError, EOFError) as exc:
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
             raise MotionDBError(f"{path}: cannot read a PCA model ({exc})") from None
-        if str(fields.get("format", "")) != _PCA_FORMAT or int(fields.get("version", -1)) != _FORMAT_VERSION:
-            raise MotionDBError(f"{path}: not a {_PCA_FORMAT} version {_FORMAT_VERSION} file")
+        check_format({"format": str(fields.get("format", "")), "version": int(fields.get("version", -1))},
+                     _PCA_FORMAT, _FORMAT_VERSION, path)
         try:
             return cls(
                 mean=fields["mean"],
@@ -313,7 +307,7 @@ class PCAModel:
 
 
 def fit_pca(
-    source, n_components: int = 25, reference: str | None = None, progress: bool = True, n_jobs: int | None = None,
+    source, n_components: int = 25, reference: str | None = None, progress: bool = True, threads: int | None = None,
     scheduler=None,
 ) -> PCAModel:
     """Principal components of all 24 canonical joint positions in the body frame (§3.1, Fp_n^pca).
@@ -327,9 +321,9 @@ def fit_pca(
     n_components : int, 1 .. 72
     reference : str, optional
         Description stored with the model; default: the clip or database (path, generation, frames).
-    progress, n_jobs, scheduler :
-        As for :func:`numeric` (with Dask, the workers compute the body-frame poses; the moments are summed here,
-        in batch order, so the model is the same).
+    progress, threads, scheduler :
+        As for :func:`numeric_features` (with Dask, the workers compute the body-frame poses; the moments are
+        summed here, in batch order, so the model is the same).
 
     Returns
     -------
@@ -346,11 +340,11 @@ def fit_pca(
 
     count, total, outer = 0, np.zeros(_POSE_DIMS), np.zeros((_POSE_DIMS, _POSE_DIMS))
     with optional_client(scheduler if isinstance(source, MotionDB) else None) as client:
-        batches = _map_batches(source, _pca_input, range(len(CANONICAL_JOINTS)), "PCA moments", progress, n_jobs,
-                               client)  # fmt: skip
-        for _, poses in batches:  # the sums here, in the calling thread: BLAS runs its own threads
-            x = poses.astype(np.float64)
-            count, total, outer = count + x.shape[0], total + x.sum(axis=0), outer + x.T @ x
+        batches = _batches(source, _pca_input, range(len(CANONICAL_JOINTS)), "PCA moments", progress, threads, client)
+        with contextlib.closing(batches):
+            for _, poses in batches:  # the sums here, in the calling thread: BLAS runs its own threads
+                x = poses.astype(np.float64)
+                count, total, outer = count + x.shape[0], total + x.sum(axis=0), outer + x.T @ x
     if count < 2:
         raise ParameterError(f"{_describe(source)}: {count} frame(s); a PCA needs at least 2")
     mean = total / count
@@ -372,19 +366,10 @@ def fit_pca(
 # ========================================================================================== batch processing
 
 
-@dataclass(frozen=True)
-class _Batch:
-    """Whole documents, contiguous: positions [shape=(N, 24, 3)] cm, bounds [shape=(D+1,)], fps [shape=(D,)]."""
-
-    positions: np.ndarray
-    bounds: np.ndarray
-    fps: np.ndarray
-
-
-def _pca_input(batch: _Batch) -> np.ndarray:
+def _pca_input(positions: np.ndarray, bounds: np.ndarray, fps: np.ndarray) -> np.ndarray:
     """The PCA's input (§3.1): all 24 canonical joints of a batch in the body frame
     (:func:`mocapviz.skeleton.body_frame`), flattened to [shape=(N, 72)], float32, cm (x y z per joint)."""
-    return body_frame(batch.positions).reshape(-1, _POSE_DIMS)
+    return body_frame(positions).reshape(-1, _POSE_DIMS)
 
 
 def _describe(source) -> str:
@@ -396,112 +381,58 @@ def _describe(source) -> str:
     return f"{source.source or 'motion'} ({source.n_frames} frames at {source.fps:g} fps)"
 
 
-def _run_batch(db: MotionDB, docs, first: int, last: int, joints, work: Callable[[_Batch], object]) -> tuple:
-    """work(documents first..last-1 of ``docs``) after the finiteness check: (frames slice, result, documents)."""
-    batch = read_batch(db, docs, first, last)
-    finite_positions(batch.positions, batch.where, list(joints))
-    return slice(batch.start, batch.stop), work(_Batch(batch.positions, batch.bounds, batch.fps)), last - first
+def _batches(source, work: Callable, joints, desc: str, progress: bool, threads: int | None, client=None) -> Iterator:
+    """(frames, work(positions, bounds, fps)) for the batches of whole documents of ``source``, in frame order.
 
-
-def _remote_batch(task: tuple) -> tuple:
-    """A Dask task: (db path, generation, first, last, joints, work) -> :func:`_run_batch` on the worker's own
-    memory map of the database (:func:`mocapviz.cluster.open_db`)."""
-    from ..cluster import open_db
-
-    path, generation, first, last, joints, work = task
-    db = open_db(path, generation)
-    return _run_batch(db, db.documents.sort_values("start"), first, last, joints, work)
-
-
-def _map_batches(
-    source, work: Callable[[_Batch], object], joints, desc: str, progress: bool, n_jobs: int | None, client=None
-) -> Iterator:
-    """(frames, work(batch)) for the batches of whole documents of ``source``, in frame order.
-
-    ``source`` is a Motion (one batch) or a MotionDB (the callers check which with :func:`_n_frames`). A MotionDB
-    is cut into batches of whole documents of about ``_BATCH_FRAMES`` frames, run on a thread pool (numpy releases
-    the GIL) at most two per thread ahead of the consumer, so that results waiting to be consumed stay few; or,
-    with a Dask ``client``, as Dask tasks (``work`` must then be importable on the workers: a module-level function
-    or a partial of one), each reading its documents from the workers' own memory map of the database.
-    ``frames`` is the slice of the source's frames a result covers. Every batch is checked for non-finite
-    positions of ``joints`` (canonical indices) first; the first bad batch in frame order raises.
+    ``source`` is a Motion (one batch, in the calling thread) or a MotionDB (the callers check which with
+    :func:`_n_frames`): batches of whole documents of about ``_BATCH_FRAMES`` frames on ``threads`` threads, or as
+    Dask tasks of ``client`` (:func:`mocapviz.batch.map_documents`; ``work`` then a module-level function or a
+    partial of one). ``frames`` is the slice of the source's frames a result covers. Every batch is checked for
+    non-finite positions of ``joints`` (canonical indices) first; the first bad batch in frame order raises.
     """
-    if not isinstance(source, MotionDB):
-        motion = source.canonical()
-        name = source.source or "motion"
-        finite_positions(motion.positions, lambda t: f"{name}, frame {t}", list(joints))
-        yield (
-            slice(0, motion.n_frames),
-            work(_Batch(motion.positions, np.array([0, motion.n_frames]), np.array([motion.fps]))),
-        )
+    if isinstance(source, MotionDB):
+        yield from map_documents(source, work, _BATCH_FRAMES, joints, threads, client, desc, progress,
+                                 name="mocapviz-numeric")  # fmt: skip
         return
-    db = source
-    docs, batches = document_batches(db, _BATCH_FRAMES)
-    bar = tqdm(total=len(docs), desc=desc, unit="doc", disable=not progress or len(docs) <= _PROGRESS_MIN_DOCUMENTS)
-    joints = [int(j) for j in joints]
-
-    if client is not None:
-        from ..cluster import map_ordered
-
-        path, generation = str(Path(db.path).resolve()), db.manifest["generation"]
-        tasks = ((path, generation, first, last, joints, work) for first, last in batches)
-        with bar, contextlib.closing(map_ordered(client, _remote_batch, tasks, name="mocapviz-numeric")) as results:
-            for frames, result, n_documents in results:
-                bar.update(n_documents)
-                yield frames, result
-        return
-
-    def run(batch: tuple[int, int]) -> tuple[slice, object, int]:
-        return _run_batch(db, docs, batch[0], batch[1], joints, work)
-
-    threads = max(1, n_jobs or min(8, os.cpu_count() or 1))
-
-    def done(future) -> tuple[slice, object]:
-        frames, result, n_documents = future.result()
-        bar.update(n_documents)
-        return frames, result
-
-    with bar, ThreadPoolExecutor(threads) as pool:
-        pending = collections.deque()
-        for batch in batches:
-            pending.append(pool.submit(run, batch))
-            if len(pending) > 2 * threads:
-                yield done(pending.popleft())
-        while pending:
-            yield done(pending.popleft())
+    motion = source.canonical()
+    name = source.source or "motion"
+    finite_positions(motion.positions, lambda t: f"{name}, frame {t}", list(joints))
+    yield slice(0, motion.n_frames), work(motion.positions, np.array([0, motion.n_frames]), np.array([motion.fps]))
 
 
-def _joint_work(spec: _Set, batch: _Batch) -> np.ndarray:
+def _joint_work(spec: _Set, positions: np.ndarray, bounds: np.ndarray, fps: np.ndarray) -> np.ndarray:
     """:func:`_joint_features` of a batch (module level, so that Dask workers can import it)."""
-    return _joint_features(batch.positions, batch.bounds, batch.fps, spec)
+    return _joint_features(positions, bounds, fps, spec)
 
 
-def _fill(source, name: str, pca: PCAModel | None, out: np.ndarray, progress: bool, n_jobs: int | None,
-          client=None) -> None:
-    """Write the values of feature set ``name`` of every frame of ``source`` into ``out`` [shape=(T, d)]
+def _fill(source, numeric_set: str, pca: PCAModel | None, out: np.ndarray, progress: bool, threads: int | None,
+          client=None) -> None:  # fmt: skip
+    """Write the values of numeric set ``numeric_set`` of every frame of ``source`` into ``out`` [shape=(T, d)]
     (batches on threads, or as Dask tasks of ``client``)."""
-    spec = _spec(name)
-    desc = f"numeric features {name}"
+    spec = _spec(numeric_set)
+    desc = f"numeric features {numeric_set}"
     if spec.pcs:
         if pca is None:
             raise ParameterError(
-                f"feature set {name} needs a PCA model: pass pca=fit_pca(reference) or "
+                f"feature set {numeric_set} needs a PCA model: pass pca=fit_pca(reference) or "
                 f"pca=PCAModel.load(path) (the paper's reference is the whole HDM05 database)"
             )
         if pca.n_components < spec.pcs:
             raise ParameterError(
-                f"feature set {name} needs {spec.pcs} components; the PCA model ({pca.reference}) "
+                f"feature set {numeric_set} needs {spec.pcs} components; the PCA model ({pca.reference}) "
                 f"has {pca.n_components}"
             )
-        batches = _map_batches(source, _pca_input, range(len(CANONICAL_JOINTS)), desc, progress, n_jobs, client)
-        for frames, poses in batches:
-            out[frames] = pca.project(poses, spec.pcs)  # here, in the calling thread: BLAS runs its own threads
+        batches = _batches(source, _pca_input, range(len(CANONICAL_JOINTS)), desc, progress, threads, client)
+        with contextlib.closing(batches):
+            for frames, poses in batches:
+                out[frames] = pca.project(poses, spec.pcs)  # here, in the calling thread: BLAS runs its own threads
         return
 
     joints = [CANONICAL_JOINTS.index(j) for j in _FRAME_JOINTS + spec.joints]
-    for frames, values in _map_batches(source, functools.partial(_joint_work, spec), joints, desc, progress, n_jobs,
-                                       client):  # fmt: skip
-        out[frames] = values
+    batches = _batches(source, functools.partial(_joint_work, spec), joints, desc, progress, threads, client)
+    with contextlib.closing(batches):
+        for frames, values in batches:
+            out[frames] = values
 
 
 def _n_frames(source) -> int:
@@ -510,8 +441,8 @@ def _n_frames(source) -> int:
     raise ParameterError(f"numeric features need a Motion or a MotionDB, got {type(source).__name__}")
 
 
-def numeric(
-    source, name: str, pca: PCAModel | None = None, progress: bool = True, n_jobs: int | None = None,
+def numeric_features(
+    source, numeric_set: str, pca: PCAModel | None = None, progress: bool = True, threads: int | None = None,
     scheduler=None,
 ) -> np.ndarray:
     """Numeric feature values of every frame (Krüger et al. 2010 §3.2; PCA baselines §3.1).
@@ -521,7 +452,7 @@ def numeric(
     source : Motion or MotionDB
         A Motion on any skeleton (mapped with ``motion.canonical()``), or a MotionDB: all its frames in its frame
         (document) order; windows are clamped to each document, never reading a neighbouring one.
-    name : str
+    numeric_set : str
         One of :data:`NUMERIC_SETS`: "F15E", "F30E", "F39E" (positions in the frame's body frame), "F15x3E",
         "F15x5E", "F30x3E" (3 or 5 samples of a 0.3 s window, in the centre frame's body frame), "Fp8", "Fp16",
         "Fp25" (principal components; need ``pca``). Column names: :func:`numeric_columns`.
@@ -529,8 +460,9 @@ def numeric(
         The reference PCA (:func:`fit_pca`, :meth:`PCAModel.load`), for the Fp sets; unused by the others.
     progress : bool
         Progress bar over the documents of a MotionDB with more than 50 documents.
-    n_jobs : int, optional
-        Threads over batches of documents of a MotionDB (default: the machine's cores, at most 8).
+    threads : int, optional
+        Threads over batches of documents of a MotionDB (default :func:`mocapviz.batch.default_threads`: the
+        cores this process may use, at most 8).
     scheduler : None, "local", str or dask.distributed.Client
         Compute the batches of a MotionDB as Dask tasks (:func:`mocapviz.cluster.dask_client`: ``"local"`` starts
         a local cluster for this call, an address connects to a scheduler whose workers see the database's path,
@@ -550,20 +482,20 @@ def numeric(
     TypeError
         ``source`` is neither a Motion nor a MotionDB.
     """
-    spec = _spec(name)
+    spec = _spec(numeric_set)
     out = np.empty((_n_frames(source), spec.dims), dtype=np.float32)
     with optional_client(scheduler if isinstance(source, MotionDB) else None) as client:
-        _fill(source, name, pca, out, progress, n_jobs, client)
+        _fill(source, numeric_set, pca, out, progress, threads, client)
     return out
 
 
-def numeric_columns(name: str) -> list[str]:
+def numeric_columns(numeric_set: str) -> list[str]:
     """Column names of a numeric feature set.
 
     ``"lwrist.x"`` ... for the frame sets; ``"lwrist.x@-0.150s"`` ... (nominal window offset) for the windowed
     ones, samples in time order; ``"pc1"`` ... for the PCA sets.
     """
-    spec = _spec(name)
+    spec = _spec(numeric_set)
     if spec.pcs:
         return [f"pc{k + 1}" for k in range(spec.pcs)]
     cols = [f"{j}.{axis}" for j in spec.joints for axis in "xyz"]
@@ -576,25 +508,13 @@ def numeric_columns(name: str) -> list[str]:
 # ================================================================================================== storage
 
 
-@contextlib.contextmanager
-def _features_lock(folder: Path, exclusive: bool):
-    """Hold the feature folder's lock: exclusive while files are swapped in, shared while a header and its
-    data are opened (so a reader never pairs one writer's header with another's data)."""
-    with open(folder / ".lock", "a") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
-
-
 def _paths(db: MotionDB, name: str) -> tuple[Path, Path]:
     folder = db.path / "features"
     return folder / f"numeric-{name}.npy", folder / f"numeric-{name}.json"
 
 
 def store_numeric(
-    db: MotionDB, names=None, pca: PCAModel | None = None, progress: bool = True, n_jobs: int | None = None,
+    db: MotionDB, numeric_sets=None, pca: PCAModel | None = None, progress: bool = True, threads: int | None = None,
     scheduler=None,
 ) -> dict[str, np.ndarray]:
     """Compute numeric feature sets of a MotionDB and store them in ``<db.path>/features/``.
@@ -607,18 +527,18 @@ def store_numeric(
     Parameters
     ----------
     db : MotionDB
-    names : str or list of str, optional
+    numeric_sets : str or list of str, optional
         Sets to compute (default: all of :data:`NUMERIC_SETS`).
     pca : PCAModel, optional
         The reference PCA for the Fp sets. Default: fitted on this database (the header says so; a ``pca.npz``
         fitted on this same generation is reused); the paper's reference is the entire HDM05 database, fitted
         once with :func:`fit_pca`.
-    progress, n_jobs :
-        As for :func:`numeric`.
+    progress, threads :
+        As for :func:`numeric_features`.
     scheduler : None, "local", str or dask.distributed.Client
-        Compute the batches of documents as Dask tasks (one client for all the sets; see :func:`numeric`). The
-        values are gathered here and written in frame order; the files are only renamed into place once a set is
-        complete, so a failed or cancelled task leaves that set's previous files.
+        Compute the batches of documents as Dask tasks (one client for all the sets; see :func:`numeric_features`).
+        The values are gathered here and written in frame order; the files are only renamed into place once a set
+        is complete, so a failed or cancelled task leaves that set's previous files.
 
     Returns
     -------
@@ -627,16 +547,17 @@ def store_numeric(
     Raises
     ------
     ValueError
-        Unknown set names (before anything is computed); bad positions as in :func:`numeric`. Sets stored before
-        the failing one stay stored; the failing one keeps its previous files.
+        Unknown set names (before anything is computed); bad positions as in :func:`numeric_features`. Sets stored
+        before the failing one stay stored; the failing one keeps its previous files.
     """
-    names = list(NUMERIC_SETS) if names is None else [names] if isinstance(names, str) else list(names)
-    specs = {name: _spec(name) for name in names}
+    numeric_sets = (list(NUMERIC_SETS) if numeric_sets is None else [numeric_sets] if isinstance(numeric_sets, str)
+                    else list(numeric_sets))  # fmt: skip
+    specs = {name: _spec(name) for name in numeric_sets}
     with optional_client(scheduler) as client:
-        return _store_numeric(db, specs, pca, progress, n_jobs, client)
+        return _store_numeric(db, specs, pca, progress, threads, client)
 
 
-def _store_numeric(db: MotionDB, specs: dict, pca: PCAModel | None, progress: bool, n_jobs: int | None,
+def _store_numeric(db: MotionDB, specs: dict, pca: PCAModel | None, progress: bool, threads: int | None,
                    client) -> dict[str, np.ndarray]:
     """:func:`store_numeric` of the sets ``specs`` (name -> _Set), batches on threads or on ``client``."""
     names = list(specs)
@@ -646,7 +567,7 @@ def _store_numeric(db: MotionDB, specs: dict, pca: PCAModel | None, progress: bo
     if any(s.pcs for s in specs.values()):
         fitted_here = pca is None
         if fitted_here:
-            pca = _own_pca(db, progress, n_jobs, client)
+            pca = _own_pca(db, progress, threads, client)
         blob = pca._npz_bytes()
         pca_header = {
             "file": "pca.npz",
@@ -656,14 +577,13 @@ def _store_numeric(db: MotionDB, specs: dict, pca: PCAModel | None, progress: bo
             "n_frames": pca.n_frames,
             "fitted_on_this_database": fitted_here,
         }
-        with _features_lock(folder, exclusive=True):
+        with locked(folder):
             atomic_write(folder / "pca.npz", blob)
     fps_values = sorted({float(f) for f in db.documents["fps"]})
     for name, spec in specs.items():
         data_path, header_path = _paths(db, name)
         header = {
-            "format": _HEADER_FORMAT,
-            "version": _FORMAT_VERSION,
+            **stamp(_HEADER_FORMAT, _FORMAT_VERSION),
             "set": name,
             "dims": spec.dims,
             "dtype": "float32",
@@ -680,40 +600,30 @@ def _store_numeric(db: MotionDB, specs: dict, pca: PCAModel | None, progress: bo
             },
             "pca": pca_header if spec.pcs else None,
             "paper": "Krüger, Tautges, Weber, Zinke 2010, §3.2" if not spec.pcs else "Krüger et al. 2010, §3.1",
-            "written_by": f"mocapviz {_version()}",
         }
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{data_path.name}.", suffix=".tmp")
-        os.close(fd)
-        try:
+        with temporary_file(data_path) as tmp:
             out = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.float32, shape=(db.n_frames, spec.dims))
-            _fill(db, name, pca, out, progress, n_jobs, client)
+            _fill(db, name, pca, out, progress, threads, client)
             out.flush()
             del out
-            with open(tmp, "rb+") as fh:
-                os.fsync(fh.fileno())
-            with _features_lock(folder, exclusive=True):
+            with locked(folder):  # readers pair a header with its data under the shared lock
                 header_path.unlink(missing_ok=True)  # no header = missing: never an old header on new data
-                os.replace(tmp, data_path)
+                commit(tmp, data_path)
                 atomic_write(header_path, json.dumps(header, indent=1).encode())
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-            raise
     return {name: load_numeric(db, name) for name in names}
 
 
-def _own_pca(db: MotionDB, progress: bool, n_jobs: int | None, client=None) -> PCAModel:
+def _own_pca(db: MotionDB, progress: bool, threads: int | None, client=None) -> PCAModel:
     """The default PCA reference of a database: fitted on the database itself, or the stored ``pca.npz`` when it
     was fitted on this very generation (so that Fp sets stored one at a time share one model)."""
     reference = f"this database: {_describe(db)}"
-    with contextlib.suppress(ValueError):
-        stored = PCAModel.load(db.path / "features" / "pca.npz")
-        if stored.reference == reference and stored.n_components == _PCA_COMPONENTS:
-            return stored
-    return fit_pca(db, _PCA_COMPONENTS, reference=reference, progress=progress, n_jobs=n_jobs, scheduler=client)
+    return load_or_build(
+        lambda: _stored_pca(db, reference),
+        lambda: fit_pca(db, _PCA_COMPONENTS, reference=reference, progress=progress, threads=threads, scheduler=client),
+    )
 
 
-def load_numeric(db: MotionDB, name: str) -> np.ndarray:
+def load_numeric(db: MotionDB, numeric_set: str) -> np.ndarray:
     """A numeric feature set stored by :func:`store_numeric`, memory-mapped read-only.
 
     Returns
@@ -723,28 +633,27 @@ def load_numeric(db: MotionDB, name: str) -> np.ndarray:
     Raises
     ------
     ValueError
-        An unknown set name.
+        An unknown set numeric_set.
     mocapviz.MotionDBError
         The set is not stored, or stale: computed for another generation or frame count of the database, or
         with a PCA model other than the stored ``pca.npz``; or its files are unreadable. The message says to run
         ``mocapviz features DB``.
     """
-    spec = _spec(name)
-    data_path, header_path = _paths(db, name)
+    spec = _spec(numeric_set)
+    data_path, header_path = _paths(db, numeric_set)
     if not header_path.is_file():
-        raise MotionDBError(f"{db.path}: numeric feature set {name} is not stored; {_STALE_HINT}")
-    with _features_lock(header_path.parent, exclusive=False):
+        raise MotionDBError(f"{db.path}: numeric feature set {numeric_set} is not stored; {_STALE_HINT}")
+    with locked(header_path.parent, shared=True):
         try:
             header = json.loads(header_path.read_text())
             data = np.load(data_path, mmap_mode="r", allow_pickle=False)
         except (OSError, ValueError) as exc:
             raise MotionDBError(
-                f"{header_path.parent}: numeric feature set {name} unreadable ({exc}); {_STALE_HINT}"
+                f"{header_path.parent}: numeric feature set {numeric_set} unreadable ({exc}); {_STALE_HINT}"
             ) from None
+        check_format(header, _HEADER_FORMAT, _FORMAT_VERSION, header_path, _STALE_HINT)
         stale = None
-        if header.get("format") != _HEADER_FORMAT or header.get("version") != _FORMAT_VERSION:
-            stale = f"its header is not {_HEADER_FORMAT} version {_FORMAT_VERSION}"
-        elif (header.get("generation"), header.get("n_frames")) != (db.manifest["generation"], db.n_frames):
+        if (header.get("generation"), header.get("n_frames")) != (db.manifest["generation"], db.n_frames):
             stale = (
                 f"it was computed for generation {header.get('generation')} ({header.get('n_frames')} frames); "
                 f"the database is at generation {db.manifest['generation']} ({db.n_frames} frames)"
@@ -754,17 +663,17 @@ def load_numeric(db: MotionDB, name: str) -> np.ndarray:
         elif spec.pcs and _file_sha256(header_path.parent / "pca.npz") != header["pca"]["sha256"]:
             stale = "pca.npz has been replaced since it was computed"
     if stale:
-        raise MotionDBError(f"{db.path}: numeric feature set {name} is stale: {stale}; {_STALE_HINT}")
+        raise MotionDBError(f"{db.path}: numeric feature set {numeric_set} is stale: {stale}; {_STALE_HINT}")
     return data
 
 
-def numeric_of(db: MotionDB, name: str, pca: PCAModel | None = None, progress: bool = False) -> np.ndarray:
+def numeric_of(db: MotionDB, numeric_set: str, pca: PCAModel | None = None, progress: bool = False) -> np.ndarray:
     """A MotionDB's numeric feature set: the stored one when it is current, else computed now (nothing written).
 
     Parameters
     ----------
     db : MotionDB
-    name : str
+    numeric_set : str
         One of :data:`NUMERIC_SETS`.
     pca : PCAModel, optional
         For an Fp set: computed with this model. Default: the stored set when current, else computed with
@@ -775,23 +684,30 @@ def numeric_of(db: MotionDB, name: str, pca: PCAModel | None = None, progress: b
     -------
     np.ndarray [shape=(N, d)], float32, cm (a read-only memory map when stored).
     """
-    if _spec(name).pcs and pca is not None:
-        return numeric(db, name, pca=pca, progress=progress)
-    try:
-        return load_numeric(db, name)
-    except MotionDBError:  # not stored, or stale: compute instead
-        pass
-    if _spec(name).pcs:
-        pca = default_pca(db, progress)
-    return numeric(db, name, pca=pca, progress=progress)
+    if _spec(numeric_set).pcs and pca is not None:
+        return numeric_features(db, numeric_set, pca=pca, progress=progress)
+    return load_or_build(  # not stored, or stale: computed instead
+        lambda: load_numeric(db, numeric_set),
+        lambda: numeric_features(db, numeric_set, pca=default_pca(db, progress) if _spec(numeric_set).pcs else None,
+                                 progress=progress),
+    )
 
 
 def default_pca(db: MotionDB, progress: bool = False) -> PCAModel:
     """The PCA reference of a MotionDB when none is given: its stored ``features/pca.npz``, else fitted on it."""
-    try:
-        return PCAModel.load(db.path / "features" / "pca.npz")
-    except ValueError:
-        return fit_pca(db, progress=progress)
+    return load_or_build(lambda: _stored_pca(db), lambda: fit_pca(db, progress=progress))
+
+
+def _stored_pca(db: MotionDB, reference: str | None = None) -> PCAModel:
+    """The stored ``features/pca.npz`` of a MotionDB (of this ``reference`` with the default components when
+    given), or MotionDBError."""
+    path = db.path / "features" / "pca.npz"
+    if not path.is_file():
+        raise MotionDBError(f"{db.path}: no stored PCA model")
+    stored = PCAModel.load(path)
+    if reference is not None and (stored.reference, stored.n_components) != (reference, _PCA_COMPONENTS):
+        raise MotionDBError(f"{path}: fitted on {stored.reference}, not {reference}")
+    return stored
 
 
 def _file_sha256(path: Path) -> str | None:
@@ -799,9 +715,3 @@ def _file_sha256(path: Path) -> str | None:
         return hashlib.sha256(path.read_bytes()).hexdigest()
     except OSError:
         return None
-
-
-def _version() -> str:
-    from .. import __version__
-
-    return __version__

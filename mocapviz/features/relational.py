@@ -7,14 +7,14 @@ RELATIONAL_FEATURES.md (the "spec"; § numbers below refer to it).
 
 Public functions
 ----------------
-relational        Motion or MotionDB -> (T, f) bool feature values and their f names.
-feature_names     the f column names of a feature set.
-feature_groups    {"lower", "upper", "mix"} -> names, in column order.
-feature_table     pandas.DataFrame, one row per feature: name, group, spec row, definition, thresholds, unit.
-FEATURE_SETS      ("2005", "2006").
+relational_features  Motion or MotionDB -> (T, f) bool feature values and their f names.
+feature_names        the f column names of a relational set.
+feature_groups       {"lower", "upper", "mix"} -> names, in column order.
+feature_table        pandas.DataFrame, one row per feature: name, group, spec row, definition, thresholds, unit.
+RELATIONAL_SETS      ("2005", "2006").
 
-Feature sets
-------------
+Relational sets
+---------------
 "2005"   31 features in the toolbox order of spec §2 (NOT the order of the paper's Table 1): lower = columns
          1-11, upper = 12-23, mix = 24-31. Each row of ``_SET_2005`` names its toolbox number and paper label.
 "2006"   39 features F1-F39 in the order of spec §3: upper F1-F14, lower F15-F26, mix F27-F39.
@@ -45,38 +45,36 @@ Small geometric primitives (``_plane_distance`` ... ``_robust``) take and return
 image; the feature tables ``_SET_2005`` / ``_SET_2006`` combine a quantity with a comparison, two thresholds and
 a unit. Left features are generated from the right ones by :func:`_pair`. A MotionDB is evaluated in batches of
 whole documents: geometry is vectorised over all frames of a batch, velocities and the hysteresis run per
-document, so nothing crosses a document boundary.
+document, so nothing crosses a document boundary; the batches run on threads or as Dask tasks
+(:func:`mocapviz.batch.map_documents`).
 """
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields, replace
-from pathlib import Path
 
 import numba
 import numpy as np
 import pandas as pd
-from tqdm.auto import tqdm
 
+from ..batch import map_documents
 from ..cluster import optional_client
-from ..database import MotionDB, document_batches, read_batch
+from ..database import MotionDB
 from ..errors import ParameterError
 from ..motion import Motion
 from ..skeleton import CANONICAL_JOINTS, body_size_table
-from ..validation import finite_positions
+from ..validation import finite_positions, one_of, renamed
 
-__all__ = ["FEATURE_SETS", "feature_groups", "feature_names", "feature_table", "relational"]
+__all__ = ["RELATIONAL_SETS", "feature_groups", "feature_names", "feature_table", "relational_features"]
 
-FEATURE_SETS = ("2005", "2006")
+RELATIONAL_SETS = ("2005", "2006")
 GROUPS = ("lower", "upper", "mix")
 
 _INDEX = {name: k for k, name in enumerate(CANONICAL_JOINTS)}
 _UP = np.array([[0.0], [1.0], [0.0]])  # the vertical axis, [shape=(3, 1)]
 _BATCH_FRAMES = 1 << 15  # a MotionDB is evaluated in batches of whole documents of about this many frames
-_PROGRESS_MIN_DOCUMENTS = 50
 
 # ====================================================================================== geometric primitives
 # Vectors are stored coordinates first: a trajectory is an array [shape=(3, T)] whose rows x, y, z are contiguous,
@@ -942,19 +940,16 @@ _check_sets()
 # ================================================================================================ public API
 
 
-def _features(feature_set) -> tuple:
-    key = str(feature_set)
-    if key not in _SETS:
-        raise ParameterError(f"unknown relational feature set {feature_set!r}; known sets: {', '.join(FEATURE_SETS)}")
-    return _SETS[key]
+def _features(relational_set) -> tuple:
+    return _SETS[one_of(str(relational_set), "relational set", RELATIONAL_SETS)]
 
 
-def feature_names(feature_set: str = "2005") -> list[str]:
-    """Column names of a relational feature set, in column order.
+def feature_names(relational_set: str = "2005") -> list[str]:
+    """Column names of a relational set, in column order.
 
     Parameters
     ----------
-    feature_set : {"2005", "2006"}
+    relational_set : {"2005", "2006"}
 
     Returns
     -------
@@ -965,20 +960,20 @@ def feature_names(feature_set: str = "2005") -> list[str]:
     ValueError
         An unknown set; the message lists the known ones.
     """
-    return [f.name for f in _features(feature_set)]
+    return [f.name for f in _features(relational_set)]
 
 
-def feature_groups(feature_set: str = "2005") -> dict[str, list[str]]:
-    """Members of the groups "lower", "upper" and "mix" of a feature set, each in column order.
+def feature_groups(relational_set: str = "2005") -> dict[str, list[str]]:
+    """Members of the groups "lower", "upper" and "mix" of a relational set, each in column order.
 
     "2005": 11 / 12 / 8 features (one inverted index per group, spec §1.7); "2006": 12 / 14 / 13.
     """
-    feats = _features(feature_set)
+    feats = _features(relational_set)
     return {g: [f.name for f in feats if f.group == g] for g in GROUPS}
 
 
-def feature_table(feature_set: str = "2005") -> pd.DataFrame:
-    """One row per feature of a set, in column order.
+def feature_table(relational_set: str = "2005") -> pd.DataFrame:
+    """One row per feature of a relational set, in column order.
 
     Returns
     -------
@@ -990,7 +985,7 @@ def feature_table(feature_set: str = "2005") -> pd.DataFrame:
     return pd.DataFrame(
         [{"name": f.name, "group": f.group, "spec": f.spec, "definition": repr(f.quantity), "op": f.op,
           "lax": f.lax, "strict": f.strict, "unit": f.unit, "robust": f.lax != f.strict}
-         for f in _features(feature_set)]
+         for f in _features(relational_set)]
     )  # fmt: skip
 
 
@@ -1023,68 +1018,39 @@ def _motion_features(motion: Motion, feats: tuple) -> np.ndarray:
     return _evaluate(feats, _Batch(motion.positions, [0, motion.n_frames], [motion.fps]))
 
 
-def _document_batches(db: MotionDB) -> tuple:
-    """:func:`mocapviz.database.document_batches` of about ``_BATCH_FRAMES`` frames; raises ValueError for a
-    document with fewer than 2 frames (no velocities)."""
+def _check_lengths(db: MotionDB) -> None:
+    """A ParameterError naming the first document of ``db`` with fewer than 2 frames (no velocities)."""
     short = db.documents["n_frames"].to_numpy(np.int64) < 2
     if short.any():
         row = db.documents.iloc[int(np.argmax(short))]
         raise ParameterError(f"{db.path}: document {row['doc_id']} ({row['path']}) has {row['n_frames']} frame(s); "
                          f"relational features need at least 2 per document")  # fmt: skip
-    return document_batches(db, _BATCH_FRAMES)
 
 
-def _run_batch(db: MotionDB, docs, feats: tuple, first: int, last: int) -> tuple[int, int, np.ndarray]:
-    """Feature values of documents first..last-1 of ``docs``: (first frame a, end frame b, values [shape=(b-a, f)])."""
-    batch = read_batch(db, docs, first, last)
-    finite_positions(batch.positions, batch.where)
-    return batch.start, batch.stop, _evaluate(feats, _Batch(batch.positions, batch.bounds, batch.fps))
+def _batch_features(relational_set: str, positions: np.ndarray, bounds: np.ndarray, fps: np.ndarray) -> np.ndarray:
+    """The ``work`` of :func:`mocapviz.batch.map_documents`: feature values of a batch of whole documents,
+    [shape=(N, f)] bool (module level, so that Dask workers can import it)."""
+    return _evaluate(_features(relational_set), _Batch(positions, bounds, fps))
 
 
-def _remote_batch(task: tuple) -> tuple[int, int, np.ndarray]:
-    """A Dask task: (db path, generation, feature set, first, last) -> :func:`_run_batch` on the worker's own
-    memory map of the database (:func:`mocapviz.cluster.open_db`)."""
-    from ..cluster import open_db
-
-    path, generation, feature_set, first, last = task
-    db = open_db(path, generation)
-    return _run_batch(db, db.documents.sort_values("start"), _features(feature_set), first, last)
-
-
-def _db_features(db: MotionDB, feature_set: str, progress: bool, n_jobs: int, client=None) -> np.ndarray:
-    feats = _features(feature_set)
-    docs, batches = _document_batches(db)
-    out = np.empty((db.n_frames, len(feats)), dtype=bool)
-    bar = tqdm(total=len(docs), desc=f"relational features {len(feats)}", unit="doc",
-               disable=not progress or len(docs) <= _PROGRESS_MIN_DOCUMENTS)  # fmt: skip
-    if client is not None:
-        # Dask tasks read their documents from the workers' own memory maps; results are written here in frame
-        # order, so the first bad batch in that order raises
-        from ..cluster import map_ordered
-
-        path, generation = str(Path(db.path).resolve()), db.manifest["generation"]
-        tasks = ((path, generation, str(feature_set), first, last) for first, last in batches)
-        with bar, contextlib.closing(map_ordered(client, _remote_batch, tasks, name="mocapviz-relational")) as results:
-            for (first, last), (a, b, values) in zip(batches, results):
-                out[a:b] = values
-                bar.update(last - first)
-        return out
-
-    def run(batch: tuple[int, int]) -> int:
-        a, b, values = _run_batch(db, docs, feats, *batch)
-        out[a:b] = values
-        return batch[1] - batch[0]
-
-    # threads: the numpy operations and compiled kernels release the GIL; results come in batch order, so the
-    # first bad batch raises
-    with bar, ThreadPoolExecutor(max(1, n_jobs)) as pool:
-        for done in pool.map(run, batches):
-            bar.update(done)
+def _db_features(db: MotionDB, relational_set: str, progress: bool, threads: int | None, client) -> np.ndarray:
+    """Feature values of every frame of a MotionDB, [shape=(N, f)] bool: batches of whole documents of about
+    ``_BATCH_FRAMES`` frames on threads or as Dask tasks of ``client``, written here in frame order."""
+    n_features = len(_features(relational_set))
+    _check_lengths(db)
+    out = np.empty((db.n_frames, n_features), dtype=bool)
+    batches = map_documents(db, functools.partial(_batch_features, str(relational_set)), _BATCH_FRAMES,
+                            threads=threads, client=client, desc=f"relational features {n_features}",
+                            progress=progress, name="mocapviz-relational")  # fmt: skip
+    with contextlib.closing(batches):
+        for frames, values in batches:
+            out[frames] = values
     return out
 
 
-def relational(source, feature_set: str = "2005", progress: bool = True, n_jobs: int | None = None,
-               scheduler=None) -> tuple[np.ndarray, list[str]]:
+@renamed(feature_set="relational_set")
+def relational_features(source, relational_set: str = "2005", progress: bool = True, threads: int | None = None,
+                        scheduler=None) -> tuple[np.ndarray, list[str]]:  # fmt: skip
     """Boolean relational features of every frame (Müller, Röder & Clausen 2005 §3; Müller & Röder 2006).
 
     Parameters
@@ -1093,13 +1059,15 @@ def relational(source, feature_set: str = "2005", progress: bool = True, n_jobs:
         A Motion on any skeleton (mapped with ``motion.canonical()``), or a MotionDB: each document is computed
         on its own (velocity windows, hysteresis and body sizes never cross a document boundary) and the rows are
         the database's frames, in its frame order (document order).
-    feature_set : {"2005", "2006"}
+    relational_set : {"2005", "2006"}
         "2005": 31 features, toolbox order (lower 1-11, upper 12-23, mix 24-31); "2006": F1-F39 (upper F1-F14,
-        lower F15-F26, mix F27-F39). See :func:`feature_table` for the definitions.
+        lower F15-F26, mix F27-F39). See :func:`feature_table` for the definitions. (Formerly ``feature_set``:
+        still accepted, with a FutureWarning.)
     progress : bool
         Progress bar over the documents of a MotionDB with more than 50 documents.
-    n_jobs : int, optional
-        Threads over batches of documents of a MotionDB (default: the machine's cores, at most 8).
+    threads : int, optional
+        Threads over batches of documents of a MotionDB (default :func:`mocapviz.batch.default_threads`: the
+        cores this process may use, at most 8).
     scheduler : None, "local", str or dask.distributed.Client
         Compute the batches of whole documents of a MotionDB as Dask tasks (:func:`mocapviz.cluster.dask_client`:
         ``"local"`` starts a local cluster for this call, an address connects to a scheduler whose workers see the
@@ -1113,8 +1081,8 @@ def relational(source, feature_set: str = "2005", progress: bool = True, n_jobs:
     Raises
     ------
     ValueError
-        Unknown feature set; a clip (document) with fewer than 2 frames; a NaN or infinite position (the message
-        names the clip or document and the frame).
+        Unknown relational set; a clip (document) with fewer than 2 frames; a NaN or infinite position (the
+        message names the clip or document and the frame).
     mocapviz.SkeletonMappingError
         A Motion whose joints cannot be mapped onto the canonical skeleton.
     TypeError
@@ -1122,14 +1090,14 @@ def relational(source, feature_set: str = "2005", progress: bool = True, n_jobs:
 
     Examples
     --------
-    >>> values, names = relational(mocapviz.load("HDM_bd_squat1Reps_001_120.amc"))  # doctest: +SKIP
+    >>> values, names = relational_features(mocapviz.load("HDM_bd_squat1Reps_001_120.amc"))  # doctest: +SKIP
     >>> values[:, names.index("rknee_bent")].mean()  # doctest: +SKIP
     """
-    feats = _features(feature_set)
+    feats = _features(relational_set)
     names = [f.name for f in feats]
     if isinstance(source, Motion):
         return _motion_features(source, feats), names
     if isinstance(source, MotionDB):
         with optional_client(scheduler) as client:
-            return _db_features(source, feature_set, progress, n_jobs or min(8, os.cpu_count() or 1), client), names
+            return _db_features(source, relational_set, progress, threads, client), names
     raise ParameterError(f"relational features need a Motion or a MotionDB, got {type(source).__name__}")

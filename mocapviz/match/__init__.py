@@ -1,9 +1,10 @@
 """Global motion matching (ARCHITECTURE: "frames / kNN results -> mocapviz.match").
 
-dtw.py   DTW, band-restricted DTW, subsequence DTW and the shared choice of non-overlapping matches.
-lng.py   the lazy neighbourhood graph of Krüger, Tautges, Weber & Zinke 2010 §4.1.
+time_warping.py         DTW, band-restricted DTW, subsequence DTW and the shared choice of non-overlapping matches.
+neighbourhood_graph.py  the lazy neighbourhood graph of Krüger, Tautges, Weber & Zinke 2010 §4.1 (the function
+                        ``lng``).
 """
-from .dtw import STEP_SETS, band_from_path, best_ends, dtw, select_matches, subsequence_costs, subsequence_dtw
-from .lng import lng
+from .neighbourhood_graph import lng
+from .time_warping import STEP_SETS, band_from_path, best_ends, dtw, select_matches, subsequence_costs, subsequence_dtw
 
 __all__ = ["STEP_SETS", "band_from_path", "best_ends", "dtw", "lng", "select_matches", "subsequence_costs", "subsequence_dtw"]

@@ -3,7 +3,7 @@ only as far as its lower bound and the running K-th best cost allow (Rakthanmano
 from one-dimensional series to d-dimensional feature sequences and to unconstrained DTW; cells are pruned as in
 PrunedDTW, Silva & Batista 2016).
 
-Cost model: :mod:`mocapviz.match.dtw`'s "basic" step set (diagonal, next query frame, next database frame, each
+Cost model: :mod:`mocapviz.match.time_warping`'s "basic" step set (diagonal, next query frame, next database frame, each
 adding the local Euclidean cost of the cell entered), so costs and matches are those of :func:`~mocapviz.match.dtw`
 and :func:`~mocapviz.match.subsequence_dtw`, to the last bit.
 
@@ -193,13 +193,14 @@ def _local_minima(end_cost, end_start, a, min_length, out_s, out_e, out_c, n_out
 
 
 @numba.njit(cache=True)
-def search_ranges(q, x, lo, hi, order, bound, rows, k, whole, min_length, prune, budget, qmin, qmax):  # pragma: no cover
+def search_ranges(q, x, lo, hi, order, bound, rows, n_matches, whole, min_length, prune, budget, qmin,
+                  qmax):  # pragma: no cover
     """Align the query with ranges [lo[r], hi[r]) of x in ``order`` and collect the candidate matches.
 
-    whole: True = DTW of the query against each whole range, one candidate per range (lo, hi - 1, cost), the k
-    best kept by normalised cost cost / (m + n); False = subsequence DTW inside each range, the candidates the
-    local minima of the end cost among matches of at least ``min_length`` frames, the limit the k-th best
-    per-range minimum (see the module docstring).
+    whole: True = DTW of the query against each whole range, one candidate per range (lo, hi - 1, cost), the
+    n_matches best kept by normalised cost cost / (m + n); False = subsequence DTW inside each range, the
+    candidates the local minima of the end cost among matches of at least ``min_length`` frames, the limit the
+    n_matches-th best per-range minimum (see the module docstring).
     bound (R,): a lower bound of each range's best (normalised, when ``whole``) cost; rows (R, m): per-range row
     bounds (raw cost). qmin, qmax (d,): the query's bounding box (whole: every frame of a range is on the path,
     each costs at least its distance to the box; checked before a range is aligned). prune: use the bounds and
@@ -212,14 +213,14 @@ def search_ranges(q, x, lo, hi, order, bound, rows, k, whole, min_length, prune,
     out_e = np.empty(64, np.int64)
     out_c = np.empty(64)
     n_out = 0
-    best = np.full(k, np.inf)
+    best = np.full(n_matches, np.inf)
     aligned = 0
     cells = 0
     buf_c = np.empty(0)
     buf_s = np.empty(0, dtype=np.int64)
     for t in range(order.shape[0]):
         r = order[t]
-        if prune and bound[r] > best[k - 1]:
+        if prune and bound[r] > best[n_matches - 1]:
             continue
         if budget >= 0 and aligned >= budget:
             break
@@ -228,7 +229,7 @@ def search_ranges(q, x, lo, hi, order, bound, rows, k, whole, min_length, prune,
             buf_c = np.empty(n)
             buf_s = np.empty(n, dtype=np.int64)
         norm = m + n if whole else 1
-        limit = best[k - 1] * norm if prune else np.inf
+        limit = best[n_matches - 1] * norm if prune else np.inf
         if whole and prune and _box_bound(x, lo[r], hi[r], qmin, qmax) > limit:
             continue
         rest = _rest(rows[r]) if prune else np.zeros(m)

@@ -1,4 +1,4 @@
-"""HoloViews plots of the sparse-marker reconstruction experiment (:mod:`mocapviz.experiments.reconstruction`,
+"""HoloViews plots of the sparse-marker reconstruction experiment (:mod:`mocapviz.experiments.marker_reconstruction`,
 Krüger, Tautges, Weber & Zinke 2010 §5.2, Tables 3-4).
 
 compare_table3          our Table 3 beside the paper's, matched by what the prior holds (tidy DataFrame).
@@ -55,8 +55,8 @@ def compare_table3(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
 
     Parameters
     ----------
-    ours : :func:`mocapviz.experiments.reconstruction.reconstruction`'s ``"table3"`` (its ``avg`` row is used).
-    paper : :func:`mocapviz.experiments.reconstruction.paper_table3`.
+    ours : :func:`mocapviz.experiments.marker_reconstruction.reconstruction`'s ``"table3"`` (its ``avg`` row is used).
+    paper : :func:`mocapviz.experiments.marker_reconstruction.krueger2010_table3`.
 
     Returns
     -------
@@ -182,12 +182,13 @@ def baseline_bars(baselines: pd.DataFrame, title: str = "Local linear model agai
 
 def reconstruction_figures(result: dict, paper_table3: pd.DataFrame | None = None,
                            paper_table4: pd.DataFrame | None = None) -> dict[str, hv.Element]:  # fmt: skip
-    """The figures of one :func:`mocapviz.experiments.reconstruction.reconstruction` result, by file stem.
+    """The figures of one :func:`mocapviz.experiments.marker_reconstruction.reconstruction` result, by file stem.
 
     Parameters
     ----------
     result : dict of DataFrames (``table3``, ``table4``, ``baselines``, ``frames``, ``joints``; missing ones skipped).
-    paper_table3, paper_table4 : the paper's tables (``paper_table3()``, ``paper_table4()``), for the comparisons.
+    paper_table3, paper_table4 : the paper's tables (``krueger2010_table3()``, ``krueger2010_table4()``), for the
+        comparisons.
 
     Returns
     -------

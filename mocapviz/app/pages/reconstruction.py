@@ -1,8 +1,8 @@
 """Reconstruction page: a clip of the database rebuilt from six synthetic markers with local linear pose models
-(Krüger, Tautges, Weber & Zinke 2010 §5.2, after Chai & Hodgins 2005; the method is :mod:`mocapviz.reconstruct`).
+(Krüger, Tautges, Weber & Zinke 2010 §5.2, after Chai & Hodgins 2005; the method is :mod:`mocapviz.reconstruction`).
 
 The test clip's four end effectors, head and root become markers with uniform noise (§5.2: "randomly disturbed
-within a range of 1mm"; a fixed seed per clip, as in :mod:`mocapviz.experiments.reconstruction`, so the page's
+within a range of 1mm"; a fixed seed per clip, as in :mod:`mocapviz.experiments.marker_reconstruction`, so the page's
 errors can be recomputed), and every frame is rebuilt from the k nearest poses of a prior that leaves the test clip
 out (Table 3's "HDM" column) or, when the database names actors, every clip of the test clip's actor ("HDM-actor").
 The original and the reconstruction play side by side; the per-joint and per-frame errors are plotted and the mean
@@ -18,9 +18,9 @@ import pandas as pd
 import panel as pn
 
 from ...errors import ParameterError
-from ...experiments.reconstruction import frame_actors, marker_clip
+from ...experiments.marker_reconstruction import frame_actors, marker_clip
 from ...features import NUMERIC_SETS
-from ...reconstruct import DEFAULT_K, MARKERS, PosePrior, reconstruct, reconstruction_errors
+from ...reconstruction import DEFAULT_K, MARKERS, PosePrior, reconstruct, reconstruction_errors
 from ...skeleton import CANONICAL_JOINTS
 from ...viz.reconstruction import error_curves, joint_error_bars
 from ..player import SkeletonPlayer
@@ -34,7 +34,7 @@ PRIORS = {"without the test clip": "clip", "without the test clip's actor": "act
 
 # ============================================================================ computations (no widgets)
 def default_k(n_frames: int) -> int:
-    """The k offered first: :data:`mocapviz.reconstruct.DEFAULT_K`, at most a quarter of the database's frames (a
+    """The k offered first: :data:`mocapviz.reconstruction.DEFAULT_K`, at most a quarter of the database's frames (a
     prior leaving out one clip or one of several actors keeps more than that, so the default always works)."""
     return max(1, min(DEFAULT_K, n_frames // 4))
 
@@ -96,23 +96,23 @@ def prior_for(backend, doc: int, kind: str) -> tuple[PosePrior, str]:
     return backend.cached(key, lambda: full.restrict(valid)), left_out
 
 
-def run_reconstruction(backend, doc: int, kind: str, feature_set: str, k: int, noise_cm: float) -> dict:
+def run_reconstruction(backend, doc: int, kind: str, numeric_set: str, k: int, noise_cm: float) -> dict:
     """Reconstruct a clip from its six synthetic markers, cached per database and settings.
 
     Returns
     -------
-    dict: ``truth``, ``estimate`` (T, 24, 3) cm; ``errors`` (:func:`mocapviz.reconstruct.reconstruction_errors`);
+    dict: ``truth``, ``estimate`` (T, 24, 3) cm; ``errors`` (:func:`mocapviz.reconstruction.reconstruction_errors`);
     ``prior_frames`` (int), ``left_out`` (str), ``seconds`` (the first computation's wall time).
     """
     def compute() -> dict:
         t0 = time.perf_counter()
         prior, left_out = prior_for(backend, doc, kind)
         truth, markers, headings = marker_clip(backend.db, doc, noise_cm, SEED)
-        estimate = reconstruct(markers, headings, prior, feature_set=feature_set, k=k)
+        estimate = reconstruct(markers, headings, prior, numeric_set=numeric_set, k=k)
         return {"truth": truth, "estimate": estimate, "errors": reconstruction_errors(truth, estimate),
                 "prior_frames": prior.n_valid, "left_out": left_out, "seconds": time.perf_counter() - t0}
 
-    return backend.cached(("reconstruction", doc, kind, feature_set, int(k), float(noise_cm)), compute)
+    return backend.cached(("reconstruction", doc, kind, numeric_set, int(k), float(noise_cm)), compute)
 
 
 def error_tables(errors: dict, variant: str, fps: float) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -127,7 +127,7 @@ def error_tables(errors: dict, variant: str, fps: float) -> tuple[pd.DataFrame, 
 
 # ============================================================================ the page
 class ReconstructionPage(pn.viewable.Viewer):
-    """Choose a test clip, a prior, a feature set, k and the marker noise; reconstruct; compare."""
+    """Choose a test clip, a prior, a numeric set, k and the marker noise; reconstruct; compare."""
 
     def __init__(self, backend, selection):
         super().__init__()
@@ -138,7 +138,7 @@ class ReconstructionPage(pn.viewable.Viewer):
                                       width=560, css_classes=["mv-recon-clip"])
         self.prior = pn.widgets.Select(label="prior: the database …", width=230, css_classes=["mv-recon-prior"],
                                        options={n: v for n, v in PRIORS.items() if v == "clip" or has_actors})
-        self.feature_set = pn.widgets.Select(label="feature set (kNN search)", options=list(NUMERIC_SETS),
+        self.numeric_set = pn.widgets.Select(label="numeric set (kNN search)", options=list(NUMERIC_SETS),
                                              value="F15E", width=170, css_classes=["mv-recon-features"])
         self.k = pn.widgets.IntInput(label="k (neighbours per frame)", value=default_k(backend.db.n_frames), start=1,
                                      width=170, css_classes=["mv-recon-k"])
@@ -163,7 +163,7 @@ class ReconstructionPage(pn.viewable.Viewer):
             f"### Reconstruction from six markers (Krüger et al. 2010 §5.2)\nEvery frame of the test clip is rebuilt "
             f"from its markers ({', '.join(MARKERS)}), with uniform noise, by a local linear model of its k nearest "
             "poses in the prior.", margin=(0, 10))
-        options = pn.Row(self.prior, self.feature_set, self.k, self.noise, self.run_button)
+        options = pn.Row(self.prior, self.numeric_set, self.k, self.noise, self.run_button)
         return pn.Column(intro, self.clip, options, self.message, self.task, self.summary, self.results,
                          sizing_mode="stretch_width", css_classes=["mv-recon-page"])
 
@@ -174,25 +174,25 @@ class ReconstructionPage(pn.viewable.Viewer):
             self.clip.value = self.selection.doc
 
     def _settings(self) -> tuple:
-        return int(self.clip.value), self.prior.value, self.feature_set.value, self.k.value, self.noise.value
+        return int(self.clip.value), self.prior.value, self.numeric_set.value, self.k.value, self.noise.value
 
     async def _run(self, event=None) -> None:
-        doc, kind, feature_set, k, noise = self._settings()
+        doc, kind, numeric_set, k, noise = self._settings()
         problem = check_settings(self.backend.db, doc, kind, k, noise)
         self.message.object, self.message.visible = problem or "", problem is not None
         if problem:
             return
-        result = await self.task.run("Reconstructing", run_reconstruction, self.backend, doc, kind, feature_set, k,
+        result = await self.task.run("Reconstructing", run_reconstruction, self.backend, doc, kind, numeric_set, k,
                                      noise, busy=self.run_button)
         if result is not None:
-            self._show(result, doc, feature_set, k, noise)
+            self._show(result, doc, numeric_set, k, noise)
 
-    def _show(self, result: dict, doc: int, feature_set: str, k: int, noise: float) -> None:
-        name, fps = str(self.backend.db.document(doc)["name"]), self.backend.fps
+    def _show(self, result: dict, doc: int, numeric_set: str, k: int, noise: float) -> None:
+        name, fps = str(self.backend.db.document(doc)["name"]), self.backend.fps_of(doc)
         err = result["errors"]
         self.summary.object = (
             f"**{name}** · {len(result['truth'])} frames · prior: {result['prior_frames']:,} frames without "
-            f"{result['left_out']} · {feature_set} · k = {k:,} · noise ± {noise:g} cm · "
+            f"{result['left_out']} · {numeric_set} · k = {k:,} · noise ± {noise:g} cm · "
             f"computed in {result['seconds']:.1f} s")
         self.error_text.object = (f"**mean error {err['mean_cm']:.2f} cm** per joint · worst frame "
                                   f"{err['max_cm']:.2f} cm · bone length error {err['bone_cm']:.2f} cm")

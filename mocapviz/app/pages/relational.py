@@ -24,7 +24,7 @@ from ..player import SkeletonPlayer
 from ..progress import Task
 from ..widgets import action_button, results_table
 
-FEATURE_SET = "2005"
+RELATIONAL_SET = "2005"
 # the "kicking" query of Müller et al. 2005 §6.2 (Fig. 9): F_l3, F_l4, F_l7, F_l8
 DEFAULT_FEATURES = ("rfoot_raised", "lfoot_raised", "rknee_bent", "lknee_bent")
 MODES = {"exact": "exact", "fuzzy": "fuzzy", "adaptive fuzzy": "adaptive", "mismatch": "mismatch"}
@@ -51,7 +51,7 @@ class RelationalPage(pn.viewable.Viewer):
         self.features = {g: pn.widgets.CheckBoxGroup(label=GROUP_TITLES[g], options=names, inline=False,
                                                      value=[n for n in names if n in DEFAULT_FEATURES],
                                                      css_classes=[f"mv-features-{g}"])
-                         for g, names in feature_groups(FEATURE_SET).items()}
+                         for g, names in feature_groups(RELATIONAL_SET).items()}
         self.mode = pn.widgets.RadioButtonGroup(label="hits", options=list(MODES), value="adaptive fuzzy",
                                                 css_classes=["mv-query-mode"])
         self.mismatches = pn.widgets.IntInput(label="m (mismatching segments)", start=1, end=20, value=1, width=170,
@@ -91,12 +91,12 @@ class RelationalPage(pn.viewable.Viewer):
         """Take the session's clip and span (the Database page may have changed them) when the tab is shown."""
         if (self.selection.doc, tuple(self.selection.span)) != (self.doc.value, tuple(self.span.value)):
             self._set_query(self.selection.doc, self.selection.span)
-        if not self.backend.is_cached(("indexes", FEATURE_SET)):
+        if not self.backend.is_cached(("indexes", RELATIONAL_SET)):
             pn.state.execute(self._load_indexes)
 
     async def _load_indexes(self) -> None:
         """Load (or build, the first time) the relational indexes behind the progress bar; Run waits for them."""
-        await self.task.run("Loading the relational indexes", self.backend.indexes, FEATURE_SET, busy=self.run)
+        await self.task.run("Loading the relational indexes", self.backend.indexes, RELATIONAL_SET, busy=self.run)
 
     def _set_query(self, doc: int, span) -> None:
         """Show document ``doc`` and ``span`` (first, last frames, inclusive; clipped to the document)."""
@@ -156,13 +156,13 @@ class RelationalPage(pn.viewable.Viewer):
 
     def search(self, q: dict) -> pd.DataFrame:
         """The ranked hits of ``q`` (:func:`mocapviz.query.query_by_example`), cached per database."""
-        key = ("relational query", FEATURE_SET, q["doc"], q["span"], tuple(sorted(q["features"])), q["mode"],
+        key = ("relational query", RELATIONAL_SET, q["doc"], q["span"], tuple(sorted(q["features"])), q["mode"],
                q["mismatches"] if q["mode"] == "mismatch" else 0)
         first, last = q["span"]
         db = self.backend.db
         return self.backend.cached(key, lambda: query_by_example(
-            db, db.motion(q["doc"])[first:last + 1], q["features"], q["mode"], q["mismatches"], FEATURE_SET,
-            self.backend.indexes(FEATURE_SET)))
+            db, db.motion(q["doc"])[first:last + 1], q["features"], q["mode"], q["mismatches"], RELATIONAL_SET,
+            self.backend.indexes(RELATIONAL_SET)))
 
     async def _on_run(self, event=None) -> None:
         q = self.query()

@@ -24,7 +24,7 @@ from ...errors import ParameterError
 from ...experiments.matching import similarity_matrices
 from ...features import NUMERIC_SETS
 from ...knn import describe_frames
-from ...match.lng import lng
+from ...match.neighbourhood_graph import lng
 from ...search import MODES as SEARCH_MODES
 from ...validation import count
 from ...viz.matching import similarity_layout
@@ -33,7 +33,7 @@ from ..player import SkeletonPlayer
 from ..progress import Task
 from ..widgets import action_button, results_table
 
-FEATURE_SETS = [s for s in NUMERIC_SETS if not s.startswith("Fp")]  # Fp sets need a PCA model of the database
+SEARCH_SETS = [s for s in NUMERIC_SETS if not s.startswith("Fp")]  # the numeric sets offered: Fp need a PCA model
 MAX_NEIGHBOURS = 256  # Fig. 1 draws 256 neighbours; more make an unreadable figure and a slow render
 MAX_MATCHES = 100
 MAX_MATRIX_CELLS = 600_000  # query frames x small-database frames of the Fig. 3 matrices
@@ -65,7 +65,7 @@ def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own
     Parameters
     ----------
     backend : Backend
-    name : str, numeric feature set (distances in its units, cm for F15E).
+    name : str, numeric set (distances in its units, cm for F15E).
     doc, frame : the query frame, ``frame`` counted within document ``doc``.
     k : int, 1 <= k <= min(MAX_NEIGHBOURS, indexed frames).
     exclude_own : bool, leave out the frames of the query's own document.
@@ -109,17 +109,17 @@ def _query_span(backend, doc: int, span: tuple[int, int]) -> tuple[int, int]:
     return start + first, start + last + 1
 
 
-def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, k_matches: int,
+def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, n_matches: int,
                exclude_own: bool) -> pd.DataFrame:
     """The K best matches of a span in the database by the lazy neighbourhood graph (Krüger et al. 2010 §4.1).
 
     Parameters
     ----------
     backend : Backend
-    name : str, numeric feature set.
+    name : str, numeric set.
     doc : int, span : (first, last) frames of document ``doc``, inclusive; 2 <= length <= the longest document.
     k : int, neighbours per query frame (1 <= k <= indexed frames).
-    k_matches : int, matches wanted (K, at most MAX_MATCHES).
+    n_matches : int, matches wanted (K, at most MAX_MATCHES).
     exclude_own : bool, no match inside the query's own document.
 
     Returns
@@ -132,10 +132,10 @@ def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, k_ma
     q0, q1 = _query_span(backend, doc, span)
     index = backend.knn(name)
     k = count(k, "k", 1, index.n_indexed)
-    k_matches = count(k_matches, "K", 1, MAX_MATCHES)
+    n_matches = count(n_matches, "K", 1, MAX_MATCHES)
     docs = backend.documents
     starts = docs["start"].to_numpy()
-    found = lng(backend.numeric(name)[q0:q1], index, k=k, k_matches=k_matches, starts=starts,
+    found = lng(backend.numeric(name)[q0:q1], index, k=k, n_matches=n_matches, starts=starts,
                 exclude=_own_frames(backend, doc) if exclude_own else None)
     rows = docs.iloc[found["doc_id"].to_numpy()]
     first = rows["start"].to_numpy()
@@ -154,19 +154,19 @@ def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, k_ma
     return table
 
 
-def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, mode: str, k: int,
+def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, mode: str, n_matches: int,
                 exclude_own: bool) -> pd.DataFrame:  # fmt: skip
     """The documents (``kind="clips"``) or stretches (``"stretches"``) that move most like the span, by DTW on a
-    numeric feature set (:class:`mocapviz.search.SimilaritySearch`, cached per feature set by the Backend).
+    numeric set (:class:`mocapviz.search.SimilaritySearch`, cached per numeric set by the Backend).
 
     Parameters
     ----------
     backend : Backend
-    name : str, numeric feature set.
+    name : str, numeric set.
     doc, span : the query: frames first..last (inclusive) of document ``doc``.
     kind : {"clips", "stretches"}
     mode : {"exact", "fast"} (or "brute").
-    k : int, results wanted (1..MAX_MATCHES).
+    n_matches : int, results wanted (1..MAX_MATCHES).
     exclude_own : bool, leave out the query's own document.
 
     Returns
@@ -176,13 +176,13 @@ def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, 
     the span, document frame))) plus start_s and end_s (seconds). ``attrs``: the search's (ms, aligned, ...).
     """
     q0, q1 = _query_span(backend, doc, span)
-    k = count(k, "K", 1, MAX_MATCHES)
+    n_matches = count(n_matches, "K", 1, MAX_MATCHES)
     if kind not in SEARCH_KINDS.values():
         raise ParameterError(f"kind must be one of {', '.join(SEARCH_KINDS.values())}; got {kind!r}")
     search = backend.search(name)
     frames = (q0 - _own_frames(backend, doc)[0], q1 - _own_frames(backend, doc)[0])
     run = search.clips if kind == "clips" else search.stretches
-    table = run(doc, frames=frames, n_matches=k, mode=mode, exclude_document=exclude_own, paths=True)
+    table = run(doc, frames=frames, n_matches=n_matches, mode=mode, exclude_document=exclude_own, paths=True)
     fps = backend.documents.set_index("doc_id").loc[table["doc_id"], "fps"].to_numpy(dtype=np.float64)
     table.insert(table.columns.get_loc("frames"), "start_s", table["start"] / fps if len(table) else [])
     table.insert(table.columns.get_loc("frames"), "end_s", table["end"] / fps if len(table) else [])
@@ -234,7 +234,8 @@ def similarity_result(backend, name: str, doc: int, span: tuple[int, int], k: in
         raise ParameterError(f"the matrix would have {q1 - q0} x {n:,} cells (at most {MAX_MATRIX_CELLS:,}); choose a "
                          f"span of at most {MAX_MATRIX_CELLS // n} frames")
     first = int(span[0])
-    return similarity_matrices(backend.db, doc, (first, first + q1 - q0), database_docs, sets=(name,), k=k)
+    return similarity_matrices(backend.db, doc, (first, first + q1 - q0), database_docs, numeric_sets=(name,),
+                               k=k)
 
 
 # ============================================================================ the page
@@ -245,7 +246,7 @@ class SimilarityPage(pn.viewable.Viewer):
         super().__init__()
         self.backend, self.selection = backend, selection
         self.query = pn.pane.Markdown("", css_classes=["mv-similarity-query"], margin=(0, 10))
-        self.feature_set = pn.widgets.Select(label="numeric feature set", options=FEATURE_SETS, value="F15E",
+        self.numeric_set = pn.widgets.Select(label="numeric set", options=SEARCH_SETS, value="F15E",
                                              width=160)
         self.exclude_own = pn.widgets.Checkbox(label="exclude the query's own document", value=True, width=260,
                                                align="end", css_classes=["mv-exclude-own"])
@@ -327,7 +328,7 @@ class SimilarityPage(pn.viewable.Viewer):
         matrix = pn.Column("### Similarity matrix of the span against the best matches' documents (Fig. 3)",
                            pn.pane.Markdown(MATRIX_LEGEND, margin=(0, 10)), pn.Row(self.matrix_k, self.matrix_button),
                            _scoped(self.matrix_task, "mv-matrix-task"), self.matrix, sizing_mode="stretch_width")
-        return pn.Column(pn.Row(self.feature_set, self.exclude_own), self.query, search, knn, match, matrix,
+        return pn.Column(pn.Row(self.numeric_set, self.exclude_own), self.query, search, knn, match, matrix,
                          sizing_mode="stretch_width")
 
     def activate(self) -> None:
@@ -342,9 +343,9 @@ class SimilarityPage(pn.viewable.Viewer):
 
     # ------------------------------------------------------------------ DTW search
     def _search_key(self) -> tuple:
-        """(feature set, document, span, kind, mode, K, exclude own) of the search the widgets ask for."""
+        """(numeric set, document, span, kind, mode, K, exclude own) of the search the widgets ask for."""
         s = self.selection
-        return (self.feature_set.value, s.doc, tuple(s.span), SEARCH_KINDS[self.search_kind.value],
+        return (self.numeric_set.value, s.doc, tuple(s.span), SEARCH_KINDS[self.search_kind.value],
                 self.search_mode.value, self.search_k.value, self.exclude_own.value)
 
     async def _run_search(self, event=None) -> None:
@@ -353,7 +354,7 @@ class SimilarityPage(pn.viewable.Viewer):
                                            lambda: search_span(self.backend, *key), busy=self.search_button)
         if found is None:
             return
-        name, doc, (first, last), kind, mode, k, own = key
+        name, doc, (first, last), kind, mode, n_matches, own = key
         self.results, self.search_query = found, (doc, first, last)
         shown = found[[c for c in SEARCH_TITLES if c in found]].round(SEARCH_DECIMALS)
         self.search_table.param.update(selection=[], value=shown)
@@ -361,7 +362,7 @@ class SimilarityPage(pn.viewable.Viewer):
         what = "clips" if kind == "clips" else "stretches"
         ms = found.attrs.get("ms")
         self.search_count.object = (f"**{len(found)} {what}** like document {doc} frames {first}–{last} by {name}, "
-                                    f"{mode} DTW (K = {k})" + (", its own document excluded" if own else "")
+                                    f"{mode} DTW (K = {n_matches})" + (", its own document excluded" if own else "")
                                     + (f"; search {ms:.0f} ms, {found.attrs.get('aligned', 0)} alignments"
                                        if ms is not None else ""))  # fmt: skip
 
@@ -385,14 +386,14 @@ class SimilarityPage(pn.viewable.Viewer):
         q0 = self.backend.db.frames(doc).start
         positions = self.backend.db.positions
         player.load([positions[q0 + first : q0 + last + 1], positions[m0 : m1 + 1]],
-                    titles=[f"query: document {doc}", title], fps=self.backend.fps, alignment=alignment)
+                    titles=[f"query: document {doc}", title], fps=self.backend.fps_of(doc), alignment=alignment)
         box.visible = True
 
     # ------------------------------------------------------------------ kNN
     async def _search(self, event=None) -> None:
         """The neighbours table as soon as the kNN is done; the Fig. 1 picture (slower to render) after it."""
         s = self.selection
-        name, doc, frame, k, own = self.feature_set.value, s.doc, s.frame, self.knn_k.value, self.exclude_own.value
+        name, doc, frame, k, own = self.numeric_set.value, s.doc, s.frame, self.knn_k.value, self.exclude_own.value
         key = ("similarity.knn", name, doc, frame, k, own)
         table = await self.knn_task.run("Searching", self.backend.cached, key,
                                         lambda: nearest_frames(self.backend, name, doc, frame, k, own),
@@ -410,9 +411,9 @@ class SimilarityPage(pn.viewable.Viewer):
 
     # ------------------------------------------------------------------ LNG
     def _match_key(self) -> tuple:
-        """(feature set, document, span, k, K, exclude own) of the matching the widgets ask for."""
+        """(numeric set, document, span, k, K, exclude own) of the matching the widgets ask for."""
         s = self.selection
-        return (self.feature_set.value, s.doc, tuple(s.span), self.match_k.value, self.match_count_k.value,
+        return (self.numeric_set.value, s.doc, tuple(s.span), self.match_k.value, self.match_count_k.value,
                 self.exclude_own.value)
 
     def _cached_matches(self, key: tuple) -> pd.DataFrame:
@@ -424,13 +425,13 @@ class SimilarityPage(pn.viewable.Viewer):
         found = await self.match_task.run("Matching", self._cached_matches, key, busy=self.match_button)
         if found is None:
             return
-        name, doc, (first, last), k, k_matches, own = key
+        name, doc, (first, last), k, n_matches, own = key
         self.matches, self.match_query = found, (doc, first, last)
         shown = found[[c for c in MATCH_TITLES if c in found]].round(SHOWN_DECIMALS)
         self.match_table.param.update(selection=[], value=shown)
         self.player_box.visible = False
         self.match_count.object = (f"**{len(found)} matches** of document {doc} frames {first}–{last} by {name} "
-                                   f"(k = {k}, K = {k_matches})" + (", its own document excluded" if own else "")
+                                   f"(k = {k}, K = {n_matches})" + (", its own document excluded" if own else "")
                                    + ("; try a larger k" if found.empty else ""))
 
     def _on_match_select(self, event) -> None:

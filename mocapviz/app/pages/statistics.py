@@ -16,8 +16,8 @@ from __future__ import annotations
 import pandas as pd
 import panel as pn
 
-from ...experiments.numeric import knn_timings, paper_table1
-from ...experiments.relational import index_statistics, paper_table2, paper_table3, query_statistics
+from ...experiments.numeric import knn_timings, krueger2010_table1
+from ...experiments.relational import index_statistics, mueller2005_table2, mueller2005_table3, query_statistics
 from ...viz.paper import comparison_bars, curves
 from ...viz.statistics import query_time_scatter
 from ..progress import Task
@@ -56,7 +56,7 @@ def _table(frame: pd.DataFrame, css: str) -> pn.pane.DataFrame:
 def table2(backend) -> pd.DataFrame:
     """Table 2 of the open database (one row per group index) above the paper's six rows; column ``source``."""
     ours = backend.cached(("statistics", "table2"), lambda: index_statistics(backend.db, "2005"))
-    return pd.concat([ours.assign(source=OURS), paper_table2().assign(source="paper")], ignore_index=True)
+    return pd.concat([ours.assign(source=OURS), mueller2005_table2().assign(source="paper")], ignore_index=True)
 
 
 def table3(backend, group: str) -> pd.DataFrame:
@@ -64,7 +64,7 @@ def table3(backend, group: str) -> pd.DataFrame:
     :data:`QUERIES` random queries per (mode, L) and the paper's µh, σh, µt (I_u^180) beside them."""
     ours = backend.cached(("statistics", "table3", group, QUERIES), lambda: query_statistics(
         backend.indexes()[group], n_queries=QUERIES, lengths=TABLE3_LENGTHS, seed=SEED))  # fmt: skip
-    paper = paper_table3()[["mode", "L", "hits", *TABLE3_PAPER]].rename(columns=TABLE3_PAPER)
+    paper = mueller2005_table3()[["mode", "L", "hits", *TABLE3_PAPER]].rename(columns=TABLE3_PAPER)
     return ours.merge(paper, on=["mode", "L", "hits"], how="left").rename(columns=TABLE3_RENAMED)
 
 
@@ -78,8 +78,8 @@ def table1(backend) -> pd.DataFrame:
     """Table 1 in long form: our mean ms per k-NN query per (set, k) (``database`` = :data:`OURS`) and the paper's
     HDM05 and CMU rows; columns database, frames, set, d, k, mean_ms."""
     ours = backend.cached(("statistics", "table1", KNN_QUERIES), lambda: knn_timings(
-        backend.db, n_queries=min(KNN_QUERIES, backend.db.n_frames), workers=1, seed=SEED, database=OURS))  # fmt: skip
-    paper = paper_table1().merge(ours[["set", "d"]].drop_duplicates(), on="set", how="left")
+        backend.db, n_queries=min(KNN_QUERIES, backend.db.n_frames), threads=1, seed=SEED, database=OURS))  # fmt: skip
+    paper = krueger2010_table1().merge(ours[["set", "d"]].drop_duplicates(), on="set", how="left")
     return pd.concat([ours, paper.assign(database=paper["database"] + " (paper)")], ignore_index=True)
 
 
@@ -159,7 +159,7 @@ class StatisticsPage(pn.viewable.Viewer):
     @staticmethod
     def _table3_view(table: pd.DataFrame, per_query: pd.DataFrame) -> list:
         long = pd.concat([table.rename(columns={"µt (ms)": "mean_ms"}).assign(source=OURS),
-                          paper_table3().assign(source="paper")], ignore_index=True)  # fmt: skip
+                          mueller2005_table3().assign(source="paper")], ignore_index=True)  # fmt: skip
         long["series"] = long["source"] + ", " + long["mode"] + ", " + long["hits"] + " hits"
         mean = curves(long, "L", "mean_ms", "series", title="mean query time per hit group",
                       xlabel="query length L (segments)", ylabel="ms", logy=True, width=620, height=340)

@@ -5,9 +5,9 @@ dtw                 the optimal alignment of two feature sequences, optionally o
 subsequence_costs   the accumulated cost of the best alignment of a query ending at every database frame, with
                     the frame where that alignment starts; documents are never crossed. O(m n) time, O(m) memory
                     per document boundary: the database is streamed in blocks.
-subsequence_dtw     the top-K non-overlapping matches of a query in a database, ranked by cost, with their paths.
+subsequence_dtw     the top ``n_matches`` non-overlapping matches of a query in a database, ranked by cost, with their paths.
 best_ends           the end frames of those matches, from subsequence_costs' output.
-select_matches      K non-overlapping intervals of least cost from candidate (start, end, cost) triples (shared
+select_matches      ``n_matches`` non-overlapping intervals of least cost from candidate (start, end, cost) triples (shared
                     with the lazy neighbourhood graph, so both rank matches the same way).
 
 Cost model (the same as the lazy neighbourhood graph's, so the two are comparable):
@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ParameterError
-from ..validation import count
+from ..validation import count, renamed
 
 STEP_SETS = {
     "basic": ((1, 1, 1.0), (1, 0, 1.0), (0, 1, 1.0)),
@@ -371,10 +371,11 @@ def subsequence_costs(query, database, starts=None, distance=None, steps="basic"
 
 
 @numba.njit(cache=True)
-def _select(order, starts, ends, k):  # pragma: no cover - compiled
-    """Indices (into the candidates) of up to k intervals [start, end], taken in ``order``, none overlapping one
-    taken before (checked against the taken ones: O(k) per candidate, no array over all frames)."""
-    out = np.empty(k, dtype=np.int64)
+def _select(order, starts, ends, n_matches):  # pragma: no cover - compiled
+    """Indices (into the candidates) of up to n_matches intervals [start, end], taken in ``order``, none
+    overlapping one taken before (checked against the taken ones: O(n_matches) per candidate, no array over all
+    frames)."""
+    out = np.empty(n_matches, dtype=np.int64)
     n_out = 0
     for c in order:
         s, e = starts[c], ends[c]
@@ -386,13 +387,13 @@ def _select(order, starts, ends, k):  # pragma: no cover - compiled
         if free:
             out[n_out] = c
             n_out += 1
-            if n_out == k:
+            if n_out == n_matches:
                 break
     return out[:n_out]
 
 
-def select_matches(starts, ends, costs, k: int) -> np.ndarray:
-    """The indices of the ``k`` candidate matches [start, end] of least cost that do not overlap each other,
+def select_matches(starts, ends, costs, n_matches: int) -> np.ndarray:
+    """The indices of the ``n_matches`` candidate matches [start, end] of least cost that do not overlap each other,
     in increasing cost (ties: earlier end first). The greedy choice of Müller 2007 §4.4: take the best match,
     discard every candidate overlapping it, repeat.
 
@@ -400,7 +401,7 @@ def select_matches(starts, ends, costs, k: int) -> np.ndarray:
     ----------
     starts, ends : np.ndarray [shape=(c,)], int, database frames (inclusive).
     costs : np.ndarray [shape=(c,)], float; inf candidates are never taken.
-    k : int
+    n_matches : int, matches wanted.
     """
     starts, ends = np.asarray(starts, dtype=np.int64), np.asarray(ends, dtype=np.int64)
     costs = np.asarray(costs, dtype=np.float64)
@@ -408,11 +409,11 @@ def select_matches(starts, ends, costs, k: int) -> np.ndarray:
     if not len(finite):
         return np.empty(0, dtype=np.int64)
     order = finite[np.lexsort((ends[finite], costs[finite]))]
-    return _select(order, starts, ends, count(k, "K"))
+    return _select(order, starts, ends, count(n_matches, "n_matches"))
 
 
-def best_ends(cost, first, starts, k: int) -> np.ndarray:
-    """The end frames of the ``k`` best non-overlapping subsequence-DTW matches (Müller 2007 §4.4): the local
+def best_ends(cost, first, starts, n_matches: int) -> np.ndarray:
+    """The end frames of the ``n_matches`` best non-overlapping subsequence-DTW matches (Müller 2007 §4.4): the local
     minima of the accumulated cost within each document, taken greedily by :func:`select_matches`.
 
     Parameters
@@ -420,11 +421,11 @@ def best_ends(cost, first, starts, k: int) -> np.ndarray:
     cost, first : np.ndarray [shape=(n,)], from :func:`subsequence_costs` (set ``cost`` to inf where no match may
         end, e.g. inside the query's own document).
     starts : np.ndarray [shape=(B,)], int, first frame of every document (None: one document).
-    k : int
+    n_matches : int, matches wanted.
 
     Returns
     -------
-    np.ndarray [shape=(<= k,)], int64 end frames, best first; the matches start at ``first[ends]``.
+    np.ndarray [shape=(<= n_matches,)], int64 end frames, best first; the matches start at ``first[ends]``.
     """
     cost = np.asarray(cost, dtype=np.float64)
     n = len(cost)
@@ -433,7 +434,7 @@ def best_ends(cost, first, starts, k: int) -> np.ndarray:
     doc_start[n] = True
     left, right = np.r_[np.inf, cost[:-1]], np.r_[cost[1:], np.inf]
     cand = np.flatnonzero(np.isfinite(cost) & (doc_start[:n] | (cost <= left)) & (doc_start[1:] | (cost <= right)))
-    return cand[select_matches(np.asarray(first)[cand], cand, cost[cand], k)]
+    return cand[select_matches(np.asarray(first)[cand], cand, cost[cand], n_matches)]
 
 
 def matches_frame(doc_starts: np.ndarray, starts, ends, costs, paths) -> pd.DataFrame:
@@ -447,18 +448,21 @@ def matches_frame(doc_starts: np.ndarray, starts, ends, costs, paths) -> pd.Data
     })  # fmt: skip
 
 
-def subsequence_dtw(query, database, starts=None, k: int = 10, distance=None, steps="basic", paths: bool = True,
-                    progress: bool = False) -> pd.DataFrame:  # fmt: skip
-    """The ``k`` best non-overlapping matches of a query in a database by subsequence DTW (Müller 2007 §4.4): the
-    local minima of the accumulated cost over the last query frame, best first, each discarding the candidates
-    that overlap it. The reference that the lazy neighbourhood graph (Krüger et al. 2010 §4.1) approximates.
+@renamed(k="n_matches")
+def subsequence_dtw(query, database, starts=None, n_matches: int = 10, distance=None, steps="basic",
+                    paths: bool = True, progress: bool = False) -> pd.DataFrame:  # fmt: skip
+    """The ``n_matches`` best non-overlapping matches of a query in a database by subsequence DTW (Müller 2007
+    §4.4): the local minima of the accumulated cost over the last query frame, best first, each discarding the
+    candidates that overlap it. The reference that the lazy neighbourhood graph (Krüger et al. 2010 §4.1)
+    approximates.
 
     Parameters
     ----------
     query : np.ndarray [shape=(m, d)] features of the query frames, 2 <= m <= the longest document.
     database : np.ndarray [shape=(n, d)] features of all database frames, e.g. ``load_numeric(db, "F15E")``.
     starts : np.ndarray [shape=(B,)], int, optional: first frame of every document (``db.documents.start``).
-    k : int, matches wanted (fewer when the database has fewer non-overlapping ones).
+    n_matches : int, matches wanted (fewer when the database has fewer non-overlapping ones); its old name ``k``
+        still works, with a FutureWarning.
     distance, steps : see :func:`subsequence_costs`.
     paths : bool, compute each match's path (by DTW of the query against the matched stretch; same cost).
     progress : bool
@@ -473,14 +477,14 @@ def subsequence_dtw(query, database, starts=None, k: int = 10, distance=None, st
     ------
     ValueError / TypeError
         A query shorter than 2 frames or longer than the longest document, non-finite frames (named), feature
-        dimensions that differ, bad document starts or step set, k not a positive integer.
+        dimensions that differ, bad document starts or step set, n_matches not a positive integer.
     """
-    k = count(k, "k")
+    n_matches = count(n_matches, "n_matches")
     n = len(database)
     doc_starts = _check_document_starts(starts, n)
     check_query_length(len(query), doc_starts, n)
     cost, first = subsequence_costs(query, database, starts, distance, steps, progress)
-    chosen = best_ends(cost, first, doc_starts, k)
+    chosen = best_ends(cost, first, doc_starts, n_matches)
     found = []
     for s, e in zip(first[chosen], chosen):
         if paths:

@@ -1,13 +1,13 @@
 """Reconstruction of full-body motion from six sparse markers: Krüger, Tautges, Weber & Zinke 2010 §5.2,
-Tables 3 and 4 (after Chai & Hodgins 2005; the method is :mod:`mocapviz.reconstruct`).
+Tables 3 and 4 (after Chai & Hodgins 2005; the method is :mod:`mocapviz.reconstruction`).
 
 reconstruction      Table 3: per test motion the average (max) per-joint error of the reconstruction with pose
                     priors from different databases (the test actor's clips left out, only the test clip left out,
                     another database), the bone-length error, the baselines (nearest neighbour, weighted mean);
-                    Table 4: one test motion with the neighbours searched in each numeric feature set; per-frame
+                    Table 4: one test motion with the neighbours searched in each numeric set; per-frame
                     and per-joint errors for plots.
-paper_table3        Table 3 as printed (CMU_86_* and HDM_bk_* test motions; priors HDM, CMU-, CMU).
-paper_table4        Table 4 as printed (CMU_86_03, nine feature sets).
+krueger2010_table3  Table 3 as printed (CMU_86_* and HDM_bk_* test motions; priors HDM, CMU-, CMU).
+krueger2010_table4  Table 4 as printed (CMU_86_03, nine numeric sets).
 default_test_docs   the test clips: one clip of actor bk per class (all of bk's clips with ``full``).
 
 Ours beside the paper's, as tidy tables and bars: :mod:`mocapviz.viz.reconstruction` (``compare_table3``,
@@ -33,10 +33,11 @@ from tqdm.auto import tqdm
 
 from ..errors import ParameterError
 from ..features.numeric import NUMERIC_SETS, PCAModel
-from ..reconstruct import DEFAULT_K, PosePrior, reconstruct, reconstruction_errors, synthetic_markers
+from ..reconstruction import DEFAULT_K, PosePrior, reconstruct, reconstruction_errors, synthetic_markers
 from ..skeleton import CANONICAL_JOINTS, heading
+from ..validation import some_of
 
-__all__ = ["VARIANTS", "default_test_docs", "paper_table3", "paper_table4", "reconstruction"]
+__all__ = ["VARIANTS", "default_test_docs", "krueger2010_table3", "krueger2010_table4", "reconstruction"]
 
 VARIANTS = ("HDM-actor", "HDM", "CMU")
 BASELINES = ("llm", "mean", "nn")
@@ -58,7 +59,7 @@ _PAPER_TABLE4 = {
 }  # fmt: skip
 
 
-def paper_table3() -> pd.DataFrame:
+def krueger2010_table3() -> pd.DataFrame:
     """Table 3 of Krüger et al. 2010: average (max) reconstruction errors in cm per joint.
 
     Returns
@@ -75,7 +76,7 @@ def paper_table3() -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def paper_table4() -> pd.DataFrame:
+def krueger2010_table4() -> pd.DataFrame:
     """Table 4 of Krüger et al. 2010: average (max) errors (cm per joint) of CMU_86_03 per feature set of the
     neighbour search (prior: the entire CMU database without the test motion).
 
@@ -111,7 +112,7 @@ def marker_clip(db, doc: int, noise_cm: float, seed: int = 0) -> tuple[np.ndarra
     Returns
     -------
     truth : np.ndarray [shape=(T, 24, 3)], float64, cm, the clip's canonical joints.
-    markers : np.ndarray [shape=(T, 6, 3)], cm, the joints of :data:`mocapviz.reconstruct.MARKERS` with uniform noise
+    markers : np.ndarray [shape=(T, 6, 3)], cm, the joints of :data:`mocapviz.reconstruction.MARKERS` with uniform noise
         of +-``noise_cm`` per coordinate, drawn from ``np.random.default_rng([seed, doc])`` (reproducible per clip).
     headings : np.ndarray [shape=(T,)], radians, the clip's heading.
     """
@@ -120,15 +121,15 @@ def marker_clip(db, doc: int, noise_cm: float, seed: int = 0) -> tuple[np.ndarra
     return truth, markers, heading(truth)
 
 
-def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, feature_sets=NUMERIC_SETS,
+def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, numeric_sets=NUMERIC_SETS,
                    table4_doc: int | None = None, noise_cm: float = 0.1, seed: int = 0, pca: PCAModel | None = None,
                    baselines: bool = True, full: bool = False, progress: bool = False, **options) -> dict[str, pd.DataFrame]:  # fmt: skip
     """Tables 3 and 4 of Krüger et al. 2010 (§5.2): motions reconstructed from six noisy markers.
 
-    For each test clip of ``db``: synthetic markers (:func:`mocapviz.reconstruct.synthetic_markers`, uniform
+    For each test clip of ``db``: synthetic markers (:func:`mocapviz.reconstruction.synthetic_markers`, uniform
     noise of +-``noise_cm`` per coordinate, the same markers for every prior), the heading from the clip's hip
-    line, then :func:`mocapviz.reconstruct.reconstruct` with each prior variant (module docstring), and the errors
-    of :func:`mocapviz.reconstruct.reconstruction_errors`.
+    line, then :func:`mocapviz.reconstruction.reconstruct` with each prior variant (module docstring), and the errors
+    of :func:`mocapviz.reconstruction.reconstruction_errors`.
 
     Parameters
     ----------
@@ -140,15 +141,15 @@ def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, featur
         doc_ids of ``db`` (default :func:`default_test_docs`: bk's first clip of every class, or with ``full`` all
         of bk's clips).
     k : int, neighbours per frame.
-    feature_sets : sequence of str, the numeric sets of Table 4 (F15E: one pass; the others: two passes).
-    table4_doc : int, optional, the Table 4 test clip (default the first test doc); empty ``feature_sets``: no
+    numeric_sets : sequence of str, the numeric sets of Table 4 (F15E: one pass; the others: two passes).
+    table4_doc : int, optional, the Table 4 test clip (default the first test doc); empty ``numeric_sets``: no
         Table 4.
     noise_cm, seed : the marker noise (cm) and its seed (each clip's noise comes from (seed, doc_id)).
     pca : PCAModel, optional, for the Fp sets (default :func:`mocapviz.features.numeric.default_pca` of ``db``).
     baselines : bool, also run the nearest-neighbour pose and the weighted neighbour mean (``"baselines"``).
     full : bool, the default test clips are all of bk's (about 6x the time) instead of one per class.
     progress : bool, a progress bar over the test clips.
-    **options : passed to :func:`mocapviz.reconstruct.reconstruct` (variance, bandwidth, marker_sigma,
+    **options : passed to :func:`mocapviz.reconstruction.reconstruct` (variance, bandwidth, marker_sigma,
         smooth_sigma).
 
     Returns
@@ -168,7 +169,7 @@ def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, featur
     Raises
     ------
     ValueError
-        Unknown doc_ids or feature sets, a database without ``actor`` labels, databases at different frame rates.
+        Unknown doc_ids or numeric sets, a database without ``actor`` labels, databases at different frame rates.
     """
     docs = db.documents.set_index("doc_id")
     if "actor" not in docs:
@@ -182,9 +183,7 @@ def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, featur
     unknown = [d for d in test_docs if d not in docs.index]
     if unknown or not test_docs:
         raise ParameterError(f"test_docs {unknown or test_docs} are not doc_ids of {db.path}")
-    bad_sets = [s for s in feature_sets if s not in NUMERIC_SETS]
-    if bad_sets:
-        raise ParameterError(f"unknown feature set(s) {bad_sets}; known: {', '.join(NUMERIC_SETS)}")
+    some_of(numeric_sets, "numeric set(s)", NUMERIC_SETS)
     table4_doc = test_docs[0] if table4_doc is None else int(table4_doc)
     if table4_doc not in docs.index:
         raise ParameterError(f"table4_doc {table4_doc} is not a doc_id of {db.path}")
@@ -249,13 +248,13 @@ def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, featur
             frame_rows += [{"frame": i, "time_s": i / db.fps, "variant": variant, "error_cm": e}
                            for i, e in enumerate(err["per_frame_cm"])]  # fmt: skip
     out["frames"] = pd.DataFrame(frame_rows)
-    if len(feature_sets):
+    if len(numeric_sets):
         truth, markers, h = marker_clip(db, table4_doc, noise_cm, seed)
         pr = priors(table4_doc)["HDM"]
         row = {"motion": docs.loc[table4_doc, "name"], "doc_id": table4_doc, "frames": len(truth), "prior": "HDM"}
-        sets = tqdm(feature_sets, desc="Table 4", unit="set") if progress else feature_sets
-        for name in sets:
-            err = reconstruction_errors(truth, reconstruct(markers, h, pr, feature_set=name, k=min(k, pr.n_valid),
+        names = tqdm(numeric_sets, desc="Table 4", unit="set") if progress else numeric_sets
+        for name in names:
+            err = reconstruction_errors(truth, reconstruct(markers, h, pr, numeric_set=name, k=min(k, pr.n_valid),
                                                            **options))  # fmt: skip
             row.update({f"{name}_mean": err["mean_cm"], f"{name}_max": err["max_cm"], f"{name}_bone": err["bone_cm"]})
         out["table4"] = pd.DataFrame([row])

@@ -3,10 +3,11 @@
 neighbourhoods   the search step: for each query frame, at most k database frames within radius r (KnnIndex).
 graph_matches    graph construction and path search on given neighbourhoods: nodes are the neighbours, edges the
                  DTW steps between them, edge cost the distance of the node entered; one shortest-path pass in
-                 topological order, O(k m log k). Returns the top-K non-overlapping matches with their paths.
+                 topological order, O(k m log k). Returns the top ``n_matches`` non-overlapping matches with their
+                 paths.
 lng              both steps: ``lng(query, knn_index, k=..., radius=...)``.
 
-The cost model is subsequence DTW's "basic" step set (:mod:`mocapviz.match.dtw`): a diagonal step (next query
+The cost model is subsequence DTW's "basic" step set (:mod:`mocapviz.match.time_warping`): a diagonal step (next query
 frame, next database frame), a "horizontal" step (next query frame, same database frame) and a "vertical" step
 (same query frame, next database frame), each adding the local cost of the cell entered. When every cell of the
 optimal subsequence-DTW path ending at a frame lies in the neighbourhoods, the graph finds that path and its cost
@@ -23,12 +24,12 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ParameterError
-from ..validation import count
-from .dtw import _check_document_starts, _sequence, check_query_length, matches_frame, select_matches
+from ..validation import count, renamed
+from .time_warping import _check_document_starts, _sequence, check_query_length, matches_frame, select_matches
 
 
 def neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: float = 0.0, exclude=None,
-                   workers: int = -1) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+                   threads: int | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """The search step of §4.1: for each query frame, the at most ``k`` nearest database frames at distance <
     ``radius`` (fixed-radius kNN).
 
@@ -36,7 +37,7 @@ def neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: f
     ----------
     query : np.ndarray [shape=(m, d)], features of the query frames in the index's feature set.
     knn_index : mocapviz.knn.KnnIndex over the database's features (N, d).
-    k, radius, eps, workers : see :meth:`mocapviz.knn.KnnIndex.query`.
+    k, radius, eps, threads : see :meth:`mocapviz.knn.KnnIndex.query`.
     exclude : np.ndarray [shape=(2,)], int, optional
         One [start, stop) range of database frames no query frame may match (e.g. the query's own document).
 
@@ -50,7 +51,7 @@ def neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: f
         raise ParameterError(f"a query needs at least 2 frames; got {len(q)}")
     if exclude is not None:
         exclude = np.broadcast_to(np.asarray(exclude, dtype=np.int64).reshape(-1)[:2], (len(q), 2))
-    return knn_index.query(q, k, radius=radius, eps=eps, workers=workers, exclude=exclude)
+    return knn_index.query(q, k, radius=radius, eps=eps, threads=threads, exclude=exclude)
 
 
 @numba.njit(cache=True)
@@ -119,16 +120,17 @@ def _graph_path(F, P, C, i, c):  # pragma: no cover - compiled
     return out[:n][::-1].copy()
 
 
-def graph_matches(distances, frames, starts=None, n_frames: int | None = None, k_matches: int = 10,
+def graph_matches(distances, frames, starts=None, n_frames: int | None = None, n_matches: int = 10,
                   paths: bool = True) -> pd.DataFrame:  # fmt: skip
-    """Graph construction and path search of §4.1 on given neighbourhoods: the top-K non-overlapping matches.
+    """Graph construction and path search of §4.1 on given neighbourhoods: the top ``n_matches`` non-overlapping
+    matches.
 
     Parameters
     ----------
     distances, frames : np.ndarray [shape=(m, k)], from :func:`neighbourhoods` (inf / -1 where missing).
     starts : np.ndarray [shape=(B,)], int, optional: first frame of every document; default one document.
     n_frames : int, optional: database frames (default: the largest neighbour frame + 1).
-    k_matches : int, matches wanted (K).
+    n_matches : int, matches wanted.
     paths : bool, return each match's path.
 
     Returns
@@ -147,14 +149,15 @@ def graph_matches(distances, frames, starts=None, n_frames: int | None = None, k
     F, A, S, P, C, counts = _shortest_paths(f, d, docs)
     last = len(F) - 1
     cols = np.arange(counts[last])
-    chosen = cols[select_matches(S[last, cols], F[last, cols], A[last, cols], count(k_matches, "K"))]
+    chosen = cols[select_matches(S[last, cols], F[last, cols], A[last, cols], count(n_matches, "n_matches"))]
     found = [_graph_path(F, P, C, last, c) if paths else None for c in chosen]
     return matches_frame(doc_starts, S[last, chosen], F[last, chosen], A[last, chosen], found)
 
 
-def lng(query, knn_index, k: int = 64, radius: float | None = None, k_matches: int = 10, starts=None,
-        eps: float = 0.0, exclude=None, workers: int = -1, paths: bool = True) -> pd.DataFrame:  # fmt: skip
-    """Global motion matching with the lazy neighbourhood graph (Krüger et al. 2010 §4.1): the top ``k_matches``
+@renamed(k_matches="n_matches")
+def lng(query, knn_index, k: int = 64, radius: float | None = None, n_matches: int = 10, starts=None,
+        eps: float = 0.0, exclude=None, threads: int | None = None, paths: bool = True) -> pd.DataFrame:  # fmt: skip
+    """Global motion matching with the lazy neighbourhood graph (Krüger et al. 2010 §4.1): the top ``n_matches``
     non-overlapping stretches of the database that align to the query, ranked by global cost, with their
     alignments, in O(k m log n).
 
@@ -165,12 +168,12 @@ def lng(query, knn_index, k: int = 64, radius: float | None = None, k_matches: i
         "F15E"))``.
     k : int, at most this many neighbours per query frame (1 <= k <= indexed frames).
     radius : float, optional, only neighbours at distance < radius (feature units).
-    k_matches : int, matches wanted (K).
+    n_matches : int, matches wanted (its old name ``k_matches`` still works, with a FutureWarning).
     starts : np.ndarray [shape=(B,)], int, optional: first frame of every document (``db.documents.start``);
         default one document.
     eps : float, ε-approximate kNN (see :meth:`mocapviz.knn.KnnIndex.query`).
     exclude : [start, stop), optional: database frames not to match (the query's own document).
-    workers : int, kNN threads (-1 all CPUs).
+    threads : int, optional, kNN threads (default :func:`mocapviz.batch.default_threads`).
     paths : bool, return each match's path.
 
     Returns
@@ -186,8 +189,8 @@ def lng(query, knn_index, k: int = 64, radius: float | None = None, k_matches: i
     """
     check_query_length(len(query), _check_document_starts(starts, knn_index.n_frames), knn_index.n_frames)
     t0 = time.perf_counter()
-    d, f = neighbourhoods(query, knn_index, k, radius, eps, exclude, workers)
+    d, f = neighbourhoods(query, knn_index, k, radius, eps, exclude, threads)
     t1 = time.perf_counter()
-    out = graph_matches(d, f, starts, knn_index.n_frames, k_matches, paths)
+    out = graph_matches(d, f, starts, knn_index.n_frames, n_matches, paths)
     out.attrs["seconds"] = {"knn": t1 - t0, "graph": time.perf_counter() - t1}
     return out

@@ -13,7 +13,7 @@ MARKERS               the six marker joints: lwrist, rwrist, lankle, rankle, hea
 synthetic_markers     a motion's joints at the markers, disturbed by uniform noise of +-1 mm (the paper's test data).
 body_frame_markers    markers minus the root marker, rotated into the body frame: (T, 5, 3), the F15E layout.
 marker_query          the same as an F15E query vector (T, 15).
-PosePrior             a prior database: body-frame poses, a valid mask (leave-one-out), kd-trees per feature set.
+PosePrior             a prior database: body-frame poses, a valid mask (leave-one-out), kd-trees per numeric set.
 reconstruct           markers + headings -> (T, 24, 3) world positions (one pass with F15E, two passes otherwise).
 reconstruction_errors mean / max per-joint error, per-joint and per-frame errors, bone-length error.
 BONES                 the 23 (parent, child) joint pairs of the canonical skeleton.
@@ -59,7 +59,7 @@ frames at once (batched numpy), the sequential part is two (r x 72) products per
 in the body frame (each pose in its own frame), so the root's travel and turning do not enter it. The body-frame
 pose is then rotated by the heading and moved to the root marker.
 
-Two passes for the other feature sets (Table 4). F30E, F39E, the windowed sets and the PCA sets need joints the
+Two passes for the other numeric sets (Table 4). F30E, F39E, the windowed sets and the PCA sets need joints the
 markers do not give. Pass 1 reconstructs with F15E from the markers; pass 2 computes the set on the pass-1
 reconstruction (as a Motion at the prior's frame rate; Fp_n with the prior database's PCA model), searches the
 neighbours in that set, rebuilds the local models and solves again with the same markers and smoothness. [UNCERTAIN]
@@ -83,7 +83,7 @@ from tqdm.auto import tqdm
 
 from .database import MotionDB
 from .errors import ParameterError
-from .features.numeric import NUMERIC_SETS, PCAModel, default_pca, numeric, numeric_of
+from .features.numeric import NUMERIC_SETS, PCAModel, default_pca, numeric_features, numeric_of
 from .knn import KnnIndex
 from .motion import Motion
 from .skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS, body_frame
@@ -204,7 +204,7 @@ def _to_world(body: np.ndarray, root: np.ndarray, headings: np.ndarray) -> np.nd
 # ============================================================================ the prior
 class PosePrior:
     """A prior database for the local pose models: body-frame poses of its frames, which frames may be used,
-    and kd-trees over its numeric features, built once per feature set and reused for every test motion.
+    and kd-trees over its numeric features, built once per numeric set and reused for every test motion.
 
     Parameters
     ----------
@@ -271,21 +271,21 @@ class PosePrior:
         """The same database with another valid mask; poses, features and PCA are shared, trees are rebuilt."""
         return PosePrior(self.db, valid, engine=self.engine, _shared=self._shared)
 
-    def features(self, feature_set: str) -> np.ndarray:
+    def features(self, numeric_set: str) -> np.ndarray:
         """The database's values of a numeric set (N, d), computed once (``numeric_of``; Fp sets with :attr:`pca`)."""
-        if feature_set not in NUMERIC_SETS:
-            raise ParameterError(f"unknown feature set {feature_set!r}; known sets: {', '.join(NUMERIC_SETS)}")
+        if numeric_set not in NUMERIC_SETS:
+            raise ParameterError(f"unknown numeric set {numeric_set!r}; known sets: {', '.join(NUMERIC_SETS)}")
         cache = self._shared["features"]
-        if feature_set not in cache:
-            pca = self.pca if feature_set.startswith("Fp") else None
-            cache[feature_set] = np.asarray(numeric_of(self.db, feature_set, pca=pca))
-        return cache[feature_set]
+        if numeric_set not in cache:
+            pca = self.pca if numeric_set.startswith("Fp") else None
+            cache[numeric_set] = np.asarray(numeric_of(self.db, numeric_set, pca=pca))
+        return cache[numeric_set]
 
-    def index(self, feature_set: str = "F15E") -> KnnIndex:
+    def index(self, numeric_set: str = "F15E") -> KnnIndex:
         """The kd-tree over the valid frames' values of a set (built on first use)."""
-        if feature_set not in self._indexes:
-            self._indexes[feature_set] = KnnIndex(self.features(feature_set), engine=self.engine, valid=self.valid)
-        return self._indexes[feature_set]
+        if numeric_set not in self._indexes:
+            self._indexes[numeric_set] = KnnIndex(self.features(numeric_set), engine=self.engine, valid=self.valid)
+        return self._indexes[numeric_set]
 
     def _check_k(self, k) -> int:
         k = count(k, "k")
@@ -380,9 +380,9 @@ def _solve(mean, basis, inv_var, rank, targets, marker_sigma: float, smooth_sigm
     return out
 
 
-def _one_pass(prior: PosePrior, feature_set: str, queries, targets, k, method, variance, bandwidth, marker_sigma,
+def _one_pass(prior: PosePrior, numeric_set: str, queries, targets, k, method, variance, bandwidth, marker_sigma,
               smooth_sigma, progress):  # fmt: skip
-    dist, frames = prior.index(feature_set).query(queries, k)
+    dist, frames = prior.index(numeric_set).query(queries, k)
     if method == "nn":
         return prior.poses[frames[:, 0]].astype(np.float64), frames
     if method == "mean":
@@ -391,7 +391,7 @@ def _one_pass(prior: PosePrior, feature_set: str, queries, targets, k, method, v
     return _solve(mean, basis, inv_var, rank, targets, marker_sigma, smooth_sigma, progress), frames
 
 
-def reconstruct(markers, headings, prior, feature_set: str = "F15E", k: int = DEFAULT_K, valid=None,
+def reconstruct(markers, headings, prior, numeric_set: str = "F15E", k: int = DEFAULT_K, valid=None,
                 pca: PCAModel | None = None, method: str = "llm", variance: float = DEFAULT_VARIANCE,
                 bandwidth: float | None = DEFAULT_BANDWIDTH, marker_sigma: float = DEFAULT_MARKER_SIGMA,
                 smooth_sigma: float | None = DEFAULT_SMOOTH_SIGMA, return_info: bool = False,
@@ -409,7 +409,7 @@ def reconstruct(markers, headings, prior, feature_set: str = "F15E", k: int = DE
     prior : PosePrior or MotionDB
         The pose prior; a MotionDB is wrapped in a :class:`PosePrior` (with ``valid`` and ``pca``). Pass a
         PosePrior to reuse its kd-trees for several motions.
-    feature_set : str
+    numeric_set : str
         Numeric set of the neighbour search. "F15E": one pass, queried with the markers. Any other set of
         :data:`mocapviz.features.NUMERIC_SETS`: pass 1 with F15E, pass 2 with the set computed on the pass-1
         result ([UNCERTAIN], module docstring).
@@ -438,7 +438,7 @@ def reconstruct(markers, headings, prior, feature_set: str = "F15E", k: int = DE
     ------
     ValueError
         Markers not (T, 6, 3) or not finite (names the frame and marker), headings not (T,) finite, an unknown
-        feature set or method, k larger than the prior, a valid mask excluding everything, parameters out of
+        numeric set or method, k larger than the prior, a valid mask excluding everything, parameters out of
         range, a windowed set on a database with mixed frame rates.
     TypeError
         ``prior`` neither a PosePrior nor a MotionDB.
@@ -451,8 +451,8 @@ def reconstruct(markers, headings, prior, feature_set: str = "F15E", k: int = DE
             raise ParameterError("valid and pca go with a MotionDB prior; a PosePrior carries its own (restrict())")
     else:
         raise ParameterError(f"prior must be a PosePrior or a MotionDB; got {type(prior).__name__}")
-    if feature_set not in NUMERIC_SETS:
-        raise ParameterError(f"unknown feature set {feature_set!r}; known sets: {', '.join(NUMERIC_SETS)}")
+    if numeric_set not in NUMERIC_SETS:
+        raise ParameterError(f"unknown numeric set {numeric_set!r}; known sets: {', '.join(NUMERIC_SETS)}")
     if method not in METHODS:
         raise ParameterError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     k = prior._check_k(k)
@@ -469,15 +469,15 @@ def reconstruct(markers, headings, prior, feature_set: str = "F15E", k: int = DE
     body, frames = _one_pass(prior, "F15E", query, *args)
     world = _to_world(body.reshape(-1, len(CANONICAL_JOINTS), 3), m[:, 5], h)
     info = {"frames": frames}
-    if feature_set != "F15E":
+    if numeric_set != "F15E":
         fps = prior.fps
         if fps is None:
             raise ParameterError(f"{prior.db.path} has documents at different frame rates; the two-pass search needs "
                              "one (the test motion's)")  # fmt: skip
         motion = Motion(world.astype(np.float32), fps, CANONICAL_JOINTS, CANONICAL_PARENTS)
-        pca_model = prior.pca if feature_set.startswith("Fp") else None
-        q2 = numeric(motion, feature_set, pca=pca_model, progress=False).astype(np.float64)
-        body, frames = _one_pass(prior, feature_set, q2, *args)
+        pca_model = prior.pca if numeric_set.startswith("Fp") else None
+        q2 = numeric_features(motion, numeric_set, pca=pca_model, progress=False).astype(np.float64)
+        body, frames = _one_pass(prior, numeric_set, q2, *args)
         info = {"frames": frames, "pass1": world}
         world = _to_world(body.reshape(-1, len(CANONICAL_JOINTS), 3), m[:, 5], h)
     return (world, info) if return_info else world

@@ -18,7 +18,6 @@ temporary name and renamed into place when complete, so an interrupted run never
 from __future__ import annotations
 
 import json
-import shutil
 import tempfile
 import time
 from collections.abc import Callable
@@ -31,6 +30,7 @@ import pandas as pd
 from . import datasets
 from .database import MotionDB
 from .errors import ParameterError
+from .store import atomic_folder
 
 __all__ = ["EXPERIMENTS", "Result", "reproduce", "write_result"]
 
@@ -59,7 +59,7 @@ class _Data:
         if key not in self._dbs:
             paths = [datasets.fetch(name) for name in archives]
             out = self.folder / f"{'+'.join(archives)}-{fps:g}hz.mdb"
-            self._dbs[key] = MotionDB.ingest(paths, out, fps=fps, progress=self.progress, n_jobs=2)
+            self._dbs[key] = MotionDB.ingest(paths, out, fps=fps, progress=self.progress)
         return self._dbs[key]
 
     def hdm05(self, fps: float) -> MotionDB:
@@ -96,13 +96,13 @@ def _stacked(ours: pd.DataFrame, paper: pd.DataFrame, ours_name: str) -> pd.Data
 
 
 def _index_statistics(data: _Data) -> Result:
-    from .experiments.relational import index_statistics, paper_table2
+    from .experiments.relational import index_statistics, mueller2005_table2
     from .viz.paper import comparison_bars
 
     db = data.hdm05(120.0)
     data.relational_indexes()
     ours = index_statistics(db, "2005")
-    both = _stacked(ours, paper_table2(), "HDM05 cut")
+    both = _stacked(ours, mueller2005_table2(), "HDM05 cut")
     both["segments per 100 frames"] = 100 * both["segments"] / both["frames"]
     both["case"] = both["group"] + " " + both["minutes"].round(0).astype(int).astype(str) + " min"
     return Result(
@@ -115,12 +115,12 @@ def _index_statistics(data: _Data) -> Result:
 
 
 def _query_statistics(data: _Data) -> Result:
-    from .experiments.relational import paper_table3, query_statistics
+    from .experiments.relational import mueller2005_table3, query_statistics
     from .viz.paper import curves
 
     n_queries = 10_000 if data.full else 300
     ours = query_statistics(data.relational_indexes()["upper"], n_queries=n_queries)
-    both = _stacked(ours, paper_table3(), "HDM05 cut")
+    both = _stacked(ours, mueller2005_table3(), "HDM05 cut")
     both["series"] = both["source"] + ", " + both["mode"] + ", " + both["hits"] + " hits"
     return Result(
         tables={"table3": both},
@@ -167,17 +167,17 @@ def _alignment(data: _Data) -> Result:
 
 
 def _knn_timings(data: _Data) -> Result:
-    from .experiments.numeric import knn_timings, paper_table1
+    from .experiments.numeric import knn_timings, krueger2010_table1
     from .viz.paper import comparison_bars
 
     db = data.large()
-    ours = knn_timings(db, n_queries=1000, workers=1, database="this run")
-    both = _stacked(ours, paper_table1(), "this run")
+    ours = knn_timings(db, n_queries=1000, threads=1, database="this run")
+    both = _stacked(ours, krueger2010_table1(), "this run")
     both["source"] = both["source"].where(both["source"] != "paper", "paper " + both["database"])
     figures = {f"knn{k}": comparison_bars(both[both["k"] == k], "set", "mean_ms", logy=True, ylabel="ms per query",
                                           title=f"Krüger 2010 Table 1: exact {k}-NN, one thread")
                for k in (16, 256)}  # fmt: skip
-    return Result(tables={"table1": both}, figures=figures, settings={"database": data.describe(db), "workers": 1})
+    return Result(tables={"table1": both}, figures=figures, settings={"database": data.describe(db), "threads": 1})
 
 
 def _rank_correlations(data: _Data) -> Result:
@@ -204,7 +204,7 @@ def _similarity_matrices(data: _Data) -> Result:
 
     db = data.hdm05(30.0)
     jog = db.select(label="jogLeftCircle4StepsRstart")["doc_id"].astype(int).tolist()
-    res = similarity_matrices(db, jog[0], k=64, k_matches=3)
+    res = similarity_matrices(db, jog[0], k=64, n_matches=3)
     panels = [k for k, v in res.items() if isinstance(v, dict) and "matches" in v]
     matches = pd.concat([res[p]["matches"].drop(columns="path").assign(set=p) for p in panels], ignore_index=True)
     return Result(tables={"matches": matches}, figures={"fig3": similarity_layout(res)},
@@ -220,41 +220,42 @@ def _lng_accuracy(data: _Data) -> Result:
     per_query = lng_accuracy(db, "Fp16", n_queries=n_queries, k=k, progress=data.progress)
     return Result(tables={"per_query": per_query, "summary": summarize_accuracy(per_query)},
                   figures={"accuracy": accuracy_plot(per_query, PAPER_SECONDS, PAPER_SPEARMAN)},
-                  settings={"n_queries": n_queries, "k": k, "feature_set": "Fp16", "database": data.describe(db)})
+                  settings={"n_queries": n_queries, "k": k, "numeric_set": "Fp16", "database": data.describe(db)})
 
 
 def _numerical_search(data: _Data) -> Result:
-    from .experiments.matching import numerical_search, paper_table2
+    from .experiments.matching import krueger2010_table2, numerical_search
     from .viz.paper import comparison_bars
 
     db = data.hdm05(30.0)
     ours = numerical_search(db)
     long = ours.melt(id_vars=["class", "set"], value_vars=["recall", "logical_recall"], var_name="search")
     long["case"] = long["class"] + " " + long["search"]
-    return Result(tables={"table2": ours, "paper_table2": paper_table2()},
+    return Result(tables={"table2": ours, "paper_table2": krueger2010_table2()},
                   figures={"recall": comparison_bars(long, "case", "value", source="set", ylabel="recall",
-                                                     title="Krüger 2010 Table 2: recall per class and feature set")},
+                                                     title="Krüger 2010 Table 2: recall per class and numeric set")},
                   settings={"database": data.describe(db)})  # fmt: skip
 
 
 def _reconstruction(data: _Data) -> Result:
-    from .experiments.reconstruction import paper_table3, paper_table4, reconstruction
+    from .experiments.marker_reconstruction import krueger2010_table3, krueger2010_table4, reconstruction
     from .viz.reconstruction import reconstruction_figures
 
     db, other = data.hdm05(30.0), data.cmu(30.0)
     res = reconstruction(db, other_db=other, full=data.full, progress=data.progress)
-    return Result(tables={**res, "paper_table3": paper_table3(), "paper_table4": paper_table4()},
-                  figures=reconstruction_figures(res, paper_table3(), paper_table4()),
+    paper3, paper4 = krueger2010_table3(), krueger2010_table4()
+    return Result(tables={**res, "paper_table3": paper3, "paper_table4": paper4},
+                  figures=reconstruction_figures(res, paper3, paper4),
                   settings={"database": data.describe(db), "other_database": data.describe(other)})
 
 
 def _base_poses(data: _Data) -> Result:
-    from .experiments.numeric import base_poses
-    from .features.numeric import numeric
+    from .experiments.numeric import base_pose_experiment
+    from .features.numeric import numeric_features
     from .viz.paper import curves
 
     db = data.large()
-    table = base_poses(numeric(db, "F15E", progress=data.progress), radius=10.0, k=32, quadratic_frames=5000)
+    table = base_pose_experiment(numeric_features(db, "F15E", progress=data.progress), radius=10.0, k=32, quadratic_frames=5000)
     return Result(tables={"base_poses": table},
                   figures={"scaling": curves(table, "frames", "seconds", "method", logx=True, logy=True,
                                              title="Krüger 2010 §5.3: base poses, r = 10 cm, k = 32")},
@@ -337,17 +338,6 @@ def write_result(result: Result, folder) -> list[Path]:
     return written + [folder / "settings.json"]
 
 
-def _replace_dir(tmp: Path, target: Path) -> None:
-    """Rename ``tmp`` to ``target``, replacing an earlier run's folder only once the new one is complete."""
-    old = None
-    if target.exists():
-        old = target.with_name(f".{target.name}.old-{time.time_ns()}")
-        target.rename(old)
-    tmp.rename(target)
-    if old is not None:
-        shutil.rmtree(old)
-
-
 def reproduce(names, out, full: bool = False, progress: bool = True, log: Callable[[str], None] = print) -> dict:
     """Run experiments and write each one's tables and figures to ``out/<name>/``.
 
@@ -389,13 +379,8 @@ def reproduce(names, out, full: bool = False, progress: bool = True, log: Callab
             result = EXPERIMENTS[name](data)
             result.settings = {"experiment": name, "full": full, "seconds": round(time.perf_counter() - t0, 2),
                                "mocapviz": __version__, **result.settings}  # fmt: skip
-            tmp = Path(tempfile.mkdtemp(prefix=f".{name}.tmp-", dir=out))
-            try:
+            with atomic_folder(out / name) as tmp:
                 files = write_result(result, tmp)
-                _replace_dir(tmp, out / name)
-            except BaseException:
-                shutil.rmtree(tmp, ignore_errors=True)
-                raise
             folders[name] = out / name
             log(f"{name}: {len(files)} files in {out / name} ({result.settings['seconds']:.0f} s)")
     return folders
