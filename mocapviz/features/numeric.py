@@ -641,9 +641,12 @@ def load_numeric(db: MotionDB, numeric_set: str) -> np.ndarray:
     """
     spec = _spec(numeric_set)
     data_path, header_path = _paths(db, numeric_set)
-    if not header_path.is_file():
-        raise MotionDBError(f"{db.path}: numeric feature set {numeric_set} is not stored; {_STALE_HINT}")
-    with locked(header_path.parent, shared=True):
+    missing = MotionDBError(f"{db.path}: numeric feature set {numeric_set} is not stored; {_STALE_HINT}")
+    if not header_path.parent.is_dir():
+        raise missing
+    with locked(header_path.parent, shared=True):  # (a writer swaps header and data under the exclusive lock)
+        if not header_path.is_file():
+            raise missing
         try:
             header = json.loads(header_path.read_text())
             data = np.load(data_path, mmap_mode="r", allow_pickle=False)
