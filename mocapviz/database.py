@@ -8,8 +8,15 @@ Layout of a MotionDB directory (format version 1)::
     documents.g<G>.parquet         one row per document: doc_id, name, path, start, n_frames, fps, labels, ...
 
 Every write produces the files of a new generation G under their final names and then replaces
-``manifest.json`` atomically (``os.replace``); readers only follow the manifest. A write that fails or is
-killed therefore leaves the previous generation, and the database, exactly as they were.
+``manifest.json`` atomically (:mod:`mocapviz.store`); readers only follow the manifest. A write that fails or is
+killed therefore leaves the previous generation, and the database, exactly as they were. A new database is built
+beside its folder and renamed into place complete, so a killed first ingest leaves nothing to clean up.
+
+The manifest records each file's size and sha256: opening checks the sizes and the documents table's sha256,
+``MotionDB.open(path, verify=True)`` (``mocapviz check DB``) every sha256, so a damaged file is a MotionDBError
+naming it, never an answer. One writer at a time: the writer lock (``.lock``) is held for a whole append (what
+is held is read, the files are read, the documents committed), so a second writer waits and then skips what the
+first added; a failed first ingest removes only the empty database it created, never what another committed.
 
 Ingest reads each file in an independent task (:func:`read_document`), run in chunks of files on threads of this
 process or as Dask tasks (``scheduler=``, see :mod:`mocapviz.cluster`) by :func:`mocapviz.batch.map_ordered`; the
@@ -30,6 +37,7 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
+from . import store
 from .cluster import optional_client
 from .errors import (
     LabelTableError,
@@ -43,13 +51,14 @@ from .io import FORMATS, find_asf, load
 from .labels import MAIN_LABEL_COLUMNS, labels_for, read_labels_tsv
 from .motion import Motion
 from .skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
-from .store import atomic_file, atomic_write, check_format, locked, stamp
+from .store import atomic_file, atomic_write, check_format, stamp
 from .validation import renamed
 
 FORMAT = "mocapviz.MotionDB"
 VERSION = 1
 _ARRAYS = {"positions": 3, "quaternions": 4}
 _CHUNK_MAX_BYTES = 64 << 20  # an ingest task reads at most this many bytes of motion files (or one file)
+_RESTORE = "restore it from a backup or ingest the files again into a new database"
 _BASE_COLUMNS = ["doc_id", "name", "path", "format", "start", "n_frames", "fps", "source_fps", "sha256", "label"]
 
 
@@ -254,20 +263,27 @@ class MotionDB:
 
     # ------------------------------------------------------------------ reading
     @classmethod
-    def open(cls, path) -> MotionDB:
+    def open(cls, path, verify: bool = False) -> MotionDB:
         """Open a MotionDB directory.
+
+        Every file is checked against the size recorded in the manifest when it was written, the documents table
+        also against its sha256 (it is small); with ``verify`` the frame arrays' sha256 too (a few seconds per GB;
+        ``mocapviz check DB`` does this).
 
         Raises
         ------
         MotionDBError
-            Not a MotionDB, another format version, or files missing or inconsistent with the manifest.
+            Not a MotionDB, another format version, or a file missing, damaged (size or checksum) or inconsistent
+            with the manifest; the message names the file.
         """
         path = Path(path)
         manifest = _read_manifest(path)
         n = manifest["n_frames"]
+        fingerprints = manifest.get("checksums") or {}
         arrays = {}
         for name, width in _ARRAYS.items():
             f = path / manifest["arrays"][name]
+            store.verify(f, fingerprints.get(f.name), full=verify, rebuild=_RESTORE)
             try:
                 arr = np.load(f, mmap_mode="r") if n else np.zeros((0, len(CANONICAL_JOINTS), width), np.float32)
             except (OSError, ValueError) as exc:
@@ -275,12 +291,13 @@ class MotionDB:
             if arr.shape != (n, len(CANONICAL_JOINTS), width) or arr.dtype != np.float32:
                 raise MotionDBError(f"{f}: shape {arr.shape} {arr.dtype}, the manifest says ({n}, 24, {width}) float32")
             arrays[name] = arr
+        table = path / manifest["documents"]
+        store.verify(table, fingerprints.get(table.name), full=True, rebuild=_RESTORE)
         try:
-            documents = pd.read_parquet(path / manifest["documents"])
+            documents = pd.read_parquet(table)
         except (OSError, ValueError) as exc:
-            raise MotionDBError(f"{path / manifest['documents']}: cannot read ({exc})") from None
-        if int(documents["n_frames"].sum()) != n:
-            raise MotionDBError(f"{path}: documents cover {documents['n_frames'].sum()} frames, the arrays {n}")
+            raise MotionDBError(f"{table}: cannot read ({exc})") from None
+        _check_documents(documents, table, n)
         return cls(path, manifest, documents, arrays)
 
     @property
@@ -382,9 +399,12 @@ class MotionDB:
         path = Path(path)
         if path.exists() and (not path.is_dir() or any(path.iterdir())):
             raise MotionDBError(f"{path}: exists and is not an empty directory")
-        path.mkdir(parents=True, exist_ok=True)
-        with _locked(path):
-            _commit(path, None, [], [], [])
+        with contextlib.suppress(OSError):
+            path.rmdir()  # (an empty folder the user made: replaced by the new database below)
+        # built beside the target and renamed into place complete: a killed create leaves no half database, and
+        # when another process created it first, that one is kept
+        with store.atomic_folder(path, replace=False) as tmp:
+            _commit(tmp, None, [], [], [])
         return cls.open(path)
 
     @classmethod
@@ -443,20 +463,44 @@ class MotionDB:
         """
         out = Path(out)
         files = expand_paths(paths)
-        created = not (out / "manifest.json").exists()
-        db = cls.create(out) if created else cls.open(out)
-        try:
-            return db.append(files, fps=fps, labels=labels, mapping=mapping, skip_bad=skip_bad, threads=threads,
-                             progress=progress, scheduler=scheduler, **load_options)
-        except BaseException:
-            if created:
-                _remove_db(out)
-            raise
+        retries = 2  # again when a concurrent failed ingest removed the empty database it created
+        while True:
+            created = False
+            if not (out / "manifest.json").exists():
+                try:
+                    cls.create(out)
+                    created = True
+                except MotionDBError:
+                    if not (out / "manifest.json").exists():  # (not another ingest that created it first)
+                        raise
+            try:
+                return cls.open(out).append(files, fps=fps, labels=labels, mapping=mapping, skip_bad=skip_bad,
+                                            threads=threads, progress=progress, scheduler=scheduler, **load_options)
+            except _Vanished:
+                if not retries:
+                    raise
+                retries -= 1
+            except BaseException:
+                if created:
+                    _remove_if_untouched(out)
+                raise
 
     def append(self, paths, fps: float | None = None, labels=None, mapping: dict | None = None,
                skip_bad: bool = False, threads: int | None = None, progress: bool = True, scheduler=None,
                **load_options) -> MotionDB:
-        """Add motion files to this database; see :meth:`ingest`. Returns the reopened database."""
+        """Add motion files to this database; see :meth:`ingest`. Returns the reopened database.
+
+        The writer lock is held for the whole transaction (what the database holds is read, the files are read,
+        the new documents are committed), so a second writer waits; when it goes on, it sees the documents the
+        first committed and skips those files.
+        """
+        with _locked(self.path):
+            current = _reopen(self.path)
+            return current._append_locked(paths, fps, labels, mapping, skip_bad, threads, progress, scheduler,
+                                          load_options)  # fmt: skip
+
+    def _append_locked(self, paths, fps, labels, mapping, skip_bad, threads, progress, scheduler,
+                       load_options) -> MotionDB:  # fmt: skip
         if fps is not None and len(self) and self.fps != float(fps):
             raise MotionDBError(f"{self.path}: documents are at {self.fps} fps; cannot append at {fps} fps")
         if fps is None and self.fps is not None and len(self):
@@ -496,7 +540,9 @@ class MotionDB:
                     positions.append(res[0])
                     quaternions.append(res[1])
                     metas.append(res[2])
-        return self._commit_arrays(positions, quaternions, metas)
+        if positions:
+            _commit(self.path, self.manifest, positions, quaternions, metas)
+        return MotionDB.open(self.path)
 
     def append_motions(self, motions, metas=None) -> MotionDB:
         """Add clips held in memory (derived data: mirrored, resampled or edited copies of documents).
@@ -548,7 +594,7 @@ class MotionDB:
     def _commit_arrays(self, positions: list, quaternions: list, metas: list[dict]) -> MotionDB:
         if positions:
             with _locked(self.path):
-                _commit(self.path, _read_manifest(self.path), positions, quaternions, metas)
+                _commit(self.path, _reopen(self.path).manifest, positions, quaternions, metas)
         return MotionDB.open(self.path)
 
 
@@ -622,8 +668,46 @@ def read_batch(db: MotionDB, docs: pd.DataFrame, first: int, last: int) -> Frame
 
 # ---------------------------------------------------------------------- storage helpers
 def _locked(path: Path):
-    """The database's writer lock (:func:`mocapviz.store.locked`): one writer at a time, a second one fails at once."""
-    return locked(path, wait=False, what=f"{path} (a MotionDB)")
+    """The database's writer lock (:func:`mocapviz.store.locked`): one writer at a time, a second one waits."""
+    if not (path / "manifest.json").is_file():
+        raise MotionDBError(f"{path}: not a MotionDB (no manifest.json); it may have been removed by a failed ingest")
+    return store.locked(path)
+
+
+class _Vanished(MotionDBError):
+    """The database was removed while this writer waited for its lock (a concurrent fresh ingest failed)."""
+
+
+def _reopen(path: Path) -> MotionDB:
+    """The database as it is now (called under the writer lock: another writer may have committed meanwhile)."""
+    if not (path / "manifest.json").is_file():
+        raise _Vanished(f"{path}: removed by a failed ingest while this one waited to write; run it again")
+    return MotionDB.open(path)
+
+
+def _check_documents(documents: pd.DataFrame, table: Path, n_frames: int) -> None:
+    """The documents table's own consistency: the base columns, one row per document, starts that tile the
+    frame arrays in order, positive frame counts and rates. MotionDBError naming the table, column and row."""
+    missing = [c for c in ("doc_id", "start", "n_frames", "fps", "sha256") if c not in documents.columns]
+    if missing:
+        raise MotionDBError(f"{table}: damaged documents table: no column {', '.join(missing)}")
+    if not len(documents):
+        if n_frames:
+            raise MotionDBError(f"{table}: no documents, but the arrays hold {n_frames} frames")
+        return
+    try:
+        doc_id, start, count_, fps = (documents[c].to_numpy(np.float64) for c in ("doc_id", "start", "n_frames", "fps"))
+    except (TypeError, ValueError):
+        raise MotionDBError(f"{table}: damaged documents table: doc_id, start, n_frames or fps not numeric") from None
+    tiled = np.concatenate([[0], np.cumsum(count_)[:-1]])
+    bad = np.flatnonzero((count_ < 1) | (start != tiled) | ~np.isfinite(fps) | (fps <= 0))
+    if len(bad):
+        row = int(bad[0])
+        raise MotionDBError(f"{table}: damaged documents table at row {row} (doc_id {documents['doc_id'].iloc[row]}): "
+                            f"start {start[row]:g}, n_frames {count_[row]:g}, fps {fps[row]:g} do not tile the frames")
+    if len(np.unique(doc_id)) != len(doc_id) or count_.sum() != n_frames:
+        raise MotionDBError(f"{table}: damaged documents table: duplicate doc_ids, or {count_.sum():g} frames for "
+                            f"arrays of {n_frames}")
 
 
 def _read_manifest(path: Path) -> dict:
@@ -691,6 +775,7 @@ def _commit(path: Path, manifest: dict | None, positions: list, quaternions: lis
         "joint_names": list(CANONICAL_JOINTS),
         "arrays": files,
         "documents": doc_file.name,
+        "checksums": {f: store.fingerprint(path / f) for f in [*files.values(), doc_file.name]},
     }
     atomic_write(path / "manifest.json", json.dumps(new_manifest, indent=2).encode())
     keep = set(files.values()) | {doc_file.name, "manifest.json", ".lock"}
@@ -699,10 +784,18 @@ def _commit(path: Path, manifest: dict | None, positions: list, quaternions: lis
             f.unlink()
 
 
-def _remove_db(path: Path) -> None:
-    """Delete a database directory this process created (only files a MotionDB holds)."""
-    for f in path.iterdir():
-        if f.name == "manifest.json" or f.name == ".lock" or f.name.endswith((".npy", ".parquet", ".tmp")):
-            f.unlink()
+def _remove_if_untouched(path: Path) -> None:
+    """Delete a database this process created for an ingest that failed, but only while it is still the empty
+    generation 0 it created and no other writer holds it: what another process committed is never removed."""
+    try:
+        with store.locked(path, wait=False):
+            manifest = _read_manifest(path)
+            if manifest["generation"] != 0 or manifest["n_frames"] != 0:
+                return
+            for f in path.iterdir():
+                if f.name in ("manifest.json", store.LOCK_FILE) or f.name.endswith((".npy", ".parquet", ".tmp")):
+                    f.unlink()
+    except (MotionDBError, OSError):  # another writer is in it, or it is gone: leave it
+        return
     with contextlib.suppress(OSError):
         path.rmdir()

@@ -26,8 +26,10 @@ import pandas as pd
 from .errors import ParameterError
 
 
-def relevance(ranked_docs, labels: pd.Series, query_doc: int, candidates=None) -> tuple[pd.DataFrame, int]:
-    """Judge a ranking of documents by the query document's label.
+def relevance(ranked_docs, labels: pd.Series, query_doc: int | None, candidates=None,
+              label=None) -> tuple[pd.DataFrame, int]:  # fmt: skip
+    """Judge a ranking of documents by the query document's label (or by a class ``label`` when the query is not a
+    document, e.g. a motion template).
 
     Parameters
     ----------
@@ -35,11 +37,14 @@ def relevance(ranked_docs, labels: pd.Series, query_doc: int, candidates=None) -
         Document ids, best first; repeats (several hits in one document) count at their first rank.
     labels : pd.Series
         Label of every document, indexed by doc_id (missing labels are never relevant).
-    query_doc : int
-        The query's document: left out of the ranking and of the relevant set.
+    query_doc : int or None
+        The query's document: left out of the ranking and of the relevant set. None: the query is no document;
+        pass ``label``.
     candidates : sequence of int, optional
         The documents the search could return (e.g. the other actors' documents in a leave-actor-out
         evaluation); relevant documents outside them are not counted. Default: every document of ``labels``.
+    label : optional
+        The class sought when ``query_doc`` is None.
 
     Returns
     -------
@@ -50,14 +55,17 @@ def relevance(ranked_docs, labels: pd.Series, query_doc: int, candidates=None) -
     Raises
     ------
     ParameterError
-        ``query_doc`` is not in ``labels``.
+        ``query_doc`` is not in ``labels``; neither or both of ``query_doc`` and ``label`` given.
     """
-    if query_doc not in labels.index:
+    if (query_doc is None) == (label is None):
+        raise ParameterError("pass the query's document (query_doc) or, for a query that is no document, its label")
+    if query_doc is not None and query_doc not in labels.index:
         raise ParameterError(f"query_doc {query_doc} is not a document of the labels given (doc ids "
                              f"{labels.index.min()}..{labels.index.max()})")  # fmt: skip
-    label = labels.loc[query_doc]
+    if query_doc is not None:
+        label = labels.loc[query_doc]
     pool = labels if candidates is None else labels.reindex(pd.Index(candidates).unique())
-    pool = pool.drop(index=query_doc, errors="ignore")
+    pool = pool.drop(index=[] if query_doc is None else [query_doc], errors="ignore")
     n_relevant = 0 if pd.isna(label) else int((pool == label).sum())
     docs = pd.unique(np.asarray(ranked_docs, dtype=np.int64))
     docs = docs[docs != query_doc]

@@ -32,7 +32,8 @@ from .segmentation import FeatureSequence, decode, encode, segment
 from .store import atomic_file, check_format, stamp
 
 FORMAT = "mocapviz.InvertedIndex"
-VERSION = 1
+_REBUILD = "rebuild it with `mocapviz index DB`"
+VERSION = 2  # 2: the header holds the sha256 of the arrays, checked at every load
 
 
 def merge_adjacent(fuzzy_sets: list[np.ndarray]) -> list[np.ndarray]:
@@ -567,10 +568,11 @@ class InvertedIndex:
         """Write the index to ``path`` (.npz, no pickle) atomically: a temporary file renamed into place."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        header = {**stamp(FORMAT, VERSION), "n_features": self.n_features,
-                  "feature_names": list(self.feature_names), "meta": self.meta}  # fmt: skip
+        arrays = self._stored()
+        header = {**stamp(FORMAT, VERSION), "n_features": self.n_features, "feature_names": list(self.feature_names),
+                  "meta": self.meta, "sha256": store.digest(arrays)}  # fmt: skip
         with atomic_file(path) as tmp, open(tmp, "wb") as fh:  # (np.savez would add ".npz" to a bare name)
-            np.savez(fh, header=np.array(json.dumps(header)), **self._stored())
+            np.savez(fh, header=np.array(json.dumps(header)), **arrays)
 
     @classmethod
     def load(cls, path) -> InvertedIndex:
@@ -579,7 +581,8 @@ class InvertedIndex:
         Raises
         ------
         MotionDBError
-            Missing file, another format or version.
+            Missing or unreadable file, another format or version, or arrays that differ from those written (their
+            sha256 is kept in the header and checked here).
         """
         path = Path(path)
         try:
@@ -588,7 +591,9 @@ class InvertedIndex:
                 arrays = {k: z[k] for k in z.files if k != "header"}
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
             raise MotionDBError(f"{path}: not a readable index ({exc})") from None
-        check_format(header, FORMAT, VERSION, path, "rebuild it with `mocapviz index DB`")
+        check_format(header, FORMAT, VERSION, path, _REBUILD)
+        if store.digest(arrays) != header.get("sha256"):
+            raise MotionDBError(f"{path}: its arrays differ from those written (sha256): the file is damaged; {_REBUILD}")
         codes = np.repeat(arrays["list_codes"], np.diff(arrays["list_offsets"]))
         seq_codes = np.empty_like(codes)
         seq_codes[arrays["positions"]] = codes

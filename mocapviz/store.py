@@ -12,6 +12,9 @@ locked         an advisory lock (``fcntl.flock`` on ``<folder>/.lock``): exclusi
 stamp          the header fields every stored format carries (format, version, written_by).
 check_format   the one format / version check of a stored header.
 load_or_build  a derived artefact from disk when it is current, else built (and, by the builder, stored).
+fingerprint    size and sha256 of a stored file, kept in its manifest or header.
+verify         a stored file against its fingerprint: the size always (fast), the sha256 on request.
+digest         sha256 of named arrays (names, dtypes, shapes and bytes), for files that are read whole.
 
 Formats stored: the MotionDB manifest (``mocapviz.MotionDB``), relational indexes (``mocapviz.InvertedIndex``),
 numeric-feature headers (``mocapviz.numeric-features``) and PCA models (``mocapviz.PCAModel``).
@@ -21,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import os
 import shutil
 import tempfile
@@ -176,6 +180,45 @@ def load_or_build(load: Callable[[], T], build: Callable[[], T]) -> T:
         return load()
     except MotionDBError:
         return build()
+
+
+def fingerprint(path: str | os.PathLike) -> dict:
+    """``{"size": bytes, "sha256": hex}`` of a file (read in blocks: any size)."""
+    with open(path, "rb") as fh:
+        digest = hashlib.file_digest(fh, "sha256").hexdigest()
+    return {"size": os.path.getsize(path), "sha256": digest}
+
+
+def digest(arrays: dict) -> str:
+    """sha256 over ``{name: np.ndarray}`` in name order: each name, dtype, shape and the C-ordered bytes."""
+    import numpy as np
+
+    h = hashlib.sha256()
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def verify(path: str | os.PathLike, expected: dict | None, full: bool = False, rebuild: str = "") -> None:
+    """Check a stored file against its :func:`fingerprint`: its size always, its sha256 when ``full``.
+
+    ``expected`` None (a file written before fingerprints were kept) passes. Raises MotionDBError naming the file
+    and what differs ("… changed since it was written (size / sha256): …; REBUILD").
+    """
+    if expected is None:
+        return
+    hint = f"; {rebuild}" if rebuild else ""
+    try:
+        size = os.path.getsize(path)
+    except OSError as exc:
+        raise MotionDBError(f"{path}: missing or unreadable ({exc.strerror}){hint}") from None
+    if size != expected.get("size"):
+        raise MotionDBError(f"{path}: {size:,} bytes, {expected.get('size'):,} when written: the file is damaged{hint}")
+    if full and fingerprint(path)["sha256"] != expected.get("sha256"):
+        raise MotionDBError(f"{path}: its sha256 differs from the one recorded when it was written: the file is "
+                            f"damaged{hint}")
 
 
 def _fsync_folder(folder: Path) -> None:

@@ -212,21 +212,6 @@ def test_open_checks_format_version_and_consistency(sample_db, tmp_path):
         MotionDB.ingest(sample_db.documents["path"].iloc[0], tmp_path, progress=False)
 
 
-def test_one_writer_at_a_time(sample_db, sample_dir, tmp_path):
-    import fcntl
-
-    copy = Path(shutil.copytree(sample_db.path, tmp_path / "copy"))
-    db = MotionDB.open(copy)
-    with open(copy / ".lock", "a") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        src = next((sample_dir / "hdm05-cut" / "amc").glob("HDM_dg_*.amc"))
-        new = tmp_path / "HDM_dg_extra_001_120.amc"  # a file the DB does not hold yet
-        new.write_bytes(src.read_bytes() + b"\n")
-        shutil.copytree(sample_dir / "hdm05-cut" / "asf", tmp_path / "asf")
-        with pytest.raises(MotionDBError, match="another process"):
-            db.append(new, progress=False)
-
-
 def test_explicit_label_table_overrides(sample_dir, tmp_path):
     amc = sorted((sample_dir / "hdm05-cut" / "amc").glob("*.amc"))[:2]
     table = tmp_path / "mine.csv"

@@ -43,6 +43,17 @@ def test_candidates_restrict_the_relevant_set():
     assert average_precision(ranking, n_relevant) == pytest.approx((1 / 4) / 2)
 
 
+def test_a_query_that_is_no_document_is_judged_by_its_label():
+    """A motion template of class A: nothing is left out, document 0 counts like any other A document."""
+    ranking, n_relevant = relevance(HITS, LABELS, query_doc=None, label="A")
+    assert ranking["doc_id"].tolist() == [0, 1, 2, 4, 3] and n_relevant == 4
+    assert ranking["relevant"].tolist() == [True, True, False, False, True]
+    assert average_precision(ranking, n_relevant) == pytest.approx((1 + 1 + 3 / 5) / 4)
+    for bad in ({"query_doc": None}, {"query_doc": 0, "label": "A"}):
+        with pytest.raises(ParameterError, match="query_doc"):
+            relevance(HITS, LABELS, **bad)
+
+
 def test_perfect_empty_and_unjudgeable_rankings():
     ranking, n_relevant = relevance([3, 5, 1, 2], LABELS, query_doc=0)
     assert average_precision(ranking, n_relevant) == 1.0 and precision_at(ranking, n_relevant) == 1.0

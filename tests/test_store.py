@@ -110,55 +110,6 @@ def test_lock_held_by_another_process_fails_fast_or_waits(tmp_path):
     assert proc.wait(60) == 0
 
 
-_APPEND = textwrap.dedent(
-    """
-    import sys, time
-    import mocapviz.database as d
-    real = d._commit
-    def slow(*args):
-        time.sleep(3.0)  # hold the writer lock long enough for the other writer to meet it
-        return real(*args)
-    d._commit = slow
-    try:
-        db = d.MotionDB.open(sys.argv[1]).append(sys.argv[2], progress=False)
-    except d.MotionDBError as exc:
-        print("refused:", exc)
-        sys.exit(2)
-    print("ok", len(db))
-    """
-)
-
-
-def test_two_processes_appending_to_one_database_lose_nothing(sample_dir, tmp_path):
-    out = tmp_path / "db"
-    base = MotionDB.ingest(sample_dir / "cmu-asfamc", out, progress=False)
-    parts = {"dg": str(sample_dir / "hdm05-cut" / "amc" / "HDM_dg_*.amc"),
-             "mm": str(sample_dir / "hdm05-cut" / "amc" / "HDM_mm_*.amc")}
-    procs = {k: subprocess.Popen([sys.executable, "-c", _APPEND, str(out), p], stdout=subprocess.PIPE, text=True)
-             for k, p in parts.items()}  # fmt: skip
-    results = {k: (p.wait(300), p.stdout.read()) for k, p in procs.items()}
-    for code, text in results.values():  # each one either commits or is refused with the typed error
-        assert (code, text.split()[0]) in ((0, "ok"), (2, "refused:")), text
-        assert code == 0 or f"{out} (a MotionDB): another process is writing" in text
-    committed = [k for k, (code, _) in results.items() if code == 0]
-    assert committed, results
-    db = MotionDB.open(out)
-    names = sorted(db.documents["name"])
-    expected = sorted(list(base.documents["name"]) + [n for k in committed for n in _names(sample_dir, k)])
-    assert names == expected and len(set(names)) == len(names)
-    reference = MotionDB.ingest(sample_dir, tmp_path / "reference", progress=False)
-    for name in names:  # every stored frame is the file's own
-        ours = db.documents.set_index("name").loc[name]
-        ref = reference.documents.set_index("name").loc[name]
-        np.testing.assert_array_equal(db.positions[ours["start"] : ours["start"] + ours["n_frames"]],
-                                      reference.positions[ref["start"] : ref["start"] + ref["n_frames"]])
-    assert _leftovers(out) == []
-
-
-def _names(sample_dir, actor):
-    return [p.stem for p in sorted((sample_dir / "hdm05-cut" / "amc").glob(f"HDM_{actor}_*.amc"))]
-
-
 _DERIVED = textwrap.dedent(
     """
     import sys

@@ -67,7 +67,17 @@ from ..database import MotionDB
 from ..errors import MotionDBError, ParameterError
 from ..motion import Motion
 from ..skeleton import CANONICAL_JOINTS, body_frame, heading
-from ..store import atomic_write, check_format, commit, load_or_build, locked, stamp, temporary_file
+from ..store import (
+    atomic_write,
+    check_format,
+    commit,
+    fingerprint,
+    load_or_build,
+    locked,
+    stamp,
+    temporary_file,
+    verify,
+)
 from ..validation import finite_positions, one_of
 
 __all__ = [
@@ -92,7 +102,8 @@ _FRAME_JOINTS = ("root", "lhip", "rhip")  # what the body frame itself is comput
 _BATCH_FRAMES = 1 << 15  # a MotionDB is processed in batches of whole documents of about this many frames
 _HEADER_FORMAT = "mocapviz.numeric-features"
 _PCA_FORMAT = "mocapviz.PCAModel"
-_FORMAT_VERSION = 1
+_FORMAT_VERSION = 1  # of a PCA model file
+_HEADER_VERSION = 2  # of a numeric-feature header; 2: it holds the data file's size and sha256
 _STALE_HINT = "run `mocapviz features DB` (store_numeric(db)) to compute them"
 
 
@@ -583,7 +594,7 @@ def _store_numeric(db: MotionDB, specs: dict, pca: PCAModel | None, progress: bo
     for name, spec in specs.items():
         data_path, header_path = _paths(db, name)
         header = {
-            **stamp(_HEADER_FORMAT, _FORMAT_VERSION),
+            **stamp(_HEADER_FORMAT, _HEADER_VERSION),
             "set": name,
             "dims": spec.dims,
             "dtype": "float32",
@@ -606,6 +617,7 @@ def _store_numeric(db: MotionDB, specs: dict, pca: PCAModel | None, progress: bo
             _fill(db, name, pca, out, progress, threads, client)
             out.flush()
             del out
+            header["data"] = fingerprint(tmp)
             with locked(folder):  # readers pair a header with its data under the shared lock
                 header_path.unlink(missing_ok=True)  # no header = missing: never an old header on new data
                 commit(tmp, data_path)
@@ -623,8 +635,11 @@ def _own_pca(db: MotionDB, progress: bool, threads: int | None, client=None) -> 
     )
 
 
-def load_numeric(db: MotionDB, numeric_set: str) -> np.ndarray:
+def load_numeric(db: MotionDB, numeric_set: str, full_check: bool = False) -> np.ndarray:
     """A numeric feature set stored by :func:`store_numeric`, memory-mapped read-only.
+
+    The data file's size is checked against the one recorded in its header; with ``full_check`` its sha256 too
+    (``mocapviz check DB``).
 
     Returns
     -------
@@ -636,8 +651,8 @@ def load_numeric(db: MotionDB, numeric_set: str) -> np.ndarray:
         An unknown set numeric_set.
     mocapviz.MotionDBError
         The set is not stored, or stale: computed for another generation or frame count of the database, or
-        with a PCA model other than the stored ``pca.npz``; or its files are unreadable. The message says to run
-        ``mocapviz features DB``.
+        with a PCA model other than the stored ``pca.npz``; or its files are unreadable or damaged (size, sha256).
+        The message says to run ``mocapviz features DB``.
     """
     spec = _spec(numeric_set)
     data_path, header_path = _paths(db, numeric_set)
@@ -654,7 +669,8 @@ def load_numeric(db: MotionDB, numeric_set: str) -> np.ndarray:
             raise MotionDBError(
                 f"{header_path.parent}: numeric feature set {numeric_set} unreadable ({exc}); {_STALE_HINT}"
             ) from None
-        check_format(header, _HEADER_FORMAT, _FORMAT_VERSION, header_path, _STALE_HINT)
+        check_format(header, _HEADER_FORMAT, _HEADER_VERSION, header_path, _STALE_HINT)
+        verify(data_path, header.get("data"), full=full_check, rebuild=_STALE_HINT)
         stale = None
         if (header.get("generation"), header.get("n_frames")) != (db.manifest["generation"], db.n_frames):
             stale = (
@@ -663,7 +679,7 @@ def load_numeric(db: MotionDB, numeric_set: str) -> np.ndarray:
             )
         elif data.shape != (db.n_frames, spec.dims) or data.dtype != np.float32:
             stale = f"{data_path.name} holds {data.shape} {data.dtype}, expected ({db.n_frames}, {spec.dims}) float32"
-        elif spec.pcs and _file_sha256(header_path.parent / "pca.npz") != header["pca"]["sha256"]:
+        elif spec.pcs and _file_sha256(header_path.parent / "pca.npz") != (header.get("pca") or {}).get("sha256"):
             stale = "pca.npz has been replaced since it was computed"
     if stale:
         raise MotionDBError(f"{db.path}: numeric feature set {numeric_set} is stale: {stale}; {_STALE_HINT}")
@@ -715,6 +731,6 @@ def _stored_pca(db: MotionDB, reference: str | None = None) -> PCAModel:
 
 def _file_sha256(path: Path) -> str | None:
     try:
-        return hashlib.sha256(path.read_bytes()).hexdigest()
+        return fingerprint(path)["sha256"]
     except OSError:
         return None

@@ -1,0 +1,100 @@
+"""mocapviz.templates: warping and averaging against a hand-worked example, order independence, quantisation and
+the masked matching cost."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from mocapviz import ParameterError
+from mocapviz.match import subsequence_dtw
+from mocapviz.templates import (
+    DONT_CARE,
+    classify,
+    find_instances,
+    learn_template,
+    quantised_distance,
+    template_distance,
+)
+
+# two features; A and B agree everywhere (B holds its middle pose twice), C raises feature 2 throughout
+A = np.array([[0, 0], [1, 0], [1, 1]], bool)
+B = np.array([[0, 0], [1, 0], [1, 0], [1, 1]], bool)
+C = np.array([[0, 1], [1, 1], [1, 1]], bool)
+
+
+def test_warping_and_averaging_equals_the_hand_worked_example():
+    """By hand: DTW costs (mean |difference| per cell) A–B 0, A–C 1, B–C 1.5, so the medoid is A. Aligned to A, B's
+    two middle frames both go to A's middle column and C aligns diagonally; the averages are
+    [0, 1/3], [1, 1/3], [1, 1]. Aligning to that template changes no path, so the second round settles."""
+    t = learn_template([A, B, C], ["f1", "f2"], label="abc")
+    np.testing.assert_allclose(t.values, [[0, 1 / 3], [1, 1 / 3], [1, 1]])
+    assert (t.n_examples, t.iterations, t.label) == (3, 2, "abc")
+    np.testing.assert_array_equal(t.quantised(0.1), [[0, DONT_CARE], [1, DONT_CARE], [1, 1]])
+    np.testing.assert_array_equal(t.quantised(0.4), [[0, 0], [1, 0], [1, 1]])  # 1/3 < 0.4
+
+
+@pytest.mark.parametrize("order", list(itertools.permutations(range(3))))
+def test_the_template_does_not_depend_on_the_order_of_the_examples(order):
+    examples = [A, B, C]
+    t = learn_template([examples[i] for i in order], ["f1", "f2"])
+    np.testing.assert_allclose(t.values, [[0, 1 / 3], [1, 1 / 3], [1, 1]])
+
+
+def test_one_example_is_its_own_template():
+    t = learn_template([B], ["f1", "f2"])
+    np.testing.assert_array_equal(t.values, B.astype(float))
+
+
+def test_template_distance_is_the_brute_force_masked_mean():
+    rng = np.random.default_rng(0)
+    a, x = rng.random((5, 7)), rng.random((9, 7)) < 0.5
+    mask = rng.random((5, 7)) < 0.6
+    mask[0] = False  # a row that cares about nothing costs 0
+    ref = np.array([[np.abs(a[i] - x[j])[mask[i]].mean() if mask[i].any() else 0.0 for j in range(9)]
+                    for i in range(5)])  # fmt: skip
+    np.testing.assert_allclose(template_distance(a, x, mask), ref)
+    q = np.where(mask, np.round(a), DONT_CARE)
+    np.testing.assert_allclose(quantised_distance(q, x), template_distance(q, x, mask))
+
+
+def test_a_quantised_template_finds_its_class_and_ignores_dont_care_features():
+    """A database of the three examples plus a clip that moves feature 1 the other way: the template's hits are
+    A, B and C at cost 0 (feature 2 is don't care), the other clip is far."""
+    other = np.array([[1, 0], [0, 0], [0, 0]], bool)
+    db = np.concatenate([other, A, B, C])
+    starts = np.array([0, 3, 6, 10])
+    t = learn_template([A, B, C], ["f1", "f2"])
+    hits = subsequence_dtw(t.quantised(), db, starts, n_matches=4, distance=quantised_distance, paths=False)
+    assert sorted(hits["doc_id"][:3]) == [1, 2, 3] and (hits["cost"][:3] == 0).all()
+    assert (hits.loc[hits["doc_id"] == 0, "cost"] > 0).all()
+
+
+@pytest.mark.parametrize(("examples", "message"), [
+    ([], "at least one example"),
+    ([np.zeros((3, 3), bool)], r"shape \(3, 3\)"),
+    ([np.full((3, 2), 0.5)], "other than 0/1"),
+])  # fmt: skip
+def test_bad_examples_are_named(examples, message):
+    with pytest.raises(ParameterError, match=message):
+        learn_template(examples, ["f1", "f2"])
+
+
+def test_find_instances_normalises_and_thresholds_by_template_frames():
+    other = np.array([[1, 0], [0, 0], [0, 0]], bool)
+    db = np.concatenate([other, A, B, C])
+    starts = np.array([0, 3, 6, 10])
+    t = learn_template([A, B, C], ["f1", "f2"])
+    every = find_instances(t, db, starts, n_matches=10)
+    np.testing.assert_allclose(every["normalised_cost"], every["cost"] / 3)
+    kept = find_instances(t, db, starts, n_matches=10, max_cost=0.0)
+    assert sorted(kept["doc_id"]) == [1, 2, 3]
+    with pytest.raises(ParameterError, match=r"needs \(frames, 2\)"):
+        find_instances(t, db[:, :1], starts)
+
+
+def test_classify_ranks_the_nearest_template_first():
+    ups = learn_template([A, B], ["f1", "f2"], label="up")
+    downs = learn_template([A[::-1], B[::-1]], ["f1", "f2"], label="down")
+    ranked = classify(C, [downs, ups])
+    assert ranked["label"].tolist() == ["up", "down"] and ranked["cost"].is_monotonic_increasing
