@@ -8,7 +8,9 @@ above 1 − δ become 1 and the rest "don't care"; matching then ignores the don
 template, not the user, chooses the features that matter (Müller & Röder 2006 §3–4).
 
 learn_template      (T_i, f) feature matrices of n examples -> MotionTemplate (iterative warping and averaging).
+learn_class         a MotionDB's documents of one label (optionally of some actors only) -> MotionTemplate.
 find_instances      a template's matches in (N, f) feature values by subsequence DTW, best first (§5).
+document_costs      every document's best match cost of a template (for ranking whole clips).
 classify            a clip's (T, f) feature values against several templates: the classes by DTW cost (§6).
 MotionTemplate      the real-valued template, its quantisation and the local cost of matching it.
 template_distance   the masked l1 local cost of template rows against boolean frames, (K, n).
@@ -25,15 +27,22 @@ the medoid's length.
 
 from __future__ import annotations
 
+import json
+import zipfile
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from .errors import ParameterError
-from .match import dtw, subsequence_dtw
+from . import store
+from .errors import MotionDBError, ParameterError
+from .match import best_ends, dtw, subsequence_costs
+from .match.time_warping import matches_frame
 from .validation import count
 
+FORMAT = "mocapviz.MotionTemplate"
+VERSION = 1
 DONT_CARE = 0.5  # the value a quantised template holds where a feature does not matter
 DELTA = 0.1  # default quantisation threshold: < δ -> 0, > 1 - δ -> 1, else don't care
 ITERATIONS = 10
@@ -52,6 +61,9 @@ class MotionTemplate:
     n_examples : int
     iterations : int, warping-and-averaging rounds until it settled.
     meta : dict, anything else worth keeping (relational set, the example documents, ...).
+
+    ``save(path)`` writes it as an ``.npz`` (no pickle) through :mod:`mocapviz.store` with a format header and the
+    sha256 of its values; ``MotionTemplate.load(path)`` checks both.
     """
 
     values: np.ndarray
@@ -71,6 +83,32 @@ class MotionTemplate:
         out[self.values < delta] = 0.0
         out[self.values > 1.0 - delta] = 1.0
         return out
+
+
+    def save(self, path) -> None:
+        """Write the template to ``path`` (.npz) atomically, with its header and checksum."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        header = {**store.stamp(FORMAT, VERSION), "features": self.features, "label": self.label,
+                  "n_examples": self.n_examples, "iterations": self.iterations, "meta": self.meta,
+                  "sha256": store.digest({"values": self.values})}  # fmt: skip
+        with store.atomic_file(path) as tmp, open(tmp, "wb") as fh:
+            np.savez(fh, header=np.array(json.dumps(header, default=str)), values=self.values)
+
+    @classmethod
+    def load(cls, path) -> MotionTemplate:
+        """A template written by :meth:`save`; MotionDBError naming the file when it is not one or is damaged."""
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                header, values = json.loads(str(z["header"])), z["values"]
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+            raise MotionDBError(f"{path}: not a readable motion template ({exc})") from None
+        store.check_format(header, FORMAT, VERSION, path, "learn it again (`mocapviz template learn`)")
+        if store.digest({"values": values}) != header.get("sha256"):
+            raise MotionDBError(f"{path}: its values differ from those written (sha256): the file is damaged")
+        return cls(values, list(header["features"]), header["label"], int(header["n_examples"]),
+                   int(header["iterations"]), dict(header["meta"]))  # fmt: skip
 
 
 def template_distance(template: np.ndarray, frames: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
@@ -166,11 +204,31 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
     if x.ndim != 2 or x.shape[1] != len(template.features):
         raise ParameterError(f"values have shape {x.shape}; the template needs (frames, {len(template.features)})")
     q = template.quantised(delta)
-    hits = subsequence_dtw(q, x, starts, n_matches=n_matches, distance=quantised_distance, paths=False)
-    hits = hits.drop(columns="path").assign(normalised_cost=hits["cost"] / len(q))
+    count(n_matches, "n_matches")
+    # subsequence DTW's pieces, without its rule that a match be at least as long as the query: a template (the
+    # medoid example's length) may be longer than a slower or shorter instance, which the warping absorbs
+    cost, first = subsequence_costs(q, x, starts, distance=quantised_distance)
+    ends = best_ends(cost, first, starts, n_matches)
+    doc_starts = np.zeros(1, dtype=np.int64) if starts is None else np.asarray(starts, dtype=np.int64)
+    hits = matches_frame(doc_starts, first[ends], ends, cost[ends], [None] * len(ends)).drop(columns="path")
+    hits["normalised_cost"] = hits["cost"] / len(q)
     if max_cost is not None:
         hits = hits[hits["normalised_cost"] <= max_cost].reset_index(drop=True)
     return hits
+
+
+def document_costs(template: MotionTemplate, values: np.ndarray, starts, delta: float = DELTA) -> np.ndarray:
+    """The best (least) normalised cost of a match of ``template`` ending in each document: every document gets
+    one, so whole clips can be ranked by how well they hold an instance.
+
+    Parameters and units as for :func:`find_instances`; returns np.ndarray [shape=(B,)], float64 (inf for a
+    document where no match ends).
+    """
+    x = np.asarray(values)
+    q = template.quantised(delta)
+    cost, _ = subsequence_costs(q, x, starts, distance=quantised_distance)
+    bounds = np.r_[np.asarray(starts, dtype=np.int64), len(x)]
+    return np.minimum.reduceat(cost, bounds[:-1]) / len(q)
 
 
 def classify(values: np.ndarray, templates, delta: float = DELTA) -> pd.DataFrame:
@@ -194,6 +252,49 @@ def classify(values: np.ndarray, templates, delta: float = DELTA) -> pd.DataFram
     if not rows:
         raise ParameterError("classify needs at least one template")
     return pd.DataFrame(rows).sort_values("cost", kind="stable").reset_index(drop=True)
+
+
+def learn_class(db, label: str, actors=None, relational_set: str = "2006", values: np.ndarray | None = None,
+                iterations: int = ITERATIONS) -> MotionTemplate:  # fmt: skip
+    """Learn the template of the documents of a MotionDB with ``label`` (of ``actors`` only, when given).
+
+    Parameters
+    ----------
+    db : MotionDB
+    label : str, a value of the documents' ``label`` column.
+    actors : sequence of str, optional: only the documents whose ``actor`` column is one of these.
+    relational_set : {"2005", "2006"}, the features (default the 39 of Müller & Röder 2006, as in the paper).
+    values : np.ndarray [shape=(N, f)], bool, optional: the database's relational features when already computed.
+    iterations : int, see :func:`learn_template`.
+
+    Returns
+    -------
+    MotionTemplate; ``meta`` holds the relational set, the example doc ids and the database path.
+    """
+    from .features import relational_features
+
+    docs = db.documents
+    chosen = docs[docs["label"].astype("string") == str(label)]
+    if actors is not None:
+        if "actor" not in docs.columns:
+            raise ParameterError(f"{db.path}: the documents have no actor column; leave actors out")
+        chosen = chosen[chosen["actor"].astype("string").isin([str(a) for a in actors])]
+    if chosen.empty:
+        known = ", ".join(sorted(map(str, docs["label"].dropna().unique()))[:20])
+        raise ParameterError(f"no document of {db.path} has label {label!r}"
+                             + (f" and actor in {list(actors)}" if actors is not None else "")
+                             + f"; labels: {known}")  # fmt: skip
+    if values is None:
+        values, names = relational_features(db, relational_set, progress=False)
+    else:
+        from .features import feature_names
+
+        names = feature_names(relational_set)
+    examples = [values[s : s + n] for s, n in zip(chosen["start"], chosen["n_frames"])]
+    template = learn_template(examples, names, str(label), iterations)
+    template.meta = {"relational_set": str(relational_set), "doc_ids": chosen["doc_id"].astype(int).tolist(),
+                     "database": str(db.path), "actors": None if actors is None else [str(a) for a in actors]}
+    return template
 
 
 def _medoid(xs: list[np.ndarray]) -> int:

@@ -98,3 +98,11 @@ def test_classify_ranks_the_nearest_template_first():
     downs = learn_template([A[::-1], B[::-1]], ["f1", "f2"], label="down")
     ranked = classify(C, [downs, ups])
     assert ranked["label"].tolist() == ["up", "down"] and ranked["cost"].is_monotonic_increasing
+
+
+def test_a_template_longer_than_every_document_still_finds_them():
+    """The medoid of slow examples can be longer than a quick instance; the warping absorbs it."""
+    slow = np.repeat(A, 4, axis=0)  # 12 frames
+    t = learn_template([slow, slow], ["f1", "f2"])
+    hits = find_instances(t, np.concatenate([A, C]), np.array([0, 3]), n_matches=2)
+    assert hits["doc_id"].tolist()[0] == 0 and hits["cost"].iloc[0] == 0

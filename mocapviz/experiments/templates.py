@@ -1,0 +1,133 @@
+"""How well motion templates find and classify their class (Müller & Röder 2006 §5–6), leave-group-out.
+
+For every labelled class and every group (actor) that holds clips of it, a template is learned from the class's
+clips of the *other* groups (:func:`mocapviz.templates.learn_class`) and then
+
+- searched in the held-out group's clips (``search="group"``, the leave-actor-out protocol of the issue) and in
+  all clips of the database (``search="all"``; the training clips are then among the candidates: an optimistic
+  figure, reported beside the other): every clip is ranked by its best match's normalised cost (mean mismatch
+  per template frame, :func:`mocapviz.templates.document_costs`), judged by :mod:`mocapviz.evaluation` with the
+  class as the label sought (no clip is the query);
+- used to classify: every clip of the held-out group goes to the class of the nearest template learned without
+  its group (:func:`mocapviz.templates.classify`).
+
+template_quality   db -> {"summary", "per_class", "per_template", "classification"} DataFrames.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pandas as pd
+
+from .. import evaluation
+from ..errors import ParameterError
+from ..features import relational_features
+from ..templates import DELTA, classify, document_costs, learn_class
+
+__all__ = ["template_quality"]
+
+
+def template_quality(db, relational_set: str = "2006", group: str = "actor", delta: float = DELTA,
+                     progress: bool = False) -> dict:  # fmt: skip
+    """Leave-group-out retrieval and classification quality of motion templates on a labelled MotionDB.
+
+    Parameters
+    ----------
+    db : MotionDB with ``label`` and ``group`` columns (HDM05: ``actor``).
+    relational_set : {"2005", "2006"}, the features the templates are learned on.
+    group : str, the column whose values are left out in turn.
+    delta : float, the quantisation threshold of the templates.
+    progress : bool, a progress bar over the templates.
+
+    Returns
+    -------
+    dict of DataFrames:
+
+    - ``per_template``: one row per (class, held-out group): ``class``, ``group``, ``examples`` (training clips),
+      ``frames`` (template length), ``cared`` (share of entries that are not don't care), ``ap_group``,
+      ``ap_all`` (average precision searching the group's clips / all clips), ``r_precision_group``,
+      ``learn_s``, ``search_ms`` (searching the group's clips).
+    - ``per_class``: per class, the mean of those over the held-out groups.
+    - ``summary``: one row: ``templates``, ``map_group``, ``map_all``, ``min_class_ap_group``,
+      ``classification_accuracy``, ``clips_classified``.
+    - ``classification``: one row per held-out clip: ``doc_id``, ``class``, ``predicted``, ``correct``.
+    """
+    docs = db.documents
+    for column in ("label", group):
+        if column not in docs.columns:
+            raise ParameterError(f"{db.path}: the documents have no {column!r} column; template_quality needs labels "
+                                 f"and a group column (e.g. actor)")  # fmt: skip
+    docs = docs[docs["label"].notna() & docs[group].notna()]
+    if docs.empty:
+        raise ParameterError(f"{db.path}: no document has both a label and a {group}")
+    values, _ = relational_features(db, relational_set, progress=progress)
+    labels = db.documents.set_index("doc_id")["label"]
+    groups = sorted(map(str, docs[group].unique()))
+    classes = sorted(map(str, docs["label"].unique()))
+    every = _pool(db, docs)
+    rows, predictions = [], []
+    work = [(g, c) for g in groups for c in classes]
+    if progress:
+        from tqdm.auto import tqdm
+
+        work = tqdm(work, desc="motion templates", unit="template")
+    templates = {}
+    for g, c in work:
+        train = docs[(docs["label"].astype(str) == c) & (docs[group].astype(str) != g)]
+        held = docs[docs[group].astype(str) == g]
+        if train.empty or not (held["label"].astype(str) == c).any():
+            continue
+        t0 = time.perf_counter()
+        template = learn_class(db, c, sorted(map(str, train[group].unique())), relational_set, values)
+        learn_s = time.perf_counter() - t0
+        templates[(g, c)] = template
+        t0 = time.perf_counter()
+        ap_group, rp_group = _search(template, values, _pool(db, held), labels, c, delta)
+        search_ms = 1000 * (time.perf_counter() - t0)
+        ap_all, _ = _search(template, values, every, labels, c, delta)
+        rows.append({"class": c, "group": g, "examples": len(train), "frames": len(template.values),
+                     "cared": float((template.quantised(delta) != 0.5).mean()), "ap_group": ap_group,
+                     "ap_all": ap_all, "r_precision_group": rp_group, "learn_s": learn_s,
+                     "search_ms": search_ms})  # fmt: skip
+    for g in groups:
+        mine = [t for (tg, _), t in templates.items() if tg == g]
+        if not mine:
+            continue
+        for _, row in docs[docs[group].astype(str) == g].iterrows():
+            clip = values[row["start"] : row["start"] + row["n_frames"]]
+            predicted = classify(clip, mine, delta)["label"].iloc[0]
+            predictions.append({"doc_id": int(row["doc_id"]), "class": str(row["label"]), "predicted": predicted,
+                                "correct": predicted == str(row["label"])})  # fmt: skip
+    per_template = pd.DataFrame(rows)
+    if per_template.empty:
+        raise ParameterError(f"{db.path}: no class has clips in two {group} groups; nothing to leave out")
+    per_class = per_template.groupby("class").agg(
+        groups=("group", "size"), examples=("examples", "mean"), frames=("frames", "mean"), cared=("cared", "mean"),
+        ap_group=("ap_group", "mean"), ap_all=("ap_all", "mean"), r_precision_group=("r_precision_group", "mean"),
+        learn_s=("learn_s", "mean"), search_ms=("search_ms", "mean")).reset_index()  # fmt: skip
+    classification = pd.DataFrame(predictions, columns=["doc_id", "class", "predicted", "correct"])
+    summary = pd.DataFrame([{
+        "templates": len(per_template), "map_group": per_template["ap_group"].mean(),
+        "map_all": per_template["ap_all"].mean(), "min_class_ap_group": per_class["ap_group"].min(),
+        "classification_accuracy": classification["correct"].mean() if len(classification) else np.nan,
+        "clips_classified": len(classification),
+    }])  # fmt: skip
+    return {"summary": summary, "per_class": per_class, "per_template": per_template,
+            "classification": classification}  # fmt: skip
+
+
+def _pool(db, docs: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(frame rows of ``docs`` in the database, their document starts within those rows, their doc ids)."""
+    rows = np.concatenate([np.arange(s, s + n) for s, n in zip(docs["start"], docs["n_frames"])])
+    starts = np.concatenate([[0], np.cumsum(docs["n_frames"].to_numpy())[:-1]]).astype(np.int64)
+    return rows, starts, docs["doc_id"].to_numpy(np.int64)
+
+
+def _search(template, values, pool, labels, label: str, delta: float) -> tuple[float, float]:
+    """AP and R-precision of the clips of ``pool`` ranked by their best match of ``template``."""
+    rows, starts, doc_ids = pool
+    order = np.argsort(document_costs(template, values[rows], starts, delta), kind="stable")
+    ranking, n_relevant = evaluation.relevance(doc_ids[order], labels, None, candidates=doc_ids, label=label)
+    return evaluation.average_precision(ranking, n_relevant), evaluation.precision_at(ranking, max(1, n_relevant))
