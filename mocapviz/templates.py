@@ -11,6 +11,8 @@ learn_template      (T_i, f) feature matrices of n examples -> MotionTemplate (i
 learn_class         a MotionDB's documents of one label (optionally of some actors only) -> MotionTemplate.
 find_instances      a template's matches in (N, f) feature values by subsequence DTW, best first (§5).
 document_costs      every document's best match cost of a template (for ranking whole clips).
+keyframe_ranges     the frame ranges where a template's keyframes occur, read from the relational indexes (the
+                    pre-filter that spares the full DTW pass over a large database).
 classify            a clip's (T, f) feature values against several templates: the classes by DTW cost (§6).
 MotionTemplate      the real-valued template, its quantisation and the local cost of matching it.
 template_distance   the masked l1 local cost of template rows against boolean frames, (K, n).
@@ -46,6 +48,8 @@ VERSION = 1
 DONT_CARE = 0.5  # the value a quantised template holds where a feature does not matter
 DELTA = 0.1  # default quantisation threshold: < δ -> 0, > 1 - δ -> 1, else don't care
 ITERATIONS = 10
+KEYFRAMES = 3  # template rows used by the pre-filter
+TOLERANCE = 0.25  # a keyframe occurs where at most this share of its cared-for features disagree
 TOL = 1e-6
 
 
@@ -181,7 +185,7 @@ def learn_template(examples, features: list[str], label: str = "", iterations: i
 
 
 def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_matches: int = 10,
-                   delta: float = DELTA, max_cost: float | None = None) -> pd.DataFrame:  # fmt: skip
+                   delta: float = DELTA, max_cost: float | None = None, ranges=None) -> pd.DataFrame:  # fmt: skip
     """The stretches of a database that match a template: subsequence DTW of the quantised template against the
     frames' relational features with the don't-care entries left out (:func:`quantised_distance`).
 
@@ -194,6 +198,8 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
     delta : float, the quantisation threshold.
     max_cost : float, optional: keep only matches whose ``normalised_cost`` (cost per template frame, the mean
         mismatch per frame in [0, 1]) is at most this.
+    ranges : np.ndarray [shape=(R, 2)], int, optional: align only within these [start, stop) frame ranges, each
+        inside one document (:func:`keyframe_ranges`, the pre-filter); default the whole database.
 
     Returns
     -------
@@ -207,14 +213,91 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
     count(n_matches, "n_matches")
     # subsequence DTW's pieces, without its rule that a match be at least as long as the query: a template (the
     # medoid example's length) may be longer than a slower or shorter instance, which the warping absorbs
-    cost, first = subsequence_costs(q, x, starts, distance=quantised_distance)
-    ends = best_ends(cost, first, starts, n_matches)
     doc_starts = np.zeros(1, dtype=np.int64) if starts is None else np.asarray(starts, dtype=np.int64)
-    hits = matches_frame(doc_starts, first[ends], ends, cost[ends], [None] * len(ends)).drop(columns="path")
+    if ranges is None:
+        frames, parts = np.arange(len(x)), starts
+    else:
+        ranges = np.asarray(ranges, dtype=np.int64).reshape(-1, 2)
+        if not len(ranges):
+            return pd.DataFrame(columns=["doc_id", "start", "end", "cost", "normalised_cost"])
+        frames = np.concatenate([np.arange(a, b) for a, b in ranges])
+        parts = np.r_[0, np.cumsum(ranges[:, 1] - ranges[:, 0])[:-1]]
+    cost, first = subsequence_costs(q, x[frames], parts, distance=quantised_distance)
+    ends = best_ends(cost, first, parts, n_matches)
+    hits = matches_frame(doc_starts, frames[first[ends]], frames[ends], cost[ends], [None] * len(ends))
+    hits = hits.drop(columns="path")
     hits["normalised_cost"] = hits["cost"] / len(q)
     if max_cost is not None:
         hits = hits[hits["normalised_cost"] <= max_cost].reset_index(drop=True)
     return hits
+
+
+def keyframe_ranges(template: MotionTemplate, indexes: dict, doc_starts, n_frames: int, delta: float = DELTA,
+                    keyframes: int = KEYFRAMES, tolerance: float = TOLERANCE) -> np.ndarray:  # fmt: skip
+    """Candidate frame ranges for a template, from the relational indexes instead of the frames (the pre-filter).
+
+    ``keyframes`` template rows are chosen (in each of as many equal parts of the template, the row that cares
+    about the most features). A keyframe *occurs* at a frame whose features disagree with it on at most
+    ``tolerance`` of its cared-for features; the disagreements are counted per stored segment of each group's
+    inverted index (the code of the segment against the keyframe's bits of that group), so no frame's features
+    are read. A frame is a candidate when every keyframe occurs within one template length of it, in its own
+    document; the ranges returned are the candidates widened by one template length on each side.
+
+    Parameters
+    ----------
+    template : MotionTemplate of a relational set whose indexes are given.
+    indexes : dict group -> mocapviz.index.InvertedIndex (``mocapviz.index.load_or_build(db, relational_set)``).
+    doc_starts : np.ndarray [shape=(B,)], int: first frame of every document.
+    n_frames : int, frames of the database.
+    delta, keyframes, tolerance : the quantisation threshold, the number of keyframes, the share of disagreeing
+        features a keyframe occurrence may have.
+
+    Returns
+    -------
+    np.ndarray [shape=(R, 2)], int64: [start, stop) frame ranges, inside documents, in frame order.
+    """
+    q = template.quantised(delta)
+    k = len(q)
+    count(keyframes, "keyframes", most=k, most_is="the template's frames")
+    parts = np.array_split(np.arange(k), keyframes)
+    cared = (q != DONT_CARE).sum(axis=1)
+    rows = [int(p[np.argmax(cared[p])]) for p in parts]
+    doc_starts = np.asarray(doc_starts, dtype=np.int64)
+    doc = np.repeat(np.arange(len(doc_starts)), np.diff(np.r_[doc_starts, n_frames]))
+    near = np.ones(n_frames, dtype=bool)
+    for r in rows:
+        wrong = np.zeros(n_frames, dtype=np.int64)
+        for idx in indexes.values():
+            cols = [template.features.index(name) for name in idx.feature_names]
+            bits = np.int64(1) << np.arange(len(cols), dtype=np.int64)
+            mask = int(bits[q[r, cols] != DONT_CARE].sum())
+            want = int(bits[q[r, cols] == 1.0].sum())
+            per_code = np.bitwise_count((idx.list_codes ^ want) & mask).astype(np.int64)
+            per_frame = np.repeat(per_code[idx.rank], idx.lengths)  # the segments tile the database's frames
+            if len(per_frame) != n_frames:
+                raise ParameterError(f"an index of {len(per_frame):,} frames for a database of {n_frames:,}")
+            wrong += per_frame
+        occurs = wrong <= tolerance * max(1, cared[r])
+        near &= _within(occurs, doc, k)
+    candidate = _within(near, doc, k)
+    edges = np.flatnonzero(np.diff(np.r_[0, candidate.astype(np.int8), 0]))
+    ranges = edges.reshape(-1, 2)
+    # split ranges at document starts (a match never crosses one)
+    cuts = np.sort(np.r_[ranges[:, 0], ranges[:, 1], doc_starts[(doc_starts > 0)]])
+    out = np.stack([cuts[:-1], cuts[1:]], axis=1)
+    out = out[(out[:, 1] > out[:, 0])]
+    return out[candidate[out[:, 0]]].astype(np.int64)
+
+
+def _within(mask: np.ndarray, doc: np.ndarray, radius: int) -> np.ndarray:
+    """Frames whose nearest True of ``mask`` in their own document is at most ``radius`` frames away."""
+    n = len(mask)
+    idx = np.arange(n)
+    last = np.maximum.accumulate(np.where(mask, idx, -1))
+    nxt = np.minimum.accumulate(np.where(mask, idx, n)[::-1])[::-1]
+    ok_last = (last >= 0) & (idx - last <= radius) & (doc[np.maximum(last, 0)] == doc)
+    ok_next = (nxt < n) & (nxt - idx <= radius) & (doc[np.minimum(nxt, n - 1)] == doc)
+    return ok_last | ok_next
 
 
 def document_costs(template: MotionTemplate, values: np.ndarray, starts, delta: float = DELTA) -> np.ndarray:

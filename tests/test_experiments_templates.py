@@ -54,3 +54,28 @@ def test_leave_actor_out_on_hdm05_meets_the_target(hdm05_db30):
     assert summary["templates"] == 55 and len(per_class) == 11  # 11 classes x 5 actors
     assert summary["map_group"] >= 0.90 and per_class["ap_group"].min() >= 0.75
     assert summary["classification_accuracy"] >= 0.95 and summary["clips_classified"] == 287
+
+
+def test_the_keyframe_prefilter_keeps_the_full_passs_good_hits(hdm05_db30):
+    """Templates learned on four actors: every hit of normalised cost <= 0.1 of the full DTW pass over the 287
+    clips is found again when only the keyframe ranges (read from the 2006 relational indexes) are aligned, and
+    the costs are the same."""
+    from mocapviz import index
+    from mocapviz.templates import find_instances, keyframe_ranges
+
+    values, _ = relational_features(hdm05_db30, "2006", progress=False)
+    indexes = index.build(hdm05_db30, "2006", values=values, save=False, progress=False)
+    starts = hdm05_db30.documents["start"].to_numpy()
+    aligned = []
+    for label in ("squat1Reps", "kickLFront1Reps", "elbowToKnee1RepsLelbowStart", "jogLeftCircle4StepsRstart"):
+        t = learn_class(hdm05_db30, label, ["bd", "bk", "dg", "tr"], values=values)
+        ranges = keyframe_ranges(t, indexes, starts, len(values))
+        assert (np.diff(ranges, axis=1) > 0).all() and (np.diff(ranges.ravel()) >= 0).all()
+        full = find_instances(t, values, starts, n_matches=40, max_cost=0.1)
+        pre = find_instances(t, values, starts, n_matches=40, max_cost=0.1, ranges=ranges)
+        assert len(full) > 10
+        merged = full.merge(pre, on=["doc_id", "start", "end"], suffixes=("", "_pre"))
+        assert len(merged) == len(full)
+        np.testing.assert_allclose(merged["cost_pre"], merged["cost"])
+        aligned.append((ranges[:, 1] - ranges[:, 0]).sum() / len(values))
+    assert min(aligned) < 0.9  # it does leave frames out
