@@ -14,6 +14,8 @@ query.py      precision_recall, precision_recall_plot: relational hits judged by
 retrieval.py  retrieval quality of the search methods: class_ap_bars (AP per class and method), pr_curves (mean
               interpolated precision at 11 recall levels), summary_bars, retrieval_layout.
 statistics.py query_time_scatter: query time against hit count (Müller et al. 2005 §6.2, Table 3).
+templates.py  template_image: a motion template as features × time, white 0, black 1, grey don't care (Müller &
+              Röder 2006).
 """
 from .correlation import correlation_heatmap
 from .matching import accuracy_plot, accuracy_table, alignment_layout, band_polygon, similarity_layout
@@ -23,9 +25,11 @@ from .reconstruction import reconstruction_figures
 from .retrieval import class_ap_bars, pr_curves, retrieval_layout, summary_bars
 from .skeleton import neighbour_poses, render_skeletons
 from .statistics import query_time_scatter
+from .templates import template_image
 from .timeline import numeric_curves, relational_timeline
 
 __all__ = ["accuracy_plot", "accuracy_table", "alignment_layout", "band_polygon", "class_ap_bars",
            "comparison_bars", "correlation_heatmap", "curves", "neighbour_poses", "numeric_curves", "pr_curves",
            "precision_recall", "precision_recall_plot", "query_time_scatter", "reconstruction_figures",
-           "relational_timeline", "render_skeletons", "retrieval_layout", "similarity_layout", "summary_bars"]
+           "relational_timeline", "render_skeletons", "retrieval_layout", "similarity_layout", "summary_bars",
+           "template_image"]
