@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-NAMES = ("io", "dask", "relational", "knn", "match", "search", "scaling")
+NAMES = ("io", "dask", "relational", "knn", "match", "search", "templates", "scaling")
 
 
 class _Tee(io.TextIOBase):
@@ -48,14 +48,25 @@ def main(argv=None) -> int:
     # unpack the shared archives once, into the repository's cache (ignored by git)
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
 
-    from . import bench_dask, bench_io, bench_knn, bench_match, bench_relational, bench_scaling, bench_search, report
+    from . import (
+        bench_dask,
+        bench_io,
+        bench_knn,
+        bench_match,
+        bench_relational,
+        bench_scaling,
+        bench_search,
+        bench_templates,
+        report,
+    )
 
     runs = {
         "io": lambda: bench_io.main(quick=args.quick, repeats=args.repeats, ingest=not args.no_ingest,
                                     out_dir=args.out),
         **{name: (lambda mod=mod: mod.main(quick=args.quick, repeats=args.repeats, out_dir=args.out))
            for name, mod in (("dask", bench_dask), ("relational", bench_relational), ("knn", bench_knn),
-                             ("match", bench_match), ("search", bench_search), ("scaling", bench_scaling))},
+                             ("match", bench_match), ("search", bench_search), ("templates", bench_templates),
+                             ("scaling", bench_scaling))},
     }  # fmt: skip
     status = 0
     for name in args.only or NAMES:

@@ -25,6 +25,7 @@ SECTIONS = (
     ("knn", "k nearest neighbours vs Krüger et al. 2010 Table 1 and brute force (bench_knn)"),
     ("match", "LNG global matching vs subsequence DTW (bench_match)"),
     ("search", "Similarity search: exact / fast DTW search vs brute force and dtaidistance (bench_search)"),
+    ("templates", "Motion templates: keyframe pre-filter vs the full DTW pass (bench_templates)"),
     ("scaling", "Cost growth at 250k / 1M / 4M frames (bench_scaling)"),
 )
 
