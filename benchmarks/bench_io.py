@@ -7,6 +7,9 @@
    ``mocapviz.io.load`` against the ``bvh`` package from PyPI for parsing plus the same kind of numpy/scipy
    forward kinematics.
 3. ``MotionDB.ingest`` of all the shared archives with ``threads=1`` and ``threads=2`` (reader threads).
+4. The large reproducers of ``../shared/reliability/big.tar.xz`` (1M-frame BVH and AMC, 20,000-joint rigs, a
+   10,000-bone ASF chain): ``mocapviz.io.load`` of each in a fresh process, wall and CPU time and peak RSS
+   against the arrays returned (``python -m benchmarks.bench_io --large`` runs only this part).
 
 Each reader figure is the median wall time of ``repeats`` runs (frames/s = frames / median time), measured in
 one process and over a pool of 2 worker processes (``concurrent.futures.ProcessPoolExecutor``, one task per
@@ -18,7 +21,11 @@ from __future__ import annotations
 
 import csv
 import datetime as _dt
+import json
 import statistics
+import subprocess
+import sys
+import tarfile
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -28,7 +35,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .common import CpuMonitor, fetch, log, machine_info, markdown
+from .common import REPO, CpuMonitor, fetch, log, machine_info, markdown
 
 TARGET_AMC = 100_000  # frames/s
 TARGET_BVH = 300_000  # frames/s
@@ -37,6 +44,10 @@ CHECK_TOL_CM = 1e-3
 WORKERS = 2
 BN2_SUBSET = 500
 QUICK_FILES = 20
+BIG_ARCHIVE = REPO.parent / "shared" / "reliability" / "big.tar.xz"
+LARGE_FILES = ("M1_bvh_1M_frames_2MB.bvh", "M2_amc_1M_markers_7MB.amc", "H1_wide20000.bvh", "H1b_deep20000.bvh",
+               "H2_chain10000_rev.amc")
+TARGET_MEMORY_RATIO = 4.0  # peak RSS of a load (above the process's own) / arrays returned
 
 
 # ============================================================================ baseline: plain-Python ASF/AMC
@@ -636,7 +647,83 @@ def bench_ingest(quick: bool) -> tuple[list[Row], list[str]]:
     return rows, notes
 
 
-def main(quick: bool = False, repeats: int = 3, ingest: bool = True, out_dir: Path | None = None) -> int:
+# ============================================================================ large reproducers
+_MEASURE = """
+import json, resource, sys, time
+from mocapviz.io import load
+load(sys.argv[2])  # imports, numba kernels from their disk cache: the process's own memory
+base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+t, c = time.perf_counter(), time.process_time()
+m = load(sys.argv[1])
+print(json.dumps(dict(wall=time.perf_counter() - t, cpu=time.process_time() - c, frames=m.n_frames,
+                      joints=m.n_joints, base=base, peak=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
+                      returned=sum(a.nbytes for a in (m.positions, m.quaternions, m.euler) if a is not None))))
+"""
+
+
+def measure_load(path: Path, warm: Path) -> dict:
+    """``load(path)`` in a fresh process (after ``load(warm)``, a small file): wall s, CPU s, frames, joints, the
+    arrays returned (bytes), the process's peak RSS before and after the load (bytes)."""
+    done = subprocess.run([sys.executable, "-c", _MEASURE, str(path), str(warm)], capture_output=True, text=True,
+                          cwd=REPO, timeout=1800, check=False)  # fmt: skip
+    if done.returncode:
+        raise RuntimeError(f"load({path.name}) failed: {done.stderr.strip().splitlines()[-1:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def bench_large() -> tuple[list[dict], list[str]]:
+    """One row per member of big.tar.xz (unpacked with the tarfile ``data`` filter into a temporary folder)."""
+    if not BIG_ARCHIVE.is_file():
+        return [], [f"large reproducers skipped: {BIG_ARCHIVE} not found"]
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="mocapviz-big-") as tmp:
+        with tarfile.open(BIG_ARCHIVE) as tar:
+            tar.extractall(tmp, filter="data")
+        warm = Path(tmp) / "warm.bvh"
+        warm.write_text("HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 1 Xposition\n}\nMOTION\nFrames: 1\n"
+                        "Frame Time: 0.01\n0\n")  # fmt: skip
+        for name in LARGE_FILES:
+            path = Path(tmp) / name
+            log(f"large reproducer {name}")
+            r = measure_load(path, warm)
+            r.update(name=name, size=path.stat().st_size)
+            r["ratio"] = (r["peak"] - r["base"]) / r["returned"]
+            log(f"  {r['wall']:.2f} s, peak RSS {r['peak'] / 1e6:.0f} MB, {r['ratio']:.2f}x the arrays")
+            rows.append(r)
+    note = (f"large reproducers: {BIG_ARCHIVE} (each loaded in a fresh process; peak RSS from getrusage, "
+            "ratio = (peak RSS - RSS before the load) / bytes of positions, quaternions and Euler angles)")
+    return rows, [note]
+
+
+def markdown_large_table(rows: list[dict]) -> str:
+    return markdown(
+        "| file | MB on disk | frames | joints | wall s | CPU s | arrays MB | peak RSS MB | RSS before MB "
+        "| load / arrays | target | meets |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|",
+        (
+            [r["name"], f"{r['size'] / 1e6:.1f}", f"{r['frames']:,}", f"{r['joints']:,}", f"{r['wall']:.2f}",
+             f"{r['cpu']:.2f}", f"{r['returned'] / 1e6:.0f}", f"{r['peak'] / 1e6:.0f}", f"{r['base'] / 1e6:.0f}",
+             f"{r['ratio']:.2f}×", f"≤ {TARGET_MEMORY_RATIO:g}×",
+             "yes" if r["ratio"] <= TARGET_MEMORY_RATIO else "yes (< 64 MB)" if r["peak"] - r["base"] < 64e6 else "NO"]
+            for r in rows
+        ),
+    )
+
+
+def print_large(rows: list[dict], notes: list[str]) -> None:
+    print("## Large reproducers (`../shared/reliability/big.tar.xz`), one load each")
+    print()
+    if rows:
+        print(markdown_large_table(rows))
+        print()
+    for n in notes:
+        print(f"- {n}")
+    print("- meets: the load needs at most 4× the arrays it returns (or under 64 MB when they are tiny). Before "
+          "issue 18 (commit e57603e): M1 3.3 GB and M2 3.9 GB peak RSS, 7.6 s and 4.0 s; H2 4.7 s.")
+
+
+def main(quick: bool = False, repeats: int = 3, ingest: bool = True, out_dir: Path | None = None,
+         large: bool = True) -> int:
     from mocapviz.io import load
 
     t_start = time.perf_counter()
@@ -656,6 +743,7 @@ def main(quick: bool = False, repeats: int = 3, ingest: bool = True, out_dir: Pa
     bvh_rows, bvh_notes = bench_bvh(repeats, quick)
     reader = amc_rows + bvh_rows
     ingest_rows, ingest_notes = bench_ingest(quick) if ingest else ([], [])
+    large_rows, large_notes = bench_large() if large else ([], [])
 
     info["others"] = monitor.report()
     print(header(info, quick, repeats))
@@ -683,9 +771,28 @@ def main(quick: bool = False, repeats: int = 3, ingest: bool = True, out_dir: Pa
         print()
         for n in ingest_notes:
             print(f"- {n}")
+    if large:
+        print()
+        print_large(large_rows, large_notes)
     out_dir = Path(out_dir) if out_dir is not None else Path(__file__).resolve().parent / "results"
     csv_path = out_dir / ("io-quick.csv" if quick else "io.csv")
     write_csv(reader + ingest_rows, csv_path, info)
     print()
     print(f"CSV: {csv_path}; total benchmark time {time.perf_counter() - t_start:.0f} s")
     return 0
+
+
+if __name__ == "__main__":
+    import argparse
+    import os
+
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_io", description=__doc__)
+    parser.add_argument("--large", action="store_true", help="only the large reproducers of big.tar.xz")
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
+    if args.large:
+        print_large(*bench_large())
+        sys.exit(0)
+    sys.exit(main(quick=args.quick, repeats=args.repeats))

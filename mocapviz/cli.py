@@ -12,7 +12,8 @@
     mocapviz search DB --example FILE|DOC_ID [--frames A:B] [--numeric-set F15E] [-K 10] [--mode fast|exact|brute]
                        [--stretches [--min-length 0.5]] [--exclude-document] [--csv FILE] [--paths]
     mocapviz reproduce NAME|all [--full] --out DIR   (NAME: an experiment, e.g. rank_correlations, reconstruction)
-    mocapviz serve [DB] [--port 5006] [--address 127.0.0.1] [--show]   (no DB: the embedded sample)
+    mocapviz serve [DB] [--port 5006] [--address 127.0.0.1 | --address ADDRESS --allow-origin HOST:PORT...] [--show]
+                                                                                (no DB: the embedded sample)
     mocapviz datasets list
     mocapviz datasets fetch NAME        (NAME: a shared archive, or ``sample`` for the embedded sample)
 
@@ -26,13 +27,18 @@ Options follow docs/glossary.md: ``-K`` / ``--matches`` is how many results (hit
 spellings still work: ``--top`` (query, for ``-K``), ``--feature-set`` (for ``--relational-set``), ``--features``
 (knn, match, search: for ``--numeric-set``) and ``--sets`` (features: for ``--numeric-sets``).
 
-Errors print one line (``mocapviz: error: ...``) and exit with status 1.
+Errors print one line (``mocapviz: error: ...``): a value the argument parser refuses (not a number, out of its
+range, an unknown name, a list where one value is allowed) exits with status 2, one the command refuses (checked
+against the database or the clip: frames of a document, the query's segments, k neighbours) with status 1. No
+value is clamped or ignored: what runs is what the command line says.
 """
 from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import json
+import re
 import sys
 import time
 import warnings
@@ -48,6 +54,8 @@ from .errors import MocapvizError, ParameterError
 from .features import (
     NUMERIC_SETS,
     PCAModel,
+    feature_groups,
+    feature_names,
     fit_pca,
     load_numeric,
     numeric_features,
@@ -60,8 +68,23 @@ from .index import build
 from .io import load
 from .knn import KnnIndex, describe_frames
 from .match import lng, subsequence_dtw
+from .motion import FPS_RANGE
 from .query import query_by_example
-from .validation import count
+from .segmentation import segment
+from .skeleton import CANONICAL_JOINTS
+from .validation import (
+    frame_span,
+    parse_count,
+    parse_integers,
+    parse_names,
+    parse_number,
+    parse_port,
+    parse_span,
+)
+
+MAX_JOBS = 256
+"""``ingest --jobs``: worker processes or reader threads at most."""
+PCA_SETS = tuple(n for n in NUMERIC_SETS if n.startswith("Fp"))
 
 
 def _scheduler(args):
@@ -73,17 +96,39 @@ def _scheduler(args):
     return args.scheduler or LOCAL
 
 
+def _mapping(path: str) -> dict[str, str]:
+    """``--mapping FILE``: a JSON object {canonical joint: joint name}, its keys checked against the canonical joints
+    (the joint names are the skeleton's, checked per file)."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ParameterError(f"--mapping {path}: cannot read it ({getattr(exc, 'strerror', None) or exc})") from None
+    try:
+        mapping = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ParameterError(f"--mapping {path}: not JSON ({exc})") from None
+    if not isinstance(mapping, dict) or not all(isinstance(v, str) for v in mapping.values()):
+        raise ParameterError(f"--mapping {path}: must be a JSON object {{canonical joint: joint name}}, e.g. "
+                             f'{{"lknee": "LeftLeg"}}; got {type(mapping).__name__}')  # fmt: skip
+    unknown = [k for k in mapping if k not in CANONICAL_JOINTS]
+    if unknown:
+        raise ParameterError(f"--mapping {path}: unknown canonical joint(s) {', '.join(unknown)}; choose from "
+                             f"{', '.join(CANONICAL_JOINTS)}")
+    return mapping
+
+
 def _ingest(args) -> None:
-    mapping = None
-    if args.mapping:
-        with open(args.mapping) as fh:
-            try:
-                mapping = json.load(fh)
-            except json.JSONDecodeError as exc:
-                raise ParameterError(f"--mapping {args.mapping}: not JSON ({exc})") from None
+    from .io import read_asf
+
+    mapping = _mapping(args.mapping) if args.mapping else None
+    if args.labels and not Path(args.labels).is_file():
+        raise ParameterError(f"--labels {args.labels}: no such file (a TSV/CSV label table with a 'file' column)")
+    if args.asf:  # read once here: a bad skeleton is one error, not every AMC file failing (or skipped) with it
+        try:
+            read_asf(args.asf)
+        except (MocapvizError, OSError) as exc:
+            raise ParameterError(f"--asf: {exc}") from None
     options = {k: v for k, v in (("asf", args.asf), ("up", args.up)) if v is not None}
-    if args.jobs is not None and args.jobs < 1:
-        raise ParameterError(f"--jobs must be at least 1, got {args.jobs}")
     scheduler = _scheduler(args)
     if args.jobs is not None and scheduler not in (None, LOCAL):
         raise ParameterError("--jobs sizes the local cluster (or, with --no-cluster, the reader threads); the "
@@ -118,6 +163,18 @@ def _info(args) -> None:
             print(db.documents[cols].to_string(index=False))
 
 
+def _check(args) -> None:
+    from .errors import MotionDBError
+    from .integrity import check
+
+    report = check(args.db)
+    with pd.option_context("display.max_rows", 500, "display.width", 200, "display.max_colwidth", 160):
+        print(report.assign(ok=report["ok"].map({True: "ok", False: "DAMAGED"})).to_string(index=False))
+    bad = int((~report["ok"]).sum())
+    if bad:
+        raise MotionDBError(f"{args.db}: {bad} of {len(report)} files failed the check (see above)")
+
+
 def _index(args) -> None:
     from .experiments import index_statistics
 
@@ -131,40 +188,56 @@ def _index(args) -> None:
     print(stats.drop(columns=["t_read", "t_total"]).round(3).to_string(index=False))
 
 
-def _frames(text: str | None) -> slice:
-    if not text:
-        return slice(None)
-    try:
-        a, b = (int(x) if x else None for x in text.split(":"))
-    except ValueError:
-        raise ParameterError(f"--frames must look like A:B (frame numbers), got {text!r}") from None
-    return slice(a, b)
+def _example(db: MotionDB, text: str) -> int | Path:
+    """``--example``: a document id of ``db`` (digits) or a motion file, else a ParameterError naming both."""
+    ids = db.documents["doc_id"]
+    if text.isdigit() and int(text) in set(ids.tolist()):
+        return int(text)
+    if not text.isdigit() and Path(text).is_file():
+        return Path(text)
+    raise ParameterError(f"--example {text} is neither a document id of {db.path} (doc ids {ids.min()}..{ids.max()}) "
+                         "nor a motion file")
 
 
-def _integers(text: str, option: str) -> list[int]:
-    """Comma-separated integers, or a ParameterError naming the option."""
-    try:
-        return [int(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise ParameterError(f"{option} must be comma-separated integers, got {text!r}") from None
+def _query_segments(example, features: list[str], relational_set: str) -> int:
+    """The segments of the example on the chosen features, fewest over the feature groups they touch: the L of an
+    m-mismatch query (query_by_example segments each group's chosen features separately, m < L in each)."""
+    values, names = relational_features(example, relational_set)
+    counts = [len(segment(values[:, [names.index(f) for f in features if f in members]]).codes)
+              for members in feature_groups(relational_set).values() if any(f in members for f in features)]
+    return min(counts)
 
 
 def _query(args) -> None:
     db = MotionDB.open(args.db)
-    if args.example.isdigit():
-        example = db.motion(int(args.example))
-    else:
-        example = load(args.example)
-    sl = _frames(args.frames)
-    example = example[sl]
-    if example.n_frames < 2:
-        raise ParameterError(f"--frames {args.frames} selects {example.n_frames} frame(s) of {example.source}; need at least 2")
+    example = _example(db, args.example)
+    motion = db.motion(example) if isinstance(example, int) else load(example)
+    what = f"document {example}" if isinstance(example, int) else str(example)
+    a, b = frame_span(args.frames, motion.n_frames, what, "--frames")
+    motion = motion[a:b]
     features = None if args.features is None else [f.strip() for f in args.features.split(",") if f.strip()]
-    mode = "mismatch" if args.mismatch else args.mode
+    known = feature_names(args.relational_set)
+    if features == []:
+        raise ParameterError(f"--features {args.features!r} names no feature; choose from the {args.relational_set} "
+                             f"set: {', '.join(known)}")
+    if args.mismatch_at is not None and not args.mismatch:
+        raise ParameterError("--mismatch-at lists the query segments that may disagree: it needs --mismatch M (M >= 1)")
+    if args.mismatch and args.mode not in (None, "adaptive"):
+        raise ParameterError(f"--mismatch {args.mismatch} answers in mismatch mode (adaptive hits with up to M "
+                             f"segments disagreeing); leave out --mode {args.mode}")
+    if args.mismatch and all(f in known for f in features or known):  # unknown names: query_by_example says which
+        n = _query_segments(motion, features or list(known), args.relational_set)
+        if args.mismatch > n - 1:
+            raise ParameterError(f"--mismatch must be between 0 and {n - 1}, one less than the query's {n} segment(s) "
+                                 f"on the chosen features; got {args.mismatch}")
+        outside = sorted({i for i in args.mismatch_at or () if i >= n})
+        if outside:
+            raise ParameterError(f"--mismatch-at lists query segments from 0 to {n - 1} (the query has {n} on the "
+                                 f"chosen features); got {', '.join(map(str, outside))}")
+    mode = "mismatch" if args.mismatch else args.mode or "adaptive"
     t0 = time.perf_counter()
-    allowed = None if args.mismatch_at is None else _integers(args.mismatch_at, "--mismatch-at")
-    hits = query_by_example(db, example, features, mode=mode, mismatches=args.mismatch or 0,
-                            relational_set=args.relational_set, allowed=allowed)
+    hits = query_by_example(db, motion, features, mode=mode, mismatches=args.mismatch,
+                            relational_set=args.relational_set, allowed=args.mismatch_at)
     ms = 1000 * (time.perf_counter() - t0)
     print(f"{len(hits)} hits in {ms:.1f} ms ({mode}, features: {', '.join(features or ['all'])})")
     cols = [c for c in ("rank", "doc_id", "name", "start_frame", "end_frame", "score", "label") if c in hits]
@@ -172,29 +245,31 @@ def _query(args) -> None:
         print(hits[cols].head(args.n_matches).round(3).to_string(index=False))
 
 
-def _names(text: str | None, known, what: str) -> list[str] | None:
-    """Comma-separated names, each checked against ``known``."""
+def _pca_reference(text: str | None, names: list[str] | None) -> MotionDB | PCAModel | None:
+    """``--pca``: a MotionDB to fit the PCA model on, or a saved model; refused when no Fp set is asked for."""
     if text is None:
         return None
-    names = [n.strip() for n in text.split(",") if n.strip()]
-    unknown = [n for n in names if n not in known]
-    if unknown or not names:
-        raise ParameterError(f"unknown {what} {', '.join(unknown) or repr(text)}; choose from {', '.join(known)}")
-    return names
+    if names is not None and not set(names) & set(PCA_SETS):
+        raise ParameterError(f"--pca is the reference of the PCA sets {', '.join(PCA_SETS)}; --numeric-sets "
+                             f"{','.join(names)} has none of them")
+    ref = Path(text)
+    if not ref.exists():
+        raise ParameterError(f"--pca {text}: no such file or folder; give a saved PCA model (.npz) or a MotionDB")
+    try:
+        return MotionDB.open(ref) if ref.is_dir() else PCAModel.load(ref)
+    except MocapvizError as exc:
+        raise ParameterError(f"--pca: {exc}") from None
 
 
 def _features(args) -> None:
     db = MotionDB.open(args.db)
-    names = _names(args.numeric_sets, NUMERIC_SETS, "numeric set")
-    ref = Path(args.pca) if args.pca else None
-    reference_db = MotionDB.open(ref) if ref is not None and ref.is_dir() else None
+    names = args.numeric_sets
+    reference = _pca_reference(args.pca, names)
     t0 = time.perf_counter()
     with optional_client(_scheduler(args)) as client:  # one cluster for the PCA fit and every set
-        pca = None
-        if reference_db is not None:
-            pca = fit_pca(reference_db, progress=not args.quiet, scheduler=client)
-        elif ref is not None:
-            pca = PCAModel.load(ref)
+        pca = reference
+        if isinstance(reference, MotionDB):
+            pca = fit_pca(reference, progress=not args.quiet, scheduler=client)
         stored = store_numeric(db, names, pca=pca, progress=not args.quiet, scheduler=client)
     print(f"{db}: {len(stored)} numeric feature sets in {time.perf_counter() - t0:.1f} s, "
           f"written to {Path(db.path) / 'features'}")
@@ -202,21 +277,41 @@ def _features(args) -> None:
     print(pd.DataFrame(rows).round(1).to_string(index=False))
 
 
-def _doc_frame(text: str) -> tuple[int, int]:
+def _doc_frame(text: str, name: str) -> tuple[int, int]:
+    """``DOC:FRAME``: a document id and a frame within it, both from 0 (whether they exist: :func:`_knn`)."""
     try:
         doc, frame = (int(x) for x in text.split(":"))
     except ValueError:
-        raise ParameterError(f"--frame must look like DOC:FRAME (document id and frame within it), got {text!r}") from None
+        raise ParameterError(f"{name} must look like DOC:FRAME (a document id and a frame within it, both from 0), "
+                             f"got {text!r}") from None
+    if doc < 0 or frame < 0:
+        raise ParameterError(f"{name} takes a document id and a frame from 0 (DOC:FRAME), got {text!r}")
     return doc, frame
+
+
+def _numeric_set(text: str, name: str) -> str:
+    """One numeric set (``--numeric-set``): a list is refused, not cut to its first name."""
+    return parse_names(text, name, "numeric set", NUMERIC_SETS, one=True)[0]
+
+
+def _scheduler_address(text: str, name: str) -> str:
+    """``--scheduler``: a dask.distributed scheduler address (or ``local``): not empty, no spaces."""
+    if not text.strip() or any(c.isspace() for c in text):
+        raise ParameterError(f"{name} needs a scheduler address such as tcp://host:8786 (or 'local'); got {text!r}")
+    return text
 
 
 def _knn(args) -> None:
     db = MotionDB.open(args.db)
-    doc, frame = _doc_frame(args.frame)
+    doc, frame = args.frame
+    ids = db.documents["doc_id"]
+    if doc not in set(ids.tolist()):
+        raise ParameterError(f"--frame {doc}:{frame}: no document {doc} in {db.path} (doc ids "
+                             f"{ids.min()}..{ids.max()})")
     span = db.frames(doc)
     if not 0 <= frame < span.stop - span.start:
         raise ParameterError(f"document {doc} has frames 0..{span.stop - span.start - 1}; --frame asks for {frame}")
-    features = numeric_of(db, _names(args.numeric_set, NUMERIC_SETS, "numeric set")[0], progress=not args.quiet)
+    features = numeric_of(db, args.numeric_set, progress=not args.quiet)
     index = KnnIndex(features)
     own = (span.start, span.stop) if args.exclude_document else None
     t0 = time.perf_counter()
@@ -230,25 +325,31 @@ def _knn(args) -> None:
         print(hits[cols].round(3).to_string(index=False))
 
 
-def _example_features(db: MotionDB, example: str, frames: str | None, name: str, X) -> tuple[object, tuple | None]:
+def _example_features(db: MotionDB, example: str, frames, name: str, X) -> tuple[object, tuple | None]:
     """The query's features: frames of a document of the DB (taken from the stored set) or of a motion file
     (resampled to the DB's rate), and the [start, stop) database frames of its document (None for a file)."""
-    sl = _frames(frames)
-    if example.isdigit():
-        span = db.frames(int(example))
-        rows = range(span.start, span.stop)[sl]
-        return np.asarray(X[rows.start : rows.stop]), (span.start, span.stop)
+    example = _example(db, example)
+    if isinstance(example, int):
+        span = db.frames(example)
+        a, b = frame_span(frames, span.stop - span.start, f"document {example}", "--frames")
+        return np.asarray(X[span.start + a : span.start + b]), (span.start, span.stop)
     motion = load(example)
     if db.typical_fps and abs(motion.fps - db.typical_fps) > 1e-6:
         motion = motion.resample(db.typical_fps)
+    a, b = frame_span(frames, motion.n_frames, str(example), "--frames")
     pca = default_pca(db) if name.startswith("Fp") else None  # the model the database's features were computed with
-    return numeric_features(motion[sl], name, pca=pca, progress=False), None
+    return numeric_features(motion[a:b], name, pca=pca, progress=False), None
 
 
 def _match(args) -> None:
-    count(args.n_matches, "-K")  # matches to report
+    if args.method == "dtw":
+        given = [o for o, v in (("-k", args.k), ("--radius", args.radius), ("--eps", args.eps)) if v is not None]
+        if given:
+            raise ParameterError(f"{', '.join(given)} shape the neighbourhood graph of --method lng; subsequence DTW "
+                                 "(--method dtw) compares every frame: leave them out")
+    k, eps = args.k or 256, args.eps or 0.0
     db = MotionDB.open(args.db)
-    name = _names(args.numeric_set, NUMERIC_SETS, "numeric set")[0]
+    name = args.numeric_set
     X = load_numeric(db, name)  # a clear error naming `mocapviz features DB` when the set is not stored
     query, own = _example_features(db, args.example, args.frames, name, X)
     starts = db.documents["start"].to_numpy()
@@ -260,9 +361,9 @@ def _match(args) -> None:
             found = found[(found["end"] < own[0]) | (found["start"] >= own[1])].head(n)
         what = "subsequence DTW"
     else:
-        found = lng(query, KnnIndex(X), k=args.k, radius=args.radius, n_matches=args.n_matches, starts=starts,
-                    eps=args.eps, exclude=own, paths=args.paths)  # fmt: skip
-        what = f"lazy neighbourhood graph, k={args.k}" + (f", r={args.radius:g}" if args.radius else "")
+        found = lng(query, KnnIndex(X), k=k, radius=args.radius, n_matches=args.n_matches, starts=starts,
+                    eps=eps, exclude=own, paths=args.paths)  # fmt: skip
+        what = f"lazy neighbourhood graph, k={k}" + (f", r={args.radius:g}" if args.radius else "")
     ms = 1000 * (time.perf_counter() - t0)
     print(f"{len(found)} matches of a {len(query)}-frame query by {name} ({what}) in {ms:.1f} ms"
           + (" (the query's own document excluded)" if own else ""))  # fmt: skip
@@ -299,19 +400,20 @@ def _search(args) -> None:
     from .search import SimilaritySearch
     from .store import atomic_write
 
-    count(args.n_matches, "-K")  # matches to report
-    if not 0 < args.min_length <= 1:
-        raise ParameterError(f"--min-length must be a share of the query's frames in (0, 1]; got {args.min_length}")
+    if args.min_length is not None and not args.stretches:
+        raise ParameterError("--min-length is the shortest stretch as a share of the query: it needs --stretches")
+    if args.csv and not Path(args.csv).parent.is_dir():
+        raise ParameterError(f"--csv {args.csv}: no folder {Path(args.csv).parent} to write it in")
     db = MotionDB.open(args.db)
-    example = int(args.example) if args.example.isdigit() else args.example
-    if isinstance(example, str) and not Path(example).is_file():
-        raise ParameterError(f"--example {example!r} is neither a document id of {args.db} nor a motion file")
-    search = SimilaritySearch(db, _names(args.numeric_set, NUMERIC_SETS, "numeric set")[0])
+    example = _example(db, args.example)
+    search = SimilaritySearch(db, args.numeric_set)
     options = {"n_matches": args.n_matches, "mode": args.mode, "exclude_document": args.exclude_document, "paths": args.paths}
+    frames = None if args.frames is None else slice(*args.frames)  # checked against the example by the search
     if args.stretches:
-        table = search.stretches(example, frames=_frames(args.frames), min_length=args.min_length, **options)
+        min_length = 0.5 if args.min_length is None else args.min_length
+        table = search.stretches(example, frames=frames, min_length=min_length, **options)
     else:
-        table = search.clips(example, frames=_frames(args.frames), **options)
+        table = search.clips(example, frames=frames, **options)
     what = "stretches" if args.stretches else "clips"
     print(f"{len(table)} {what} like {args.example} ({table.attrs['query_frames']} frames) by DTW on {search.numeric_set}"
           f", {args.mode} mode, in {table.attrs['ms']:.1f} ms" + (" (its own document excluded)" if
@@ -334,6 +436,9 @@ def _reproduce(args) -> None:
 
 
 def _datasets(args) -> None:
+    if args.action == "list" and args.name:
+        raise ParameterError(f"datasets list takes no NAME (got {args.name!r}); `mocapviz datasets fetch NAME` "
+                             "fetches one")
     if args.action == "list":
         for row in datasets.info().itertuples(index=False):
             where = "embedded in the package, no download" if row.embedded else "shared archive"
@@ -355,28 +460,58 @@ def _datasets(args) -> None:
         print(datasets.fetch(args.name, progress=True))
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with mocapviz's one-line errors: ``mocapviz: error: ...`` and where to read the usage, status 2."""
+
+    def error(self, message: str):
+        message = re.sub(r"^argument (\S+): \1(?=[ :])", r"\1", message)  # a check that names the option itself
+        self.exit(2, f"mocapviz: error: {message} (see `{self.prog} --help`)\n")
+
+
+def _option(parser: argparse.ArgumentParser, *flags: str, check, **kwargs) -> None:
+    """``parser.add_argument(*flags, **kwargs)`` whose value is ``check(text, name)``: a check of
+    :mod:`mocapviz.validation` (its range bound with functools.partial) called with the option's names
+    ("-K/--matches/--top"); its ParameterError becomes the parser's one-line error (status 2)."""
+    name = "/".join(flags)
+
+    def parse(text: str):
+        try:
+            return check(text, name)
+        except ParameterError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parser.add_argument(*flags, type=parse, **kwargs)
+
+
+_count = functools.partial(functools.partial, parse_count)  # _count(least=1) -> check(text, name)
+_number = functools.partial(functools.partial, parse_number)
+
+
 def _cluster_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--scheduler", metavar="ADDRESS", help="run the tasks on this dask.distributed scheduler "
+    _option(p, "--scheduler", check=_scheduler_address, metavar="ADDRESS", help="run the tasks on this "
+            "dask.distributed scheduler "
                    "(e.g. tcp://host:8786; its workers must see the same paths); default: a local cluster, one "
                    "worker process per core")  # fmt: skip
     p.add_argument("--no-cluster", action="store_true", help="no Dask: work in this process (threads)")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="mocapviz", description="Content-based retrieval in motion-capture databases.")
+    p = _Parser(prog="mocapviz", description="Content-based retrieval in motion-capture databases.")
     sub = p.add_subparsers(dest="command", required=True)
 
     ing = sub.add_parser("ingest", help="read ASF/AMC and BVH files into a MotionDB (creates or appends)")
     ing.add_argument("paths", nargs="+", help="files, folders (searched recursively) or glob patterns")
     ing.add_argument("--out", required=True, help="MotionDB directory")
-    ing.add_argument("--fps", type=float, help="resample every clip to this frame rate")
+    _option(ing, "--fps", check=_number(low=FPS_RANGE[0], high=FPS_RANGE[1]),
+            help=f"resample every clip to this frame rate ({FPS_RANGE[0]}..{FPS_RANGE[1]:,})")
     ing.add_argument("--labels", help="label table (TSV/CSV with a 'file' column); default: tables beside the data")
     ing.add_argument("--mapping", help="JSON file {canonical joint: joint name} for rigs the rules cannot map")
     ing.add_argument("--asf", help="ASF skeleton for all AMC files (default: found beside each)")
     ing.add_argument("--up", choices=["auto", "y", "z"], help="up axis of BVH files (default auto)")
     ing.add_argument("--skip-bad", action="store_true", help="skip unreadable files with a warning")
     _cluster_options(ing)
-    ing.add_argument("--jobs", type=int, help="worker processes of the local cluster (default: one per core), or "
+    _option(ing, "--jobs", check=_count(least=1, most=MAX_JOBS), help=f"(1..{MAX_JOBS}) worker processes of the "
+            "local cluster (default: one per core), or "
                      "with --no-cluster reader threads (default: the cores, at most 8)")
     ing.add_argument("--quiet", action="store_true", help="no progress bar")
     ing.set_defaults(func=_ingest)
@@ -385,6 +520,11 @@ def build_parser() -> argparse.ArgumentParser:
     info.add_argument("db")
     info.add_argument("--documents", action="store_true", help="also list every document")
     info.set_defaults(func=_info)
+
+    chk = sub.add_parser("check", help="read every file of a MotionDB and its derived data back and verify its "
+                                       "checksum (exit status 1 if any is damaged)")  # fmt: skip
+    chk.add_argument("db")
+    chk.set_defaults(func=_check)
 
     idx = sub.add_parser("index", help="compute relational features and build the inverted indexes of a MotionDB")
     idx.add_argument("db")
@@ -397,37 +537,41 @@ def build_parser() -> argparse.ArgumentParser:
     q = sub.add_parser("query", help="query by example: ranked hits of a clip's progression of chosen features")
     q.add_argument("db")
     q.add_argument("--example", required=True, help="a motion file, or a document id of the DB")
-    q.add_argument("--frames", help="frame span A:B of the example (default: all of it)")
+    _option(q, "--frames", check=parse_span, help="frame span A:B of the example, B excluded (default: all of it)")
     q.add_argument("--features", help="comma-separated relational feature names (default: all of the set)")
-    q.add_argument("--mode", default="adaptive", choices=["adaptive", "fuzzy", "exact"],
+    q.add_argument("--mode", choices=["adaptive", "fuzzy", "exact"],
                    help="adaptive fuzzy (default), plain fuzzy or exact hits")
-    q.add_argument("--mismatch", type=int, default=0, help="allow M segments of the query (segmented on the chosen "
-                   "features) to disagree")
-    q.add_argument("--mismatch-at", help="comma-separated 0-based query segments that may disagree (default any)")
+    _option(q, "--mismatch", check=_count(least=0), default=0, help="allow M segments of the query (segmented on the "
+            "chosen features) to disagree: 0..L-1 for a query of L segments (adaptive mismatch hits)")
+    _option(q, "--mismatch-at", check=functools.partial(parse_integers, least=0), help="with --mismatch: "
+            "comma-separated 0-based query segments that may disagree (default any)")
     q.add_argument("--relational-set", "--feature-set", dest="relational_set", default="2005",
                    choices=["2005", "2006"], help="relational set (default 2005; --feature-set: its old name)")
-    q.add_argument("-K", "--matches", "--top", dest="n_matches", type=int, default=20,
-                   help="hits to print (default 20; --top: its old name)")
+    _option(q, "-K", "--matches", "--top", check=_count(least=1), dest="n_matches", default=20,
+            help="hits to print (default 20; --top: its old name)")
     q.set_defaults(func=_query)
 
     feat = sub.add_parser("features", help="compute and store the numeric feature sets of a MotionDB (kNN search)")
     feat.add_argument("db")
-    feat.add_argument("--numeric-sets", "--sets", dest="numeric_sets", help=f"comma-separated numeric sets (default "
+    _option(feat, "--numeric-sets", "--sets", check=functools.partial(parse_names, what="numeric set",
+            options=NUMERIC_SETS), dest="numeric_sets", help=f"comma-separated numeric sets (default "
                       f"all: {','.join(NUMERIC_SETS)}; --sets: its old name)")  # fmt: skip
-    feat.add_argument("--pca", help="PCA reference for Fp8/16/25: a saved model (.npz) or a MotionDB to fit it on "
-                                    "(default: fitted on DB itself)")
+    feat.add_argument("--pca", help="PCA reference for Fp8/16/25 (only with one of them): a saved model (.npz) or a "
+                      "MotionDB to fit it on (default: fitted on DB itself)")
     _cluster_options(feat)
     feat.add_argument("--quiet", action="store_true", help="no progress bar")
     feat.set_defaults(func=_features)
 
     kn = sub.add_parser("knn", help="the k nearest frames of one frame of a MotionDB (kd-tree)")
     kn.add_argument("db")
-    kn.add_argument("--frame", required=True, help="DOC:FRAME, a document id and a frame within it")
-    kn.add_argument("--numeric-set", "--features", dest="numeric_set", default="F15E",
-                    help="numeric set (default F15E; --features: its old name)")
-    kn.add_argument("-k", type=int, default=16, help="neighbours (default 16)")
-    kn.add_argument("--radius", type=float, help="only neighbours closer than this (feature units, cm)")
-    kn.add_argument("--eps", type=float, default=0.0, help="approximate search: k-th distance within (1+eps)")
+    _option(kn, "--frame", check=_doc_frame, required=True, help="DOC:FRAME, a document id and a frame within it")
+    _option(kn, "--numeric-set", "--features", check=_numeric_set, dest="numeric_set", default="F15E",
+            help="one numeric set (default F15E; --features: its old name)")
+    _option(kn, "-k", check=_count(least=1), default=16, help="neighbours (default 16; at most the frames)")
+    _option(kn, "--radius", check=_number(low=0, low_open=True), help="only neighbours closer than this (> 0, "
+            "feature units, cm)")
+    _option(kn, "--eps", check=_number(low=0), default=0.0, help="approximate search: k-th distance within (1+eps), "
+            "eps >= 0")
     kn.add_argument("--exclude-document", action="store_true", help="leave out the frame's own document")
     kn.add_argument("--quiet", action="store_true", help="no progress bar")
     kn.set_defaults(func=_knn)
@@ -437,13 +581,16 @@ def build_parser() -> argparse.ArgumentParser:
     mt.add_argument("db")
     mt.add_argument("--example", required=True, help="a motion file, or a document id of the DB (then its own "
                     "document is excluded from the matches)")  # fmt: skip
-    mt.add_argument("--frames", help="frame span A:B of the example (default: all of it)")
-    mt.add_argument("--numeric-set", "--features", dest="numeric_set", default="F15E", help="stored numeric set "
-                    "(default F15E; see `mocapviz features`; --features: its old name)")  # fmt: skip
-    mt.add_argument("-K", "--matches", dest="n_matches", type=int, default=10, help="matches to report (default 10)")
-    mt.add_argument("-k", type=int, default=256, help="neighbours per query frame (default 256)")
-    mt.add_argument("--radius", type=float, help="only neighbours closer than this (feature units)")
-    mt.add_argument("--eps", type=float, default=0.0, help="approximate kNN: k-th distance within (1+eps)")
+    _option(mt, "--frames", check=parse_span, help="frame span A:B of the example, B excluded (default: all of it)")
+    _option(mt, "--numeric-set", "--features", check=_numeric_set, dest="numeric_set", default="F15E", help="one "
+            "stored numeric set (default F15E; see `mocapviz features`; --features: its old name)")  # fmt: skip
+    _option(mt, "-K", "--matches", check=_count(least=1), dest="n_matches", default=10,
+            help="matches to report (default 10)")
+    _option(mt, "-k", check=_count(least=1), help="--method lng: neighbours per query frame (default 256)")
+    _option(mt, "--radius", check=_number(low=0, low_open=True), help="--method lng: only neighbours closer than "
+            "this (> 0, feature units)")
+    _option(mt, "--eps", check=_number(low=0), help="--method lng: approximate kNN, k-th distance within (1+eps), "
+            "eps >= 0 (default 0)")
     mt.add_argument("--method", choices=["lng", "dtw"], default="lng", help="lng (default) or subsequence DTW")
     mt.add_argument("--paths", action="store_true", help="also print each match's alignment (query frame:document "
                     "frame pairs)")  # fmt: skip
@@ -453,17 +600,18 @@ def build_parser() -> argparse.ArgumentParser:
                         "example, ranked by DTW on a numeric feature set (exact or fast)")  # fmt: skip
     se.add_argument("db")
     se.add_argument("--example", required=True, help="a motion file, or a document id of the DB")
-    se.add_argument("--frames", help="frame span A:B of the example (default: all of it)")
-    se.add_argument("--numeric-set", "--features", dest="numeric_set", default="F15E",
-                    help="numeric set (default F15E; --features: its old name)")
-    se.add_argument("-K", "--matches", dest="n_matches", type=int, default=10, help="matches to report (default 10)")
+    _option(se, "--frames", check=parse_span, help="frame span A:B of the example, B excluded (default: all of it)")
+    _option(se, "--numeric-set", "--features", check=_numeric_set, dest="numeric_set", default="F15E",
+            help="one numeric set (default F15E; --features: its old name)")
+    _option(se, "-K", "--matches", check=_count(least=1), dest="n_matches", default=10,
+            help="matches to report (default 10)")
     se.add_argument("--mode", choices=["fast", "exact", "brute"], default="fast", help="fast (default): aligns only "
                     "where kNN and a coarse pass point; exact: brute force's answer, pruned by lower bounds; brute: "
                     "every cell")  # fmt: skip
     se.add_argument("--stretches", action="store_true", help="the K best non-overlapping stretches inside documents "
                     "(subsequence DTW) instead of whole clips")  # fmt: skip
-    se.add_argument("--min-length", type=float, default=0.5, help="with --stretches: the shortest match as a share "
-                    "of the query's frames (default 0.5)")  # fmt: skip
+    _option(se, "--min-length", check=_number(low=0, high=1, low_open=True), help="with --stretches: the shortest "
+            "match as a share of the query's frames, in (0, 1] (default 0.5)")  # fmt: skip
     se.add_argument("--exclude-document", action="store_true", help="leave out the example's own document")
     se.add_argument("--csv", help="also write the ranked table (best first) to this CSV file")
     se.add_argument("--paths", action="store_true", help="also print each match's alignment (query frame:document "
@@ -485,10 +633,13 @@ def build_parser() -> argparse.ArgumentParser:
     sv = sub.add_parser("serve", help="the dashboard in the browser: browse, query by example, kNN, matching, "
                         "correlations, index statistics, reconstruction")
     sv.add_argument("db", nargs="?", help="MotionDB folder (default: the embedded sample, ingested once)")
-    sv.add_argument("--port", type=int, default=5006)
+    _option(sv, "--port", check=parse_port, default=5006, help="port (1..65535, default 5006)")
     sv.add_argument("--address", default="127.0.0.1",
                     help="interface to listen on (default 127.0.0.1: this machine only; anything else exposes the "
-                    "database to the network and prints a warning)")
+                    "database to the network, needs --allow-origin and prints a warning)")
+    sv.add_argument("--allow-origin", action="append", metavar="HOST:PORT", help="with an --address other than "
+                    "loopback: an address browsers open the dashboard at, e.g. myhost.example.org:5006 (repeatable; "
+                    "only pages from these may use its WebSocket, never '*')")
     sv.add_argument("--show", action="store_true", help="open the dashboard in a web browser")
     sv.set_defaults(func=_serve)
 
@@ -501,15 +652,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _serve(args) -> None:
-    from .app import serve
+    from .app import serve, websocket_origins
     from .app.backend import sample_database
 
+    websocket_origins(args.address, args.port, args.allow_origin)  # refused before the sample is ingested
     db = args.db if args.db else sample_database()
-    if not 0 < args.port < 65536:
-        raise ParameterError(f"--port must be 1..65535, got {args.port}")
+    MotionDB.open(db)  # a bad path fails before the server starts
     print(f"mocapviz: serving {db} on http://{args.address}:{args.port}/ (Ctrl-C stops)", flush=True)
     with contextlib.suppress(KeyboardInterrupt):
-        serve(db, port=args.port, address=args.address, show=args.show)
+        serve(db, port=args.port, address=args.address, show=args.show, allow_origin=args.allow_origin)
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -517,7 +668,12 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    """Run ``mocapviz ARGV``; return the exit status: 0, 1 (the command refused a value or failed on bad input) or 2
+    (the argument parser refused the command line; returned, not raised, like every other status)."""
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a refused command line (2), its one line already printed
+        return int(exc.code or 0)
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _one_line_warning

@@ -42,9 +42,9 @@ from .cluster import optional_client
 from .errors import (
     LabelTableError,
     MocapFormatError,
+    MocapvizError,
     MotionDBError,
     ParameterError,
-    SkeletonMappingError,
     UnknownKeyError,
 )
 from .io import FORMATS, find_asf, load
@@ -96,9 +96,12 @@ def file_checksum(path, asf=None) -> str:
     if Path(path).suffix.lower() == ".amc":
         parts.append(Path(asf) if asf is not None else find_asf(path))
     for part in parts:
-        with open(part, "rb") as fh:
-            for chunk in iter(lambda: fh.read(1 << 20), b""):
-                h.update(chunk)
+        try:
+            with open(part, "rb") as fh:
+                for chunk in iter(lambda: fh.read(1 << 20), b""):
+                    h.update(chunk)
+        except OSError as exc:  # unreadable or vanished since it was listed: a file to skip under --skip-bad
+            raise MocapFormatError(part, f"cannot read the file ({exc.strerror or exc})") from None
     return h.hexdigest()
 
 
@@ -152,23 +155,25 @@ def read_document(path, fps: float | None = None, labels: dict | None = None, ma
 class _ReadFailure:
     """A file that failed to read, as a task returns it (MocapFormatError itself does not survive pickling)."""
 
-    kind: str  # "format" or "mapping"
+    kind: str  # the class name of the typed error (mocapviz.errors)
     message: str
     path: str | None = None
     reason: str = ""
     line: int | None = None
 
     @classmethod
-    def of(cls, exc: Exception) -> _ReadFailure:
+    def of(cls, exc: MocapvizError) -> _ReadFailure:
         if isinstance(exc, MocapFormatError):
-            return cls("format", str(exc), exc.path, exc.reason, exc.line)
-        return cls("mapping", str(exc))
+            return cls("MocapFormatError", str(exc), exc.path, exc.reason, exc.line)
+        return cls(type(exc).__name__, str(exc))
 
     def error(self) -> Exception:
         """The exception the reader raised, rebuilt (same type and message)."""
-        if self.kind == "format":
+        from . import errors
+
+        if self.kind == "MocapFormatError":
             return MocapFormatError(self.path, self.reason, self.line)
-        return SkeletonMappingError(self.message)
+        return getattr(errors, self.kind, MocapvizError)(self.message)
 
 
 def _read_task(args) -> tuple[np.ndarray, np.ndarray | None, dict] | _ReadFailure:
@@ -181,7 +186,7 @@ def _read_task(args) -> tuple[np.ndarray, np.ndarray | None, dict] | _ReadFailur
     path, sha256, fps, labels, mapping, load_options = args
     try:
         motion, meta = read_document(path, fps, labels, mapping, sha256, **load_options)
-    except (MocapFormatError, SkeletonMappingError) as exc:
+    except MocapvizError as exc:  # a malformed file, an unmappable rig, a bad label file beside the data, ...
         return _ReadFailure.of(exc)
     return motion.positions, motion.quaternions, meta
 

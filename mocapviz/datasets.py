@@ -14,7 +14,10 @@ Namco Research motion dataset), each under its own licence (``Archive.licence``)
 
 ``sample()`` (also ``fetch("sample")``) needs no download: it unpacks the small sample (22 HDM05 clips,
 2 CMU trials) shipped inside the package. Every unpack goes to a temporary folder renamed into place at the
-end, so an interrupted unpack never leaves a folder that a later call would take for complete.
+end, so an interrupted unpack never leaves a folder that a later call would take for complete. Besides the
+sha256, every member is checked as it is unpacked (tarfile's ``data`` filter and :func:`_refusal`): a member with
+an absolute path or ``..`` leading outside the folder, a link pointing outside it, or a device file is refused
+with a :class:`DatasetError` naming the archive and the member, and nothing is left behind.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import tarfile
 import urllib.parse
 import urllib.request
 from dataclasses import dataclass
@@ -395,7 +399,8 @@ class _VerifyingDownloader:
 
 
 class _AtomicUntar:
-    """pooch processor: unpack the archive into ``target`` through a temporary folder renamed at the end.
+    """pooch processor: unpack the archive into ``target`` through a temporary folder renamed at the end
+    (:func:`_unpack`: every member checked).
 
     A fresh download or update replaces ``target``; a plain fetch unpacks only when ``target`` is missing.
     Returns ``target``.
@@ -412,11 +417,84 @@ class _AtomicUntar:
 
 
 def _unpack(archive: Path, target: Path, replace: bool) -> None:
-    """Unpack ``archive`` into ``target`` atomically.
+    """Unpack ``archive`` into ``target`` atomically, every member checked (:func:`_extract`).
 
-    The archive is unpacked with ``pooch.Untar`` into a temporary folder beside ``target`` that is renamed to
-    ``target`` at the end. With ``replace``, an existing ``target`` is moved aside first; without, a ``target``
-    that appeared meanwhile (another process) is kept.
+    The archive is unpacked into a temporary folder beside ``target`` that is renamed to ``target`` at the end.
+    With ``replace``, an existing ``target`` is moved aside first; without, a ``target`` that appeared meanwhile
+    (another process) is kept. A refused member or an unreadable archive raises a DatasetError and leaves nothing.
     """
     with atomic_folder(target, replace=replace) as staging:
-        pooch.Untar(extract_dir=str(staging))(str(archive), "download", None)
+        _extract(Path(archive), staging)
+
+
+class _UnsafeMember(ValueError):
+    """A member :func:`_refusal` refuses (on a Python whose tarfile has no ``data`` filter, the only check)."""
+
+
+_DATA_FILTER = getattr(tarfile, "data_filter", None)  # Python >= 3.10.12 / 3.11.4 (PEP 706)
+_FILTER_ERRORS = (_UnsafeMember, *((tarfile.FilterError,) if hasattr(tarfile, "FilterError") else ()))
+
+
+def _refusal(member: tarfile.TarInfo, dest: str) -> str | None:
+    """Why ``member`` may not be unpacked into the folder ``dest``, or None when it may.
+
+    Refused: an absolute name (which the ``data`` filter would silently make relative), a name whose ``..`` or
+    whose path through links already unpacked leads outside ``dest``, a symbolic or hard link to an absolute path
+    or to a place outside ``dest``, and anything but files, folders and links (devices, fifos).
+    """
+    name, link = member.name, member.linkname
+    if name.startswith(("/", "\\")) or os.path.isabs(name):
+        return "an absolute path"
+    root = os.path.realpath(dest)
+    where = os.path.realpath(os.path.join(root, name))
+
+    def inside(path: str) -> bool:
+        return os.path.commonpath([root, path]) == root
+
+    if not inside(where):
+        return "a path leading outside the folder"
+    if member.issym() or member.islnk():
+        if link.startswith(("/", "\\")) or os.path.isabs(link):
+            return f"a link to the absolute path {link!r}"
+        base = os.path.dirname(where) if member.issym() else root  # a hard link names a member of the archive
+        if not inside(os.path.realpath(os.path.join(base, link))):
+            return f"a link to {link!r}, outside the folder"
+    elif not (member.isfile() or member.isdir()):
+        return "a device, fifo or other special file"
+    return None
+
+
+def _checked_member(member: tarfile.TarInfo, dest: str) -> tarfile.TarInfo:
+    """``member`` as tarfile's ``data`` filter passes it (where there is one), after :func:`_refusal`'s checks."""
+    reason = _refusal(member, dest)
+    if reason is not None:
+        raise _UnsafeMember(reason)
+    return member if _DATA_FILTER is None else _DATA_FILTER(member, dest)
+
+
+def _extract(archive: Path, folder: Path) -> None:
+    """Unpack every member of ``archive`` into ``folder``, each checked first (:func:`_checked_member`).
+
+    Raises
+    ------
+    DatasetError
+        A member is refused (the message names the archive, the member and why), or the archive cannot be read
+        as a tar file.
+    """
+
+    def check(member: tarfile.TarInfo, dest: str) -> tarfile.TarInfo:
+        try:
+            return _checked_member(member, dest)
+        except _FILTER_ERRORS as exc:
+            raise DatasetError(f"{archive.name}: member {member.name!r} refused: {exc}; nothing was unpacked "
+                               f"(from {archive})") from None  # fmt: skip
+
+    try:
+        with tarfile.open(archive) as tar:
+            if _DATA_FILTER is not None:
+                tar.extractall(folder, filter=check)
+            else:  # no filter= before Python 3.10.12 / 3.11.4: each member checked just before it is unpacked,
+                for member in tar:  # so that the links unpacked before it count
+                    tar.extract(check(member, str(folder)), folder)
+    except tarfile.TarError as exc:
+        raise DatasetError(f"{archive.name}: cannot unpack it ({exc}; from {archive})") from None

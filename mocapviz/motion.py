@@ -8,6 +8,18 @@ import numpy as np
 from . import rotations
 from .errors import ParameterError, UnknownKeyError
 
+FPS_RANGE = (1.0, 10_000.0)
+"""Frame rates (frames per second) mocapviz reads from files and resamples to: a clip outside them is a broken
+header (``Frame Time: 1e308``), not a capture."""
+
+
+def fps_problem(fps: float) -> str | None:
+    """Why ``fps`` is not a frame rate mocapviz accepts (outside :data:`FPS_RANGE`, not finite), or None."""
+    low, high = FPS_RANGE
+    if not (np.isfinite(fps) and low <= fps <= high):
+        return f"{fps:g} frames per second is outside {low:g} to {high:,g} frames per second"
+    return None
+
 
 @dataclass(frozen=True, eq=False)
 class Motion:
@@ -110,10 +122,20 @@ class Motion:
         Frame k of the result is at time k / fps; the last frame is the last one at or before the end of
         the clip. Positions are interpolated linearly, rotations by slerp between the two nearest frames,
         Euler angles linearly along the shorter way round (so 179 and -179 degrees meet at 180).
+
+        Raises
+        ------
+        ParameterError
+            ``fps`` or the clip's own frame rate is outside :data:`FPS_RANGE` (1 to 10,000 frames per second).
         """
-        fps = float(fps)
-        if not (np.isfinite(fps) and fps > 0):
-            raise ParameterError(f"target fps must be a positive number, got {fps}")
+        try:
+            fps = float(fps)
+        except (TypeError, ValueError):
+            raise ParameterError(f"target fps must be a number, got {fps!r}") from None
+        for what, rate in (("target fps", fps), (f"the frame rate of {self.source or 'the clip'}", self.fps)):
+            problem = fps_problem(rate)
+            if problem:
+                raise ParameterError(f"cannot resample: {what}: {problem}")
         if fps == self.fps:
             return self
         n_out = int(np.floor((self.n_frames - 1) * fps / self.fps + 1e-9)) + 1

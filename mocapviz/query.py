@@ -18,6 +18,7 @@ from . import index as index_mod
 from .errors import ParameterError
 from .features import feature_groups, feature_names, relational_features
 from .segmentation import segment
+from .validation import some_of
 
 MODES = ("adaptive", "fuzzy", "exact", "mismatch")
 
@@ -29,11 +30,7 @@ def _check_features(features, relational_set: str) -> list[str]:
     features = [features] if isinstance(features, str) else list(features)
     if not features:
         raise ParameterError(f"no features selected; choose some of the {relational_set} set: {', '.join(names)}")
-    unknown = [f for f in features if f not in names]
-    if unknown:
-        raise ParameterError(f"unknown feature(s) {', '.join(unknown)}; the {relational_set} set has: "
-                             f"{', '.join(names)}")
-    return features
+    return some_of(features, "feature(s)", names)
 
 
 def _group_hits(idx: index_mod.InvertedIndex, q_values: np.ndarray, chosen: list[int], mode: str,

@@ -5,6 +5,14 @@ count              an integer within a range (k neighbours, K matches, budgets).
 one_of, some_of    a name (or several) from a fixed set: numeric sets, relational sets, engines, ...
 finite_positions   joint positions without NaN or inf, the first bad frame and joint named.
 renamed            a decorator accepting a parameter's old name (see the glossary) with a FutureWarning.
+frame_span         a [first, last) span of frames inside a clip of n frames, at least ``least`` of them.
+
+Checks of text (command-line values; the command's ``type=`` functions call them):
+
+parse_count        an integer within a range; parse_port a TCP port; parse_integers a list of integers.
+parse_number       a finite number within an interval.
+parse_names        comma-separated names (or exactly one) from a fixed set.
+parse_span         ``A:B`` frame numbers (either may be left out), A < B.
 """
 
 from __future__ import annotations
@@ -89,3 +97,117 @@ def renamed(**old_to_new: str) -> Callable:
         return call
 
     return wrap
+
+
+def frame_span(frames, n: int, what: str, name: str = "frames", least: int = 2) -> tuple[int, int]:
+    """``frames`` (``(first, last)`` with either None for "from the start" / "to the end", or None for all) as
+    ``(first, last)`` inside a clip of ``n`` frames (``what`` names it: "document 3", a file) holding at least
+    ``least`` frames, or a ParameterError naming ``name`` and the clip's frames. Never clamps."""
+    first, last = (None, None) if frames is None else frames
+    a = 0 if first is None else first
+    b = n if last is None else last
+    if not 0 <= a < b <= n:
+        raise ParameterError(f"{name} {_span_text(first, last)} are outside {what}, which has frames 0..{n - 1} "
+                             f"(stop at most {n})")
+    if b - a < least:
+        raise ParameterError(f"a query needs at least {least} frames; {name} {_span_text(first, last)} of {what} "
+                             f"hold {b - a}")
+    return int(a), int(b)
+
+
+def _span_text(first, last) -> str:
+    return f"{'' if first is None else first}:{'' if last is None else last}"
+
+
+def _range_text(least, most) -> str:
+    return f"between {least} and {most:,}" if most is not None else f"of at least {least}"
+
+
+def parse_count(text: str, name: str, least: int = 1, most: int | None = None, most_is: str = "") -> int:
+    """The integer written in ``text``, checked by :func:`count`; a ParameterError naming ``name`` and the range when
+    ``text`` is not an integer ("2.5", "x", "")."""
+    try:
+        value = int(str(text).strip())
+    except ValueError:
+        raise ParameterError(f"{name} must be an integer {_range_text(least, most)}; got {text!r}") from None
+    return count(value, name, least, most, most_is)
+
+
+def parse_port(text: str, name: str) -> int:
+    """A TCP port number (1..65535) written in ``text``, or a ParameterError naming ``name``."""
+    text = str(text).strip()
+    if not (text.isdigit() and 1 <= int(text) <= 65535):
+        raise ParameterError(f"{name} must be a port number from 1 to 65535; got {text!r}")
+    return int(text)
+
+
+def parse_integers(text: str, name: str, least: int = 0) -> list[int]:
+    """Comma-separated integers, each at least ``least`` (at least one of them), or a ParameterError naming
+    ``name``."""
+    try:
+        values = [int(v) for v in str(text).split(",")]
+    except ValueError:
+        raise ParameterError(f"{name} must be comma-separated integers from {least}; got {text!r}") from None
+    if min(values) < least:
+        raise ParameterError(f"{name} takes integers from {least}; got {text!r}")
+    return values
+
+
+def parse_number(text: str, name: str, low: float | None = None, high: float | None = None, low_open: bool = False,
+                 high_open: bool = False) -> float:
+    """The finite number written in ``text`` inside the interval from ``low`` to ``high`` (closed ends unless
+    ``low_open`` / ``high_open``; None: unbounded), or a ParameterError naming ``name`` and the interval."""
+    if low is not None and high is not None:
+        interval = f"in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+    elif low is not None:
+        interval = f"{'>' if low_open else '>='} {low:g}"
+    elif high is not None:
+        interval = f"{'<' if high_open else '<='} {high:g}"
+    else:
+        interval = "(finite)"
+    try:
+        value = float(str(text).strip())
+    except ValueError:
+        value = float("nan")
+    inside = np.isfinite(value) and not (
+        low is not None and (value <= low if low_open else value < low)
+        or high is not None and (value >= high if high_open else value > high)
+    )
+    if not inside:
+        raise ParameterError(f"{name} must be a number {interval}; got {text!r}")
+    return value
+
+
+def parse_names(text: str, name: str, what: str, options, one: bool = False) -> list[str]:
+    """Comma-separated names from ``options`` (``one``: exactly one name, not a list), or a ParameterError naming
+    ``name`` (the option), the unknown names and the allowed ones; empty text is refused."""
+    names = [n.strip() for n in str(text).split(",")]
+    allowed = ", ".join(map(str, options))
+    if not all(names):
+        raise ParameterError(f"{name} needs {'a' if one else 'comma-separated'} {what} name{'' if one else 's'}; "
+                             f"got {text!r}; choose {'one' if one else 'from'}: {allowed}")
+    if one and len(names) > 1:
+        raise ParameterError(f"{name} takes one {what}, not a list; got {text!r}; choose one of {allowed}")
+    unknown = [n for n in names if n not in options]
+    if unknown:
+        raise ParameterError(f"{name}: unknown {what} {', '.join(unknown)}; choose {'one of' if one else 'from'} "
+                             f"{allowed}")
+    return names
+
+
+def parse_span(text: str, name: str) -> tuple[int | None, int | None]:
+    """``"A:B"`` as ``(A, B)``: frame numbers from 0, either left out (None: from the start / to the end), A < B;
+    or a ParameterError naming ``name``. Whether the span lies inside a clip is :func:`frame_span`'s check."""
+    parts = str(text).split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        first, last = (int(p) if p.strip() else None for p in parts)
+    except ValueError:
+        raise ParameterError(f"{name} must look like A:B (frame numbers from 0, B excluded; A or B may be left out), "
+                             f"got {text!r}") from None
+    if any(v is not None and v < 0 for v in (first, last)):
+        raise ParameterError(f"{name} takes frame numbers from 0 (A:B, B excluded), got {text!r}")
+    if first is not None and last is not None and first >= last:
+        raise ParameterError(f"{name} {text}: the first frame must come before the last (A < B, B excluded)")
+    return first, last

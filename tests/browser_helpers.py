@@ -22,7 +22,7 @@ def open_dashboard(page, url: str) -> float:
     """Load the dashboard; return the seconds until the first page (the player's first frame) is visible."""
     t0 = time.perf_counter()
     page.goto(url)
-    page.locator(".mv-player-image img").first.wait_for(state="visible")
+    page.locator(".mv-player canvas[data-drawn]").first.wait_for(state="visible")
     return time.perf_counter() - t0
 
 

@@ -6,6 +6,7 @@ import re
 
 import pytest
 from browser_helpers import free_port, open_dashboard, record_timing, text_of
+from playwright.sync_api import expect
 
 from mocapviz.features import relational_features
 from mocapviz.segmentation import segment
@@ -17,8 +18,8 @@ def test_first_page_lists_documents_and_plays_the_first_clip(sample_db, sample_d
     docs = sample_db.documents
     assert text_of(page, ".mv-doc-count") == f"{len(docs)} of {len(docs)} documents"
     first = docs.iloc[0]
-    caption = text_of(page, ".mv-player-caption")
-    assert f"of {first['n_frames']}" in caption  # one step per frame of the first document
+    caption = page.locator(".mv-player-caption").first.inner_text()
+    assert f"of {first['n_frames']} " in caption  # one step per frame of the first document
     values, _ = relational_features(sample_db.motion(int(first["doc_id"])), progress=False)
     assert f"{len(segment(values).starts)} segments in the clip" in text_of(page, ".mv-timeline-info")
     screenshot("database")
@@ -45,17 +46,21 @@ def test_filter_and_select_a_document(sample_db, sample_dashboard, page, screens
     caption.get_by_text(re.compile(rf"of {target['n_frames']} ")).wait_for()
     values, _ = relational_features(sample_db.motion(int(target["doc_id"])), progress=False)
     page.locator(".mv-timeline-info").get_by_text(f"{len(segment(values).starts)} segments in the clip").wait_for()
-    assert page.locator(".mv-player-image img").get_attribute("src").startswith("data:image/png")
+    canvas = page.locator(".mv-player canvas")
+    expect(canvas).to_have_attribute("data-clips", "1")
+    expect(canvas).to_have_attribute("data-frames", "0")  # a new clip starts at its first frame
     screenshot("selected")
 
 
 def test_player_steps_through_frames(sample_db, sample_dashboard, page):
     open_dashboard(page, sample_dashboard)
     caption = page.locator(".mv-player-caption")
-    before = page.locator(".mv-player-image img").get_attribute("src")
-    page.locator(".mv-player").get_by_role("button").nth(4).click()  # "next"
+    canvas = page.locator(".mv-player canvas")
+    drawn = int(canvas.get_attribute("data-drawn"))
+    page.locator(".mv-player button.next").click()
     caption.get_by_text(re.compile(r"^step (?!1 )\d+ of")).wait_for()
-    assert page.locator(".mv-player-image img").get_attribute("src") != before
+    expect(canvas).to_have_attribute("data-frames", "1")
+    assert int(canvas.get_attribute("data-drawn")) > drawn
 
 
 def test_serve_refuses_a_missing_database(tmp_path, capsys):
@@ -66,9 +71,20 @@ def test_serve_refuses_a_missing_database(tmp_path, capsys):
     assert err.startswith("mocapviz: error:") and "no-such-db" in err and "Traceback" not in err
 
 
-def test_serving_beyond_localhost_warns(sample_db):
-    from mocapviz.app import serve
+def test_serving_beyond_localhost_needs_listed_origins_and_warns(sample_db, monkeypatch):
+    """On 0.0.0.0 the server refuses to start without allow_origin (at once, before building a dashboard); with it,
+    it warns and hands Bokeh exactly the loopback and listed origins, never "*"."""
+    from mocapviz import app
+    from mocapviz.errors import ParameterError
 
+    port = free_port()
+    with pytest.raises(ParameterError, match="--allow-origin HOST:PORT"):
+        app.serve(sample_db.path, port=port, address="0.0.0.0", threaded=True)
+    handed = {}
+    real = app.pn.serve
+    monkeypatch.setattr(app.pn, "serve", lambda *args, **options: handed.update(options) or real(*args, **options))
     with pytest.warns(UserWarning, match="anyone who can reach"):
-        server = serve(sample_db.path, port=free_port(), address="0.0.0.0", threaded=True)
+        server = app.serve(sample_db.path, port=port, address="0.0.0.0", threaded=True,
+                           allow_origin=[f"lab.example.org:{port}"])
     server.stop()
+    assert handed["websocket_origin"] == [f"127.0.0.1:{port}", f"localhost:{port}", f"lab.example.org:{port}"]

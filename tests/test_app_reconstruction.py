@@ -53,7 +53,8 @@ def test_reconstruct_a_clip(page, sample_dashboard, sample_db, screenshot):
     assert "HDM_dg_elbowToKnee1RepsLelbowStart_017_120" in summary and "without actor dg's clips" in summary
     assert "left: original · right: reconstruction" in page.locator(".mv-recon-caption p").inner_text()
     assert page.locator(".mv-recon-page .mv-player-caption p").inner_text().startswith("step 1 of 100")
-    assert page.locator(".mv-recon-page .mv-player-image img").is_visible()
+    assert page.locator(".mv-recon-page .mv-player canvas").is_visible()
+    assert page.locator(".mv-recon-page .mv-player canvas").get_attribute("data-clips") == "2"
     assert page.locator(".mv-recon-joints").is_visible() and page.locator(".mv-recon-frames").is_visible()
     assert not page.locator(MESSAGE).is_visible()
     screenshot("result")

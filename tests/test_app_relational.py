@@ -90,12 +90,13 @@ def test_query_shows_the_library_hits_and_plays_one(name, sample_db, sample_dash
     target = expected.iloc[1]
     cell = rows.nth(1).locator('.tabulator-cell[tabulator-field="document"]')
     assert cell.inner_text().strip() == target["name"]
-    before = page.locator(".mv-query-player .mv-player-image img").get_attribute("src")
+    canvas = page.locator(".mv-query-player .mv-player canvas")
+    expect(canvas).to_have_attribute("data-clips", "1")  # the query alone
     cell.click()
     caption = page.locator(".mv-hit-caption")
     expect(caption).to_contain_text(f"beside hit 2: {target['name']}")
     expect(caption).to_contain_text(f"frames {target['start_frame']}–{target['end_frame']}")
-    assert page.locator(".mv-query-player .mv-player-image img").get_attribute("src") != before
+    expect(canvas).to_have_attribute("data-clips", "2")  # query beside hit
     screenshot(f"{name}-hit-played")
 
 

@@ -1,10 +1,17 @@
 """The `mocapviz` command: ingest, info, datasets; one-line errors with non-zero exit."""
 from __future__ import annotations
 
+import collections
+import contextlib
+import io
 import os
+import shlex
+import shutil
 import subprocess
 import sys
+import traceback
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 import pytest
@@ -115,17 +122,18 @@ def test_knn_radius_prints_only_neighbours_within_it(sample_db, capsys):
 
 
 @pytest.mark.parametrize(
-    "args, needle",
+    "args, needle, status",
     [
-        (["--frame", "0:100000"], "document 0 has frames 0.."),
-        (["--frame", "3"], "DOC:FRAME"),
-        (["--frame", "999:0"], "no document 999"),
-        (["--frame", "0:1", "--numeric-set", "F16E"], "unknown numeric set F16E"),
-        (["--frame", "0:1", "-k", "0"], "k must be between 1"),
+        (["--frame", "0:100000"], "document 0 has frames 0..", 1),
+        (["--frame", "3"], "DOC:FRAME", 2),
+        (["--frame", "999:0"], "no document 999", 1),
+        (["--frame", "0:1", "--numeric-set", "F16E"], "unknown numeric set F16E", 2),
+        (["--frame", "0:1", "-k", "0"], "-k must be at least 1", 2),
+        (["--frame", "0:1", "-k", "100000"], "k must be between 1", 1),
     ],
 )
-def test_knn_errors_are_one_line(sample_db, args, needle, capsys):
-    assert main(["knn", str(sample_db.path), *args, "--quiet"]) == 1
+def test_knn_errors_are_one_line(sample_db, args, needle, status, capsys):
+    assert main(["knn", str(sample_db.path), *args, "--quiet"]) == status
     err = capsys.readouterr().err.strip()
     assert err.startswith("mocapviz: error:") and needle in err and "\n" not in err
 
@@ -196,9 +204,7 @@ def test_match_errors_are_one_line(sample_dir, sample_db, tmp_path, capsys):
     cases = [
         ([str(bare), "--example", "0"], "run `mocapviz features DB`"),
         ([str(sample_db.path), "--example", "0", "--frames", "5:6"], "at least 2 frames"),
-        ([str(sample_db.path), "--example", "0", "-k", "0"], "k must be between 1"),
-        ([str(sample_db.path), "--example", "0", "--radius", "-2"], "radius must be a positive"),
-        ([str(sample_db.path), "--example", "0", "--numeric-set", "F16E"], "unknown numeric set F16E"),
+        ([str(sample_db.path), "--example", "0", "-k", "100000"], "k must be between 1"),
     ]
     main(["features", str(sample_db.path), "--numeric-sets", "F15E", "--quiet"])
     capsys.readouterr()
@@ -219,6 +225,345 @@ def test_malformed_option_values_are_one_line_errors(sample_db, tmp_path, capsys
           "--mismatch-at", "x"], "--mismatch-at must be comma-separated integers"),
     ]
     for argv, needle in cases:
-        assert main(argv) == 1
+        assert main(argv) == (1 if argv[0] == "ingest" else 2)  # the parser refuses --mismatch-at x
         err = capsys.readouterr().err.strip()
         assert err.startswith("mocapviz: error:") and needle in err and "\n" not in err
+
+
+# ------------------------------------------------------------------------------ every bad value: one line, never run
+# Each row: a command line with a bad value, the words its one error line must hold (the option and the allowed range
+# or values), and the exit status: 2 when the argument parser refuses it (syntax, range, names), 1 when the command
+# does (a value checked against the database or the clip: frames of a document, the query's segments, k neighbours).
+# Placeholders: {db} the demo database (2005 indexes, F15E and F30E stored), {clip} a real AMC file of the sample,
+# {out} a fresh output folder, {missing} a path that does not exist, {text} a text file, {notjson} / {listjson} /
+# {badjoint} --mapping files. `python tests/test_cli.py` counts the outcomes of every row (see `tally`).
+INGEST = "ingest {clip} --out {out} --no-cluster --quiet"
+QUERY = "query {db} --example 11 --features rknee_bent,lknee_bent"  # a squat: 4 segments on these features
+KNN = "knn {db} --frame 0:1 --quiet"
+MATCH = "match {db} --example 0 --frames 0:30"
+SEARCH = "search {db} --example 0 --frames 0:30"
+BAD_VALUES = [
+    (f"{INGEST} --fps 0", ["--fps", "[1, 10000]"], 2),
+    (f"{INGEST} --fps -30", ["--fps", "[1, 10000]"], 2),
+    (f"{INGEST} --fps x", ["--fps", "[1, 10000]"], 2),
+    (f"{INGEST} --fps nan", ["--fps", "[1, 10000]"], 2),
+    (f"{INGEST} --fps inf", ["--fps", "[1, 10000]"], 2),
+    (f"{INGEST} --fps 100000", ["--fps", "[1, 10000]"], 2),
+    (f"{INGEST} --fps ''", ["--fps", "[1, 10000]"], 2),
+    (f"{INGEST} --jobs 0", ["--jobs", "between 1 and 256"], 2),
+    (f"{INGEST} --jobs -1", ["--jobs", "between 1 and 256"], 2),
+    (f"{INGEST} --jobs x", ["--jobs", "between 1 and 256"], 2),
+    (f"{INGEST} --jobs 2.5", ["--jobs", "between 1 and 256"], 2),
+    (f"{INGEST} --jobs 100000", ["--jobs", "between 1 and 256"], 2),
+    (f"{INGEST} --up x", ["--up", "'auto', 'y', 'z'"], 2),
+    (f"{INGEST} --mapping {{missing}}", ["--mapping", "missing"], 1),
+    (f"{INGEST} --mapping {{notjson}}", ["--mapping", "not JSON"], 1),
+    (f"{INGEST} --mapping {{listjson}}", ["--mapping", "JSON object"], 1),
+    (f"{INGEST} --mapping {{badjoint}}", ["--mapping", "nosuchjoint", "lknee"], 1),
+    (f"{INGEST} --labels {{missing}}", ["--labels", "missing"], 1),
+    (f"{INGEST} --asf {{missing}}", ["--asf", "missing"], 1),
+    (f"{INGEST} --asf {{text}}", ["--asf", "text.txt"], 1),
+    ("ingest {missing} --out {out} --no-cluster", ["no .amc or .bvh files"], 1),
+    ("ingest {clip} --out {text}/db --no-cluster", ["--out", "is a file"], 1),
+    ("ingest {clip} --out {out} --scheduler '' --quiet", ["--scheduler", "tcp://"], 2),
+    ("ingest {clip} --out {out} --scheduler tcp://127.0.0.1:1 --no-cluster", ["exclude each other"], 1),
+    ("ingest {clip} --out {out} --scheduler tcp://127.0.0.1:1 --jobs 2", ["--jobs"], 1),
+    ("info {missing}", ["not a MotionDB"], 1),
+    ("info {clip}", ["not a MotionDB"], 1),
+    ("index {db} --relational-set 2007 --no-cluster", ["--relational-set", "'2005', '2006'"], 2),
+    ("index {db} --feature-set 2007 --no-cluster", ["--feature-set", "'2005', '2006'"], 2),
+    ("index {missing} --no-cluster --quiet", ["not a MotionDB"], 1),
+    ("index {db} --scheduler '' --quiet", ["--scheduler", "tcp://"], 2),
+    ("index {db} --scheduler 'tcp://a b' --quiet", ["--scheduler", "tcp://"], 2),
+    (f"{QUERY} -K -5", ["-K", "at least 1"], 2),
+    (f"{QUERY} --top -5", ["--top", "at least 1"], 2),
+    (f"{QUERY} --matches 0", ["--matches", "at least 1"], 2),
+    (f"{QUERY} -K x", ["-K", "at least 1"], 2),
+    (f"{QUERY} -K 2,3", ["-K", "at least 1"], 2),
+    (f"{QUERY} --mismatch -1", ["--mismatch", "at least 0"], 2),
+    (f"{QUERY} --mismatch x", ["--mismatch", "at least 0"], 2),
+    (f"{QUERY} --mismatch 99", ["--mismatch", "between 0 and 3", "4 segment(s)"], 1),
+    (f"{QUERY} --mismatch 4", ["--mismatch", "between 0 and 3", "4 segment(s)"], 1),
+    (f"{QUERY} --mismatch 1 --mismatch-at x", ["--mismatch-at", "integers"], 2),
+    (f"{QUERY} --mismatch 1 --mismatch-at ''", ["--mismatch-at", "integers"], 2),
+    (f"{QUERY} --mismatch 1 --mismatch-at -1", ["--mismatch-at", "from 0"], 2),
+    (f"{QUERY} --mismatch 1 --mismatch-at 99", ["--mismatch-at", "from 0 to 3"], 1),
+    (f"{QUERY} --mismatch 1 --mismatch-at 1,4", ["--mismatch-at", "from 0 to 3", "got 4"], 1),
+    (f"{QUERY} --mismatch-at 0", ["--mismatch-at", "--mismatch"], 1),
+    (f"{QUERY} --mismatch 1 --mode fuzzy", ["--mismatch", "--mode fuzzy"], 1),
+    (f"{QUERY} --frames 0:999999", ["--frames 0:999999", "document 11", "frames 0.."], 1),
+    (f"{QUERY} --frames 5:6", ["--frames 5:6", "at least 2 frames"], 1),
+    (f"{QUERY} --frames 10:5", ["--frames", "A < B"], 2),
+    (f"{QUERY} --frames a:b", ["--frames", "A:B"], 2),
+    (f"{QUERY} --frames 5", ["--frames", "A:B"], 2),
+    (f"{QUERY} --frames 0:1:2", ["--frames", "A:B"], 2),
+    (f"{QUERY} --frames=-5:10", ["--frames", "from 0"], 2),
+    (f"{QUERY} --frames ''", ["--frames", "A:B"], 2),
+    ("query {db} --example 0 --features nosuch", ["unknown feature(s) 'nosuch'", "rknee_bent"], 1),
+    ("query {db} --example 0 --features ''", ["--features", "rknee_bent"], 1),
+    ("query {db} --example 0 --features ,", ["--features", "rknee_bent"], 1),
+    (f"{QUERY} --mode x", ["--mode", "'adaptive', 'fuzzy', 'exact'"], 2),
+    (f"{QUERY} --relational-set 2007", ["--relational-set", "'2005', '2006'"], 2),
+    ("query {db} --example 9999", ["--example 9999", "doc ids 0.."], 1),
+    ("query {db} --example -1", ["--example -1", "doc ids 0.."], 1),
+    ("query {db} --example {missing}", ["--example", "missing", "doc ids 0.."], 1),
+    ("query {db} --example {clip} --frames 0:999999", ["--frames 0:999999", "HDM_", "frames 0.."], 1),
+    ("query {db} --frames 0:10", ["--example"], 2),
+    ("features {db} --numeric-sets F16E --no-cluster --quiet", ["--numeric-sets", "F16E", "F15E"], 2),
+    ("features {db} --numeric-sets '' --no-cluster --quiet", ["--numeric-sets", "F15E"], 2),
+    ("features {db} --numeric-sets , --no-cluster --quiet", ["--numeric-sets", "F15E"], 2),
+    ("features {db} --sets F15E,,F30E --no-cluster --quiet", ["--sets", "F15E"], 2),
+    ("features {db} --numeric-sets Fp8 --pca {missing} --no-cluster --quiet", ["--pca", "missing"], 1),
+    ("features {db} --numeric-sets Fp8 --pca {text} --no-cluster --quiet", ["--pca", "text.txt"], 1),
+    ("features {db} --numeric-sets F15E --pca {clip} --no-cluster --quiet", ["--pca", "Fp8"], 1),
+    ("features {db} --numeric-sets F15E --scheduler '' --quiet", ["--scheduler", "tcp://"], 2),
+    ("knn {db} --frame 0:100000 --quiet", ["--frame", "document 0 has frames 0.."], 1),
+    ("knn {db} --frame 3 --quiet", ["--frame", "DOC:FRAME"], 2),
+    ("knn {db} --frame a:b --quiet", ["--frame", "DOC:FRAME"], 2),
+    ("knn {db} --frame '' --quiet", ["--frame", "DOC:FRAME"], 2),
+    ("knn {db} --frame 0:-1 --quiet", ["--frame", "from 0"], 2),
+    ("knn {db} --frame=-1:0 --quiet", ["--frame", "from 0"], 2),
+    ("knn {db} --frame 999:0 --quiet", ["--frame", "no document 999"], 1),
+    (f"{KNN} --numeric-set F15E,F30E", ["--numeric-set", "one", "F15E,F30E"], 2),
+    (f"{KNN} --features F15E,F30E", ["--features", "one", "F15E,F30E"], 2),
+    (f"{KNN} --numeric-set F16E", ["--numeric-set", "F16E", "F30E"], 2),
+    (f"{KNN} --numeric-set ''", ["--numeric-set", "F30E"], 2),
+    (f"{KNN} -k 0", ["-k", "at least 1"], 2),
+    (f"{KNN} -k -1", ["-k", "at least 1"], 2),
+    (f"{KNN} -k x", ["-k", "at least 1"], 2),
+    (f"{KNN} -k 100000000", ["k must be between 1 and the number of indexed frames"], 1),
+    (f"{KNN} --radius 0", ["--radius", "> 0"], 2),
+    (f"{KNN} --radius -2", ["--radius", "> 0"], 2),
+    (f"{KNN} --radius nan", ["--radius", "> 0"], 2),
+    (f"{KNN} --radius x", ["--radius", "> 0"], 2),
+    (f"{KNN} --eps -1", ["--eps", ">= 0"], 2),
+    (f"{KNN} --eps nan", ["--eps", ">= 0"], 2),
+    (f"{KNN} --eps inf", ["--eps", ">= 0"], 2),
+    (f"{MATCH} -K -3 --method dtw", ["-K", "at least 1"], 2),
+    (f"{MATCH} -K 0", ["-K", "at least 1"], 2),
+    (f"{MATCH} --matches x", ["--matches", "at least 1"], 2),
+    (f"{MATCH} -k 0", ["-k", "at least 1"], 2),
+    (f"{MATCH} -k -3", ["-k", "at least 1"], 2),
+    (f"{MATCH} -k 100000000", ["k must be between 1 and the number of indexed frames"], 1),
+    (f"{MATCH} -k 64 --method dtw", ["-k", "--method lng"], 1),
+    (f"{MATCH} --radius 5 --method dtw", ["--radius", "--method lng"], 1),
+    (f"{MATCH} --radius -2", ["--radius", "> 0"], 2),
+    (f"{MATCH} --eps -1", ["--eps", ">= 0"], 2),
+    (f"{MATCH} --numeric-set F15E,F30E", ["--numeric-set", "one", "F15E,F30E"], 2),
+    (f"{MATCH} --numeric-set F16E", ["--numeric-set", "F16E", "F30E"], 2),
+    (f"{MATCH} --method x", ["--method", "'lng', 'dtw'"], 2),
+    ("match {db} --example 0 --frames 0:999999", ["--frames 0:999999", "document 0", "frames 0.."], 1),
+    ("match {db} --example 0 --frames 5:6", ["--frames 5:6", "at least 2 frames"], 1),
+    ("match {db} --example 9999", ["--example 9999", "doc ids 0.."], 1),
+    ("match {db} --example {missing}", ["--example", "missing", "doc ids 0.."], 1),
+    ("match {db} --example {clip} --frames 0:999999", ["--frames 0:999999", "HDM_", "frames 0.."], 1),
+    (f"{SEARCH} -K -1", ["-K", "at least 1"], 2),
+    (f"{SEARCH} -K 0", ["-K", "at least 1"], 2),
+    (f"{SEARCH} -K x", ["-K", "at least 1"], 2),
+    (f"{SEARCH} --stretches --min-length 0", ["--min-length", "(0, 1]"], 2),
+    (f"{SEARCH} --stretches --min-length 1.5", ["--min-length", "(0, 1]"], 2),
+    (f"{SEARCH} --stretches --min-length nan", ["--min-length", "(0, 1]"], 2),
+    (f"{SEARCH} --stretches --min-length x", ["--min-length", "(0, 1]"], 2),
+    (f"{SEARCH} --min-length 0.7", ["--min-length", "--stretches"], 1),
+    (f"{SEARCH} --numeric-set F15E,F30E", ["--numeric-set", "one", "F15E,F30E"], 2),
+    (f"{SEARCH} --mode x", ["--mode", "'fast', 'exact', 'brute'"], 2),
+    (f"{SEARCH} --csv {{missing}}/hits.csv", ["--csv", "missing"], 1),
+    ("search {db} --example 0 --frames 0:999999", ["frames 0:999999", "document 0", "frames 0.."], 1),  # the library's
+    ("search {db} --example 0 --frames 5:6", ["frames 5:6", "at least 2 frames"], 1),
+    ("search {db} --example 9999", ["--example 9999", "doc ids 0.."], 1),
+    ("search {db} --example {missing}", ["--example", "missing", "doc ids 0.."], 1),
+    ("reproduce nosuch --out {out}", ["unknown experiment(s)", "rank_correlations"], 1),
+    ("serve {db} --port 0", ["--port", "from 1 to 65535"], 2),
+    ("serve {db} --port -1", ["--port", "from 1 to 65535"], 2),
+    ("serve {db} --port 70000", ["--port", "from 1 to 65535"], 2),
+    ("serve {db} --port x", ["--port", "from 1 to 65535"], 2),
+    ("serve {db} --address 0.0.0.0", ["--allow-origin", "HOST:PORT"], 1),
+    ("serve {db} --address 0.0.0.0 --allow-origin '*'", ["--allow-origin", "'*'", "HOST:PORT"], 1),
+    ("serve {db} --address 0.0.0.0 --allow-origin ''", ["--allow-origin", "HOST:PORT"], 1),
+    ("serve {db} --address 0.0.0.0 --allow-origin http://host:5006", ["--allow-origin", "HOST:PORT"], 1),
+    ("serve {db} --address 0.0.0.0 --allow-origin host:99999", ["--allow-origin host:99999", "1 to 65535"], 1),
+    ("serve {missing}", ["not a MotionDB"], 1),
+    ("datasets get", ["action", "'list', 'fetch'"], 2),
+    ("datasets fetch", ["NAME", "hdm05-cut"], 1),
+    ("datasets fetch nosuch", ["unknown dataset 'nosuch'", "hdm05-cut"], 1),
+    ("datasets list hdm05-cut", ["datasets list", "NAME"], 1),
+]
+
+
+class _WouldRun(BaseException):
+    """Raised instead of starting a server or a Dask cluster: the command accepted its arguments."""
+
+
+@contextlib.contextmanager
+def _no_server_no_cluster():
+    """`mocapviz.app.serve` and the Dask clients raise _WouldRun instead of serving or starting a cluster."""
+    def would_run(*args, **kwargs):
+        raise _WouldRun
+
+    with mock.patch("mocapviz.app.serve", would_run), mock.patch.object(cli, "dask_client", would_run), \
+            mock.patch("mocapviz.cluster.dask_client", would_run):  # fmt: skip
+        yield
+
+
+def run_cli(argv: list[str]) -> tuple[int | None, str, str]:
+    """``mocapviz ARGV`` in this process: (exit status, stdout, stderr); status None when it ended in an uncaught
+    exception (its traceback in stderr), 0 when it would have started a server or a cluster."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), _no_server_no_cluster():
+        try:
+            status = main(argv)
+        except SystemExit as exc:
+            status = exc.code
+        except _WouldRun:
+            status = 0
+        except Exception:  # noqa: BLE001 - a bug: counted, with its traceback
+            traceback.print_exc(file=err)
+            status = None
+    return status, out.getvalue(), err.getvalue()
+
+
+def outcome(status: int | None, err: str) -> str:
+    """"one-line error", "other error" (several lines, e.g. argparse's usage), "exit 0" or "traceback"."""
+    if status is None:
+        return "traceback"
+    if status == 0:
+        return "exit 0"
+    lines = err.strip().splitlines()
+    return "one-line error" if len(lines) == 1 and lines[0].startswith("mocapviz: error: ") else "other error"
+
+
+def bad_value_paths(folder: Path, sample_dir: Path, db: Path) -> dict[str, str]:
+    """The placeholders of BAD_VALUES, with the files they name written into ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    files = {"text": ("text.txt", "plain text\n"), "notjson": ("mapping.json", "{not json"),
+             "listjson": ("list.json", "[1, 2]"), "badjoint": ("joints.json", '{"nosuchjoint": "Hips"}')}
+    for name, content in files.values():
+        (folder / name).write_text(content)
+    clip = min((sample_dir / "hdm05-cut" / "amc").glob("*.amc"))
+    return {"db": str(db), "clip": str(clip), "out": str(folder / "out"), "missing": str(folder / "missing"),
+            **{key: str(folder / name) for key, (name, _) in files.items()}}
+
+
+def tally(paths: dict[str, str], folder: Path) -> collections.Counter:
+    """Outcome of every row of BAD_VALUES (each with its own --out folder), printed one per line."""
+    counts: collections.Counter = collections.Counter()
+    for i, (line, needles, _) in enumerate(BAD_VALUES):
+        argv = [w.format(**{**paths, "out": str(folder / f"out{i}")}) for w in shlex.split(line)]
+        status, _, err = run_cli(argv)
+        what = outcome(status, err)
+        if what == "one-line error" and not all(needle in err for needle in needles):
+            what = "one-line error not naming the option and range"
+        counts[what] += 1
+        last = err.strip().splitlines()[-1] if err.strip() else ""
+        print(f"{what:15} {status!s:4} {line}\n{'':20}{last[:160]}", flush=True)
+    return counts
+
+
+@pytest.fixture(scope="module")
+def demo_db(sample_db, tmp_path_factory) -> Path:
+    """A copy of the 30 Hz sample with its 2005 relational indexes and the F15E and F30E sets, as the demo has."""
+    db = tmp_path_factory.mktemp("demo") / "sample.mdb"
+    shutil.copytree(sample_db.path, db)
+    assert main(["index", str(db), "--no-cluster", "--quiet"]) == 0
+    assert main(["features", str(db), "--numeric-sets", "F15E,F30E", "--no-cluster", "--quiet"]) == 0
+    return db
+
+
+@pytest.mark.parametrize("line, needles, status", BAD_VALUES, ids=[row[0] for row in BAD_VALUES])
+def test_every_bad_value_is_refused_in_one_line(line, needles, status, demo_db, sample_dir, tmp_path):
+    paths = bad_value_paths(tmp_path, sample_dir, demo_db)
+    got, out, err = run_cli([w.format(**paths) for w in shlex.split(line)])
+    assert outcome(got, err) == "one-line error" and got == status, f"status {got}:\n{err}{out}"
+    assert all(needle in err for needle in needles), (needles, err)
+
+
+def test_values_in_range_are_applied_exactly(demo_db, capsys):
+    """What is not refused runs as written: --mismatch up to the query's segments minus one (never capped), the
+    listed --mismatch-at segments, a -K beyond the hits (all of them), an open-ended --frames span."""
+    from mocapviz.query import query_by_example
+
+    db = MotionDB.open(demo_db)
+    features = ["rknee_bent", "lknee_bent"]
+    hits = query_by_example(db, db.motion(11), features, mode="mismatch", mismatches=3, allowed=[0, 3])
+    assert main(["query", str(demo_db), "--example", "11", "--features", ",".join(features), "--mismatch", "3",
+                 "--mismatch-at", "0,3", "-K", "100000"]) == 0  # fmt: skip
+    text = capsys.readouterr().out
+    assert text.startswith(f"{len(hits)} hits in ") and "(mismatch, " in text
+    assert len(_table(text)) == len(hits) > 2  # -K 100000: every hit, none cut
+    assert main(["query", str(demo_db), "--example", "11", "--features", ",".join(features), "--mismatch", "3",
+                 "--mismatch-at", "0,3", "--top", "2"]) == 0  # fmt: skip
+    assert len(_table(capsys.readouterr().out)) == 2
+
+    runs = []
+    for frames in ("0:30", ":30"):
+        assert main(["match", str(demo_db), "--example", "11", "--frames", frames, "--method", "dtw", "-K", "3"]) == 0
+        out = capsys.readouterr().out
+        runs.append((out.splitlines()[0].split(" in ")[0], _table(out)))
+    assert runs[0] == runs[1] and len(runs[0][1]) == 3
+    assert main(["match", str(demo_db), "--example", "11", "--frames", "10:", "--method", "dtw", "-K", "3"]) == 0
+    assert "matches of a 30-frame query" in capsys.readouterr().out  # document 11 has 40 frames
+
+
+@pytest.mark.parametrize(
+    "address, allow, expected",
+    [
+        ("127.0.0.1", None, ["127.0.0.1:5006", "localhost:5006"]),
+        ("localhost", ["lab.example.org:8080"], ["127.0.0.1:5006", "localhost:5006", "lab.example.org:8080"]),
+        ("::1", (), ["127.0.0.1:5006", "localhost:5006"]),
+        ("0.0.0.0", ["myhost.example.org:5006"], ["127.0.0.1:5006", "localhost:5006", "myhost.example.org:5006"]),
+        ("192.168.1.5", ["192.168.1.5:5006", "lab"], ["127.0.0.1:5006", "localhost:5006", "192.168.1.5:5006", "lab"]),
+        ("fe80::1", ["[fe80::1]:5006"], ["127.0.0.1:5006", "localhost:5006", "[fe80::1]:5006"]),
+    ],
+)
+def test_websocket_origins_are_loopback_and_the_listed_ones(address, allow, expected):
+    from mocapviz.app import websocket_origins
+
+    assert websocket_origins(address, 5006, allow) == expected
+
+
+@pytest.mark.parametrize(
+    "address, allow, needle",
+    [
+        ("0.0.0.0", None, "--allow-origin HOST:PORT"),
+        ("::", [], "--allow-origin HOST:PORT"),
+        ("192.168.1.5", None, "--allow-origin HOST:PORT"),
+        ("0.0.0.0", ["*"], "--allow-origin '*': give HOST:PORT"),
+        ("0.0.0.0", ["*.example.org:5006"], "without scheme, path or wildcard"),
+        ("0.0.0.0", ["192.168.*.*:5006"], "without scheme, path or wildcard"),
+        ("0.0.0.0", ["host:*"], "port of --allow-origin host:*"),
+        ("0.0.0.0", ["https://host:5006"], "without scheme"),
+        ("0.0.0.0", ["host:5006/path"], "without scheme, path"),
+        ("127.0.0.1", ["host:0"], "from 1 to 65535"),
+    ],
+)
+def test_websocket_origins_refuse_a_wildcard_or_no_list(address, allow, needle):
+    from mocapviz.app import websocket_origins
+    from mocapviz.errors import ParameterError
+
+    with pytest.raises(ParameterError) as error:
+        websocket_origins(address, 5006, allow)
+    assert needle in str(error.value) and "\n" not in str(error.value)
+
+
+def test_serve_passes_the_listed_origins_on(demo_db, monkeypatch, capsys):
+    seen = {}
+    monkeypatch.setattr("mocapviz.app.serve", lambda db, **options: seen.update(options, db=db))
+    assert main(["serve", str(demo_db), "--address", "0.0.0.0", "--port", "5007", "--allow-origin",
+                 "lab.example.org:5007", "--allow-origin", "10.0.0.7:5007"]) == 0  # fmt: skip
+    assert seen["allow_origin"] == ["lab.example.org:5007", "10.0.0.7:5007"]
+    assert (seen["db"], seen["address"], seen["port"]) == (str(demo_db), "0.0.0.0", 5007)
+    assert "serving" in capsys.readouterr().out
+
+
+if __name__ == "__main__":  # count the outcomes: python tests/test_cli.py (builds the demo database in a temp folder)
+    import tempfile
+
+    os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
+    with tempfile.TemporaryDirectory() as scratch:
+        db = Path(scratch) / "sample.mdb"
+        for argv in (["ingest", str(datasets.sample()), "--out", str(db), "--fps", "30", "--no-cluster", "--quiet"],
+                     ["index", str(db), "--no-cluster", "--quiet"],
+                     ["features", str(db), "--numeric-sets", "F15E,F30E", "--no-cluster", "--quiet"]):
+            assert run_cli(argv)[0] == 0, argv
+        found = tally(bad_value_paths(Path(scratch) / "files", datasets.sample(), db), Path(scratch))
+        print(f"{len(BAD_VALUES)} bad-value cases: " + ", ".join(f"{n} {what}" for what, n in found.most_common()))

@@ -253,3 +253,19 @@ def test_damaged_derived_files_are_named_never_answered(derived):
     assert bad == ["features/numeric-F15E.npy", "features/numeric-Fp8.npy", "index/relational-2005-lower.npz",
                    "index/relational-2005-upper.npz"]  # fmt: skip
     assert report.loc["index/relational-2005-mix.npz", "ok"] and report.loc["features/pca.npz", "ok"]
+
+
+def test_mocapviz_check_prints_every_file_and_fails_on_a_damaged_one(derived, capsys):
+    from mocapviz.cli import main
+
+    assert main(["check", str(derived.path)]) == 0
+    out = capsys.readouterr().out
+    assert out.count(" ok") >= 8 and "DAMAGED" not in out
+    arr = derived.path / _manifest(derived.path)["arrays"]["positions"]
+    raw = bytearray(arr.read_bytes())
+    raw[-3] ^= 0x01
+    arr.write_bytes(bytes(raw))
+    assert main(["check", str(derived.path)]) == 1
+    out, err = capsys.readouterr()
+    assert "DAMAGED" in out and arr.name in out
+    assert err.count("\n") == 1 and "1 of 1 files failed the check" in err

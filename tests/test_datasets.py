@@ -185,14 +185,14 @@ def test_http_missing_archive_is_a_dataset_error(http_url, home, monkeypatch):
 
 def test_interrupted_unpack_leaves_nothing_behind(archives_folder, home, monkeypatch):
     monkeypatch.setenv(datasets.DATA_URL_ENV, str(archives_folder))
-    unpack_all = pooch.Untar._extract_file
+    unpack_all = datasets._extract
 
-    def unpack_then_fail(self, fname, extract_dir):
-        unpack_all(self, fname, extract_dir)
+    def unpack_then_fail(archive, folder):
+        unpack_all(archive, folder)
         raise KeyboardInterrupt
 
     with monkeypatch.context() as patch:
-        patch.setattr(pooch.Untar, "_extract_file", unpack_then_fail)
+        patch.setattr(datasets, "_extract", unpack_then_fail)
         with pytest.raises(KeyboardInterrupt):
             datasets.fetch("bandai-namco-1")
     assert (home / "bandai-namco-1.tar.xz").is_file()
@@ -303,3 +303,101 @@ def test_unsupported_scheme(home, monkeypatch):
     monkeypatch.setenv(datasets.DATA_URL_ENV, "s3://bucket/mocap")
     with pytest.raises(DatasetError, match="unsupported scheme 's3'"):
         datasets.fetch("cmu-asfamc")
+
+
+# ------------------------------------------------------------------------------------ members that must not unpack
+def _tar(path: Path, *members: tuple[str, str, str]) -> Path:
+    """A small .tar.xz of (name, kind, content or link target) members: kind "file", "dir", "symlink", "hardlink"
+    or "device"."""
+    import io
+    import tarfile
+
+    kinds = {"file": tarfile.REGTYPE, "dir": tarfile.DIRTYPE, "symlink": tarfile.SYMTYPE, "hardlink": tarfile.LNKTYPE,
+             "device": tarfile.CHRTYPE}
+    with tarfile.open(path, "w:xz") as tar:
+        for name, kind, value in members:
+            info = tarfile.TarInfo(name)
+            info.type, info.mode = kinds[kind], 0o755 if kind == "dir" else 0o644
+            data = value.encode() if kind == "file" else b""
+            if kind in ("symlink", "hardlink"):
+                info.linkname = value
+            info.size = len(data)
+            tar.addfile(info, io.BytesIO(data) if data else None)
+    return path
+
+
+GOOD = ("evil/README.md", "file", "fine\n")
+MALICIOUS = {  # name: (members, the member refused, why)
+    "dot-dot": ([GOOD, ("evil/../../outside.txt", "file", "x")], "evil/../../outside.txt", "outside the folder"),
+    "absolute": ([GOOD, ("{outside}/outside.txt", "file", "x")], "{outside}/outside.txt", "absolute path"),
+    "symlink-out": ([GOOD, ("evil/up", "symlink", "../../..")], "evil/up", "outside the folder"),
+    "symlink-absolute": ([GOOD, ("evil/etc", "symlink", "/etc")], "evil/etc", "absolute path '/etc'"),
+    "through-a-link": ([GOOD, ("evil/here", "symlink", "."), ("evil/here/../../outside.txt", "file", "x")],
+                       "evil/here/../../outside.txt", "outside the folder"),
+    "link-then-write": ([("evil", "dir", ""), ("evil/out", "symlink", "../../.."),
+                         ("evil/out/outside.txt", "file", "x")], "evil/out", "outside the folder"),
+    "hardlink-out": ([GOOD, ("evil/passwd", "hardlink", "../../etc/passwd")], "evil/passwd", "outside the folder"),
+    "device": ([GOOD, ("evil/tty", "device", "")], "evil/tty", "device"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("data_filter", [True, False], ids=["with tarfile's data filter", "member checks alone"])
+@pytest.mark.parametrize("case", list(MALICIOUS))
+def test_unpacking_refuses_members_outside_the_folder(case, data_filter, tmp_path, monkeypatch):
+    """Whatever the sha256 says: an absolute, ``..``, link-escaping or device member is a DatasetError naming the
+    archive and the member, nothing is written outside the cache nor left in it."""
+    if not data_filter:
+        monkeypatch.setattr(datasets, "_DATA_FILTER", None)  # as on Python < 3.10.12 / 3.11.4
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    members, refused, why = MALICIOUS[case]
+    members = [(name.format(outside=outside), kind, value) for name, kind, value in members]
+    refused = refused.format(outside=outside)
+    archive = _tar(tmp_path / f"{case}.tar.xz", *members)
+    cache = outside / "cache" / "deep"  # "../../outside.txt" from the staging folder lands in outside/
+    with pytest.raises(DatasetError) as error:
+        datasets._unpack(archive, cache / "evil", replace=False)
+    message = str(error.value)
+    assert f"{case}.tar.xz: member {refused!r} refused" in message and why in message and "\n" not in message
+    assert sorted(p.name for p in outside.iterdir()) == ["cache"]  # no outside.txt
+    assert list(cache.iterdir()) == []  # no target, no staging folder left
+    assert not Path("/etc/evil").exists()
+
+
+@pytest.mark.parametrize("data_filter", [True, False], ids=["with tarfile's data filter", "member checks alone"])
+def test_unpacking_keeps_links_inside_the_folder(data_filter, tmp_path, monkeypatch):
+    if not data_filter:
+        monkeypatch.setattr(datasets, "_DATA_FILTER", None)
+    archive = _tar(tmp_path / "ok.tar.xz", ("ok", "dir", ""), ("ok/a.txt", "file", "a"),
+                   ("ok/b.txt", "symlink", "a.txt"), ("ok/sub", "dir", ""), ("ok/sub/c.txt", "symlink", "../a.txt"),
+                   ("ok/d.txt", "hardlink", "ok/a.txt"))
+    datasets._unpack(archive, tmp_path / "cache" / "ok", replace=False)
+    top = tmp_path / "cache" / "ok" / "ok"
+    assert [(top / n).read_text() for n in ("a.txt", "b.txt", "sub/c.txt", "d.txt")] == ["a"] * 4
+    assert (top / "b.txt").is_symlink()
+
+
+def test_unreadable_archive_is_a_dataset_error(tmp_path):
+    bad = tmp_path / "bad.tar.xz"
+    bad.write_bytes(b"not an archive")
+    with pytest.raises(DatasetError, match="bad.tar.xz: cannot unpack it"):
+        datasets._unpack(bad, tmp_path / "cache" / "bad", replace=False)
+    assert list((tmp_path / "cache").iterdir()) == []
+
+
+def test_fetch_refuses_a_malicious_archive_even_with_its_sha256(tmp_path, home, monkeypatch, capsys):
+    """A registered archive whose sha256 matches but which holds a ``..`` member: `mocapviz datasets fetch` says
+    which member, in one line, and the cache holds no unpacked folder."""
+    mirror = tmp_path / "mirror"
+    mirror.mkdir()
+    archive = _tar(mirror / "evil.tar.xz", GOOD, ("evil/../../../outside.txt", "file", "x"))
+    entry = datasets.Archive(name="evil", description="", files="", frames=0, fps=30, licence="", source="",
+                             sha256=pooch.file_hash(str(archive)), size=archive.stat().st_size)
+    monkeypatch.setitem(datasets.ARCHIVES, "evil", entry)
+    monkeypatch.setenv(datasets.DATA_URL_ENV, str(mirror))
+    assert main(["datasets", "fetch", "evil"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("mocapviz: error: evil.tar.xz: member 'evil/../../../outside.txt' refused")
+    assert err.count("\n") == 1
+    assert not (home / "evil").exists() and not (home / "outside.txt").exists()
+    assert not (tmp_path / "outside.txt").exists()

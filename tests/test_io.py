@@ -811,3 +811,153 @@ def test_resample_up_interpolates(hdm05_dir, hdm05_labels):
     assert motion.resample(120) is motion
     with pytest.raises(ValueError):
         motion.resample(0)
+
+
+# ------------------------------------------------------------------------------- keywords, white space, encodings
+_BVH_KEYWORDS = re.compile(r"^(\s*)(HIERARCHY|ROOT|JOINT|End Site|OFFSET|CHANNELS|MOTION|Frames:|Frame Time:)")
+_ODD_SPACES = ["\t", "\v", "\f", " \t ", "\t\v"]
+
+
+def _same_motion(a, b) -> None:
+    assert a.joint_names == b.joint_names and a.fps == b.fps
+    for x, y in ((a.positions, b.positions), (a.quaternions, b.quaternions), (a.euler, b.euler)):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_bvh_keywords_in_any_case_and_any_white_space(bvh_copy, bandai1_dir, tmp_path):
+    """Keywords and channel names in other cases, words separated by tabs, vertical tabs and form feeds (also before
+    MOTION), CR LF line ends: the same Motion as the original file."""
+    lines, data = bvh_copy
+    rng = np.random.default_rng(5)
+    out = []
+    for i, s in enumerate(lines):
+        s = _BVH_KEYWORDS.sub(lambda m, i=i: m.group(1) + (m.group(2).lower() if i % 2 else m.group(2).swapcase()), s)
+        s = re.sub("(X|Y|Z)(position|rotation)", lambda m: (m.group(1) + m.group(2)).upper(), s)
+        if i < data + 5:  # the hierarchy, the header and a few frames
+            s = re.sub(" +", lambda m: _ODD_SPACES[int(rng.integers(0, len(_ODD_SPACES)))], s)
+        out.append(s.rstrip("\r") + "\r")
+    out = [("\v" + s if s.strip().lower().startswith("motion") else s) for s in out]
+    changed = _write(tmp_path / "odd.bvh", out)
+    assert b"\vmotion" in changed.read_bytes().lower() and b"\r\n" in changed.read_bytes()
+    _same_motion(load(changed), load(bandai1_dir / "data" / "dataset-1_bow_active_001.bvh"))
+
+
+def test_asf_amc_keywords_in_any_case_and_any_white_space(amc_copy, tmp_path):
+    """ASF keywords, DOF and axis-order names upper case, AMC header lower case, tabs and vertical tabs between
+    numbers: the same Motion."""
+    amc_lines, asf = amc_copy
+    original = load(_write(tmp_path / "clip.amc", amc_lines), asf=asf)
+    asf_lines = []
+    for s in _lines(asf):
+        tok = s.split()
+        if tok and tok[0] in ("begin", "end", "name", "direction", "length", "axis", "dof", "order", "position",
+                              "orientation", "angle", "mass", "id"):
+            s = s.replace(tok[0], tok[0].upper(), 1)
+        if tok and tok[0] in ("dof", "axis"):
+            s = re.sub(r"\b(rx|ry|rz|XYZ)\b", lambda m: m.group(1).swapcase(), s)
+        asf_lines.append(s.replace(":bonedata", ":BoneData").replace(":units", ":UNITS"))
+    assert any("DOF RX" in s for s in asf_lines) and any(s.rstrip().endswith("xyz") for s in asf_lines)
+    odd = [re.sub(" ", "\t\v", s) if i % 3 == 0 else s.lower() if s.startswith(":") else s
+           for i, s in enumerate(amc_lines)]
+    asf2 = _write(tmp_path / "odd.asf", asf_lines)
+    _same_motion(load(_write(tmp_path / "odd.amc", odd), asf=asf2), original)
+
+
+def test_bvh_encodings(bvh_copy, tmp_path):
+    """UTF-8 joint names (with or without a BOM) read as UTF-8; other bytes as Latin-1; UTF-16 and NUL bytes are a
+    typed error naming the file and line."""
+    lines, _ = bvh_copy
+    k = next(i for i, s in enumerate(lines) if "JOINT" in s)
+    name = lines[k].split()[1]
+    lines[k] = lines[k].replace(name, "Hüfte")
+    text = "\n".join(lines)
+    for prefix, encoding in ((b"", "utf-8"), (b"\xef\xbb\xbf", "utf-8"), (b"", "latin-1")):
+        path = tmp_path / f"enc-{encoding}-{len(prefix)}.bvh"
+        path.write_bytes(prefix + text.encode(encoding))
+        assert "Hüfte" in load(path).joint_names
+    path = tmp_path / "utf16.bvh"
+    path.write_bytes(text.encode("utf-16"))
+    assert "UTF-16" in _raises(path, 1).reason
+    path = tmp_path / "nul.bvh"
+    path.write_bytes(text.encode("latin-1").replace(b"\n", b"\n\x00", 30).replace(b"\n\x00", b"\n", 29))
+    assert "binary" in _raises(path, 31).reason
+
+
+def test_numbers_only_in_plain_decimal_notation(bvh_copy, tmp_path):
+    """Python's float() takes '1_0', 'nan', 'Infinity' and non-ASCII digits; the readers take what the scanner takes."""
+    lines, data = bvh_copy
+    k = next(i for i, s in enumerate(lines) if s.split()[:1] == ["OFFSET"] and i > 5)
+    for token in ("1_0", "Infinity", "nan", "\u0663", "0x10", "1e999"):
+        bad = list(lines)
+        bad[k] = f"  OFFSET {token} 0 0"
+        path = tmp_path / "offset.bvh"
+        path.write_bytes("\n".join(bad).encode("utf-8"))
+        err = _raises(path, k + 1)
+        assert "OFFSET" in err.reason
+    bad = list(lines)
+    bad[data - 1] = "Frame Time: 1_0"
+    _raises(_write(tmp_path / "time.bvh", bad), data)
+
+
+# ------------------------------------------------------------------------------------------------- limits
+def test_bvh_values_beyond_the_limits(bvh_copy, tmp_path):
+    """A rotation beyond 1e5 degrees, a position channel beyond 1e7 and an OFFSET beyond 1e7 are refused at their
+    line, naming the channel and the value; 99,999 degrees is read."""
+    from mocapviz.io.checks import ANGLE_LIMIT_DEG, DISTANCE_LIMIT_CM
+
+    lines, data = bvh_copy
+    k = data + 12
+    tok = lines[k].split()
+    for col, value, ok in ((10, ANGLE_LIMIT_DEG * 2, False), (10, -ANGLE_LIMIT_DEG + 1, True),
+                           (0, DISTANCE_LIMIT_CM * 10, False)):  # fmt: skip
+        bad = list(lines)
+        bad[k] = " ".join(tok[:col] + [repr(value)] + tok[col + 1 :])
+        path = _write(tmp_path / "limit.bvh", bad)
+        if ok:
+            assert np.isfinite(load(path).positions).all()
+            continue
+        err = _raises(path, k + 1)
+        assert f"{value:.6g}" in err.reason and ("rotation" in err.reason or "position" in err.reason)
+    o = next(i for i, s in enumerate(lines) if s.split()[:1] == ["OFFSET"] and i > 5)
+    bad = list(lines)
+    bad[o] = "OFFSET 0 2e7 0"
+    _raises(_write(tmp_path / "offset.bvh", bad), o + 1)
+
+
+def test_asf_amc_values_beyond_the_limits(amc_copy, tmp_path):
+    """ASF: units length 1e-300 and 1e308, a bone of 1e308 units, a negative length, an axis of 1e6 degrees, a
+    direction of -1e400 (found by the fuzzer: inf / inf in the normalisation); AMC: an angle of 1e6 degrees; fps 0.5:
+    each refused, naming the file, line and value (fps: a ParameterError)."""
+    amc_lines, asf = amc_copy
+    asf_lines = _lines(asf)
+    units = next(i for i, s in enumerate(asf_lines) if s.split()[:1] == ["length"])
+    bone = _asf_block(asf_lines, "lfemur")
+    length = next(i for i in range(bone, len(asf_lines)) if asf_lines[i].split()[:1] == ["length"])
+    axis = next(i for i in range(bone, len(asf_lines)) if asf_lines[i].split()[:1] == ["axis"])
+    direction = next(i for i in range(bone, len(asf_lines)) if asf_lines[i].split()[:1] == ["direction"])
+    for line, text, shown in ((units, "  length 1e-300", "1e-300"), (units, "  length 1e308", "1e+308"),
+                              (length, "  length 1e308", "1e+308"), (length, "  length -2", "-2"),
+                              (axis, "  axis 0 0 1e6 XYZ", "1e+06"), (direction, "  direction 0 -1e400 0", "-1e400")
+                              ):  # fmt: skip
+        bad = list(asf_lines)
+        bad[line] = text
+        asf_bad, amc = _asf_error(bad, tmp_path, amc_lines)
+        assert shown in _raises_asf(amc, asf_bad, line + 1).reason
+    k = _bone_line(amc_lines, 4, "rfemur")
+    bad = list(amc_lines)
+    bad[k] = "rfemur 1e6 0 0"
+    assert "1e+06" in _raises(_write(tmp_path / "angle.amc", bad), k + 1, asf=asf).reason
+    from mocapviz.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="0.5 frames per second"):
+        load(_write(tmp_path / "clip.amc", amc_lines), asf=asf, fps=0.5)
+
+
+def test_forward_kinematics_in_blocks_equals_one_pass(bvh_copy, bandai1_dir, monkeypatch):
+    """Blocks of 7 frames give the same positions and rotations as the whole clip at once."""
+    from mocapviz.io import checks
+
+    path = bandai1_dir / "data" / "dataset-1_bow_active_001.bvh"
+    whole = load(path)
+    monkeypatch.setattr(checks, "_BLOCK", 7 * whole.n_joints)
+    _same_motion(load(path), whole)

@@ -224,7 +224,7 @@ def test_cli_index_and_query_print_the_library_answer(db, tmp_path, capsys):
     assert main(["query", str(copy.path), "--example", str(doc), "--features", "bogus"]) == 1
     assert "unknown feature" in capsys.readouterr().err
     assert main(["query", str(copy.path), "--example", str(doc), "--features", ""]) == 1
-    assert "no features selected" in capsys.readouterr().err
+    assert "--features '' names no feature; choose from the 2005 set" in capsys.readouterr().err
     assert main(["query", str(copy.path), "--example", str(doc), "--features", "rknee_bent", "--mismatch", "1",
                  "--mismatch-at", "0"]) == 0  # fmt: skip
     at_first = query_by_example(copy, copy.motion(doc), ["rknee_bent"], mode="mismatch", allowed=[0])

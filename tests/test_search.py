@@ -203,13 +203,13 @@ def test_search_command(hdm05_db30, tmp_path, capsys):
     assert "3 stretches like 101 (30 frames)" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize(("args", "words"), [
-    (["-K", "0"], "-K must be at least 1"),
-    (["--frames", "0:999999"], "outside document 101"),
-    (["--numeric-set", "F15E,F99"], "unknown numeric set F99"),
-    (["--stretches", "--min-length", "1.5"], "--min-length"),
+@pytest.mark.parametrize(("args", "words", "status"), [  # 2: refused by the argument parser, 1: by the command
+    (["-K", "0"], "-K/--matches must be at least 1", 2),
+    (["--frames", "0:999999"], "outside document 101", 1),
+    (["--numeric-set", "F15E,F99"], "takes one numeric set, not a list", 2),
+    (["--stretches", "--min-length", "1.5"], "--min-length must be a number in (0, 1]", 2),
 ])  # fmt: skip
-def test_search_command_errors(hdm05_db30, capsys, args, words):
-    assert main(["search", str(hdm05_db30.path), "--example", "101", *args]) == 1
+def test_search_command_errors(hdm05_db30, capsys, args, words, status):
+    assert main(["search", str(hdm05_db30.path), "--example", "101", *args]) == status
     err = capsys.readouterr().err.strip()
     assert err.startswith("mocapviz: error:") and words in err and len(err.splitlines()) == 1

@@ -186,27 +186,29 @@ def test_heading_of_a_synthetic_pose():
 
 def test_unmappable_skeleton_error_and_explicit_mapping(bandai1_files):
     motion = load(bandai1_files[3])
+    # a joint the name rules do not know, or no names at all: the structure maps them as before
     renamed = dataclasses.replace(
         motion, joint_names=tuple("Knoechel_L" if n == "Foot_L" else n for n in motion.joint_names)
     )
-    with pytest.raises(SkeletonMappingError) as info:
-        renamed.canonical()
-    msg = str(info.value)
-    assert isinstance(info.value, ValueError)
-    missing = msg.split("canonical joint(s)")[1].split("onto")[0]
-    assert "lankle" in missing and "rankle" not in missing and "lknee" not in missing
-    assert "Knoechel_L" in msg
+    assert guess_mapping(renamed)["lankle"] == "Knoechel_L"
+    np.testing.assert_array_equal(renamed.canonical().positions, motion.canonical().positions)
     fixed = renamed.canonical(mapping={"lankle": "Knoechel_L"})
     np.testing.assert_array_equal(fixed.positions, motion.canonical().positions)
-
-    # nothing mappable at all: every canonical joint listed
     anonymous = dataclasses.replace(motion, joint_names=tuple(f"j{k}" for k in range(motion.n_joints)))
-    with pytest.raises(SkeletonMappingError) as info:
-        to_canonical(anonymous)
-    missing = str(info.value).split("canonical joint(s)")[1].split("onto")[0]
-    assert all(j in missing.replace(",", " ").split() for j in CANONICAL_JOINTS)
+    np.testing.assert_array_equal(to_canonical(anonymous).positions, motion.canonical().positions)
     full = {canon: f"j{motion.joint_names.index(joint)}" for canon, joint in guess_mapping(motion).items()}
     np.testing.assert_array_equal(anonymous.canonical(mapping=full).positions, motion.canonical().positions)
+
+    # nothing mappable at all (the joints strung into one chain, no names): every canonical joint listed
+    chain = dataclasses.replace(anonymous, parents=np.arange(-1, motion.n_joints - 1))
+    with pytest.raises(SkeletonMappingError) as info:
+        to_canonical(chain)
+    msg = str(info.value)
+    assert isinstance(info.value, ValueError) and "no pelvis" in msg
+    missing = msg.split("canonical joint(s)")[1].split("onto")[0]
+    assert all(j in missing.replace(",", " ").split() for j in CANONICAL_JOINTS)
+    assert info.value.missing == list(CANONICAL_JOINTS) and '"lankle": "?"' in info.value.template
+    np.testing.assert_array_equal(chain.canonical(mapping=full).positions, motion.canonical().positions)
     # a mapping that names joints the skeleton does not have
     with pytest.raises(SkeletonMappingError, match="nowhere"):
         renamed.canonical(mapping={"lankle": "nowhere"})
@@ -215,10 +217,14 @@ def test_unmappable_skeleton_error_and_explicit_mapping(bandai1_files):
 
 
 def test_asf_skeleton_with_renamed_bones(hdm05_dir, hdm05_labels):
-    motion = load(hdm05_dir / _clip(hdm05_labels, "tr", "squat1Reps"))
-    renamed = dataclasses.replace(motion, joint_names=tuple(n.upper() for n in motion.joint_names))
-    with pytest.raises(SkeletonMappingError):
-        renamed.canonical()
+    """Bone names the ASF table does not know: the structure puts every canonical joint at the table's bone tip."""
+    for actor in ("tr", "dg"):
+        motion = load(hdm05_dir / _clip(hdm05_labels, actor, "squat1Reps"))
+        renamed = dataclasses.replace(motion, joint_names=tuple(n.upper() for n in motion.joint_names))
+        assert guess_mapping(renamed) == {canon: tip.upper() for canon, (tip, _) in SPEC_TABLE.items()}
+        np.testing.assert_array_equal(renamed.canonical().positions, motion.canonical().positions)
+        # the rotation acting at each point: the bone starting there, as in the table
+        np.testing.assert_array_equal(renamed.canonical().quaternions, motion.canonical().quaternions)
     mapping = {canon: tip.upper() for canon, (tip, _) in SPEC_TABLE.items()}
     np.testing.assert_array_equal(renamed.canonical(mapping=mapping).positions, motion.canonical().positions)
 

@@ -4,7 +4,8 @@ backend.py     Backend: one MotionDB and its cached indexes, feature sets, kd-tr
                shared by sessions).
 state.py       Selection: the session's clip, frame and span, shared by its pages.
 progress.py    Task: long computations in a worker thread behind a progress bar; errors as one red line.
-player.py      SkeletonPlayer: PyVista offscreen skeletons, one or more clips side by side, aligned playback.
+player.py      SkeletonPlayer: clips sent once and animated in the browser (player.js, Canvas 2D), one or more
+               side by side or overlaid, aligned playback.
 pages/         one module per page: database (documents, player, timelines, curves), relational (query by
                example, Müller et al. 2005), similarity (DTW search of clips and stretches, kNN of a frame, LNG
                matching, similarity matrix; Krüger et al. 2010), retrieval (retrieval quality of every search
@@ -12,17 +13,22 @@ pages/         one module per page: database (documents, player, timelines, curv
                Krüger Table 1), reconstruction (Krüger §5.2).
 
 :func:`dashboard` builds one session's page; :func:`serve` runs the server (bound to 127.0.0.1 unless told
-otherwise).
+otherwise); :func:`websocket_origins` decides which web pages may open its WebSocket (on any address other than
+loopback: only the origins listed, never ``*``).
 """
 
 from __future__ import annotations
 
+import ipaddress
 import logging
+import re
 import warnings
 from pathlib import Path
 
 import panel as pn
 
+from ..errors import ParameterError
+from ..validation import parse_port
 from .backend import Backend
 from .state import Selection
 
@@ -87,31 +93,91 @@ def _warm_search(backend: Backend) -> None:
         search.stretches(doc, frames=(0, 2), n_matches=1, mode=mode)
 
 
-def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, threaded: bool = False):
+def is_loopback(address: str) -> bool:
+    """True for ``localhost`` and loopback IP addresses (127.0.0.0/8, ::1): reachable from this machine only."""
+    if address == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(address).is_loopback
+    except ValueError:
+        return False
+
+
+_ORIGIN = re.compile(r"(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9]([A-Za-z0-9.-]*[A-Za-z0-9])?)(:(?P<port>[^:\]/]*))?")
+_ORIGIN_HINT = ("give HOST:PORT as the browser's address bar shows it (e.g. --allow-origin myhost.example.org:5006), "
+                "without scheme, path or wildcard")
+
+
+def websocket_origins(address: str, port: int, allow_origin=()) -> list[str]:
+    """The origins (``host:port``, as browsers send them) whose pages may open the dashboard's WebSocket.
+
+    Parameters
+    ----------
+    address : str
+        The interface the server listens on.
+    port : int
+        Its port.
+    allow_origin : sequence of str
+        ``HOST:PORT`` (or ``HOST``: any port) of the addresses users open the dashboard at from other machines
+        (``mocapviz serve --allow-origin``, repeatable). Required when ``address`` is not loopback: the dashboard is
+        then reachable from the network, and without a list any web page a user opens could drive it.
+
+    Returns
+    -------
+    list of str
+        ``127.0.0.1:PORT`` and ``localhost:PORT``, ``address:PORT`` for a concrete address, then ``allow_origin``.
+
+    Raises
+    ------
+    ParameterError
+        ``address`` is not loopback and ``allow_origin`` is empty; an origin is ``*``, holds a wildcard, a scheme or
+        a path, or a port outside 1..65535.
+    """
+    allow_origin = list(allow_origin or ())
+    if not is_loopback(address) and not allow_origin:
+        raise ParameterError(f"serving on {address} makes the dashboard reachable from the network: list the "
+                             f"origins browsers will open it at with --allow-origin HOST:PORT (repeatable; "
+                             f"allow_origin= in Python), e.g. --allow-origin myhost.example.org:{port}; '*' is "
+                             f"not accepted")  # fmt: skip
+    for origin in allow_origin:
+        found = _ORIGIN.fullmatch(str(origin))
+        if found is None:
+            raise ParameterError(f"--allow-origin {origin!r}: {_ORIGIN_HINT}")
+        if found["port"] is not None:
+            parse_port(found["port"], f"the port of --allow-origin {origin}")
+    own = [] if address in ("0.0.0.0", "::") or is_loopback(address) else [f"[{address}]" if ":" in address
+                                                                             else address]  # fmt: skip
+    origins = [f"{host}:{port}" for host in (LOCAL, "localhost", *own)]
+    return origins + [o for o in allow_origin if o not in origins]
+
+
+def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, threaded: bool = False,
+          allow_origin=()):
     """Serve the dashboard of the MotionDB at ``db_path`` on http://address:port/ until interrupted.
 
     The database is opened (and checked) and one dashboard built before the server starts, so a bad path fails at
-    once and the first page comes quickly. Any address other
-    than 127.0.0.1 / localhost exposes the database to the network: a warning says so.
+    once and the first page comes quickly. Any address other than loopback (127.0.0.1, localhost, ::1) exposes the
+    database to the network: ``allow_origin`` must then list the origins (``HOST:PORT``) users open it at (see
+    :func:`websocket_origins`), and a warning says who can reach it.
 
     Raises
     ------
     MotionDBError
         ``db_path`` is not a MotionDB, or holds no documents.
+    ParameterError
+        Not loopback and no ``allow_origin``, or a malformed origin (:func:`websocket_origins`).
     """
+    origins = websocket_origins(address, port, allow_origin)
     dashboard(db_path)  # once before listening: the first visitor then finds numba kernels, the EGL context,
     # HoloViews' option trees and the first clip's features ready
     _warm_search(Backend.open(db_path))
-    if address not in (LOCAL, "localhost"):
+    if not is_loopback(address):
         warnings.warn(f"serving on {address}: anyone who can reach this machine's port {port} can browse "
-                      f"{db_path}", UserWarning, stacklevel=2)
-    origins = [f"{host}:{port}" for host in {address, LOCAL, "localhost"}]
-    if address in ("0.0.0.0", "::"):
-        origins = ["*"]
+                      f"{db_path} (pages of {', '.join(origins)} may use it)", UserWarning, stacklevel=2)
     pn.extension("tabulator", notifications=False)
     path = Path(db_path)
     return pn.serve({"/": lambda: dashboard(path)}, port=port, address=address, show=show, threaded=threaded,
                     websocket_origin=origins, title=f"{TITLE} · {path.name}")
 
 
-__all__ = ["Backend", "Selection", "dashboard", "serve"]
+__all__ = ["Backend", "Selection", "dashboard", "is_loopback", "serve", "websocket_origins"]

@@ -1,68 +1,126 @@
-"""The dashboard's 3D skeleton player: one or more clips rendered offscreen by PyVista, played side by side.
+"""The dashboard's 3D skeleton player: one or more clips sent to the browser once and animated there.
 
-The server draws each shown frame (:func:`mocapviz.viz.skeleton.render_skeletons`, a few milliseconds through EGL)
-and sends it as a PNG, so the browser needs no WebGL. Several clips play in step through an alignment: row s of
-``alignment`` names the frame of every clip shown at step s (a DTW or LNG warping path plays two motions aligned;
-without one, clips play from their first frames at the same rate, each holding its last frame).
+:class:`SkeletonPlayer` hands the clips' canonical joint positions to a small Panel ``JSComponent``
+(:class:`PlayerView`, code in ``player.js`` beside this module: Canvas 2D, a perspective projection of the bones,
+no library, nothing fetched at run time). The browser plays them at the clip's frame rate (0.25×-2×), scrubs with its
+slider, orbits (drag) and zooms (wheel) the camera over a floor grid, and colours the bones by side. Several clips play
+in step through an alignment: row s of ``alignment`` names the frame of every clip shown at step s (a DTW or LNG warping
+path plays two motions aligned; without one, clips play from their first frames at the same rate, each holding its
+last frame); they are shown side by side or overlaid.
+
+Wire format (one message per :meth:`SkeletonPlayer.load`): ``positions`` is the float32 little-endian bytes of every
+clip's (T_i, 24, 3) positions in cm, concatenated (a Bokeh binary buffer on the server's WebSocket: 288 KB for 1,000
+frames, base64 only in static exports); ``alignment`` the int32 bytes of the (S, n_clips) alignment; ``meta`` the
+lengths, titles, frame rate, bone tree, sides and scene box. The shown step comes back to Python (``step``) when the
+user pauses, steps or scrubs, and at most four times a second during playback.
 """
 
 from __future__ import annotations
 
+from itertools import pairwise
+from pathlib import Path
+from typing import ClassVar
+
 import numpy as np
 import panel as pn
 import param
+from panel.custom import JSComponent
 
 from ..errors import ParameterError
-from ..viz.skeleton import png_bytes, render_skeletons, scene_bounds
+from ..skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
 
-SPEEDS = {"0.25×": 0.25, "0.5×": 0.5, "1×": 1.0, "2×": 2.0}
-MAX_DISPLAY_FPS = 15.0
+SPEEDS = (0.25, 0.5, 1.0, 2.0)
+CONTROLS_HEIGHT = 60  # px under the canvas: the buttons, slider and caption
+
+
+def joint_sides(names=CANONICAL_JOINTS) -> list[str]:
+    """``"l"``, ``"r"`` or ``"c"`` (centre) per joint: a name starting with l/r whose twin (r/l + the rest) exists."""
+    names = list(names)
+    twin = {"l": "r", "r": "l"}
+    return [n[0] if n[:1] in twin and twin[n[0]] + n[1:] in names else "c" for n in names]
+
+
+def scene_box(clips, margin_cm: float = 20.0) -> list[list[float]]:
+    """(min, max) corners in cm of every frame of ``clips``, widened by ``margin_cm``, the floor (y = 0) inside."""
+    lo = np.min([c.reshape(-1, 3).min(axis=0) for c in clips], axis=0) - margin_cm
+    hi = np.max([c.reshape(-1, 3).max(axis=0) for c in clips], axis=0) + margin_cm
+    lo[1], hi[1] = min(lo[1], 0.0), max(hi[1], 0.0)
+    return [[float(v) for v in lo], [float(v) for v in hi]]
+
+
+class PlayerView(JSComponent):
+    """The browser side of :class:`SkeletonPlayer` (``player.js``); its parameters are the wire format."""
+
+    positions = param.Bytes(default=None, doc="float32 little-endian (sum T_i, J, 3) cm: the clips, concatenated")
+    alignment = param.Bytes(default=None, doc="int32 little-endian (S, n_clips): the frame of each clip per step")
+    meta = param.Dict(default={}, doc="lengths, n_joints, titles, fps, parents, sides, bounds")
+    step = param.Integer(default=0, bounds=(0, None), doc="the shown step (synced back, throttled)")
+    speed = param.Number(default=1.0, doc="playback speed, a multiple of the clips' frame rate")
+    view_size = param.List(default=[520, 380], doc="(width, height) of the canvas in px")
+
+    _esm = Path(__file__).with_name("player.js")
+
+    _stylesheets: ClassVar[list[str]] = ["""
+.mvp { font: 13px sans-serif; }
+.mvp canvas { display: block; border: 1px solid #ddd; cursor: grab; touch-action: none; }
+.mvp-controls { display: flex; align-items: center; gap: 4px; margin-top: 4px; }
+.mvp-controls button { font-size: 13px; min-width: 30px; height: 26px; white-space: nowrap; border: 1px solid #bbb;
+  border-radius: 4px; background: #f7f7f7; cursor: pointer; }
+.mvp-controls button.active { background: #1f5fa8; color: #fff; border-color: #1f5fa8; }
+.mvp-speeds { display: inline-flex; gap: 2px; margin-left: 4px; }
+.mv-player-caption p { margin: 4px 0 0 2px; color: #333; }
+"""]
 
 
 class SkeletonPlayer(pn.viewable.Viewer):
-    """Play/pause, a frame slider, speed and camera angle over clips of canonical poses.
+    """Play/pause, a frame slider, speed and an orbiting camera over clips of canonical poses, in the browser.
 
     Parameters
     ----------
-    size : (width, height) in pixels of the whole image (split between the clips side by side).
+    size : (width, height) in pixels of the view (split between the clips side by side).
 
     Attributes
     ----------
     step : int parameter, the shown step (a frame of the first clip when there is no alignment); watch it to follow
-        the player.
+        the player. The browser reports it when paused, stepped or scrubbed, and every 250 ms during playback;
+        setting it moves the browser's player.
+    speed : float parameter, the playback speed (0.25, 0.5, 1 or 2 times the clips' frame rate).
+    view : PlayerView, the browser component.
     """
 
     step = param.Integer(default=0, bounds=(0, None))
+    speed = param.Selector(default=1.0, objects=list(SPEEDS))
 
     def __init__(self, size=(520, 380), **params):
         super().__init__(**params)
-        self.size = tuple(size)
+        self.size = tuple(int(v) for v in size)
+        self.fps = 30.0
         self._clips: list[np.ndarray] = []
         self._titles: list[str] = []
         self._alignment = np.zeros((1, 0), dtype=np.int64)
-        self._bounds = None
-        self.image = pn.pane.PNG(None, width=self.size[0], height=self.size[1], css_classes=["mv-player-image"])
-        self.player = pn.widgets.Player(start=0, end=1, value=0, interval=100, loop_policy="loop",
-                                        show_loop_controls=False, width=self.size[0], css_classes=["mv-player"],
-                                        visible_buttons=["slower", "previous", "pause", "play", "next", "faster"])
-        self.speed = pn.widgets.RadioButtonGroup(options=list(SPEEDS), value="1×", width=200)
-        self.azimuth = pn.widgets.IntSlider(label="camera (°)", start=-180, end=180, step=15, value=0, width=180)
-        self.caption = pn.pane.Markdown("", margin=(0, 5), css_classes=["mv-player-caption"])
-        self.player.param.watch(lambda e: setattr(self, "step", int(e.new)), "value")
-        self.param.watch(self._on_step, "step")
-        self.speed.param.watch(lambda e: self._set_interval(), "value")
-        self.azimuth.param.watch(lambda e: self._draw(), "value")
-        self.fps = 30.0
+        self.view = PlayerView(view_size=list(self.size), width=self.size[0] + 2,
+                               height=self.size[1] + CONTROLS_HEIGHT, css_classes=["mv-player"])
+        self.view.param.watch(self._from_view, ["step", "speed"])
+        self.param.watch(self._to_view, ["step", "speed"])
 
     def __panel__(self):
-        return pn.Column(self.image, self.player, pn.Row(self.speed, self.azimuth), self.caption)
+        return self.view
 
     @property
     def n_steps(self) -> int:
         return self._alignment.shape[0]
 
+    def _from_view(self, event) -> None:
+        value = float(event.new) if event.name == "speed" else int(event.new)
+        if getattr(self, event.name) != value and (event.name != "speed" or value in SPEEDS):
+            setattr(self, event.name, value)
+
+    def _to_view(self, event) -> None:
+        if getattr(self.view, event.name) != event.new:
+            setattr(self.view, event.name, event.new)
+
     def load(self, clips, titles=None, fps: float = 30.0, alignment=None) -> None:
-        """Show new clips from their first step.
+        """Show new clips from their first step (sent to the browser in one message).
 
         Parameters
         ----------
@@ -74,11 +132,17 @@ class SkeletonPlayer(pn.viewable.Viewer):
         Raises
         ------
         ValueError
-            No clip, an empty clip, or an alignment of the wrong shape or outside a clip's frames.
+            No clip, an empty clip or one not of the canonical joints, or an alignment of the wrong shape or outside a
+            clip's frames.
         """
+        n_joints = len(CANONICAL_PARENTS)
         clips = [np.asarray(c, dtype=np.float32) for c in clips]
-        if not clips or any(c.ndim != 3 or len(c) == 0 for c in clips):
-            raise ParameterError("the player needs one or more non-empty (T, 24, 3) clips")
+        if not clips or any(c.ndim != 3 or c.shape[1:] != (n_joints, 3) or len(c) == 0 for c in clips):
+            raise ParameterError(f"the player needs one or more non-empty (T, {n_joints}, 3) clips")
+        if not all(np.isfinite(c).all() for c in clips):
+            raise ParameterError("the player's clips hold NaN or infinite positions")
+        if not np.isfinite(fps) or fps <= 0:
+            raise ParameterError(f"the player's fps must be a positive number; got {fps}")
         # each clip starts above the origin, so side-by-side viewports share one camera box
         clips = [c - np.array([c[0, 0, 0], 0.0, c[0, 0, 2]], dtype=np.float32) for c in clips]
         if alignment is None:
@@ -92,21 +156,12 @@ class SkeletonPlayer(pn.viewable.Viewer):
                 raise ParameterError(f"alignment column {j} leaves clip {j}'s frames 0..{len(c) - 1}")
         self._clips, self._alignment, self.fps = clips, alignment, float(fps)
         self._titles = list(titles) if titles is not None else [f"clip {j + 1}" for j in range(len(clips))]
-        self._bounds = scene_bounds(*clips)
-        self._set_interval()
-        self.player.param.update(value=0, end=max(self.n_steps - 1, 1))
+        meta = {"lengths": [len(c) for c in clips], "n_joints": n_joints, "titles": [str(t) for t in self._titles],
+                "fps": self.fps, "parents": [int(p) for p in CANONICAL_PARENTS], "sides": joint_sides(),
+                "bounds": scene_box(clips)}
+        positions = np.concatenate([c.reshape(-1) for c in clips]).astype("<f4").tobytes()
+        self.view.param.update(positions=positions, alignment=alignment.astype("<i4").tobytes(), meta=meta, step=0)
         self.step = 0
-        self._draw()
-
-    def _set_interval(self) -> None:
-        stride = max(1, round(self.fps / MAX_DISPLAY_FPS))
-        self.player.step = stride
-        self.player.interval = round(1000 * stride / self.fps / SPEEDS[self.speed.value])
-
-    def _on_step(self, event) -> None:
-        if self.player.value != event.new:
-            self.player.value = event.new
-        self._draw()
 
     def frames(self) -> list[int]:
         """The frame of each clip shown now."""
@@ -114,13 +169,16 @@ class SkeletonPlayer(pn.viewable.Viewer):
             return []
         return [int(f) for f in self._alignment[min(self.step, self.n_steps - 1)]]
 
-    def _draw(self) -> None:
-        if not self._clips:
-            return
-        frames = self.frames()
-        poses = [c[f] for c, f in zip(self._clips, frames)]
-        titles = [f"{t}  frame {f}" for t, f in zip(self._titles, frames)]
-        image = render_skeletons(poses, bounds=self._bounds, size=self.size, titles=titles,
-                                 azimuth=float(self.azimuth.value))
-        self.image.object = png_bytes(image)
-        self.caption.object = f"step {self.step + 1} of {self.n_steps} · {self.n_steps / self.fps:.2f} s at 1×"
+    def caption(self) -> str:
+        """The caption the browser shows under the view: the step and the clip's duration."""
+        return f"step {self.step + 1} of {self.n_steps} · {self.n_steps / self.fps:.2f} s at 1×"
+
+
+def decode(view: PlayerView):
+    """What ``view`` sends the browser, decoded as ``player.js`` does: (clips, alignment) as numpy arrays."""
+    meta = view.meta
+    flat = np.frombuffer(view.positions or b"", dtype="<f4")
+    cuts = np.cumsum([0] + [n * meta["n_joints"] * 3 for n in meta["lengths"]])
+    clips = [flat[a:b].reshape(-1, meta["n_joints"], 3) for a, b in pairwise(cuts)]
+    alignment = np.frombuffer(view.alignment or b"", dtype="<i4").reshape(-1, len(meta["lengths"]))
+    return clips, alignment

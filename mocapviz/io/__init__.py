@@ -79,14 +79,21 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
     Raises
     ------
     MocapFormatError
-        Unsupported extension, unreadable or malformed file (naming the file and line).
+        Unsupported extension, unreadable or malformed file (naming the file and line; for a malformed ASF, the
+        AMC too), or a value beyond the limits of :mod:`mocapviz.io.checks`.
+    ParameterError
+        ``fps`` outside 1 to 10,000, or a bad ``up`` or ``scale``.
     """
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
     if not os.path.isfile(path):
         raise MocapFormatError(path, "no such file")
     if ext == ".amc":
-        skeleton = read_asf(asf if asf is not None else find_asf(path))
+        asf = asf if asf is not None else find_asf(path)
+        try:
+            skeleton = read_asf(asf)
+        except MocapFormatError as exc:  # name the AMC too: it is the file that could not be read
+            raise MocapFormatError(exc.path, f"{exc.reason} (the skeleton of {os.path.basename(path)})", exc.line) from None
         return read_amc(path, skeleton, fps=120.0 if fps is None else fps)
     if ext == ".bvh":
         return read_bvh(path, up=up, scale=scale)

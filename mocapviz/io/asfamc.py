@@ -17,23 +17,33 @@ Conventions (Acclaim ASF/AMC specification, as read by the CMU and HDM05 tools):
 - A bone with DOFs that has no line in any frame of the AMC keeps its rest pose; a bone line missing from
   only some frames is an error, except in the last frame, which is dropped with a warning (a file cut off
   inside its last frame, as CMU ``golf_01.amc``).
+- Text: keywords (``:units``, ``:bonedata``, ``begin``, ``dof``, ``:RADIANS``, ...), DOF and axis-order names in
+  any case; bone names as written (case-sensitive); words separated by any ASCII white space; lines end with LF
+  or CR LF; bytes read as Latin-1 (so ASF and AMC bone names match byte for byte), a UTF-8 BOM skipped.
+- Values: plain decimal numbers (no ``nan``, ``inf``); ``:units length`` 0.001 to 1000; bone lengths from 0 to
+  1e7 cm; angles within ±1e5 degrees; root translations and positions within ±1e7 cm
+  (:mod:`mocapviz.io.checks`).
 """
 from __future__ import annotations
 
 import functools
 import os
 import warnings
+from collections import Counter
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from .. import rotations
-from ..errors import MocapFormatError
-from ..motion import Motion
-from .text import name_hash, scan
+from ..errors import MocapFormatError, ParameterError
+from ..motion import Motion, fps_problem
+from .checks import ANGLE_LIMIT_DEG, DISTANCE_LIMIT_CM, checked_forward_kinematics, describe, first_outside
+from .text import name_hash, number, read_bytes, scan, words
 
 _ROT_DOFS = ("rx", "ry", "rz")
 _ROOT_CHANNELS = ("TX", "TY", "TZ", "RX", "RY", "RZ")
+_UNIT_RANGE = (1e-3, 1e3)  # ``:units length`` u: one file unit is 1/u inch
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,30 +88,24 @@ def _check_order(order: str, path, line: int) -> str:
     return order.upper()
 
 
-def _floats(tokens, n, path, line, what):
-    try:
-        vals = [float(t) for t in tokens]
-    except ValueError:
-        raise MocapFormatError(path, f"{what}: expected {n} numbers, got {' '.join(tokens)!r}", line) from None
+def _floats(tokens, n, path, line, what, limit: float = float("inf"), unit: str = ""):
+    """``n`` plain decimal numbers, each within ``±limit`` (in ``unit``, for the message), or a MocapFormatError."""
+    vals = [number(t) for t in tokens]
+    if None in vals:
+        raise MocapFormatError(path, f"{what}: expected {n} numbers, got {' '.join(tokens)!r}", line)
     if len(vals) != n:
         raise MocapFormatError(path, f"{what}: expected {n} numbers, got {len(vals)}", line)
-    if not np.all(np.isfinite(vals)):
-        raise MocapFormatError(path, f"{what}: non-finite value", line)
+    for k, v in enumerate(vals):
+        if not np.isfinite(v):
+            raise MocapFormatError(path, f"{what}: number out of range (not finite): {tokens[k]!r}", line)
+        if abs(v) > limit:
+            raise MocapFormatError(path, f"{what}: {describe(v)} is beyond ±{limit:g}{unit}", line)
     return vals
 
 
-def _read_text(path) -> str:
-    try:
-        with open(path, "rb") as fh:
-            raw = fh.read()
-    except OSError as exc:
-        raise MocapFormatError(path, f"cannot read file ({exc.strerror})") from None
-    if not raw.strip():
-        raise MocapFormatError(path, "file is empty")
-    if b"\x00" in raw[:4096]:
-        raise MocapFormatError(path, "binary data, not a text file")
-    # ASF/AMC are ASCII; HDM05 headers hold Latin-1 bytes, which latin-1 decodes without loss.
-    return raw.decode("latin-1")
+def _angle_limit(degrees: bool) -> tuple[float, str]:
+    """The largest angle accepted, in the file's angle unit, and that unit (for messages)."""
+    return (ANGLE_LIMIT_DEG, " degrees") if degrees else (float(np.radians(ANGLE_LIMIT_DEG)), " radians")
 
 
 def read_asf(path) -> AsfSkeleton:
@@ -118,18 +122,23 @@ def read_asf(path) -> AsfSkeleton:
     Raises
     ------
     MocapFormatError
-        Missing sections, malformed bone blocks, unsupported DOFs or rotation orders, hierarchy problems;
-        the message names the file and line.
+        Missing sections, malformed bone blocks, unsupported DOFs or rotation orders, hierarchy problems, values
+        beyond the limits of :mod:`mocapviz.io.checks` (units, lengths, angles); the message names the file and
+        line.
     """
     path = os.fspath(path)
-    st = os.stat(path) if os.path.exists(path) else None
-    key = (path, st.st_mtime_ns, st.st_size) if st else (path, 0, 0)
-    return _read_asf_cached(*key)
+    # parsed once per path and content (a file rewritten within one timestamp tick is still read again)
+    return _read_asf_cached(path, read_bytes(path))
 
 
 @functools.lru_cache(maxsize=64)
-def _read_asf_cached(path, _mtime, _size) -> AsfSkeleton:
-    lines = _read_text(path).splitlines()
+def _read_asf_cached(path, raw: bytes) -> AsfSkeleton:
+    # ASF/AMC are ASCII; HDM05 headers hold Latin-1 bytes, which Latin-1 decodes without loss (and bone names keep
+    # the bytes the AMC scanner hashes)
+    return _parse_asf(path, raw.decode("latin-1").split("\n"))
+
+
+def _parse_asf(path, lines: list[str]) -> AsfSkeleton:
     section = None
     length_unit = 1.0
     degrees = True
@@ -138,23 +147,28 @@ def _read_asf_cached(path, _mtime, _size) -> AsfSkeleton:
     bone = None
     hierarchy: dict[str, str] = {}
     seen = set()
-    for ln, raw in enumerate(lines, start=1):
-        tok = raw.split()
+    hierarchy_line: dict[str, int] = {}
+    units_line = None
+    for ln, line in enumerate(lines, start=1):
+        tok = words(line)
         if not tok or tok[0].startswith("#"):
             continue
         key = tok[0]
         if key.startswith(":"):
-            section = key[1:].lower()
+            section = _keyword(key[1:])
             seen.add(section)
             if bone is not None:
                 raise MocapFormatError(path, f"bone block {bone.get('name', '?')!r} has no 'end'", ln)
             continue
-        k = key.lower()
+        k = _keyword(key)
         if section == "units":
             if k == "length":
                 length_unit = _floats(tok[1:2], 1, path, ln, "units length")[0]
-                if length_unit <= 0:
-                    raise MocapFormatError(path, "units length must be positive", ln)
+                low, high = _UNIT_RANGE
+                if not low <= length_unit <= high:
+                    raise MocapFormatError(path, f"units length {describe(length_unit)} is outside {low:g} to {high:g} "
+                                                 "(one unit is 1/length inch)", ln)
+                units_line = ln
             elif k == "angle":
                 unit = tok[1].lower() if len(tok) > 1 else ""
                 if unit not in ("deg", "rad"):
@@ -168,8 +182,11 @@ def _read_asf_cached(path, _mtime, _size) -> AsfSkeleton:
                 root["order"] = chans
             elif k == "axis":
                 root["axis"] = _check_order(tok[1] if len(tok) > 1 else "", path, ln)
-            elif k in ("position", "orientation"):
-                root[k] = _floats(tok[1:], 3, path, ln, f"root {k}")
+            elif k == "position":
+                root[k] = _floats(tok[1:], 3, path, ln, "root position")
+                root["position_line"] = ln
+            elif k == "orientation":
+                root[k] = _floats(tok[1:], 3, path, ln, "root orientation", *_angle_limit(degrees))
         elif section == "bonedata":
             if k == "begin":
                 if bone is not None:
@@ -193,10 +210,13 @@ def _read_asf_cached(path, _mtime, _size) -> AsfSkeleton:
                 bone["direction"] = _floats(tok[1:], 3, path, ln, "direction")
             elif k == "length":
                 bone["length"] = _floats(tok[1:], 1, path, ln, "length")[0]
+                if bone["length"] < 0:
+                    raise MocapFormatError(path, f"bone length {describe(bone['length'])} is negative", ln)
+                bone["length_line"] = ln
             elif k == "axis":
                 if len(tok) != 5:
                     raise MocapFormatError(path, "axis needs three angles and an order, e.g. 'axis 0 0 20 XYZ'", ln)
-                bone["axis"] = _floats(tok[1:4], 3, path, ln, "axis")
+                bone["axis"] = _floats(tok[1:4], 3, path, ln, "axis", *_angle_limit(degrees))
                 bone["order"] = _check_order(tok[4], path, ln)
             elif k == "dof":
                 dof = tuple(t.lower() for t in tok[1:])
@@ -213,6 +233,7 @@ def _read_asf_cached(path, _mtime, _size) -> AsfSkeleton:
                 if child in hierarchy:
                     raise MocapFormatError(path, f"bone {child!r} has two parents in :hierarchy", ln)
                 hierarchy[child] = tok[0]
+                hierarchy_line[child] = ln
     if bone is not None:
         raise MocapFormatError(path, f"file ends inside bone block {bone.get('name', '?')!r}", len(lines))
     for need in ("bonedata", "hierarchy"):
@@ -221,70 +242,109 @@ def _read_asf_cached(path, _mtime, _size) -> AsfSkeleton:
     if not bones:
         raise MocapFormatError(path, "no bones in :bonedata")
     names = [b["name"] for b in bones]
-    dup = {n for n in names if names.count(n) > 1}
+    dup = [n for n, c in Counter(names).items() if c > 1]
     if dup:
-        raise MocapFormatError(path, f"bone {min(dup)!r} defined twice")
+        second = [b for b in bones if b["name"] == min(dup)][1]
+        raise MocapFormatError(path, f"bone {min(dup)!r} defined twice", second["line"])
     known = set(names) | {"root"}
     for child, parent in hierarchy.items():
         if child not in known or parent not in known:
             missing = child if child not in known else parent
-            raise MocapFormatError(path, f":hierarchy names unknown bone {missing!r}")
-    orphans = [n for n in names if n not in hierarchy]
+            raise MocapFormatError(path, f":hierarchy names unknown bone {missing!r}", hierarchy_line[child])
+    orphans = [i for i, n in enumerate(names) if n not in hierarchy]
     if orphans:
-        raise MocapFormatError(path, f"bone {orphans[0]!r} is not in :hierarchy")
-    # stable topological order: file order, each bone after its parent
-    order: list[int] = []
-    placed = {"root": -1}
-    pending = list(range(len(bones)))
-    while pending:
-        waiting = []
-        for i in pending:
-            if hierarchy[names[i]] in placed:
-                placed[names[i]] = len(order)
-                order.append(i)
-            else:
-                waiting.append(i)
-        if len(waiting) == len(pending):
-            raise MocapFormatError(path, f":hierarchy has a cycle through bone {names[pending[0]]!r}")
-        pending = waiting
+        raise MocapFormatError(path, f"bone {names[orphans[0]]!r} is not in :hierarchy", bones[orphans[0]]["line"])
+    order, parent_index = _topological_order(names, hierarchy, path, hierarchy_line)
     bones = [bones[i] for i in order]
     cm = 2.54 / length_unit
-    direction = np.array([b["direction"] for b in bones], dtype=np.float64)
+    lengths = np.array([b["length"] for b in bones])  # file units; compared before scaling (1e308 * cm overflows)
+    long = np.flatnonzero(~(lengths <= DISTANCE_LIMIT_CM / cm))
+    if long.size:
+        b = bones[long[0]]
+        raise MocapFormatError(path, f"bone {b['name']!r} is {describe(b['length'] * cm)} cm long (length "
+                                     f"{describe(b['length'])} at :units length {describe(length_unit)}"
+                                     f"{'' if units_line is None else f', line {units_line}'}), beyond "
+                                     f"{DISTANCE_LIMIT_CM:g} cm", b["length_line"])
+    if first_outside(np.array(root["position"]), DISTANCE_LIMIT_CM / cm) is not None:
+        raise MocapFormatError(path, f"root position {' '.join(map(describe, root['position']))} is beyond "
+                                     f"±{DISTANCE_LIMIT_CM:g} cm", root.get("position_line"))
+    root_position = np.array(root["position"]) * cm
+    lengths = lengths * cm
+    # unit directions; scaled by their largest component first, so that 1e300 does not overflow the norm
+    direction = np.array([b["direction"] for b in bones], dtype=np.float64).reshape(-1, 3)
+    big = np.abs(direction).max(axis=1, keepdims=True)
+    direction = np.divide(direction, big, out=np.zeros_like(direction), where=big > 0)
     norm = np.linalg.norm(direction, axis=1, keepdims=True)
     direction = np.divide(direction, norm, out=np.zeros_like(direction), where=norm > 0)
-    offsets = direction * np.array([b["length"] for b in bones])[:, None] * cm
+    offsets = direction * lengths[:, None]
     axis_q = np.stack([rotations.from_euler(b["order"], b["axis"], degrees) for b in bones])
     return AsfSkeleton(
         path=path,
         bone_names=tuple(b["name"] for b in bones),
-        parents=np.array([placed[hierarchy[b["name"]]] for b in bones], dtype=np.int64),
+        parents=parent_index,
         offsets=offsets,
         axis_quaternions=axis_q,
         axis_orders=tuple(b["order"] for b in bones),
         dofs=tuple(b["dof"] for b in bones),
         root_order=tuple(root["order"]),
         root_axis=root["axis"],
-        root_position=np.array(root["position"]) * cm,
+        root_position=root_position,
         root_quaternion=rotations.from_euler(root["axis"], root["orientation"], degrees),
         cm_per_unit=cm,
         degrees=degrees,
     )
 
 
-def _header_end(text: str, path) -> tuple[int, int, bool | None]:
+def _keyword(word: str) -> str:
+    """A keyword in lower case; a word with other than ASCII letters is no keyword ("ſ".upper() is "S")."""
+    return word.lower() if word.isascii() else word
+
+
+def _topological_order(names: list[str], hierarchy: dict[str, str], path, lines: dict[str, int]
+                       ) -> tuple[list[int], np.ndarray]:
+    """Bones (file indices) in a stable order where each comes after its parent, and each one's parent index in
+    that order (-1: the root).
+
+    The order is that of repeated passes over the bones in file order, each placing the bones whose parent is
+    placed (the order the readers always had), found in one walk: a bone is placed in its parent's pass when it
+    comes after its parent in the file, in the next pass otherwise. Linear in the number of bones.
+    """
+    index = {n: i for i, n in enumerate(names)}
+    children: dict[str, list[int]] = {}
+    for i, n in enumerate(names):
+        children.setdefault(hierarchy[n], []).append(i)
+    passes = np.full(len(names), -1, dtype=np.int64)
+    todo = [("root", -1, 0)]  # (bone, its file index, its pass)
+    while todo:
+        parent, at, k = todo.pop()
+        for i in children.get(parent, ()):
+            passes[i] = k + (i < at) if at >= 0 else 1
+            todo.append((names[i], i, int(passes[i])))
+    stuck = np.flatnonzero(passes < 0)
+    if stuck.size:
+        raise MocapFormatError(path, f":hierarchy has a cycle through bone {names[stuck[0]]!r}",
+                               lines.get(names[stuck[0]]))
+    order = np.lexsort((np.arange(len(names)), passes)).tolist()
+    position = {i: k for k, i in enumerate(order)}
+    parents = np.array([position[index[hierarchy[names[i]]]] if hierarchy[names[i]] != "root" else -1
+                        for i in order], dtype=np.int64)
+    return order, parents
+
+
+def _header_end(raw: bytes, path) -> tuple[int, int, bool | None]:
     """Byte offset and 1-based line number where the frames start, and the angle unit the header states."""
     pos = 0
     line = 1
     degrees = None
-    while pos < len(text):
-        nl = text.find("\n", pos)
-        end = len(text) if nl < 0 else nl
-        s = text[pos:end].strip()
-        if s and not s.startswith("#") and not s.startswith(":"):
+    while pos < len(raw):
+        nl = raw.find(b"\n", pos)
+        end = len(raw) if nl < 0 else nl
+        s = raw[pos:end].strip()
+        if s and not s.startswith(b"#") and not s.startswith(b":"):
             return pos, line, degrees
-        if s.upper() == ":RADIANS":
+        if s.upper() == b":RADIANS":
             degrees = False
-        elif s.upper() == ":DEGREES":
+        elif s.upper() == b":DEGREES":
             degrees = True
         pos = end + 1
         line += 1
@@ -300,7 +360,7 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
     skeleton : AsfSkeleton
         From :func:`read_asf`.
     fps : float
-        Frame rate (AMC files do not store it; CMU and HDM05 are 120).
+        Frame rate (AMC files do not store it; CMU and HDM05 are 120), 1 to 10,000.
 
     Returns
     -------
@@ -313,21 +373,31 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
     ------
     MocapFormatError
         Unknown bones, wrong value counts, duplicated or missing bone lines, frame numbers out of sequence,
-        malformed or non-finite numbers; the message names the file and line.
+        malformed or non-finite numbers, angles or translations beyond the limits of :mod:`mocapviz.io.checks`;
+        the message names the file and line.
+    ParameterError
+        ``fps`` outside 1 to 10,000.
     """
     path = os.fspath(path)
-    text = _read_text(path)
-    start, first_line, header_degrees = _header_end(text, path)
-    sc = scan(text[start:].encode("latin-1"), path, first_line)
+    try:
+        problem = fps_problem(float(fps))
+    except (TypeError, ValueError):
+        problem = f"{fps!r} is not a number"
+    if problem:
+        raise ParameterError(f"fps of {path}: {problem}")
+    raw = read_bytes(path)
+    start, first_line, header_degrees = _header_end(raw, path)
+    sc = scan(raw, path, first_line, start=start)
+    del raw
     degrees = skeleton.degrees if header_degrees is None else header_degrees
     lineno = lambda i: sc.first_line + int(i)
 
-    has_name = sc.name_start >= 0
-    marker = ~has_name & (sc.n_values == 1)
-    odd = ~has_name & (sc.n_values > 1)
+    blank_or_name = (sc.name_start >= 0) | (sc.n_values == 0)
+    odd = ~blank_or_name & (sc.n_values > 1)
     if odd.any():
         raise MocapFormatError(path, "expected a frame number or a bone line", lineno(np.argmax(odd)))
-    markers = np.flatnonzero(marker)
+    markers = np.flatnonzero(~blank_or_name)  # lines holding one number: frame numbers
+    del blank_or_name, odd
     if markers.size == 0:
         raise MocapFormatError(path, "no frames")
     frame_numbers = sc.values[sc.first_value[markers]]
@@ -338,45 +408,37 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
     if jumps.size:
         k = jumps[0]
         raise MocapFormatError(
-            path, f"frame numbers jump from {frame_numbers[k]:.0f} to {frame_numbers[k + 1]:.0f}", lineno(markers[k + 1])
+            path, f"frame numbers jump from {frame_numbers[k]:.15g} to {frame_numbers[k + 1]:.15g}", lineno(markers[k + 1])
         )
     n_frames = markers.size
-    bone_lines = np.flatnonzero(has_name)
-    frame_of_line = np.cumsum(marker) - 1
-    if bone_lines.size and frame_of_line[bone_lines[0]] < 0:
-        raise MocapFormatError(path, "bone line before the first frame number", lineno(bone_lines[0]))
 
+    # line_of[f, b]: the line of bone b in frame f (-1: none), in one pass over the lines
     names = ("root",) + skeleton.bone_names
-    counts = np.array([len(skeleton.root_order)] + [len(d) for d in skeleton.dofs])
+    n_joints = len(names)
+    counts = np.array([len(skeleton.root_order)] + [len(d) for d in skeleton.dofs], dtype=np.int64)
     known = _channel_layout(skeleton).name_hashes
     by_hash = np.argsort(known)
-    hashes = sc.name_hash[bone_lines]
-    pos = np.minimum(np.searchsorted(known[by_hash], hashes), len(names) - 1)
-    bone_of_line = by_hash[pos]
-    unknown = known[bone_of_line] != hashes
-    if unknown.any():
-        line = bone_lines[np.argmax(unknown)]
+    line_of = np.full((n_frames, n_joints), -1, dtype=np.int32 if sc.n_lines < 2**31 else np.int64)
+    error = np.zeros(2, dtype=np.int64)
+    _bone_lines_kernel(sc.name_start, sc.name_hash, sc.n_values, known[by_hash], by_hash, counts, line_of, error)
+    code, line = int(error[0]), int(error[1])
+    if code == _BEFORE_FIRST_FRAME:
+        raise MocapFormatError(path, "bone line before the first frame number", lineno(line))
+    if code == _UNKNOWN_BONE:
         raise MocapFormatError(
             path, f"unknown bone {sc.token(line)!r} (not in {os.path.basename(skeleton.path)})", lineno(line)
         )
-    wrong = sc.n_values[bone_lines] != counts[bone_of_line]
-    if wrong.any():
-        k = np.argmax(wrong)
-        b = bone_of_line[k]
+    if code in (_WRONG_COUNT, _TWICE):
+        b = int(by_hash[np.searchsorted(known[by_hash], sc.name_hash[line])])
+        if code == _TWICE:
+            raise MocapFormatError(path, f"bone {names[b]!r} appears twice in one frame", lineno(line))
         dof = " ".join(skeleton.root_order if b == 0 else skeleton.dofs[b - 1]) or "none"
         raise MocapFormatError(
-            path,
-            f"bone {names[b]!r} has {sc.n_values[bone_lines[k]]} values, the skeleton gives it "
-            f"{counts[b]} ({dof})",
-            lineno(bone_lines[k]),
+            path, f"bone {names[b]!r} has {sc.n_values[line]} values, the skeleton gives it {counts[b]} ({dof})",
+            lineno(line),
         )
-    frames = frame_of_line[bone_lines]
-    slot = frames * len(names) + bone_of_line
-    seen = np.bincount(slot, minlength=n_frames * len(names))
-    if seen.max(initial=0) > 1:
-        k = np.flatnonzero(seen[slot] > 1)[1]
-        raise MocapFormatError(path, f"bone {names[bone_of_line[k]]!r} appears twice in one frame", lineno(bone_lines[k]))
-    present = seen.reshape(n_frames, len(names)) > 0
+    sc.data = sc.data[:0]  # the file's bytes are not needed any more (only for naming a token)
+    present = line_of >= 0
     incomplete = (present != present.any(axis=0)).any(axis=1)
     if n_frames > 1 and incomplete[-1] and not incomplete[:-1].any():
         # the file ends inside its last frame (CMU golf_01.amc): keep the complete frames
@@ -384,9 +446,7 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
             f"{path}: last frame {frame_numbers[-1]:.0f} is incomplete (truncated file?); dropped it", stacklevel=2
         )
         n_frames -= 1
-        keep = frame_of_line[bone_lines] < n_frames
-        bone_lines, bone_of_line = bone_lines[keep], bone_of_line[keep]
-        markers, frame_numbers, present = markers[:-1], frame_numbers[:-1], present[:-1]
+        markers, frame_numbers, present, line_of = markers[:-1], frame_numbers[:-1], present[:-1], line_of[:-1]
     partly = present.any(axis=0) & ~present.all(axis=0)
     if partly.any():
         b = int(np.argmax(partly))
@@ -395,47 +455,94 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
             path, f"frame {frame_numbers[f]:.0f} has no line for bone {names[b]!r} (truncated file?)", lineno(markers[f])
         )
 
-    # one gather for every channel of every frame: line_of[f, b] is the line of bone b in frame f
-    line_of = np.zeros((n_frames, len(names)), dtype=np.int64)
-    line_of[frame_of_line[bone_lines], bone_of_line] = bone_lines
     layout = _channel_layout(skeleton)
-    use = present[0, layout.bone]
-    vals = sc.values[sc.first_value[line_of[:, layout.bone[use]]] + layout.column[use]]
+    use = present[0, layout.bone] if n_frames else np.zeros(layout.bone.shape, dtype=bool)
+    del present
+    bone, column = layout.bone[use], layout.column[use]
+    slot, trans = layout.euler_slot[use], layout.translation[use]
+    rot = slot >= 0
+    # per channel: the largest value accepted (angles in the file's unit; translations in file units)
+    limit = np.where(rot, ANGLE_LIMIT_DEG if degrees else np.radians(ANGLE_LIMIT_DEG),
+                     DISTANCE_LIMIT_CM / skeleton.cm_per_unit)
     n_bones = len(skeleton.bone_names)
-    euler = np.zeros((n_frames, (n_bones + 1) * 3))  # each joint's angles in its own axis order
-    translation = np.zeros((n_frames, 3))
-    rot = layout.euler_slot[use] >= 0
-    euler[:, layout.euler_slot[use][rot]] = vals[:, rot]
-    translation[:, layout.translation[use][~rot]] = vals[:, ~rot]
-    euler = euler.reshape(n_frames, n_bones + 1, 3)
-    # the file's rotation channels as they are (bones without lines: 0), for Motion.euler
-    channels = np.zeros((n_frames, int(np.count_nonzero(layout.euler_slot >= 0))))
-    channels[:, (np.cumsum(layout.euler_slot >= 0) - 1)[use][rot]] = vals[:, rot]
-    translation = translation * skeleton.cm_per_unit + skeleton.root_position
+    # the file's rotation channels as they are (bones without lines: 0), in degrees, for Motion.euler
+    channels = np.zeros((n_frames, int(np.count_nonzero(layout.euler_slot >= 0))), dtype=np.float32)
+    channel_column = (np.cumsum(layout.euler_slot >= 0) - 1)[use][rot]
+
+    def block(a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
+        at = sc.first_value[line_of[a:b][:, bone]] + column  # (b-a, channels used): where each value is
+        vals = sc.values[at]
+        bad = first_outside(vals, limit)
+        if bad is not None:
+            t, c = bad
+            line = int(np.searchsorted(sc.first_value, at[t, c], side="right") - 1)
+            what = f"{'rotation' if rot[c] else 'translation'} of bone {names[bone[c]]!r}"
+            unit = ("degrees" if degrees else "radians") if rot[c] else f"file units ({DISTANCE_LIMIT_CM:g} cm)"
+            raise MocapFormatError(path, f"{what}: {describe(vals[t, c])} is beyond ±{limit[c]:g} {unit}",
+                                   lineno(line))
+        euler = np.zeros((b - a, (n_bones + 1) * 3))  # each joint's angles in its own axis order
+        euler[:, slot[rot]] = vals[:, rot]
+        channels[a:b, channel_column] = vals[:, rot] if degrees else np.degrees(vals[:, rot])
+        t_local = np.empty((b - a, n_bones + 1, 3))
+        t_local[:, 1:] = skeleton.offsets
+        translation = np.zeros((b - a, 3))
+        translation[:, trans[~rot]] = vals[:, ~rot]
+        t_local[:, 0] = translation * skeleton.cm_per_unit + skeleton.root_position
+        return euler.reshape(b - a, n_bones + 1, 3), t_local
+
     axis_q = np.concatenate([skeleton.root_quaternion[None], skeleton.axis_quaternions])
-    t_local = np.zeros((n_frames, n_bones + 1, 3))
-    t_local[:, 0] = translation
-    t_local[:, 1:] = skeleton.offsets
     parents = np.concatenate([[-1], skeleton.parents + 1])
-    q_local, positions = rotations.forward_kinematics(
+    positions, q_local, _ = checked_forward_kinematics(
+        n_frames,
         parents,
-        euler,
         (skeleton.root_axis,) + skeleton.axis_orders,
-        t_local,
+        block,
+        names=names,
+        path=path,
+        frame_line=lambda f: lineno(markers[f]),
         own_frame=np.ones(n_bones + 1, dtype=bool),
         pre=axis_q,
         post=_conj(axis_q),
         degrees=degrees,
     )
     return Motion(
-        positions=positions.astype(np.float32),
+        positions=positions,
         fps=fps,
         joint_names=names,
         parents=parents,
-        quaternions=q_local.astype(np.float32),
+        quaternions=q_local,
         source=path,
-        euler=channels if degrees else np.degrees(channels),
+        euler=channels,
     )
+
+
+_BEFORE_FIRST_FRAME, _UNKNOWN_BONE, _WRONG_COUNT, _TWICE = 1, 2, 3, 4
+
+
+@numba.njit(cache=True, nogil=True)
+def _bone_lines_kernel(name_start, name_hash, n_values, sorted_hashes, bone_of_sorted, counts, line_of, error):  # pragma: no cover
+    # every line that starts with a name is a bone line of the frame of the last frame number before it
+    frame = -1
+    for i in range(name_start.shape[0]):
+        if name_start[i] < 0:
+            if n_values[i] > 0:
+                frame += 1  # (lines of more than one number were refused before)
+            continue
+        if frame < 0:
+            error[0], error[1] = _BEFORE_FIRST_FRAME, i
+            return
+        k = np.searchsorted(sorted_hashes, name_hash[i])
+        if k >= sorted_hashes.shape[0] or sorted_hashes[k] != name_hash[i]:
+            error[0], error[1] = _UNKNOWN_BONE, i
+            return
+        b = bone_of_sorted[k]
+        if n_values[i] != counts[b]:
+            error[0], error[1] = _WRONG_COUNT, i
+            return
+        if line_of[frame, b] >= 0:
+            error[0], error[1] = _TWICE, i
+            return
+        line_of[frame, b] = i
 
 
 @dataclass(frozen=True)

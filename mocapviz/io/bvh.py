@@ -13,11 +13,17 @@ Conventions:
   millimetres, otherwise centimetres; pass ``scale`` (centimetres per file unit) to override.
 - Up axis: y; with ``up="auto"`` (default) a file whose figure stands along z (head above hips on z) is
   turned to y up, keeping it right-handed; ``up="z"`` forces the conversion, ``up="y"`` prevents it.
+- Text: keywords (``HIERARCHY``, ``ROOT``, ``JOINT``, ``End Site``, ``OFFSET``, ``CHANNELS``, ``MOTION``,
+  ``Frames:``, ``Frame Time:``) and channel names in any case; words separated by any ASCII white space (space,
+  tab, vertical tab, form feed, CR); lines end with LF or CR LF. UTF-8 (with or without a byte-order mark), else
+  Latin-1 (joint names).
+- Values: numbers in plain decimal notation (no ``nan``, ``inf``); frame rate 1 to 10,000 fps; rotation channels
+  within ±1e5 degrees; offsets and position channels within ±1e7 file units and positions within ±1e7 cm
+  (:mod:`mocapviz.io.checks`).
 """
 from __future__ import annotations
 
 import functools
-import math
 import os
 import re
 
@@ -26,7 +32,18 @@ import numpy as np
 from .. import rotations
 from ..errors import MocapFormatError, ParameterError
 from ..motion import Motion
-from .text import scan
+from .checks import (
+    ANGLE_LIMIT_DEG,
+    DISTANCE_LIMIT_CM,
+    check_frame_rate,
+    checked_forward_kinematics,
+    describe,
+    first_outside,
+)
+from .text import decode, number, read_bytes, scan, words
+
+_MOTION = re.compile(rb"(?im)^[ \t\r\v\f]*motion(?=[ \t\r\v\f\n]|\Z)")  # as _parse_hierarchy's words see it
+_CACHED_TEXT = 1 << 16  # hierarchies up to this size are parsed once per process (the files of one rig share one)
 
 _CHANNELS = {
     "xposition": ("t", 0), "yposition": ("t", 1), "zposition": ("t", 2),
@@ -44,12 +61,14 @@ class _Hierarchy:
 
     def __init__(self):
         self.names: list[str] = []
+        self.known: set[str] = set()
         self.parents: list[int] = []
         self.offsets: list[list[float]] = []
         self.channels: list[list[str]] = []
 
     def layout(self) -> _Hierarchy:
         euler_slot, translation_slot, orders = [], [], []
+        self.channel_names = [f"{self.names[j]} {c.capitalize()}" for j, chans in enumerate(self.channels) for c in chans]
         for j, chans in enumerate(self.channels):
             # R = R_c1 R_c2 R_c3: the last rotation channel is applied first
             rot = [_CHANNELS[c][1] for c in chans if _CHANNELS[c][0] == "r"][::-1]
@@ -72,11 +91,22 @@ class _Hierarchy:
         return self
 
 
+def _hierarchy(text: str) -> _Hierarchy:
+    """The HIERARCHY text before MOTION, parsed (once per distinct text when it is short)."""
+    return _cached_hierarchy(text) if len(text) <= _CACHED_TEXT else _parse_text(text)
+
+
 @functools.lru_cache(maxsize=128)
 def _cached_hierarchy(text: str) -> _Hierarchy:
-    """Parse (once per distinct text: the files of one rig share it) the HIERARCHY text before MOTION."""
+    return _parse_text(text)
+
+
+def _parse_text(text: str) -> _Hierarchy:
     lines = text.split("\n")
-    return _parse_hierarchy(lines + ["MOTION"], None)[0].layout()
+    h, at = _parse_hierarchy(lines + ["MOTION"], None)
+    if at != len(lines):  # (cannot happen: _MOTION and words() split alike; a guard, not a silent misread)
+        raise MocapFormatError(None, "a second MOTION keyword inside HIERARCHY", at + 1)
+    return h.layout()
 
 
 def _parse_hierarchy(lines: list[str], path) -> tuple[_Hierarchy, int]:
@@ -85,22 +115,22 @@ def _parse_hierarchy(lines: list[str], path) -> tuple[_Hierarchy, int]:
     stack: list[int] = []
     pending = None  # joint declared, waiting for its '{'
     i = 0
-    first = next((k for k, line in enumerate(lines) if line.strip()), None)
-    if first is None or lines[first].strip().lstrip("\ufeff").upper() != "HIERARCHY":
+    first = next((k for k, line in enumerate(lines) if words(line)), None)
+    if first is None or [w.upper() for w in words(lines[first])] != ["HIERARCHY"]:
         raise MocapFormatError(path, "file does not start with HIERARCHY (not a BVH file?)", (first or 0) + 1)
     for i in range(first + 1, len(lines)):
-        tok = lines[i].split()
+        tok = words(lines[i])
         ln = i + 1
         if not tok:
             continue
-        key = tok[0].upper()
+        key = tok[0].upper() if tok[0].isascii() else tok[0]  # ("motıon".upper() is "MOTION")
         if key in ("ROOT", "JOINT"):
             if (key == "ROOT") != (not stack):
                 raise MocapFormatError(path, f"{tok[0]} at the wrong nesting level", ln)
             if len(tok) < 2:
                 raise MocapFormatError(path, f"{tok[0]} without a name", ln)
             name = " ".join(tok[1:])
-            if name in h.names:
+            if name in h.known:
                 raise MocapFormatError(path, f"joint {name!r} defined twice", ln)
             pending = (name, stack[-1] if stack else -1)
         elif key == "END":
@@ -108,7 +138,7 @@ def _parse_hierarchy(lines: list[str], path) -> tuple[_Hierarchy, int]:
                 raise MocapFormatError(path, "End Site outside a joint", ln)
             name = f"{h.names[stack[-1]]}_end"
             k = 2
-            while name in h.names:  # several End Sites under one joint
+            while name in h.known:  # several End Sites under one joint
                 name = f"{h.names[stack[-1]]}_end{k}"
                 k += 1
             pending = (name, stack[-1])
@@ -116,6 +146,7 @@ def _parse_hierarchy(lines: list[str], path) -> tuple[_Hierarchy, int]:
             if pending is None:
                 raise MocapFormatError(path, "'{' without a joint", ln)
             h.names.append(pending[0])
+            h.known.add(pending[0])
             h.parents.append(pending[1])
             h.offsets.append(None)
             h.channels.append([])
@@ -130,20 +161,18 @@ def _parse_hierarchy(lines: list[str], path) -> tuple[_Hierarchy, int]:
         elif key == "OFFSET":
             if not stack:
                 raise MocapFormatError(path, "OFFSET outside a joint", ln)
-            try:
-                off = [float(t) for t in tok[1:]]
-            except ValueError:
-                off = []
-            if len(off) != 3 or not all(map(math.isfinite, off)):
-                raise MocapFormatError(path, "OFFSET needs three finite numbers", ln)
+            off = [number(t) for t in tok[1:]]
+            if len(off) != 3 or None in off:
+                raise MocapFormatError(path, f"OFFSET needs three numbers, got {' '.join(tok[1:])!r}", ln)
+            if first_outside(np.array(off), DISTANCE_LIMIT_CM) is not None:
+                raise MocapFormatError(path, f"OFFSET {' '.join(tok[1:])} is beyond ±{DISTANCE_LIMIT_CM:g}", ln)
             h.offsets[stack[-1]] = off
         elif key == "CHANNELS":
             if not stack:
                 raise MocapFormatError(path, "CHANNELS outside a joint", ln)
-            try:
-                n = int(tok[1])
-            except (IndexError, ValueError):
-                raise MocapFormatError(path, "CHANNELS needs a count", ln) from None
+            if len(tok) < 2 or not tok[1].isascii() or not tok[1].isdigit():
+                raise MocapFormatError(path, "CHANNELS needs a count", ln)
+            n = int(tok[1])
             chans = [t.lower() for t in tok[2:]]
             if n != len(chans):
                 raise MocapFormatError(path, f"CHANNELS says {n} but lists {len(chans)}", ln)
@@ -162,31 +191,46 @@ def _parse_hierarchy(lines: list[str], path) -> tuple[_Hierarchy, int]:
     raise MocapFormatError(path, "no MOTION section (truncated file?)", len(lines))
 
 
-def _motion_header(lines: list[str], at: int, path) -> tuple[int, float, int]:
-    """Frame count, frame time and index of the first data line after the MOTION line."""
+def _motion_header(raw: bytes, pos: int, line: int, path) -> tuple[int, float, int, int]:
+    """Parse ``Frames:`` and ``Frame Time:`` after the MOTION line.
+
+    Parameters
+    ----------
+    raw : bytes -- the file.
+    pos, line : byte offset and 1-based number of the MOTION line.
+
+    Returns
+    -------
+    Frame count, frame time (s), byte offset and 1-based line number of the first line after the header.
+    """
     values = {}
-    where = {}
-    i = at + 1
     for key in ("frames", "frame time"):
-        while i < len(lines) and not lines[i].strip():
-            i += 1
-        if i >= len(lines):
-            raise MocapFormatError(path, f"missing '{key.title()}:' line (truncated file?)", len(lines))
-        head, _, rest = lines[i].partition(":")
-        if head.strip().lower() != key:
-            raise MocapFormatError(path, f"expected '{key.title()}:', got {lines[i].strip()!r}", i + 1)
-        try:
-            values[key] = float(rest)
-        except ValueError:
-            raise MocapFormatError(path, f"'{key.title()}:' needs a number", i + 1) from None
-        where[key] = i + 1
-        i += 1
-    n, dt = values["frames"], values["frame time"]
-    if not (np.isfinite(n) and n == int(n) and n >= 1):
-        raise MocapFormatError(path, f"frame count must be a positive integer, got {n:g}", where["frames"])
-    if not (np.isfinite(dt) and dt > 0):
-        raise MocapFormatError(path, "frame time must be a positive number", i)
-    return int(n), dt, i
+        while True:  # to the next line that is not blank
+            end = raw.find(b"\n", pos)
+            if end < 0:
+                raise MocapFormatError(path, f"missing '{key.title()}:' line (truncated file?)", line)
+            pos, line = end + 1, line + 1
+            nl = raw.find(b"\n", pos)
+            text = raw[pos : len(raw) if nl < 0 else nl].decode("latin-1")
+            if words(text):
+                break
+        head, colon, rest = text.partition(":")
+        if not colon or " ".join(words(head)).lower() != key:
+            shown = text.strip(" \t\r\v\f")[:60]
+            raise MocapFormatError(path, f"expected '{key.title()}:', got {shown!r}", line)
+        value = number(rest.strip(" \t\r\v\f"))
+        if value is None:
+            raise MocapFormatError(path, f"'{key.title()}:' needs a number, got {rest.strip()[:40]!r}", line)
+        if key == "frames" and not (1 <= value <= 2**53 and value == int(value)):
+            raise MocapFormatError(path, f"frame count must be a positive integer, got {rest.strip()[:40]}", line)
+        if key == "frame time":
+            if not (np.isfinite(value) and value > 0):
+                raise MocapFormatError(path, f"Frame Time must be a positive number of seconds, got {describe(value)}",
+                                       line)
+            check_frame_rate(1.0 / value, path, line, f"Frame Time {describe(value)} s")
+        values[key] = value
+    end = raw.find(b"\n", pos)
+    return int(values["frames"]), values["frame time"], len(raw) if end < 0 else end + 1, line + 1
 
 
 def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
@@ -211,32 +255,30 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
     ------
     MocapFormatError
         Malformed HIERARCHY, unsupported channels, frame count different from the header, wrong number of
-        values on a line, malformed or non-finite numbers; the message names the file and line.
+        values on a line, malformed or non-finite numbers, a frame rate outside 1 to 10,000 fps, values or
+        positions beyond the limits of :mod:`mocapviz.io.checks`; the message names the file, the line and the
+        value.
+    ParameterError
+        A bad ``up`` or ``scale``.
     """
     path = os.fspath(path)
     if up not in ("auto", "y", "z"):
         raise ParameterError(f"up must be 'auto', 'y' or 'z', got {up!r}")
-    try:
-        with open(path, "rb") as fh:
-            raw = fh.read()
-    except OSError as exc:
-        raise MocapFormatError(path, f"cannot read file ({exc.strerror})") from None
-    if not raw.strip():
-        raise MocapFormatError(path, "file is empty")
-    found = re.search(rb"(?m)^[ \t]*MOTION\b", raw)
+    if scale is not None and not (isinstance(scale, (int, float, np.number)) and 0 < scale < float("inf")):
+        raise ParameterError(f"scale (centimetres per file unit) must be a positive number, got {scale!r}")
+    raw = read_bytes(path)
+    found = _MOTION.search(raw)
     if found is None:
-        _parse_hierarchy(raw.decode("latin-1").split("\n"), path)  # raises, naming the problem
-    mpos = found.start()
-    hier_text = raw[:mpos].decode("utf-8-sig" if raw.startswith(b"\xef\xbb\xbf") else "latin-1")
+        _parse_hierarchy(decode(raw).split("\n"), path)  # raises, naming the problem
+        raise MocapFormatError(path, "no MOTION line")  # (not reached: without MOTION the parse raises)
+    mpos = raw.rfind(b"\n", 0, found.start()) + 1  # the start of the MOTION line
     try:
-        h = _cached_hierarchy(hier_text)
+        h = _hierarchy(decode(raw[:mpos]))
     except MocapFormatError as exc:
         raise MocapFormatError(path, exc.reason, exc.line) from None
-    motion_line = hier_text.count("\n")
-    lines = [""] * motion_line + raw[mpos : mpos + 200].decode("latin-1").split("\n")
-    n_frames, frame_time, data_line = _motion_header(lines, motion_line, path)
-    start = mpos + sum(len(s) + 1 for s in lines[motion_line:data_line])
-    sc = scan(raw[start:], path, first_line=data_line + 1)
+    motion_line = raw.count(b"\n", 0, mpos) + 1
+    n_frames, frame_time, start, data_line = _motion_header(raw, mpos, motion_line, path)
+    sc = scan(raw, path, first_line=data_line, start=start)
 
     n_channels = len(h.euler_slot)
     named = np.flatnonzero(sc.name_start >= 0)
@@ -257,35 +299,53 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
         gap = int(data[np.argmax(np.diff(data) > 1)] + 1)
         raise MocapFormatError(path, "blank line inside the frame data", sc.first_line + gap)
     values = sc.values.reshape(n_frames, n_channels)
+    first_frame_line = sc.first_line + (int(data[0]) if data.size else 0)
+    del sc, data, raw, found  # (only ``values`` is needed from here on)
 
-    n_joints = len(h.names)
-    translations = np.broadcast_to(h.offsets.ravel(), (n_frames, 3 * n_joints)).copy()
-    euler = np.zeros((n_frames, 3 * n_joints))
+    # limits per channel: rotations in degrees, positions in file units
     rot = h.euler_slot >= 0
-    euler[:, h.euler_slot[rot]] = values[:, rot]
-    translations[:, h.translation_slot[~rot]] = values[:, ~rot]
-    translations = translations.reshape(n_frames, n_joints, 3)
-    euler = euler.reshape(n_frames, n_joints, 3)
-    q_local, positions = rotations.forward_kinematics(h.parents, euler, h.orders, translations)
+    limit = np.where(rot, ANGLE_LIMIT_DEG, DISTANCE_LIMIT_CM)
+    n_joints = len(h.names)
+    euler_out = np.empty((n_frames, int(rot.sum())), dtype=np.float32)
 
-    if scale is None:
+    def block(a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
+        v = values[a:b]
+        bad = first_outside(v, limit)
+        if bad is not None:
+            t, c = bad
+            unit = "degrees" if rot[c] else "file units"
+            raise MocapFormatError(path, f"channel {h.channel_names[c]} = {describe(v[t, c])} is beyond "
+                                         f"±{limit[c]:g} {unit}", first_frame_line + a + t)
+        translations = np.empty((b - a, 3 * n_joints))
+        translations[:] = h.offsets.ravel()
+        euler = np.zeros((b - a, 3 * n_joints))
+        euler[:, h.euler_slot[rot]] = v[:, rot]
+        translations[:, h.translation_slot[~rot]] = v[:, ~rot]
+        euler_out[a:b] = v[:, rot]
+        return euler.reshape(b - a, n_joints, 3), translations.reshape(b - a, n_joints, 3)
+
+    def guess_scale(first: np.ndarray) -> float:
         # the figure's size without its root: a root may stay at the world origin, metres away from the
         # figure (Bandai Namco's joint_Root)
         body = h.parents >= 0
-        height = np.ptp(positions[0, body] if body.sum() > 1 else positions[0], axis=0).max()
-        scale = 100.0 if 0.5 <= height <= 3.0 else 0.1 if 500.0 <= height <= 3000.0 else 1.0
-    positions *= scale
+        height = np.ptp(first[body] if body.sum() > 1 else first, axis=0).max()
+        return 100.0 if 0.5 <= height <= 3.0 else 0.1 if 500.0 <= height <= 3000.0 else 1.0
+
+    positions, q_local, scale = checked_forward_kinematics(
+        n_frames, h.parents, h.orders, block, names=h.names, path=path,
+        frame_line=lambda t: first_frame_line + t, scale=guess_scale if scale is None else scale,
+    )  # fmt: skip
     fps = 1.0 / frame_time
     if abs(fps - round(fps)) <= 1e-4 * fps:
         fps = float(round(fps))
     motion = Motion(
-        positions=positions.astype(np.float32),
+        positions=positions,
         fps=fps,
         joint_names=tuple(h.names),
         parents=h.parents,
-        quaternions=q_local.astype(np.float32),
+        quaternions=q_local,
         source=path,
-        euler=values[:, rot],
+        euler=euler_out,
     )
     if up == "z" or (up == "auto" and _stands_on_z(motion)):
         motion = _z_up_to_y_up(motion)
@@ -305,16 +365,19 @@ def _stands_on_z(motion: Motion) -> bool:
 
 
 def _z_up_to_y_up(motion: Motion) -> Motion:
-    """Turn a z-up clip to y up by -90 degrees about x: (x, y, z) -> (x, z, -y)."""
-    from dataclasses import replace
+    """Turn a z-up clip to y up by -90 degrees about x: (x, y, z) -> (x, z, -y).
 
+    In place: ``motion`` is the reader's own, not yet returned (no second copy of a long clip).
+    """
     p = motion.positions
-    turned = np.stack([p[..., 0], p[..., 2], -p[..., 1]], axis=-1)
+    y = p[..., 1].copy()
+    p[..., 1] = p[..., 2]
+    p[..., 2] = -y
+    del y
     quat = motion.quaternions
     if quat is not None:
         # only the root's rotation is expressed in world axes; turn it with the frame
         turn = rotations.from_euler("X", [-90.0])
-        roots = motion.parents < 0
-        quat = quat.copy()
+        roots = np.flatnonzero(motion.parents < 0)
         quat[:, roots] = rotations.multiply(turn, quat[:, roots].astype(np.float64)).astype(np.float32)
-    return replace(motion, positions=turned, quaternions=quat)
+    return motion

@@ -1,4 +1,11 @@
-"""Fast tokenising of the numeric body of mocap text files (AMC frames, BVH MOTION lines).
+"""Reading mocap text files: bytes, decoding, words and numbers, and fast tokenising of the numeric body
+(AMC frames, BVH MOTION lines).
+
+read_bytes    a file's bytes (UTF-8 BOM removed), or a MocapFormatError for an unreadable, empty or binary file.
+decode        bytes as UTF-8, else Latin-1 (which decodes any byte).
+words         a line split at ASCII white space (space, tab, CR, LF, vertical tab, form feed), as C's isspace().
+number        a token as a float when it is a plain decimal number (the syntax the scanner reads), else None.
+scan          the numeric body of a file, checked, in one compiled pass.
 
 Python's and numpy's text-to-float converters manage about 4 M numbers/s, which caps a BVH reader at about
 30 k frames/s; this compiled scanner reads the whole body in one pass (about 15x faster) and records, per
@@ -7,6 +14,8 @@ every line with numpy and report the first bad line by number.
 """
 from __future__ import annotations
 
+import os
+import re
 from dataclasses import dataclass
 
 import numba
@@ -14,12 +23,65 @@ import numpy as np
 
 from ..errors import MocapFormatError
 
-# error codes written per line by the kernel
+# codes of the first error the kernel finds (it stops there)
 _OK, _BAD_NUMBER, _TEXT_AFTER_NUMBER = 0, 1, 2
 
+_SPACE = b" \t\r\n\v\f"  # ASCII white space: what C's isspace() and the scanner take as separators
 _POW10 = np.array([10.0**k for k in range(23)])
 _FNV_OFFSET = np.uint64(0xCBF29CE484222325)
 _FNV_PRIME = np.uint64(0x100000001B3)
+
+
+_WORD = re.compile(r"[^ \t\r\n\v\f]+")
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_BOMS = {b"\xff\xfe\x00\x00": "UTF-32", b"\x00\x00\xfe\xff": "UTF-32", b"\xff\xfe": "UTF-16", b"\xfe\xff": "UTF-16"}
+
+
+def read_bytes(path) -> bytes:
+    """The bytes of a motion file, without a leading UTF-8 byte-order mark.
+
+    Raises
+    ------
+    MocapFormatError
+        The file cannot be read, is empty (or white space only), is UTF-16/32 text, or holds NUL bytes (binary).
+    """
+    path = os.fspath(path)
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read()
+    except OSError as exc:
+        raise MocapFormatError(path, f"cannot read file ({exc.strerror or exc})") from None
+    for bom, name in _BOMS.items():
+        if raw.startswith(bom):
+            raise MocapFormatError(path, f"{name} text is not supported; save the file as UTF-8 or ASCII", 1)
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]
+    if not raw.strip():
+        raise MocapFormatError(path, "file is empty")
+    nul = raw.find(b"\x00")
+    if nul >= 0:
+        raise MocapFormatError(path, "binary data (a NUL byte), not a text file", raw.count(b"\n", 0, nul) + 1)
+    return raw
+
+
+def decode(raw: bytes) -> str:
+    """``raw`` decoded as UTF-8, or as Latin-1 where it is not valid UTF-8 (every byte is a Latin-1 character)."""
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def words(line: str) -> list[str]:
+    """``line`` split at runs of ASCII white space (not at the other characters ``str.split()`` takes, such as
+    U+00A0, so that a header is split as the numeric scanner splits the body)."""
+    return _WORD.findall(line)
+
+
+def number(token: str) -> float | None:
+    """``token`` as a float when it is a decimal number as the scanner reads them (``12``, ``-.5``, ``1e-3``),
+    else None: no ``nan``, ``inf``, ``1_000``, hexadecimal or non-ASCII digits. May be infinite (``1e999``)."""
+    return float(token) if _NUMBER.fullmatch(token) else None
 
 
 def name_hash(name: str) -> np.uint64:
@@ -36,9 +98,10 @@ def _is_space(c):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True)
-def _scan_kernel(buf, pow10, values, first_value, n_values, name_start, name_hash, error, error_at):  # pragma: no cover
+def _scan_kernel(buf, offset, pow10, values, first_value, n_values, name_start, name_hash, error):  # pragma: no cover
+    # error = [code, line, byte offset] of the first bad token; the scan stops there
     n = buf.shape[0]
-    i = 0
+    i = offset
     line = 0
     nv = 0
     first_value[0] = 0
@@ -69,9 +132,9 @@ def _scan_kernel(buf, pow10, values, first_value, n_values, name_start, name_has
             if at_line_start:
                 name_start[line] = start
                 name_hash[line] = h
-            elif error[line] == 0:
-                error[line] = _TEXT_AFTER_NUMBER
-                error_at[line] = start
+            else:
+                error[0], error[1], error[2] = _TEXT_AFTER_NUMBER, line, start
+                return nv, line + 1
             at_line_start = False
             continue
         at_line_start = False
@@ -114,12 +177,8 @@ def _scan_kernel(buf, pow10, values, first_value, n_values, name_start, name_has
             ok = edigits > 0
             exp10 += -e if eneg else e
         if not ok or (i < n and not _is_space(buf[i])):
-            while i < n and not _is_space(buf[i]):
-                i += 1
-            if error[line] == 0:
-                error[line] = _BAD_NUMBER
-                error_at[line] = start
-            continue
+            error[0], error[1], error[2] = _BAD_NUMBER, line, start
+            return nv, line + 1
         # one correctly rounded operation on exact doubles gives the same double as Python's float()
         if mant > 9007199254740992 or exp10 > 22 or exp10 < -22:
             v = np.nan  # not exact here (rare: 1.5e-18 and such): scan() converts it with float()
@@ -142,8 +201,9 @@ class Scan:
     Attributes
     ----------
     values : np.ndarray [shape=(V,)], float64 -- every number, in order.
-    first_value, n_values : np.ndarray [shape=(L,)], int64 -- where each line's numbers are in ``values``.
-    name_start : np.ndarray [shape=(L,)], int64 -- byte offset of a leading name token (-1 if none).
+    first_value, n_values : np.ndarray [shape=(L,)], int32 (int64 for files of 2 GB or more) -- where each line's
+        numbers are in ``values``.
+    name_start : np.ndarray [shape=(L,)], int32 or int64 -- byte offset of a leading name token (-1 if none).
     name_hash : np.ndarray [shape=(L,)], uint64 -- :func:`name_hash` of that name (0 if none).
     first_line : int -- 1-based number in the file of the block's first line.
     """
@@ -165,22 +225,29 @@ class Scan:
         s = e = self.name_start[line]
         if s < 0:
             return ""
-        while e < self.data.shape[0] and self.data[e] not in b" \t\r\n":
+        while e < self.data.shape[0] and self.data[e] not in _SPACE:
             e += 1
         return bytes(self.data[s:e]).decode("latin-1")
 
 
-def scan(data: bytes, path, first_line: int = 1) -> Scan:
-    """Tokenise ``data`` (the numeric body of a file) and check every number.
+def scan(data: bytes, path, first_line: int = 1, start: int = 0) -> Scan:
+    """Tokenise ``data[start:]`` (the numeric body of a file) and check every number.
 
     Parameters
     ----------
     data : bytes
-        Text, lines separated by ``\\n`` (``\\r`` is treated as white space).
+        Text, lines separated by ``\\n`` (``\\r``, ``\\t``, ``\\v`` and ``\\f`` are white space).
     path : str
         File name, for error messages.
     first_line : int
-        1-based line number of the first line of ``data`` in the file.
+        1-based line number in the file of the line that starts at ``data[start]``.
+    start : int
+        Byte offset where the body starts (``data`` is not copied).
+
+    Returns
+    -------
+    Scan
+        Byte offsets in it (``name_start``) count from the start of ``data``.
 
     Raises
     ------
@@ -188,35 +255,33 @@ def scan(data: bytes, path, first_line: int = 1) -> Scan:
         At the first line holding a malformed or non-finite number, or text after a number.
     """
     buf = np.frombuffer(data, dtype=np.uint8)
-    n_lines = data.count(b"\n") + 1
-    values = np.empty(buf.shape[0] // 2 + 1)
-    first_value = np.zeros(n_lines + 1, dtype=np.int64)
-    n_values = np.zeros(n_lines, dtype=np.int64)
-    name_start = np.full(n_lines, -1, dtype=np.int64)
+    n_lines = data.count(b"\n", start) + 1
+    # at most one number per two bytes; pages never written to are never resident
+    values = np.empty((buf.shape[0] - start) // 2 + 1)
+    index = np.int32 if buf.shape[0] < 2**31 - 1 else np.int64  # (offsets and counts fit: 12 bytes a line less)
+    first_value = np.zeros(n_lines + 1, dtype=index)
+    n_values = np.zeros(n_lines, dtype=index)
+    name_start = np.full(n_lines, -1, dtype=index)
     name_hash = np.zeros(n_lines, dtype=np.uint64)
-    error = np.zeros(n_lines, dtype=np.int8)
-    error_at = np.zeros(n_lines, dtype=np.int64)
-    nv, nl = _scan_kernel(buf, _POW10, values, first_value, n_values, name_start, name_hash, error, error_at)
-    bad = np.flatnonzero(error[:nl])
-    if bad.size:
-        k = bad[0]
-        s = error_at[k]
-        e = s
-        while e < buf.shape[0] and buf[e] not in b" \t\r\n":
+    error = np.zeros(3, dtype=np.int64)
+    nv, nl = _scan_kernel(buf, start, _POW10, values, first_value, n_values, name_start, name_hash, error)
+    if error[0]:
+        s = e = int(error[2])
+        while e < buf.shape[0] and buf[e] not in _SPACE:
             e += 1
         tok = bytes(buf[s:e]).decode("latin-1")
         if tok.lstrip("+-").lower() in ("nan", "inf", "infinity"):
             reason = f"non-finite value {tok!r}"
-        elif error[k] == _BAD_NUMBER:
+        elif error[0] == _BAD_NUMBER:
             reason = f"malformed number {tok!r}"
         else:
             reason = f"unexpected text {tok!r} after a number"
-        raise MocapFormatError(path, reason, line=first_line + int(k))
+        raise MocapFormatError(path, reason, line=first_line + int(error[1]))
     slow = np.flatnonzero(np.isnan(values[:nv]))
     if slow.size:
-        line_starts = np.concatenate([[0], np.flatnonzero(buf == 10) + 1, [buf.shape[0] + 1]])
-        for k in slow:
-            line = np.searchsorted(first_value[:nl], k, side="right") - 1
+        lines = np.searchsorted(first_value[:nl], slow, side="right") - 1
+        line_starts = np.concatenate([[start], np.flatnonzero(buf[start:] == 10) + start + 1, [buf.shape[0] + 1]])
+        for k, line in zip(slow, lines):
             tokens = bytes(buf[line_starts[line] : line_starts[line + 1] - 1]).split()
             values[k] = float(tokens[k - first_value[line] + (name_start[line] >= 0)])
     result = Scan(

@@ -1,5 +1,6 @@
-"""Skeletons drawn offscreen with PyVista (VTK through EGL; no display needed): the dashboard's 3D player and the
-neighbour-pose figure of Krüger, Tautges, Weber & Zinke 2010, Fig. 1.
+"""Skeletons drawn offscreen with PyVista (VTK through EGL; no display needed): figures for notebooks and
+``reproduce``, and the neighbour-pose figure of Krüger, Tautges, Weber & Zinke 2010, Fig. 1 (the dashboard's 3D
+player animates in the browser instead: :mod:`mocapviz.app.player`).
 
 render_skeletons   one image of one or more canonical poses: side by side (each in its own viewport, one shared
                    camera) or drawn together in one scene (``overlay``), over a floor grid.

@@ -1,0 +1,512 @@
+// The dashboard's skeleton player, run in the browser (a Panel JSComponent: see player.py).
+//
+// The clips arrive once (model.positions: float32 (sum T_i, J, 3) cm, y up; model.alignment: int32 (S, n_clips)
+// frame per step; model.meta: lengths, titles, fps, parents, sides, bounds) and are animated here with
+// requestAnimationFrame on a Canvas 2D: a perspective projection of the bones (line segments), coloured by side, over
+// a floor grid. Drag orbits the camera, the wheel zooms, a double click resets the view. The shown step goes back to
+// Python (model.step) when paused or scrubbed, and at most every SYNC_MS during playback.
+//
+// For tests the canvas carries data-drawn (frames drawn so far), data-step (the shown step), data-frames (the frame
+// of each clip, comma separated) and data-playing, updated on every draw, and data-loads (clips received so far) and
+// data-clips (their number).
+
+const SIDE_COLOURS = { l: "#1f5fa8", r: "#d1452f", c: "#3c3c3c" };
+const SPEEDS = [0.25, 0.5, 1, 2];
+const SYNC_MS = 250;
+const SCRUB_SYNC_MS = 120;
+const FOV = (30 * Math.PI) / 180;
+const HOME = { azimuth: 30, elevation: 18, zoom: 1 };
+
+function arrayBuffer(value) {
+  if (value == null) {
+    return new ArrayBuffer(0);
+  }
+  if (value instanceof ArrayBuffer) {
+    return value;
+  }
+  if (ArrayBuffer.isView(value)) {
+    return value.buffer.slice(value.byteOffset, value.byteOffset + value.byteLength);
+  }
+  if (typeof value === "string") {  // base64, as a fallback
+    const text = atob(value);
+    const out = new Uint8Array(text.length);
+    for (let i = 0; i < text.length; i++) {
+      out[i] = text.charCodeAt(i);
+    }
+    return out.buffer;
+  }
+  throw new Error(`mocapviz player: cannot read clip data of type ${typeof value}`);
+}
+
+function element(tag, className, text) {
+  const el = document.createElement(tag);
+  if (className) {
+    el.className = className;
+  }
+  if (text != null) {
+    el.textContent = text;
+  }
+  return el;
+}
+
+function button(className, text, title) {
+  const b = element("button", className, text);
+  b.type = "button";
+  b.title = title;
+  return b;
+}
+
+// 14 px icons (the fonts of a headless browser may lack the media-control glyphs)
+const ICONS = {
+  previous: "<rect x='2' y='2' width='2' height='10'/><path d='M12 2 L5 7 L12 12 Z'/>",
+  play: "<path d='M3 2 L12 7 L3 12 Z'/>",
+  pause: "<rect x='3' y='2' width='3' height='10'/><rect x='8' y='2' width='3' height='10'/>",
+  next: "<path d='M2 2 L9 7 L2 12 Z'/><rect x='10' y='2' width='2' height='10'/>",
+};
+
+function icon(b, name) {
+  b.innerHTML = `<svg width="14" height="14" viewBox="0 0 14 14" fill="currentColor">${ICONS[name]}</svg>`;
+}
+
+// ------------------------------------------------------------------------------------------------------- camera
+function makeCamera(bounds, azimuthDeg, elevationDeg, zoom, width, height, left) {
+  const [lo, hi] = bounds;
+  const target = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2];
+  const radius = Math.max(1, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / 2);
+  const distance = radius / Math.sin(FOV / 2);
+  const a = (azimuthDeg * Math.PI) / 180;
+  const e = (elevationDeg * Math.PI) / 180;
+  const eye = [target[0] + distance * Math.cos(e) * Math.sin(a), target[1] + distance * Math.sin(e),
+               target[2] + distance * Math.cos(e) * Math.cos(a)];
+  const f = [target[0] - eye[0], target[1] - eye[1], target[2] - eye[2]];
+  const fn = Math.hypot(f[0], f[1], f[2]);
+  f[0] /= fn; f[1] /= fn; f[2] /= fn;
+  const r = [-f[2], 0, f[0]];  // f x (0, 1, 0): right-handed, like OpenGL's lookAt
+  const rn = Math.hypot(r[0], r[2]) || 1;
+  r[0] /= rn; r[2] /= rn;
+  const u = [r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2], r[0] * f[1] - r[1] * f[0]];
+  const focal = (zoom * 0.5 * Math.min(width, height)) / Math.tan(FOV / 2);
+  return { eye, f, r, u, focal, cx: left + width / 2, cy: height / 2, near: distance * 0.02 };
+}
+
+// camera coordinates (x right, y up, z depth) of point i of a flat xyz array
+function toCamera(cam, xyz, i, out) {
+  const dx = xyz[i] - cam.eye[0];
+  const dy = xyz[i + 1] - cam.eye[1];
+  const dz = xyz[i + 2] - cam.eye[2];
+  out[0] = dx * cam.r[0] + dy * cam.r[1] + dz * cam.r[2];
+  out[1] = dx * cam.u[0] + dy * cam.u[1] + dz * cam.u[2];
+  out[2] = dx * cam.f[0] + dy * cam.f[1] + dz * cam.f[2];
+}
+
+// ------------------------------------------------------------------------------------------------------- render
+export function render({ model, el }) {
+  const root = element("div", "mvp");
+  const canvas = element("canvas", "mv-player-canvas");
+  canvas.tabIndex = 0;
+  const controls = element("div", "mvp-controls");
+  const previous = button("previous", null, "previous step");
+  const play = button("play", null, "play / pause");
+  const next = button("next", null, "next step");
+  icon(previous, "previous");
+  icon(play, "play");
+  icon(next, "next");
+  const slider = element("input", "mv-player-slider");
+  slider.type = "range";
+  slider.min = "0";
+  slider.step = "1";
+  const speeds = element("span", "mvp-speeds");
+  const speedButtons = SPEEDS.map((s) => {
+    const b = button("speed", `${s}×`, `play at ${s}× the clip's rate`);
+    b.dataset.speed = String(s);
+    speeds.append(b);
+    return b;
+  });
+  const layout = button("layout", "overlay", "show the clips overlaid / side by side");
+  const home = button("home", "⟲", "reset the camera (or double-click the view)");
+  controls.append(previous, play, next, slider, speeds, layout, home);
+  const caption = element("div", "mv-player-caption");
+  const captionText = element("p", null, "");
+  caption.append(captionText);
+  root.append(canvas, controls, caption);
+  el.append(root);
+
+  const ctx = canvas.getContext("2d");
+  const st = {
+    clips: [], lengths: [], titles: [], parents: [], sides: [], bounds: [[-100, 0, -100], [100, 200, 100]],
+    fps: 30, nJoints: 0, align: new Int32Array(0), nSteps: 0, step: 0, pos: 0, playing: false,
+    overlay: false, azimuth: HOME.azimuth, elevation: HOME.elevation, zoom: HOME.zoom,
+    drawn: 0, loads: 0, lastTime: null, lastSync: 0, sent: null, scrubTimer: null, frameRequest: null, removed: false,
+  };
+  const dpr = Math.max(1, window.devicePixelRatio || 1);
+  let width = 0;
+  let height = 0;
+
+  function resize() {
+    const size = model.view_size || [520, 380];
+    width = size[0];
+    height = size[1];
+    canvas.style.width = `${width}px`;
+    canvas.style.height = `${height}px`;
+    canvas.width = Math.round(width * dpr);
+    canvas.height = Math.round(height * dpr);
+    slider.style.width = `${Math.max(80, width - 330)}px`;
+  }
+
+  function load() {
+    const meta = model.meta || {};
+    const nJoints = meta.n_joints || 0;
+    const data = new Float32Array(arrayBuffer(model.positions));
+    const lengths = meta.lengths || [];
+    st.clips = [];
+    let offset = 0;
+    for (const n of lengths) {
+      st.clips.push(data.subarray(offset, offset + n * nJoints * 3));
+      offset += n * nJoints * 3;
+    }
+    st.lengths = lengths;
+    st.nJoints = nJoints;
+    st.titles = meta.titles || [];
+    st.parents = meta.parents || [];
+    st.sides = meta.sides || [];
+    st.bounds = meta.bounds || st.bounds;
+    st.fps = meta.fps || 30;
+    st.align = new Int32Array(arrayBuffer(model.alignment));
+    st.nSteps = lengths.length ? Math.floor(st.align.length / lengths.length) : 0;
+    if (st.scrubTimer != null) {
+      clearTimeout(st.scrubTimer);
+      st.scrubTimer = null;
+    }
+    st.step = Math.min(Math.max(0, model.step | 0), Math.max(0, st.nSteps - 1));
+    st.pos = st.step;
+    st.sent = model.step;
+    slider.max = String(Math.max(0, st.nSteps - 1));
+    slider.value = String(st.step);
+    layout.style.display = lengths.length > 1 ? "" : "none";
+    st.loads += 1;
+    canvas.dataset.loads = String(st.loads);
+    canvas.dataset.clips = String(lengths.length);
+    requestDraw();
+  }
+
+  function frameOf(clip, step) {
+    return st.align[step * st.lengths.length + clip];
+  }
+
+  function frames() {
+    return st.lengths.map((_, j) => frameOf(j, st.step));
+  }
+
+  // ---------------------------------------------------------------------------------------------- drawing
+  function drawGrid(cam) {
+    const [lo, hi] = st.bounds;
+    const spacing = 50;
+    const x0 = Math.floor(lo[0] / spacing) * spacing;
+    const x1 = Math.ceil(hi[0] / spacing) * spacing;
+    const z0 = Math.floor(lo[2] / spacing) * spacing;
+    const z1 = Math.ceil(hi[2] / spacing) * spacing;
+    ctx.strokeStyle = "#d0d0d0";
+    ctx.lineWidth = 1;
+    ctx.beginPath();
+    for (let x = x0; x <= x1 + 1e-6; x += spacing) {
+      segment(cam, [x, 0, z0, x, 0, z1]);
+    }
+    for (let z = z0; z <= z1 + 1e-6; z += spacing) {
+      segment(cam, [x0, 0, z, x1, 0, z]);
+    }
+    ctx.stroke();
+  }
+
+  const a = [0, 0, 0];
+  const b = [0, 0, 0];
+
+  // a world segment into the current path, clipped at the near plane
+  function segment(cam, xyz) {
+    toCamera(cam, xyz, 0, a);
+    toCamera(cam, xyz, 3, b);
+    if (a[2] < cam.near && b[2] < cam.near) {
+      return;
+    }
+    if (a[2] < cam.near || b[2] < cam.near) {
+      const [p, q] = a[2] < cam.near ? [a, b] : [b, a];
+      const t = (cam.near - p[2]) / (q[2] - p[2]);
+      p[0] += t * (q[0] - p[0]);
+      p[1] += t * (q[1] - p[1]);
+      p[2] = cam.near;
+    }
+    ctx.moveTo(cam.cx + (cam.focal * a[0]) / a[2], cam.cy - (cam.focal * a[1]) / a[2]);
+    ctx.lineTo(cam.cx + (cam.focal * b[0]) / b[2], cam.cy - (cam.focal * b[1]) / b[2]);
+  }
+
+  // the bones of clip j at its frame, sorted far to near, into `out` as [depth, x0, y0, x1, y1, colour, alpha]
+  function bones(cam, j, alpha, out) {
+    const xyz = st.clips[j];
+    const base = frameOf(j, st.step) * st.nJoints * 3;
+    const p = [0, 0, 0];
+    const screen = new Array(st.nJoints);
+    for (let k = 0; k < st.nJoints; k++) {
+      toCamera(cam, xyz, base + 3 * k, p);
+      const z = Math.max(p[2], cam.near);
+      screen[k] = [cam.cx + (cam.focal * p[0]) / z, cam.cy - (cam.focal * p[1]) / z, z];
+    }
+    for (let k = 0; k < st.nJoints; k++) {
+      const parent = st.parents[k];
+      if (parent < 0) {
+        continue;
+      }
+      const s = screen[k];
+      const t = screen[parent];
+      out.push([(s[2] + t[2]) / 2, t[0], t[1], s[0], s[1], SIDE_COLOURS[st.sides[k]] || SIDE_COLOURS.c, alpha,
+                Math.max(2, Math.min(6, (cam.focal * 4) / ((s[2] + t[2]) / 2)))]);
+    }
+    return screen;
+  }
+
+  function drawSkeletons(cam, members) {
+    const segs = [];
+    const joints = [];
+    for (const j of members) {
+      const alpha = st.overlay && j > 0 ? 0.45 : 1;
+      joints.push([bones(cam, j, alpha, segs), alpha]);
+    }
+    segs.sort((s, t) => t[0] - s[0]);
+    ctx.lineCap = "round";
+    for (const [, x0, y0, x1, y1, colour, alpha, w] of segs) {
+      ctx.globalAlpha = alpha;
+      ctx.strokeStyle = colour;
+      ctx.lineWidth = w;
+      ctx.beginPath();
+      ctx.moveTo(x0, y0);
+      ctx.lineTo(x1, y1);
+      ctx.stroke();
+    }
+    for (const [screen, alpha] of joints) {
+      ctx.globalAlpha = alpha;
+      ctx.fillStyle = "#222";
+      for (const [x, y] of screen) {
+        ctx.beginPath();
+        ctx.arc(x, y, 2.2, 0, 2 * Math.PI);
+        ctx.fill();
+      }
+    }
+    ctx.globalAlpha = 1;
+  }
+
+  function draw() {
+    ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
+    ctx.fillStyle = "#ffffff";
+    ctx.fillRect(0, 0, width, height);
+    const n = st.clips.length;
+    if (n && st.nSteps) {
+      const views = st.overlay || n === 1 ? [[...Array(n).keys()]] : [...Array(n).keys()].map((j) => [j]);
+      const w = width / views.length;
+      const shown = frames();
+      views.forEach((members, v) => {
+        const cam = makeCamera(st.bounds, st.azimuth, st.elevation, st.zoom, w, height, v * w);
+        ctx.save();
+        ctx.beginPath();
+        ctx.rect(v * w, 0, w, height);
+        ctx.clip();
+        drawGrid(cam);
+        drawSkeletons(cam, members);
+        ctx.font = "12px sans-serif";
+        ctx.textBaseline = "top";
+        members.forEach((j, line) => {
+          ctx.globalAlpha = st.overlay && j > 0 ? 0.6 : 1;
+          ctx.fillStyle = "#000";
+          ctx.fillText(`${st.titles[j] ?? `clip ${j + 1}`}  frame ${shown[j]}`, v * w + 8, 6 + 16 * line);
+        });
+        ctx.globalAlpha = 1;
+        ctx.restore();
+        if (v > 0) {
+          ctx.strokeStyle = "#bbbbbb";
+          ctx.lineWidth = 1;
+          ctx.beginPath();
+          ctx.moveTo(v * w + 0.5, 0);
+          ctx.lineTo(v * w + 0.5, height);
+          ctx.stroke();
+        }
+      });
+      canvas.dataset.frames = shown.join(",");
+    }
+    st.drawn += 1;
+    canvas.dataset.drawn = String(st.drawn);
+    canvas.dataset.step = String(st.step);
+    canvas.dataset.playing = st.playing ? "1" : "0";
+    const seconds = st.nSteps / st.fps;
+    captionText.textContent = `step ${st.step + 1} of ${st.nSteps} · ${seconds.toFixed(2)} s at 1×`;
+    slider.value = String(st.step);
+  }
+
+  // ---------------------------------------------------------------------------------------------- animation
+  function requestDraw() {
+    if (st.frameRequest == null && !st.removed) {
+      st.frameRequest = requestAnimationFrame(tick);
+    }
+  }
+
+  function tick(time) {
+    st.frameRequest = null;
+    if (st.removed || !root.isConnected) {  // removed, or replaced by a new render: after_render asks again
+      return;
+    }
+    if (st.playing && st.nSteps > 0) {
+      if (st.lastTime != null) {
+        const dt = Math.min(time - st.lastTime, 250) / 1000;  // a stalled tab does not jump ahead
+        st.pos = (st.pos + dt * st.fps * (model.speed || 1)) % st.nSteps;
+        st.step = Math.floor(st.pos);
+      }
+      st.lastTime = time;
+      sync(false);
+    }
+    draw();
+    if (st.playing) {
+      requestDraw();
+    }
+  }
+
+  // tell Python the shown step: at once (force) or at most every SYNC_MS
+  function sync(force) {
+    const now = performance.now();
+    if (st.step === st.sent || (!force && now - st.lastSync < SYNC_MS)) {
+      return;
+    }
+    st.lastSync = now;
+    st.sent = st.step;
+    model.step = st.step;
+  }
+
+  function setPlaying(playing) {
+    st.playing = playing && st.nSteps > 1;
+    st.lastTime = null;
+    icon(play, st.playing ? "pause" : "play");
+    play.classList.toggle("pause", st.playing);
+    if (!st.playing) {
+      sync(true);
+    }
+    requestDraw();
+  }
+
+  function goTo(step, syncNow) {
+    st.step = Math.min(Math.max(0, step), Math.max(0, st.nSteps - 1));
+    st.pos = st.step;
+    if (syncNow) {
+      sync(true);
+    }
+  }
+
+  function showSpeed() {
+    for (const b of speedButtons) {
+      b.classList.toggle("active", Number(b.dataset.speed) === model.speed);
+    }
+  }
+
+  play.addEventListener("click", () => setPlaying(!st.playing));
+  previous.addEventListener("click", () => {
+    setPlaying(false);
+    goTo(st.step > 0 ? st.step - 1 : st.nSteps - 1, true);
+    requestDraw();
+  });
+  next.addEventListener("click", () => {
+    setPlaying(false);
+    goTo(st.step + 1 < st.nSteps ? st.step + 1 : 0, true);
+    requestDraw();
+  });
+  slider.addEventListener("input", () => {
+    // scrubbing is drawn here, at once; Python hears of it SCRUB_SYNC_MS after the last move (or on release)
+    goTo(Number(slider.value), false);
+    draw();
+    if (st.scrubTimer != null) {
+      clearTimeout(st.scrubTimer);
+    }
+    st.scrubTimer = setTimeout(() => {
+      st.scrubTimer = null;
+      sync(true);
+    }, SCRUB_SYNC_MS);
+  });
+  slider.addEventListener("change", () => {  // the slider let go: Python hears at once
+    if (st.scrubTimer != null) {
+      clearTimeout(st.scrubTimer);
+      st.scrubTimer = null;
+    }
+    sync(true);
+  });
+  for (const b of speedButtons) {
+    b.addEventListener("click", () => {
+      model.speed = Number(b.dataset.speed);
+    });
+  }
+  layout.addEventListener("click", () => {
+    st.overlay = !st.overlay;
+    layout.textContent = st.overlay ? "side by side" : "overlay";
+    requestDraw();
+  });
+  function resetView() {
+    Object.assign(st, { azimuth: HOME.azimuth, elevation: HOME.elevation, zoom: HOME.zoom });
+    requestDraw();
+  }
+  home.addEventListener("click", resetView);
+  canvas.addEventListener("dblclick", resetView);
+
+  let drag = null;
+  canvas.addEventListener("pointerdown", (event) => {
+    drag = { x: event.clientX, y: event.clientY, azimuth: st.azimuth, elevation: st.elevation };
+    canvas.setPointerCapture(event.pointerId);
+  });
+  canvas.addEventListener("pointermove", (event) => {
+    if (drag == null) {
+      return;
+    }
+    st.azimuth = drag.azimuth - 0.5 * (event.clientX - drag.x);
+    st.elevation = Math.min(85, Math.max(-10, drag.elevation + 0.4 * (event.clientY - drag.y)));
+    requestDraw();
+  });
+  const endDrag = () => { drag = null; };
+  canvas.addEventListener("pointerup", endDrag);
+  canvas.addEventListener("pointercancel", endDrag);
+  canvas.addEventListener("wheel", (event) => {
+    event.preventDefault();
+    st.zoom = Math.min(8, Math.max(0.25, st.zoom * Math.exp(-0.0015 * event.deltaY)));
+    requestDraw();
+  }, { passive: false });
+
+  // ---------------------------------------------------------------------------------------------- from Python
+  let reloadQueued = false;
+  model.on(["positions", "alignment", "meta"], () => {
+    if (!reloadQueued) {  // one reload for the three properties of one load()
+      reloadQueued = true;
+      queueMicrotask(() => {
+        reloadQueued = false;
+        load();
+      });
+    }
+  });
+  model.on("step", () => {
+    if (model.step !== st.step) {  // set by Python (our own model.step = ... arrives here equal to st.step)
+      st.sent = model.step;
+      goTo(model.step, false);
+      requestDraw();
+    }
+  });
+  model.on("speed", () => {
+    showSpeed();
+  });
+  model.on("view_size", () => {
+    resize();
+    requestDraw();
+  });
+  model.on("after_render", requestDraw);
+  model.on("remove", () => {
+    st.removed = true;
+    if (st.frameRequest != null) {
+      cancelAnimationFrame(st.frameRequest);
+    }
+    if (st.scrubTimer != null) {
+      clearTimeout(st.scrubTimer);
+    }
+  });
+
+  resize();
+  showSpeed();
+  load();
+}
