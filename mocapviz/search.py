@@ -47,7 +47,7 @@ from .match.bounds import box_rows, range_of, row_bounds
 from .match.pruned import search_ranges
 from .match.time_warping import dtw, select_matches
 from .motion import Motion
-from .validation import count, one_of
+from .validation import count, frame_span, one_of
 
 MODES = ("exact", "fast", "brute")
 NEIGHBOURS = 32  # k: nearest database frames per query frame (bounds and fast mode's seeds)
@@ -384,11 +384,7 @@ def _span(frames, n: int, what: str) -> tuple[int, int]:
             raise ParameterError(f"frames must be (start, stop); got {frames!r}") from None
     if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (a, b)):
         raise ParameterError(f"frames must be integers (start, stop); got {a!r}, {b!r}")
-    if not 0 <= a < b <= n:
-        raise ParameterError(f"frames {a}:{b} are outside {what}, which has frames 0..{n - 1} (stop at most {n})")
-    if b - a < 2:
-        raise ParameterError(f"a query needs at least 2 frames; frames {a}:{b} of {what} hold {b - a}")
-    return int(a), int(b)
+    return frame_span((a, b), n, what)
 
 
 def _boxes(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
