@@ -290,6 +290,26 @@ def _retrieval_quality(data: _Data) -> Result:
     return Result(tables=tables, figures=figures, settings=settings)
 
 
+def _template_quality(data: _Data) -> Result:
+    from .experiments.templates import template_quality
+    from .viz.retrieval import class_ap_bars
+
+    # HDM05: templates of four actors searched in the fifth's clips; Bandai Namco 1 (one actor, 15 styles of every
+    # content): content templates of the other styles searched in one style's clips
+    runs = {"hdm05": (data.hdm05(30.0), "actor"), "bandai_content": (data._ingest(("bandai-namco-1",), 30.0), "style")}
+    tables, figures, settings = {}, {}, {}
+    for name, (db, group) in runs.items():
+        res = template_quality(db, group=group, progress=data.progress)
+        for table, frame in res.items():
+            tables[f"{name}_{table}"] = frame
+        bars = res["per_class"].rename(columns={"ap_group": "ap_lgo"}).assign(method="template")
+        bars.attrs["group_column"] = group
+        figures[f"{name}_class_ap"] = class_ap_bars(bars, "lgo", title=f"{name.replace('_', ' ')}: motion "
+                                                    f"templates, AP per class (leave-{group}-out)")  # fmt: skip
+        settings[name] = {"database": data.describe(db), "group": group, "relational_set": "2006"}
+    return Result(tables=tables, figures=figures, settings=settings)
+
+
 EXPERIMENTS: dict[str, Callable[[_Data], Result]] = {
     "index_statistics": _index_statistics,
     "query_statistics": _query_statistics,
@@ -303,6 +323,7 @@ EXPERIMENTS: dict[str, Callable[[_Data], Result]] = {
     "reconstruction": _reconstruction,
     "base_poses": _base_poses,
     "retrieval_quality": _retrieval_quality,
+    "template_quality": _template_quality,
 }
 
 

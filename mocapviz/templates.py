@@ -10,10 +10,13 @@ template, not the user, chooses the features that matter (Müller & Röder 2006 
 learn_template      (T_i, f) feature matrices of n examples -> MotionTemplate (iterative warping and averaging).
 learn_class         a MotionDB's documents of one label (optionally of some actors only) -> MotionTemplate.
 find_instances      a template's matches in (N, f) feature values by subsequence DTW, best first (§5).
+shortest_instance   the fewest frames a match may span (half the fastest example's).
 document_costs      every document's best match cost of a template (for ranking whole clips).
 keyframe_ranges     the frame ranges where a template's keyframes occur, read from the relational indexes (the
                     pre-filter that spares the full DTW pass over a large database).
 classify            a clip's (T, f) feature values against several templates: the classes by DTW cost (§6).
+store_template      a template into a MotionDB's derived data, ``DB/templates/<name>.npz`` (template_path).
+stored_templates    the templates stored with a MotionDB, one row each; load_template reads one back.
 MotionTemplate      the real-valued template, its quantisation and the local cost of matching it.
 template_distance   the masked l1 local cost of template rows against boolean frames, (K, n).
 quantised_distance  the same for a quantised template, its don't-care entries left out (the matching cost).
@@ -30,6 +33,7 @@ the medoid's length.
 from __future__ import annotations
 
 import json
+import re
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,19 +42,23 @@ import numpy as np
 import pandas as pd
 
 from . import store
-from .errors import MotionDBError, ParameterError
+from .errors import MotionDBError, ParameterError, UnknownKeyError
 from .match import best_ends, dtw, subsequence_costs
 from .match.time_warping import matches_frame
-from .validation import count
+from .validation import count, number
 
 FORMAT = "mocapviz.MotionTemplate"
 VERSION = 1
 DONT_CARE = 0.5  # the value a quantised template holds where a feature does not matter
 DELTA = 0.1  # default quantisation threshold: < δ -> 0, > 1 - δ -> 1, else don't care
 ITERATIONS = 10
-KEYFRAMES = 3  # template rows used by the pre-filter
-TOLERANCE = 0.25  # a keyframe occurs where at most this share of its cared-for features disagree
+KEYFRAMES = 4  # template rows used by the pre-filter
+TOLERANCE = 0.2  # a keyframe occurs where at most this share of its cared-for features disagree
+SPEED = 2.0  # the pre-filter's chains allow instances up to this much faster or slower than the template
 TOL = 1e-6
+TEMPLATES = "templates"  # the folder of a MotionDB holding its stored templates (store_template)
+_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,127}")  # a stored template's name: filename-safe
+_SAFE = re.compile(r"[^A-Za-z0-9._-]")
 
 
 @dataclass
@@ -64,7 +72,7 @@ class MotionTemplate:
     label : str, the class it was learned from.
     n_examples : int
     iterations : int, warping-and-averaging rounds until it settled.
-    meta : dict, anything else worth keeping (relational set, the example documents, ...).
+    meta : dict, anything else worth keeping (the examples' frames, relational set, example documents, ...).
 
     ``save(path)`` writes it as an ``.npz`` (no pickle) through :mod:`mocapviz.store` with a format header and the
     sha256 of its values; ``MotionTemplate.load(path)`` checks both.
@@ -82,7 +90,7 @@ class MotionTemplate:
 
         Returns np.ndarray [shape=(K, f)], float64 in {0, 0.5, 1}.
         """
-        delta = _delta(delta)
+        delta = number(delta, "delta", 0.0, 0.5, high_open=True)
         out = np.full(self.values.shape, DONT_CARE)
         out[self.values < delta] = 0.0
         out[self.values > 1.0 - delta] = 1.0
@@ -163,7 +171,9 @@ def learn_template(examples, features: list[str], label: str = "", iterations: i
 
     Returns
     -------
-    MotionTemplate
+    MotionTemplate; ``meta`` holds ``example_frames`` (each example's length), ``example_costs`` (each example's
+    best normalised match cost, :func:`document_costs`) and ``threshold``, the highest of those: the cost up to which
+    a match is as good as the examples' own (a default threshold for hits).
     """
     xs = _examples(examples, features)
     count(iterations, "iterations")
@@ -181,11 +191,23 @@ def learn_template(examples, features: list[str], label: str = "", iterations: i
         ref = new
         if moved <= tol:
             break
-    return MotionTemplate(ref, list(features), label, len(xs), done)
+    template = MotionTemplate(ref, list(features), label, len(xs), done, {"example_frames": [len(x) for x in xs]})
+    own = document_costs(template, np.concatenate(xs), np.cumsum([0] + [len(x) for x in xs[:-1]]))
+    template.meta |= {"example_costs": own.tolist(), "threshold": float(own.max())}
+    return template
+
+
+def shortest_instance(template: MotionTemplate, speed: float = SPEED) -> int:
+    """The fewest frames a match of ``template`` may span: its fastest example's frames (``meta["example_frames"]``;
+    the template's own length when not recorded) over ``speed``, at least 1. Shorter alignments squeeze the template
+    onto a few frames that agree with its don't-care rows, and are no instances."""
+    frames = template.meta.get("example_frames") or [len(template.values)]
+    return max(1, int(np.ceil(min(frames) / number(speed, "speed", 1.0))))
 
 
 def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_matches: int = 10,
-                   delta: float = DELTA, max_cost: float | None = None, ranges=None) -> pd.DataFrame:  # fmt: skip
+                   delta: float = DELTA, max_cost: float | None = None, ranges=None,
+                   min_frames: int | None = None) -> pd.DataFrame:  # fmt: skip
     """The stretches of a database that match a template: subsequence DTW of the quantised template against the
     frames' relational features with the don't-care entries left out (:func:`quantised_distance`).
 
@@ -200,6 +222,8 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
         mismatch per frame in [0, 1]) is at most this.
     ranges : np.ndarray [shape=(R, 2)], int, optional: align only within these [start, stop) frame ranges, each
         inside one document (:func:`keyframe_ranges`, the pre-filter); default the whole database.
+    min_frames : int, optional: no match spans fewer frames (default :func:`shortest_instance`: half the fastest
+        example's frames).
 
     Returns
     -------
@@ -212,7 +236,7 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
     q = template.quantised(delta)
     count(n_matches, "n_matches")
     # subsequence DTW's pieces, without its rule that a match be at least as long as the query: a template (the
-    # medoid example's length) may be longer than a slower or shorter instance, which the warping absorbs
+    # medoid example's length) may be longer than a faster instance, which the warping absorbs, down to min_frames
     doc_starts = np.zeros(1, dtype=np.int64) if starts is None else np.asarray(starts, dtype=np.int64)
     if ranges is None:
         frames, parts = np.arange(len(x)), starts
@@ -222,7 +246,7 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
             return pd.DataFrame(columns=["doc_id", "start", "end", "cost", "normalised_cost"])
         frames = np.concatenate([np.arange(a, b) for a, b in ranges])
         parts = np.r_[0, np.cumsum(ranges[:, 1] - ranges[:, 0])[:-1]]
-    cost, first = subsequence_costs(q, x[frames], parts, distance=quantised_distance)
+    cost, first = _costs(template, q, x[frames], parts, min_frames)
     ends = best_ends(cost, first, parts, n_matches)
     hits = matches_frame(doc_starts, frames[first[ends]], frames[ends], cost[ends], [None] * len(ends))
     hits = hits.drop(columns="path")
@@ -233,15 +257,21 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
 
 
 def keyframe_ranges(template: MotionTemplate, indexes: dict, doc_starts, n_frames: int, delta: float = DELTA,
-                    keyframes: int = KEYFRAMES, tolerance: float = TOLERANCE) -> np.ndarray:  # fmt: skip
+                    keyframes: int = KEYFRAMES, tolerance: float = TOLERANCE, speed: float = SPEED) -> np.ndarray:  # fmt: skip
     """Candidate frame ranges for a template, from the relational indexes instead of the frames (the pre-filter).
 
     ``keyframes`` template rows are chosen (in each of as many equal parts of the template, the row that cares
     about the most features). A keyframe *occurs* at a frame whose features disagree with it on at most
     ``tolerance`` of its cared-for features; the disagreements are counted per stored segment of each group's
     inverted index (the code of the segment against the keyframe's bits of that group), so no frame's features
-    are read. A frame is a candidate when every keyframe occurs within one template length of it, in its own
-    document; the ranges returned are the candidates widened by one template length on each side.
+    are read. A *chain* is an occurrence of every keyframe, in the template's order, in one document, each gap
+    between ``lo`` and ``hi`` times the gap of the two rows in the template (plus two frames), where [lo, hi] is
+    the pace of the template's examples (their frames over the template's, ``meta["example_frames"]``; 1 when not
+    recorded) widened by ``speed`` both ways; a range is what a chain ending at frame t can belong to: from ``hi``
+    times the last keyframe's row before t to ``hi`` times the rows after it past t, inside the document.
+    Instances at most ``speed`` times faster or slower than the fastest / slowest example, whose keyframes all
+    agree that well, are inside the ranges; anything else may be missed (measured in
+    ``benchmarks/bench_templates.py``).
 
     Parameters
     ----------
@@ -249,8 +279,12 @@ def keyframe_ranges(template: MotionTemplate, indexes: dict, doc_starts, n_frame
     indexes : dict group -> mocapviz.index.InvertedIndex (``mocapviz.index.load_or_build(db, relational_set)``).
     doc_starts : np.ndarray [shape=(B,)], int: first frame of every document.
     n_frames : int, frames of the database.
-    delta, keyframes, tolerance : the quantisation threshold, the number of keyframes, the share of disagreeing
-        features a keyframe occurrence may have.
+    delta : float, the quantisation threshold.
+    keyframes : int, 1 .. template frames (default 4).
+    tolerance : float in [0, 1], the share of a keyframe's cared-for features that may disagree (default 0.2; 1
+        makes every frame an occurrence: the ranges then cover every document at least as long as a chain).
+    speed : float >= 1, how much faster than the fastest example or slower than the slowest an instance may be
+        (default 2).
 
     Returns
     -------
@@ -259,48 +293,78 @@ def keyframe_ranges(template: MotionTemplate, indexes: dict, doc_starts, n_frame
     q = template.quantised(delta)
     k = len(q)
     count(keyframes, "keyframes", most=k, most_is="the template's frames")
+    tolerance, speed = number(tolerance, "tolerance", 0.0, 1.0), number(speed, "speed", 1.0)
     parts = np.array_split(np.arange(k), keyframes)
     cared = (q != DONT_CARE).sum(axis=1)
     rows = [int(p[np.argmax(cared[p])]) for p in parts]
+    pace = np.asarray(template.meta.get("example_frames") or [k], dtype=np.float64) / k
+    lo, hi = pace.min() / speed, pace.max() * speed
     doc_starts = np.asarray(doc_starts, dtype=np.int64)
     doc = np.repeat(np.arange(len(doc_starts)), np.diff(np.r_[doc_starts, n_frames]))
-    near = np.ones(n_frames, dtype=bool)
-    for r in rows:
-        wrong = np.zeros(n_frames, dtype=np.int64)
-        for idx in indexes.values():
-            cols = [template.features.index(name) for name in idx.feature_names]
-            bits = np.int64(1) << np.arange(len(cols), dtype=np.int64)
-            mask = int(bits[q[r, cols] != DONT_CARE].sum())
-            want = int(bits[q[r, cols] == 1.0].sum())
-            per_code = np.bitwise_count((idx.list_codes ^ want) & mask).astype(np.int64)
-            per_frame = np.repeat(per_code[idx.rank], idx.lengths)  # the segments tile the database's frames
-            if len(per_frame) != n_frames:
-                raise ParameterError(f"an index of {len(per_frame):,} frames for a database of {n_frames:,}")
-            wrong += per_frame
-        occurs = wrong <= tolerance * max(1, cared[r])
-        near &= _within(occurs, doc, k)
-    candidate = _within(near, doc, k)
+    first = doc_starts[doc]  # the first frame of each frame's document
+    reach = None
+    for i, r in enumerate(rows):
+        occurs = _disagreements(template, q[r], indexes, n_frames) <= tolerance * max(1, cared[r])
+        if reach is None:
+            reach = occurs
+        else:
+            gap = r - rows[i - 1]
+            reach = occurs & _seen(reach, first, int(gap * lo), int(np.ceil(gap * hi)) + 2)
+    before, after = int(np.ceil(rows[-1] * hi)) + 2, int(np.ceil((k - 1 - rows[-1]) * hi)) + 2
+    ends = np.flatnonzero(reach)
+    last = np.r_[doc_starts[1:], n_frames][doc[ends]]  # one past each end's document
+    cover = np.zeros(n_frames + 1, dtype=np.int64)
+    np.add.at(cover, np.maximum(ends - before, first[ends]), 1)
+    np.add.at(cover, np.minimum(ends + after + 1, last), -1)
+    candidate = np.cumsum(cover[:-1]) > 0
     edges = np.flatnonzero(np.diff(np.r_[0, candidate.astype(np.int8), 0]))
     ranges = edges.reshape(-1, 2)
     # split ranges at document starts (a match never crosses one)
-    cuts = np.sort(np.r_[ranges[:, 0], ranges[:, 1], doc_starts[(doc_starts > 0)]])
+    cuts = np.unique(np.r_[ranges.ravel(), doc_starts[(doc_starts > 0)]])
     out = np.stack([cuts[:-1], cuts[1:]], axis=1)
     out = out[(out[:, 1] > out[:, 0])]
     return out[candidate[out[:, 0]]].astype(np.int64)
 
 
-def _within(mask: np.ndarray, doc: np.ndarray, radius: int) -> np.ndarray:
-    """Frames whose nearest True of ``mask`` in their own document is at most ``radius`` frames away."""
+def _disagreements(template: MotionTemplate, row: np.ndarray, indexes: dict, n_frames: int) -> np.ndarray:
+    """(N,) int64: for every frame, the cared-for features of one quantised template row it disagrees with, counted
+    per stored segment of each group's inverted index (segment code against the row's bits)."""
+    wrong = np.zeros(n_frames, dtype=np.int64)
+    for idx in indexes.values():
+        cols = [template.features.index(name) for name in idx.feature_names]
+        bits = np.int64(1) << np.arange(len(cols), dtype=np.int64)
+        mask = int(bits[row[cols] != DONT_CARE].sum())
+        want = int(bits[row[cols] == 1.0].sum())
+        per_code = np.bitwise_count((idx.list_codes ^ want) & mask).astype(np.int64)
+        per_frame = np.repeat(per_code[idx.rank], idx.lengths)  # the segments tile the database's frames
+        if len(per_frame) != n_frames:
+            raise ParameterError(f"an index of {len(per_frame):,} frames for a database of {n_frames:,}")
+        wrong += per_frame
+    return wrong
+
+
+def _seen(mask: np.ndarray, first: np.ndarray, lo: int, hi: int) -> np.ndarray:
+    """(N,) bool: frames t with a True of ``mask`` among frames t - hi .. t - lo of their own document (``first``:
+    each frame's document start)."""
     n = len(mask)
-    idx = np.arange(n)
-    last = np.maximum.accumulate(np.where(mask, idx, -1))
-    nxt = np.minimum.accumulate(np.where(mask, idx, n)[::-1])[::-1]
-    ok_last = (last >= 0) & (idx - last <= radius) & (doc[np.maximum(last, 0)] == doc)
-    ok_next = (nxt < n) & (nxt - idx <= radius) & (doc[np.minimum(nxt, n - 1)] == doc)
-    return ok_last | ok_next
+    total = np.r_[0, np.cumsum(mask, dtype=np.int64)]
+    t = np.arange(n)
+    a = np.maximum(t - hi, first)
+    b = np.maximum(t - lo + 1, a)
+    return total[np.minimum(b, n)] > total[np.minimum(a, n)]
 
 
-def document_costs(template: MotionTemplate, values: np.ndarray, starts, delta: float = DELTA) -> np.ndarray:
+def _costs(template, q, x, starts, min_frames) -> tuple[np.ndarray, np.ndarray]:
+    """Subsequence DTW's (cost, first) per end frame of the quantised template ``q`` over ``x``, inf where the
+    alignment spans fewer than ``min_frames`` frames (None: :func:`shortest_instance`)."""
+    least = shortest_instance(template) if min_frames is None else count(min_frames, "min_frames")
+    cost, first = subsequence_costs(q, x, starts, distance=quantised_distance)
+    cost[np.arange(len(cost)) - first + 1 < least] = np.inf
+    return cost, first
+
+
+def document_costs(template: MotionTemplate, values: np.ndarray, starts, delta: float = DELTA,
+                   min_frames: int | None = None) -> np.ndarray:  # fmt: skip
     """The best (least) normalised cost of a match of ``template`` ending in each document: every document gets
     one, so whole clips can be ranked by how well they hold an instance.
 
@@ -309,7 +373,7 @@ def document_costs(template: MotionTemplate, values: np.ndarray, starts, delta: 
     """
     x = np.asarray(values)
     q = template.quantised(delta)
-    cost, _ = subsequence_costs(q, x, starts, distance=quantised_distance)
+    cost, _ = _costs(template, q, x, starts, min_frames)
     bounds = np.r_[np.asarray(starts, dtype=np.int64), len(x)]
     return np.minimum.reduceat(cost, bounds[:-1]) / len(q)
 
@@ -338,34 +402,37 @@ def classify(values: np.ndarray, templates, delta: float = DELTA) -> pd.DataFram
 
 
 def learn_class(db, label: str, actors=None, relational_set: str = "2006", values: np.ndarray | None = None,
-                iterations: int = ITERATIONS) -> MotionTemplate:  # fmt: skip
+                iterations: int = ITERATIONS, group: str = "actor") -> MotionTemplate:  # fmt: skip
     """Learn the template of the documents of a MotionDB with ``label`` (of ``actors`` only, when given).
 
     Parameters
     ----------
     db : MotionDB
     label : str, a value of the documents' ``label`` column.
-    actors : sequence of str, optional: only the documents whose ``actor`` column is one of these.
+    actors : sequence of str, optional: only the documents whose ``group`` column (default ``actor``) is one of
+        these.
     relational_set : {"2005", "2006"}, the features (default the 39 of Müller & Röder 2006, as in the paper).
     values : np.ndarray [shape=(N, f)], bool, optional: the database's relational features when already computed.
     iterations : int, see :func:`learn_template`.
+    group : str, the column ``actors`` selects from (e.g. ``style`` in Bandai Namco's data).
 
     Returns
     -------
-    MotionTemplate; ``meta`` holds the relational set, the example doc ids and the database path.
+    MotionTemplate; ``meta`` holds the relational set, the example doc ids, the actors, the database path and its
+    ``generation`` (``db.manifest["generation"]``: the state of the database it was learned from).
     """
     from .features import relational_features
 
     docs = db.documents
     chosen = docs[docs["label"].astype("string") == str(label)]
     if actors is not None:
-        if "actor" not in docs.columns:
-            raise ParameterError(f"{db.path}: the documents have no actor column; leave actors out")
-        chosen = chosen[chosen["actor"].astype("string").isin([str(a) for a in actors])]
+        if group not in docs.columns:
+            raise ParameterError(f"{db.path}: the documents have no {group} column; leave actors out")
+        chosen = chosen[chosen[group].astype("string").isin([str(a) for a in actors])]
     if chosen.empty:
         known = ", ".join(sorted(map(str, docs["label"].dropna().unique()))[:20])
         raise ParameterError(f"no document of {db.path} has label {label!r}"
-                             + (f" and actor in {list(actors)}" if actors is not None else "")
+                             + (f" and {group} in {list(actors)}" if actors is not None else "")
                              + f"; labels: {known}")  # fmt: skip
     if values is None:
         values, names = relational_features(db, relational_set, progress=False)
@@ -375,9 +442,85 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
         names = feature_names(relational_set)
     examples = [values[s : s + n] for s, n in zip(chosen["start"], chosen["n_frames"])]
     template = learn_template(examples, names, str(label), iterations)
-    template.meta = {"relational_set": str(relational_set), "doc_ids": chosen["doc_id"].astype(int).tolist(),
-                     "database": str(db.path), "actors": None if actors is None else [str(a) for a in actors]}
+    template.meta |= {"relational_set": str(relational_set), "doc_ids": chosen["doc_id"].astype(int).tolist(),
+                     "database": str(db.path), "generation": db.manifest["generation"],
+                     "actors": None if actors is None else [str(a) for a in actors]}
     return template
+
+
+def template_path(db, name: str) -> Path:
+    """Where the template ``name`` of a MotionDB is stored: ``DB/templates/<name>.npz``.
+
+    ``name`` is filename-safe: letters, digits, ``.``, ``_`` and ``-``, not starting with ``.``, at most 128
+    characters; anything else is a ParameterError.
+    """
+    if not isinstance(name, str) or not _NAME.fullmatch(name):
+        raise ParameterError(f"template name {name!r} is not filename-safe: use letters, digits, '.', '_' and '-' "
+                             "(not first '.'), at most 128 characters")
+    return Path(db.path) / TEMPLATES / f"{name}.npz"
+
+
+def store_template(db, template: MotionTemplate, name: str | None = None) -> Path:
+    """Store a template with a MotionDB's derived data (:func:`template_path`), replacing one of that name.
+
+    Parameters
+    ----------
+    db : MotionDB
+    template : MotionTemplate
+    name : str, optional: default the label, then ``-`` and each actor when it was learned from some only
+        (``squat1Reps-bd-dg``), with every character that is not filename-safe replaced by ``_``.
+
+    Returns
+    -------
+    pathlib.Path of the stored file (written atomically under the lock of ``DB/templates/``).
+    """
+    if name is None:
+        words = [template.label, *(template.meta.get("actors") or [])]
+        name = _SAFE.sub("_", "-".join(words)).lstrip(".") or "template"
+    path = template_path(db, name)
+    path.parent.mkdir(exist_ok=True)
+    with store.locked(path.parent, what=str(path.parent)):
+        template.save(path)
+    return path
+
+
+def load_template(db, name: str) -> MotionTemplate:
+    """The template stored as ``name`` with a MotionDB (:func:`store_template`), whatever database generation it was
+    learned from (a template is portable; :func:`stored_templates` shows the generation).
+
+    Raises
+    ------
+    UnknownKeyError
+        No template of that name is stored; the message lists those that are.
+    MotionDBError
+        The stored file is damaged; the message names it.
+    """
+    path = template_path(db, name)
+    if not path.is_file():
+        stored = ", ".join(sorted(p.stem for p in path.parent.glob("*.npz"))) or "none"
+        raise UnknownKeyError(f"{db.path} has no stored template {name!r} (stored: {stored}); "
+                              f"`mocapviz template learn {db.path} --label CLASS` stores one")  # fmt: skip
+    return MotionTemplate.load(path)
+
+
+def stored_templates(db) -> pd.DataFrame:
+    """The templates stored with a MotionDB, by name.
+
+    Returns
+    -------
+    pd.DataFrame, one row per template: name, label, n_examples, frames (template rows), relational_set, actors
+    (comma-separated; empty when learned from every actor), generation (of the database it was learned from; None
+    when unknown) and current (that generation is the database's now). A damaged file raises MotionDBError naming it.
+    """
+    rows = []
+    for path in sorted((Path(db.path) / TEMPLATES).glob("*.npz")):
+        t = MotionTemplate.load(path)
+        rows.append({"name": path.stem, "label": t.label, "n_examples": t.n_examples, "frames": len(t.values),
+                     "relational_set": t.meta.get("relational_set"), "actors": ",".join(t.meta.get("actors") or []),
+                     "generation": t.meta.get("generation"),
+                     "current": t.meta.get("generation") == db.manifest["generation"]})  # fmt: skip
+    columns = ["name", "label", "n_examples", "frames", "relational_set", "actors", "generation", "current"]
+    return pd.DataFrame(rows, columns=columns)
 
 
 def _medoid(xs: list[np.ndarray]) -> int:
@@ -406,9 +549,3 @@ def _examples(examples, features) -> list[np.ndarray]:
         if not np.isin(x, (0, 1)).all():
             raise ParameterError(f"example {i} holds values other than 0/1 (boolean relational features expected)")
     return [x.astype(bool) for x in xs]
-
-
-def _delta(delta) -> float:
-    if not isinstance(delta, (int, float, np.floating)) or not 0.0 <= float(delta) < 0.5:
-        raise ParameterError(f"delta must be a number in [0, 0.5); got {delta!r}")
-    return float(delta)

@@ -2,6 +2,7 @@
 that names the value and says what to pass (the one place such checks are written).
 
 count              an integer within a range (k neighbours, K matches, budgets).
+number             a finite number within an interval (thresholds, tolerances).
 one_of, some_of    a name (or several) from a fixed set: numeric sets, relational sets, engines, ...
 finite_positions   joint positions without NaN or inf, the first bad frame and joint named.
 renamed            a decorator accepting a parameter's old name (see the glossary) with a FutureWarning.
@@ -10,7 +11,7 @@ frame_span         a [first, last) span of frames inside a clip of n frames, at 
 Checks of text (command-line values; the command's ``type=`` functions call them):
 
 parse_count        an integer within a range; parse_port a TCP port; parse_integers a list of integers.
-parse_number       a finite number within an interval.
+parse_number       a finite number within an interval (:func:`number` checks one given in Python).
 parse_names        comma-separated names (or exactly one) from a fixed set.
 parse_span         ``A:B`` frame numbers (either may be left out), A < B.
 """
@@ -153,10 +154,11 @@ def parse_integers(text: str, name: str, least: int = 0) -> list[int]:
     return values
 
 
-def parse_number(text: str, name: str, low: float | None = None, high: float | None = None, low_open: bool = False,
-                 high_open: bool = False) -> float:
-    """The finite number written in ``text`` inside the interval from ``low`` to ``high`` (closed ends unless
-    ``low_open`` / ``high_open``; None: unbounded), or a ParameterError naming ``name`` and the interval."""
+def number(value, name: str, low: float | None = None, high: float | None = None, low_open: bool = False,
+           high_open: bool = False) -> float:
+    """``value`` (an int or float, not a bool) as a finite float inside the interval from ``low`` to ``high``
+    (closed ends unless ``low_open`` / ``high_open``; None: unbounded), or a ParameterError naming ``name`` and the
+    interval."""
     if low is not None and high is not None:
         interval = f"in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
     elif low is not None:
@@ -165,17 +167,29 @@ def parse_number(text: str, name: str, low: float | None = None, high: float | N
         interval = f"{'<' if high_open else '<='} {high:g}"
     else:
         interval = "(finite)"
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    x = float(value) if ok else float("nan")
+    inside = np.isfinite(x) and not (
+        low is not None and (x <= low if low_open else x < low)
+        or high is not None and (x >= high if high_open else x > high)
+    )
+    if not inside:
+        raise ParameterError(f"{name} must be a number {interval}; got {value!r}")
+    return x
+
+
+def parse_number(text: str, name: str, low: float | None = None, high: float | None = None, low_open: bool = False,
+                 high_open: bool = False) -> float:
+    """The finite number written in ``text`` inside the interval from ``low`` to ``high`` (see :func:`number`), or a
+    ParameterError naming ``name`` and the interval."""
     try:
         value = float(str(text).strip())
     except ValueError:
         value = float("nan")
-    inside = np.isfinite(value) and not (
-        low is not None and (value <= low if low_open else value < low)
-        or high is not None and (value >= high if high_open else value > high)
-    )
-    if not inside:
-        raise ParameterError(f"{name} must be a number {interval}; got {text!r}")
-    return value
+    try:
+        return number(value, name, low, high, low_open, high_open)
+    except ParameterError as exc:
+        raise ParameterError(str(exc).rsplit("; got ", 1)[0] + f"; got {text!r}") from None
 
 
 def parse_names(text: str, name: str, what: str, options, one: bool = False) -> list[str]:

@@ -58,8 +58,8 @@ def test_leave_actor_out_on_hdm05_meets_the_target(hdm05_db30):
 
 def test_the_keyframe_prefilter_keeps_the_full_passs_good_hits(hdm05_db30):
     """Templates learned on four actors: every hit of normalised cost <= 0.1 of the full DTW pass over the 287
-    clips is found again when only the keyframe ranges (read from the 2006 relational indexes) are aligned, and
-    the costs are the same."""
+    clips is found again when only the keyframe ranges (read from the 2006 relational indexes) are aligned, and the
+    costs are the same."""
     from mocapviz import index
     from mocapviz.templates import find_instances, keyframe_ranges
 

@@ -12,6 +12,7 @@ from mocapviz.templates import (
     DONT_CARE,
     classify,
     find_instances,
+    shortest_instance,
     learn_template,
     quantised_distance,
     template_distance,
@@ -100,9 +101,15 @@ def test_classify_ranks_the_nearest_template_first():
     assert ranked["label"].tolist() == ["up", "down"] and ranked["cost"].is_monotonic_increasing
 
 
-def test_a_template_longer_than_every_document_still_finds_them():
-    """The medoid of slow examples can be longer than a quick instance; the warping absorbs it."""
+def test_a_template_longer_than_an_instance_finds_it_down_to_half_the_fastest_example():
+    """The medoid of slow examples can be longer than a quicker instance; the warping absorbs it, down to half the
+    fastest example's frames (shortest_instance); a still shorter stretch is no instance unless min_frames allows."""
     slow = np.repeat(A, 4, axis=0)  # 12 frames
+    half = np.repeat(A, 2, axis=0)  # 6 frames: twice as fast
     t = learn_template([slow, slow], ["f1", "f2"])
-    hits = find_instances(t, np.concatenate([A, C]), np.array([0, 3]), n_matches=2)
+    assert shortest_instance(t) == 6
+    hits = find_instances(t, np.concatenate([half, C]), np.array([0, 6]), n_matches=2)
+    assert hits["doc_id"].tolist()[0] == 0 and hits["cost"].iloc[0] == 0
+    assert find_instances(t, np.concatenate([A, C]), np.array([0, 3]), n_matches=2).empty  # 3 frames: too short
+    hits = find_instances(t, np.concatenate([A, C]), np.array([0, 3]), n_matches=2, min_frames=1)
     assert hits["doc_id"].tolist()[0] == 0 and hits["cost"].iloc[0] == 0

@@ -38,11 +38,11 @@ TITLE = "mocapviz"
 
 
 def _pages():
-    from .pages import correlations, database, reconstruction, relational, retrieval, similarity, statistics
+    from .pages import correlations, database, reconstruction, relational, retrieval, similarity, statistics, templates
 
     return [("Database", database.DatabasePage), ("Relational query", relational.RelationalPage),
             ("Similarity search", similarity.SimilarityPage), ("Retrieval quality", retrieval.RetrievalPage),
-            ("Correlations", correlations.CorrelationsPage),
+            ("Motion templates", templates.TemplatesPage), ("Correlations", correlations.CorrelationsPage),
             ("Index statistics", statistics.StatisticsPage), ("Reconstruction", reconstruction.ReconstructionPage)]
 
 

@@ -7,7 +7,9 @@ clips of the *other* groups (:func:`mocapviz.templates.learn_class`) and then
   all clips of the database (``search="all"``; the training clips are then among the candidates: an optimistic
   figure, reported beside the other): every clip is ranked by its best match's normalised cost (mean mismatch
   per template frame, :func:`mocapviz.templates.document_costs`), judged by :mod:`mocapviz.evaluation` with the
-  class as the label sought (no clip is the query);
+  class as the label sought (no clip is the query): AP and R-precision of the ranking, and precision and recall of
+  the clips holding a match of normalised cost at most the template's threshold (the worst cost of its own
+  examples, or ``max_cost``): the hits a user gets without choosing a threshold;
 - used to classify: every clip of the held-out group goes to the class of the nearest template learned without
   its group (:func:`mocapviz.templates.classify`).
 
@@ -25,12 +27,13 @@ from .. import evaluation
 from ..errors import ParameterError
 from ..features import relational_features
 from ..templates import DELTA, classify, document_costs, learn_class
+from ..validation import number
 
 __all__ = ["template_quality"]
 
 
 def template_quality(db, relational_set: str = "2006", group: str = "actor", delta: float = DELTA,
-                     progress: bool = False) -> dict:  # fmt: skip
+                     max_cost: float | None = None, progress: bool = False) -> dict:  # fmt: skip
     """Leave-group-out retrieval and classification quality of motion templates on a labelled MotionDB.
 
     Parameters
@@ -39,6 +42,8 @@ def template_quality(db, relational_set: str = "2006", group: str = "actor", del
     relational_set : {"2005", "2006"}, the features the templates are learned on.
     group : str, the column whose values are left out in turn.
     delta : float, the quantisation threshold of the templates.
+    max_cost : float in [0, 1], optional: the normalised cost up to which a clip's best match counts as a hit
+        (precision and recall); default each template's own ``meta["threshold"]``, the worst cost of its examples.
     progress : bool, a progress bar over the templates.
 
     Returns
@@ -48,12 +53,15 @@ def template_quality(db, relational_set: str = "2006", group: str = "actor", del
     - ``per_template``: one row per (class, held-out group): ``class``, ``group``, ``examples`` (training clips),
       ``frames`` (template length), ``cared`` (share of entries that are not don't care), ``ap_group``,
       ``ap_all`` (average precision searching the group's clips / all clips), ``r_precision_group``,
-      ``learn_s``, ``search_ms`` (searching the group's clips).
+      ``precision_group``, ``recall_group`` (of the group's clips with a match of cost <= the threshold; precision
+      NaN when there is none), ``learn_s``, ``search_ms`` (searching the group's clips).
     - ``per_class``: per class, the mean of those over the held-out groups.
-    - ``summary``: one row: ``templates``, ``map_group``, ``map_all``, ``min_class_ap_group``,
-      ``classification_accuracy``, ``clips_classified``.
+    - ``summary``: one row: ``templates``, ``map_group``, ``map_all``, ``min_class_ap_group``, ``precision_group``,
+      ``recall_group`` (means over the templates), ``classification_accuracy``, ``clips_classified``.
     - ``classification``: one row per held-out clip: ``doc_id``, ``class``, ``predicted``, ``correct``.
     """
+    if max_cost is not None:
+        max_cost = number(max_cost, "max_cost", 0.0, 1.0)
     docs = db.documents
     for column in ("label", group):
         if column not in docs.columns:
@@ -80,16 +88,19 @@ def template_quality(db, relational_set: str = "2006", group: str = "actor", del
         if train.empty or not (held["label"].astype(str) == c).any():
             continue
         t0 = time.perf_counter()
-        template = learn_class(db, c, sorted(map(str, train[group].unique())), relational_set, values)
+        template = learn_class(db, c, sorted(map(str, train[group].unique())), relational_set, values,
+                               group=group)
         learn_s = time.perf_counter() - t0
         templates[(g, c)] = template
         t0 = time.perf_counter()
-        ap_group, rp_group = _search(template, values, _pool(db, held), labels, c, delta)
+        threshold = template.meta["threshold"] if max_cost is None else max_cost
+        judged = _search(template, values, _pool(db, held), labels, c, delta, threshold)
         search_ms = 1000 * (time.perf_counter() - t0)
-        ap_all, _ = _search(template, values, every, labels, c, delta)
+        ap_all = _search(template, values, every, labels, c, delta, threshold)["ap"]
         rows.append({"class": c, "group": g, "examples": len(train), "frames": len(template.values),
-                     "cared": float((template.quantised(delta) != 0.5).mean()), "ap_group": ap_group,
-                     "ap_all": ap_all, "r_precision_group": rp_group, "learn_s": learn_s,
+                     "cared": float((template.quantised(delta) != 0.5).mean()), "ap_group": judged["ap"],
+                     "ap_all": ap_all, "r_precision_group": judged["r_precision"],
+                     "precision_group": judged["precision"], "recall_group": judged["recall"], "learn_s": learn_s,
                      "search_ms": search_ms})  # fmt: skip
     for g in groups:
         mine = [t for (tg, _), t in templates.items() if tg == g]
@@ -106,11 +117,12 @@ def template_quality(db, relational_set: str = "2006", group: str = "actor", del
     per_class = per_template.groupby("class").agg(
         groups=("group", "size"), examples=("examples", "mean"), frames=("frames", "mean"), cared=("cared", "mean"),
         ap_group=("ap_group", "mean"), ap_all=("ap_all", "mean"), r_precision_group=("r_precision_group", "mean"),
-        learn_s=("learn_s", "mean"), search_ms=("search_ms", "mean")).reset_index()  # fmt: skip
+        precision_group=("precision_group", "mean"), recall_group=("recall_group", "mean"), learn_s=("learn_s", "mean"), search_ms=("search_ms", "mean")).reset_index()  # fmt: skip
     classification = pd.DataFrame(predictions, columns=["doc_id", "class", "predicted", "correct"])
     summary = pd.DataFrame([{
         "templates": len(per_template), "map_group": per_template["ap_group"].mean(),
         "map_all": per_template["ap_all"].mean(), "min_class_ap_group": per_class["ap_group"].min(),
+        "precision_group": per_template["precision_group"].mean(), "recall_group": per_template["recall_group"].mean(),
         "classification_accuracy": classification["correct"].mean() if len(classification) else np.nan,
         "clips_classified": len(classification),
     }])  # fmt: skip
@@ -125,9 +137,16 @@ def _pool(db, docs: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return rows, starts, docs["doc_id"].to_numpy(np.int64)
 
 
-def _search(template, values, pool, labels, label: str, delta: float) -> tuple[float, float]:
-    """AP and R-precision of the clips of ``pool`` ranked by their best match of ``template``."""
+def _search(template, values, pool, labels, label: str, delta: float, max_cost: float) -> dict:
+    """AP and R-precision of the clips of ``pool`` ranked by their best match of ``template``, and precision and
+    recall of those whose best match costs at most ``max_cost``."""
     rows, starts, doc_ids = pool
-    order = np.argsort(document_costs(template, values[rows], starts, delta), kind="stable")
+    costs = document_costs(template, values[rows], starts, delta)
+    order = np.argsort(costs, kind="stable")
     ranking, n_relevant = evaluation.relevance(doc_ids[order], labels, None, candidates=doc_ids, label=label)
-    return evaluation.average_precision(ranking, n_relevant), evaluation.precision_at(ranking, max(1, n_relevant))
+    hits = int((costs <= max_cost).sum())  # the first ``hits`` of the ranking
+    found = int(ranking["relevant"].to_numpy(dtype=bool)[:hits].sum())
+    return {"ap": evaluation.average_precision(ranking, n_relevant),
+            "r_precision": evaluation.precision_at(ranking, max(1, n_relevant)),
+            "precision": found / hits if hits else float("nan"),
+            "recall": found / n_relevant if n_relevant else float("nan")}

@@ -1,0 +1,330 @@
+"""Motion templates page: a class learned from its labelled examples and its instances found in the whole database
+(Müller & Röder 2006; :mod:`mocapviz.templates`).
+
+The user picks a class (a ``label`` shared by at least two documents), optionally the actors whose documents teach
+it, the relational set, the quantisation threshold δ, K and an optional limit on the cost. "Learn and search" then,
+in a worker thread behind a progress bar: learns the template (:func:`mocapviz.templates.learn_class`, cached per
+class, actors and set), computes the database's relational features of the set (once per set) and finds the K best
+instances by subsequence DTW (:func:`mocapviz.templates.find_instances`). The template is drawn as the paper draws
+it (features × time, white 0, black 1, grey don't care; or its averaged values); a chosen hit plays beside one
+training example of the template, the two aligned by DTW of their relational features.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import panel as pn
+
+from ...features import relational_features
+from ...match import dtw
+from ...templates import DELTA, DONT_CARE, MotionTemplate, find_instances, learn_class, template_distance
+from ...validation import count, number, one_of
+from ...viz.templates import template_image
+from ..player import SkeletonPlayer
+from ..progress import Task
+from ..widgets import action_button, results_table
+
+RELATIONAL_SETS = ["2006", "2005"]  # the 39 features of Müller & Röder 2006 (the paper's), or the 31 of 2005
+MAX_MATCHES = 100
+DEFAULT_MATCHES = 20
+DELTA_MAX = 0.49  # the library takes 0 <= δ < 0.5; the widget steps by 0.01, so its largest value is 0.49
+VIEWS = {"quantised": True, "averaged values": False}
+HIT_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "label": "label", "first": "first frame",
+              "last": "last frame", "start_s": "start (s)", "end_s": "end (s)",
+              "normalised_cost": "cost / template frame"}  # fmt: skip
+IMAGE_WIDTH = 640  # px of the template image; the player (640 px) stands beside it
+COST_DECIMALS = 3
+SECONDS_DECIMALS = 2
+
+
+# ============================================================================ computations (worker thread)
+def class_options(documents: pd.DataFrame) -> list[str]:
+    """The classes a template can be learned from: the ``label`` values of at least two documents, sorted (empty
+    when the documents have no ``label`` column)."""
+    if "label" not in documents:
+        return []
+    labels = documents["label"].dropna().astype(str)
+    counts = labels[labels != ""].value_counts()
+    return sorted(counts.index[counts >= 2])
+
+
+def actors_of(documents: pd.DataFrame, label: str) -> list[str]:
+    """The ``actor`` values of the documents of class ``label``, sorted (empty without an ``actor`` column)."""
+    if "actor" not in documents or "label" not in documents:
+        return []
+    rows = documents[documents["label"].astype("string") == str(label)]
+    return sorted({str(a) for a in rows["actor"].dropna() if str(a)})
+
+
+def database_features(backend, relational_set: str) -> tuple[np.ndarray, list[str]]:
+    """The relational features of every frame of the database, (N, f) bool and the f names, computed once per set
+    (:func:`mocapviz.features.relational_features`, each document on its own)."""
+    relational_set = one_of(str(relational_set), "relational set", RELATIONAL_SETS)
+    return backend.cached(("templates.features", relational_set),
+                          lambda: relational_features(backend.db, relational_set, progress=False))
+
+
+def _actors_key(actors) -> tuple[str, ...] | None:
+    """The actors as a cache key: None (all documents of the class) for none chosen, else sorted and unique."""
+    return tuple(sorted({str(a) for a in actors})) if actors else None
+
+
+def learn(backend, label: str, actors, relational_set: str) -> MotionTemplate:
+    """The motion template of class ``label`` (:func:`mocapviz.templates.learn_class`), cached per (label, actors,
+    set).
+
+    Parameters
+    ----------
+    backend : Backend
+    label : str, a ``label`` of the documents.
+    actors : sequence of str; empty or None: the class's documents of every actor.
+    relational_set : {"2006", "2005"}
+
+    Returns
+    -------
+    MotionTemplate, values (K, f) in [0, 1]; ``meta["doc_ids"]`` the training documents.
+    """
+    key = _actors_key(actors)
+    values, _ = database_features(backend, relational_set)
+    return backend.cached(("templates.template", str(label), key, str(relational_set)),
+                          lambda: learn_class(backend.db, str(label), actors=None if key is None else list(key),
+                                              relational_set=str(relational_set), values=values))  # fmt: skip
+
+
+def search_template(backend, template: MotionTemplate, delta: float, n_matches: int,
+                    max_cost: float | None) -> pd.DataFrame:  # fmt: skip
+    """The instances of ``template`` in the whole database (:func:`mocapviz.templates.find_instances`), described.
+
+    Parameters
+    ----------
+    backend : Backend
+    template : MotionTemplate of a relational set (``meta["relational_set"]``).
+    delta : float, quantisation threshold, 0 <= δ < 0.5.
+    n_matches : int, K, 1..MAX_MATCHES.
+    max_cost : float in [0, 1] or None: keep only hits of at most this normalised cost.
+
+    Returns
+    -------
+    pd.DataFrame, best first, one row per hit: rank, doc_id, name, label (when the documents have one), first, last
+    (frames within the document, inclusive), start_s, end_s (seconds within the document: first / fps, (last + 1)
+    / fps), start, end (database frames, inclusive), cost (DTW cost, sum of the per-frame mean mismatch),
+    normalised_cost (cost per template frame, in [0, 1]).
+    """
+    n_matches = count(n_matches, "K", 1, MAX_MATCHES)
+    if max_cost is not None:
+        max_cost = number(max_cost, "the max cost (a mean mismatch per frame)", 0.0, 1.0)
+    values, _ = database_features(backend, template.meta.get("relational_set", "2006"))
+    docs = backend.documents
+    found = find_instances(template, values, docs["start"].to_numpy(), n_matches=n_matches, delta=delta,
+                           max_cost=max_cost)  # fmt: skip
+    rows = docs.iloc[found["doc_id"].to_numpy(dtype=np.int64)]
+    first_frame = rows["start"].to_numpy(dtype=np.int64)
+    fps = rows["fps"].to_numpy(dtype=np.float64)
+    table = pd.DataFrame({"rank": np.arange(1, len(found) + 1), "doc_id": rows["doc_id"].to_numpy(dtype=np.int64),
+                          "name": rows["name"].to_numpy()})
+    if "label" in rows:
+        table["label"] = rows["label"].to_numpy()
+    table["first"] = found["start"].to_numpy(dtype=np.int64) - first_frame
+    table["last"] = found["end"].to_numpy(dtype=np.int64) - first_frame
+    table["start_s"] = table["first"] / fps
+    table["end_s"] = (table["last"] + 1) / fps
+    table["start"], table["end"] = found["start"].to_numpy(dtype=np.int64), found["end"].to_numpy(dtype=np.int64)
+    table["cost"] = found["cost"].to_numpy(dtype=np.float64)
+    table["normalised_cost"] = found["normalised_cost"].to_numpy(dtype=np.float64)
+    return table
+
+
+def learn_and_search(backend, label: str, actors, relational_set: str, delta: float, n_matches: int,
+                     max_cost: float | None) -> tuple[MotionTemplate, pd.DataFrame]:  # fmt: skip
+    """:func:`learn` then :func:`search_template` (the page's button); the hits cached per all the arguments."""
+    template = learn(backend, label, actors, relational_set)
+    key = ("templates.hits", str(label), _actors_key(actors), str(relational_set), delta, n_matches, max_cost)
+    return template, backend.cached(key, lambda: search_template(backend, template, delta, n_matches, max_cost))
+
+
+def hits_view(hits: pd.DataFrame) -> pd.DataFrame:
+    """The hits table as shown: the columns of HIT_TITLES, seconds to 0.01, the cost to 0.001 (as text)."""
+    shown = hits[[c for c in HIT_TITLES if c in hits]].copy()
+    for c in ("start_s", "end_s"):
+        shown[c] = shown[c].map(lambda v: f"{v:.{SECONDS_DECIMALS}f}")
+    shown["normalised_cost"] = shown["normalised_cost"].map(lambda v: f"{v:.{COST_DECIMALS}f}")
+    return shown
+
+
+def dont_care_share(template: MotionTemplate, delta: float) -> float:
+    """The share of the template's (K, f) entries that are "don't care" at ``delta``, in [0, 1]."""
+    return float((template.quantised(delta) == DONT_CARE).mean())
+
+
+def template_summary(template: MotionTemplate, delta: float) -> str:
+    """One line: the class, its examples (documents), iterations, frames × features and the don't-care share."""
+    k, f = template.values.shape
+    docs = template.meta.get("doc_ids", [])
+    actors = template.meta.get("actors")
+    n, rounds = template.n_examples, template.iterations
+    s = "s" if n != 1 else ""
+    who = "actors " + ", ".join(actors) if actors else "every actor"
+    return (f"**{template.label}**: learned from {n} example{s} (document{s} {', '.join(map(str, docs))}; {who}) in "
+            f"{rounds} iteration{'s' if rounds != 1 else ''}; {k} frames × {f} features of set "
+            f"{template.meta.get('relational_set', '?')}, {dont_care_share(template, delta):.1%} don't care at "
+            f"δ = {delta:g}")
+
+
+def image_legend(template: MotionTemplate, delta: float, quantised: bool) -> str:
+    """The line under the template image: what its shades mean."""
+    if quantised:
+        return (f"Quantised at δ = {delta:g}: white 0, black 1, grey don't care "
+                f"({dont_care_share(template, delta):.1%} of the entries).")
+    return f"Averaged values of the {template.n_examples} aligned examples, from white 0 to black 1 (not quantised)."
+
+
+def training_example(template: MotionTemplate, hit_doc: int) -> int:
+    """The training document shown beside a hit: the first of ``template.meta["doc_ids"]`` other than the hit's own
+    document (a hit inside a training example is shown beside another one), or the hit's document when it is the
+    only example."""
+    docs = [int(d) for d in template.meta["doc_ids"]]
+    others = [d for d in docs if d != int(hit_doc)]
+    return (others or docs)[0]
+
+
+def example_alignment(backend, template: MotionTemplate, example_doc: int, start: int, end: int) -> np.ndarray:
+    """The DTW alignment of a training example's clip and a hit's clip, by their relational features of the
+    template's set and the local cost of learning a template (:func:`mocapviz.templates.template_distance`, the
+    mean mismatch over the features).
+
+    Parameters
+    ----------
+    backend : Backend
+    template : MotionTemplate
+    example_doc : int, the training document (its whole clip).
+    start, end : int, the hit's database frames (inclusive).
+
+    Returns
+    -------
+    np.ndarray [shape=(L, 2)], int64: per step the frame of the example clip and of the hit clip (from its first
+    frame), the player's ``alignment``.
+    """
+    values, _ = database_features(backend, template.meta.get("relational_set", "2006"))
+    rows = backend.db.frames(int(example_doc))
+    _, path = dtw(values[rows].astype(np.float64), values[int(start) : int(end) + 1], distance=template_distance)
+    return path
+
+
+# ============================================================================ the page
+class TemplatesPage(pn.viewable.Viewer):
+    """Learn a class's motion template, draw it, list its instances in the database, play one beside an example."""
+
+    def __init__(self, backend, selection):
+        super().__init__()
+        self.backend, self.selection = backend, selection
+        docs = backend.documents
+        self.classes = class_options(docs)
+        self.template, self.hits, self.delta_used = None, None, DELTA
+        self.label = pn.widgets.Select(label="class", options=self.classes, width=260,
+                                       css_classes=["mv-templates-class"])
+        self.actors = pn.widgets.MultiChoice(label="actors to learn from (none = all)", width=240,
+                                             visible="actor" in docs, css_classes=["mv-templates-actors"])
+        self.relational_set = pn.widgets.RadioButtonGroup(options=RELATIONAL_SETS, value="2006", width=120,
+                                                          align="end", css_classes=["mv-templates-set"])
+        self.delta = pn.widgets.FloatInput(label="δ (quantisation)", value=DELTA, start=0.0, end=DELTA_MAX, step=0.01,
+                                           width=110, css_classes=["mv-templates-delta"])
+        self.n_matches = pn.widgets.IntInput(label="K (results)", value=DEFAULT_MATCHES, start=1, end=MAX_MATCHES,
+                                             width=100, css_classes=["mv-templates-k"])
+        self.max_cost = pn.widgets.FloatInput(label="max cost / frame (empty: none)", value=None, start=0.0, end=1.0,
+                                              step=0.01, width=190, css_classes=["mv-templates-max-cost"])
+        self.button = action_button("Learn and search", "mv-templates-run", self._run, width=150)
+        self.task = Task()
+        self.summary = pn.pane.Markdown("", css_classes=["mv-templates-summary"], margin=(0, 10))
+        self.view = pn.widgets.RadioButtonGroup(options=list(VIEWS), value="quantised", width=220,
+                                                css_classes=["mv-templates-view"])
+        self.image = pn.pane.HoloViews(None, css_classes=["mv-templates-image"])
+        self.legend = pn.pane.Markdown("", width=IMAGE_WIDTH, margin=(0, 10), css_classes=["mv-templates-legend"])
+        self.count = pn.pane.Markdown("", css_classes=["mv-templates-count"], margin=(0, 10))
+        self.table = results_table(pd.DataFrame(columns=list(HIT_TITLES)), "mv-templates-table", HIT_TITLES,
+                                   page_size=10, selectable=True)
+        self.playing = pn.pane.Markdown(PLAY_HINT, margin=(0, 10), width=640,
+                                        css_classes=["mv-templates-playing"])  # fmt: skip
+        self.player = SkeletonPlayer(size=(640, 380))
+        self.player_box = pn.Column(self.player, visible=False, css_classes=["mv-templates-player"])
+        self.label.param.watch(self._on_class, "value")
+        self.view.param.watch(lambda e: self._draw(), "value")
+        self.table.param.watch(self._on_select, "selection")
+        self._on_class()
+
+    def __panel__(self):
+        if not self.classes:
+            why = "its documents have no label" if "label" not in self.backend.documents else \
+                "no label is shared by two or more of its documents"  # fmt: skip
+            return pn.pane.Markdown(f"No motion template can be learned from this database: {why}.",
+                                    css_classes=["mv-templates-none"], margin=(0, 10))
+        intro = pn.pane.Markdown(INTRO, margin=(0, 10), sizing_mode="stretch_width")
+        inputs = pn.Row(self.label, self.actors, pn.Column("relational set", self.relational_set, margin=(0, 5)),
+                        self.delta, self.n_matches, self.max_cost, self.button)
+        # the hits table takes the page's width; the template is drawn below it, beside the hit playing
+        template = pn.Column(self.view, self.image, self.legend)
+        playing = pn.Column(self.playing, self.player_box)
+        return pn.Column(intro, inputs, pn.Column(self.task, css_classes=["mv-templates-task"], margin=0,
+                                                  sizing_mode="stretch_width"),
+                         self.summary, self.count, self.table, pn.Row(template, playing),
+                         sizing_mode="stretch_width")  # fmt: skip
+
+    def _on_class(self, event=None) -> None:
+        """Offer the actors of the chosen class only (every choice then has an example to learn from)."""
+        options = actors_of(self.backend.documents, self.label.value) if self.label.value else []
+        self.actors.param.update(options=options, value=[a for a in self.actors.value if a in options])
+
+    def _inputs(self) -> tuple:
+        """(label, actors, set, δ, K, max cost) the widgets ask for."""
+        return (self.label.value, tuple(self.actors.value), self.relational_set.value, self.delta.value,
+                self.n_matches.value, self.max_cost.value)
+
+    async def _run(self, event=None) -> None:
+        inputs = self._inputs()
+        result = await self.task.run("Learning and searching", learn_and_search, self.backend, *inputs,
+                                     busy=self.button)
+        if result is None:
+            return
+        label, actors, relational_set, delta, n_matches, max_cost = inputs
+        self.template, self.hits, self.delta_used = *result, delta
+        self.summary.object = template_summary(self.template, delta)
+        self._draw()
+        self.table.param.update(selection=[], value=hits_view(self.hits))
+        self.player_box.visible, self.playing.object = False, PLAY_HINT
+        n = len(self.hits)
+        self.count.object = (f"**{n} hit{'' if n == 1 else 's'}** of the {label} template in the whole database "
+                             f"(K = {n_matches}" + (f", cost / frame ≤ {max_cost:g}" if max_cost is not None else "")
+                             + ")" + ("; try a larger max cost" if self.hits.empty else ""))  # fmt: skip
+
+    def _draw(self) -> None:
+        if self.template is not None:
+            quantised = VIEWS[self.view.value]
+            image = template_image(self.template, quantised=quantised, delta=self.delta_used, width=IMAGE_WIDTH)
+            self.image.object = image.opts(fontsize={"title": 10, "yticks": 7})
+            self.legend.object = image_legend(self.template, self.delta_used, quantised)
+
+    def _on_select(self, event) -> None:
+        if not event.new or self.hits is None:
+            return
+        hit = self.hits.iloc[event.new[0]]
+        doc = int(hit["doc_id"])
+        example = training_example(self.template, doc)
+        path = example_alignment(self.backend, self.template, example, int(hit["start"]), int(hit["end"]))
+        positions = self.backend.db.positions
+        clips = [positions[self.backend.db.frames(example)], positions[int(hit["start"]) : int(hit["end"]) + 1]]
+        self.player.load(clips, titles=[f"example: document {example}", f"hit {hit['rank']}: document {doc}"],
+                         fps=self.backend.fps_of(doc), alignment=path)
+        self.player_box.visible = True
+        name = self.backend.db.document(example)["name"]
+        self.playing.object = (f"Playing training example document {example} ({name}) beside hit {hit['rank']} "
+                               f"(document {doc}, {hit['name']}, frames {hit['first']}–{hit['last']}), aligned by "
+                               f"DTW of their relational features ({len(path)} steps).")
+
+
+PLAY_HINT = ("Click a hit to play it beside a training example of the template, aligned by DTW of their relational "
+             "features.")
+INTRO = ("A motion template (Müller & Röder 2006) is learned from the documents of a class: their relational "
+         "features are warped onto a common time line by DTW and averaged; quantised with δ, an entry below δ is 0 "
+         "(white), above 1 − δ is 1 (black), else \"don't care\" (grey). Its instances are found in every document "
+         "by subsequence DTW that ignores the don't-care entries; the cost per template frame is the mean share of "
+         "cared-for features that disagree (0 = a perfect match).")
