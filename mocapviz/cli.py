@@ -11,6 +11,8 @@
                                                                                     [--method lng|dtw] [--paths]
     mocapviz search DB --example FILE|DOC_ID [--frames A:B] [--numeric-set F15E] [-K 10] [--mode fast|exact|brute]
                        [--stretches [--min-length 0.5]] [--exclude-document] [--csv FILE] [--paths]
+    mocapviz template learn DB --label CLASS [--actors A,B,...] [--relational-set 2005|2006] [--out FILE]
+    mocapviz template search DB FILE_OR_NAME [-K 10] [--max-cost C] [--csv FILE]
     mocapviz reproduce NAME|all [--full] --out DIR   (NAME: an experiment, e.g. rank_correlations, reconstruction)
     mocapviz serve [DB] [--port 5006] [--address 127.0.0.1 | --address ADDRESS --allow-origin HOST:PORT...] [--show]
                                                                                 (no DB: the embedded sample)
@@ -429,6 +431,95 @@ def _search(args) -> None:
         print(f"ranked table written to {args.csv}")
 
 
+def _template_learn(args) -> None:
+    from .templates import DELTA, DONT_CARE, learn_class, store_template
+    from .validation import one_of, some_of
+
+    if args.out and not Path(args.out).parent.is_dir():
+        raise ParameterError(f"--out {args.out}: no folder {Path(args.out).parent} to write it in")
+    db = MotionDB.open(args.db)
+    docs = db.documents
+    try:
+        one_of(args.label, "label", sorted(map(str, docs["label"].dropna().unique())))
+    except ParameterError as exc:
+        raise ParameterError(f"--label: {exc}") from None
+    actors = None
+    if args.actors is not None:
+        if "actor" not in docs.columns:
+            raise ParameterError(f"--actors: the documents of {db.path} have no actor column; leave --actors out")
+        try:
+            actors = some_of(args.actors.split(","), "actor", sorted(map(str, docs["actor"].dropna().unique())))
+        except ParameterError as exc:
+            raise ParameterError(f"--actors: {exc}") from None
+    t0 = time.perf_counter()
+    template = learn_class(db, args.label, actors, args.relational_set)
+    seconds = time.perf_counter() - t0
+    stored = store_template(db, template)
+    dont_care = float((template.quantised() == DONT_CARE).mean())
+    n = template.n_examples
+    print(f"template {template.label!r} of {db.path} ({', '.join(actors) if actors else 'every actor'}): "
+          f"{n} example{'s' * (n != 1)}, {len(template.values)} frames x {len(template.features)} features of the "
+          f"{args.relational_set} set, {dont_care:.0%} don't care (δ = {DELTA}), {template.iterations} iterations, "
+          f"{seconds:.1f} s")  # fmt: skip
+    print(f"its examples' own best matches cost up to {template.meta['threshold']:.3f} per frame (`--max-cost "
+          f"{template.meta['threshold']:.3f}` keeps the instances as good as those)")
+    print(f"stored in {stored} (search it: `mocapviz template search {db.path} {stored.stem}`)")
+    if args.out:
+        template.save(args.out)
+        print(f"written to {args.out}")
+
+
+def _template_search(args) -> None:
+    from .features import RELATIONAL_SETS
+    from .store import atomic_write
+    from .templates import MotionTemplate, find_instances, load_template, shortest_instance
+
+    if args.csv and not Path(args.csv).parent.is_dir():
+        raise ParameterError(f"--csv {args.csv}: no folder {Path(args.csv).parent} to write it in")
+    db = MotionDB.open(args.db)
+    if Path(args.template).is_file():
+        template = MotionTemplate.load(args.template)
+    else:
+        try:
+            template = load_template(db, args.template)
+        except ParameterError as exc:  # not a stored name either
+            raise ParameterError(f"{args.template}: no such template file, and {exc}") from None
+    relational_set = next((s for s in RELATIONAL_SETS if feature_names(s) == template.features), None)
+    if relational_set is None:
+        sets = ", ".join(f"{s}: {len(feature_names(s))}" for s in RELATIONAL_SETS)
+        raise ParameterError(f"{args.template}: the template's {len(template.features)} features are not those of a "
+                             f"relational set ({sets}); learn it again with `mocapviz template learn`")  # fmt: skip
+    values, _ = relational_features(db, relational_set, progress=False)
+    t0 = time.perf_counter()
+    hits = find_instances(template, values, db.documents["start"].to_numpy(), n_matches=args.n_matches,
+                          max_cost=args.max_cost)  # fmt: skip
+    ms = 1000 * (time.perf_counter() - t0)
+    docs = db.documents.iloc[hits["doc_id"].to_numpy(dtype=np.int64)].reset_index(drop=True)
+    first = docs["start"].to_numpy()
+    start, end = hits["start"].to_numpy(dtype=np.int64) - first, hits["end"].to_numpy(dtype=np.int64) - first
+    table = pd.DataFrame({
+        "rank": np.arange(1, len(docs) + 1), "doc_id": docs["doc_id"].to_numpy(), "name": docs["name"].to_numpy(),
+        "start": start, "end": end, "frames": end - start + 1, "cost": hits["cost"].to_numpy(dtype=np.float64),
+        "normalised_cost": hits["normalised_cost"].to_numpy(dtype=np.float64),
+    })  # fmt: skip
+    for col in db.label_columns:
+        table[col] = docs[col].to_numpy()
+    limit = "" if args.max_cost is None else f", normalised cost <= {args.max_cost:g}"
+    n = template.n_examples
+    print(f"{len(table)} matches of template {template.label!r} ({len(template.values)} frames, {n} "
+          f"example{'s' * (n != 1)}, {relational_set} set) in {db.path}{limit}, in {ms:.1f} ms")
+    own = template.meta.get("threshold")
+    if args.max_cost is not None:
+        empty = "try a larger --max-cost" + ("" if own is None else f"; the examples' own best matches cost up to "
+                                             f"{own:.3f}")  # fmt: skip
+    else:
+        empty = f"no document holds the template's shortest instance, {shortest_instance(template)} frames"
+    _print_ranked(table, args.n_matches, empty)
+    if args.csv:
+        atomic_write(args.csv, table.to_csv(index=False).encode())
+        print(f"ranked table written to {args.csv}")
+
+
 def _reproduce(args) -> None:
     from .reproduction import reproduce
 
@@ -618,12 +709,41 @@ def build_parser() -> argparse.ArgumentParser:
                     "frame pairs)")  # fmt: skip
     se.set_defaults(func=_search)
 
+    tp = sub.add_parser("template", help="motion templates (Müller & Röder 2006): learn a class from its labelled "
+                        "documents, stored with the DB; find its instances")  # fmt: skip
+    tsub = tp.add_subparsers(dest="action", required=True)
+    tl = tsub.add_parser("learn", help="learn the template of the documents with a label (of some actors only); "
+                         "stored in DB/templates/LABEL[-ACTOR...].npz, replacing one of that name")  # fmt: skip
+    tl.add_argument("db")
+    tl.add_argument("--label", required=True, help="the class: a value of the documents' label column")
+    tl.add_argument("--actors", help="comma-separated actors: learn from their documents only (default all)")
+    tl.add_argument("--relational-set", dest="relational_set", default="2006", choices=["2005", "2006"],
+                    help="relational set (default 2006, as in the paper)")
+    tl.add_argument("--out", help="also write the template to this file (.npz)")
+    tl.set_defaults(func=_template_learn)
+    ts = tsub.add_parser("search", help="the stretches of the DB that match a template, best first",
+                         description="The K best non-overlapping stretches of the DB's documents that match a "
+                         "template (subsequence DTW, its don't-care features left out). Columns: rank, doc_id, name, "
+                         "start and end (the stretch's first and last frame within its document, both included, as "
+                         "`mocapviz search` gives them), frames, cost (DTW cost), normalised_cost (cost per template "
+                         "frame: the mean disagreement, in [0, 1]) and the document's labels.")  # fmt: skip
+    ts.add_argument("db")
+    ts.add_argument("template", metavar="FILE_OR_NAME", help="a template file, or the name of one stored in "
+                    "DB/templates/ (by `mocapviz template learn`)")  # fmt: skip
+    _option(ts, "-K", "--matches", check=_count(least=1), dest="n_matches", default=10,
+            help="matches to report (default 10)")
+    _option(ts, "--max-cost", check=_number(low=0, high=1), help="only matches of normalised cost at most this, in "
+            "[0, 1] (default: the K best, whatever their cost)")  # fmt: skip
+    ts.add_argument("--csv", help="also write the ranked table (best first) to this CSV file; start and end are "
+                    "frames within the document")  # fmt: skip
+    ts.set_defaults(func=_template_search)
+
     rp = sub.add_parser("reproduce", help="re-run the papers' experiments on the shared data; write CSV tables and "
                         "PNG/HTML figures")  # fmt: skip
     rp.add_argument("names", nargs="+", metavar="NAME", help="experiment function name(s) (index_statistics, "
                     "query_statistics, relational_query, alignment, knn_timings, rank_correlations, "
-                    "similarity_matrices, lng_accuracy, numerical_search, reconstruction, base_poses, retrieval_quality) or "
-                    "'all'")
+                    "similarity_matrices, lng_accuracy, numerical_search, reconstruction, base_poses, "
+                    "retrieval_quality, template_quality) or 'all'")
     rp.add_argument("--out", required=True, help="output folder; each experiment writes OUT/NAME/")
     rp.add_argument("--full", action="store_true", help="the papers' sizes (slow; every shared archive as the "
                     "large database)")  # fmt: skip

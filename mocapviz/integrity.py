@@ -4,8 +4,9 @@ check   path -> one row per stored file: what it is, whether it reads back exact
 
 Every stored file carries a fingerprint written with it: the frame arrays and documents table their size and
 sha256 in the manifest, a relational index the sha256 of its arrays in its header, a numeric feature set its data
-file's size and sha256 in its header, an Fp set the sha256 of the PCA model it used. Opening a database checks
-the sizes (and the documents table's sha256); :func:`check` reads everything and checks every sha256.
+file's size and sha256 in its header, an Fp set the sha256 of the PCA model it used, a motion template the sha256
+of its values in its header. Opening a database checks the sizes (and the documents table's sha256); :func:`check`
+reads everything and checks every sha256.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ def check(path) -> pd.DataFrame:
     """
     from .features import numeric as numeric_mod
     from .index import InvertedIndex
+    from .templates import TEMPLATES, MotionTemplate
 
     path = Path(path)
     rows = []
@@ -53,6 +55,8 @@ def check(path) -> pd.DataFrame:
                          lambda name=name: numeric_mod.load_numeric(db, name, full_check=True)))  # fmt: skip
     if (features / "pca.npz").exists():
         rows.append(_row(features / "pca.npz", path, "PCA model", lambda: numeric_mod.PCAModel.load(features / "pca.npz")))
+    for f in sorted((path / TEMPLATES).glob("*.npz")):
+        rows.append(_row(f, path, f"motion template {f.stem}", lambda f=f: MotionTemplate.load(f)))
     return pd.DataFrame(rows, columns=COLUMNS)
 
 

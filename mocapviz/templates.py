@@ -479,7 +479,7 @@ def store_template(db, template: MotionTemplate, name: str | None = None) -> Pat
         name = _SAFE.sub("_", "-".join(words)).lstrip(".") or "template"
     path = template_path(db, name)
     path.parent.mkdir(exist_ok=True)
-    with store.locked(path.parent, what=str(path.parent)):
+    with store.locked(path.parent):
         template.save(path)
     return path
 

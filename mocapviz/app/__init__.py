@@ -9,8 +9,9 @@ player.py      SkeletonPlayer: clips sent once and animated in the browser (play
 pages/         one module per page: database (documents, player, timelines, curves), relational (query by
                example, Müller et al. 2005), similarity (DTW search of clips and stretches, kNN of a frame, LNG
                matching, similarity matrix; Krüger et al. 2010), retrieval (retrieval quality of every search
-               method: mAP, per-class AP, P/R curves), correlations (Fig. 2), statistics (Müller Tables 2-3,
-               Krüger Table 1), reconstruction (Krüger §5.2).
+               method: mAP, per-class AP, P/R curves), templates (motion templates, Müller & Röder 2006: a class
+               learned from its examples, drawn, its instances found and played), correlations (Fig. 2), statistics
+               (Müller Tables 2-3, Krüger Table 1), reconstruction (Krüger §5.2).
 
 :func:`dashboard` builds one session's page; :func:`serve` runs the server (bound to 127.0.0.1 unless told
 otherwise); :func:`websocket_origins` decides which web pages may open its WebSocket (on any address other than

@@ -1,0 +1,256 @@
+"""Motion templates stored with a MotionDB (``DB/templates/``) and the ``mocapviz template learn|search`` command.
+
+The CLI round trips run on a copy of the embedded sample (22 HDM05 clips of actors dg and mm, 2 CMU trials, 120 Hz;
+no shared archives needed); one test learns and searches on all 287 HDM05 clips at 30 Hz (``hdm05_db30``).
+"""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mocapviz import MotionDB
+from mocapviz.cli import main
+from mocapviz.errors import MotionDBError, ParameterError, UnknownKeyError
+from mocapviz.features import feature_names, relational_features
+from mocapviz.templates import (
+    MotionTemplate,
+    find_instances,
+    learn_class,
+    learn_template,
+    load_template,
+    store_template,
+    stored_templates,
+    template_path,
+)
+
+
+@pytest.fixture(scope="module")
+def db(sample_db, tmp_path_factory) -> MotionDB:
+    """A copy of the embedded sample (its stored templates are this module's own)."""
+    folder = tmp_path_factory.mktemp("templates-cli") / "db"
+    shutil.copytree(sample_db.path, folder)
+    return MotionDB.open(folder)
+
+
+@pytest.fixture(scope="module")
+def values(db) -> np.ndarray:
+    return relational_features(db, "2006", progress=False)[0]
+
+
+def _same(a: MotionTemplate, b: MotionTemplate) -> None:
+    assert np.array_equal(a.values, b.values)
+    assert (a.features, a.label, a.n_examples, a.iterations) == (b.features, b.label, b.n_examples, b.iterations)
+    assert a.meta["doc_ids"] == b.meta["doc_ids"]
+
+
+def _error(capsys) -> str:
+    """The one line of stderr (and nothing printed on stdout)."""
+    out, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("mocapviz: error: "), err
+    assert not out.strip(), out
+    return lines[0]
+
+
+# --------------------------------------------------------------------------------------------------- learn
+def test_learn_via_the_cli_equals_learn_class_and_is_stored(db, tmp_path, capsys):
+    out = tmp_path / "squat.npz"
+    assert main(["template", "learn", str(db.path), "--label", "squat1Reps", "--actors", "dg", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    expected = learn_class(db, "squat1Reps", actors=["dg"])
+    _same(MotionTemplate.load(out), expected)
+    _same(load_template(db, "squat1Reps-dg"), expected)
+    assert expected.meta["doc_ids"] == [11] and expected.meta["generation"] == db.manifest["generation"]
+    dont_care = (expected.quantised() == 0.5).mean()
+    assert f"1 example, {len(expected.values)} frames x 39 features" in printed
+    assert f"{dont_care:.0%} don't care" in printed and f"{expected.iterations} iterations" in printed
+    assert str(template_path(db, "squat1Reps-dg")) in printed and f"written to {out}" in printed
+
+
+def test_learn_2005_set_from_every_actor(db, capsys):
+    assert main(["template", "learn", str(db.path), "--label", "kickLFront1Reps", "--relational-set", "2005"]) == 0
+    stored = load_template(db, "kickLFront1Reps")
+    _same(stored, learn_class(db, "kickLFront1Reps", relational_set="2005"))
+    assert stored.features == feature_names("2005") and stored.meta["doc_ids"] == [7, 18]
+    assert "2 examples" in capsys.readouterr().out
+
+
+# -------------------------------------------------------------------------------------------------- search
+@pytest.fixture(scope="module")
+def kick(db) -> MotionTemplate:
+    """The kick template of actor dg, stored as kickLFront1Reps-dg (searched in both actors' clips)."""
+    template = learn_class(db, "kickLFront1Reps", actors=["dg"])
+    store_template(db, template)
+    return template
+
+
+@pytest.mark.parametrize("by", ["name", "file"])
+def test_search_csv_equals_find_instances_with_frames_within_documents(by, db, kick, values, tmp_path, capsys):
+    what = "kickLFront1Reps-dg" if by == "name" else str(tmp_path / "kick.npz")
+    if by == "file":
+        kick.save(what)
+    csv = tmp_path / "hits.csv"
+    assert main(["template", "search", str(db.path), what, "-K", "6", "--csv", str(csv)]) == 0
+    printed = capsys.readouterr().out
+    got = pd.read_csv(csv)
+    hits = find_instances(kick, values, db.documents["start"].to_numpy(), n_matches=6)
+    assert len(got) == len(hits) == 6
+    docs = db.documents.iloc[hits["doc_id"].to_numpy()]
+    assert got["doc_id"].tolist() == docs["doc_id"].tolist() and got["rank"].tolist() == list(range(1, 7))
+    np.testing.assert_allclose(got["cost"], hits["cost"])
+    np.testing.assert_allclose(got["normalised_cost"], hits["normalised_cost"])
+    first = docs["start"].to_numpy()
+    assert np.array_equal(got["start"], hits["start"] - first) and np.array_equal(got["end"], hits["end"] - first)
+    assert (got["start"] >= 0).all() and (got["end"] < docs["n_frames"].to_numpy()).all()  # frames within the document
+    assert np.array_equal(got["frames"], got["end"] - got["start"] + 1)
+    assert got["name"].tolist() == docs["name"].tolist() and got["label"].tolist() == docs["label"].tolist()
+    assert got["normalised_cost"].is_monotonic_increasing  # best first
+    assert got.loc[0, "name"] == "HDM_dg_kickLFront1Reps_017_120" and got.loc[0, "cost"] == 0  # its own example
+    assert "6 matches of template 'kickLFront1Reps'" in printed and f"ranked table written to {csv}" in printed
+
+
+def test_max_cost_keeps_exactly_the_cheaper_hits(db, kick, tmp_path, capsys):
+    every, cheap = tmp_path / "every.csv", tmp_path / "cheap.csv"
+    assert main(["template", "search", str(db.path), "kickLFront1Reps-dg", "-K", "8", "--csv", str(every)]) == 0
+    all_hits = pd.read_csv(every)
+    limit = float(all_hits["normalised_cost"].iloc[3])  # at least the four best pass
+    assert limit < all_hits["normalised_cost"].max()
+    assert main(["template", "search", str(db.path), "kickLFront1Reps-dg", "-K", "8", "--max-cost", str(limit),
+                 "--csv", str(cheap)]) == 0  # fmt: skip
+    kept = pd.read_csv(cheap)
+    assert (kept["normalised_cost"] <= limit).all() and 4 <= len(kept) < len(all_hits)
+    expected = all_hits[all_hits["normalised_cost"] <= limit].reset_index(drop=True)
+    pd.testing.assert_frame_equal(kept, expected)
+    assert f"normalised cost <= {limit:g}" in capsys.readouterr().out
+
+
+def test_no_match_says_what_to_try(db, tmp_path, capsys):
+    """Every feature of the set true at once occurs nowhere: at cost 0 nothing matches."""
+    path = tmp_path / "impossible.npz"
+    MotionTemplate(np.ones((20, 39)), feature_names("2006"), "impossible", 1, 1).save(path)
+    csv = tmp_path / "h.csv"
+    assert main(["template", "search", str(db.path), str(path), "--max-cost", "0", "--csv", str(csv)]) == 0
+    out = capsys.readouterr().out
+    assert "0 matches" in out and "no matches (try a larger --max-cost)" in out
+    assert pd.read_csv(csv).empty
+
+
+# ------------------------------------------------------------------------------------------------ bad input
+BAD = [  # (arguments after the DB, words of the one error line, exit status)
+    ("learn --label nope", ["--label: unknown label 'nope'; choose one of", "squat1Reps", "Motorcycle"], 1),
+    ("learn --label squat1Reps --actors dg,xx", ["--actors: unknown actor 'xx'; choose one of dg, mm"], 1),
+    ("learn --label squat1Reps --relational-set 2007", ["--relational-set", "'2005', '2006'"], 2),
+    ("learn --label squat1Reps --out {tmp}/missing/t.npz", ["--out", "no folder"], 1),
+    ("learn", ["--label"], 2),
+    ("search nope", ["nope: no such template file", "no stored template 'nope'", "kickLFront1Reps-dg"], 1),
+    ("search ../x", ["not filename-safe"], 1),
+    ("search kickLFront1Reps-dg -K 0", ["-K/--matches must be at least 1; got 0"], 2),
+    ("search kickLFront1Reps-dg --matches x", ["-K/--matches", "integer"], 2),
+    ("search kickLFront1Reps-dg --max-cost 1.5", ["--max-cost must be a number in [0, 1]; got '1.5'"], 2),
+    ("search kickLFront1Reps-dg --max-cost -0.1", ["--max-cost must be a number in [0, 1]"], 2),
+    ("search kickLFront1Reps-dg --max-cost nan", ["--max-cost must be a number in [0, 1]"], 2),
+    ("search kickLFront1Reps-dg --csv {tmp}/missing/h.csv", ["--csv", "no folder"], 1),
+    ("search {tmp}/truncated.npz", ["truncated.npz: not a readable motion template"], 1),
+    ("search {tmp}/altered.npz", ["altered.npz: its values differ from those written (sha256)"], 1),
+    ("search {tmp}/other.npz", ["other.npz: the template's 2 features are not those of a relational set",
+                                "2006: 39"], 1),
+]
+
+
+@pytest.mark.parametrize("line, needles, status", BAD, ids=[row[0] for row in BAD])
+def test_bad_input_is_one_typed_line(line, needles, status, db, kick, tmp_path, capsys):
+    good = tmp_path / "good.npz"
+    kick.save(good)
+    (tmp_path / "truncated.npz").write_bytes(good.read_bytes()[:300])
+    with np.load(good) as z:  # the same header, other values
+        np.savez(tmp_path / "altered.npz", header=z["header"], values=1 - z["values"])
+    learn_template([np.eye(2, dtype=bool)], ["a", "b"], "other").save(tmp_path / "other.npz")
+    action, *rest = line.format(tmp=tmp_path).split()
+    assert main(["template", action, str(db.path), *rest]) == status
+    error = _error(capsys)
+    assert all(needle in error for needle in needles), error
+
+
+# ------------------------------------------------------------------------------------- storage (Python API)
+def test_store_list_and_load_back(db, tmp_path):
+    copy = tmp_path / "db"
+    shutil.copytree(db.path, copy, ignore=shutil.ignore_patterns("templates"))
+    mine = MotionDB.open(copy)
+    assert stored_templates(mine).empty and list(stored_templates(mine).columns)[:6] == [
+        "name", "label", "n_examples", "frames", "relational_set", "actors"]  # fmt: skip
+    squat = learn_class(mine, "squat1Reps", actors=["dg", "mm"])
+    path = store_template(mine, squat)
+    assert path == copy / "templates" / "squat1Reps-dg-mm.npz"
+    _same(load_template(mine, "squat1Reps-dg-mm"), squat)
+    odd = MotionTemplate(squat.values, squat.features, "a b/../c", 2, 1)
+    assert store_template(mine, odd).name == "a_b_.._c.npz"  # filename-safe
+    assert store_template(mine, squat, name="mine").name == "mine.npz"
+    for bad in ("../up", ".hidden", "", "a/b", "x" * 129):
+        with pytest.raises(ParameterError, match="not filename-safe"):
+            store_template(mine, squat, name=bad)
+    listed = stored_templates(mine).set_index("name")
+    assert listed.index.tolist() == ["a_b_.._c", "mine", "squat1Reps-dg-mm"]
+    row = listed.loc["squat1Reps-dg-mm"]
+    assert (row["label"], row["n_examples"], row["frames"], row["relational_set"], row["actors"]) == (
+        "squat1Reps", 2, len(squat.values), "2006", "dg,mm")  # fmt: skip
+    assert row["generation"] == mine.manifest["generation"] and row["current"]
+    assert listed.loc["mine", "actors"] == "dg,mm" and pd.isna(listed.loc["a_b_.._c", "generation"])
+    with pytest.raises(UnknownKeyError, match=r"no stored template 'nope' \(stored: a_b_.._c, mine, squat1Reps-dg-mm"):
+        load_template(mine, "nope")
+
+
+def test_a_template_of_an_earlier_generation_loads_and_is_listed_as_such(db, tmp_path, capsys):
+    copy = tmp_path / "db"
+    shutil.copytree(db.path, copy, ignore=shutil.ignore_patterns("templates"))
+    mine = MotionDB.open(copy)
+    squat = learn_class(mine, "squat1Reps")
+    store_template(mine, squat)
+    newer = mine.append_motions([mine.motion(11)], [{"name": "again", "label": "squat1Reps", "actor": "dg"}])
+    assert newer.manifest["generation"] == mine.manifest["generation"] + 1
+    row = stored_templates(newer).iloc[0]
+    assert row["generation"] == mine.manifest["generation"] and not row["current"]
+    _same(load_template(newer, "squat1Reps"), squat)  # portable
+    assert main(["template", "search", str(copy), "squat1Reps", "-K", "3"]) == 0
+    assert "again" in capsys.readouterr().out  # the appended copy is found
+
+
+def test_a_damaged_stored_template_is_named(db, tmp_path, capsys):
+    copy = tmp_path / "db"
+    shutil.copytree(db.path, copy, ignore=shutil.ignore_patterns("templates"))
+    mine = MotionDB.open(copy)
+    path = store_template(mine, learn_class(mine, "squat1Reps", actors=["mm"]))
+    path.write_bytes(path.read_bytes()[:-40])
+    for call in (lambda: load_template(mine, "squat1Reps-mm"), lambda: stored_templates(mine)):
+        with pytest.raises(MotionDBError, match="squat1Reps-mm.npz"):
+            call()
+    assert main(["template", "search", str(copy), "squat1Reps-mm"]) == 1
+    assert "squat1Reps-mm.npz" in _error(capsys)
+    assert main(["check", str(copy)]) == 1  # `mocapviz check` reads the stored templates too
+    out = capsys.readouterr().out
+    assert "templates/squat1Reps-mm.npz" in out and "DAMAGED" in out
+
+
+# ---------------------------------------------------------------------------------------- all of HDM05 (30 Hz)
+def test_a_template_of_four_actors_finds_the_fifth_actors_instances(hdm05_db30, tmp_path, capsys):
+    """Learned from bd, bk, dg and mm via the CLI, the squat template's best hits in the whole database are the
+    squats, those of the fifth actor, tr, among them."""
+    db = MotionDB.open(shutil.copytree(hdm05_db30.path, tmp_path / "db"))
+    assert main(["template", "learn", str(db.path), "--label", "squat1Reps", "--actors", "bd,bk,dg,mm"]) == 0
+    capsys.readouterr()
+    squats = db.documents[db.documents["label"] == "squat1Reps"]
+    k = len(squats)
+    csv = tmp_path / "hits.csv"
+    assert main(["template", "search", str(db.path), "squat1Reps-bd-bk-dg-mm", "-K", str(k), "--csv", str(csv)]) == 0
+    got = pd.read_csv(csv)
+    values = relational_features(db, "2006", progress=False)[0]
+    hits = find_instances(load_template(db, "squat1Reps-bd-bk-dg-mm"), values, db.documents["start"].to_numpy(),
+                          n_matches=k)  # fmt: skip
+    np.testing.assert_allclose(got["cost"], hits["cost"])
+    assert got["doc_id"].tolist() == db.documents["doc_id"].to_numpy()[hits["doc_id"]].tolist()
+    # measured: the 52 best hits are the 52 squats, one each, the 12 of tr among them
+    assert sorted(got["doc_id"]) == sorted(squats["doc_id"]), got.loc[got["label"] != "squat1Reps", ["name", "cost"]]
+    assert (got["actor"] == "tr").sum() == (squats["actor"] == "tr").sum() == 12
