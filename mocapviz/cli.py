@@ -12,7 +12,7 @@
     mocapviz search DB --example FILE|DOC_ID [--frames A:B] [--numeric-set F15E] [-K 10] [--mode fast|exact|brute]
                        [--stretches [--min-length 0.5]] [--exclude-document] [--csv FILE] [--paths]
     mocapviz template learn DB --label CLASS [--actors A,B,...] [--relational-set 2005|2006] [--out FILE]
-    mocapviz template search DB FILE_OR_NAME [-K 10] [--max-cost C] [--csv FILE]
+    mocapviz template search DB FILE_OR_NAME [-K 10] [--max-cost C] [--csv FILE] [--prefilter]
     mocapviz reproduce NAME|all [--full] --out DIR   (NAME: an experiment, e.g. rank_correlations, reconstruction)
     mocapviz serve [DB] [--port 5006] [--address 127.0.0.1 | --address ADDRESS --allow-origin HOST:PORT...] [--show]
                                                                                 (no DB: the embedded sample)
@@ -490,9 +490,16 @@ def _template_search(args) -> None:
         raise ParameterError(f"{args.template}: the template's {len(template.features)} features are not those of a "
                              f"relational set ({sets}); learn it again with `mocapviz template learn`")  # fmt: skip
     values, _ = relational_features(db, relational_set, progress=False)
+    starts = db.documents["start"].to_numpy()
     t0 = time.perf_counter()
-    hits = find_instances(template, values, db.documents["start"].to_numpy(), n_matches=args.n_matches,
-                          max_cost=args.max_cost)  # fmt: skip
+    ranges = None
+    if args.prefilter:
+        from .index import load_or_build
+        from .templates import keyframe_ranges
+
+        ranges = keyframe_ranges(template, load_or_build(db, relational_set), starts, db.n_frames)
+    hits = find_instances(template, values, starts, n_matches=args.n_matches, max_cost=args.max_cost,
+                          ranges=ranges)  # fmt: skip
     ms = 1000 * (time.perf_counter() - t0)
     docs = db.documents.iloc[hits["doc_id"].to_numpy(dtype=np.int64)].reset_index(drop=True)
     first = docs["start"].to_numpy()
@@ -506,8 +513,10 @@ def _template_search(args) -> None:
         table[col] = docs[col].to_numpy()
     limit = "" if args.max_cost is None else f", normalised cost <= {args.max_cost:g}"
     n = template.n_examples
+    aligned = "" if ranges is None else (f", keyframe pre-filter: {(ranges[:, 1] - ranges[:, 0]).sum() / db.n_frames:.0%}"
+                                         f" of the frames aligned")  # fmt: skip
     print(f"{len(table)} matches of template {template.label!r} ({len(template.values)} frames, {n} "
-          f"example{'s' * (n != 1)}, {relational_set} set) in {db.path}{limit}, in {ms:.1f} ms")
+          f"example{'s' * (n != 1)}, {relational_set} set) in {db.path}{limit}{aligned}, in {ms:.1f} ms")
     own = template.meta.get("threshold")
     if args.max_cost is not None:
         empty = "try a larger --max-cost" + ("" if own is None else f"; the examples' own best matches cost up to "
@@ -736,6 +745,9 @@ def build_parser() -> argparse.ArgumentParser:
             "[0, 1] (default: the K best, whatever their cost)")  # fmt: skip
     ts.add_argument("--csv", help="also write the ranked table (best first) to this CSV file; start and end are "
                     "frames within the document")  # fmt: skip
+    ts.add_argument("--prefilter", action="store_true", help="align only where the template's keyframes occur in "
+                    "order (read from the relational indexes, built and stored when missing): faster for a specific "
+                    "template, and may miss a hit whose keyframes disagree")  # fmt: skip
     ts.set_defaults(func=_template_search)
 
     rp = sub.add_parser("reproduce", help="re-run the papers' experiments on the shared data; write CSV tables and "

@@ -128,6 +128,24 @@ def test_max_cost_keeps_exactly_the_cheaper_hits(db, kick, tmp_path, capsys):
     assert f"normalised cost <= {limit:g}" in capsys.readouterr().out
 
 
+def test_prefilter_aligns_only_the_keyframe_ranges(db, kick, values, tmp_path, capsys):
+    """--prefilter gives find_instances over keyframe_ranges (indexes built and stored when missing)."""
+    from mocapviz import index
+    from mocapviz.templates import keyframe_ranges
+
+    csv = tmp_path / "pre.csv"
+    assert main(["template", "search", str(db.path), "kickLFront1Reps-dg", "-K", "6", "--prefilter", "--csv",
+                 str(csv)]) == 0  # fmt: skip
+    assert "keyframe pre-filter" in capsys.readouterr().out
+    starts = db.documents["start"].to_numpy()
+    ranges = keyframe_ranges(kick, index.load(db, "2006"), starts, db.n_frames)
+    assert 0 < (ranges[:, 1] - ranges[:, 0]).sum() < db.n_frames
+    hits = find_instances(kick, values, starts, n_matches=6, ranges=ranges)
+    got = pd.read_csv(csv)
+    assert got["doc_id"].tolist() == db.documents["doc_id"].to_numpy()[hits["doc_id"]].tolist()
+    np.testing.assert_allclose(got["cost"], hits["cost"])
+
+
 def test_no_match_says_what_to_try(db, tmp_path, capsys):
     """Every feature of the set true at once occurs nowhere: at cost 0 nothing matches."""
     path = tmp_path / "impossible.npz"
