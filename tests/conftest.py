@@ -157,6 +157,7 @@ def serve_dashboard(tmp_path_factory):
             servers[key] = _serve(Path(db_path), log_dir)
         return servers[key][0]
 
+    get.log_of = lambda url: next(log for u, _, log in servers.values() if u == url)  # the server's output file
     yield get
     for _, proc, _ in servers.values():
         proc.terminate()
@@ -170,6 +171,12 @@ def serve_dashboard(tmp_path_factory):
 def sample_dashboard(sample_db, serve_dashboard) -> str:
     """URL of the dashboard over :func:`sample_db`."""
     return serve_dashboard(sample_db.path)
+
+
+@pytest.fixture
+def sample_server_log(sample_dashboard, serve_dashboard) -> Path:
+    """The output file (stdout and stderr) of the server of :func:`sample_dashboard`."""
+    return serve_dashboard.log_of(sample_dashboard)
 
 
 @pytest.fixture(scope="session")

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import re
+import time
 
 import pytest
-from browser_helpers import free_port, open_dashboard, record_timing, text_of
+from browser_helpers import free_port, open_dashboard, record_first_answer, record_timing, text_of
 from playwright.sync_api import expect
 
 from mocapviz.features import relational_features
@@ -22,6 +23,14 @@ def test_first_page_lists_documents_and_plays_the_first_clip(sample_db, sample_d
     assert f"of {first['n_frames']} " in caption  # one step per frame of the first document
     values, _ = relational_features(sample_db.motion(int(first["doc_id"])), progress=False)
     assert f"{len(segment(values).starts)} segments in the clip" in text_of(page, ".mv-timeline-info")
+    # at 1400 pixels the documents table fits beside the player: every column shown, none scrolled out of view
+    holder = page.locator(".mv-documents .tabulator-tableholder")
+    scroll, client = holder.evaluate("e => [e.scrollWidth, e.clientWidth]")
+    assert scroll <= client, (scroll, client)
+    table, player = page.locator(".mv-documents").bounding_box(), page.locator(".mv-player").first.bounding_box()
+    assert table["x"] + table["width"] <= player["x"]
+    last = page.locator(".mv-documents .tabulator-col[tabulator-field='fps']").bounding_box()
+    assert last["x"] + last["width"] <= table["x"] + table["width"] + 1
     screenshot("database")
 
 
@@ -41,11 +50,13 @@ def test_filter_and_select_a_document(sample_db, sample_dashboard, page, screens
     count = page.locator(".mv-doc-count")
     count.get_by_text(f"{len(expected)} of {len(docs)} documents").wait_for()
     target = expected.iloc[-1]
+    values, _ = relational_features(sample_db.motion(int(target["doc_id"])), progress=False)
+    t0 = time.perf_counter()
     page.locator(".mv-documents").get_by_text(target["name"], exact=True).click()
     caption = page.locator(".mv-player-caption")
     caption.get_by_text(re.compile(rf"of {target['n_frames']} ")).wait_for()
-    values, _ = relational_features(sample_db.motion(int(target["doc_id"])), progress=False)
     page.locator(".mv-timeline-info").get_by_text(f"{len(segment(values).starts)} segments in the clip").wait_for()
+    record_first_answer("row_click", time.perf_counter() - t0)  # the player and the plots show the clip
     canvas = page.locator(".mv-player canvas")
     expect(canvas).to_have_attribute("data-clips", "1")
     expect(canvas).to_have_attribute("data-frames", "0")  # a new clip starts at its first frame
@@ -61,6 +72,27 @@ def test_player_steps_through_frames(sample_db, sample_dashboard, page):
     caption.get_by_text(re.compile(r"^step (?!1 )\d+ of")).wait_for()
     expect(canvas).to_have_attribute("data-frames", "1")
     assert int(canvas.get_attribute("data-drawn")) > drawn
+
+
+def test_warm_up_fills_what_the_first_clicks_need(sample_db):
+    """What `mocapviz serve` runs before it listens: afterwards the Backend holds the kd-tree, the DTW search (its
+    kd-tree and coarse database), the F15E features and the relational indexes, and the kernels of the LNG,
+    the DTW search and the index queries are compiled."""
+    from mocapviz import app
+    from mocapviz.app.backend import Backend
+    from mocapviz import index
+    from mocapviz.match import neighbourhood_graph, pruned, time_warping
+
+    backend = Backend(sample_db)  # not the shared one of Backend.open: its caches start empty
+    seconds = app.warm_up(backend)
+    assert set(seconds) == {"search", "knn", "lng", "relational", "row_click"}
+    longest = int(sample_db.documents.loc[sample_db.documents["n_frames"].idxmax(), "doc_id"])
+    for key in (("numeric", "F15E"), ("knn", "F15E"), ("search", "F15E"), ("indexes", "2005"),
+                ("relational", longest, "2005")):
+        assert backend.is_cached(key), key
+    for kernel in (neighbourhood_graph._shortest_paths, neighbourhood_graph._graph_path, pruned.search_ranges,
+                   time_warping._accumulate, time_warping._backtrack, index._adaptive_walk, index._mismatch_walk):
+        assert kernel.signatures, kernel
 
 
 def test_serve_refuses_a_missing_database(tmp_path, capsys):

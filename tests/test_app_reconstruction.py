@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-from browser_helpers import open_dashboard, open_tab, record_timing, timed
+from browser_helpers import assert_no_exception_names, open_dashboard, open_tab, record_timing, timed
+from playwright.sync_api import expect
 
 from mocapviz.app.pages.reconstruction import DEFAULT_NOISE_CM, SEED, default_k
 from mocapviz.reconstruction import PosePrior, reconstruct, reconstruction_errors, synthetic_markers
@@ -65,15 +66,23 @@ def test_bad_choices_say_why(page, sample_dashboard, sample_db, screenshot):
     clip = page.locator(".mv-recon-clip select")
     assert clip.input_value() == _option(sample_db, 0)  # the session's Selection.doc: the first document
     clip.select_option(label=_option(sample_db, TEST_DOC))
-    k = page.locator(".mv-recon-k input")
-    k.fill("99999")
-    k.press("Enter")
-    page.locator(".mv-recon-run button").click()
     frames = sample_db.n_frames - int(sample_db.documents.set_index("doc_id").at[TEST_DOC, "n_frames"])
-    page.locator(MESSAGE).get_by_text(f"k = 99,999 is larger than the prior ({frames:,} frames").wait_for()
+    expect(page.locator(".mv-recon-k")).to_contain_text(f"k neighbours per frame (1–{frames:,})")  # the prior's size
+    k = page.locator(".mv-recon-k input")
+    k.fill("99999")  # more than the prior holds: k becomes its size, and the note says so
+    k.press("Enter")
+    page.locator(".mv-input-note", has_text=f"k neighbours per frame must be 1–{frames:,}: 99,999 was set to "
+                                            f"{frames:,}.").wait_for()
+    expect(k).to_have_value(str(frames))
+    noise = page.locator(".mv-recon-noise input")
+    noise.fill("-1")
+    noise.press("Enter")
+    page.locator(".mv-input-note", has_text="marker noise ± cm must be ≥ 0: -1 was set to 0.").wait_for()
+    expect(noise).to_have_value("0")
     screenshot("k-too-large")
     clip.select_option(label=_option(sample_db, 0))  # a CMU trial: no actor
     page.locator(".mv-recon-prior select").select_option(label="without the test clip's actor")
     page.locator(".mv-recon-run button").click()
     page.locator(MESSAGE).get_by_text("Document 0 has no actor label").wait_for()
     assert not page.locator(ERROR).is_visible()
+    assert_no_exception_names(page)

@@ -5,11 +5,13 @@ library run here on the same database."""
 from __future__ import annotations
 
 import re
+import time
 
 import numpy as np
 import pandas as pd
 import pytest
-from browser_helpers import open_dashboard, open_tab, record_timing, text_of, timed
+from browser_helpers import (assert_no_exception_names, open_dashboard, open_tab, record_first_answer, record_timing,
+                             text_of, timed)
 
 from mocapviz.app.pages.retrieval import DEFAULT_METHODS, label_columns, summary_view
 from mocapviz.app.pages.similarity import LNG_K_AT_30HZ, match_alignment, matrix_docs, scaled_k
@@ -37,9 +39,34 @@ def _cells(page, table_css: str, field: str, rows: int) -> list[str]:
     return [cells.nth(i).inner_text().strip() for i in range(rows)]
 
 
-def _choose(page, name: str) -> None:
-    """On the Database page, choose the document called ``name``: its whole length becomes the span."""
-    page.locator(".mv-documents .tabulator-row", has_text=name).first.click()
+def _choose(page, db, name: str) -> None:
+    """On the Database page, choose the document called ``name``: its whole length becomes the span (waits until the
+    player shows it)."""
+    docs = db.documents
+    n = int(docs.loc[docs["name"].str.contains(name, regex=False), "n_frames"].iloc[0])
+    row = page.locator(".mv-documents .tabulator-row", has_text=name).first
+    row.wait_for()
+    t0 = time.perf_counter()
+    row.click()
+    page.locator(".mv-player-caption", has_text=re.compile(rf"of {n} ")).first.wait_for()
+    record_first_answer("row_click", time.perf_counter() - t0)
+
+
+def _first_click(page, action: str, button: str, shown) -> None:
+    """Click ``button`` (css) and wait for ``shown`` (a locator); the seconds go to ``first_answer_s[action]`` when
+    it is the first such click of the test session."""
+    t0 = time.perf_counter()
+    page.locator(button).click()
+    shown.wait_for()
+    record_first_answer(action, time.perf_counter() - t0)
+
+
+def _corrected(page, css: str, typed: str, shown: int, note: str) -> None:
+    """Type ``typed`` into the number box ``css``: it shows ``shown`` and its note says ``note``."""
+    _set(page, css, typed)
+    page.locator(f"{css} input").evaluate("e => e.blur()")
+    page.locator(".mv-input-note", has_text=note).first.wait_for()
+    assert page.locator(f"{css} input").input_value() == str(shown)
 
 
 def _query(page) -> tuple[int, int, tuple[int, int]]:
@@ -103,15 +130,14 @@ def test_summary_view_rounds_and_marks_missing_values():
 # ============================================================================ the page in the browser
 def test_knn_of_the_current_frame_equals_the_library(page, sample_dashboard, sample_db, screenshot):
     open_dashboard(page, sample_dashboard)
-    _choose(page, QUERY_NAME)
+    _choose(page, sample_db, QUERY_NAME)
     for _ in range(4):  # step the Database page's player into the kick
         page.locator(".mv-player button.next").first.click()
     open_tab(page, TAB)
     page.locator(".mv-similarity-query", has_text=re.compile(rf"{QUERY_NAME}.*frame [1-9]")).wait_for()
     doc, frame, _ = _query(page)
     _set(page, ".mv-knn-k", 32)
-    page.locator(".mv-knn-search button").click()
-    page.locator(".mv-knn-count", has_text="neighbours").wait_for()
+    _first_click(page, "knn", ".mv-knn-search button", page.locator(".mv-knn-count", has_text="neighbours"))
     page.locator(".mv-knn-poses img").wait_for(state="visible")
 
     expected = _knn_library(sample_db, doc, frame, 32)
@@ -122,23 +148,29 @@ def test_knn_of_the_current_frame_equals_the_library(page, sample_dashboard, sam
     assert doc not in expected["doc_id"].to_numpy()
     screenshot("knn")
 
-    _set(page, ".mv-knn-k", 100_000)  # more than the page draws: one clear line, no result
+    # k outside 1..256 (Fig. 1 draws at most 256) is set to the nearest bound, an emptied box gets its value back:
+    # the box shows the k that runs
+    assert page.locator(".mv-knn-k").get_by_text("k neighbours (1–256)").is_visible()
+    _corrected(page, ".mv-knn-k", "0", 1, "k neighbours must be 1–256: 0 was set to 1.")
+    _corrected(page, ".mv-knn-k", "", 1, "k neighbours was empty: set back to 1.")
+    _corrected(page, ".mv-knn-k", "100000", 256, "k neighbours must be 1–256: 100,000 was set to 256.")
     page.locator(".mv-knn-search button").click()
-    error = page.locator(".mv-knn-task .mv-error")
-    error.wait_for(state="visible")
-    assert "k must be between 1 and 256" in text_of(page, ".mv-knn-task .mv-error")
+    page.locator(".mv-knn-count", has_text="256 neighbours").wait_for()
+    assert _cells(page, ".mv-knn-table", "doc_id", 3) == [str(d) for d in _knn_library(sample_db, doc, frame,
+                                                                                         256)["doc_id"][:3]]
+    assert not page.locator(".mv-knn-task .mv-error").is_visible()
+    assert_no_exception_names(page)
 
 
 def test_lng_matches_equal_the_library_and_play_aligned(page, sample_dashboard, sample_db, screenshot):
     open_dashboard(page, sample_dashboard)
-    _choose(page, QUERY_NAME)
+    _choose(page, sample_db, QUERY_NAME)
     open_tab(page, TAB)
     page.locator(".mv-similarity-query", has_text=QUERY_NAME).wait_for()
     doc, _, span = _query(page)
     k = scaled_k(LNG_K_AT_30HZ, sample_db.fps)
     assert page.locator(".mv-match-k input").input_value() == str(k)
-    page.locator(".mv-match-run button").click()
-    page.locator(".mv-match-count", has_text="matches").wait_for()
+    _first_click(page, "lng", ".mv-match-run button", page.locator(".mv-match-count", has_text="matches"))
 
     expected = _lng_library(sample_db, doc, span, k)
     assert len(expected) > 0
@@ -161,25 +193,22 @@ def test_lng_matches_equal_the_library_and_play_aligned(page, sample_dashboard, 
     page.locator(".mv-similarity-matrix").scroll_into_view_if_needed()
     screenshot("matrix")
 
-    _set(page, ".mv-match-kk", 1000)  # K too large: one clear line
-    page.locator(".mv-match-run button").click()
-    error = page.locator(".mv-match-task .mv-error")
-    error.wait_for(state="visible")
-    assert "K must be between 1 and 100" in text_of(page, ".mv-match-task .mv-error")
+    _corrected(page, ".mv-match-kk", "1000", 100, "K matches must be 1–100: 1,000 was set to 100.")  # at most 100
+    _corrected(page, ".mv-match-k", "-3", 1, f"k neighbours per frame must be 1–{sample_db.n_frames:,}: -3 was set "
+                                              "to 1.")  # fmt: skip
 
 
 def test_search_of_clips_and_stretches_equals_the_library_and_plays_aligned(page, sample_dashboard, sample_db,
                                                                              screenshot):  # fmt: skip
     open_dashboard(page, sample_dashboard)
-    _choose(page, QUERY_NAME)
+    _choose(page, sample_db, QUERY_NAME)
     open_tab(page, TAB)
     page.locator(".mv-similarity-query", has_text=QUERY_NAME).wait_for()
     doc, _, (first, last) = _query(page)
     search = SimilaritySearch(sample_db)
 
     # whole clips, exact (the defaults), K = 10, the query's own document excluded
-    page.locator(".mv-search-run button").click()
-    page.locator(".mv-search-count", has_text="clips").wait_for()
+    _first_click(page, "search", ".mv-search-run button", page.locator(".mv-search-count", has_text="clips"))
     expected = search.clips(doc, frames=(first, last + 1), n_matches=10, mode="exact", exclude_document=True,
                             paths=True)
     assert _leading_int(page, ".mv-search-count") == len(expected) == 10
@@ -212,13 +241,10 @@ def test_search_of_clips_and_stretches_equals_the_library_and_plays_aligned(page
     page.locator(".mv-search-player .mv-player-caption", has_text=f"of {steps} ").wait_for()
     screenshot("search-stretches")
 
-    _set(page, ".mv-search-k", 1000)  # K too large: one clear line
-    page.locator(".mv-search-run button").click()
-    page.locator(".mv-search-task .mv-error").wait_for(state="visible")
-    assert "K must be between 1 and 100" in text_of(page, ".mv-search-task .mv-error")
+    _corrected(page, ".mv-search-k", "1000", 100, "K results must be 1–100: 1,000 was set to 100.")
 
 
-def test_retrieval_quality_equals_the_library(page, sample_dashboard, sample_db, screenshot):
+def test_retrieval_quality_equals_the_library(page, sample_dashboard, sample_db, sample_server_log, screenshot):
     open_dashboard(page, sample_dashboard)
     open_tab(page, RETRIEVAL_TAB)
     _set(page, ".mv-retrieval-n", RETRIEVAL_QUERIES)
@@ -241,8 +267,20 @@ def test_retrieval_quality_equals_the_library(page, sample_dashboard, sample_db,
 
     page.locator(".mv-retrieval-group select").select_option("label")  # the label as its own group: one clear line
     page.locator(".mv-retrieval-run button").click()
-    page.locator(".mv-retrieval-task .mv-error").wait_for(state="visible")
-    assert "both 'label'" in text_of(page, ".mv-retrieval-task .mv-error")
+    error = page.locator(".mv-retrieval-task .mv-error")
+    error.wait_for(state="visible")
+    shown = text_of(page, ".mv-retrieval-task .mv-error")
+    assert shown.startswith("Evaluating failed. the label and the leave-group-out column are both"), shown
+    assert_no_exception_names(page)
+    # the next evaluation succeeds: the red line goes
+    page.locator(".mv-retrieval-group select").select_option("actor")
+    page.locator(".mv-retrieval-run button").click()
+    page.locator(".mv-retrieval-task", has_text="Evaluating: done").wait_for()
+    assert not error.is_visible()
+    # the server log: one line for the refusal, no traceback, no bokeh warning
+    log = sample_server_log.read_text()
+    assert "Evaluating refused: the label and the leave-group-out column are both 'label'" in log
+    assert "mocapviz.errors" not in log and "reference already known" not in log
 
 
 @pytest.mark.slow

@@ -12,9 +12,12 @@ from browser_helpers import open_dashboard, open_tab, record_timing, text_of
 from mocapviz.app.backend import Backend
 from mocapviz.app.pages import correlations as corr_page
 from mocapviz.app.pages import statistics as stats_page
-from mocapviz.experiments.correlation import correlation_sample, pose_correlations, segment_correlations
+from mocapviz.experiments.correlation import (available_measures, correlation_sample, pose_correlations,
+                                              segment_correlations)
 from mocapviz.experiments.numeric import krueger2010_table1
 from mocapviz.experiments.relational import index_statistics, mueller2005_table2, query_statistics
+from mocapviz.viz.correlation import value_font
+from mocapviz.viz.paper import comparison_bars
 
 WAIT_MS = 240_000  # the server shares two cores with other test runs
 
@@ -76,35 +79,66 @@ def test_correlations_match_the_library(sample_db, sample_dashboard, page, scree
     screenshot("correlations")
 
 
+def _heatmap_box(page, kind: str) -> dict:
+    """The bounding box of a heat map's canvas (``kind``: "pose" or "segment")."""
+    canvas = page.locator(f".mv-heatmap-{kind} canvas").first
+    canvas.wait_for(timeout=WAIT_MS)
+    return canvas.bounding_box()
+
+
+def _add_measures(page, names) -> None:
+    """Tick more measures in the chooser."""
+    chooser = page.locator(".mv-measures")
+    for name in names:
+        chooser.locator(".choices").first.click()
+        chooser.locator(f".choices__list--dropdown .choices__item--choice[data-value='{name}']").click()
+    page.keyboard.press("Escape")
+
+
 def test_correlations_recompute_with_other_measures(sample_db, sample_dashboard, page, screenshot):
+    """Two measures (of the six shown first): the heat maps' cells grow to fill their column, values and names
+    readable."""
     open_dashboard(page, sample_dashboard)
     open_tab(page, "Correlations")
     page.locator(".mv-values-pose").first.wait_for(timeout=WAIT_MS)
     page.locator(".mv-values-segment").first.wait_for(timeout=WAIT_MS)
+    six = _heatmap_box(page, "pose")
     chooser = page.locator(".mv-measures")
-    chooser.locator(".choices__item[data-value='F39E'] .choices__button").click()
-    chooser.locator(".choices").first.click()
-    chooser.locator(".choices__list--dropdown .choices__item--choice[data-value='F15x5E']").click()
-    page.keyboard.press("Escape")
+    for name in ("Fp16", "F30E", "F39E", "F15x3E"):
+        chooser.locator(f".choices__item[data-value='{name}'] .choices__button").click()
+    _add_measures(page, ["F15x5E"])
+    chooser.locator(".choices__item[data-value='Dpc1'] .choices__button").click()
     _open_values(page, ".mv-values-pose")  # the card stays open when the matrix is replaced
     page.locator(".mv-compute button").click()
-    measures = ["Fp16", "F15E", "F30E", "F15x3E", "F15x5E", "Dpc1"]
+    measures = ["F15E", "F15x5E"]
     deadline = time.monotonic() + WAIT_MS / 1000
     shown = _matrix_rows(page, ".mv-correlation-pose")
-    while list(shown) == list(corr_page.DEFAULT_MEASURES) and time.monotonic() < deadline:
+    while list(shown) != measures and time.monotonic() < deadline:
         time.sleep(0.5)
         shown = _matrix_rows(page, ".mv-correlation-pose")
     _assert_matrix(shown, _expected_pose(sample_db, measures))
-    screenshot("recomputed")
+    _open_values(page, ".mv-values-segment")
+    while list(_matrix_rows(page, ".mv-correlation-segment")) != measures and time.monotonic() < deadline:
+        time.sleep(0.5)
+    two = _heatmap_box(page, "pose")
+    cell = corr_page.heatmap_cell(2)
+    assert cell > corr_page.heatmap_cell(6) and two["width"] >= 2 * cell + 100 and two["height"] >= 2 * cell + 80
+    assert two["width"] <= corr_page.WIDTH and six["width"] <= corr_page.WIDTH
+    screenshot("two-measures")
 
 
 def test_segment_based_says_when_the_database_cannot(sample_db, sample_dashboard, page, screenshot):
+    """Three clips per class (the sample has two): the pose-based matrix over every document, here of all 14
+    measures, whose heat map still fits its column."""
     open_dashboard(page, sample_dashboard)
     open_tab(page, "Correlations")
     page.locator(".mv-values-segment").first.wait_for(timeout=WAIT_MS)
     clips = page.locator(".mv-clips input")
     clips.fill("3")
     clips.press("Enter")
+    every = list(available_measures(sample_db))
+    assert len(every) == 14
+    _add_measures(page, [m for m in every if m not in corr_page.DEFAULT_MEASURES])
     page.locator(".mv-compute button").click()
     problem = page.locator(".mv-segment-problem")
     problem.get_by_text("Segment-based comparisons need several clips per class").wait_for(timeout=WAIT_MS)
@@ -113,7 +147,16 @@ def test_segment_based_says_when_the_database_cannot(sample_db, sample_dashboard
     caption = page.locator(".mv-pose-caption")
     caption.get_by_text(f"all {len(sample_db)} documents (no sample)").wait_for(timeout=WAIT_MS)
     assert page.locator(".mv-error").filter(has_text="failed").count() == 0
-    screenshot("no-segment-sample")
+    _open_values(page, ".mv-values-pose")
+    assert list(_matrix_rows(page, ".mv-correlation-pose")) == every
+    box = _heatmap_box(page, "pose")
+    assert box["width"] <= corr_page.WIDTH and box["height"] >= 14 * corr_page.heatmap_cell(14)
+    assert value_font(corr_page.heatmap_cell(14)) is not None  # the values are printed: they fit the cells
+    values, card = page.locator(".mv-correlation-pose").first, page.locator(".mv-values-pose").first.bounding_box()
+    wide, shown, overflow = values.evaluate("e => [e.scrollWidth, e.clientWidth, getComputedStyle(e).overflowX]")
+    assert wide > shown and overflow == "auto"  # 14 columns of values: scrolled sideways inside the card
+    assert values.bounding_box()["x"] + values.bounding_box()["width"] <= card["x"] + card["width"] + 1
+    screenshot("fourteen-measures")
 
 
 # ============================================================================ Index statistics
@@ -191,6 +234,23 @@ def test_segment_problem_names_what_is_missing(sample_db):
     assert corr_page.segment_problem(sample_db, 2, 8) == ""
     assert "need several clips per class" in corr_page.segment_problem(sample_db, 3, 8)
     assert "between 2 and 21" in corr_page.segment_problem(sample_db, 2, 22)
+
+
+def test_log_scale_bars_rise_from_the_axis():
+    """Bars on a log axis start at its lower end, a power of ten below the smallest value: none hangs below it."""
+    import holoviews as hv
+
+    table = pd.DataFrame({"set": ["F15E", "F15E", "Fp8", "Fp8"], "database": ["ours", "paper", "ours", "paper"],
+                          "mean_ms": [0.00805, 1.11, 0.0199, 0.19]})
+    fig = hv.render(comparison_bars(table, "set", "mean_ms", source="database", logy=True))
+    (bars,) = [r for r in fig.renderers if hasattr(r.glyph, "top")]
+    assert bars.glyph.bottom == fig.y_range.start == 0.001
+    assert min(bars.data_source.data["mean_ms"]) > bars.glyph.bottom
+
+
+def test_heatmap_values_shrink_with_the_cells_then_give_way_to_hover():
+    assert [corr_page.heatmap_cell(n) for n in (2, 6, 14)] == [110, 78, 33]
+    assert [value_font(c) for c in (110, 46, 33, 24)] == [14, 10, 7, None]
 
 
 def test_table1_wide_keeps_the_papers_order():

@@ -13,9 +13,10 @@ pages/         one module per page: database (documents, player, timelines, curv
                learned from its examples, drawn, its instances found and played), correlations (Fig. 2), statistics
                (Müller Tables 2-3, Krüger Table 1), reconstruction (Krüger §5.2).
 
-:func:`dashboard` builds one session's page; :func:`serve` runs the server (bound to 127.0.0.1 unless told
-otherwise); :func:`websocket_origins` decides which web pages may open its WebSocket (on any address other than
-loopback: only the origins listed, never ``*``).
+:func:`dashboard` builds one session's page; :func:`warm_up` runs a small one of each slow first action so that the
+first click answers at once; :func:`serve` runs the server (bound to 127.0.0.1 unless told otherwise);
+:func:`websocket_origins` decides which web pages may open its WebSocket (on any address other than loopback: only
+the origins listed, never ``*``).
 """
 
 from __future__ import annotations
@@ -23,12 +24,14 @@ from __future__ import annotations
 import ipaddress
 import logging
 import re
+import time
 import warnings
 from pathlib import Path
 
 import panel as pn
+from bokeh.util.warnings import BokehUserWarning
 
-from ..errors import ParameterError
+from ..errors import MocapvizError, ParameterError
 from ..validation import parse_port
 from .backend import Backend
 from .state import Selection
@@ -83,15 +86,69 @@ def dashboard(db_path) -> pn.viewable.Viewable:
     return pn.Column(header, tabs, sizing_mode="stretch_width")
 
 
-def _warm_search(backend: Backend) -> None:
-    """One small search of each kind, so that the Similarity page's first search finds the DTW kernels compiled
-    (or loaded from numba's cache), the F15E kd-tree and the coarse database built."""
+WARM_SPAN = 12  # frames of the small queries of the warm-up
+
+
+def warm_up(backend: Backend) -> dict[str, float]:
+    """Run a small one of every action whose first click would otherwise wait, as the pages run them, so that each
+    answers in about a second: numba kernels compiled (or loaded from numba's cache), indexes, kd-trees and feature
+    sets loaded into ``backend``'s caches, the plotting code imported.
+
+    - Similarity search: DTW search of whole clips and stretches, exact and fast, with warping paths (the F15E
+      kd-tree and coarse database of :meth:`Backend.search`); kNN of a frame (:meth:`Backend.knn`) and its Fig. 1
+      picture; lazy neighbourhood graph matching with the page's default k.
+    - Relational query: the relational indexes (:meth:`Backend.indexes`, built and saved when missing) and a query by
+      example of each kind of hit.
+    - Database page: a clip's relational features (its row click draws them).
+
+    The small queries use a few frames of the longest document; their results are not kept. A step the database
+    cannot run (a :class:`~mocapviz.errors.MocapvizError`) is skipped. Returns the seconds of each step (logged at INFO
+    level).
+    """
+    from ..query import query_by_example
+    from .pages import relational, similarity
+
     docs = backend.documents
     doc = int(docs.loc[docs["n_frames"].idxmax(), "doc_id"])
-    search = backend.search("F15E")
-    for mode in ("fast", "exact"):
-        search.clips(doc, frames=(0, 2), n_matches=1, mode=mode)
-        search.stretches(doc, frames=(0, 2), n_matches=1, mode=mode)
+    span = (0, min(WARM_SPAN, int(docs["n_frames"].max())) - 1)
+    db, seconds = backend.db, {}
+
+    def step(name: str, fn) -> None:
+        t0 = time.perf_counter()
+        try:
+            fn()
+        except MocapvizError as exc:  # a database the action cannot run on (clips of one frame, ...): its page says so
+            LOG.info("warm-up of %s skipped: %s", name, exc)
+        seconds[name] = time.perf_counter() - t0
+
+    def search() -> None:
+        for kind in similarity.SEARCH_KINDS.values():
+            for mode in ("fast", "exact"):
+                similarity.search_span(backend, "F15E", doc, span, kind, mode, 1, True)
+
+    def knn() -> None:
+        table = similarity.nearest_frames(backend, "F15E", doc, 0, 8, True)
+        similarity.neighbours_png(backend, doc, 0, table["frame"].to_numpy())
+
+    def lng() -> None:
+        k = min(similarity.scaled_k(similarity.LNG_K_AT_30HZ, backend.fps), db.n_frames)
+        similarity.match_span(backend, "F15E", doc, span, k, 1, True)
+
+    def relational_query() -> None:
+        indexes = backend.indexes(relational.RELATIONAL_SET)
+        example = db.motion(doc)[span[0]:span[1] + 1]
+        for mode in relational.MODES.values():
+            query_by_example(db, example, list(relational.DEFAULT_FEATURES), mode, 1, relational.RELATIONAL_SET,
+                             indexes)
+
+    step("search", search)
+    step("knn", knn)
+    step("lng", lng)
+    step("relational", relational_query)
+    step("row_click", lambda: backend.clip_relational(doc))
+    LOG.info("warmed up in %.1f s (%s)", sum(seconds.values()),
+             ", ".join(f"{name} {s:.1f} s" for name, s in seconds.items()))
+    return seconds
 
 
 def is_loopback(address: str) -> bool:
@@ -156,8 +213,9 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, t
           allow_origin=()):
     """Serve the dashboard of the MotionDB at ``db_path`` on http://address:port/ until interrupted.
 
-    The database is opened (and checked) and one dashboard built before the server starts, so a bad path fails at
-    once and the first page comes quickly. Any address other than loopback (127.0.0.1, localhost, ::1) exposes the
+    The database is opened (and checked), one dashboard built and :func:`warm_up` run before the server starts, so
+    a bad path fails at once, the first page comes quickly and the first search, kNN, matching and relational query
+    answer in about a second. Any address other than loopback (127.0.0.1, localhost, ::1) exposes the
     database to the network: ``allow_origin`` must then list the origins (``HOST:PORT``) users open it at (see
     :func:`websocket_origins`), and a warning says who can reach it.
 
@@ -171,7 +229,11 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, t
     origins = websocket_origins(address, port, allow_origin)
     dashboard(db_path)  # once before listening: the first visitor then finds numba kernels, the EGL context,
     # HoloViews' option trees and the first clip's features ready
-    _warm_search(Backend.open(db_path))
+    warm_up(Backend.open(db_path))  # and the first search, kNN, matching and relational query answer at once
+    # bokehjs sends a model it received from the server in full with the first message it sends after receiving it,
+    # e.g. a button of a page just opened, clicked before anything else changed on the page; the server then warns
+    # that it knows the model already, and goes on with the one it has: harmless, and nothing a page can change
+    warnings.filterwarnings("ignore", message="reference already known", category=BokehUserWarning)
     if not is_loopback(address):
         warnings.warn(f"serving on {address}: anyone who can reach this machine's port {port} can browse "
                       f"{db_path} (pages of {', '.join(origins)} may use it)", UserWarning, stacklevel=2)
@@ -181,4 +243,4 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, t
                     websocket_origin=origins, title=f"{TITLE} · {path.name}")
 
 
-__all__ = ["Backend", "Selection", "dashboard", "is_loopback", "serve", "websocket_origins"]
+__all__ = ["Backend", "Selection", "dashboard", "is_loopback", "serve", "warm_up", "websocket_origins"]

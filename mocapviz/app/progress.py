@@ -1,8 +1,10 @@
 """Long computations of a page, run off the server's event loop with a progress bar, so the page never freezes.
 
 :class:`Task` shows an indeterminate bar and a status line while a function runs in a worker thread; when it ends,
-the line says how long it took, or shows its error as one red message naming the error's type (the server log keeps
-the traceback).
+the line says how long it took, or shows its error as one red message: a user's error
+(:class:`~mocapviz.errors.MocapvizError`: a bad value, a missing document, ...) by its message alone, with one line
+in the server log; any other error as "… failed (an unexpected error); see the server log", the log keeping its
+traceback. No exception type or traceback reaches the page. The red message goes away when the next run starts.
 """
 
 from __future__ import annotations
@@ -12,6 +14,8 @@ import logging
 import time
 
 import panel as pn
+
+from ..errors import MocapvizError
 
 LOG = logging.getLogger("mocapviz.app")
 
@@ -46,10 +50,15 @@ class Task(pn.viewable.Viewer):
         t0 = time.perf_counter()
         try:
             result = await asyncio.get_running_loop().run_in_executor(None, fn, *args)
-        except Exception as exc:
+        except MocapvizError as exc:  # the user's input: its message says what to change
+            LOG.warning("%s refused: %s", label, exc)
+            self.error.param.update(object=f"**{label} failed.** {exc}", visible=True)
+            self.status.object = ""
+            return None
+        except Exception:
             LOG.exception("%s failed", label)
-            self.error.object = f"**{label} failed.** {type(exc).__name__}: {exc}"
-            self.error.visible = True
+            self.error.param.update(object=f"**{label} failed** (an unexpected error); see the server log.",
+                                    visible=True)
             self.status.object = ""
             return None
         finally:

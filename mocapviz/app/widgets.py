@@ -1,9 +1,119 @@
-"""Widgets every page builds the same way: the primary button that starts a computation and the table of results."""
+"""Widgets every page builds the same way: the primary button that starts a computation, the table of results and
+the number boxes that keep their bounds (:class:`BoundedIntInput`, :class:`BoundedFloatInput`)."""
 
 from __future__ import annotations
 
+import math
+
 import pandas as pd
 import panel as pn
+
+
+class _KeepsBounds:
+    """What :class:`BoundedIntInput` and :class:`BoundedFloatInput` share: the server enforces ``start`` / ``end``.
+
+    A value entered outside them becomes the nearest bound, an emptied box gets its last value back, and ``note`` (a
+    Markdown pane, placed by the page next to the box; hidden while empty) says what was changed, naming the range.
+    The label names the range too, and follows :meth:`set_bounds`. So the box always shows the value that runs.
+
+    The bounds are not sent to the browser: Bokeh's spinner, given them, silently keeps its previous value when a
+    typed one is out of bounds, while the box goes on showing the typed text until it loses focus.
+    """
+
+    def _keep_bounds(self, label: str) -> None:
+        self.base_label = label
+        self.note = pn.pane.Markdown("", visible=False, margin=(0, 10), css_classes=["mv-input-note"])
+        self._last = self.value
+        self._correcting = False
+        self.name = self._title()
+        self.param.watch(self._check, "value")  # registered first: runs before the page's own watchers
+
+    def _text(self, x) -> str:
+        return f"{x:,}" if isinstance(x, int) else f"{x:g}"
+
+    def range_text(self) -> str:
+        """The accepted values in words: "1–256", "≥ 0"."""
+        if self.end is None:
+            return "any" if self.start is None else f"≥ {self._text(self.start)}"
+        if self.start is None:
+            return f"≤ {self._text(self.end)}"
+        return f"{self._text(self.start)}–{self._text(self.end)}"
+
+    def _title(self) -> str:
+        return f"{self.base_label} ({self.range_text()})"
+
+    def bounded(self, value):
+        """``value`` moved into [start, end]."""
+        if self.start is not None and value < self.start:
+            return self.start
+        if self.end is not None and value > self.end:
+            return self.end
+        return value
+
+    def _check(self, event) -> None:
+        if self._correcting:
+            return
+        value = event.new
+        if value is None or (isinstance(value, float) and math.isnan(value)):
+            fixed, why = self._last, f"**{self.base_label}** was empty: set back to {self._text(self._last)}."
+        else:
+            fixed = self.bounded(value)
+            why = (f"**{self.base_label}** must be {self.range_text()}: {self._text(value)} was set to "
+                   f"{self._text(fixed)}.") if fixed != value else ""
+        if fixed != value:
+            self._set(fixed)
+        self._last = fixed
+        self.note.param.update(object=why, visible=bool(why))
+
+    def _set(self, value) -> None:
+        self._correcting = True
+        try:
+            self.value = value
+        finally:
+            self._correcting = False
+
+    def set_bounds(self, start, end, value=None) -> None:
+        """New bounds (and, optionally, a new value); the value is moved inside them (the note says so when it was
+        the box's own value) and the label follows."""
+        old = self.value
+        self._correcting = True
+        try:
+            self.param.update(start=start, end=end)
+            self.name = self._title()
+            self.value = self.bounded(old if value is None else value)
+            self._last = self.value
+        finally:
+            self._correcting = False
+        moved = value is None and old is not None and self.value != old
+        why = f"**{self.base_label}** must now be {self.range_text()}: {self._text(old)} was set to " \
+              f"{self._text(self.value)}." if moved else ""
+        self.note.param.update(object=why, visible=bool(why))
+
+
+class BoundedIntInput(_KeepsBounds, pn.widgets.IntInput):
+    """An IntInput whose bounds the server enforces (see :class:`_KeepsBounds`): ``BoundedIntInput("k", 64, 1,
+    256, css_classes=[...])`` shows "k (1–256)"."""
+
+    _rename = {**pn.widgets.IntInput._rename, "start": None, "end": None}
+
+    def __init__(self, label: str, value: int, start: int | None = None, end: int | None = None, **params):
+        super().__init__(value=value, start=start, end=end, **params)
+        self._keep_bounds(label)
+
+
+class BoundedFloatInput(_KeepsBounds, pn.widgets.FloatInput):
+    """A FloatInput whose bounds the server enforces (see :class:`_KeepsBounds`)."""
+
+    _rename = {**pn.widgets.FloatInput._rename, "start": None, "end": None}
+
+    def __init__(self, label: str, value: float, start: float | None = None, end: float | None = None, **params):
+        super().__init__(value=value, start=start, end=end, **params)
+        self._keep_bounds(label)
+
+
+def notes(*inputs) -> pn.Column:
+    """The notes of some bounded inputs, one under the other (each hidden while empty)."""
+    return pn.Column(*[w.note for w in inputs], margin=0, sizing_mode="stretch_width")
 
 
 def action_button(label: str, css_class: str, callback, width: int = 120) -> pn.widgets.Button:
@@ -14,9 +124,10 @@ def action_button(label: str, css_class: str, callback, width: int = 120) -> pn.
 
 
 def results_table(value: pd.DataFrame, css_class: str, titles: dict | None = None, page_size: int = 12,
-                  selectable: bool = False, **params) -> pn.widgets.Tabulator:
+                  selectable: bool = False, tooltips: bool = False, **params) -> pn.widgets.Tabulator:
     """A read-only, paginated table of ``value`` (a DataFrame; its columns renamed for display by ``titles``), one
-    row selectable when ``selectable`` (watch its ``selection``).
+    row selectable when ``selectable`` (watch its ``selection``); ``tooltips``: a cell's text shows in full on hover
+    (for a table whose columns are narrowed to fit, ``layout="fit_columns"``).
 
     Rows are drawn plainly rather than by Tabulator's virtual renderer: a page holds a dozen rows, and the virtual
     renderer sometimes drew none after new data arrived while the page around it was laid out again (seen in the
@@ -24,4 +135,6 @@ def results_table(value: pd.DataFrame, css_class: str, titles: dict | None = Non
     return pn.widgets.Tabulator(value, titles=titles or {}, pagination="local", page_size=page_size,
                                 selectable=1 if selectable else False, show_index=False, disabled=True,
                                 sizing_mode="stretch_width", css_classes=[css_class],
-                                configuration={"renderVertical": "basic"}, **params)
+                                configuration={"renderVertical": "basic",
+                                               **({"columnDefaults": {"tooltip": True}} if tooltips else {})},
+                                **params)

@@ -26,6 +26,16 @@ COLUMNS = "compared with"
 CMAP = "RdBu_r"  # diverging: blue -1, white 0, red +1
 COLOUR_RANGE = (-1.0, 1.0)  # the whole range of Spearman's rho, the same in every plot so that plots compare
 WHITE_TEXT_FROM = 0.75  # |rho| from which a value is printed in white (the cell is dark)
+VALUE_FONT_PT = (6, 14)  # the values' font size grows with the cell between these
+VALUE_CHARS = 5  # "-0.12": the widest value printed
+
+
+def value_font(cell: int) -> int | None:
+    """The font size (points) of the values printed in cells of ``cell`` pixels: the largest within
+    :data:`VALUE_FONT_PT` whose values fit the cell (:data:`VALUE_CHARS` characters of about 0.62 em, 2 pixels of
+    margin on each side); None when even the smallest would not."""
+    font = min(int((cell - 4) / (VALUE_CHARS * 0.62 * 4 / 3)), VALUE_FONT_PT[1])
+    return font if font >= VALUE_FONT_PT[0] else None
 
 
 def _names(names: list[str]) -> CustomJSHover:
@@ -44,7 +54,8 @@ def correlation_heatmap(matrix: pd.DataFrame, title: str = "", cell: int = 46) -
         ``segment_correlations``). Not symmetric in general, and drawn as it is.
     title : str
     cell : int
-        Size of one cell in screen pixels (bokeh); the matplotlib figure is scaled alike (80 pixels per inch).
+        Size of one cell in screen pixels (bokeh); the matplotlib figure is scaled alike (80 pixels per inch). The
+        values' font grows with it (:func:`value_font`); in cells too small for them, hovering shows the values.
 
     Returns
     -------
@@ -55,7 +66,7 @@ def correlation_heatmap(matrix: pd.DataFrame, title: str = "", cell: int = 46) -
       order ("neighbours by"); colour = rho on the fixed diverging scale -1 (blue) .. 0 (white) .. +1 (red), the
       same for every matrix. Bokeh: hover shows the row and column names and rho;
     - two hv.Labels with the values to 2 decimals, centred in their cells: black, and white where |rho| >= 0.75
-      (dark cells).
+      (dark cells); left out when the cells are too small to hold them.
 
     Raises
     ------
@@ -74,15 +85,16 @@ def correlation_heatmap(matrix: pd.DataFrame, title: str = "", cell: int = 46) -
     heat = hv.HeatMap((x, y, v), kdims=kdims, vdims=[hv.Dimension("rho", label="ρ")])
     text = np.array(["" if np.isnan(a) else f"{a:.2f}" for a in v], dtype=object)
     dark = np.abs(np.nan_to_num(v)) >= WHITE_TEXT_FROM  # white text on dark cells
+    font = value_font(cell)
     labels = [hv.Labels((x[on], y[on], text[on]), kdims=kdims, vdims=["text"]).opts(
-        text_font_size="8pt", text_color=ink, backend="bokeh").opts(size=8, color=ink, backend="matplotlib")
-        for on, ink in ((~dark, "black"), (dark, "white"))]  # fmt: skip
+        text_font_size=f"{font}pt", text_color=ink, backend="bokeh").opts(size=font, color=ink, backend="matplotlib")
+        for on, ink in ((~dark, "black"), (dark, "white"))] if font else []  # fmt: skip
     width, height = cell * len(cols) + 170, cell * len(rows) + 120
     common = {"cmap": CMAP, "clim": COLOUR_RANGE, "colorbar": True, "xticks": list(enumerate(cols)),
               "yticks": list(enumerate(rows)), "invert_yaxis": True, "xrotation": 45}  # fmt: skip
     heat = heat.opts(
         tools=["hover"], hover_tooltips=[(ROWS, "@{y}{custom}"), (COLUMNS, "@{x}{custom}"), ("ρ", "@{rho}{0.000}")],
-        hover_formatters={"@{y}": _names(rows), "@{x}": _names(cols)}, backend="bokeh", **common,
+        hover_formatters={"@{y}": _names(rows), "@{x}": _names(cols)}, padding=0, backend="bokeh", **common,
     ).opts(show_values=False, backend="matplotlib", **common)  # fmt: skip
     return hv.Overlay([heat, *labels]).opts(title=title, width=width, height=height, backend="bokeh").opts(
         title=title, fig_inches=width / 80, aspect=len(cols) / len(rows), padding=0, backend="matplotlib")  # fmt: skip

@@ -14,6 +14,7 @@ from __future__ import annotations
 import holoviews as hv
 import holoviews.plotting.bokeh  # registers the bokeh backend and its options
 import holoviews.plotting.mpl  # and the matplotlib one (the PNG files of `mocapviz reproduce`)
+import numpy as np
 import pandas as pd
 
 from ..errors import ParameterError
@@ -25,6 +26,13 @@ def _check_columns(table: pd.DataFrame, columns, what: str) -> None:
     missing = [c for c in columns if c not in table.columns]
     if missing:
         raise ParameterError(f"{what}: the table has no column(s) {missing}; it has {list(table.columns)}")
+
+
+def log_floor(smallest: float) -> float:
+    """The power of ten strictly below ``smallest`` (> 0): the lower end of a log axis on which the bar of
+    ``smallest`` still shows."""
+    low = 10.0 ** np.floor(np.log10(float(smallest)))
+    return low / 10 if low >= smallest else low
 
 
 def comparison_bars(table: pd.DataFrame, category: str, value: str, source: str = "source", title: str = "",
@@ -50,10 +58,13 @@ def comparison_bars(table: pd.DataFrame, category: str, value: str, source: str 
     data = table[[category, source, value]].dropna(subset=[value]).copy()
     data[category] = data[category].astype(str)
     data[source] = data[source].astype(str)
-    value_dim = hv.Dimension(value, label=ylabel or value)
+    # a log axis needs a positive lower end: the power of ten below the smallest positive value; the bars rise from
+    # it (HoloViews starts log-scale bars at the value dimension's lower range, 0.01 without one: a smaller value
+    # would hang down from there)
+    ylim = (log_floor(data.loc[data[value] > 0, value].min()), None) if logy and (data[value] > 0).any() \
+        else (None, None)
+    value_dim = hv.Dimension(value, label=ylabel or value, range=ylim)
     bars = hv.Bars(data, kdims=[category, source], vdims=[value_dim], label=title)
-    # a log axis needs a positive lower end: half the smallest positive value
-    ylim = (float(data.loc[data[value] > 0, value].min()) / 2, None) if logy and (data[value] > 0).any() else (None, None)
     bars = bars.opts(width=width, height=height, tools=["hover"], xrotation=45, logy=logy, ylim=ylim, title=title,
                      multi_level=False, color=source, cmap="Category10", show_legend=True, backend="bokeh")  # fmt: skip
     return bars.opts(fig_size=200, aspect=2.5, xrotation=30, logy=logy, ylim=ylim, title=title, multi_level=False,

@@ -21,6 +21,9 @@ from ..errors import ParameterError
 from ..segmentation import segment
 
 GROUP_COLOURS = {"lower": "#1f77b4", "upper": "#d62728", "mix": "#2ca02c"}
+LEGEND_ROW = 17  # pixels per legend entry of numeric_curves (9 pt labels, no spacing)
+LEGEND_MARGIN = 80  # pixels of a bokeh figure's height outside its plot area: title, x axis, legend padding
+LEGEND_COLUMNS = 3  # at most; more entries make the figure taller instead
 
 
 def runs(values: np.ndarray) -> pd.DataFrame:
@@ -111,7 +114,9 @@ def numeric_curves(values: np.ndarray, columns, fps: float, title: str = "", wid
 
     Returns
     -------
-    holoviews.Overlay of one Curve per coordinate (legend clickable to hide), x in seconds.
+    holoviews.Overlay of one Curve per coordinate (legend clickable to hide), x in seconds. The legend stays beside
+    the plot area: in as many columns (at most three) as its entries need to fit the plot's height, the figure made
+    taller than ``height`` when three are not enough.
     """
     values = np.asarray(values, dtype=np.float64)
     columns = list(columns)
@@ -124,8 +129,21 @@ def numeric_curves(values: np.ndarray, columns, fps: float, title: str = "", wid
               for j, c in enumerate(columns)]
     if span is not None:
         curves.append(hv.VSpan(span[0] / fps, (span[1] + 1) / fps).opts(color="orange", alpha=0.2))
+    cols, height = legend_layout(len(columns), height)
     return hv.Overlay(curves).opts({
         "Curve": {"line_width": 1, "tools": ["hover"]},
         "Overlay": {"width": width, "height": height, "title": title, "legend_position": "right", "show_legend": True,
-                    "legend_cols": 2 if len(columns) > 16 else 1, "click_policy": "hide"},
+                    "legend_cols": cols, "click_policy": "hide",
+                    "legend_opts": {"label_text_font_size": "9pt", "label_height": 12, "glyph_height": 12,
+                                    "spacing": 0, "padding": 4, "margin": 4}},
     }, backend="bokeh")
+
+
+def legend_layout(entries: int, height: int) -> tuple[int, int]:
+    """(legend columns, figure height) so that a legend of ``entries`` beside a figure of ``height`` pixels stays
+    within its plot area: more columns, up to :data:`LEGEND_COLUMNS`, then a taller figure."""
+    rows = max(1, (height - LEGEND_MARGIN) // LEGEND_ROW)
+    cols = -(-entries // rows)
+    if cols <= LEGEND_COLUMNS:
+        return max(cols, 1), height
+    return LEGEND_COLUMNS, LEGEND_MARGIN + LEGEND_ROW * -(-entries // LEGEND_COLUMNS)

@@ -17,12 +17,13 @@ import panel as pn
 from ...experiments.correlation import available_measures, correlation_sample, pose_correlations, segment_correlations
 from ...viz.correlation import correlation_heatmap
 from ..progress import Task
-from ..widgets import action_button
+from ..widgets import BoundedIntInput, action_button, notes
 
 SEED = 0
 DEFAULT_MEASURES = ("Fp16", "F15E", "F30E", "F39E", "F15x3E", "Dpc1")  # cheap on a small database: ~5 s in all
 PAPER_CLIPS = 8  # clips per class of the paper's sample (76 clips of 9 HDM05 classes)
 WIDTH = 660  # pixels of each of the two matrices' columns: side by side on a 1400-pixel screen
+CELL = (24, 110)  # pixels of a heat map's cell: as large as the column allows within these
 
 
 def default_clips(documents: pd.DataFrame) -> int:
@@ -75,9 +76,17 @@ def segment_problem(db, clips: int, n_first: int) -> str:
 
 
 def values_table(matrix: pd.DataFrame, css: str) -> pn.pane.DataFrame:
-    """The matrix's values to 3 decimals (rows: neighbours by; columns: compared with; extra columns as they are)."""
+    """The matrix's values to 3 decimals (rows: neighbours by; columns: compared with; extra columns as they are);
+    wider than its card (many measures), it scrolls sideways rather than being cut off."""
     return pn.pane.DataFrame(matrix.round(3), float_format=lambda x: f"{x:.3f}", css_classes=[css],
-                             sizing_mode="stretch_width")
+                             sizing_mode="stretch_width", styles={"overflow-x": "auto"})
+
+
+def heatmap_cell(n_columns: int) -> int:
+    """The cell size (pixels) of a heat map of ``n_columns`` measures in a column of :data:`WIDTH` pixels (less the
+    row names and the colour bar): large for 2 measures, small enough for 14; the values' font follows
+    (:func:`mocapviz.viz.correlation.value_font`)."""
+    return max(CELL[0], min(CELL[1], (WIDTH - 190) // max(n_columns, 1)))
 
 
 class MatrixView(pn.viewable.Viewer):
@@ -87,7 +96,9 @@ class MatrixView(pn.viewable.Viewer):
     def __init__(self, kind: str):
         super().__init__()
         self.kind = kind
-        self.plot = pn.pane.HoloViews(None, css_classes=[f"mv-heatmap-{kind}"])
+        # not linked: the two heat maps share their axes' names, and linked axes would keep the ranges of the other
+        # one's measures (two measures' cells squeezed into a corner of a six-measure frame)
+        self.plot = pn.pane.HoloViews(None, linked_axes=False, css_classes=[f"mv-heatmap-{kind}"])
         self.caption = pn.pane.Markdown("", css_classes=[f"mv-{kind}-caption"], sizing_mode="stretch_width")
         self.values = pn.Card(title="values", collapsed=True, css_classes=[f"mv-values-{kind}"], width=WIDTH - 20)
         self.layout = pn.Column(self.plot, self.caption, self.values, visible=False, width=WIDTH)
@@ -97,7 +108,7 @@ class MatrixView(pn.viewable.Viewer):
 
     def show(self, matrix: pd.DataFrame, caption: str, table: pd.DataFrame | None = None) -> None:
         """Draw ``matrix`` [shape=(R, C)], rho; ``table`` (default the matrix) goes into the values card."""
-        cell = max(30, min(46, (WIDTH - 190) // len(matrix.columns)))  # 14 measures fit the column too
+        cell = heatmap_cell(len(matrix.columns))
         self.plot.object = correlation_heatmap(matrix, title=f"{self.kind}-based", cell=cell)
         self.caption.object = caption
         self.values[:] = [values_table(matrix if table is None else table, f"mv-correlation-{self.kind}")]
@@ -118,12 +129,15 @@ class CorrelationsPage(pn.viewable.Viewer):
         self.measures = pn.widgets.MultiChoice(label="feature sets and distance measures", options=options,
                                                value=[m for m in DEFAULT_MEASURES if m in options], width=520,
                                                css_classes=["mv-measures"])  # fmt: skip
-        self.n_queries = pn.widgets.IntInput(label="queries", value=min(128, db.n_frames), start=1,
-                                             end=db.n_frames, width=100)  # fmt: skip
-        self.k = pn.widgets.IntInput(label="k", value=min(64, db.n_frames - 1), start=1, end=db.n_frames - 1, width=90)
-        self.clips = pn.widgets.IntInput(label="clips per class", value=default_clips(db.documents), start=2, width=110,
-                                         css_classes=["mv-clips"])  # fmt: skip
-        self.n_first = pn.widgets.IntInput(label="first n", value=PAPER_CLIPS, start=2, width=90)
+        self.n_queries = BoundedIntInput("queries", min(128, db.n_frames), 1, db.n_frames, width=130,
+                                         css_classes=["mv-queries"])
+        self.k = BoundedIntInput("k", min(64, db.n_frames - 1), 1, db.n_frames - 1, width=110, css_classes=["mv-k"])
+        self.clips = BoundedIntInput("clips per class", default_clips(db.documents), 2, None, width=130,
+                                     css_classes=["mv-clips"])
+        self.n_first = BoundedIntInput("first n", PAPER_CLIPS, 2, max(2, len(db) - 1), width=110,
+                                       css_classes=["mv-first-n"])
+        self.clips.param.watch(self._bound_first_n, "value")
+        self._bound_first_n()
         self.button = action_button("Compute", "mv-compute", self._compute, width=110)
         self.pose_task, self.segment_task = Task(), Task()
         self.pose, self.segment = MatrixView("pose"), MatrixView("segment")
@@ -137,10 +151,19 @@ class CorrelationsPage(pn.viewable.Viewer):
             "the **column** measure, so the matrix is not symmetric. The paper: 1024 queries, k = 256, 8 clips of "
             "each of 9 classes, the first 8 of each ranking.", sizing_mode="stretch_width")
         controls = pn.Row(self.measures, self.n_queries, self.k, self.clips, self.n_first, self.button)
+        inputs = notes(self.n_queries, self.k, self.clips, self.n_first)
         pose = pn.Column("### Pose-based (Fig. 2)", self.pose_task, self.pose, width=WIDTH)
         segment = pn.Column("### Segment-based (DTW of clips)", self.segment_task, self.segment_note, self.segment,
                             width=WIDTH)
-        return pn.Column(intro, controls, pn.FlexBox(pose, segment), sizing_mode="stretch_width")
+        return pn.Column(intro, controls, inputs, pn.FlexBox(pose, segment), sizing_mode="stretch_width")
+
+    def _bound_first_n(self, event=None) -> None:
+        """*first n* from 2 to the sample's clips less the query clip (when the database gives a sample of that many
+        clips per class; otherwise the documents less one, and the page says why the segment-based matrix cannot be
+        computed)."""
+        sample, _ = sample_of(self.backend.db, self.clips.value)
+        most = len(sample) - 1 if sample is not None else len(self.backend.db) - 1
+        self.n_first.set_bounds(2, max(2, most))
 
     def activate(self) -> None:
         """Compute with the default settings the first time the tab is shown."""

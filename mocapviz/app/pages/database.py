@@ -4,6 +4,7 @@ curves (Krüger et al. 2010 §3.2)."""
 
 from __future__ import annotations
 
+import holoviews as hv
 import numpy as np
 import panel as pn
 
@@ -14,6 +15,8 @@ from ..player import SkeletonPlayer
 from ..widgets import results_table
 
 TABLE_COLUMNS = ("doc_id", "name", "label", "actor", "seconds", "n_frames", "fps")
+TABLE_TITLES = {"doc_id": "id", "n_frames": "frames"}
+NARROW_COLUMNS = {"doc_id": 64, "label": 180, "actor": 72, "seconds": 96, "n_frames": 88, "fps": 64}  # pixels
 
 
 class DatabasePage(pn.viewable.Viewer):
@@ -22,6 +25,7 @@ class DatabasePage(pn.viewable.Viewer):
     def __init__(self, backend, selection):
         super().__init__()
         self.backend, self.selection = backend, selection
+        self._loading = False
         docs = backend.documents.copy()
         docs["seconds"] = (docs["n_frames"] / docs["fps"]).round(2)
         self.table_data = docs[[c for c in TABLE_COLUMNS if c in docs]]
@@ -32,7 +36,10 @@ class DatabasePage(pn.viewable.Viewer):
         longest = float(docs["seconds"].max())
         self.length_filter = pn.widgets.RangeSlider(label="length (s)", start=0.0, end=max(longest, 0.1),
                                                     value=(0.0, max(longest, 0.1)), step=0.1, width=220)
-        self.table = results_table(self.table_data, "mv-documents", selectable=True)
+        # the columns share the table's width (the player takes the rest of a 1400-pixel screen): long names end in
+        # "…" and show in full on hover, rather than the last columns being cut off
+        self.table = results_table(self.table_data, "mv-documents", TABLE_TITLES, selectable=True,
+                                   layout="fit_columns", widths=NARROW_COLUMNS, tooltips=True)
         self.count = pn.pane.Markdown("", css_classes=["mv-doc-count"])
         for w in (self.label_filter, self.actor_filter, self.length_filter):
             w.param.watch(self._filter, "value")
@@ -54,6 +61,7 @@ class DatabasePage(pn.viewable.Viewer):
         self.timeline_info = pn.pane.Markdown("", css_classes=["mv-timeline-info"], margin=(0, 10))
         self.curves = pn.pane.HoloViews(None, sizing_mode="stretch_width", linked_axes=False,
                                         css_classes=["mv-curves"])
+        self._pipes: dict = {}  # plot -> (key, Pipe): the plots are DynamicMaps, updated in place by new clips
         self._filter()
         self.show_document(selection.doc)
         selection.param.watch(self._follow, ["doc", "span"])
@@ -92,16 +100,22 @@ class DatabasePage(pn.viewable.Viewer):
         if span is None or not 0 <= span[0] <= span[1] < n:
             span = (0, n - 1)
         self.doc, self.n_frames, self.doc_fps = doc, n, float(row["fps"])
-        self.selection.param.update(doc=doc, frame=0, span=tuple(span))
+        self._loading = True  # the Selection's watchers (_follow) must not draw the plots a second time
+        try:
+            self.span.param.update(start=0, end=max(n - 1, 1), value=tuple(span))
+            self.selection.param.update(doc=doc, frame=0, span=tuple(span))
+        finally:
+            self._loading = False
         self.player.load([self.backend.db.positions[self.backend.db.frames(doc)]], titles=[str(row["name"])],
                          fps=self.doc_fps)
-        self.span.param.update(start=0, end=max(n - 1, 1), value=tuple(span))
         self._draw_timeline()
         self._draw_curves()
 
     def _follow(self, *events) -> None:
         """Show the clip and span chosen on another page."""
         doc, span = self.selection.doc, tuple(self.selection.span)
+        if self._loading:
+            return
         if doc != self.doc:
             self.show_document(doc, span)
         elif span != tuple(self.span.value):
@@ -138,11 +152,44 @@ class DatabasePage(pn.viewable.Viewer):
             f"{len(names)} features of the 2005 set (lower blue, upper red, mix green), "
             f"{len(segment(values).starts)} segments in the clip, {len(segment(values[a:b + 1]).starts)} "
             f"in the span {a}..{b}")
-        self.timeline.object = relational_timeline(values, names, self.doc_fps, feature_groups(),
-                                                   span=self._partial_span())
+        self._show(self.timeline, "2005", self._timeline_frame)
 
     def _draw_curves(self) -> None:
-        name = self.numeric_set.value
-        X = self.backend.numeric(name)[self.backend.db.frames(self.doc)]
-        self.curves.object = numeric_curves(X, numeric_columns(name), self.doc_fps, title=f"{name} (cm, body frame)",
-                                            span=self._partial_span())
+        self._show(self.curves, self.numeric_set.value, self._curves_frame)
+
+    def _show(self, pane, key: str, frame) -> None:
+        """Show the current clip and span in ``pane``: a new DynamicMap of ``frame`` the first time (and when
+        ``key``, the feature set, changes), else new data for the one shown. Bokeh then updates the plot's data in
+        place instead of building a new figure: a row click answers about twice as fast."""
+        data = (self.doc, self.doc_fps, self._partial_span())
+        shown = self._pipes.get(id(pane))
+        if shown is not None and shown[0] == key:
+            shown[1].send(data)
+            return
+        pipe = hv.streams.Pipe(data=data)
+        self._pipes[id(pane)] = (key, pipe)
+        pane.object = hv.DynamicMap(lambda data: frame(key, *data), streams=[pipe])
+
+    def _timeline_frame(self, relational_set: str, doc: int, fps: float, span) -> hv.Overlay:
+        values, names = self.backend.clip_relational(doc, relational_set)
+        return _framewise(relational_timeline(values, names, fps, feature_groups(relational_set)), span, fps)
+
+    def _curves_frame(self, name: str, doc: int, fps: float, span) -> hv.Overlay:
+        X = self.backend.numeric(name)[self.backend.db.frames(doc)]
+        return _framewise(numeric_curves(X, numeric_columns(name), fps, title=f"{name} (cm, body frame)"), span, fps)
+
+
+def _framewise(plot: hv.Overlay, span, fps: float) -> hv.Overlay:
+    """``plot`` with the span shaded as its last layer (of no width when ``span`` is None, so that every frame of a
+    DynamicMap has the same layers), its axes following each frame, as wide as the page."""
+    a, b = span if span is not None else (0, -1)
+    shade = hv.VSpan(a / fps, (b + 1) / fps).opts(color="orange", alpha=0.2)
+    # as wide as the page, on the first frame and on the next ones (HoloViews sets a fixed size when it updates one)
+    width = {"hooks": [_stretch_width]}
+    layers = [layer.opts(framewise=True, **width, backend="bokeh") for layer in [*plot, shade]]
+    return hv.Overlay(layers).opts(**{**plot.opts.get(backend="bokeh").kwargs, "framewise": True, **width},
+                                   backend="bokeh")
+
+
+def _stretch_width(plot, element) -> None:
+    plot.state.sizing_mode = "stretch_width"

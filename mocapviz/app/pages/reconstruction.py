@@ -25,7 +25,7 @@ from ...skeleton import CANONICAL_JOINTS
 from ...viz.reconstruction import error_curves, joint_error_bars
 from ..player import SkeletonPlayer
 from ..progress import Task
-from ..widgets import action_button
+from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, notes
 
 SEED = 0  # the markers' noise comes from np.random.default_rng([SEED, doc_id]), as in the experiment
 DEFAULT_NOISE_CM = 0.1  # §5.2: +-1 mm
@@ -140,10 +140,10 @@ class ReconstructionPage(pn.viewable.Viewer):
                                        options={n: v for n, v in PRIORS.items() if v == "clip" or has_actors})
         self.numeric_set = pn.widgets.Select(label="numeric set (kNN search)", options=list(NUMERIC_SETS),
                                              value="F15E", width=170, css_classes=["mv-recon-features"])
-        self.k = pn.widgets.IntInput(label="k (neighbours per frame)", value=default_k(backend.db.n_frames), start=1,
-                                     width=170, css_classes=["mv-recon-k"])
-        self.noise = pn.widgets.FloatInput(label="marker noise (± cm)", value=DEFAULT_NOISE_CM, start=0.0, step=0.05,
-                                           width=150, css_classes=["mv-recon-noise"])
+        self.k = BoundedIntInput("k neighbours per frame", default_k(backend.db.n_frames), 1, backend.db.n_frames,
+                                 width=220, css_classes=["mv-recon-k"])
+        self.noise = BoundedFloatInput("marker noise ± cm", DEFAULT_NOISE_CM, 0.0, None, step=0.05, width=170,
+                                       css_classes=["mv-recon-noise"])
         self.run_button = action_button("Reconstruct", "mv-recon-run", self._run, width=140)
         self.message = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-recon-message"])
         self.task = Task()
@@ -157,6 +157,9 @@ class ReconstructionPage(pn.viewable.Viewer):
         self.results = pn.Column(self.error_text, pn.Row(pn.Column(self.player, self.caption), self.frames),
                                  self.joints, visible=False, sizing_mode="stretch_width")
         self._followed = selection.doc
+        self.clip.param.watch(lambda e: self._bound_k(), "value")
+        self.prior.param.watch(lambda e: self._bound_k(), "value")
+        self._bound_k()
 
     def __panel__(self):
         intro = pn.pane.Markdown(
@@ -164,14 +167,22 @@ class ReconstructionPage(pn.viewable.Viewer):
             f"from its markers ({', '.join(MARKERS)}), with uniform noise, by a local linear model of its k nearest "
             "poses in the prior.", margin=(0, 10))
         options = pn.Row(self.prior, self.numeric_set, self.k, self.noise, self.run_button)
-        return pn.Column(intro, self.clip, options, self.message, self.task, self.summary, self.results,
-                         sizing_mode="stretch_width", css_classes=["mv-recon-page"])
+        return pn.Column(intro, self.clip, options, notes(self.k, self.noise), self.message, self.task, self.summary,
+                         self.results, sizing_mode="stretch_width", css_classes=["mv-recon-page"])
 
     def activate(self) -> None:
         """Follow the clip chosen on the Database page since this page was last shown."""
         if self.selection.doc != self._followed:
             self._followed = self.selection.doc
             self.clip.value = self.selection.doc
+
+    def _bound_k(self) -> None:
+        """k from 1 to the frames of the chosen prior (the database without the test clip, or its actor)."""
+        try:
+            valid, _ = prior_mask(self.backend.db, int(self.clip.value), self.prior.value)
+        except ParameterError:  # a clip without an actor: Reconstruct says so
+            return
+        self.k.set_bounds(1, max(1, int(valid.sum())))
 
     def _settings(self) -> tuple:
         return int(self.clip.value), self.prior.value, self.numeric_set.value, self.k.value, self.noise.value

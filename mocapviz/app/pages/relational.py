@@ -14,15 +14,17 @@ from __future__ import annotations
 
 import asyncio
 
+import numpy as np
 import pandas as pd
 import panel as pn
 
-from ...features import feature_groups
+from ...features import feature_groups, relational_features
 from ...query import query_by_example
+from ...segmentation import segment
 from ...viz.query import precision_recall, precision_recall_plot
 from ..player import SkeletonPlayer
 from ..progress import Task
-from ..widgets import action_button, results_table
+from ..widgets import BoundedIntInput, action_button, notes, results_table
 
 RELATIONAL_SET = "2005"
 # the "kicking" query of Müller et al. 2005 §6.2 (Fig. 9): F_l3, F_l4, F_l7, F_l8
@@ -45,8 +47,8 @@ class RelationalPage(pn.viewable.Viewer):
                                      css_classes=["mv-query-doc"])
         self.span = pn.widgets.IntRangeSlider(label="query span (frames)", start=0, end=1, value=(0, 1), width=420,
                                               css_classes=["mv-query-span"])
-        self.first = pn.widgets.IntInput(label="first frame", start=0, width=100, css_classes=["mv-query-first"])
-        self.last = pn.widgets.IntInput(label="last frame", start=0, width=100, css_classes=["mv-query-last"])
+        self.first = BoundedIntInput("first frame", 0, 0, 1, width=140, css_classes=["mv-query-first"])
+        self.last = BoundedIntInput("last frame", 1, 0, 1, width=140, css_classes=["mv-query-last"])
         self.span_info = pn.pane.Markdown("", margin=(0, 10), css_classes=["mv-query-span-info"])
         self.features = {g: pn.widgets.CheckBoxGroup(label=GROUP_TITLES[g], options=names, inline=False,
                                                      value=[n for n in names if n in DEFAULT_FEATURES],
@@ -54,8 +56,8 @@ class RelationalPage(pn.viewable.Viewer):
                          for g, names in feature_groups(RELATIONAL_SET).items()}
         self.mode = pn.widgets.RadioButtonGroup(label="hits", options=list(MODES), value="adaptive fuzzy",
                                                 css_classes=["mv-query-mode"])
-        self.mismatches = pn.widgets.IntInput(label="m (mismatching segments)", start=1, end=20, value=1, width=170,
-                                              disabled=True, css_classes=["mv-query-m"])
+        self.mismatches = BoundedIntInput("m mismatching segments", 1, 0, 1, width=200, disabled=True,
+                                          css_classes=["mv-query-m"])
         self.run = action_button("Run query", "mv-run", self._on_run, width=140)
         self.task = Task()
         self.message = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-query-message"])
@@ -70,10 +72,11 @@ class RelationalPage(pn.viewable.Viewer):
 
     def __panel__(self):
         features = pn.Row(*[pn.Column(f"**{GROUP_TITLES[g]}**", w) for g, w in self.features.items()])
-        query = pn.Column("### Query", self.doc, self.span, pn.Row(self.first, self.last), self.span_info,
+        query = pn.Column("### Query", self.doc, self.span, pn.Row(self.first, self.last),
+                          notes(self.first, self.last), self.span_info,
                           "**Features** (unticked ones are \"don't care\")", features,
                           "**Hits** (§5: exact, fuzzy, adaptive fuzzy, m-mismatch)", self.mode, self.mismatches,
-                          self.run, self.message, self.task)
+                          notes(self.mismatches), self.run, self.message, self.task)
         player = pn.Column("### Query beside hit", self.player, self.player_caption, css_classes=["mv-query-player"])
         results = pn.Column("### Hits", self.count, self.quality, self.table, self.curve, sizing_mode="stretch_width")
         return pn.Column(pn.Row(query, player), results, sizing_mode="stretch_width")
@@ -84,6 +87,8 @@ class RelationalPage(pn.viewable.Viewer):
         self.first.param.watch(self._on_bound, "value")
         self.last.param.watch(self._on_bound, "value")
         self.mode.param.watch(lambda e: setattr(self.mismatches, "disabled", e.new != "mismatch"), "value")
+        for w in self.features.values():
+            w.param.watch(lambda e: self._bound_mismatches(), "value")
         self.table.param.watch(self._on_select, "selection")
 
     # ------------------------------------------------------------------ the query clip and span
@@ -106,8 +111,8 @@ class RelationalPage(pn.viewable.Viewer):
         try:
             self.doc.value = doc
             self.span.param.update(start=0, end=max(n - 1, 1), value=(first, last))
-            self.first.param.update(end=n - 1, value=first)
-            self.last.param.update(end=n - 1, value=last)
+            self.first.set_bounds(0, n - 1, first)
+            self.last.set_bounds(0, n - 1, last)
         finally:
             self._syncing = False
         self._span_changed()
@@ -122,8 +127,10 @@ class RelationalPage(pn.viewable.Viewer):
             self._set_query(self.doc.value, event.new)
 
     def _on_bound(self, event) -> None:
-        if not self._syncing:
-            self._set_query(self.doc.value, (self.first.value, self.last.value))
+        """The first or last frame box changed (a value out of the clip was already moved into it by the box)."""
+        span = (self.first.value, self.last.value)
+        if not self._syncing and span != tuple(self.span.value):
+            self._set_query(self.doc.value, span)
 
     def _span_changed(self) -> None:
         """Tell the Selection, describe the span and show it in the player."""
@@ -136,13 +143,37 @@ class RelationalPage(pn.viewable.Viewer):
         self.player.load([self._clip(doc, first, last)], titles=["query"], fps=fps)
         self.player_caption.object = f"Query: **{self._doc_name(doc)}**, frames {first}–{last}. Click a hit to " \
                                      "play it beside the query."
+        self._bound_mismatches()
+
+    def query_segments(self) -> int:
+        """The query's segments in the feature group where it has the most, on the ticked features (1 when none
+        is ticked or the span is too short): m-mismatch hits allow at most that many less one mismatches, as the
+        library caps m per group (:func:`mocapviz.query.query_by_example`)."""
+        doc, (first, last) = int(self.doc.value), tuple(int(v) for v in self.span.value)
+        if last <= first:
+            return 1
+        db = self.backend.db
+        values, names = self.backend.cached(("relational span", RELATIONAL_SET, doc, first, last),
+                                            lambda: relational_features(db.motion(doc)[first:last + 1],
+                                                                        RELATIONAL_SET, progress=False))
+        most = 1
+        for group, members in feature_groups(RELATIONAL_SET).items():
+            ticked = set(self.features[group].value)
+            if ticked:
+                keep = np.array([n in ticked for n in members])
+                most = max(most, len(segment(values[:, [names.index(n) for n in members]] & keep).codes))
+        return most
+
+    def _bound_mismatches(self) -> None:
+        """m from 0 to the query's segments less one (more would be capped to that by the library)."""
+        self.mismatches.set_bounds(0, self.query_segments() - 1)
 
     # ------------------------------------------------------------------ running
     def query(self) -> dict:
         """The query the widgets describe: doc, span (first, last), features (names), mode, mismatches."""
         features = [n for w in self.features.values() for n in w.value]
         return {"doc": int(self.doc.value), "span": tuple(int(v) for v in self.span.value), "features": features,
-                "mode": MODES[self.mode.value], "mismatches": int(self.mismatches.value or 1)}
+                "mode": MODES[self.mode.value], "mismatches": int(self.mismatches.value)}
 
     def problem(self, q: dict) -> str | None:
         """Why the query ``q`` cannot run (a sentence for the user), or None when it can."""

@@ -17,7 +17,7 @@ from ...errors import ParameterError
 from ...experiments.retrieval import METHOD_LABELS, METHODS
 from ...viz.retrieval import class_ap_bars, pr_curves
 from ..progress import Task
-from ..widgets import action_button
+from ..widgets import BoundedIntInput, action_button, notes
 
 DEFAULT_METHODS = ["dtw", "exact", "fast", "lng256"]  # the relational ones build the indexes on first use
 DEFAULT_QUERIES = 24
@@ -72,8 +72,10 @@ class RetrievalPage(pn.viewable.Viewer):
         self.group = pn.widgets.Select(name="leave-group-out by", options=[NO_GROUP, *groups],
                                        value="actor" if "actor" in groups else NO_GROUP, width=160,
                                        css_classes=["mv-retrieval-group"])  # fmt: skip
-        self.n_queries = pn.widgets.IntInput(name="queries (0 = all)", value=DEFAULT_QUERIES, start=0, width=130,
-                                             css_classes=["mv-retrieval-n"])
+        labelled = int(docs[self.label.value].notna().sum()) if self.label.value in docs else len(docs)
+        self.n_queries = BoundedIntInput("queries, 0 = all", min(DEFAULT_QUERIES, labelled), 0, labelled, width=150,
+                                         css_classes=["mv-retrieval-n"])
+        self.label.param.watch(self._bound_queries, "value")
         self.button = action_button("Evaluate", "mv-retrieval-run", self._evaluate)
         self.task = Task()
         self.count = pn.pane.Markdown("", css_classes=["mv-retrieval-count"], margin=(0, 10))
@@ -98,9 +100,16 @@ class RetrievalPage(pn.viewable.Viewer):
             "10 best documents.",
             sizing_mode="stretch_width")  # fmt: skip
         return pn.Column(intro, pn.Row(self.methods, self.label, self.group, self.n_queries, self.button),
+                         notes(self.n_queries),
                          pn.Column(self.task, css_classes=["mv-retrieval-task"], sizing_mode="stretch_width",
                                    margin=0),
                          self.count, self.summary, self.figures, sizing_mode="stretch_width")
+
+    def _bound_queries(self, event=None) -> None:
+        """At most as many queries as documents carry the chosen label."""
+        docs = self.backend.documents
+        label = self.label.value
+        self.n_queries.set_bounds(0, int(docs[label].notna().sum()) if label in docs else len(docs))
 
     def _settings(self) -> tuple:
         n = int(self.n_queries.value or 0)

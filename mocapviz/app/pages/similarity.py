@@ -31,7 +31,7 @@ from ...viz.matching import similarity_layout
 from ...viz.skeleton import neighbour_poses, png_bytes
 from ..player import SkeletonPlayer
 from ..progress import Task
-from ..widgets import action_button, results_table
+from ..widgets import BoundedIntInput, action_button, notes, results_table
 
 SEARCH_SETS = [s for s in NUMERIC_SETS if not s.startswith("Fp")]  # the numeric sets offered: Fp need a PCA model
 MAX_NEIGHBOURS = 256  # Fig. 1 draws 256 neighbours; more make an unreadable figure and a slow render
@@ -263,8 +263,7 @@ class SimilarityPage(pn.viewable.Viewer):
         self.search_mode = pn.widgets.RadioButtonGroup(options=[m for m in SEARCH_MODES if m != "brute"],
                                                        value="exact", width=140, align="end",
                                                        css_classes=["mv-search-mode"])  # fmt: skip
-        self.search_k = pn.widgets.IntInput(label="K (results)", value=10, start=1, width=110,
-                                            css_classes=["mv-search-k"])
+        self.search_k = BoundedIntInput("K results", 10, 1, MAX_MATCHES, width=130, css_classes=["mv-search-k"])
         self.search_button = action_button("Search", "mv-search-run", self._run_search)
         self.search_task = Task()
         self.search_count = pn.pane.Markdown("", css_classes=["mv-search-count"], margin=(0, 10))
@@ -278,8 +277,8 @@ class SimilarityPage(pn.viewable.Viewer):
         self.search_player_box = pn.Column(self.search_player, visible=False, css_classes=["mv-search-player"])
 
     def _build_knn(self) -> None:
-        self.knn_k = pn.widgets.IntInput(label="k (neighbours)", value=64, start=1, width=120,
-                                         css_classes=["mv-knn-k"])
+        most = min(MAX_NEIGHBOURS, self.backend.db.n_frames)
+        self.knn_k = BoundedIntInput("k neighbours", min(64, most), 1, most, width=150, css_classes=["mv-knn-k"])
         self.knn_button = action_button("Search", "mv-knn-search", self._search)
         self.knn_task = Task()
         self.knn_count = pn.pane.Markdown("", css_classes=["mv-knn-count"], margin=(0, 10))
@@ -287,10 +286,10 @@ class SimilarityPage(pn.viewable.Viewer):
         self.knn_poses = pn.pane.PNG(None, width=480, height=420, css_classes=["mv-knn-poses"])
 
     def _build_match(self) -> None:
-        self.match_k = pn.widgets.IntInput(label="k (neighbours per frame)", start=1, width=160,
-                                           value=scaled_k(LNG_K_AT_30HZ, self.backend.fps), css_classes=["mv-match-k"])
-        self.match_count_k = pn.widgets.IntInput(label="K (matches)", value=10, start=1, width=110,
-                                                 css_classes=["mv-match-kk"])
+        n = self.backend.db.n_frames
+        self.match_k = BoundedIntInput("k neighbours per frame", min(scaled_k(LNG_K_AT_30HZ, self.backend.fps), n), 1,
+                                       n, width=220, css_classes=["mv-match-k"])
+        self.match_count_k = BoundedIntInput("K matches", 10, 1, MAX_MATCHES, width=130, css_classes=["mv-match-kk"])
         self.match_button = action_button("Match", "mv-match-run", self._match)
         self.match_task = Task()
         self.match_count = pn.pane.Markdown("", css_classes=["mv-match-count"], margin=(0, 10))
@@ -304,9 +303,9 @@ class SimilarityPage(pn.viewable.Viewer):
         self.player_box = pn.Column(self.player, visible=False, css_classes=["mv-match-player"])
 
     def _build_matrix(self) -> None:
-        self.matrix_k = pn.widgets.IntInput(label="k (neighbours per frame, small database)", start=1, width=260,
-                                            value=scaled_k(MATRIX_K_AT_30HZ, self.backend.fps),
-                                            css_classes=["mv-matrix-k"])
+        n = self.backend.db.n_frames
+        self.matrix_k = BoundedIntInput("k neighbours per frame, small database", min(scaled_k(
+            MATRIX_K_AT_30HZ, self.backend.fps), n), 1, n, width=300, css_classes=["mv-matrix-k"])
         self.matrix_button = action_button("Similarity matrix", "mv-matrix-run", self._matrix, width=160)
         self.matrix_task = Task()
         self.matrix = pn.pane.HoloViews(None, sizing_mode="stretch_width", css_classes=["mv-similarity-matrix"])
@@ -315,19 +314,22 @@ class SimilarityPage(pn.viewable.Viewer):
         search = pn.Column("### Search: the clips or stretches that move most like the span (DTW)",
                            pn.pane.Markdown(SEARCH_LEGEND, margin=(0, 10)),
                            pn.Row(self.search_kind, self.search_mode, self.search_k, self.search_button),
-                           _scoped(self.search_task, "mv-search-task"), self.search_count, self.search_table,
+                           notes(self.search_k), _scoped(self.search_task, "mv-search-task"), self.search_count,
+                           self.search_table,
                            self.search_playing, self.search_player_box, sizing_mode="stretch_width")
         knn = pn.Column("### Nearest neighbours of the frame (Krüger et al. 2010 §3.3, Fig. 1)",
-                        pn.Row(self.knn_k, self.knn_button), _scoped(self.knn_task, "mv-knn-task"),
+                        pn.Row(self.knn_k, self.knn_button), notes(self.knn_k), _scoped(self.knn_task, "mv-knn-task"),
                         pn.Row(pn.Column(self.knn_count, self.knn_table, sizing_mode="stretch_width"),
                                self.knn_poses, sizing_mode="stretch_width"), sizing_mode="stretch_width")
         match = pn.Column("### Motion matching of the span (lazy neighbourhood graph, §4.1)",
                           pn.Row(self.match_k, self.match_count_k, self.match_button),
-                          _scoped(self.match_task, "mv-match-task"), self.match_count, self.match_table,
+                          notes(self.match_k, self.match_count_k), _scoped(self.match_task, "mv-match-task"),
+                          self.match_count, self.match_table,
                           self.playing, self.player_box, sizing_mode="stretch_width")
         matrix = pn.Column("### Similarity matrix of the span against the best matches' documents (Fig. 3)",
                            pn.pane.Markdown(MATRIX_LEGEND, margin=(0, 10)), pn.Row(self.matrix_k, self.matrix_button),
-                           _scoped(self.matrix_task, "mv-matrix-task"), self.matrix, sizing_mode="stretch_width")
+                           notes(self.matrix_k), _scoped(self.matrix_task, "mv-matrix-task"), self.matrix,
+                           sizing_mode="stretch_width")
         return pn.Column(pn.Row(self.numeric_set, self.exclude_own), self.query, search, knn, match, matrix,
                          sizing_mode="stretch_width")
 

@@ -23,7 +23,7 @@ from ...validation import count, number, one_of
 from ...viz.templates import template_image
 from ..player import SkeletonPlayer
 from ..progress import Task
-from ..widgets import action_button, results_table
+from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, notes, results_table
 
 RELATIONAL_SETS = ["2006", "2005"]  # the 39 features of Müller & Röder 2006 (the paper's), or the 31 of 2005
 MAX_MATCHES = 100
@@ -227,10 +227,10 @@ class TemplatesPage(pn.viewable.Viewer):
                                              visible="actor" in docs, css_classes=["mv-templates-actors"])
         self.relational_set = pn.widgets.RadioButtonGroup(options=RELATIONAL_SETS, value="2006", width=120,
                                                           align="end", css_classes=["mv-templates-set"])
-        self.delta = pn.widgets.FloatInput(label="δ (quantisation)", value=DELTA, start=0.0, end=DELTA_MAX, step=0.01,
-                                           width=110, css_classes=["mv-templates-delta"])
-        self.n_matches = pn.widgets.IntInput(label="K (results)", value=DEFAULT_MATCHES, start=1, end=MAX_MATCHES,
-                                             width=100, css_classes=["mv-templates-k"])
+        self.delta = BoundedFloatInput("δ (quantisation)", DELTA, 0.0, DELTA_MAX, step=0.01, width=130,
+                                       css_classes=["mv-templates-delta"])
+        self.n_matches = BoundedIntInput("K (results)", DEFAULT_MATCHES, 1, MAX_MATCHES, width=120,
+                                         css_classes=["mv-templates-k"])
         self.max_cost = pn.widgets.FloatInput(label="max cost / frame (empty: none)", value=None, start=0.0, end=1.0,
                                               step=0.01, width=190, css_classes=["mv-templates-max-cost"])
         self.button = action_button("Learn and search", "mv-templates-run", self._run, width=150)
@@ -264,7 +264,7 @@ class TemplatesPage(pn.viewable.Viewer):
         # the hits table takes the page's width; the template is drawn below it, beside the hit playing
         template = pn.Column(self.view, self.image, self.legend)
         playing = pn.Column(self.playing, self.player_box)
-        return pn.Column(intro, inputs, pn.Column(self.task, css_classes=["mv-templates-task"], margin=0,
+        return pn.Column(intro, inputs, notes(self.delta, self.n_matches), pn.Column(self.task, css_classes=["mv-templates-task"], margin=0,
                                                   sizing_mode="stretch_width"),
                          self.summary, self.count, self.table, pn.Row(template, playing),
                          sizing_mode="stretch_width")  # fmt: skip
