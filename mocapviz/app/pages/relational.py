@@ -206,6 +206,10 @@ class RelationalPage(pn.viewable.Viewer):
             self._show_hits(q, hits)
             await asyncio.sleep(0)  # let the table and count reach the browser before the plot is built
             self._show_quality(q, hits)
+            await asyncio.sleep(0)
+            # the table's rows once more, in the page's final layout: Tabulator sometimes draws none when its data
+            # arrives while the page around it is laid out again (seen once in CI, on a loaded machine)
+            self.table.param.trigger("value")
 
     # ------------------------------------------------------------------ results
     def _show_hits(self, q: dict, hits: pd.DataFrame) -> None:
@@ -214,8 +218,7 @@ class RelationalPage(pn.viewable.Viewer):
         table = pd.DataFrame({"rank": hits["rank"], "doc_id": hits["doc_id"], "document": hits["name"],
                               "label": hits["label"], "start (s)": (hits["start_frame"] / fps).round(2),
                               "end (s)": ((hits["end_frame"] + 1) / fps).round(2), "score": hits["score"].round(3)})
-        self.table.selection = []
-        self.table.value = table
+        self.table.param.update(selection=[], value=table)
         n = len(hits)
         kind = f"{q['mode']} hits" + (f" with m = {q['mismatches']}" if q["mode"] == "mismatch" else "")
         self.count.object = f"**{n} hit{'s' if n != 1 else ''}** for {len(q['features'])} features, " \
