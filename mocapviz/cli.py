@@ -513,8 +513,8 @@ def _template_search(args) -> None:
         table[col] = docs[col].to_numpy()
     limit = "" if args.max_cost is None else f", normalised cost <= {args.max_cost:g}"
     n = template.n_examples
-    aligned = "" if ranges is None else (f", keyframe pre-filter: {(ranges[:, 1] - ranges[:, 0]).sum() / db.n_frames:.0%}"
-                                         f" of the frames aligned")  # fmt: skip
+    share = None if ranges is None else (ranges[:, 1] - ranges[:, 0]).sum() / db.n_frames
+    aligned = "" if share is None else f", keyframe pre-filter: {share:.0%} of the frames aligned"
     print(f"{len(table)} matches of template {template.label!r} ({len(template.values)} frames, {n} "
           f"example{'s' * (n != 1)}, {relational_set} set) in {db.path}{limit}{aligned}, in {ms:.1f} ms")
     own = template.meta.get("threshold")

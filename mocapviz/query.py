@@ -8,6 +8,7 @@ groups are joined when they overlap in the same document. Hits are ranked by the
 §6.2: the sum over query segments of the difference between query and hit segment durations.
 
 query_by_example   Motion + feature names -> DataFrame of ranked hits.
+query_segmentation the query sequence per feature group: the example's segmentation on the selected features.
 """
 from __future__ import annotations
 
@@ -33,17 +34,41 @@ def _check_features(features, relational_set: str) -> list[str]:
     return some_of(features, "feature(s)", names)
 
 
-def _group_hits(idx: index_mod.InvertedIndex, q_values: np.ndarray, chosen: list[int], mode: str,
-                mismatches: int, allowed=None) -> tuple[np.ndarray, np.ndarray]:
+def query_segmentation(values: np.ndarray, names: list[str], features, relational_set: str = "2005") -> dict:
+    """The query sequence of each feature group an example's selection touches (§5.2): the example's segmentation
+    on the selected features of the group alone (the others set to 0, so codes keep the group's bit numbering).
+
+    Parameters
+    ----------
+    values : np.ndarray [shape=(T, f)], bool: the example's relational features, columns ``names``.
+    names : list of str [length f], the feature names of ``relational_set``.
+    features : list of str, the selected feature names (checked against the set).
+    relational_set : {"2005", "2006"}
+
+    Returns
+    -------
+    dict group -> (chosen, seq): ``chosen`` the selected columns within the group's features, ``seq`` the
+    :class:`~mocapviz.segmentation.Segmentation` (``seq.codes``: the L query segments); groups without a selected
+    feature are left out.
+    """
+    chosen = _check_features(features, relational_set)
+    out = {}
+    for group, members in feature_groups(relational_set).items():
+        picked = [members.index(f) for f in chosen if f in members]
+        if picked:
+            keep = np.isin(np.arange(len(members)), picked)
+            out[group] = (picked, segment(values[:, [names.index(n) for n in members]] & keep))
+    return out
+
+
+def _group_hits(idx: index_mod.InvertedIndex, seq, chosen: list[int], mode: str, mismatches: int,
+                allowed=None) -> tuple[np.ndarray, np.ndarray]:
     """Hits of one group as stored-segment bounds, and the query's segment lengths.
 
-    ``q_values`` (T, f_group) are the query's features of this group, ``chosen`` the selected columns; the query
-    is segmented on the chosen columns alone (the others set to 0, so codes keep the group's bit numbering).
+    ``seq`` is the query sequence of this group and ``chosen`` its selected columns (:func:`query_segmentation`).
     Returns ``bounds`` [shape=(H, L+1)] (stored segment where each hit segment starts, then the stop) and the
     query's segment lengths in frames [shape=(L,)].
     """
-    keep = np.isin(np.arange(idx.n_features), chosen)
-    seq = segment(q_values & keep)
     if mode == "mismatch":
         return idx.adaptive_mismatch(seq.codes, chosen, min(mismatches, len(seq.codes) - 1), allowed), seq.lengths
     mask = int(np.sum(np.int64(1) << np.asarray(chosen, dtype=np.int64)))
@@ -115,7 +140,7 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     if mode == "mismatch" and not (isinstance(mismatches, (int, np.integer)) and mismatches >= 0):
         raise ParameterError(f"mismatches must be an integer >= 0 (query segments that may disagree), "
                              f"got {mismatches!r}")
-    chosen = _check_features(features, relational_set)
+    _check_features(features, relational_set)
     indexes = index_mod.load(db, relational_set) if indexes is None else indexes
     docs = db.documents
     longest = float((docs["n_frames"] / docs["fps"]).max()) if len(docs) else 0.0
@@ -125,13 +150,9 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     values, names = relational_features(example, relational_set)
     doc_fps = docs["fps"].to_numpy(np.float64)  # per document: a database may mix frame rates
     tables = []
-    for group, members in feature_groups(relational_set).items():
-        picked = [members.index(f) for f in chosen if f in members]
-        if not picked:
-            continue
+    for group, (picked, seq) in query_segmentation(values, names, features, relational_set).items():
         idx = indexes[group]
-        q_values = values[:, [names.index(n) for n in members]]
-        bounds, q_len = _group_hits(idx, q_values, picked, mode, mismatches, allowed)
+        bounds, q_len = _group_hits(idx, seq, picked, mode, mismatches, allowed)
         first, stop = bounds[:, 0], bounds[:, -1]
         seg_frames = idx.starts[np.minimum(bounds, idx.n_segments - 1)]
         seg_frames[:, -1] = idx.starts[stop - 1] + idx.lengths[stop - 1] if len(stop) else seg_frames[:, -1]

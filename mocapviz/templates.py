@@ -54,7 +54,7 @@ DELTA = 0.1  # default quantisation threshold: < δ -> 0, > 1 - δ -> 1, else do
 ITERATIONS = 10
 KEYFRAMES = 4  # template rows used by the pre-filter
 TOLERANCE = 0.2  # a keyframe occurs where at most this share of its cared-for features disagree
-SPEED = 2.0  # the pre-filter's chains allow instances up to this much faster or slower than the template
+SPEED = 2.0  # instances up to this much faster than the fastest example (or slower than the slowest) are sought
 TOL = 1e-6
 TEMPLATES = "templates"  # the folder of a MotionDB holding its stored templates (store_template)
 _NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,127}")  # a stored template's name: filename-safe
@@ -257,7 +257,8 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
 
 
 def keyframe_ranges(template: MotionTemplate, indexes: dict, doc_starts, n_frames: int, delta: float = DELTA,
-                    keyframes: int = KEYFRAMES, tolerance: float = TOLERANCE, speed: float = SPEED) -> np.ndarray:  # fmt: skip
+                    keyframes: int = KEYFRAMES, tolerance: float = TOLERANCE,
+                    speed: float = SPEED) -> np.ndarray:  # fmt: skip
     """Candidate frame ranges for a template, from the relational indexes instead of the frames (the pre-filter).
 
     ``keyframes`` template rows are chosen (in each of as many equal parts of the template, the row that cares

@@ -9,7 +9,7 @@ from mocapviz.cli import main
 from mocapviz.errors import ParameterError
 from mocapviz.features import feature_groups, relational_features
 from mocapviz.index import build, load
-from mocapviz.query import query_by_example
+from mocapviz.query import query_by_example, query_segmentation
 from mocapviz.segmentation import segment
 
 KICK = ["rfoot_raised", "lfoot_raised", "rknee_bent", "lknee_bent"]  # Fig. 9 of the paper (DEFAULT_QUERIES)
@@ -164,6 +164,21 @@ def test_plain_fuzzy_needs_one_stored_segment_per_query_segment(hdm):
         assert ((adaptive["doc_id"] == doc) & (adaptive["start_frame"] == 0)).any()
         if doc == kicks[0]:  # the documented example: nothing found, the clip's 7 runs are more stored segments
             assert fuzzy.empty and own_segments > len(q)
+
+
+def test_query_segmentation_is_the_selected_columns_segmented_per_group(db):
+    """Per group touched: the runs of the selected columns alone (same boundaries and lengths as segmenting just
+    those columns); untouched groups are left out."""
+    values, names = relational_features(db.motion(7), progress=False)
+    chosen = ["rfoot_raised", "lknee_bent", "rhand_above_neck"]  # lower and upper, no mix
+    groups = query_segmentation(values, names, chosen)
+    assert set(groups) == {"lower", "upper"}
+    for group, (picked, seq) in groups.items():
+        members = feature_groups()[group]
+        assert [members[i] for i in picked] == [f for f in chosen if f in members]
+        alone = segment(values[:, [names.index(f) for f in chosen if f in members]])
+        assert np.array_equal(seq.lengths, alone.lengths) and np.array_equal(seq.starts, alone.starts)
+    assert len(groups["lower"][1].codes) > 1  # the kick raises its foot and bends its knee: several runs
 
 
 def test_bad_mismatch_arguments_say_what_to_pass(db):

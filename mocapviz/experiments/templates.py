@@ -117,12 +117,14 @@ def template_quality(db, relational_set: str = "2006", group: str = "actor", del
     per_class = per_template.groupby("class").agg(
         groups=("group", "size"), examples=("examples", "mean"), frames=("frames", "mean"), cared=("cared", "mean"),
         ap_group=("ap_group", "mean"), ap_all=("ap_all", "mean"), r_precision_group=("r_precision_group", "mean"),
-        precision_group=("precision_group", "mean"), recall_group=("recall_group", "mean"), learn_s=("learn_s", "mean"), search_ms=("search_ms", "mean")).reset_index()  # fmt: skip
+        precision_group=("precision_group", "mean"), recall_group=("recall_group", "mean"),
+        learn_s=("learn_s", "mean"), search_ms=("search_ms", "mean")).reset_index()  # fmt: skip
     classification = pd.DataFrame(predictions, columns=["doc_id", "class", "predicted", "correct"])
     summary = pd.DataFrame([{
         "templates": len(per_template), "map_group": per_template["ap_group"].mean(),
         "map_all": per_template["ap_all"].mean(), "min_class_ap_group": per_class["ap_group"].min(),
-        "precision_group": per_template["precision_group"].mean(), "recall_group": per_template["recall_group"].mean(),
+        "precision_group": per_template["precision_group"].mean(),
+        "recall_group": per_template["recall_group"].mean(),
         "classification_accuracy": classification["correct"].mean() if len(classification) else np.nan,
         "clips_classified": len(classification),
     }])  # fmt: skip

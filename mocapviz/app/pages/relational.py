@@ -14,13 +14,11 @@ from __future__ import annotations
 
 import asyncio
 
-import numpy as np
 import pandas as pd
 import panel as pn
 
 from ...features import feature_groups, relational_features
-from ...query import query_by_example
-from ...segmentation import segment
+from ...query import query_by_example, query_segmentation
 from ...viz.query import precision_recall, precision_recall_plot
 from ..player import SkeletonPlayer
 from ..progress import Task
@@ -152,17 +150,15 @@ class RelationalPage(pn.viewable.Viewer):
         doc, (first, last) = int(self.doc.value), tuple(int(v) for v in self.span.value)
         if last <= first:
             return 1
+        ticked = [n for w in self.features.values() for n in w.value]
+        if not ticked:
+            return 1
         db = self.backend.db
         values, names = self.backend.cached(("relational span", RELATIONAL_SET, doc, first, last),
                                             lambda: relational_features(db.motion(doc)[first:last + 1],
                                                                         RELATIONAL_SET, progress=False))
-        most = 1
-        for group, members in feature_groups(RELATIONAL_SET).items():
-            ticked = set(self.features[group].value)
-            if ticked:
-                keep = np.array([n in ticked for n in members])
-                most = max(most, len(segment(values[:, [names.index(n) for n in members]] & keep).codes))
-        return most
+        groups = query_segmentation(values, names, ticked, RELATIONAL_SET)
+        return max(len(seq.codes) for _, seq in groups.values())
 
     def _bound_mismatches(self) -> None:
         """m from 0 to the query's segments less one (more would be capped to that by the library)."""

@@ -264,10 +264,9 @@ class TemplatesPage(pn.viewable.Viewer):
         # the hits table takes the page's width; the template is drawn below it, beside the hit playing
         template = pn.Column(self.view, self.image, self.legend)
         playing = pn.Column(self.playing, self.player_box)
-        return pn.Column(intro, inputs, notes(self.delta, self.n_matches), pn.Column(self.task, css_classes=["mv-templates-task"], margin=0,
-                                                  sizing_mode="stretch_width"),
-                         self.summary, self.count, self.table, pn.Row(template, playing),
-                         sizing_mode="stretch_width")  # fmt: skip
+        task = pn.Column(self.task, css_classes=["mv-templates-task"], margin=0, sizing_mode="stretch_width")
+        return pn.Column(intro, inputs, notes(self.delta, self.n_matches), task, self.summary, self.count, self.table,
+                         pn.Row(template, playing), sizing_mode="stretch_width")
 
     def _on_class(self, event=None) -> None:
         """Offer the actors of the chosen class only (every choice then has an example to learn from)."""
