@@ -48,7 +48,7 @@ def main(argv=None) -> int:
     # unpack the shared archives once, into the repository's cache (ignored by git)
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
 
-    from . import (
+    from mocapviz import (
         bench_dask,
         bench_io,
         bench_knn,

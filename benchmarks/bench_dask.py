@@ -5,7 +5,7 @@ Steps, each on the same data and timed ``repeats`` times (median):
 - ``MotionDB.ingest(files, fps=30)`` of the shared archives (all four; --quick: the quick subset) into a fresh
   database: serial (``threads=1``), 2 threads (``threads=2``), and on a local cluster
   (``scheduler=client``: a ``dask.distributed.LocalCluster`` of 2 worker processes, 1 thread each, started once
-  by ``mocapviz.cluster.dask_client("local", n_workers=2)``; its start-up time is reported on its own row);
+  by ``mocapviz.parallel.dask_client("local", n_workers=2)``; its start-up time is reported on its own row);
 - ``mocapviz.features.store_numeric(db, "F15E")`` and ``mocapviz.features.relational_features(db)`` (31
   features) of that database: threads in this process (``threads=1`` and ``threads=2``) against the same local
   cluster.
@@ -29,16 +29,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from .common import (
-    REPO,
-    BenchDB,
-    CpuMonitor,
-    _source_files,
-    log,
-    machine_info,
-    write_results_csv,
-)
-from .common import fmt as _f
+from mocapviz.common import REPO, BenchDB, CpuMonitor, _source_files, log, machine_info, write_results_csv
+from mocapviz.common import fmt as _f
 
 FPS = 30
 WORKERS = 2
@@ -100,8 +92,8 @@ def _timed(fn, repeats: int, before=None) -> dict:
 
 def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> int:
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
-    from mocapviz.cluster import dask_client
-    from mocapviz.database import MotionDB
+    from mocapviz.parallel import dask_client
+    from mocapviz.db.database import MotionDB
     from mocapviz.features import relational_features, store_numeric
 
     t_start = time.perf_counter()
@@ -204,7 +196,7 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
 
 def _warm_worker(path: str) -> None:
     import mocapviz.io  # noqa: F401 - the readers the ingest tasks use
-    from mocapviz.database import MotionDB
+    from mocapviz.db.database import MotionDB
     from mocapviz.features import numeric_features, relational_features
 
     motion = MotionDB.open(path).motion(0)

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .common import REPO, CpuMonitor, fetch, log, machine_info, markdown
+from mocapviz.common import REPO, CpuMonitor, fetch, log, machine_info, markdown
 
 TARGET_AMC = 100_000  # frames/s
 TARGET_BVH = 300_000  # frames/s
@@ -597,7 +597,8 @@ def _skipped(benchmark, data, note) -> Row:
 
 
 def bench_ingest(quick: bool) -> tuple[list[Row], list[str]]:
-    from mocapviz.database import MotionDB, expand_paths
+    from mocapviz.db.database import MotionDB
+    from mocapviz.db.ingest import expand_paths
 
     notes = []
     roots, missing = [], []

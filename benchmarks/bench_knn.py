@@ -1,6 +1,6 @@
 """kNN benchmark (Krüger, Tautges, Weber & Zinke 2010, Table 1 and §5.3) on F15E features of >= 1M frames.
 
-(a) Build time and memory of the search structures: ``mocapviz.knn.KnnIndex`` (scipy cKDTree), the brute-force
+(a) Build time and memory of the search structures: ``mocapviz.similarity.knn.KnnIndex`` (scipy cKDTree), the brute-force
     engine (a float64 copy), and pykdtree (PyPI, OpenMP kd-tree, float32) when it is installed.
 (b) 16-NN and 256-NN per query, exact, batched queries over all cores: ours against numpy brute force
     (``KnnIndex(engine="brute")``: scipy ``cdist`` + ``argpartition``, chunked, threads; on a sample of the
@@ -19,7 +19,7 @@
 
 The benchmark database: all four shared archives ingested at 30 Hz (``MotionDB.ingest(..., fps=30, threads=2)``),
 about 446k frames. The paper's scale (1-1.3M frames) is reached by appending left/right MIRRORED copies
-(``mocapviz.skeleton.mirror``) of the documents, archive by archive, until the database holds 1M frames; when
+(``mocapviz.motion.skeleton.mirror``) of the documents, archive by archive, until the database holds 1M frames; when
 every document has been mirrored once (about 892k frames) the next round repeats mirrored copies, i.e. exact
 duplicates of frames already present. The output says how many frames of each kind there are. The database
 is cached under ``<repo>/.cache/bench/<tag>[-quick]/`` (``benchmarks.common.benchmark_db``) with the wall time of
@@ -39,7 +39,7 @@ import pandas as pd
 
 from mocapviz.features import numeric_features
 
-from .common import (
+from mocapviz.common import (
     REPO,
     BenchDB,
     CpuMonitor,
@@ -52,7 +52,7 @@ from .common import (
     package_version,
     write_results_csv,
 )
-from .common import fmt as _f
+from mocapviz.common import fmt as _f
 
 FPS = 30
 DATABASE = BenchDB("knn-v2", fps=FPS, min_frames=1_000_000)
@@ -106,7 +106,7 @@ def _build_timed(make, repeats: int) -> tuple[object, list[float], int]:
 
 def build_engines(features: np.ndarray, repeats: int) -> tuple[dict, list[dict]]:
     """{name: search function (queries, k, **options) -> (distances, indices)} and one build row per engine."""
-    from mocapviz.knn import KnnIndex
+    from mocapviz.similarity.knn import KnnIndex
 
     engines, rows = {}, []
     for engine, label in (("ckdtree", "ours: KnnIndex(engine='ckdtree')"),
@@ -220,7 +220,7 @@ def bench_queries(features: np.ndarray, engines: dict, quick: bool, repeats: int
 # ============================================================================ (c) fat-graph base poses
 def bench_fat_graph(features: np.ndarray, real_frames: int, quick: bool) -> list[dict]:
     """(c): base_poses beside base_poses_quadratic on evenly spaced real frames; base_poses on all frames."""
-    from mocapviz.knn import base_poses, base_poses_quadratic
+    from mocapviz.similarity.knn import base_poses, base_poses_quadratic
 
     rows = []
     base_poses(features[:100], FAT_RADIUS, k=FAT_K)  # numba: compile or load from the disk cache

@@ -55,8 +55,8 @@ import pandas as pd
 
 from mocapviz.features import numeric_features
 
-from .bench_knn import DATABASE, FPS
-from .common import (
+from mocapviz.bench_knn import DATABASE, FPS
+from mocapviz.common import (
     REPO,
     CpuMonitor,
     benchmark_db,
@@ -68,7 +68,7 @@ from .common import (
     package_version,
     write_results_csv,
 )
-from .common import fmt as _f
+from mocapviz.common import fmt as _f
 
 SECONDS = (1, 3)  # query lengths
 K_MATCHES = 10
@@ -395,7 +395,7 @@ def table_baselines(rows: list[dict]) -> str:
 def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> int:
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
 
-    from mocapviz.knn import KnnIndex
+    from mocapviz.similarity.knn import KnnIndex
 
     t_start = time.perf_counter()
     monitor = CpuMonitor()

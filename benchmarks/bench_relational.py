@@ -2,12 +2,12 @@
 
 The benchmark database: all four shared archives ingested at 120 Hz (``MotionDB.ingest(..., fps=120, threads=2)``;
 Bandai Namco is 30 Hz and is upsampled, linear positions / slerp rotations). If it still held fewer than 1M frames
-(an archive missing), left/right mirrored copies of the HDM05 / CMU documents (``mocapviz.skeleton.mirror``) would
+(an archive missing), left/right mirrored copies of the HDM05 / CMU documents (``mocapviz.motion.skeleton.mirror``) would
 be added; the output says which. The database is cached under ``<repo>/.cache/bench/<tag>[-quick]/``
 (``benchmarks.common.benchmark_db``) with the wall time of the ingest that built it, so reruns skip the build.
 
 (a) Feature extraction (``mocapviz.features.relational_features(db)``, all 31 features) and index build
-    (``mocapviz.index.build(db, values=...)``: segmentation, inverted lists of the three groups, saved) in
+    (``mocapviz.relational.index.build(db, values=...)``: segmentation, inverted lists of the three groups, saved) in
     frames/s, beside the paper's Table 2 (1,288,846 frames, Matlab on a 3.6 GHz Pentium 4); index size in bytes
     per segment; Table 2 itself from :func:`mocapviz.experiments.index_statistics` beside ``mueller2005_table2()``.
 (b) Exact, fuzzy (eq. 11), adaptive fuzzy (64 alternatives per set) and 1-mismatch queries, |Q| = 5, 10, 20
@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .common import (
+from mocapviz.common import (
     REPO,
     BenchDB,
     CpuMonitor,
@@ -46,7 +46,7 @@ from .common import (
     markdown,
     write_results_csv,
 )
-from .common import fmt as _f
+from mocapviz.common import fmt as _f
 
 FPS = 120
 MIN_FRAMES = 1_000_000
@@ -81,7 +81,7 @@ def scan_exact(codes: np.ndarray, segment_doc: np.ndarray, query: np.ndarray) ->
 def scan_fuzzy(codes: np.ndarray, segment_doc: np.ndarray, sets) -> np.ndarray:
     """Plain fuzzy hits (§5.2, eq. 11) by the same scan: the windows whose first segment lies in V_1 (``np.isin``
     over the sequence), narrowed by membership of segment k + l in V_l at the survivors only."""
-    from mocapviz.index import merge_adjacent
+    from mocapviz.relational.index import merge_adjacent
 
     sets = merge_adjacent(sets)
     n = len(sets)
@@ -116,7 +116,7 @@ def scan_adaptive_fuzzy(codes: np.ndarray, new_doc: np.ndarray, segment_doc: np.
 
     Returns the same (H, J+1) array as :meth:`InvertedIndex.adaptive_fuzzy` (J = sets after merging).
     """
-    from mocapviz.index import merge_adjacent
+    from mocapviz.relational.index import merge_adjacent
 
     sets = merge_adjacent(sets)
     k = np.flatnonzero(np.isin(codes[:-1], sets[0], kind="table"))
@@ -156,7 +156,7 @@ def bench_build(db, record: dict, repeats: int) -> tuple[list[dict], np.ndarray,
     """(a): features and index build, timed ``repeats`` times (median)."""
     from mocapviz.experiments import index_statistics
     from mocapviz.features import relational_features
-    from mocapviz.index import build
+    from mocapviz.relational.index import build
 
     relational_features(db.motion(int(db.documents["doc_id"].iloc[0])))  # numba: compile or load from the disk cache
     t_feat, t_build, cpu_feat = [], [], []

@@ -12,8 +12,8 @@ frames. All are cached under ``<repo>/.cache/bench/scaling-v1[-quick]/``.
 Per size (each step timed ``repeats`` times, median; the LNG and query steps over many queries, median per query):
 
 - relational features (``mocapviz.features.relational_features(db)``, 31 features) + index build
-  (``mocapviz.index.build(db, values=...)``): seconds;
-- F15E features (``mocapviz.features.numeric_features(db, "F15E")``) + kd-tree build (``mocapviz.knn.KnnIndex``): seconds;
+  (``mocapviz.relational.index.build(db, values=...)``): seconds;
+- F15E features (``mocapviz.features.numeric_features(db, "F15E")``) + kd-tree build (``mocapviz.similarity.knn.KnnIndex``): seconds;
 - exact 16-NN: a batch of 1000 random database frames, ``KnnIndex.query(q, 16)``, all threads: ms per query;
 - exact relational query: 300 random |Q| = 10 queries on the upper-body index (``random_queries``,
   ``InvertedIndex.exact``): median ms per query, and the median hit count (which grows with the database);
@@ -40,8 +40,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .bench_dask import PeakRSS
-from .common import (
+from mocapviz.bench_dask import PeakRSS
+from mocapviz.common import (
     REPO,
     BenchDB,
     CpuMonitor,
@@ -52,7 +52,7 @@ from .common import (
     markdown,
     write_results_csv,
 )
-from .common import fmt as _f
+from mocapviz.common import fmt as _f
 
 FPS = 30
 SIZES = (250_000, 1_000_000, 4_000_000)
@@ -82,7 +82,7 @@ CLAIMS = {
 
 def subset_db(db, n: int, folder: Path):
     """The cached database of the shortest prefix of ``db``'s documents in a fixed random order holding >= n frames."""
-    from mocapviz.database import MotionDB
+    from mocapviz.db.database import MotionDB
     from mocapviz.errors import MotionDBError
 
     record_file = folder / "subset.json"
@@ -130,11 +130,11 @@ def measure(db, quick: bool, repeats: int) -> dict:
     """Every step's time on one database."""
     from mocapviz.experiments.relational import random_queries
     from mocapviz.features import numeric_features, relational_features
-    from mocapviz.index import build
-    from mocapviz.knn import KnnIndex
+    from mocapviz.relational.index import build
+    from mocapviz.similarity.knn import KnnIndex
     from mocapviz.match import lng
 
-    from .bench_match import pick_queries
+    from mocapviz.bench_match import pick_queries
 
     n = db.n_frames
     out = {"frames": n, "documents": len(db)}

@@ -1,4 +1,4 @@
-"""Similarity search benchmark (``mocapviz.search.SimilaritySearch``, issue 16 item 6): exact and fast DTW search
+"""Similarity search benchmark (``mocapviz.similarity.search.SimilaritySearch``, issue 16 item 6): exact and fast DTW search
 against brute force, on F15E features at 30 Hz.
 
 (a) Stretches (``SimilaritySearch.stretches``: the K = 10 best non-overlapping stretches by subsequence DTW), on
@@ -50,8 +50,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .bench_knn import DATABASE, FPS
-from .common import (
+from mocapviz.bench_knn import DATABASE, FPS
+from mocapviz.common import (
     REPO,
     BenchDB,
     CpuMonitor,
@@ -64,7 +64,7 @@ from .common import (
     package_version,
     write_results_csv,
 )
-from .common import fmt as _f
+from mocapviz.common import fmt as _f
 
 REAL_DB = BenchDB("search-real", fps=FPS, min_frames=0)  # the shared archives alone: no mirrored copies
 CLIPS_DB = BenchDB("search-hdm05", fps=FPS, min_frames=0, archives=("hdm05-cut",), mirror_archives=(),
@@ -170,7 +170,7 @@ def reference(q, x_kept, starts_kept, kept_docs: pd.DataFrame, query: dict) -> t
 def run_stretches(db, quick: bool, repeats: int, library, rng) -> dict:
     """Every query of one database: per query rows, and the set-up figures."""
     from mocapviz.match import subsequence_dtw
-    from mocapviz.search import SimilaritySearch
+    from mocapviz.similarity.search import SimilaritySearch
 
     kept, held, out_ids = hold_out(db, rng)
     t0 = time.perf_counter()
@@ -283,7 +283,7 @@ def summarise_stretches(label: str, run: dict, target: bool) -> list[dict]:
 # ============================================================================ (b) whole clips
 def run_clips(db, quick: bool, repeats: int) -> dict:
     from mocapviz.match import dtw
-    from mocapviz.search import SimilaritySearch
+    from mocapviz.similarity.search import SimilaritySearch
 
     t0 = time.perf_counter()
     search = SimilaritySearch(db, "F15E")
@@ -418,7 +418,7 @@ def _db_lines(db, record, label: str) -> list[str]:
 # ============================================================================ main
 def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> int:
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
-    from .bench_match import _library
+    from mocapviz.bench_match import _library
 
     t_start = time.perf_counter()
     monitor = CpuMonitor()

@@ -2,7 +2,7 @@
 
 The database is bench_relational's (``relational-v2``: every shared archive at 120 Hz plus left/right mirrored
 copies of the HDM05 and CMU documents up to 1M frames, cached under ``.cache/bench``). For every HDM05 class a
-template is learned (``mocapviz.templates.learn_class``, the 2006 features) from the real clips of four actors
+template is learned (``mocapviz.relational.templates.learn_class``, the 2006 features) from the real clips of four actors
 (not ``mm``), then searched in the whole database two ways, each timed ``repeats`` times (median):
 
 - **full pass** (the baseline): subsequence DTW of the quantised template over every frame
@@ -26,9 +26,19 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .bench_relational import DATABASE
-from .common import REPO, CpuMonitor, benchmark_db, describe_db, header, log, machine_info, markdown, write_results_csv
-from .common import fmt as _f
+from mocapviz.bench_relational import DATABASE
+from mocapviz.common import (
+    REPO,
+    CpuMonitor,
+    benchmark_db,
+    describe_db,
+    header,
+    log,
+    machine_info,
+    markdown,
+    write_results_csv,
+)
+from mocapviz.common import fmt as _f
 
 N_MATCHES = 50
 GOOD = 0.1  # normalised cost of the hits compared
@@ -46,9 +56,9 @@ def _timed(fn, repeats: int) -> tuple[float, object]:
 
 def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> int:
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
-    from mocapviz import index
+    from mocapviz.relational import index
     from mocapviz.features import relational_features
-    from mocapviz.templates import find_instances, keyframe_ranges, learn_class
+    from mocapviz.relational.templates import find_instances, keyframe_ranges, learn_class
 
     t_start = time.perf_counter()
     monitor = CpuMonitor()

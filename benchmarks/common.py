@@ -3,7 +3,7 @@ MotionDB built once from the shared real archives and cached.
 
 benchmark_db(spec, quick)   the cached database of a :class:`BenchDB` spec and its build record: the archives
                             ingested at the spec's rate; if they hold fewer frames than ``min_frames``,
-                            left/right MIRRORED copies (``mocapviz.skeleton.mirror``) of the documents of
+                            left/right MIRRORED copies (``mocapviz.motion.skeleton.mirror``) of the documents of
                             ``mirror_archives`` are appended (``MotionDB.append_motions``), round after round (with
                             ``BenchDB.stretches``: mirrored, then time-stretched copies, :func:`add_variants`);
                             from the second round on they repeat frames already present. ``describe_db`` says so.
@@ -196,7 +196,7 @@ def log(msg: str) -> None:
 
 
 def fetch(name: str):
-    from mocapviz import datasets
+    from mocapviz.io import datasets
 
     try:
         return datasets.fetch(name), None
@@ -236,7 +236,7 @@ class BenchDB:
 
 def _source_files(spec: BenchDB, quick: bool) -> tuple[dict, list[str]]:
     """{archive: [files]} of the archives that could be fetched, and notes on the ones that could not."""
-    from mocapviz.database import expand_paths
+    from mocapviz.db.ingest import expand_paths
 
     files, notes = {}, []
     for name in spec.archives:
@@ -271,7 +271,7 @@ def add_mirrored(db, archives, need: int) -> dict:
     duplicates of frames already present). Returns the reopened database and {"documents", "frames",
     "repeated_frames"} added.
     """
-    from mocapviz.skeleton import mirror
+    from mocapviz.motion.skeleton import mirror
 
     docs = db.documents[np.isin(_archive_of(db, archives), archives)]
     motions, metas, frames, repeated, round_ = [], [], db.n_frames, 0, 0
@@ -319,7 +319,7 @@ def add_variants(db, archives, need: int, stretches) -> tuple:
 
     Returns the reopened database and {"documents", "frames", "repeated_frames", "rounds": {name: frames}}.
     """
-    from mocapviz.skeleton import mirror
+    from mocapviz.motion.skeleton import mirror
 
     docs = db.documents[np.isin(_archive_of(db, archives), archives)]
     rounds = [("mirrored", False, 1.0)]
@@ -362,7 +362,7 @@ def benchmark_db(spec: BenchDB, quick: bool):
 
     Built under a temporary name and renamed into place, so an interrupted build is never taken for a database.
     """
-    from mocapviz.database import MotionDB
+    from mocapviz.db.database import MotionDB
     from mocapviz.errors import MotionDBError
 
     folder = REPO / ".cache" / "bench" / (spec.tag + ("-quick" if quick else ""))
@@ -441,7 +441,7 @@ def describe_db(db, record: dict) -> list[str]:
         lines.append(
             f"**{record['mirrored_documents']:,} derived documents** ({record['mirrored_frames']:,} frames) were "
             f"appended to reach {record['min_frames']:,} frames: left/right MIRRORED copies "
-            "(`mocapviz.skeleton.mirror`), then TIME-STRETCHED copies of the originals and of their mirror images "
+            "(`mocapviz.motion.skeleton.mirror`), then TIME-STRETCHED copies of the originals and of their mirror images "
             f"(`Motion.resample` to s × {fps:g} Hz, relabelled {fps:g} Hz: the same motion performed s times "
             "slower, linearly interpolated positions / slerped rotations). Frames per kind: "
             + "; ".join(f"{k} {v:,}" for k, v in record["variant_frames"].items())
@@ -452,7 +452,7 @@ def describe_db(db, record: dict) -> list[str]:
     elif record["mirrored_documents"]:
         lines.append(
             f"**{record['mirrored_documents']:,} left/right MIRRORED copies** of real documents "
-            f"({record['mirrored_frames']:,} frames, `mocapviz.skeleton.mirror`) were appended to reach "
+            f"({record['mirrored_frames']:,} frames, `mocapviz.motion.skeleton.mirror`) were appended to reach "
             f"{record['min_frames']:,} frames"
             + (f"; of these, **{record['repeated_frames']:,} frames repeat a mirrored copy** (second round: exact "
                "duplicates of frames already in the database)" if record["repeated_frames"] else "")

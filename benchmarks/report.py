@@ -44,7 +44,7 @@ def _demote(text: str) -> str:
 
 
 def build(quick: bool = False, out_dir: Path = RESULTS, command: str | None = None) -> Path:
-    from .common import machine_info
+    from mocapviz.common import machine_info
 
     info = machine_info()
     lines = [

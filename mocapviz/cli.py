@@ -21,7 +21,7 @@
 
 ``ingest``, ``features`` and ``index`` run their work as Dask tasks: on the scheduler at ``--scheduler ADDRESS``
 (``tcp://host:8786``), else on a local cluster started for the command (one single-threaded worker process per
-core, or ``ingest --jobs N`` workers; :mod:`mocapviz.cluster`). ``--no-cluster`` runs in this process instead, on
+core, or ``ingest --jobs N`` workers; :mod:`mocapviz.parallel`). ``--no-cluster`` runs in this process instead, on
 threads (for ``ingest``, ``--jobs N`` of them), as the library functions do by default.
 
 Options follow docs/glossary.md: ``-K`` / ``--matches`` is how many results (hits, clips, stretches) to report,
@@ -49,9 +49,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import datasets
-from .cluster import LOCAL, dask_client, optional_client
-from .database import MotionDB, expand_paths
+from .io import datasets
+from .parallel import LOCAL, dask_client, optional_client
+from .db.database import MotionDB
+from .db.ingest import expand_paths
 from .errors import MocapvizError, ParameterError
 from .features import (
     NUMERIC_SETS,
@@ -66,23 +67,15 @@ from .features import (
     store_numeric,
 )
 from .features.numeric import default_pca
-from .index import build
+from .relational.index import build
 from .io import load
-from .knn import KnnIndex, describe_frames
+from .similarity.knn import KnnIndex, describe_frames
 from .match import lng, subsequence_dtw
 from .motion import FPS_RANGE
-from .query import query_by_example
-from .segmentation import segment
-from .skeleton import CANONICAL_JOINTS
-from .validation import (
-    frame_span,
-    parse_count,
-    parse_integers,
-    parse_names,
-    parse_number,
-    parse_port,
-    parse_span,
-)
+from .relational.query import query_by_example
+from .features.segmentation import segment
+from .motion.skeleton import CANONICAL_JOINTS
+from .validation import frame_span, parse_count, parse_integers, parse_names, parse_number, parse_port, parse_span
 
 MAX_JOBS = 256
 """``ingest --jobs``: worker processes or reader threads at most."""
@@ -399,7 +392,7 @@ def _print_ranked(table: pd.DataFrame, n_rows: int, empty: str) -> None:
 
 
 def _search(args) -> None:
-    from .search import SimilaritySearch
+    from .similarity.search import SimilaritySearch
     from .store import atomic_write
 
     if args.min_length is not None and not args.stretches:
@@ -432,7 +425,7 @@ def _search(args) -> None:
 
 
 def _template_learn(args) -> None:
-    from .templates import DELTA, DONT_CARE, learn_class, store_template
+    from .relational.templates import DELTA, DONT_CARE, learn_class, store_template
     from .validation import one_of, some_of
 
     if args.out and not Path(args.out).parent.is_dir():
@@ -472,7 +465,7 @@ def _template_learn(args) -> None:
 def _template_search(args) -> None:
     from .features import RELATIONAL_SETS
     from .store import atomic_write
-    from .templates import MotionTemplate, find_instances, load_template, shortest_instance
+    from .relational.templates import MotionTemplate, find_instances, load_template, shortest_instance
 
     if args.csv and not Path(args.csv).parent.is_dir():
         raise ParameterError(f"--csv {args.csv}: no folder {Path(args.csv).parent} to write it in")
@@ -494,8 +487,8 @@ def _template_search(args) -> None:
     t0 = time.perf_counter()
     ranges = None
     if args.prefilter:
-        from .index import load_or_build
-        from .templates import keyframe_ranges
+        from .relational.index import load_or_build
+        from .relational.templates import keyframe_ranges
 
         ranges = keyframe_ranges(template, load_or_build(db, relational_set), starts, db.n_frames)
     hits = find_instances(template, values, starts, n_matches=args.n_matches, max_cost=args.max_cost,

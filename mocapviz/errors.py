@@ -53,7 +53,7 @@ class MocapFormatError(MocapvizError, ValueError):
 
 
 class SkeletonMappingError(MocapvizError, ValueError):
-    """A skeleton's joints could not be mapped to the canonical joints (``mocapviz.skeleton``)."""
+    """A skeleton's joints could not be mapped to the canonical joints (``mocapviz.motion.skeleton``)."""
 
 
 class MotionDBError(MocapvizError, ValueError):

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .database import MotionDB
+from .db.database import MotionDB
 from .errors import MocapvizError, MotionDBError
 
 COLUMNS = ["file", "what", "ok", "detail"]
@@ -34,8 +34,8 @@ def check(path) -> pd.DataFrame:
     reason when not ok: damaged, stale, unreadable). When the database itself does not open, one row saying why.
     """
     from .features import numeric as numeric_mod
-    from .index import InvertedIndex
-    from .templates import TEMPLATES, MotionTemplate
+    from .relational.index import InvertedIndex
+    from .relational.templates import TEMPLATES, MotionTemplate
 
     path = Path(path)
     rows = []

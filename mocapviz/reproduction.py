@@ -1,6 +1,6 @@
 """``mocapviz reproduce``: run the papers' experiments on the shared real data and write tables and figures.
 
-Each experiment of :mod:`mocapviz.experiments` (the table in ARCHITECTURE.md) has a runner here that chooses its
+Each experiment of :mod:`mocapviz.experiments` (the table in docs/architecture.md) has a runner here that chooses its
 database and settings, calls the experiment function and turns the result into named tables (pandas DataFrames,
 written as CSV) and figures (HoloViews objects from :mod:`mocapviz.viz`, written as PNG with the matplotlib
 backend and as self-contained HTML with the bokeh backend). A runner's name is the experiment function's name.
@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import datasets
-from .database import MotionDB
+from .io import datasets
+from .db.database import MotionDB
 from .errors import ParameterError
 from .store import atomic_folder
 
@@ -77,7 +77,7 @@ class _Data:
     def relational_indexes(self) -> dict:
         """Inverted indexes (2005 features) of the HDM05 clips at 120 Hz, built once."""
         if self._indexes is None:
-            from .index import build
+            from .relational.index import build
 
             self._indexes = build(self.hdm05(120.0), "2005", progress=self.progress)
         return self._indexes
@@ -390,7 +390,7 @@ def reproduce(names, out, full: bool = False, progress: bool = True, log: Callab
         raise ParameterError(f"unknown experiment(s) {unknown}; known: all, {', '.join(EXPERIMENTS)}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    from . import __version__
+    from ._version import __version__
 
     folders = {}
     with tempfile.TemporaryDirectory(prefix="mocapviz-reproduce-") as work:

@@ -149,7 +149,7 @@ def locked(folder: str | os.PathLike, shared: bool = False, wait: bool = True, w
 
 def stamp(format_name: str, version: int) -> dict:
     """The header fields of a stored format: ``{"format", "version", "written_by": "mocapviz X.Y.Z"}``."""
-    from . import __version__
+    from ._version import __version__
 
     return {"format": format_name, "version": int(version), "written_by": f"mocapviz {__version__}"}
 

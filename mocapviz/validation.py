@@ -56,7 +56,7 @@ def some_of(values, what: str, options) -> list:
     return values
 
 
-def finite_positions(positions: np.ndarray, where: Callable[[int], str], joints=None) -> None:
+def finite_positions(positions: np.ndarray, where: Callable[[int], str], joints=None, joint_names=None) -> None:
     """A ParameterError naming the first frame and joint whose position is NaN or infinite.
 
     Parameters
@@ -64,15 +64,16 @@ def finite_positions(positions: np.ndarray, where: Callable[[int], str], joints=
     positions : np.ndarray [shape=(N, 24, 3)], cm, on the canonical joints.
     where : ``where(frame) -> str`` names the source of a frame (file or document, and the frame).
     joints : sequence of int, optional: only these joints (indices) are checked; default all.
+    joint_names : sequence of str, optional: the joints' names for the message (e.g. ``CANONICAL_JOINTS``); default
+        their indices.
     """
-    from .skeleton import CANONICAL_JOINTS
-
     picked = positions if joints is None else positions[:, joints]
     ok = np.isfinite(picked).all(axis=2)
     if ok.all():
         return
     t, j = np.argwhere(~ok)[0]
-    joint = CANONICAL_JOINTS[j if joints is None else joints[j]]
+    j = int(j if joints is None else joints[j])
+    joint = joint_names[j] if joint_names is not None else j
     raise ParameterError(f"{where(int(t))}: joint {joint} has a non-finite (NaN/inf) position")
 
 

@@ -4,7 +4,7 @@ Usage::
 
     python scripts/make_sample.py [--source FOLDER] [--output FILE]
 
-``--source`` is the folder holding the shared archives (default: where ``mocapviz.datasets`` finds them).
+``--source`` is the folder holding the shared archives (default: where ``mocapviz.io.datasets`` finds them).
 The sample holds real files with unchanged bytes:
 
 - ``sample/hdm05-cut/``: two actors x all 11 classes x one clip each (22 AMC clips), the two actors' ASF files
@@ -37,7 +37,7 @@ import pooch
 REPO_ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO_ROOT))
 
-from mocapviz.datasets import ARCHIVES, data_url
+from mocapviz.io.datasets import ARCHIVES, data_url
 
 TOP = "sample"
 MAX_BYTES = 5 * 1024 * 1024
@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> None:
 
 
 def _local_data_folder() -> Path:
-    """The folder of the shared archives, as located by ``mocapviz.datasets`` (must be local)."""
+    """The folder of the shared archives, as located by ``mocapviz.io.datasets`` (must be local)."""
     url = urllib.parse.urlparse(data_url())
     if url.scheme != "file":
         sys.exit(f"the archives must be in a local folder, not at {data_url()}: pass --source")
@@ -158,7 +158,7 @@ def _readme(rows: list[tuple[str, int, int]]) -> str:
         "# mocapviz sample data",
         "",
         "Real motion-capture files, bytes unchanged, cut from the `hdm05-cut` and `cmu-asfamc` archives of",
-        "`mocapviz.datasets` by `scripts/make_sample.py`. Each dataset keeps its own folder layout (`asf/`,",
+        "`mocapviz.io.datasets` by `scripts/make_sample.py`. Each dataset keeps its own folder layout (`asf/`,",
         "`amc/`, `labels.tsv` restricted to the files here). Licences and attributions: `LICENSE.md`.",
         "",
         "| file | frames | fps |",

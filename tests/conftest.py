@@ -1,9 +1,9 @@
 """Shared fixtures: the real archives (unpacked once into a cache) and small helpers over them.
 
-The archives come from :func:`mocapviz.datasets.fetch` (base location ``MOCAPVIZ_DATA_URL`` or ``../shared/data``
+The archives come from :func:`mocapviz.io.datasets.fetch` (base location ``MOCAPVIZ_DATA_URL`` or ``../shared/data``
 beside the checkout). The cache defaults to ``<repo>/.cache/mocapviz`` so that a second test run does not unpack
 again. Without the archives the tests that need them are skipped, with the reason; the tests of the embedded
-sample (:func:`mocapviz.datasets.sample`) never need them.
+sample (:func:`mocapviz.io.datasets.sample`) never need them.
 """
 
 from __future__ import annotations
@@ -27,9 +27,9 @@ def _fetch(name: str) -> Path:
     undownloadable archive is an error, not a skip."""
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
     try:
-        from mocapviz import datasets
+        from mocapviz.io import datasets
     except ImportError as exc:  # pragma: no cover - the package is broken, not the data missing
-        pytest.skip(f"mocapviz.datasets cannot be imported ({exc}); real-data tests need it")
+        pytest.skip(f"mocapviz.io.datasets cannot be imported ({exc}); real-data tests need it")
     try:
         datasets.data_url()
         folder = datasets.fetch(name)
@@ -112,7 +112,8 @@ CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-
 @pytest.fixture(scope="session")
 def sample_db(tmp_path_factory):
     """The embedded sample (22 HDM05 clips of actors dg and mm, 2 CMU trials) ingested at its own 120 Hz."""
-    from mocapviz import MotionDB, datasets
+    from mocapviz import MotionDB
+    from mocapviz.io import datasets
 
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
     return MotionDB.ingest([datasets.sample()], tmp_path_factory.mktemp("sample") / "db", progress=False)

@@ -10,7 +10,7 @@ from browser_helpers import free_port, open_dashboard, record_first_answer, reco
 from playwright.sync_api import expect
 
 from mocapviz.features import relational_features
-from mocapviz.segmentation import segment
+from mocapviz.features.segmentation import segment
 
 
 def test_first_page_lists_documents_and_plays_the_first_clip(sample_db, sample_dashboard, page, screenshot):
@@ -80,7 +80,7 @@ def test_warm_up_fills_what_the_first_clicks_need(sample_db):
     the DTW search and the index queries are compiled."""
     from mocapviz import app
     from mocapviz.app.backend import Backend
-    from mocapviz import index
+    from mocapviz.relational import index
     from mocapviz.match import neighbourhood_graph, pruned, time_warping
 
     backend = Backend(sample_db)  # not the shared one of Backend.open: its caches start empty

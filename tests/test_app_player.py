@@ -12,7 +12,7 @@ from browser_helpers import ARTIFACTS, open_dashboard, record_timing
 from playwright.sync_api import expect
 
 from mocapviz.app.player import SPEEDS, PlayerView, SkeletonPlayer, decode, joint_sides
-from mocapviz.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
+from mocapviz.motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
 
 
 @pytest.fixture(scope="module")

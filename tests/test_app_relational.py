@@ -1,5 +1,5 @@
 """Browser tests of the dashboard's Relational query page (Müller, Röder & Clausen 2005 §5) in headless Chromium: the
-hits shown are those of :func:`mocapviz.query.query_by_example` for the query chosen through the widgets."""
+hits shown are those of :func:`mocapviz.relational.query.query_by_example` for the query chosen through the widgets."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ from browser_helpers import (assert_no_exception_names, open_dashboard, open_tab
                              text_of, timed)
 from playwright.sync_api import expect
 
-from mocapviz import index
+from mocapviz.relational import index
 from mocapviz.app.pages.relational import DEFAULT_FEATURES, MODES
 from mocapviz.features import feature_groups
-from mocapviz.query import query_by_example
+from mocapviz.relational.query import query_by_example
 
 COUNT = ".mv-hit-count"
 KNEES = ["rknee_bent", "lknee_bent"]

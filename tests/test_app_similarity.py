@@ -17,9 +17,9 @@ from mocapviz.app.pages.retrieval import DEFAULT_METHODS, label_columns, summary
 from mocapviz.app.pages.similarity import LNG_K_AT_30HZ, match_alignment, matrix_docs, scaled_k
 from mocapviz.experiments.retrieval import retrieval_quality
 from mocapviz.features import numeric_of
-from mocapviz.knn import KnnIndex, describe_frames
+from mocapviz.similarity.knn import KnnIndex, describe_frames
 from mocapviz.match.neighbourhood_graph import lng
-from mocapviz.search import SimilaritySearch
+from mocapviz.similarity.search import SimilaritySearch
 
 QUERY_NAME = "HDM_dg_kickLFront1Reps"  # a kick of the sample: its mm twin must come first
 TAB = "Similarity search"

@@ -12,8 +12,12 @@ from browser_helpers import open_dashboard, open_tab, record_timing, text_of
 from mocapviz.app.backend import Backend
 from mocapviz.app.pages import correlations as corr_page
 from mocapviz.app.pages import statistics as stats_page
-from mocapviz.experiments.correlation import (available_measures, correlation_sample, pose_correlations,
-                                              segment_correlations)
+from mocapviz.experiments.correlation import (
+    available_measures,
+    correlation_sample,
+    pose_correlations,
+    segment_correlations,
+)
 from mocapviz.experiments.numeric import krueger2010_table1
 from mocapviz.experiments.relational import index_statistics, mueller2005_table2, query_statistics
 from mocapviz.viz.correlation import value_font

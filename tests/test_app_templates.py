@@ -1,4 +1,4 @@
-"""The dashboard's Motion templates page (Müller & Röder 2006): its computations against :mod:`mocapviz.templates`
+"""The dashboard's Motion templates page (Müller & Röder 2006): its computations against :mod:`mocapviz.relational.templates`
 on the embedded sample, and the page in headless Chromium: the hits it shows are those of ``learn_class`` +
 ``find_instances`` run here for the same inputs, the template is drawn and a hit plays beside a training example."""
 
@@ -18,7 +18,7 @@ from mocapviz.app.pages import templates as page_mod
 from mocapviz.errors import ParameterError
 from mocapviz.features import relational_features
 from mocapviz.match import dtw
-from mocapviz.templates import DELTA, DONT_CARE, find_instances, learn_class, template_distance
+from mocapviz.relational.templates import DELTA, DONT_CARE, find_instances, learn_class, template_distance
 
 TAB = "Motion templates"
 KICK, SQUAT = "kickLFront1Reps", "squat1Reps"

@@ -1,4 +1,4 @@
-"""mocapviz.batch: the default threads, the ordered map with bounded look-ahead on threads (order, the first
+"""mocapviz.db.batches: the default threads, the ordered map with bounded look-ahead on threads (order, the first
 failure in order, cancellation when the consumer stops), and the batches of whole documents of a real MotionDB.
 The Dask back end of the same map is tested on a real local cluster in test_cluster.py."""
 
@@ -12,16 +12,17 @@ import time
 import numpy as np
 import pytest
 
-from mocapviz import MotionDB, ParameterError, batch
-from mocapviz.skeleton import CANONICAL_JOINTS
+from mocapviz import MotionDB, ParameterError, parallel
+from mocapviz.db import batches
+from mocapviz.motion.skeleton import CANONICAL_JOINTS
 
 
 def test_default_threads_are_the_usable_cores_at_most_8():
-    assert batch.default_threads() == min(8, len(os.sched_getaffinity(0)))
-    assert batch.parallelism() == batch.default_threads() and batch.parallelism(3) == 3
+    assert parallel.default_threads() == min(8, len(os.sched_getaffinity(0)))
+    assert parallel.parallelism() == parallel.default_threads() and parallel.parallelism(3) == 3
     for bad in (0, -1, 2.0, True):
         with pytest.raises(ParameterError, match="threads"):
-            batch.parallelism(bad)
+            parallel.parallelism(bad)
 
 
 def _slow_square(x: int) -> int:
@@ -30,8 +31,8 @@ def _slow_square(x: int) -> int:
 
 
 def test_results_come_in_item_order_whatever_order_they_finish_in():
-    assert list(batch.map_ordered(_slow_square, range(40), threads=4)) == [x * x for x in range(40)]
-    assert list(batch.map_ordered(_slow_square, [], threads=4)) == []
+    assert list(parallel.map_ordered(_slow_square, range(40), threads=4)) == [x * x for x in range(40)]
+    assert list(parallel.map_ordered(_slow_square, [], threads=4)) == []
 
 
 def test_one_thread_runs_in_the_calling_thread_one_item_at_a_time():
@@ -42,7 +43,7 @@ def test_one_thread_runs_in_the_calling_thread_one_item_at_a_time():
             pulled.append(i)
             yield i
 
-    results = batch.map_ordered(lambda i: (i, threading.current_thread()), items(), threads=1)
+    results = parallel.map_ordered(lambda i: (i, threading.current_thread()), items(), threads=1)
     assert next(results) == (0, threading.current_thread()) and pulled == [0]
     assert [i for i, _ in results] == [1, 2, 3, 4]
 
@@ -61,12 +62,12 @@ def test_look_ahead_is_bounded_and_pending_items_are_cancelled_on_close():
         return i
 
     threads = 2
-    results = batch.map_ordered(work, items(), threads=threads)
+    results = parallel.map_ordered(work, items(), threads=threads)
     assert next(results) == 0
-    assert len(pulled) <= batch.AHEAD_PER_THREAD * threads + 1  # the one waited for, and the look-ahead
+    assert len(pulled) <= parallel.AHEAD_PER_THREAD * threads + 1  # the one waited for, and the look-ahead
     results.close()
     n_started = len(started)
-    assert n_started <= batch.AHEAD_PER_THREAD * threads + 1
+    assert n_started <= parallel.AHEAD_PER_THREAD * threads + 1
     time.sleep(0.1)
     assert len(started) == n_started  # nothing starts after the consumer has stopped
 
@@ -82,7 +83,7 @@ def test_the_first_failing_item_in_order_raises():
 
     got = []
     with pytest.raises(ValueError, match="item 7"):
-        for value in batch.map_ordered(work, range(20), threads=4):
+        for value in parallel.map_ordered(work, range(20), threads=4):
             got.append(value)  # noqa: PERF402 - the values before the exception
     assert got == list(range(7))
 
@@ -96,7 +97,7 @@ def test_map_documents_covers_the_database_in_frame_order(hdm05_dir, tmp_path, c
     db = MotionDB.ingest(files, tmp_path / "db", fps=30, progress=False)
     longest = int(db.documents["n_frames"].max())
     for threads in (1, 3):
-        out = list(batch.map_documents(db, _frames_and_documents, longest, threads=threads, progress=False))
+        out = list(batches.map_documents(db, _frames_and_documents, longest, threads=threads, progress=False))
         assert len(out) > 1  # several batches
         frames = [f for f, _ in out]
         assert frames[0].start == 0 and frames[-1].stop == db.n_frames
@@ -105,10 +106,10 @@ def test_map_documents_covers_the_database_in_frame_order(hdm05_dir, tmp_path, c
         assert sum(d for _, (_, d, _) in out) == len(db)
         assert all((fps == 30).all() for _, (_, _, fps) in out)
     # the progress bar counts documents, and only for databases of more documents than the threshold
-    list(batch.map_documents(db, _frames_and_documents, longest, desc="test bar"))
+    list(batches.map_documents(db, _frames_and_documents, longest, desc="test bar"))
     assert "test bar" not in capsys.readouterr().err
     monkeypatch.setattr(batch, "PROGRESS_MIN_DOCUMENTS", 2)
-    list(batch.map_documents(db, _frames_and_documents, longest, desc="test bar"))
+    list(batches.map_documents(db, _frames_and_documents, longest, desc="test bar"))
     err = capsys.readouterr().err
     assert "test bar" in err and f"{len(db)}/{len(db)}" in err
 
@@ -121,7 +122,7 @@ def test_map_documents_names_the_first_bad_document_and_frame(hdm05_dir, tmp_pat
         positions[int(db.documents["start"].iloc[doc]) + frame, CANONICAL_JOINTS.index(joint)] = np.nan
     db.positions = positions
     with pytest.raises(ParameterError, match=r"document 2 \(.*\), frame 17: joint head"):
-        list(batch.map_documents(db, _frames_and_documents, 1, threads=2, progress=False))
+        list(batches.map_documents(db, _frames_and_documents, 1, threads=2, progress=False))
     # joints not checked are not reported
-    out = list(batch.map_documents(db, _frames_and_documents, 1, joints=[0], threads=2, progress=False))
+    out = list(batches.map_documents(db, _frames_and_documents, 1, joints=[0], threads=2, progress=False))
     assert len(out) == len(db)

@@ -16,7 +16,8 @@ from unittest import mock
 import numpy as np
 import pytest
 
-from mocapviz import MotionDB, cli, datasets
+from mocapviz import MotionDB, cli
+from mocapviz.io import datasets
 from mocapviz.cli import main
 
 REPO = Path(__file__).resolve().parent.parent
@@ -92,7 +93,7 @@ def _table(text: str) -> list[list[str]]:
 def test_features_then_knn_prints_the_index_answer(sample_db, capsys):
     """`mocapviz features` stores every numeric set; `mocapviz knn` prints the neighbours KnnIndex finds."""
     from mocapviz.features import NUMERIC_SETS, load_numeric
-    from mocapviz.knn import KnnIndex
+    from mocapviz.similarity.knn import KnnIndex
 
     assert main(["features", str(sample_db.path), "--quiet"]) == 0
     capsys.readouterr()
@@ -169,7 +170,7 @@ def test_match_prints_the_library_matches(sample_db, capsys):
     """`mocapviz match` with a document of the DB as the example: the graph's (and subsequence DTW's) matches
     outside that document, as :func:`mocapviz.match.lng` / ``subsequence_dtw`` find them."""
     from mocapviz.features import load_numeric
-    from mocapviz.knn import KnnIndex
+    from mocapviz.similarity.knn import KnnIndex
     from mocapviz.match import lng, subsequence_dtw
 
     assert main(["features", str(sample_db.path), "--numeric-sets", "F15E", "--quiet"]) == 0
@@ -401,7 +402,7 @@ def _no_server_no_cluster():
         raise _WouldRun
 
     with mock.patch("mocapviz.app.serve", would_run), mock.patch.object(cli, "dask_client", would_run), \
-            mock.patch("mocapviz.cluster.dask_client", would_run):  # fmt: skip
+            mock.patch("mocapviz.parallel.dask_client", would_run):  # fmt: skip
         yield
 
 
@@ -480,7 +481,7 @@ def test_every_bad_value_is_refused_in_one_line(line, needles, status, demo_db, 
 def test_values_in_range_are_applied_exactly(demo_db, capsys):
     """What is not refused runs as written: --mismatch up to the query's segments minus one (never capped), the
     listed --mismatch-at segments, a -K beyond the hits (all of them), an open-ended --frames span."""
-    from mocapviz.query import query_by_example
+    from mocapviz.relational.query import query_by_example
 
     db = MotionDB.open(demo_db)
     features = ["rknee_bent", "lknee_bent"]

@@ -15,12 +15,13 @@ import pytest
 distributed = pytest.importorskip("distributed")
 cloudpickle = pytest.importorskip("cloudpickle")
 
-from mocapviz import MotionDB, batch, cluster
+from mocapviz import MotionDB, parallel
+from mocapviz.db import batches
 from mocapviz.cli import main
-from mocapviz.database import document_batches
+from mocapviz.db.batches import document_batches
 from mocapviz.errors import MocapFormatError
 from mocapviz.features import load_numeric, relational_features, store_numeric
-from mocapviz.index import build
+from mocapviz.relational.index import build
 
 numeric_module = importlib.import_module("mocapviz.features.numeric")
 relational_module = importlib.import_module("mocapviz.features.relational")
@@ -120,10 +121,10 @@ def _square_late(x: int) -> int:
 
 
 def test_map_ordered_on_dask_keeps_order_bounds_look_ahead_and_raises_the_first_failure(client):
-    assert list(batch.map_ordered(_square_late, [0, 1, 2, 3, 4, 6, 8, 9], client=client)) == [0, 1, 4, 9, 16, 36, 64, 81]
+    assert list(parallel.map_ordered(_square_late, [0, 1, 2, 3, 4, 6, 8, 9], client=client)) == [0, 1, 4, 9, 16, 36, 64, 81]
     got = []
     with pytest.raises(ValueError, match="item 5"):
-        for value in batch.map_ordered(_square_late, range(20), client=client, name="mocapviz-test"):
+        for value in parallel.map_ordered(_square_late, range(20), client=client, name="mocapviz-test"):
             got.append(value)  # noqa: PERF402 - the values before the exception
     assert got == [x * x for x in range(5)]
     pulled = []
@@ -133,9 +134,9 @@ def test_map_ordered_on_dask_keeps_order_bounds_look_ahead_and_raises_the_first_
             pulled.append(i)
             yield i
 
-    results = batch.map_ordered(_square_late, items(), client=client)
+    results = parallel.map_ordered(_square_late, items(), client=client)
     assert next(results) == 0
-    assert len(pulled) <= batch.AHEAD_PER_THREAD * cluster.n_threads(client) + 1
+    assert len(pulled) <= parallel.AHEAD_PER_THREAD * parallel.n_threads(client) + 1
     results.close()
 
 

@@ -16,8 +16,9 @@ import pandas as pd
 import pytest
 
 import mocapviz
-from mocapviz import MocapFormatError, MotionDB, MotionDBError, datasets
-from mocapviz.skeleton import CANONICAL_JOINTS
+from mocapviz import MocapFormatError, MotionDB, MotionDBError
+from mocapviz.io import datasets
+from mocapviz.motion.skeleton import CANONICAL_JOINTS
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -148,7 +149,7 @@ def test_skip_bad_warns_and_ingests_the_rest(sample_dir, tmp_path):
 _INTERRUPTED = textwrap.dedent(
     """
     import os, sys
-    import mocapviz.database as d
+    import mocapviz.db.database as d
     where = sys.argv[3]
     if where == "before-manifest":      # every new file written, the manifest not yet switched
         d.atomic_write = lambda *a, **k: os._exit(3)
@@ -257,7 +258,7 @@ def test_ingest_on_threads_equals_serial_and_n_jobs_is_threads_with_a_warning(sa
 
 def test_append_motions_adds_derived_clips(sample_dir, tmp_path):
     """Mirrored copies held in memory are appended after the files, with their labels and given columns."""
-    from mocapviz.skeleton import mirror
+    from mocapviz.motion.skeleton import mirror
 
     db = MotionDB.ingest(sample_dir / "hdm05-cut", tmp_path / "db", fps=30, progress=False)
     ids = db.documents["doc_id"].to_numpy()[:3]

@@ -16,7 +16,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mocapviz import MotionDB, MotionDBError, datasets
+from mocapviz import MotionDB, MotionDBError
+from mocapviz.io import datasets
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +55,7 @@ def _assert_sound(db, reference, names=None):
 _INGEST = textwrap.dedent(
     """
     import sys, time
-    import mocapviz.database as d
+    import mocapviz.db.database as d
     from mocapviz import MocapvizError
     real = d._commit
     def slow(*args):
@@ -110,7 +111,7 @@ def test_a_failing_fresh_ingest_never_removes_what_another_committed(sample, ref
 _KILLABLE = textwrap.dedent(
     """
     import os, sys
-    import mocapviz.database as d
+    import mocapviz.db.database as d
     print(os.getpid(), flush=True)
     d.MotionDB.ingest(sys.argv[2], sys.argv[1], progress=False)
     print("done", flush=True)
@@ -203,7 +204,7 @@ def test_a_waiting_ingest_survives_the_removal_of_the_empty_database_a_failed_on
 @pytest.fixture
 def derived(reference, tmp_path):
     """A copy of the reference database with its relational indexes and two numeric sets (one of them Fp)."""
-    from mocapviz import index
+    from mocapviz.relational import index
     from mocapviz.features import store_numeric
 
     db = MotionDB.open(_copy(reference, tmp_path))
@@ -222,7 +223,7 @@ def test_check_reads_every_file_back(derived):
 
 
 def test_damaged_derived_files_are_named_never_answered(derived):
-    from mocapviz import index
+    from mocapviz.relational import index
     from mocapviz.features import load_numeric
     from mocapviz.integrity import check
 

@@ -1,4 +1,4 @@
-"""mocapviz.datasets on the real shared archives (located as mocapviz.datasets locates them) and the embedded sample.
+"""mocapviz.io.datasets on the real shared archives (located as mocapviz.io.datasets locates them) and the embedded sample.
 
 MOCAPVIZ_HOME always points into pytest's tmp folders, so the user's cache is never touched. Without the shared
 archives (MOCAPVIZ_DATA_URL unset and no ../shared/data beside the checkout) the tests that need them are skipped
@@ -20,10 +20,10 @@ from pathlib import Path
 import pooch
 import pytest
 
-from mocapviz import datasets
+from mocapviz.io import datasets
 from mocapviz.cli import main
-from mocapviz.datasets import DatasetError
-from mocapviz.labels import read_labels_tsv
+from mocapviz.io.datasets import DatasetError
+from mocapviz.io.labels import read_labels_tsv
 
 REPO = Path(__file__).resolve().parent.parent
 

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from mocapviz import rotations
+from mocapviz.motion import rotations
 from mocapviz.features.distances import (
     LEE_WEIGHTS,
     WB_WEIGHTS,
@@ -31,7 +31,7 @@ from mocapviz.features.distances import (
 )
 from mocapviz.io import load, read_asf
 from mocapviz.motion import Motion
-from mocapviz.skeleton import CANONICAL_JOINTS
+from mocapviz.motion.skeleton import CANONICAL_JOINTS
 
 JOG = "HDM_bd_jogLeftCircle4StepsRstart_001_120.amc"  # turns on a circle: root rz runs from -706 to -547 degrees
 KICK = "HDM_bd_kickLFront1Reps_001_120.amc"  # same actor, root rz near -180

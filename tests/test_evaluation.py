@@ -1,4 +1,4 @@
-"""mocapviz.evaluation: relevance, precision, recall and average precision against hand-worked rankings, and against
+"""mocapviz.experiments.evaluation: relevance, precision, recall and average precision against hand-worked rankings, and against
 their definitions on the labels of the 287 HDM05 clips."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from mocapviz.errors import ParameterError
-from mocapviz.evaluation import average_precision, precision_at, precision_recall, relevance
+from mocapviz.experiments.evaluation import average_precision, precision_at, precision_recall, relevance
 
 # doc 0 is the query (label A); the other A documents are 1, 3 and 5; doc 4 has no label
 LABELS = pd.Series(["A", "A", "B", "A", None, "A"], index=[0, 1, 2, 3, 4, 5])

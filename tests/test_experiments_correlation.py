@@ -13,7 +13,7 @@ import pytest
 from scipy.spatial.distance import cdist
 from scipy.stats import spearmanr
 
-from mocapviz.database import read_document
+from mocapviz.db.ingest import read_document
 from mocapviz.experiments import correlation as corr
 from mocapviz.experiments.correlation import (
     CORRELATION_MEASURES,

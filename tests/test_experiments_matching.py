@@ -113,7 +113,7 @@ def test_lng_accuracy_queries_last_their_seconds_at_each_documents_own_rate(tmp_
     """A database mixing 120 Hz and 30 Hz documents (the embedded sample's HDM05 clips, two CMU trials resampled
     to 30 Hz): a 1 s query is 120 frames in the former and 30 in the latter; typical_fps is the rate of most
     frames."""
-    from mocapviz import datasets
+    from mocapviz.io import datasets
 
     sample = datasets.sample()
     hdm = MotionDB.ingest(sample / "hdm05-cut", tmp_path / "hdm", progress=False)

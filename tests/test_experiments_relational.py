@@ -21,9 +21,9 @@ from mocapviz.experiments.relational import (
     mueller2005_table3,
 )
 from mocapviz.features import feature_groups, feature_names, relational_features
-from mocapviz.index import build
-from mocapviz.query import query_by_example
-from mocapviz.segmentation import encode
+from mocapviz.relational.index import build
+from mocapviz.relational.query import query_by_example
+from mocapviz.features.segmentation import encode
 
 PER_CLASS = 5  # 11 classes: 55 clips
 
@@ -75,7 +75,7 @@ def test_index_statistics_times_the_features_and_matches_the_saved_index(db, val
     assert table["t_features"].gt(0).all() and table["t_read"].isna().all()
     # one number for the three groups: the features are computed in one pass
     assert table["t_features"].nunique() == 1
-    # the same lists and segments as the index that mocapviz.index.build saves
+    # the same lists and segments as the index that mocapviz.relational.index.build saves
     assert table.loc["upper", "segments"] == upper.n_segments == np.diff(upper.list_offsets).sum()
     assert table.loc["upper", "lists"] == upper.list_codes.size
     assert table.loc["upper", "MB"] * 2**20 == upper.nbytes()

@@ -10,14 +10,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mocapviz import evaluation
+from mocapviz.experiments import evaluation
 from mocapviz.errors import ParameterError
 from mocapviz.experiments import retrieval_quality
 from mocapviz.experiments.relational import DEFAULT_QUERIES
 from mocapviz.experiments.retrieval import METHODS, RECALL_LEVELS, relational_indexes
 from mocapviz.features import numeric_of
 from mocapviz.match import dtw
-from mocapviz.query import query_by_example
+from mocapviz.relational.query import query_by_example
 
 N_QUERIES = 30
 

@@ -4,11 +4,12 @@ clips (five actors, the issue's target: mAP >= 0.90, no class below 0.75)."""
 import numpy as np
 import pytest
 
-from mocapviz import MotionDB, ParameterError, datasets
-from mocapviz.evaluation import average_precision, relevance
+from mocapviz import MotionDB, ParameterError
+from mocapviz.io import datasets
+from mocapviz.experiments.evaluation import average_precision, relevance
 from mocapviz.experiments.templates import template_quality
 from mocapviz.features import relational_features
-from mocapviz.templates import MotionTemplate, document_costs, learn_class
+from mocapviz.relational.templates import MotionTemplate, document_costs, learn_class
 
 
 @pytest.fixture(scope="module")
@@ -60,8 +61,8 @@ def test_the_keyframe_prefilter_keeps_the_full_passs_good_hits(hdm05_db30):
     """Templates learned on four actors: every hit of normalised cost <= 0.1 of the full DTW pass over the 287
     clips is found again when only the keyframe ranges (read from the 2006 relational indexes) are aligned, and the
     costs are the same."""
-    from mocapviz import index
-    from mocapviz.templates import find_instances, keyframe_ranges
+    from mocapviz.relational import index
+    from mocapviz.relational.templates import find_instances, keyframe_ranges
 
     values, _ = relational_features(hdm05_db30, "2006", progress=False)
     indexes = index.build(hdm05_db30, "2006", values=values, save=False, progress=False)

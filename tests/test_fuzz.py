@@ -363,7 +363,7 @@ if __name__ == "__main__":
     parser.add_argument("--files", type=int, default=6, help="source files (the smallest ones)")
     args = parser.parse_args()
     os.environ.setdefault("MOCAPVIZ_HOME", str(Path(__file__).resolve().parent.parent / ".cache" / "mocapviz"))
-    from mocapviz import datasets
+    from mocapviz.io import datasets
 
     with tempfile.TemporaryDirectory() as tmp:
         if args.format == "bvh":

@@ -15,7 +15,7 @@ import pytest
 import mocapviz
 from mocapviz.cli import build_parser
 from mocapviz.errors import ParameterError
-from mocapviz.knn import KnnIndex
+from mocapviz.similarity.knn import KnnIndex
 from mocapviz.match import lng, subsequence_dtw
 from mocapviz.validation import renamed
 
@@ -91,7 +91,7 @@ RENAMED = {name: aliases(fn) for name, fn in PUBLIC.items() if aliases(fn)}
 
 def test_the_walk_sees_the_package():
     assert len(PUBLIC) > 200
-    assert "mocapviz.search.SimilaritySearch.__init__" in PUBLIC and "mocapviz.index.build" in PUBLIC
+    assert "mocapviz.similarity.search.SimilaritySearch.__init__" in PUBLIC and "mocapviz.relational.index.build" in PUBLIC
     assert "mocapviz.match.pruned.search_ranges" in PUBLIC  # numba kernels too
 
 

@@ -1,4 +1,4 @@
-"""mocapviz.hybrid: relational candidates re-ranked by whole-clip DTW, checked against query_by_example and a
+"""mocapviz.similarity.hybrid: relational candidates re-ranked by whole-clip DTW, checked against query_by_example and a
 brute-force DTW of every candidate on the 287 HDM05 clips at 30 Hz."""
 
 from __future__ import annotations
@@ -8,11 +8,11 @@ import pytest
 
 from mocapviz.errors import ParameterError
 from mocapviz.features import numeric_of
-from mocapviz.hybrid import HYBRID_QUERIES, hybrid_search
-from mocapviz.index import build
+from mocapviz.similarity.hybrid import HYBRID_QUERIES, hybrid_search
+from mocapviz.relational.index import build
 from mocapviz.match import dtw
-from mocapviz.query import query_by_example
-from mocapviz.search import SimilaritySearch
+from mocapviz.relational.query import query_by_example
+from mocapviz.similarity.search import SimilaritySearch
 
 LENIENT = ["lfoot_raised", "rfoot_raised"]
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mocapviz.index import InvertedIndex, merge_adjacent
-from mocapviz.segmentation import decode, encode, segment
+from mocapviz.relational.index import InvertedIndex, merge_adjacent
+from mocapviz.features.segmentation import decode, encode, segment
 
 
 def vecs(text: str) -> np.ndarray:
@@ -205,7 +205,7 @@ def test_load_or_build_saves_only_when_asked(sample_db, tmp_path):
     import shutil
 
     from mocapviz import MotionDB
-    from mocapviz.index import build, load, load_or_build
+    from mocapviz.relational.index import build, load, load_or_build
 
     shutil.copytree(sample_db.path, tmp_path / "db")
     db = MotionDB.open(tmp_path / "db")

@@ -803,7 +803,7 @@ def test_resample_up_interpolates(hdm05_dir, hdm05_labels):
     mid = (motion.positions[:-1].astype(np.float64) + motion.positions[1:]) / 2
     np.testing.assert_allclose(high.positions[1::2], mid, atol=1e-4)
     # slerp midpoint: half the angle of the step
-    from mocapviz import rotations
+    from mocapviz.motion import rotations
 
     q = high.quaternions.astype(np.float64)
     a, m, b = q[:-1:2], q[1::2], q[2::2]

@@ -1,4 +1,4 @@
-"""mocapviz.knn on real motion: kd-tree searches against brute force, fat-graph base poses against the O(n^2)
+"""mocapviz.similarity.knn on real motion: kd-tree searches against brute force, fat-graph base poses against the O(n^2)
 reference (Krüger et al. 2010 §3.3, §4.1, §5.3).
 
 Features: body-frame positions of the end effectors (lwrist, rwrist, lankle, rankle, head: F15E, cm) of every
@@ -13,8 +13,8 @@ import pytest
 from scipy.spatial.distance import cdist
 
 from mocapviz import MotionDB, ParameterError
-from mocapviz.knn import KnnIndex, base_poses, base_poses_quadratic, frames_mask
-from mocapviz.skeleton import CANONICAL_JOINTS, body_frame, mirror
+from mocapviz.similarity.knn import KnnIndex, base_poses, base_poses_quadratic, frames_mask
+from mocapviz.motion.skeleton import CANONICAL_JOINTS, body_frame, mirror
 
 END_EFFECTORS = [CANONICAL_JOINTS.index(j) for j in ("lwrist", "rwrist", "lankle", "rankle", "head")]
 
@@ -58,7 +58,7 @@ def brute(features) -> KnnIndex:
 @pytest.fixture(scope="module")
 def ranked(features, queries):
     """All database frames ranked for each query by (distance, frame number), from the full distance matrix:
-    distances (q, N) float64 and frame numbers (q, N). Written independently of mocapviz.knn."""
+    distances (q, N) float64 and frame numbers (q, N). Written independently of mocapviz.similarity.knn."""
     d = cdist(np.asarray(queries, np.float64), np.asarray(features, np.float64))
     order = np.argsort(d, axis=1, kind="stable")
     return np.take_along_axis(d, order, axis=1), order
@@ -269,7 +269,7 @@ def test_bad_input_raises_clear_errors(features, tree):
 
 
 def test_describe_frames_names_documents_and_frames(db):
-    from mocapviz.knn import describe_frames
+    from mocapviz.similarity.knn import describe_frames
 
     docs = db.documents
     picks = np.array([0, int(docs["start"].iloc[5]) + 3, -1, db.n_frames - 1])

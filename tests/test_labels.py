@@ -1,4 +1,4 @@
-"""mocapviz.labels on real label tables: the packaged sample (HDM05, CMU) and the Bandai Namco 1 archive.
+"""mocapviz.io.labels on real label tables: the packaged sample (HDM05, CMU) and the Bandai Namco 1 archive.
 
 The sample tests never need the shared archives; the Bandai tests are skipped, with the reason, without them.
 """
@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from mocapviz import datasets
-from mocapviz.labels import bandai_labels, labels_for, read_labels_tsv
+from mocapviz.io import datasets
+from mocapviz.io.labels import bandai_labels, labels_for, read_labels_tsv
 
 
 @pytest.fixture(scope="module")

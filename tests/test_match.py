@@ -16,7 +16,7 @@ import pytest
 from mocapviz import MotionDB, ParameterError
 from mocapviz.features.distances import dquat_pairwise
 from mocapviz.features.numeric import numeric_features
-from mocapviz.knn import KnnIndex
+from mocapviz.similarity.knn import KnnIndex
 from mocapviz.match import STEP_SETS, band_from_path, dtw, lng, select_matches, subsequence_costs, subsequence_dtw
 from mocapviz.match.neighbourhood_graph import graph_matches, neighbourhoods
 

@@ -124,7 +124,7 @@ def test_resample_linear_trajectory():
 
 
 def test_resample_quaternions_slerp():
-    from mocapviz import rotations
+    from mocapviz.motion import rotations
 
     angles = np.zeros((5, 1, 1))
     angles[:, 0, 0] = [0, 20, 40, 60, 80]

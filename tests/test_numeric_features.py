@@ -24,7 +24,7 @@ from mocapviz.features import (
     store_numeric,
     window_offsets,
 )
-from mocapviz.skeleton import CANONICAL_JOINTS, body_frame, heading
+from mocapviz.motion.skeleton import CANONICAL_JOINTS, body_frame, heading
 
 nm = import_module("mocapviz.features.numeric")  # the module (its function is `numeric_features`)
 

@@ -113,7 +113,7 @@ def shell_folder(tmp_path_factory, demo_build):
 
 
 def _archives_present() -> bool:
-    from mocapviz import datasets
+    from mocapviz.io import datasets
 
     try:
         datasets.data_url()

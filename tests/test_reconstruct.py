@@ -1,5 +1,5 @@
 """Reconstruction of full-body motion from six sparse markers (Krüger et al. 2010 §5.2, Tables 3-4; Chai & Hodgins
-2005): mocapviz.reconstruction, mocapviz.experiments.marker_reconstruction, mocapviz.viz.reconstruction.
+2005): mocapviz.similarity.reconstruction, mocapviz.experiments.marker_reconstruction, mocapviz.viz.reconstruction.
 
 Data: the 287 HDM05 cut clips at 30 Hz (``hdm05_db30``) and the 32 CMU trials at 30 Hz (``cmu_db30``). The test
 clips are actor bk's first clips of four classes (a jog, a squat, an elbow-to-knee exercise, a hop), as the paper's
@@ -17,7 +17,7 @@ import pytest
 
 from mocapviz.experiments.marker_reconstruction import VARIANTS, krueger2010_table3, krueger2010_table4, reconstruction
 from mocapviz.features.numeric import numeric_of
-from mocapviz.reconstruction import (
+from mocapviz.similarity.reconstruction import (
     BONES,
     MARKERS,
     PosePrior,
@@ -27,7 +27,7 @@ from mocapviz.reconstruction import (
     reconstruction_errors,
     synthetic_markers,
 )
-from mocapviz.skeleton import CANONICAL_JOINTS, heading
+from mocapviz.motion.skeleton import CANONICAL_JOINTS, heading
 from mocapviz.viz.reconstruction import compare_table3, compare_table4, reconstruction_figures
 
 CLASSES = ("jogLeftCircle4StepsRstart", "squat1Reps", "elbowToKnee1RepsLelbowStart", "hopBothLegs1hops")

@@ -13,9 +13,10 @@ import pandas as pd
 import pytest
 
 import mocapviz
-from mocapviz import MotionDB, ParameterError, batch
+from mocapviz import MotionDB, ParameterError, parallel
+from mocapviz.db import batches
 from mocapviz.features import RELATIONAL_SETS, feature_groups, feature_names, feature_table, relational_features
-from mocapviz.skeleton import CANONICAL_JOINTS
+from mocapviz.motion.skeleton import CANONICAL_JOINTS
 
 rf = import_module("mocapviz.features.relational")  # the module (its function is `relational_features`)
 
@@ -263,7 +264,7 @@ def test_plane_normals_point_where_the_spec_says(clip):
 def test_features_follow_the_spec_formulas(clip):
     """A few features recomputed from the spec's formulas on a real clip whose first frame was scaled up by 25%
     about the root: units come from the first frame only (§1.3), so every threshold grows by 25%."""
-    from mocapviz.skeleton import body_sizes
+    from mocapviz.motion.skeleton import body_sizes
 
     def scaled(label):
         m = clip(label)

@@ -183,7 +183,7 @@ def test_asf_bone_order_is_the_repeated_pass_order():
 # -------------------------------------------------------------------------------- big.tar.xz (slow)
 def _tolerance(parents: np.ndarray, reach: float) -> np.ndarray:
     """Per joint, cm: 1e-3 plus what the forward kinematics' float32 sines and cosines (about 1e-7 rad per joint,
-    :func:`mocapviz.rotations.forward_kinematics`) may add up to along a chain of d joints: 1e-7 d^2 reach / 2,
+    :func:`mocapviz.motion.rotations.forward_kinematics`) may add up to along a chain of d joints: 1e-7 d^2 reach / 2,
     ``reach`` the longest bone. Negligible for a body (d < 10); centimetres at d = 10,000."""
     depth = np.zeros(len(parents))
     for j, p in enumerate(parents):

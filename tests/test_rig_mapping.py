@@ -1,4 +1,4 @@
-"""The structural mapping of humanoid rigs (mocapviz.skeleton.guess_mapping) on real clips rewritten to the naming
+"""The structural mapping of humanoid rigs (mocapviz.motion.skeleton.guess_mapping) on real clips rewritten to the naming
 conventions users meet, and its refusals.
 
 Each real clip (Bandai Namco BVH; HDM05 ASF/AMC written out as a CMU-derived BVH) is parsed into a small joint tree,
@@ -25,7 +25,7 @@ import pytest
 from mocapviz import Motion
 from mocapviz.errors import SkeletonMappingError
 from mocapviz.io import load
-from mocapviz.skeleton import CANONICAL_JOINTS, guess_mapping, to_canonical
+from mocapviz.motion.skeleton import CANONICAL_JOINTS, guess_mapping, to_canonical
 
 ROT = ["Zrotation", "Xrotation", "Yrotation"]
 

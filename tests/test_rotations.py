@@ -1,4 +1,4 @@
-"""Quaternion helpers and forward kinematics (mocapviz.rotations) against scipy and hand-worked geometry."""
+"""Quaternion helpers and forward kinematics (mocapviz.motion.rotations) against scipy and hand-worked geometry."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from mocapviz import rotations
+from mocapviz.motion import rotations
 
 ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]
 

@@ -1,4 +1,4 @@
-"""mocapviz.search: exact mode against brute-force DTW on real clips, fast mode's answers exact where given, bad
+"""mocapviz.similarity.search: exact mode against brute-force DTW on real clips, fast mode's answers exact where given, bad
 input refused with typed errors, and the `mocapviz search` command."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import pytest
 from mocapviz import MocapFormatError, ParameterError
 from mocapviz.cli import main
 from mocapviz.match import best_ends, dtw, subsequence_costs, subsequence_dtw
-from mocapviz.search import SimilaritySearch
+from mocapviz.similarity.search import SimilaritySearch
 
 QUERIES = (0, 37, 101, 150, 222, 286)  # clips of several classes and actors
 

@@ -1,4 +1,4 @@
-"""Canonical joints, name mapping, body frame and body sizes (mocapviz.skeleton) on real clips."""
+"""Canonical joints, name mapping, body frame and body sizes (mocapviz.motion.skeleton) on real clips."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 
 from mocapviz.errors import SkeletonMappingError
 from mocapviz.io import load
-from mocapviz.skeleton import CANONICAL_JOINTS, body_frame, body_sizes, guess_mapping, heading, to_canonical
+from mocapviz.motion.skeleton import CANONICAL_JOINTS, body_frame, body_sizes, guess_mapping, heading, to_canonical
 
 # RELATIONAL_FEATURES.md §1.2, typed from the table: canonical joint -> (ASF node whose tip it is,
 # ASF node whose rotation acts there or None)
@@ -349,7 +349,7 @@ def test_cmu_derived_bvh_maps_onto_the_asf_canonical_joints(hdm05_dir, hdm05_lab
 
 
 def test_mirror_swaps_sides_and_is_an_involution(hdm05_dir, hdm05_labels):
-    from mocapviz.skeleton import mirror
+    from mocapviz.motion.skeleton import mirror
 
     kick = load(hdm05_dir / _clip(hdm05_labels, "bd", "kickLFront1Reps")).canonical()
     m = mirror(kick)

@@ -10,7 +10,9 @@ import time
 import numpy as np
 import pytest
 
-from mocapviz import MotionDB, MotionDBError, datasets, index
+from mocapviz import MotionDB, MotionDBError
+from mocapviz.io import datasets
+from mocapviz.relational import index
 from mocapviz.store import atomic_file, atomic_folder, atomic_write, check_format, load_or_build, locked
 
 
@@ -113,7 +115,8 @@ def test_lock_held_by_another_process_fails_fast_or_waits(tmp_path):
 _DERIVED = textwrap.dedent(
     """
     import sys
-    from mocapviz import MotionDB, index
+    from mocapviz import MotionDB
+    from mocapviz.relational import index
     from mocapviz.features import store_numeric
     db = MotionDB.open(sys.argv[1])
     for _ in range(3):

@@ -1,4 +1,4 @@
-"""mocapviz.templates: warping and averaging against a hand-worked example, order independence, quantisation and
+"""mocapviz.relational.templates: warping and averaging against a hand-worked example, order independence, quantisation and
 the masked matching cost."""
 
 import itertools
@@ -8,7 +8,7 @@ import pytest
 
 from mocapviz import ParameterError
 from mocapviz.match import subsequence_dtw
-from mocapviz.templates import (
+from mocapviz.relational.templates import (
     DONT_CARE,
     classify,
     find_instances,

@@ -16,7 +16,7 @@ from mocapviz import MotionDB
 from mocapviz.cli import main
 from mocapviz.errors import MotionDBError, ParameterError, UnknownKeyError
 from mocapviz.features import feature_names, relational_features
-from mocapviz.templates import (
+from mocapviz.relational.templates import (
     MotionTemplate,
     find_instances,
     learn_class,
@@ -130,8 +130,8 @@ def test_max_cost_keeps_exactly_the_cheaper_hits(db, kick, tmp_path, capsys):
 
 def test_prefilter_aligns_only_the_keyframe_ranges(db, kick, values, tmp_path, capsys):
     """--prefilter gives find_instances over keyframe_ranges (indexes built and stored when missing)."""
-    from mocapviz import index
-    from mocapviz.templates import keyframe_ranges
+    from mocapviz.relational import index
+    from mocapviz.relational.templates import keyframe_ranges
 
     csv = tmp_path / "pre.csv"
     assert main(["template", "search", str(db.path), "kickLFront1Reps-dg", "-K", "6", "--prefilter", "--csv",

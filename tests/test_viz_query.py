@@ -1,4 +1,4 @@
-"""mocapviz.viz.query: precision and recall of ranked hits (by mocapviz.evaluation) against hand-computed values, and
+"""mocapviz.viz.query: precision and recall of ranked hits (by mocapviz.experiments.evaluation) against hand-computed values, and
 the plot holding them."""
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 import holoviews as hv
 import numpy as np
 
-from mocapviz.templates import DONT_CARE, MotionTemplate
+from mocapviz.relational.templates import DONT_CARE, MotionTemplate
 from mocapviz.viz.templates import template_image
 
 

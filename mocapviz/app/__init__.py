@@ -105,7 +105,7 @@ def warm_up(backend: Backend) -> dict[str, float]:
     cannot run (a :class:`~mocapviz.errors.MocapvizError`) is skipped. Returns the seconds of each step (logged at INFO
     level).
     """
-    from ..query import query_by_example
+    from ..relational.query import query_by_example
     from .pages import relational, similarity
 
     docs = backend.documents

@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .. import index as index_mod
-from ..database import MotionDB
+from ..relational import index as index_mod
+from ..db.database import MotionDB
 from ..errors import MotionDBError
 from ..features import numeric_of, relational_features
-from ..knn import KnnIndex
+from ..similarity.knn import KnnIndex
 
 _BACKENDS: dict = {}
 _OPEN_LOCK = threading.Lock()
@@ -99,9 +99,9 @@ class Backend:
         return self.cached(("knn", name), lambda: KnnIndex(self.numeric(name)))
 
     def search(self, name: str = "F15E"):
-        """The DTW search over a numeric set (:class:`mocapviz.search.SimilaritySearch`; its kd-tree and
+        """The DTW search over a numeric set (:class:`mocapviz.similarity.search.SimilaritySearch`; its kd-tree and
         coarse database are built on first use and kept with it)."""
-        from ..search import SimilaritySearch
+        from ..similarity.search import SimilaritySearch
 
         return self.cached(("search", name), lambda: SimilaritySearch(self.db, name))
 
@@ -127,12 +127,5 @@ class Backend:
 
 
 def sample_database() -> Path:
-    """The embedded sample (:func:`mocapviz.datasets.sample`: 22 HDM05 clips, 2 CMU trials) as a MotionDB at the
-    clips' own 120 Hz, ingested once beside the unpacked sample and reused."""
-    from .. import datasets
-
-    folder = datasets.sample()
-    out = folder.parent / "sample.mdb"
-    if not (out / "manifest.json").exists():
-        MotionDB.ingest(folder, out)
-    return out
+    """The folder of :meth:`MotionDB.sample` (the embedded sample at 120 Hz, built once)."""
+    return MotionDB.sample().path

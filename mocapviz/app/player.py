@@ -27,7 +27,7 @@ import param
 from panel.custom import JSComponent
 
 from ..errors import ParameterError
-from ..skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
+from ..motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
 
 SPEEDS = (0.25, 0.5, 1.0, 2.0)
 CONTROLS_HEIGHT = 60  # px under the canvas: the buttons, slider and caption

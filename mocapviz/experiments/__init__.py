@@ -1,5 +1,5 @@
-"""One function per paper table or figure, each returning pandas DataFrames (ARCHITECTURE: "everything above ->
-mocapviz.experiments").
+"""One function per paper table or figure, each returning pandas DataFrames (docs/architecture.md, the experiments
+layer).
 
 index_statistics      Müller, Röder & Clausen 2005, Table 2: relational index construction statistics.
 query_statistics      Müller, Röder & Clausen 2005, Table 3: random exact / adaptive fuzzy query statistics.

@@ -50,11 +50,11 @@ from scipy.spatial.distance import cdist
 from scipy.stats import rankdata
 from tqdm.auto import tqdm
 
-from ..database import read_document
+from ..db.ingest import read_document
 from ..errors import ParameterError
 from ..features.distances import deuler_pairwise, dpc_pairwise, dquat_pairwise, dwb_pairwise, lee_frames, window_clouds
 from ..features.numeric import default_pca, numeric_of
-from ..knn import KnnIndex
+from ..similarity.knn import KnnIndex
 from ..match.time_warping import dtw
 
 __all__ = [
@@ -302,7 +302,7 @@ def _query_block(per_query: int, n_frames: int) -> int:
 def _nearest(ctx: _Descriptors, measure: str, queries: np.ndarray, frames: np.ndarray, k: int):
     """The k nearest of ``frames`` to each query frame by ``measure``, the query itself left out.
 
-    Feature sets: a kd-tree (:class:`mocapviz.knn.KnnIndex`) over ``frames``; distance measures: brute force, the
+    Feature sets: a kd-tree (:class:`mocapviz.similarity.knn.KnnIndex`) over ``frames``; distance measures: brute force, the
     pairwise distances of blocks of queries against blocks of frames, keeping the k smallest.
 
     Returns

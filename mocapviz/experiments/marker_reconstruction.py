@@ -1,5 +1,5 @@
 """Reconstruction of full-body motion from six sparse markers: Krüger, Tautges, Weber & Zinke 2010 §5.2,
-Tables 3 and 4 (after Chai & Hodgins 2005; the method is :mod:`mocapviz.reconstruction`).
+Tables 3 and 4 (after Chai & Hodgins 2005; the method is :mod:`mocapviz.similarity.reconstruction`).
 
 reconstruction      Table 3: per test motion the average (max) per-joint error of the reconstruction with pose
                     priors from different databases (the test actor's clips left out, only the test clip left out,
@@ -33,8 +33,8 @@ from tqdm.auto import tqdm
 
 from ..errors import ParameterError
 from ..features.numeric import NUMERIC_SETS, PCAModel
-from ..reconstruction import DEFAULT_K, PosePrior, reconstruct, reconstruction_errors, synthetic_markers
-from ..skeleton import CANONICAL_JOINTS, heading
+from ..similarity.reconstruction import DEFAULT_K, PosePrior, reconstruct, reconstruction_errors, synthetic_markers
+from ..motion.skeleton import CANONICAL_JOINTS, heading
 from ..validation import some_of
 
 __all__ = ["VARIANTS", "default_test_docs", "krueger2010_table3", "krueger2010_table4", "reconstruction"]
@@ -112,7 +112,7 @@ def marker_clip(db, doc: int, noise_cm: float, seed: int = 0) -> tuple[np.ndarra
     Returns
     -------
     truth : np.ndarray [shape=(T, 24, 3)], float64, cm, the clip's canonical joints.
-    markers : np.ndarray [shape=(T, 6, 3)], cm, the joints of :data:`mocapviz.reconstruction.MARKERS` with uniform noise
+    markers : np.ndarray [shape=(T, 6, 3)], cm, the joints of :data:`mocapviz.similarity.reconstruction.MARKERS` with uniform noise
         of +-``noise_cm`` per coordinate, drawn from ``np.random.default_rng([seed, doc])`` (reproducible per clip).
     headings : np.ndarray [shape=(T,)], radians, the clip's heading.
     """
@@ -126,10 +126,10 @@ def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, numeri
                    baselines: bool = True, full: bool = False, progress: bool = False, **options) -> dict[str, pd.DataFrame]:  # fmt: skip
     """Tables 3 and 4 of Krüger et al. 2010 (§5.2): motions reconstructed from six noisy markers.
 
-    For each test clip of ``db``: synthetic markers (:func:`mocapviz.reconstruction.synthetic_markers`, uniform
+    For each test clip of ``db``: synthetic markers (:func:`mocapviz.similarity.reconstruction.synthetic_markers`, uniform
     noise of +-``noise_cm`` per coordinate, the same markers for every prior), the heading from the clip's hip
-    line, then :func:`mocapviz.reconstruction.reconstruct` with each prior variant (module docstring), and the errors
-    of :func:`mocapviz.reconstruction.reconstruction_errors`.
+    line, then :func:`mocapviz.similarity.reconstruction.reconstruct` with each prior variant (module docstring), and the errors
+    of :func:`mocapviz.similarity.reconstruction.reconstruction_errors`.
 
     Parameters
     ----------
@@ -149,7 +149,7 @@ def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, numeri
     baselines : bool, also run the nearest-neighbour pose and the weighted neighbour mean (``"baselines"``).
     full : bool, the default test clips are all of bk's (about 6x the time) instead of one per class.
     progress : bool, a progress bar over the test clips.
-    **options : passed to :func:`mocapviz.reconstruction.reconstruct` (variance, bandwidth, marker_sigma,
+    **options : passed to :func:`mocapviz.similarity.reconstruction.reconstruct` (variance, bandwidth, marker_sigma,
         smooth_sigma).
 
     Returns

@@ -27,10 +27,10 @@ from ..errors import ParameterError
 from ..features.distances import dpc_pairwise, window_clouds
 from ..features.numeric import numeric_of
 from ..features.relational import relational_features
-from ..knn import KnnIndex
+from ..similarity.knn import KnnIndex
 from ..match.neighbourhood_graph import graph_matches, neighbourhoods
 from ..match.time_warping import band_from_path, best_ends, dtw, subsequence_costs, subsequence_dtw
-from ..segmentation import segment
+from ..features.segmentation import segment
 from ..validation import renamed
 
 # §4.2: "For the queries of length 1 sec (3 sec) it took on average 0.03 sec (0.08 sec.) to construct the

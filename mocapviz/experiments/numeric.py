@@ -3,7 +3,7 @@
 knn_timings             Table 1 (§3.3): k-nearest-neighbour search times per numeric set, ours beside the paper's.
 krueger2010_table1      Table 1 as printed in the paper (HDM05 380,813 frames and CMU 1,038,388 frames at 30 Hz).
 base_pose_experiment    §5.3: fat-graph base poses with kd-tree radius searches, against the O(n²) construction
-                        (the algorithm itself: :func:`mocapviz.knn.base_poses`).
+                        (the algorithm itself: :func:`mocapviz.similarity.knn.base_poses`).
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ..features.numeric import NUMERIC_SETS, default_pca, numeric_of
-from ..knn import KnnIndex, base_poses, base_poses_quadratic
+from ..similarity.knn import KnnIndex, base_poses, base_poses_quadratic
 from ..validation import renamed, some_of
 
 __all__ = ["base_pose_experiment", "knn_timings", "krueger2010_table1"]
@@ -48,7 +48,7 @@ def knn_timings(db, numeric_sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 100
                 seed: int = 0, threads: int | None = None, repeats: int = 3) -> pd.DataFrame:  # fmt: skip
     """k-NN search times per numeric set (Krüger et al. 2010 §3.3, Table 1).
 
-    For each set a :class:`mocapviz.knn.KnnIndex` (scipy cKDTree) is built over all frames of ``db``, then
+    For each set a :class:`mocapviz.similarity.knn.KnnIndex` (scipy cKDTree) is built over all frames of ``db``, then
     ``n_queries`` random frames of the database are searched for their k nearest neighbours, exactly (ε = 0),
     as one batch on ``threads`` threads; the mean time per query is the batch's wall time / n_queries, the
     median of ``repeats`` runs.
@@ -68,7 +68,7 @@ def knn_timings(db, numeric_sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 100
         Name of the database for the table (default: the folder name of ``db``).
     seed : int
     threads : int, optional
-        Threads of the batched query (default :func:`mocapviz.batch.default_threads`: the cores, at most 8; the
+        Threads of the batched query (default :func:`mocapviz.parallel.default_threads`: the cores, at most 8; the
         paper's searches ran on one). (Formerly ``workers``: still accepted, with a FutureWarning.)
     repeats : int
         Runs of each batch; the median is reported.
@@ -110,7 +110,7 @@ def knn_timings(db, numeric_sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 100
 
 def base_pose_experiment(features: np.ndarray, radius: float, k: int = 32,
                          quadratic_frames: int = 5000) -> pd.DataFrame:  # fmt: skip
-    """Fat-graph base poses (Krüger et al. 2010 §5.3): the kd-tree construction (:func:`mocapviz.knn.base_poses`)
+    """Fat-graph base poses (Krüger et al. 2010 §5.3): the kd-tree construction (:func:`mocapviz.similarity.knn.base_poses`)
     against the O(n²) one.
 
     Parameters

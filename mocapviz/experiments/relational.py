@@ -16,8 +16,8 @@ import time
 import numpy as np
 import pandas as pd
 
-from .. import evaluation
-from .. import index as index_mod
+from . import evaluation
+from ..relational import index as index_mod
 from ..errors import ParameterError
 from ..features import feature_names, relational_features
 
@@ -67,8 +67,8 @@ def index_statistics(db, relational_set: str = "2005", values: np.ndarray | None
     """Feature computation and index construction statistics (Müller, Röder & Clausen 2005, Table 2).
 
     One row per feature group: the group's index (lower ``I_l``, upper ``I_u``, mix ``I_m``) over all frames of
-    ``db``. The indexes are built in memory (:meth:`mocapviz.index.InvertedIndex.from_features`) and not saved;
-    ``mocapviz.index.build`` does the same and writes them.
+    ``db``. The indexes are built in memory (:meth:`mocapviz.relational.index.InvertedIndex.from_features`) and not saved;
+    ``mocapviz.relational.index.build`` does the same and writes them.
 
     Parameters
     ----------
@@ -360,14 +360,14 @@ def relational_query(db, queries: dict | None = None, relational_set: str = "200
     Figs. 7-9).
 
     For each class, one document of that class is the query clip and a few relational features are selected
-    (the rest are "don't care"); :func:`mocapviz.query.query_by_example` finds its adaptive fuzzy hits. A
+    (the rest are "don't care"); :func:`mocapviz.relational.query.query_by_example` finds its adaptive fuzzy hits. A
     document counts as retrieved if any hit lies in it, ranked by its best hit.
 
     Parameters
     ----------
     db : MotionDB
         Labelled documents (e.g. the HDM05 cut clips at 120 Hz). Its relational indexes are loaded, or built and
-        saved (``mocapviz.index.build``) if it has none yet.
+        saved (``mocapviz.relational.index.build``) if it has none yet.
     queries : dict, optional
         {class: (doc_id or None, [feature names])}; doc_id None = the class's first document. Default: every
         class of :data:`DEFAULT_QUERIES` that ``db`` holds, each queried with its first document (lowest doc_id).
@@ -382,7 +382,7 @@ def relational_query(db, queries: dict | None = None, relational_set: str = "200
     pandas.DataFrame, one row per class: ``class``, ``query_doc``, ``query_name``, ``features`` (comma
     separated), ``query_frames``, ``n_segments`` (query segments, summed over the groups touched), ``hits``,
     ``self_retrieved`` (a hit lies in the query document), then the retrieval quality by
-    :mod:`mocapviz.evaluation` (documents ranked by their best hit's score, the query document left out of the
+    :mod:`mocapviz.experiments.evaluation` (documents ranked by their best hit's score, the query document left out of the
     ranking and of the relevant set): ``hit_docs`` (other documents with a hit), ``relevant`` (other documents
     of the class), ``relevant_retrieved``, ``precision`` (relevant_retrieved / hit_docs, NaN without hits),
     ``recall`` (relevant_retrieved / relevant), ``r_precision`` (precision at rank ``relevant``), ``ap``
@@ -394,7 +394,7 @@ def relational_query(db, queries: dict | None = None, relational_set: str = "200
     ValueError
         A class the database does not hold, or a query document of another class.
     """
-    from ..query import query_by_example
+    from ..relational.query import query_by_example
 
     if indexes is None:
         indexes = index_mod.load_or_build(db, relational_set)

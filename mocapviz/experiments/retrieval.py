@@ -1,32 +1,32 @@
 """Retrieval quality of every search method of the product on a labelled MotionDB (issue 16, item 5).
 
 Every labelled document (or a seeded sample of ``n_queries``) is a query; each method ranks the *documents* of the
-database, and the ranking is judged by :mod:`mocapviz.evaluation` (the product's one definition of relevance,
+database, and the ranking is judged by :mod:`mocapviz.experiments.evaluation` (the product's one definition of relevance,
 precision, recall and AP: the query's own document is left out, relevant = the other documents with the query's
 label among the documents searched).
 
 Methods (:data:`METHODS`):
 
-- ``dtw``: brute-force whole-clip DTW (:meth:`mocapviz.search.SimilaritySearch.clips`, ``mode="brute"``), every
+- ``dtw``: brute-force whole-clip DTW (:meth:`mocapviz.similarity.search.SimilaritySearch.clips`, ``mode="brute"``), every
   document aligned with the whole query, ranked by cost / (query frames + document frames). The reference
   ranking: "recall of DTW's top 10" is measured against it.
 - ``exact``: the same ranking with admissible pruning (``mode="exact"``); must equal ``dtw``.
-- ``fast``: ``mode="fast"``: the ``CLIP_BUDGET`` (:mod:`mocapviz.search`) documents of least DTW cost on 0.2 s
+- ``fast``: ``mode="fast"``: the ``CLIP_BUDGET`` (:mod:`mocapviz.similarity.search`) documents of least DTW cost on 0.2 s
   block means aligned exactly and ranked by their exact cost; the rest follow the coarse order (a full ranking, as the docstring of
-  :meth:`~mocapviz.search.SimilaritySearch.clips` describes).
+  :meth:`~mocapviz.similarity.search.SimilaritySearch.clips` describes).
 - ``lng256``, ``lng1024``: the lazy neighbourhood graph of Krüger et al. 2010 §4.1 (:func:`mocapviz.match.lng`)
   with k = 256 / 1024 neighbours per query frame; each document ranked by its best match's cost. Documents
   without a graph path are not retrieved (they add 0 to AP).
-- ``relational``: query by example (Müller, Röder & Clausen 2005, :func:`mocapviz.query.query_by_example`,
+- ``relational``: query by example (Müller, Röder & Clausen 2005, :func:`mocapviz.relational.query.query_by_example`,
   adaptive fuzzy hits) with the selection of :data:`mocapviz.experiments.relational.DEFAULT_QUERIES` for the
   query's class, documents ranked by their best hit's score. Classes without a selection are skipped (noted).
-- ``hybrid``: :func:`mocapviz.hybrid.hybrid_search`: relational hits (the lenient
-  :data:`~mocapviz.hybrid.HYBRID_QUERIES` settings of the class, with their numeric set, else its
+- ``hybrid``: :func:`mocapviz.similarity.hybrid.hybrid_search`: relational hits (the lenient
+  :data:`~mocapviz.similarity.hybrid.HYBRID_QUERIES` settings of the class, with their numeric set, else its
   ``DEFAULT_QUERIES`` selection, adaptive, on ``numeric_set``) re-ranked by exact whole-clip DTW.
 
 Protocols: *leave-one-out* (LOO): the query's document is left out, every other document searched.
 *Leave-group-out* (LGO, e.g. leave-actor-out): a query of group A searches only the documents of other groups
-(a restricted :class:`~mocapviz.search.SimilaritySearch` / kd-tree per group, so fast mode and the graph see only
+(a restricted :class:`~mocapviz.similarity.search.SimilaritySearch` / kd-tree per group, so fast mode and the graph see only
 those documents); relevant documents are counted among them. P@1, P@10 and the recall of DTW's top 10 are LOO
 figures. Time per query: wall time of one LOO search asking for K = 10 documents (relational: the query by
 example), each method warmed up once before the first query (numba compilation excluded).
@@ -44,9 +44,9 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from .. import evaluation
+from . import evaluation
 from ..errors import ParameterError
-from ..search import CLIP_BUDGET
+from ..similarity.search import CLIP_BUDGET
 
 __all__ = ["METHODS", "RECALL_LEVELS", "relational_indexes", "retrieval_quality"]
 
@@ -95,7 +95,7 @@ class _Runner:
     document, else the documents outside one group), the relational indexes, the query motions."""
 
     def __init__(self, db, numeric_set: str, labels: pd.Series, groups: pd.Series | None, indexes):
-        from ..search import SimilaritySearch
+        from ..similarity.search import SimilaritySearch
 
         self.db, self.numeric_set, self.labels, self.groups = db, numeric_set, labels, groups
         self._make = SimilaritySearch
@@ -132,10 +132,10 @@ class _Runner:
         return DEFAULT_QUERIES.get(str(self.labels.get(q)))
 
     def hybrid_selection(self, q: int) -> dict | None:
-        """Keyword arguments of :func:`mocapviz.hybrid.hybrid_search` for the query's class: its lenient
+        """Keyword arguments of :func:`mocapviz.similarity.hybrid.hybrid_search` for the query's class: its lenient
         ``HYBRID_QUERIES`` entry when there is one, else the class's ``DEFAULT_QUERIES`` selection, adaptive; None
         for a class with neither."""
-        from .. import hybrid
+        from ..similarity import hybrid
 
         cls = str(self.labels.get(q))
         spec = getattr(hybrid, "HYBRID_QUERIES", {}).get(cls)
@@ -201,7 +201,7 @@ class _Runner:
 
     def _relational_hits(self, q: int) -> pd.DataFrame | None:
         if q not in self._hits:
-            from ..query import query_by_example
+            from ..relational.query import query_by_example
 
             features = self.relational_selection(q)
             if features is None:
@@ -215,7 +215,7 @@ class _Runner:
         return self._hits[q]
 
     def _hybrid(self, q: int, group, n_matches: int | None = None) -> np.ndarray | None:
-        from ..hybrid import hybrid_search
+        from ..similarity.hybrid import hybrid_search
 
         selection = self.hybrid_selection(q)
         if selection is None:
@@ -229,7 +229,7 @@ class _Runner:
 def relational_indexes(db, relational_set: str = "2005") -> dict:
     """The relational indexes of ``db`` (group -> InvertedIndex): the stored ones when current, else built in memory
     (nothing is written into the database, so a read-only database can be evaluated)."""
-    from ..index import load_or_build
+    from ..relational.index import load_or_build
 
     return load_or_build(db, relational_set, save=False)
 

@@ -1,17 +1,17 @@
 """How well motion templates find and classify their class (Müller & Röder 2006 §5–6), leave-group-out.
 
 For every labelled class and every group (actor) that holds clips of it, a template is learned from the class's
-clips of the *other* groups (:func:`mocapviz.templates.learn_class`) and then
+clips of the *other* groups (:func:`mocapviz.relational.templates.learn_class`) and then
 
 - searched in the held-out group's clips (``search="group"``, the leave-actor-out protocol of the issue) and in
   all clips of the database (``search="all"``; the training clips are then among the candidates: an optimistic
   figure, reported beside the other): every clip is ranked by its best match's normalised cost (mean mismatch
-  per template frame, :func:`mocapviz.templates.document_costs`), judged by :mod:`mocapviz.evaluation` with the
+  per template frame, :func:`mocapviz.relational.templates.document_costs`), judged by :mod:`mocapviz.experiments.evaluation` with the
   class as the label sought (no clip is the query): AP and R-precision of the ranking, and precision and recall of
   the clips holding a match of normalised cost at most the template's threshold (the worst cost of its own
   examples, or ``max_cost``): the hits a user gets without choosing a threshold;
 - used to classify: every clip of the held-out group goes to the class of the nearest template learned without
-  its group (:func:`mocapviz.templates.classify`).
+  its group (:func:`mocapviz.relational.templates.classify`).
 
 template_quality   db -> {"summary", "per_class", "per_template", "classification"} DataFrames.
 """
@@ -23,10 +23,10 @@ import time
 import numpy as np
 import pandas as pd
 
-from .. import evaluation
+from . import evaluation
 from ..errors import ParameterError
 from ..features import relational_features
-from ..templates import DELTA, classify, document_costs, learn_class
+from ..relational.templates import DELTA, classify, document_costs, learn_class
 from ..validation import number
 
 __all__ = ["template_quality"]

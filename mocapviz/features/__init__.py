@@ -1,4 +1,4 @@
-"""Per-frame motion features (ARCHITECTURE: MotionDB -> mocapviz.features -> per-frame feature arrays).
+"""Per-frame motion features (docs/architecture.md, the features layer: MotionDB -> per-frame feature arrays).
 
 relational_features  boolean relational features of Müller, Röder & Clausen 2005 (31) and Müller & Röder 2006 (39).
 feature_names        the column names of a relational set.

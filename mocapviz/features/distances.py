@@ -35,7 +35,7 @@ Dwb       (T, 24, 7)                  ``lee_frames(motion.canonical()           
 ========  ==========================  ===========================================  ===============================
 
 The named weight tables (``"lee"``, ``"wb"``) are over the 24 canonical joints in the order of
-:data:`mocapviz.skeleton.CANONICAL_JOINTS`; for another skeleton pass an array of weights.
+:data:`mocapviz.motion.skeleton.CANONICAL_JOINTS`; for another skeleton pass an array of weights.
 
 Root handling: no measure uses the root translation. The root's rotation is the source's global orientation,
 heading included; it counts in Deuler, in Dquat (unless weighted 0) and in Dwb with Lee's weights (his
@@ -45,9 +45,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import rotations
+from ..motion import rotations
 from ..errors import ParameterError
-from ..skeleton import CANONICAL_JOINTS
+from ..motion.skeleton import CANONICAL_JOINTS
 
 __all__ = [
     "LEE_WEIGHTS", "NU", "WB_WEIGHTS", "deuler", "deuler_pairwise", "dpc", "dpc_pairwise", "dquat",

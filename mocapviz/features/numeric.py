@@ -1,8 +1,8 @@
 """Numeric pose features for kNN search (Krüger, Tautges, Weber & Zinke 2010, §3.1-3.2).
 
 Every frame becomes a float vector of joint positions in the frame's *body frame* (root at the origin, rotated
-about the vertical axis so that the body faces +z: :func:`mocapviz.skeleton.heading` and
-:func:`mocapviz.skeleton.body_frame`), in centimetres, y up.
+about the vertical axis so that the body faces +z: :func:`mocapviz.motion.skeleton.heading` and
+:func:`mocapviz.motion.skeleton.body_frame`), in centimetres, y up.
 
 Public API
 ----------
@@ -42,9 +42,9 @@ so a header on disk always describes the data beside it.
 Implementation
 --------------
 A MotionDB is processed in batches of whole documents (about ``_BATCH_FRAMES`` frames each) on threads or as
-Dask tasks (:func:`mocapviz.batch.map_documents`); within a batch everything is vectorised numpy over all frames
+Dask tasks (:func:`mocapviz.db.batches.map_documents`); within a batch everything is vectorised numpy over all frames
 (the heading once per frame, one gather and one rotation per window sample), in float32 like
-:func:`mocapviz.skeleton.body_frame`; the PCA in float64.
+:func:`mocapviz.motion.skeleton.body_frame`; the PCA in float64.
 """
 
 from __future__ import annotations
@@ -61,12 +61,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..batch import map_documents
-from ..cluster import optional_client
-from ..database import MotionDB
+from ..db.batches import map_documents
+from ..parallel import optional_client
+from ..db.database import MotionDB
 from ..errors import MotionDBError, ParameterError
 from ..motion import Motion
-from ..skeleton import CANONICAL_JOINTS, body_frame, heading
+from ..motion.skeleton import CANONICAL_JOINTS, body_frame, heading
 from ..store import (
     atomic_write,
     check_format,
@@ -162,8 +162,8 @@ def _joint_features(positions: np.ndarray, bounds: np.ndarray, fps: np.ndarray, 
     """F15E ... F30x3E of a batch of whole documents (§3.2).
 
     Each window sample's joints are put into the centre frame's body frame with the transform of
-    :func:`mocapviz.skeleton.body_frame` (root of the centre frame to the origin, then a rotation by minus its
-    :func:`mocapviz.skeleton.heading` about y), with the same float32 operations, so that the centre sample is
+    :func:`mocapviz.motion.skeleton.body_frame` (root of the centre frame to the origin, then a rotation by minus its
+    :func:`mocapviz.motion.skeleton.heading` about y), with the same float32 operations, so that the centre sample is
     exactly ``body_frame(positions)[:, joints]``. Coordinates are handled as rows [shape=(k, N)] (contiguous
     frames) and interleaved into the output once.
 
@@ -379,7 +379,7 @@ def fit_pca(
 
 def _pca_input(positions: np.ndarray, bounds: np.ndarray, fps: np.ndarray) -> np.ndarray:
     """The PCA's input (§3.1): all 24 canonical joints of a batch in the body frame
-    (:func:`mocapviz.skeleton.body_frame`), flattened to [shape=(N, 72)], float32, cm (x y z per joint)."""
+    (:func:`mocapviz.motion.skeleton.body_frame`), flattened to [shape=(N, 72)], float32, cm (x y z per joint)."""
     return body_frame(positions).reshape(-1, _POSE_DIMS)
 
 
@@ -397,7 +397,7 @@ def _batches(source, work: Callable, joints, desc: str, progress: bool, threads:
 
     ``source`` is a Motion (one batch, in the calling thread) or a MotionDB (the callers check which with
     :func:`_n_frames`): batches of whole documents of about ``_BATCH_FRAMES`` frames on ``threads`` threads, or as
-    Dask tasks of ``client`` (:func:`mocapviz.batch.map_documents`; ``work`` then a module-level function or a
+    Dask tasks of ``client`` (:func:`mocapviz.db.batches.map_documents`; ``work`` then a module-level function or a
     partial of one). ``frames`` is the slice of the source's frames a result covers. Every batch is checked for
     non-finite positions of ``joints`` (canonical indices) first; the first bad batch in frame order raises.
     """
@@ -407,7 +407,7 @@ def _batches(source, work: Callable, joints, desc: str, progress: bool, threads:
         return
     motion = source.canonical()
     name = source.source or "motion"
-    finite_positions(motion.positions, lambda t: f"{name}, frame {t}", list(joints))
+    finite_positions(motion.positions, lambda t: f"{name}, frame {t}", list(joints), CANONICAL_JOINTS)
     yield slice(0, motion.n_frames), work(motion.positions, np.array([0, motion.n_frames]), np.array([motion.fps]))
 
 
@@ -472,10 +472,10 @@ def numeric_features(
     progress : bool
         Progress bar over the documents of a MotionDB with more than 50 documents.
     threads : int, optional
-        Threads over batches of documents of a MotionDB (default :func:`mocapviz.batch.default_threads`: the
+        Threads over batches of documents of a MotionDB (default :func:`mocapviz.parallel.default_threads`: the
         cores this process may use, at most 8).
     scheduler : None, "local", str or dask.distributed.Client
-        Compute the batches of a MotionDB as Dask tasks (:func:`mocapviz.cluster.dask_client`: ``"local"`` starts
+        Compute the batches of a MotionDB as Dask tasks (:func:`mocapviz.parallel.dask_client`: ``"local"`` starts
         a local cluster for this call, an address connects to a scheduler whose workers see the database's path,
         a Client is used as it is). None (default): threads in this process. The values are the same either way.
 

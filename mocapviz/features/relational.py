@@ -31,7 +31,7 @@ another definition (other joints, thresholds or unit), the 2006 name carries the
 Conventions (spec §1)
 ---------------------
 Positions in cm, y up. Body-size units come from the first frame of each document
-(:func:`mocapviz.skeleton.body_sizes`), except the touch features, whose radius is relative to the tested
+(:func:`mocapviz.motion.skeleton.body_sizes`), except the touch features, whose radius is relative to the tested
 segment's own length in each frame. Velocities use windows given in milliseconds, converted with each
 document's frame rate, so any frame rate works. Almost every feature is "robust": two thresholds on the same
 quantity, combined by a hysteresis (on at a rising edge of the strict stream, off at the first 0 of the lax
@@ -46,7 +46,7 @@ image; the feature tables ``_SET_2005`` / ``_SET_2006`` combine a quantity with 
 a unit. Left features are generated from the right ones by :func:`_pair`. A MotionDB is evaluated in batches of
 whole documents: geometry is vectorised over all frames of a batch, velocities and the hysteresis run per
 document, so nothing crosses a document boundary; the batches run on threads or as Dask tasks
-(:func:`mocapviz.batch.map_documents`).
+(:func:`mocapviz.db.batches.map_documents`).
 """
 from __future__ import annotations
 
@@ -59,12 +59,12 @@ import numba
 import numpy as np
 import pandas as pd
 
-from ..batch import map_documents
-from ..cluster import optional_client
-from ..database import MotionDB
+from ..db.batches import map_documents
+from ..parallel import optional_client
+from ..db.database import MotionDB
 from ..errors import ParameterError
 from ..motion import Motion
-from ..skeleton import CANONICAL_JOINTS, body_size_table
+from ..motion.skeleton import CANONICAL_JOINTS, body_size_table
 from ..validation import finite_positions, one_of, renamed
 
 __all__ = ["RELATIONAL_SETS", "feature_groups", "feature_names", "feature_table", "relational_features"]
@@ -381,7 +381,7 @@ class _Batch:
     joints : np.ndarray [shape=(24, 3, N)], float64, cm -- joint, then coordinate, then frame.
     bounds : np.ndarray [shape=(D+1,)], int64 -- document d is frames bounds[d]:bounds[d+1].
     fps : np.ndarray [shape=(D,)]
-    sizes : dict of np.ndarray [shape=(D,)] -- :func:`mocapviz.skeleton.body_sizes` of each document's first frame.
+    sizes : dict of np.ndarray [shape=(D,)] -- :func:`mocapviz.motion.skeleton.body_sizes` of each document's first frame.
     """
 
     def __init__(self, positions: np.ndarray, bounds, fps):
@@ -979,7 +979,7 @@ def feature_table(relational_set: str = "2005") -> pd.DataFrame:
     -------
     pandas.DataFrame with columns ``name``, ``group``, ``spec`` (spec row / paper feature), ``definition`` (the
     quantity), ``op``, ``lax``, ``strict`` (thresholds in ``unit``; equal when there is no hysteresis), ``unit``
-    (a body size of :func:`mocapviz.skeleton.body_sizes`, "deg", "cm" or "ratio" = of the touched segment's own
+    (a body size of :func:`mocapviz.motion.skeleton.body_sizes`, "deg", "cm" or "ratio" = of the touched segment's own
     length), ``robust``.
     """
     return pd.DataFrame(
@@ -1014,7 +1014,7 @@ def _motion_features(motion: Motion, feats: tuple) -> np.ndarray:
     motion = motion.canonical()
     if motion.n_frames < 2:
         raise ParameterError(f"{name}: {motion.n_frames} frame(s); relational features need at least 2 (velocities)")
-    finite_positions(motion.positions, lambda t: f"{name}, frame {t}")
+    finite_positions(motion.positions, lambda t: f"{name}, frame {t}", joint_names=CANONICAL_JOINTS)
     return _evaluate(feats, _Batch(motion.positions, [0, motion.n_frames], [motion.fps]))
 
 
@@ -1028,7 +1028,7 @@ def _check_lengths(db: MotionDB) -> None:
 
 
 def _batch_features(relational_set: str, positions: np.ndarray, bounds: np.ndarray, fps: np.ndarray) -> np.ndarray:
-    """The ``work`` of :func:`mocapviz.batch.map_documents`: feature values of a batch of whole documents,
+    """The ``work`` of :func:`mocapviz.db.batches.map_documents`: feature values of a batch of whole documents,
     [shape=(N, f)] bool (module level, so that Dask workers can import it)."""
     return _evaluate(_features(relational_set), _Batch(positions, bounds, fps))
 
@@ -1066,10 +1066,10 @@ def relational_features(source, relational_set: str = "2005", progress: bool = T
     progress : bool
         Progress bar over the documents of a MotionDB with more than 50 documents.
     threads : int, optional
-        Threads over batches of documents of a MotionDB (default :func:`mocapviz.batch.default_threads`: the
+        Threads over batches of documents of a MotionDB (default :func:`mocapviz.parallel.default_threads`: the
         cores this process may use, at most 8).
     scheduler : None, "local", str or dask.distributed.Client
-        Compute the batches of whole documents of a MotionDB as Dask tasks (:func:`mocapviz.cluster.dask_client`:
+        Compute the batches of whole documents of a MotionDB as Dask tasks (:func:`mocapviz.parallel.dask_client`:
         ``"local"`` starts a local cluster for this call, an address connects to a scheduler whose workers see the
         database's path, a Client is used as it is). None (default): threads in this process. Same values.
 

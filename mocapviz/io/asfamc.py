@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .. import rotations
+from ..motion import rotations
 from ..errors import MocapFormatError, ParameterError
 from ..motion import Motion, fps_problem
 from .checks import ANGLE_LIMIT_DEG, DISTANCE_LIMIT_CM, checked_forward_kinematics, describe, first_outside

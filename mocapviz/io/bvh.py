@@ -29,7 +29,7 @@ import re
 
 import numpy as np
 
-from .. import rotations
+from ..motion import rotations
 from ..errors import MocapFormatError, ParameterError
 from ..motion import Motion
 from .checks import (
@@ -354,7 +354,7 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
 
 def _stands_on_z(motion: Motion) -> bool:
     """True if the figure's head is above its hips along z rather than y (needs a rig the name rules map)."""
-    from ..skeleton import name_mapping
+    from ..motion.skeleton import name_mapping
 
     mapping = name_mapping(motion.joint_names)
     if "head" not in mapping or "root" not in mapping:

@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .. import rotations
+from ..motion import rotations
 from ..errors import MocapFormatError
 from ..motion import FPS_RANGE, fps_problem
 
@@ -72,13 +72,13 @@ def checked_forward_kinematics(
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Forward kinematics of a whole clip, a block of frames at a time, into float32 arrays.
 
-    Peak memory is the returned arrays plus one block's temporaries (:func:`mocapviz.rotations.forward_kinematics`
+    Peak memory is the returned arrays plus one block's temporaries (:func:`mocapviz.motion.rotations.forward_kinematics`
     of the whole clip would hold float64 copies of everything, several times the result).
 
     Parameters
     ----------
     n_frames : int
-    parents, orders : see :func:`mocapviz.rotations.forward_kinematics` (J joints).
+    parents, orders : see :func:`mocapviz.motion.rotations.forward_kinematics` (J joints).
     block : ``block(a, b) -> (euler, translations)``
         Euler angles [shape=(b-a, J, 3)] and local translations [shape=(b-a, J, 3)] (file units) of frames a to b-1
         (it may also keep what else the reader returns of those frames, such as the file's channel values).
@@ -87,7 +87,7 @@ def checked_forward_kinematics(
     frame_line : ``frame_line(frame) -> int or None`` -- the file line of a frame (0-based), for error messages.
     scale : float or ``scale(positions) -> float``
         Centimetres per file unit, or a function of the first frame's positions [shape=(J, 3)] (file units).
-    **fk_options : ``own_frame``, ``pre``, ``post``, ``degrees`` of :func:`~mocapviz.rotations.forward_kinematics`.
+    **fk_options : ``own_frame``, ``pre``, ``post``, ``degrees`` of :func:`~mocapviz.motion.rotations.forward_kinematics`.
 
     Returns
     -------

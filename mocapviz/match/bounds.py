@@ -1,6 +1,6 @@
 """Lower bounds of DTW costs from a kNN search (for :mod:`mocapviz.match.pruned`).
 
-A query frame's k nearest database frames (:class:`mocapviz.knn.KnnIndex`, exact) say, for every range of
+A query frame's k nearest database frames (:class:`mocapviz.similarity.knn.KnnIndex`, exact) say, for every range of
 database frames (a document or a window), how close that frame can come to the range: the nearest neighbour
 inside the range if there is one, else the k-th neighbour's distance, which no frame left out of the list can
 undercut. Every DTW path over a range holds at least one cell in each query row, so the sum of these row bounds

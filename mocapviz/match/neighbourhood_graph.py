@@ -36,8 +36,8 @@ def neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: f
     Parameters
     ----------
     query : np.ndarray [shape=(m, d)], features of the query frames in the index's feature set.
-    knn_index : mocapviz.knn.KnnIndex over the database's features (N, d).
-    k, radius, eps, threads : see :meth:`mocapviz.knn.KnnIndex.query`.
+    knn_index : mocapviz.similarity.knn.KnnIndex over the database's features (N, d).
+    k, radius, eps, threads : see :meth:`mocapviz.similarity.knn.KnnIndex.query`.
     exclude : np.ndarray [shape=(2,)], int, optional
         One [start, stop) range of database frames no query frame may match (e.g. the query's own document).
 
@@ -164,16 +164,16 @@ def lng(query, knn_index, k: int = 64, radius: float | None = None, n_matches: i
     Parameters
     ----------
     query : np.ndarray [shape=(m, d)], m >= 2, features of the query frames in the index's feature set.
-    knn_index : mocapviz.knn.KnnIndex over the database's features (N, d), e.g. ``KnnIndex(load_numeric(db,
+    knn_index : mocapviz.similarity.knn.KnnIndex over the database's features (N, d), e.g. ``KnnIndex(load_numeric(db,
         "F15E"))``.
     k : int, at most this many neighbours per query frame (1 <= k <= indexed frames).
     radius : float, optional, only neighbours at distance < radius (feature units).
     n_matches : int, matches wanted (its old name ``k_matches`` still works, with a FutureWarning).
     starts : np.ndarray [shape=(B,)], int, optional: first frame of every document (``db.documents.start``);
         default one document.
-    eps : float, ε-approximate kNN (see :meth:`mocapviz.knn.KnnIndex.query`).
+    eps : float, ε-approximate kNN (see :meth:`mocapviz.similarity.knn.KnnIndex.query`).
     exclude : [start, stop), optional: database frames not to match (the query's own document).
-    threads : int, optional, kNN threads (default :func:`mocapviz.batch.default_threads`).
+    threads : int, optional, kNN threads (default :func:`mocapviz.parallel.default_threads`).
     paths : bool, return each match's path.
 
     Returns

@@ -1,4 +1,4 @@
-"""Plot builders (ARCHITECTURE: "DataFrames, arrays -> mocapviz.viz"): pure functions from experiment outputs to
+"""Plot builders (docs/architecture.md, the viz layer: DataFrames, arrays -> plots): pure functions from experiment outputs to
 HoloViews objects with bokeh options.
 
 matching.py   Krüger et al. 2010 Fig. 3 (similarity_layout), §4.2 (accuracy_plot); Müller et al. 2005 §7 Fig. 11

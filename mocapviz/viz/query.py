@@ -4,7 +4,7 @@ the hits of a query are counted as relevant or not by hand; here a label table d
 precision_recall        ranked hits + document labels -> precision and recall after each ranked document.
 precision_recall_plot   that table as two curves over the rank.
 
-Relevance, precision and recall are those of :mod:`mocapviz.evaluation`, the one definition of the product: the
+Relevance, precision and recall are those of :mod:`mocapviz.experiments.evaluation`, the one definition of the product: the
 hits are turned into a ranking of documents (a document counts once, at its first hit), the query's own document is
 left out of the ranking and of the relevant set, and a document is relevant when it carries the query document's
 label.
@@ -17,7 +17,7 @@ import holoviews.plotting.bokeh  # registers the bokeh backend and its options
 import numpy as np
 import pandas as pd
 
-from .. import evaluation
+from ..experiments import evaluation
 from ..errors import ParameterError
 
 
@@ -34,10 +34,10 @@ def precision_recall(hit_docs, documents: pd.DataFrame, query_doc: int) -> pd.Da
     -------
     pandas.DataFrame, one row per distinct document with a hit, other than the query's, in the order of its first
     hit: ``rank`` (1-based rank of the document), ``doc_id``, ``relevant`` (bool), ``precision`` and ``recall``
-    after this document (:func:`mocapviz.evaluation.precision_recall`), ``hit_rank`` (1-based position of the
+    after this document (:func:`mocapviz.experiments.evaluation.precision_recall`), ``hit_rank`` (1-based position of the
     document's first hit in ``hit_docs``, as in the hits table). ``attrs["n_relevant"]`` is the number of other
     documents with the query's label (recall is NaN when 0) and ``attrs["average_precision"]`` the ranking's AP
-    (:func:`mocapviz.evaluation.average_precision`).
+    (:func:`mocapviz.experiments.evaluation.average_precision`).
 
     Raises
     ------

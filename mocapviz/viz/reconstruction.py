@@ -19,7 +19,7 @@ import holoviews as hv
 import pandas as pd
 
 from ..errors import ParameterError
-from ..skeleton import CANONICAL_JOINTS
+from ..motion.skeleton import CANONICAL_JOINTS
 from .paper import comparison_bars, curves
 
 __all__ = ["baseline_bars", "compare_table3", "compare_table4", "error_curves", "joint_error_bars", "paper_bars",

@@ -9,7 +9,7 @@ neighbour_poses    Fig. 1: the k nearest poses of a query pose, each turned into
                    facing +z) and drawn together, the query in front.
 png_bytes          an RGB image as PNG bytes (for ``panel.pane.PNG``).
 
-Poses are float (J, 3) arrays in cm, y up, joints in :data:`mocapviz.skeleton.CANONICAL_JOINTS` order. VTK is not
+Poses are float (J, 3) arrays in cm, y up, joints in :data:`mocapviz.motion.skeleton.CANONICAL_JOINTS` order. VTK is not
 thread safe (a plotter rendered from another thread than its own crashes the process): every drawing is done in
 one render thread, on a plotter kept per (viewports, size), whichever thread asks for it; concurrent dashboard
 sessions queue for a few milliseconds.
@@ -24,7 +24,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..errors import ParameterError
-from ..skeleton import CANONICAL_PARENTS, body_frame
+from ..motion.skeleton import CANONICAL_PARENTS, body_frame
 
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
 _RENDER_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mocapviz-vtk")

@@ -9,7 +9,7 @@ from __future__ import annotations
 import holoviews as hv
 import holoviews.plotting.bokeh  # registers the bokeh backend and its options
 
-from ..templates import DELTA, MotionTemplate
+from ..relational.templates import DELTA, MotionTemplate
 
 __all__ = ["template_image"]
 

@@ -2,7 +2,7 @@
 
 relational_timeline   Müller, Röder & Clausen 2005 §3-4: one row per boolean feature, its runs of 1 drawn as bars
                       coloured by feature group (lower / upper / mix), the segment boundaries of the whole feature
-                      vector (§4, the F-segmentation of :func:`mocapviz.segmentation.segment`) as thin lines, an optional highlighted span.
+                      vector (§4, the F-segmentation of :func:`mocapviz.features.segmentation.segment`) as thin lines, an optional highlighted span.
 numeric_curves        Krüger, Tautges, Weber & Zinke 2010 §3.2: the coordinates of a numeric feature set (e.g. F15E,
                       cm in the body frame) against time.
 runs                  (feature, start, stop) runs of 1 of a boolean (T, f) array.
@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ParameterError
-from ..segmentation import segment
+from ..features.segmentation import segment
 
 GROUP_COLOURS = {"lower": "#1f77b4", "upper": "#d62728", "mix": "#2ca02c"}
 LEGEND_ROW = 17  # pixels per legend entry of numeric_curves (9 pt labels, no spacing)

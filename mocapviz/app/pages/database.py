@@ -9,7 +9,7 @@ import numpy as np
 import panel as pn
 
 from ...features import NUMERIC_SETS, feature_groups, numeric_columns
-from ...segmentation import segment
+from ...features.segmentation import segment
 from ...viz.timeline import numeric_curves, relational_timeline
 from ..player import SkeletonPlayer
 from ..widgets import results_table

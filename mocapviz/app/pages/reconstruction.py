@@ -1,5 +1,5 @@
 """Reconstruction page: a clip of the database rebuilt from six synthetic markers with local linear pose models
-(Krüger, Tautges, Weber & Zinke 2010 §5.2, after Chai & Hodgins 2005; the method is :mod:`mocapviz.reconstruction`).
+(Krüger, Tautges, Weber & Zinke 2010 §5.2, after Chai & Hodgins 2005; the method is :mod:`mocapviz.similarity.reconstruction`).
 
 The test clip's four end effectors, head and root become markers with uniform noise (§5.2: "randomly disturbed
 within a range of 1mm"; a fixed seed per clip, as in :mod:`mocapviz.experiments.marker_reconstruction`, so the page's
@@ -20,8 +20,8 @@ import panel as pn
 from ...errors import ParameterError
 from ...experiments.marker_reconstruction import frame_actors, marker_clip
 from ...features import NUMERIC_SETS
-from ...reconstruction import DEFAULT_K, MARKERS, PosePrior, reconstruct, reconstruction_errors
-from ...skeleton import CANONICAL_JOINTS
+from ...similarity.reconstruction import DEFAULT_K, MARKERS, PosePrior, reconstruct, reconstruction_errors
+from ...motion.skeleton import CANONICAL_JOINTS
 from ...viz.reconstruction import error_curves, joint_error_bars
 from ..player import SkeletonPlayer
 from ..progress import Task
@@ -34,7 +34,7 @@ PRIORS = {"without the test clip": "clip", "without the test clip's actor": "act
 
 # ============================================================================ computations (no widgets)
 def default_k(n_frames: int) -> int:
-    """The k offered first: :data:`mocapviz.reconstruction.DEFAULT_K`, at most a quarter of the database's frames (a
+    """The k offered first: :data:`mocapviz.similarity.reconstruction.DEFAULT_K`, at most a quarter of the database's frames (a
     prior leaving out one clip or one of several actors keeps more than that, so the default always works)."""
     return max(1, min(DEFAULT_K, n_frames // 4))
 
@@ -101,7 +101,7 @@ def run_reconstruction(backend, doc: int, kind: str, numeric_set: str, k: int, n
 
     Returns
     -------
-    dict: ``truth``, ``estimate`` (T, 24, 3) cm; ``errors`` (:func:`mocapviz.reconstruction.reconstruction_errors`);
+    dict: ``truth``, ``estimate`` (T, 24, 3) cm; ``errors`` (:func:`mocapviz.similarity.reconstruction.reconstruction_errors`);
     ``prior_frames`` (int), ``left_out`` (str), ``seconds`` (the first computation's wall time).
     """
     def compute() -> dict:

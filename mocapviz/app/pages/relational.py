@@ -3,9 +3,9 @@
 
 The example is a frame span of one document (by default the session's clip and span from the Database page's
 player); the user ticks relational features of the three groups (lower, upper, mix; the rest are "don't care")
-and a kind of hit. The hits are ranked by :func:`mocapviz.query.query_by_example`; clicking one plays the query
+and a kind of hit. The hits are ranked by :func:`mocapviz.relational.query.query_by_example`; clicking one plays the query
 span beside it. When the database has labels, the hits are judged against the query document's label
-(:func:`mocapviz.viz.query.precision_recall`, the definition of :mod:`mocapviz.evaluation`: documents are ranked by
+(:func:`mocapviz.viz.query.precision_recall`, the definition of :mod:`mocapviz.experiments.evaluation`: documents are ranked by
 their first hit, the query document itself is left out, a document is relevant when it has the query's label; recall
 is over the other documents with that label).
 """
@@ -18,7 +18,7 @@ import pandas as pd
 import panel as pn
 
 from ...features import feature_groups, relational_features
-from ...query import query_by_example, query_segmentation
+from ...relational.query import query_by_example, query_segmentation
 from ...viz.query import precision_recall, precision_recall_plot
 from ..player import SkeletonPlayer
 from ..progress import Task
@@ -146,7 +146,7 @@ class RelationalPage(pn.viewable.Viewer):
     def query_segments(self) -> int:
         """The query's segments in the feature group where it has the most, on the ticked features (1 when none
         is ticked or the span is too short): m-mismatch hits allow at most that many less one mismatches, as the
-        library caps m per group (:func:`mocapviz.query.query_by_example`)."""
+        library caps m per group (:func:`mocapviz.relational.query.query_by_example`)."""
         doc, (first, last) = int(self.doc.value), tuple(int(v) for v in self.span.value)
         if last <= first:
             return 1
@@ -182,7 +182,7 @@ class RelationalPage(pn.viewable.Viewer):
         return None
 
     def search(self, q: dict) -> pd.DataFrame:
-        """The ranked hits of ``q`` (:func:`mocapviz.query.query_by_example`), cached per database."""
+        """The ranked hits of ``q`` (:func:`mocapviz.relational.query.query_by_example`), cached per database."""
         key = ("relational query", RELATIONAL_SET, q["doc"], q["span"], tuple(sorted(q["features"])), q["mode"],
                q["mismatches"] if q["mode"] == "mismatch" else 0)
         first, last = q["span"]

@@ -2,7 +2,7 @@
 the open database (:func:`mocapviz.experiments.retrieval_quality`).
 
 Labelled documents are the queries (a seeded sample of :data:`DEFAULT_QUERIES` by default, so the page answers in
-seconds on the demo database); each method ranks the other documents, judged by :mod:`mocapviz.evaluation`. The
+seconds on the demo database); each method ranks the other documents, judged by :mod:`mocapviz.experiments.evaluation`. The
 summary table (mAP leave-one-out and leave-group-out, P@1, P@10, recall of brute-force DTW's top 10, ms per query),
 the AP per class and method and the precision/recall curves appear behind the Evaluate button, computed in a worker
 thread and cached per database and settings (:meth:`Backend.retrieval`).

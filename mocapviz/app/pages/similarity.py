@@ -1,6 +1,6 @@
 """Similarity search page: numeric similarity searches of Krüger, Tautges, Weber & Zinke 2010 on the session's clip.
 
-0. Search (:class:`mocapviz.search.SimilaritySearch`): the whole clips, or the stretches of documents, that move
+0. Search (:class:`mocapviz.similarity.search.SimilaritySearch`): the whole clips, or the stretches of documents, that move
    most like the current span by DTW, exact or fast; a chosen result plays beside the query, aligned by its DTW
    warping path.
 1. Nearest neighbours of the current frame (§3.3): the k nearest database frames by a numeric feature set (kd-tree
@@ -23,9 +23,9 @@ import panel as pn
 from ...errors import ParameterError
 from ...experiments.matching import similarity_matrices
 from ...features import NUMERIC_SETS
-from ...knn import describe_frames
+from ...similarity.knn import describe_frames
 from ...match.neighbourhood_graph import lng
-from ...search import MODES as SEARCH_MODES
+from ...similarity.search import MODES as SEARCH_MODES
 from ...validation import count
 from ...viz.matching import similarity_layout
 from ...viz.skeleton import neighbour_poses, png_bytes
@@ -72,7 +72,7 @@ def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own
 
     Returns
     -------
-    pd.DataFrame, :func:`mocapviz.knn.describe_frames` (rank, frame, doc_id, name, doc_frame, time_s, distance,
+    pd.DataFrame, :func:`mocapviz.similarity.knn.describe_frames` (rank, frame, doc_id, name, doc_frame, time_s, distance,
     labels), nearest first.
     """
     start, stop = _own_frames(backend, doc)
@@ -157,7 +157,7 @@ def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, n_ma
 def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, mode: str, n_matches: int,
                 exclude_own: bool) -> pd.DataFrame:  # fmt: skip
     """The documents (``kind="clips"``) or stretches (``"stretches"``) that move most like the span, by DTW on a
-    numeric set (:class:`mocapviz.search.SimilaritySearch`, cached per numeric set by the Backend).
+    numeric set (:class:`mocapviz.similarity.search.SimilaritySearch`, cached per numeric set by the Backend).
 
     Parameters
     ----------
@@ -171,7 +171,7 @@ def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, 
 
     Returns
     -------
-    pd.DataFrame, best first: :meth:`~mocapviz.search.SimilaritySearch.clips`' columns (rank, doc_id, name, start,
+    pd.DataFrame, best first: :meth:`~mocapviz.similarity.search.SimilaritySearch.clips`' columns (rank, doc_id, name, start,
     end (frames of the result's document), frames, cost, normalised_cost, labels, path ((L, 2) (query frame within
     the span, document frame))) plus start_s and end_s (seconds). ``attrs``: the search's (ms, aligned, ...).
     """

@@ -1,11 +1,11 @@
 """Motion templates page: a class learned from its labelled examples and its instances found in the whole database
-(Müller & Röder 2006; :mod:`mocapviz.templates`).
+(Müller & Röder 2006; :mod:`mocapviz.relational.templates`).
 
 The user picks a class (a ``label`` shared by at least two documents), optionally the actors whose documents teach
 it, the relational set, the quantisation threshold δ, K and an optional limit on the cost. "Learn and search" then,
-in a worker thread behind a progress bar: learns the template (:func:`mocapviz.templates.learn_class`, cached per
+in a worker thread behind a progress bar: learns the template (:func:`mocapviz.relational.templates.learn_class`, cached per
 class, actors and set), computes the database's relational features of the set (once per set) and finds the K best
-instances by subsequence DTW (:func:`mocapviz.templates.find_instances`). The template is drawn as the paper draws
+instances by subsequence DTW (:func:`mocapviz.relational.templates.find_instances`). The template is drawn as the paper draws
 it (features × time, white 0, black 1, grey don't care; or its averaged values); a chosen hit plays beside one
 training example of the template, the two aligned by DTW of their relational features.
 """
@@ -18,7 +18,7 @@ import panel as pn
 
 from ...features import relational_features
 from ...match import dtw
-from ...templates import DELTA, DONT_CARE, MotionTemplate, find_instances, learn_class, template_distance
+from ...relational.templates import DELTA, DONT_CARE, MotionTemplate, find_instances, learn_class, template_distance
 from ...validation import count, number, one_of
 from ...viz.templates import template_image
 from ..player import SkeletonPlayer
@@ -71,7 +71,7 @@ def _actors_key(actors) -> tuple[str, ...] | None:
 
 
 def learn(backend, label: str, actors, relational_set: str) -> MotionTemplate:
-    """The motion template of class ``label`` (:func:`mocapviz.templates.learn_class`), cached per (label, actors,
+    """The motion template of class ``label`` (:func:`mocapviz.relational.templates.learn_class`), cached per (label, actors,
     set).
 
     Parameters
@@ -94,7 +94,7 @@ def learn(backend, label: str, actors, relational_set: str) -> MotionTemplate:
 
 def search_template(backend, template: MotionTemplate, delta: float, n_matches: int,
                     max_cost: float | None) -> pd.DataFrame:  # fmt: skip
-    """The instances of ``template`` in the whole database (:func:`mocapviz.templates.find_instances`), described.
+    """The instances of ``template`` in the whole database (:func:`mocapviz.relational.templates.find_instances`), described.
 
     Parameters
     ----------
@@ -190,7 +190,7 @@ def training_example(template: MotionTemplate, hit_doc: int) -> int:
 
 def example_alignment(backend, template: MotionTemplate, example_doc: int, start: int, end: int) -> np.ndarray:
     """The DTW alignment of a training example's clip and a hit's clip, by their relational features of the
-    template's set and the local cost of learning a template (:func:`mocapviz.templates.template_distance`, the
+    template's set and the local cost of learning a template (:func:`mocapviz.relational.templates.template_distance`, the
     mean mismatch over the features).
 
     Parameters

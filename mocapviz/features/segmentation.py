@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from .errors import ParameterError
+from ..errors import ParameterError
 
 MAX_FEATURES = 62  # codes are int64
 

@@ -33,9 +33,9 @@ import pandas as pd
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
-from .batch import map_ordered, parallelism
-from .errors import ParameterError
-from .validation import count, one_of, renamed
+from ..parallel import map_ordered, parallelism
+from ..errors import ParameterError
+from ..validation import count, one_of, renamed
 
 ENGINES = ("ckdtree", "brute")
 LEAFSIZE = 16  # points per kd-tree leaf
@@ -296,7 +296,7 @@ class KnnIndex:
             Approximation: the k-th returned distance is at most (1 + eps) times the true k-th nearest distance
             (0: exact). The brute engine is always exact.
         threads : int, optional
-            Threads of the search (default :func:`mocapviz.batch.default_threads`: the cores this process may use,
+            Threads of the search (default :func:`mocapviz.parallel.default_threads`: the cores this process may use,
             at most 8). (Formerly ``workers``: still accepted, with a FutureWarning.)
         exclude : np.ndarray [shape=(q, 2) or (2,)], int, optional
             Per query, a [start, stop) range of frames it must not return (e.g. the query's own document, so that
@@ -507,7 +507,7 @@ def base_poses(features, radius: float, k: int = 32, valid=None, threads: int | 
     valid : np.ndarray [shape=(N,)], bool, optional
         Frames to cluster (default all).
     threads : int, optional
-        Threads of the radius search (default :func:`mocapviz.batch.default_threads`).
+        Threads of the radius search (default :func:`mocapviz.parallel.default_threads`).
 
     Returns
     -------

@@ -16,10 +16,10 @@ import numpy as np
 import pandas as pd
 
 from . import index as index_mod
-from .errors import ParameterError
-from .features import feature_groups, feature_names, relational_features
-from .segmentation import segment
-from .validation import some_of
+from ..errors import ParameterError
+from ..features import feature_groups, feature_names, relational_features
+from ..features.segmentation import segment
+from ..validation import some_of
 
 MODES = ("adaptive", "fuzzy", "exact", "mismatch")
 
@@ -48,7 +48,7 @@ def query_segmentation(values: np.ndarray, names: list[str], features, relationa
     Returns
     -------
     dict group -> (chosen, seq): ``chosen`` the selected columns within the group's features, ``seq`` the
-    :class:`~mocapviz.segmentation.Segmentation` (``seq.codes``: the L query segments); groups without a selected
+    :class:`~mocapviz.features.segmentation.Segmentation` (``seq.codes``: the L query segments); groups without a selected
     feature are left out.
     """
     chosen = _check_features(features, relational_set)
@@ -89,7 +89,7 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     Parameters
     ----------
     db : MotionDB
-        With relational indexes built (:func:`mocapviz.index.build` / ``mocapviz index DB``).
+        With relational indexes built (:func:`mocapviz.relational.index.build` / ``mocapviz index DB``).
     example : Motion
         The query clip (any skeleton; e.g. ``db.motion(3)[120:360]`` or ``mocapviz.load(path)``).
     features : list of str, optional
@@ -103,7 +103,7 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
         the feature function restricted to the selection, §5.2); selecting every feature of a group gives the
         strict form of §5.1 on the stored segmentation. ``mismatch``: as exact, with at most ``mismatches``
         of the query's segments allowed to disagree (each a run of the selected features in the database, as
-        :meth:`~mocapviz.index.InvertedIndex.adaptive_mismatch`); ``mismatches`` is capped at the query's
+        :meth:`~mocapviz.relational.index.InvertedIndex.adaptive_mismatch`); ``mismatches`` is capped at the query's
         segments - 1. ``fuzzy``: plain fuzzy hits (§5.2, eq. 11) on the database segmentation as stored, i.e.
         under *all* features of the group: query segment l must be exactly one stored segment. A left-out
         feature that changes inside a query segment splits the database's segments there, so the query's
@@ -117,7 +117,7 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
         disagree (default: any).
     relational_set : {"2005", "2006"}
     indexes : dict, optional
-        Group -> InvertedIndex, if already loaded (default :func:`mocapviz.index.load`).
+        Group -> InvertedIndex, if already loaded (default :func:`mocapviz.relational.index.load`).
 
     Returns
     -------

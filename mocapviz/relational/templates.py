@@ -41,11 +41,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import store
-from .errors import MotionDBError, ParameterError, UnknownKeyError
-from .match import best_ends, dtw, subsequence_costs
-from .match.time_warping import matches_frame
-from .validation import count, number
+from .. import store
+from ..errors import MotionDBError, ParameterError, UnknownKeyError
+from ..match import best_ends, dtw, subsequence_costs
+from ..match.time_warping import matches_frame
+from ..validation import count, number
 
 FORMAT = "mocapviz.MotionTemplate"
 VERSION = 1
@@ -277,7 +277,7 @@ def keyframe_ranges(template: MotionTemplate, indexes: dict, doc_starts, n_frame
     Parameters
     ----------
     template : MotionTemplate of a relational set whose indexes are given.
-    indexes : dict group -> mocapviz.index.InvertedIndex (``mocapviz.index.load_or_build(db, relational_set)``).
+    indexes : dict group -> mocapviz.relational.index.InvertedIndex (``mocapviz.relational.index.load_or_build(db, relational_set)``).
     doc_starts : np.ndarray [shape=(B,)], int: first frame of every document.
     n_frames : int, frames of the database.
     delta : float, the quantisation threshold.
@@ -422,7 +422,7 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     MotionTemplate; ``meta`` holds the relational set, the example doc ids, the actors, the database path and its
     ``generation`` (``db.manifest["generation"]``: the state of the database it was learned from).
     """
-    from .features import relational_features
+    from ..features import relational_features
 
     docs = db.documents
     chosen = docs[docs["label"].astype("string") == str(label)]
@@ -438,7 +438,7 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     if values is None:
         values, names = relational_features(db, relational_set, progress=False)
     else:
-        from .features import feature_names
+        from ..features import feature_names
 
         names = feature_names(relational_set)
     examples = [values[s : s + n] for s, n in zip(chosen["start"], chosen["n_frames"])]

@@ -39,15 +39,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .errors import ParameterError
-from .features import numeric_features, numeric_of
-from .features.numeric import NUMERIC_SETS, default_pca
+from ..errors import ParameterError
+from ..features import numeric_features, numeric_of
+from ..features.numeric import NUMERIC_SETS, default_pca
 from .knn import KnnIndex
-from .match.bounds import box_rows, range_of, row_bounds
-from .match.pruned import search_ranges
-from .match.time_warping import dtw, select_matches
-from .motion import Motion
-from .validation import count, frame_span, one_of
+from ..match.bounds import box_rows, range_of, row_bounds
+from ..match.pruned import search_ranges
+from ..match.time_warping import dtw, select_matches
+from ..motion import Motion
+from ..validation import count, frame_span, one_of
 
 MODES = ("exact", "fast", "brute")
 NEIGHBOURS = 32  # k: nearest database frames per query frame (bounds and fast mode's seeds)
@@ -162,7 +162,7 @@ class SimilaritySearch:
             values = self.features[start + a : start + b]
         else:
             if isinstance(example, (str, os.PathLike)):
-                from .io import load
+                from ..io import load
 
                 example = load(Path(example))
             if not isinstance(example, Motion):

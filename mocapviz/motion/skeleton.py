@@ -22,7 +22,7 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
-from .errors import SkeletonMappingError
+from ..errors import SkeletonMappingError
 from .motion import Motion
 
 CANONICAL_JOINTS = (

@@ -1,9 +1,9 @@
 """Hybrid search: relational query by example picks candidate documents, DTW on numeric features ranks them.
 
-The relational stage (Müller, Röder & Clausen 2005 §5-6.2, :func:`mocapviz.query.query_by_example`) with a lenient
+The relational stage (Müller, Röder & Clausen 2005 §5-6.2, :func:`mocapviz.relational.query.query_by_example`) with a lenient
 feature selection -- few features, adaptive fuzzy hits or m-mismatch hits -- keeps the documents that share the
 query's coarse course of relations (e.g. "a foot raised, then both down") and drops most others, whatever their
-speed or style. The numeric stage (Krüger et al. 2010 §3.2 features, :class:`mocapviz.search.SimilaritySearch`)
+speed or style. The numeric stage (Krüger et al. 2010 §3.2 features, :class:`mocapviz.similarity.search.SimilaritySearch`)
 aligns the whole query with each candidate document by DTW and ranks them by cost / (query frames + document
 frames). This is the refinement the 2005 paper points to at the end of §6.2 ("one could refine the retrieval results
 by applying more involved DTW-based techniques, see Sect. 7"): the index cuts the search space down, DTW ranks.
@@ -17,11 +17,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .errors import ParameterError
-from .motion import Motion
-from .query import MODES, query_by_example
+from ..errors import ParameterError
+from ..motion import Motion
+from ..relational.query import MODES, query_by_example
 from .search import COLUMNS, SimilaritySearch
-from .validation import count
+from ..validation import count
 
 # Lenient selections per HDM05 class for the hybrid, as keyword arguments of hybrid_search: fewer features than
 # DEFAULT_QUERIES (mocapviz.experiments.relational), so that the relational stage keeps (nearly) every clip of the
@@ -55,15 +55,15 @@ def hybrid_search(db, example, features=None, mode: str = "adaptive", mismatches
     Parameters
     ----------
     db : MotionDB
-        With relational indexes (:func:`mocapviz.index.build`); numeric features are read when stored, else computed.
+        With relational indexes (:func:`mocapviz.relational.index.build`); numeric features are read when stored, else computed.
     example : int or Motion
         The query clip: a doc id of ``db`` (the whole document) or a Motion (resampled for the DTW when its rate
         differs from the database's).
     features : list of str, optional
         The relational selection (names of ``relational_set``); default all, as
-        :func:`~mocapviz.query.query_by_example` (strict: few candidates). :data:`HYBRID_QUERIES` holds lenient ones per HDM05 class.
+        :func:`~mocapviz.relational.query.query_by_example` (strict: few candidates). :data:`HYBRID_QUERIES` holds lenient ones per HDM05 class.
     mode : {"adaptive", "fuzzy", "exact", "mismatch"}
-        The relational hits (see :func:`~mocapviz.query.query_by_example`); lenient: ``adaptive`` or ``mismatch``.
+        The relational hits (see :func:`~mocapviz.relational.query.query_by_example`); lenient: ``adaptive`` or ``mismatch``.
     mismatches : int
         m for ``mode="mismatch"``.
     relational_set : {"2005", "2006"}

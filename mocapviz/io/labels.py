@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .errors import LabelTableError
+from ..errors import LabelTableError
 
 INT_COLUMNS = ("frames", "fps", "take")
 MAIN_LABEL_COLUMNS = ("class", "description", "content")

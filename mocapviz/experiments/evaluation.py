@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .errors import ParameterError
+from ..errors import ParameterError
 
 
 def relevance(ranked_docs, labels: pd.Series, query_doc: int | None, candidates=None,

@@ -18,228 +18,35 @@ naming it, never an answer. One writer at a time: the writer lock (``.lock``) is
 is held is read, the files are read, the documents committed), so a second writer waits and then skips what the
 first added; a failed first ingest removes only the empty database it created, never what another committed.
 
-Ingest reads each file in an independent task (:func:`read_document`), run in chunks of files on threads of this
-process or as Dask tasks (``scheduler=``, see :mod:`mocapviz.cluster`) by :func:`mocapviz.batch.map_ordered`; the
-commit is done by the caller, in input order, once every file has been read.
+Ingest reads the files in parallel (:mod:`mocapviz.db.ingest`); the commit is done here, in input order, once
+every file has been read. See ``docs/architecture.md`` (the db layer).
 """
 from __future__ import annotations
 
 import contextlib
-import glob
+import dataclasses
 import hashlib
 import json
-import os
-import warnings
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from tqdm.auto import tqdm
 
-from . import store
-from .cluster import optional_client
-from .errors import (
-    LabelTableError,
-    MocapFormatError,
-    MocapvizError,
-    MotionDBError,
-    ParameterError,
-    UnknownKeyError,
-)
-from .io import FORMATS, find_asf, load
-from .labels import MAIN_LABEL_COLUMNS, labels_for, read_labels_tsv
-from .motion import Motion
-from .skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
-from .store import atomic_file, atomic_write, check_format, stamp
-from .validation import renamed
+from .. import store
+from ..errors import MotionDBError, ParameterError, UnknownKeyError
+from ..motion import Motion
+from ..motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
+from ..store import atomic_file, atomic_write, check_format, stamp
+from ..validation import renamed
+from .ingest import BASE_COLUMNS as _BASE_COLUMNS
+from .ingest import IngestOptions, expand_paths, read_new
+
+__all__ = ["FORMAT", "VERSION", "MotionDB"]
 
 FORMAT = "mocapviz.MotionDB"
 VERSION = 1
 _ARRAYS = {"positions": 3, "quaternions": 4}
-_CHUNK_MAX_BYTES = 64 << 20  # an ingest task reads at most this many bytes of motion files (or one file)
 _RESTORE = "restore it from a backup or ingest the files again into a new database"
-_BASE_COLUMNS = ["doc_id", "name", "path", "format", "start", "n_frames", "fps", "source_fps", "sha256", "label"]
-
-
-def expand_paths(paths) -> list[Path]:
-    """Motion files named by ``paths``: files, folders (searched recursively) and glob patterns.
-
-    Returns the absolute paths of the ``.amc`` / ``.bvh`` files, folders' contents sorted, duplicates removed.
-
-    Raises
-    ------
-    FileNotFoundError
-        A path or pattern that names nothing.
-    """
-    if isinstance(paths, (str, os.PathLike)):
-        paths = [paths]
-    out: list[Path] = []
-    for p in paths:
-        p = os.fspath(p)
-        if os.path.isdir(p):
-            found = sorted(f for f in Path(p).rglob("*") if f.suffix.lower() in FORMATS and f.is_file())
-        elif os.path.isfile(p):
-            found = [Path(p)]
-        else:
-            found = sorted(Path(f) for f in glob.glob(p, recursive=True) if Path(f).suffix.lower() in FORMATS)
-        if not found:
-            raise FileNotFoundError(f"{p}: no .amc or .bvh files there")
-        out += [f.resolve() for f in found]
-    return list(dict.fromkeys(out))
-
-
-def file_checksum(path, asf=None) -> str:
-    """sha256 of a motion file's bytes (an AMC together with its ASF skeleton: ``asf`` or :func:`find_asf`)."""
-    h = hashlib.sha256()
-    parts = [Path(path)]
-    if Path(path).suffix.lower() == ".amc":
-        parts.append(Path(asf) if asf is not None else find_asf(path))
-    for part in parts:
-        try:
-            with open(part, "rb") as fh:
-                for chunk in iter(lambda: fh.read(1 << 20), b""):
-                    h.update(chunk)
-        except OSError as exc:  # unreadable or vanished since it was listed: a file to skip under --skip-bad
-            raise MocapFormatError(part, f"cannot read the file ({exc.strerror or exc})") from None
-    return h.hexdigest()
-
-
-def read_document(path, fps: float | None = None, labels: dict | None = None, mapping: dict | None = None,
-                  sha256: str | None = None, **load_options) -> tuple[Motion, dict]:
-    """One ingest task: read a file, map it to the canonical skeleton, resample, describe it.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-    fps : float, optional
-        Target frame rate; default: keep the file's.
-    labels : dict, optional
-        Labels of this file; default :func:`mocapviz.labels.labels_for` (label tables beside the data).
-    mapping : dict, optional
-        Canonical joint -> joint name, overriding the automatic mapping.
-    sha256 : str, optional
-        The file's :func:`file_checksum`, if the caller has it already.
-    **load_options
-        Passed to :func:`mocapviz.load`.
-
-    Returns
-    -------
-    motion : Motion
-        Canonical joints, at ``fps``.
-    meta : dict
-        name, path, format, n_frames, fps, source_fps, sha256 and the labels.
-    """
-    path = Path(path)
-    motion = load(path, **load_options)
-    source_fps = motion.fps
-    motion = motion.canonical(mapping)
-    if fps is not None:
-        motion = motion.resample(fps)
-    labels = labels_for(path) if labels is None else dict(labels)
-    meta = {
-        "name": path.stem,
-        "path": str(path),
-        "format": path.suffix.lower().lstrip("."),
-        "n_frames": motion.n_frames,
-        "fps": motion.fps,
-        "source_fps": source_fps,
-        "sha256": sha256 or file_checksum(path, load_options.get("asf")),
-        "label": labels.pop("label", None),
-        **{k: v for k, v in labels.items() if k not in _BASE_COLUMNS},
-    }
-    return motion, meta
-
-
-@dataclass(frozen=True)
-class _ReadFailure:
-    """A file that failed to read, as a task returns it (MocapFormatError itself does not survive pickling)."""
-
-    kind: str  # the class name of the typed error (mocapviz.errors)
-    message: str
-    path: str | None = None
-    reason: str = ""
-    line: int | None = None
-
-    @classmethod
-    def of(cls, exc: MocapvizError) -> _ReadFailure:
-        if isinstance(exc, MocapFormatError):
-            return cls("MocapFormatError", str(exc), exc.path, exc.reason, exc.line)
-        return cls(type(exc).__name__, str(exc))
-
-    def error(self) -> Exception:
-        """The exception the reader raised, rebuilt (same type and message)."""
-        from . import errors
-
-        if self.kind == "MocapFormatError":
-            return MocapFormatError(self.path, self.reason, self.line)
-        return getattr(errors, self.kind, MocapvizError)(self.message)
-
-
-def _read_task(args) -> tuple[np.ndarray, np.ndarray | None, dict] | _ReadFailure:
-    """Reading one file (on a thread of this process or a Dask worker).
-
-    ``args`` = (path, sha256, fps, labels, mapping, load_options). Returns (positions [shape=(T, 24, 3)] cm,
-    quaternions [shape=(T, 24, 4)] or None, meta) of :func:`read_document`, or a :class:`_ReadFailure` for a
-    file that fails to read, so that the caller decides (raise it, or skip it with ``skip_bad``).
-    """
-    path, sha256, fps, labels, mapping, load_options = args
-    try:
-        motion, meta = read_document(path, fps, labels, mapping, sha256, **load_options)
-    except MocapvizError as exc:  # a malformed file, an unmappable rig, a bad label file beside the data, ...
-        return _ReadFailure.of(exc)
-    return motion.positions, motion.quaternions, meta
-
-
-def _read_chunk(chunk: list) -> list:
-    """An ingest task: :func:`_read_task` of each file of a chunk, in order (files fail one by one)."""
-    return [_read_task(args) for args in chunk]
-
-
-def _chunks(todo: list, parts: int, max_bytes: int = _CHUNK_MAX_BYTES) -> list[list]:
-    """``todo`` (:func:`_read_task` arguments, path first) cut into about ``parts`` contiguous chunks of similar size
-    on disk, none above ``max_bytes`` unless it is one file: a task per file costs more than reading a small file."""
-    sizes = np.array([os.path.getsize(args[0]) for args in todo], dtype=np.float64)
-    target = min(max(sizes.sum() / max(1, parts), 1.0), max_bytes)
-    out, chunk, held = [], [], 0.0
-    for args, size in zip(todo, sizes):
-        if chunk and held + size > target:
-            out.append(chunk)
-            chunk, held = [], 0.0
-        chunk.append(args)
-        held += size
-    if chunk:
-        out.append(chunk)
-    return out
-
-
-def _labels_table(labels) -> dict[str, dict] | None:
-    """Labels given to ingest -> {absolute path or file name: {column: value}}."""
-    if labels is None:
-        return None
-    if isinstance(labels, dict):
-        return {str(k): dict(v) for k, v in labels.items()}
-    if isinstance(labels, (str, os.PathLike)):
-        p = Path(labels)
-        if not p.is_file():
-            raise FileNotFoundError(f"{p}: no such label table")
-        table = read_labels_tsv(p) if p.suffix.lower() in (".tsv", ".txt") else pd.read_csv(p)
-        if "path" not in table:
-            table["path"] = [str((p.parent / f).resolve()) for f in table["file"]]
-    else:
-        table = pd.DataFrame(labels)
-    if "file" not in table and "path" not in table:
-        raise LabelTableError("a label table needs a 'file' or 'path' column")
-    out = {}
-    for row in table.to_dict("records"):
-        key = row.pop("path", None) or row.get("file")
-        row.pop("file", None)
-        row = {k: v for k, v in row.items() if not (isinstance(v, float) and np.isnan(v))}
-        if row.get("label") is None:  # the main class, as labels_for gives it for tables found automatically
-            row["label"] = next((row[c] for c in MAIN_LABEL_COLUMNS if c in row), None)
-        out[str(Path(key).resolve()) if os.path.isabs(str(key)) else str(key)] = row
-        out.setdefault(Path(str(key)).name, row)
-    return out
 
 
 class MotionDB:
@@ -397,6 +204,33 @@ class MotionDB:
         per.loc["total"] = [len(d), int(d["n_frames"].sum()), float(d["minutes"].sum())]
         return per
 
+    @classmethod
+    def sample(cls) -> MotionDB:
+        """The embedded sample as a MotionDB: 22 HDM05 clips (actors dg, mm) and 2 CMU trials at their own 120 Hz.
+
+        Built once beside the unpacked sample (:func:`mocapviz.io.datasets.sample`, under ``$MOCAPVIZ_HOME``) and
+        opened from there afterwards; the database of every Examples section of this package.
+
+        Returns
+        -------
+        MotionDB
+
+        Examples
+        --------
+        >>> db = MotionDB.sample()
+        >>> len(db), db.fps, db.positions.shape[1:]
+        (24, 120.0, (24, 3))
+        >>> db.documents.loc[db.documents.doc_id == 7, ["name", "label", "actor"]].to_numpy().tolist()
+        [['HDM_dg_kickLFront1Reps_017_120', 'kickLFront1Reps', 'dg']]
+        """
+        from ..io import datasets
+
+        folder = datasets.sample()
+        out = folder.parent / "sample.mdb"
+        if not (out / "manifest.json").exists():
+            cls.ingest(folder, out, progress=False)
+        return cls.open(out)
+
     # ------------------------------------------------------------------ writing
     @classmethod
     def create(cls, path) -> MotionDB:
@@ -434,20 +268,20 @@ class MotionDB:
         labels : path, DataFrame or dict, optional
             A label table (``file`` or ``path`` column plus label columns; TSV or CSV) or
             {path or file name: {column: value}}. Default: the label tables found beside the data
-            (``labels.tsv``, Bandai Namco ``.json``), see :func:`mocapviz.labels.labels_for`.
+            (``labels.tsv``, Bandai Namco ``.json``), see :func:`mocapviz.io.labels.labels_for`.
         mapping : dict, optional
             Canonical joint -> joint name for rigs the automatic rules cannot map.
         skip_bad : bool
             Skip files that fail to read (with a warning) instead of stopping.
         threads : int, optional
             Threads reading files in this process (the parsers' compiled kernels release the GIL); None:
-            :func:`mocapviz.batch.default_threads` (on 2 cores the 287 HDM05 clips take 0.90 s on 2 threads, 0.99 s
+            :func:`mocapviz.parallel.default_threads` (on 2 cores the 287 HDM05 clips take 0.90 s on 2 threads, 0.99 s
             on 1). Ignored when ``scheduler`` is given. (Formerly ``n_jobs``, reader processes: still accepted, with
             a FutureWarning.)
         progress : bool
             Show a progress bar.
         scheduler : None, "local", str or dask.distributed.Client
-            Read the files as Dask tasks, a few files each (:func:`mocapviz.cluster.dask_client`): ``"local"``
+            Read the files as Dask tasks, a few files each (:func:`mocapviz.parallel.dask_client`): ``"local"``
             starts a local cluster of worker processes for this call, an address connects to a running scheduler
             (its workers must see the same paths), a Client is used as it is. None (default): on ``threads``
             threads in this process. The results are committed here, in input order, whatever order the tasks
@@ -468,6 +302,7 @@ class MotionDB:
         """
         out = Path(out)
         files = expand_paths(paths)
+        options = IngestOptions(fps, labels, mapping, skip_bad, threads, progress, scheduler, load_options)
         retries = 2  # again when a concurrent failed ingest removed the empty database it created
         while True:
             created = False
@@ -479,8 +314,7 @@ class MotionDB:
                     if not (out / "manifest.json").exists():  # (not another ingest that created it first)
                         raise
             try:
-                return cls.open(out).append(files, fps=fps, labels=labels, mapping=mapping, skip_bad=skip_bad,
-                                            threads=threads, progress=progress, scheduler=scheduler, **load_options)
+                return cls.open(out)._append_files(files, options)
             except _Vanished:
                 if not retries:
                     raise
@@ -499,54 +333,20 @@ class MotionDB:
         the new documents are committed), so a second writer waits; when it goes on, it sees the documents the
         first committed and skips those files.
         """
+        options = IngestOptions(fps, labels, mapping, skip_bad, threads, progress, scheduler, load_options)
+        return self._append_files(expand_paths(paths), options)
+
+    def _append_files(self, files: list[Path], options: IngestOptions) -> MotionDB:
         with _locked(self.path):
             current = _reopen(self.path)
-            return current._append_locked(paths, fps, labels, mapping, skip_bad, threads, progress, scheduler,
-                                          load_options)  # fmt: skip
-
-    def _append_locked(self, paths, fps, labels, mapping, skip_bad, threads, progress, scheduler,
-                       load_options) -> MotionDB:  # fmt: skip
-        if fps is not None and len(self) and self.fps != float(fps):
-            raise MotionDBError(f"{self.path}: documents are at {self.fps} fps; cannot append at {fps} fps")
-        if fps is None and self.fps is not None and len(self):
-            fps = self.fps
-        table = _labels_table(labels)
-        known = set(self.documents["sha256"])
-        todo = []
-        for f in expand_paths(paths):
-            try:
-                sha256 = file_checksum(f, load_options.get("asf"))
-            except MocapFormatError as exc:  # e.g. an AMC without its ASF
-                if not skip_bad:
-                    raise
-                warnings.warn(f"skipped {exc}", stacklevel=2)
-                continue
-            if sha256 in known:
-                continue
-            lab = None if table is None else table.get(str(f), table.get(f.name, {}))
-            todo.append((str(f), sha256, fps, lab, mapping, load_options))
-        from .batch import map_ordered, parallelism  # (mocapviz.batch imports this module)
-
-        positions, quaternions, metas = [], [], []
-        with optional_client(scheduler if todo else None) as client:
-            chunks = _chunks(todo, 4 * parallelism(threads, client))
-            results = map_ordered(_read_chunk, chunks, threads, client, name="mocapviz-read")
-            bar = tqdm(total=len(todo), desc="ingest", unit="file", disable=not progress or not todo)
-            # results in input order; the first file that fails (in that order) stops the run before any write, and
-            # closing the results cancels what is pending (before the client closes)
-            with bar, contextlib.closing(results):
-                for res in (res for chunk in results for res in chunk):
-                    bar.update()
-                    if isinstance(res, _ReadFailure):
-                        if not skip_bad:
-                            raise res.error()
-                        warnings.warn(f"skipped {res.message}", stacklevel=2)
-                        continue
-                    positions.append(res[0])
-                    quaternions.append(res[1])
-                    metas.append(res[2])
-        if positions:
-            _commit(self.path, self.manifest, positions, quaternions, metas)
+            fps = options.fps
+            if fps is not None and len(current) and current.fps != float(fps):
+                raise MotionDBError(f"{current.path}: documents are at {current.fps} fps; cannot append at {fps} fps")
+            if fps is None and current.fps is not None and len(current):
+                options = dataclasses.replace(options, fps=current.fps)
+            positions, quaternions, metas = read_new(files, set(current.documents["sha256"]), options)
+            if positions:
+                _commit(current.path, current.manifest, positions, quaternions, metas)
         return MotionDB.open(self.path)
 
     def append_motions(self, motions, metas=None) -> MotionDB:
@@ -601,74 +401,6 @@ class MotionDB:
             with _locked(self.path):
                 _commit(self.path, _reopen(self.path).manifest, positions, quaternions, metas)
         return MotionDB.open(self.path)
-
-
-# ---------------------------------------------------------------------- batches of documents
-def document_batches(db: MotionDB, max_frames: int) -> tuple[pd.DataFrame, list[tuple[int, int]]]:
-    """Cut a MotionDB into batches of whole documents, contiguous in the frame arrays, for per-batch feature work.
-
-    Parameters
-    ----------
-    db : MotionDB
-    max_frames : int
-        A batch holds documents while their frames add up to at most this many (at least one document each).
-
-    Returns
-    -------
-    docs : pandas.DataFrame
-        The document table sorted by first frame.
-    batches : list of (first, last)
-        Positions in ``docs``: documents ``docs.iloc[first:last]`` form one batch; in frame order.
-    """
-    docs = db.documents.sort_values("start")
-    starts = docs["start"].to_numpy(np.int64)
-    lengths = docs["n_frames"].to_numpy(np.int64)
-    batches, first = [], 0
-    while first < len(docs):
-        last = first + 1
-        while (last < len(docs) and starts[last] == starts[last - 1] + lengths[last - 1]
-               and starts[last] + lengths[last] - starts[first] <= max_frames):
-            last += 1  # fmt: skip
-        batches.append((first, last))
-        first = last
-    return docs, batches
-
-
-@dataclass(frozen=True)
-class FrameBatch:
-    """The frames of documents ``docs.iloc[first:last]`` read from a MotionDB (:func:`read_batch`).
-
-    Attributes
-    ----------
-    start, stop : int -- the batch is database frames ``start:stop``
-    positions : np.ndarray [shape=(stop - start, 24, 3)], float32, cm
-    bounds : np.ndarray [shape=(D + 1,)], int64 -- document d is rows ``bounds[d]:bounds[d + 1]`` of ``positions``
-    fps : np.ndarray [shape=(D,)], float64 -- each document's frame rate
-    """
-
-    db_path: str
-    docs: pd.DataFrame
-    start: int
-    stop: int
-    positions: np.ndarray
-    bounds: np.ndarray
-    fps: np.ndarray
-
-    def where(self, t: int) -> str:
-        """Names row ``t`` of ``positions`` for an error: database, document id, source file and frame."""
-        d = int(np.searchsorted(self.bounds, t, side="right")) - 1
-        row = self.docs.iloc[d]
-        return f"{self.db_path}: document {row['doc_id']} ({row['path']}), frame {t - int(self.bounds[d])}"
-
-
-def read_batch(db: MotionDB, docs: pd.DataFrame, first: int, last: int) -> FrameBatch:
-    """The positions of documents ``docs.iloc[first:last]`` (one batch of :func:`document_batches`), in memory."""
-    part = docs.iloc[first:last]
-    lengths = part["n_frames"].to_numpy(np.int64)
-    start = int(part["start"].iloc[0])
-    stop = start + int(lengths.sum())
-    return FrameBatch(str(db.path), part, start, stop, np.asarray(db.positions[start:stop]),
-                      np.concatenate([[0], np.cumsum(lengths)]), part["fps"].to_numpy(np.float64))  # fmt: skip
 
 
 # ---------------------------------------------------------------------- storage helpers

@@ -35,8 +35,8 @@ from pathlib import Path
 import pandas as pd
 import pooch
 
-from .errors import MocapvizError
-from .store import atomic_folder
+from ..errors import MocapvizError
+from ..store import atomic_folder
 
 DATA_URL_ENV = "MOCAPVIZ_DATA_URL"
 HOME_ENV = "MOCAPVIZ_HOME"

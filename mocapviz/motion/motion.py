@@ -6,7 +6,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from . import rotations
-from .errors import ParameterError, UnknownKeyError
+from ..errors import ParameterError, UnknownKeyError
 
 FPS_RANGE = (1.0, 10_000.0)
 """Frame rates (frames per second) mocapviz reads from files and resamples to: a clip outside them is a broken
@@ -33,7 +33,7 @@ class Motion:
         Frames per second.
     joint_names : tuple of str [length J]
         Joint names: the source skeleton's (ASF bone tips, BVH joints and end sites) or, after
-        :meth:`canonical`, the 24 canonical joints of ``mocapviz.skeleton.CANONICAL_JOINTS``.
+        :meth:`canonical`, the 24 canonical joints of ``mocapviz.motion.skeleton.CANONICAL_JOINTS``.
     parents : np.ndarray [shape=(J,)], int64
         Parent joint index, -1 for the root; parents come before their children.
     quaternions : np.ndarray [shape=(T, J, 4)], float32, or None
@@ -108,7 +108,7 @@ class Motion:
             raise UnknownKeyError(f"{self.source or 'motion'} has no joint {name!r}; it has {', '.join(self.joint_names)}")
 
     def canonical(self, mapping: dict | None = None) -> Motion:
-        """This clip on the 24 canonical joints (``mocapviz.skeleton``), in their fixed order.
+        """This clip on the 24 canonical joints (``mocapviz.motion.skeleton``), in their fixed order.
 
         ``mapping`` (canonical name -> this motion's joint name) overrides the automatic rules.
         """

@@ -21,7 +21,7 @@ BONES                 the 23 (parent, child) joint pairs of the canonical skelet
 The method in detail
 --------------------
 Coordinates. A database pose y is all 24 canonical joints in its *body frame*
-(:func:`mocapviz.skeleton.body_frame`: root at the origin, heading from the hip line rotated to face +z), flattened
+(:func:`mocapviz.motion.skeleton.body_frame`: root at the origin, heading from the hip line rotated to face +z), flattened
 joint-major to 72 numbers, in cm. The markers are put into the same frame: marker minus root marker, rotated by
 minus the heading. Markers alone do not give the heading (five points and a root do not fix the pelvis
 orientation); we treat the root marker as a rigid pelvis marker cluster that gives position *and* heading, and
@@ -30,7 +30,7 @@ the body frame; Chai & Hodgins express their control signals relative to the roo
 paper's description, and we do not know how the heading was measured there.
 
 Neighbour search (§5.2). F15E = lwrist, rwrist, lankle, rankle, head in the body frame, so the five body-frame
-markers (:func:`marker_query`) *are* an F15E vector and can be searched directly in a :class:`mocapviz.knn.KnnIndex`
+markers (:func:`marker_query`) *are* an F15E vector and can be searched directly in a :class:`mocapviz.similarity.knn.KnnIndex`
 over the prior's F15E features. Chai & Hodgins searched a precomputed neighbourhood graph around the neighbours of
 the previous frame; Krüger et al. replace it by an exact kd-tree search.
 
@@ -81,13 +81,13 @@ from __future__ import annotations
 import numpy as np
 from tqdm.auto import tqdm
 
-from .database import MotionDB
-from .errors import ParameterError
-from .features.numeric import NUMERIC_SETS, PCAModel, default_pca, numeric_features, numeric_of
+from ..db.database import MotionDB
+from ..errors import ParameterError
+from ..features.numeric import NUMERIC_SETS, PCAModel, default_pca, numeric_features, numeric_of
 from .knn import KnnIndex
-from .motion import Motion
-from .skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS, body_frame
-from .validation import count
+from ..motion import Motion
+from ..motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS, body_frame
+from ..validation import count
 
 __all__ = [
     "BONES",
@@ -176,12 +176,12 @@ def body_frame_markers(markers, headings) -> np.ndarray:
     Parameters
     ----------
     markers : np.ndarray [shape=(T, 6, 3)], cm, y up, in the order of :data:`MARKERS`.
-    headings : np.ndarray [shape=(T,)], radians (:func:`mocapviz.skeleton.heading`: 0 facing +z).
+    headings : np.ndarray [shape=(T,)], radians (:func:`mocapviz.motion.skeleton.heading`: 0 facing +z).
 
     Returns
     -------
     np.ndarray [shape=(T, 5, 3)], float64, cm: lwrist, rwrist, lankle, rankle, head minus the root marker, rotated
-    by minus the heading about y (the transform of :func:`mocapviz.skeleton.body_frame`).
+    by minus the heading about y (the transform of :func:`mocapviz.motion.skeleton.body_frame`).
     """
     m, h = _check_markers(markers, headings)
     d = m[:, :5] - m[:, 5:]
@@ -405,7 +405,7 @@ def reconstruct(markers, headings, prior, numeric_set: str = "F15E", k: int = DE
     markers : np.ndarray [shape=(T, 6, 3)], cm, y up, in the order of :data:`MARKERS` (e.g.
         :func:`synthetic_markers`), at the prior database's frame rate.
     headings : np.ndarray [shape=(T,)], radians, the body's heading per frame (the root marker cluster's;
-        :func:`mocapviz.skeleton.heading` of the test motion in the experiments).
+        :func:`mocapviz.motion.skeleton.heading` of the test motion in the experiments).
     prior : PosePrior or MotionDB
         The pose prior; a MotionDB is wrapped in a :class:`PosePrior` (with ``valid`` and ``pca``). Pass a
         PosePrior to reuse its kd-trees for several motions.

@@ -26,10 +26,10 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from . import store
-from .errors import MotionDBError, ParameterError
-from .segmentation import FeatureSequence, decode, encode, segment
-from .store import atomic_file, check_format, stamp
+from .. import store
+from ..errors import MotionDBError, ParameterError
+from ..features.segmentation import FeatureSequence, decode, encode, segment
+from ..store import atomic_file, check_format, stamp
 
 FORMAT = "mocapviz.InvertedIndex"
 _REBUILD = "rebuild it with `mocapviz index DB`"
@@ -618,7 +618,7 @@ def feature_group_values(values: np.ndarray, relational_set: str = "2005") -> di
     -------
     dict: group -> (member names, values of the members [shape=(N, f_group)]; a view when they are adjacent).
     """
-    from .features import feature_groups, feature_names
+    from ..features import feature_groups, feature_names
 
     names = feature_names(relational_set)
     out = {}
@@ -651,7 +651,7 @@ def build(db, relational_set: str = "2005", progress: bool = True, values: np.nd
     -------
     dict: group name -> InvertedIndex (segment positions over the whole database; documents kept apart).
     """
-    from .features import relational_features
+    from ..features import relational_features
 
     if values is None:
         values, _ = relational_features(db, relational_set, progress=progress, scheduler=scheduler)
@@ -688,10 +688,10 @@ def load(db, relational_set: str = "2005") -> dict:
         No index built yet, or built for an earlier state of the database: the message says to run
         ``mocapviz index DB``.
     """
-    from .features import feature_groups
+    from ..features import feature_groups
 
     option = "" if relational_set == "2005" else f" --relational-set {relational_set}"
-    how = f"`mocapviz index {db.path}{option}` or mocapviz.index.build(db, {relational_set!r})"
+    how = f"`mocapviz index {db.path}{option}` or mocapviz.relational.index.build(db, {relational_set!r})"
     out = {}
     for group in feature_groups(relational_set):
         path = index_path(db, relational_set, group)

@@ -1,0 +1,302 @@
+"""Ingest: motion files read in parallel into new documents of a MotionDB (:meth:`MotionDB.ingest`).
+
+expand_paths    files, folders and glob patterns -> the motion files they name, once each.
+file_checksum   the sha256 that identifies a file in a database (an AMC with its ASF).
+read_document   one file -> a canonical Motion at the target rate, and its document row.
+IngestOptions   what an ingest was asked to do (rate, labels, mapping, skip_bad, threads, progress, scheduler).
+read_new        the files a database does not hold yet, read on threads or Dask workers, in input order.
+
+Each file is read in an independent task (:func:`read_document`), run in chunks of files on threads of this
+process or as Dask tasks (``scheduler=``, see :mod:`mocapviz.parallel`) by :func:`mocapviz.parallel.map_ordered`;
+the commit is done by :class:`~mocapviz.db.database.MotionDB`, in input order, once every file has been read.
+See ``docs/architecture.md`` (the db layer).
+"""
+from __future__ import annotations
+
+import contextlib
+import glob
+import hashlib
+import os
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from tqdm.auto import tqdm
+
+from .. import errors as errors_module
+from ..errors import LabelTableError, MocapFormatError, MocapvizError
+from ..io import FORMATS, find_asf, load
+from ..io.labels import MAIN_LABEL_COLUMNS, labels_for, read_labels_tsv
+from ..motion import Motion
+from ..parallel import map_ordered, optional_client, parallelism
+
+__all__ = ["IngestOptions", "ReadJob", "expand_paths", "file_checksum", "read_document", "read_new"]
+
+_CHUNK_MAX_BYTES = 64 << 20  # an ingest task reads at most this many bytes of motion files (or one file)
+BASE_COLUMNS = ["doc_id", "name", "path", "format", "start", "n_frames", "fps", "source_fps", "sha256", "label"]
+_BASE_COLUMNS = BASE_COLUMNS
+
+
+def expand_paths(paths) -> list[Path]:
+    """Motion files named by ``paths``: files, folders (searched recursively) and glob patterns.
+
+    Returns the absolute paths of the ``.amc`` / ``.bvh`` files, folders' contents sorted, duplicates removed.
+
+    Raises
+    ------
+    FileNotFoundError
+        A path or pattern that names nothing.
+    """
+    if isinstance(paths, (str, os.PathLike)):
+        paths = [paths]
+    out: list[Path] = []
+    for p in paths:
+        p = os.fspath(p)
+        if os.path.isdir(p):
+            found = sorted(f for f in Path(p).rglob("*") if f.suffix.lower() in FORMATS and f.is_file())
+        elif os.path.isfile(p):
+            found = [Path(p)]
+        else:
+            found = sorted(Path(f) for f in glob.glob(p, recursive=True) if Path(f).suffix.lower() in FORMATS)
+        if not found:
+            raise FileNotFoundError(f"{p}: no .amc or .bvh files there")
+        out += [f.resolve() for f in found]
+    return list(dict.fromkeys(out))
+
+
+def file_checksum(path, asf=None) -> str:
+    """sha256 of a motion file's bytes (an AMC together with its ASF skeleton: ``asf`` or :func:`find_asf`)."""
+    h = hashlib.sha256()
+    parts = [Path(path)]
+    if Path(path).suffix.lower() == ".amc":
+        parts.append(Path(asf) if asf is not None else find_asf(path))
+    for part in parts:
+        try:
+            with open(part, "rb") as fh:
+                for chunk in iter(lambda: fh.read(1 << 20), b""):
+                    h.update(chunk)
+        except OSError as exc:  # unreadable or vanished since it was listed: a file to skip under --skip-bad
+            raise MocapFormatError(part, f"cannot read the file ({exc.strerror or exc})") from None
+    return h.hexdigest()
+
+
+def read_document(path, fps: float | None = None, labels: dict | None = None, mapping: dict | None = None,
+                  sha256: str | None = None, **load_options) -> tuple[Motion, dict]:
+    """One ingest task: read a file, map it to the canonical skeleton, resample, describe it.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    fps : float, optional
+        Target frame rate; default: keep the file's.
+    labels : dict, optional
+        Labels of this file; default :func:`mocapviz.io.labels.labels_for` (label tables beside the data).
+    mapping : dict, optional
+        Canonical joint -> joint name, overriding the automatic mapping.
+    sha256 : str, optional
+        The file's :func:`file_checksum`, if the caller has it already.
+    **load_options
+        Passed to :func:`mocapviz.load`.
+
+    Returns
+    -------
+    motion : Motion
+        Canonical joints, at ``fps``.
+    meta : dict
+        name, path, format, n_frames, fps, source_fps, sha256 and the labels.
+    """
+    path = Path(path)
+    motion = load(path, **load_options)
+    source_fps = motion.fps
+    motion = motion.canonical(mapping)
+    if fps is not None:
+        motion = motion.resample(fps)
+    labels = labels_for(path) if labels is None else dict(labels)
+    meta = {
+        "name": path.stem,
+        "path": str(path),
+        "format": path.suffix.lower().lstrip("."),
+        "n_frames": motion.n_frames,
+        "fps": motion.fps,
+        "source_fps": source_fps,
+        "sha256": sha256 or file_checksum(path, load_options.get("asf")),
+        "label": labels.pop("label", None),
+        **{k: v for k, v in labels.items() if k not in _BASE_COLUMNS},
+    }
+    return motion, meta
+
+
+@dataclass(frozen=True)
+class _ReadFailure:
+    """A file that failed to read, as a task returns it (MocapFormatError itself does not survive pickling)."""
+
+    kind: str  # the class name of the typed error (mocapviz.errors)
+    message: str
+    path: str | None = None
+    reason: str = ""
+    line: int | None = None
+
+    @classmethod
+    def of(cls, exc: MocapvizError) -> _ReadFailure:
+        if isinstance(exc, MocapFormatError):
+            return cls("MocapFormatError", str(exc), exc.path, exc.reason, exc.line)
+        return cls(type(exc).__name__, str(exc))
+
+    def error(self) -> Exception:
+        """The exception the reader raised, rebuilt (same type and message)."""
+        if self.kind == "MocapFormatError":
+            return MocapFormatError(self.path, self.reason, self.line)
+        return getattr(errors_module, self.kind, MocapvizError)(self.message)
+
+
+@dataclass(frozen=True)
+class ReadJob:
+    """One file to read in an ingest (small and picklable: a Dask task carries a chunk of these)."""
+
+    path: str
+    sha256: str
+    fps: float | None
+    labels: dict | None
+    mapping: dict | None
+    load_options: dict
+
+
+def _read_task(job: ReadJob) -> tuple[np.ndarray, np.ndarray | None, dict] | _ReadFailure:
+    """Reading one file (on a thread of this process or a Dask worker).
+
+    Returns (positions [shape=(T, 24, 3)] cm, quaternions [shape=(T, 24, 4)] or None, meta) of
+    :func:`read_document`, or a :class:`_ReadFailure` for a file that fails to read, so that the caller decides
+    (raise it, or skip it with ``skip_bad``).
+    """
+    try:
+        motion, meta = read_document(job.path, job.fps, job.labels, job.mapping, job.sha256, **job.load_options)
+    except MocapvizError as exc:  # a malformed file, an unmappable rig, a bad label file beside the data, ...
+        return _ReadFailure.of(exc)
+    return motion.positions, motion.quaternions, meta
+
+
+def _read_chunk(chunk: list[ReadJob]) -> list:
+    """An ingest task: :func:`_read_task` of each file of a chunk, in order (files fail one by one)."""
+    return [_read_task(job) for job in chunk]
+
+
+def _chunks(todo: list[ReadJob], parts: int, max_bytes: int = _CHUNK_MAX_BYTES) -> list[list[ReadJob]]:
+    """``todo`` cut into about ``parts`` contiguous chunks of similar size on disk, none above ``max_bytes`` unless it
+    is one file: a task per file costs more than reading a small file."""
+    sizes = np.array([os.path.getsize(job.path) for job in todo], dtype=np.float64)
+    target = min(max(sizes.sum() / max(1, parts), 1.0), max_bytes)
+    out, chunk, held = [], [], 0.0
+    for job, size in zip(todo, sizes):
+        if chunk and held + size > target:
+            out.append(chunk)
+            chunk, held = [], 0.0
+        chunk.append(job)
+        held += size
+    if chunk:
+        out.append(chunk)
+    return out
+
+
+def _labels_table(labels) -> dict[str, dict] | None:
+    """Labels given to ingest -> {absolute path or file name: {column: value}}."""
+    if labels is None:
+        return None
+    if isinstance(labels, dict):
+        return {str(k): dict(v) for k, v in labels.items()}
+    if isinstance(labels, (str, os.PathLike)):
+        p = Path(labels)
+        if not p.is_file():
+            raise FileNotFoundError(f"{p}: no such label table")
+        table = read_labels_tsv(p) if p.suffix.lower() in (".tsv", ".txt") else pd.read_csv(p)
+        if "path" not in table:
+            table["path"] = [str((p.parent / f).resolve()) for f in table["file"]]
+    else:
+        table = pd.DataFrame(labels)
+    if "file" not in table and "path" not in table:
+        raise LabelTableError("a label table needs a 'file' or 'path' column")
+    out = {}
+    for row in table.to_dict("records"):
+        key = row.pop("path", None) or row.get("file")
+        row.pop("file", None)
+        row = {k: v for k, v in row.items() if not (isinstance(v, float) and np.isnan(v))}
+        if row.get("label") is None:  # the main class, as labels_for gives it for tables found automatically
+            row["label"] = next((row[c] for c in MAIN_LABEL_COLUMNS if c in row), None)
+        out[str(Path(key).resolve()) if os.path.isabs(str(key)) else str(key)] = row
+        out.setdefault(Path(str(key)).name, row)
+    return out
+
+
+@dataclass(frozen=True)
+class IngestOptions:
+    """What an ingest was asked to do (the parameters of :meth:`MotionDB.ingest`, checked there)."""
+
+    fps: float | None = None
+    labels: object = None
+    mapping: dict | None = None
+    skip_bad: bool = False
+    threads: int | None = None
+    progress: bool = True
+    scheduler: object = None
+    load_options: dict = field(default_factory=dict)
+
+
+def read_new(files: list[Path], known: set, options: IngestOptions) -> tuple[list, list, list[dict]]:
+    """Read the ``files`` whose sha256 is not in ``known``, in parallel, results in input order.
+
+    Parameters
+    ----------
+    files : list of pathlib.Path
+        Motion files (:func:`expand_paths`).
+    known : set of str
+        The sha256 of the documents the database holds (their files are skipped).
+    options : IngestOptions
+        ``fps`` is the rate to resample to (already reconciled with the database's).
+
+    Returns
+    -------
+    positions, quaternions : list of np.ndarray
+        Per new file: (T, 24, 3) float32 cm and (T, 24, 4) float32 or None.
+    metas : list of dict
+        Per new file: its document row (:func:`read_document`).
+
+    Raises
+    ------
+    MocapFormatError, SkeletonMappingError, ...
+        The first file (in input order) that fails to read, unless ``options.skip_bad`` (then a warning).
+    """
+    table = _labels_table(options.labels)
+    load_options = options.load_options
+    todo = []
+    for f in files:
+        try:
+            sha256 = file_checksum(f, load_options.get("asf"))
+        except MocapFormatError as exc:  # e.g. an AMC without its ASF
+            if not options.skip_bad:
+                raise
+            warnings.warn(f"skipped {exc}", stacklevel=3)
+            continue
+        if sha256 in known:
+            continue
+        labels = None if table is None else table.get(str(f), table.get(f.name, {}))
+        todo.append(ReadJob(str(f), sha256, options.fps, labels, options.mapping, load_options))
+    positions, quaternions, metas = [], [], []
+    with optional_client(options.scheduler if todo else None) as client:
+        chunks = _chunks(todo, 4 * parallelism(options.threads, client))
+        results = map_ordered(_read_chunk, chunks, options.threads, client, name="mocapviz-read")
+        bar = tqdm(total=len(todo), desc="ingest", unit="file", disable=not options.progress or not todo)
+        # results in input order; the first file that fails (in that order) stops the run before any write, and
+        # closing the results cancels what is pending (before the client closes)
+        with bar, contextlib.closing(results):
+            for res in (res for chunk in results for res in chunk):
+                bar.update()
+                if isinstance(res, _ReadFailure):
+                    if not options.skip_bad:
+                        raise res.error()
+                    warnings.warn(f"skipped {res.message}", stacklevel=3)
+                    continue
+                positions.append(res[0])
+                quaternions.append(res[1])
+                metas.append(res[2])
+    return positions, quaternions, metas

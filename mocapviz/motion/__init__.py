@@ -1,0 +1,11 @@
+"""The motion layer: one clip in memory and the skeleton it is drawn on (no files, no database).
+
+motion.py    :class:`Motion` (positions in cm, y up, local quaternions, frame rate, labels), ``FPS_RANGE``.
+skeleton.py  the 24 canonical joints, the structural mapping of any humanoid rig onto them, body frames.
+rotations.py quaternion and Euler-angle arithmetic.
+
+See ``docs/architecture.md``.
+"""
+from .motion import FPS_RANGE, Motion, fps_problem
+
+__all__ = ["FPS_RANGE", "Motion", "fps_problem"]

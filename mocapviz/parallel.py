@@ -1,0 +1,242 @@
+"""Running work in parallel: on threads of this process or as tasks of a Dask cluster, results in order.
+
+default_threads   the default ``threads``: the cores this process may use, at most ``MAX_DEFAULT_THREADS``.
+parallelism       how many items run at once for given ``threads`` / Dask client.
+map_ordered       ``fn(item)`` of every item, on threads or as Dask tasks, yielded in item order.
+dask_client       a ``scheduler`` argument ("local", an address, a Client) as a ``dask.distributed.Client``.
+optional_client   :func:`dask_client`, or None when ``scheduler`` is None (work in this process).
+local_workers     the cores this process may run on (the local cluster's worker processes).
+
+Both back ends follow one rule. Work runs on ``threads`` threads of this process (numpy and numba release the
+GIL; ``threads=1`` runs each item in the calling thread when its result is asked for), or as tasks of a
+``dask.distributed.Client``. At most ``AHEAD_PER_THREAD`` items per thread (per Dask worker thread) are started
+beyond the one whose result is waited for, so that results waiting to be consumed stay few whatever the length
+of the input. Results come in item order, not in order of completion, so the first failing item *in that order*
+raises its exception. When the consumer stops early (the generator closed, or an exception) the items not
+started are cancelled; threads finish the item they are on, Dask tasks are cancelled. Callers that may stop
+early wrap the generator in ``contextlib.closing``.
+
+A Dask task must be small and importable on the workers: ``fn`` is a module-level function (or a
+``functools.partial`` of one) and an item holds paths and ranges, never arrays. Per-document work on a MotionDB
+(:func:`mocapviz.db.batches.map_documents`) sends (database path, manifest generation, a range of whole documents)
+and the worker opens the memory-mapped database itself.
+
+``scheduler`` values understood by :func:`dask_client` (and by every ``scheduler=`` parameter of mocapviz, where
+``None`` means "in this process, as without Dask"):
+
+``"local"``
+    Start a :class:`dask.distributed.LocalCluster` sized to the machine: one worker *process* per usable core
+    (:func:`local_workers`), one thread each (the tasks are numpy / numba code that would otherwise compete for
+    the cores; processes also keep the GIL out of the way of the pure-Python parsers). Closed on exit.
+an address, e.g. ``"tcp://10.0.0.5:8786"`` or ``"10.0.0.5:8786"``
+    Connect to a running scheduler (``dask scheduler`` + ``dask worker``). The workers must see the same file
+    system paths as the client (the motion files and the MotionDB are opened by the workers themselves).
+a ``dask.distributed.Client``
+    Used as it is, and left open.
+
+The client consumes the results in submission order and is the only writer of a database, so a failed or
+cancelled task leaves it as it was. A worker that dies is replaced (the local cluster's nanny restarts it) and
+its tasks are run again elsewhere by the scheduler.
+
+See ``docs/architecture.md`` (the base layer).
+"""
+from __future__ import annotations
+
+import collections
+import contextlib
+import itertools
+import logging
+import os
+import uuid
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+
+from .errors import ParameterError
+from .validation import count
+
+__all__ = ["AHEAD_PER_THREAD", "LOCAL", "MAX_DEFAULT_THREADS", "dask_client", "default_threads", "local_workers",
+           "map_ordered", "n_threads", "optional_client", "parallelism"]  # fmt: skip
+
+MAX_DEFAULT_THREADS = 8  # more threads than this rarely pay: the batches are memory-bound
+AHEAD_PER_THREAD = 2  # items started beyond the one waited for, per thread (or Dask worker thread)
+LOCAL = "local"
+CONNECT_TIMEOUT = 10.0  # seconds to wait for a scheduler given by address
+
+
+def local_workers() -> int:
+    """Worker processes of the default local cluster: the cores this process may run on (at least 1)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+@contextlib.contextmanager
+def dask_client(scheduler=LOCAL, n_workers: int | None = None, timeout: float | None = None) -> Iterator:
+    """A :class:`dask.distributed.Client` for ``scheduler``, closed on exit if this call started it.
+
+    Parameters
+    ----------
+    scheduler : "local", str or dask.distributed.Client
+        ``"local"``: start a LocalCluster (``n_workers`` processes, default :func:`local_workers`, one thread
+        each) and stop it on exit. A scheduler address (``"tcp://host:8786"``, ``"host:8786"``): connect, and
+        disconnect on exit (the cluster keeps running). A Client: yielded as it is and left open.
+    n_workers : int, optional
+        Workers of a local cluster (ignored otherwise).
+    timeout : float, seconds, optional
+        How long to try to reach a scheduler given by address (default ``CONNECT_TIMEOUT``, 10 s).
+
+    Yields
+    ------
+    dask.distributed.Client
+
+    Raises
+    ------
+    OSError
+        The scheduler cannot be reached: "cannot reach dask scheduler at ADDRESS: ...".
+    TypeError
+        ``scheduler`` is neither a string nor a Client.
+    """
+    from distributed import Client, LocalCluster
+
+    if isinstance(scheduler, Client):
+        yield scheduler
+        return
+    if not isinstance(scheduler, (str, os.PathLike)):
+        raise ParameterError(f"scheduler must be 'local', a dask scheduler address or a dask Client, got {scheduler!r}")
+    with contextlib.ExitStack() as stack:
+        if str(scheduler) == LOCAL:
+            cluster = stack.enter_context(
+                LocalCluster(n_workers=n_workers or local_workers(), threads_per_worker=1, processes=True,
+                             dashboard_address=None, silence_logs=logging.ERROR)
+            )  # fmt: skip
+            client = stack.enter_context(Client(cluster))
+        else:
+            address = os.fspath(scheduler).strip()
+            try:
+                client = Client(address, timeout=CONNECT_TIMEOUT if timeout is None else timeout)
+            except (OSError, ValueError, TimeoutError) as exc:
+                detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                raise OSError(f"cannot reach dask scheduler at {address}: {detail}") from None
+            stack.enter_context(client)
+        yield client
+
+
+@contextlib.contextmanager
+def optional_client(scheduler) -> Iterator:
+    """:func:`dask_client` of ``scheduler``, or None (no Dask: work in this process) when ``scheduler`` is None."""
+    if scheduler is None:
+        yield None
+        return
+    with dask_client(scheduler) as client:
+        yield client
+
+
+def n_threads(client) -> int:
+    """Worker threads of a Dask client's cluster now (at least 1)."""
+    return max(1, sum(client.nthreads().values()))
+
+
+def default_threads() -> int:
+    """The default ``threads`` of mocapviz: the cores this process may run on (``os.sched_getaffinity``), at most
+    ``MAX_DEFAULT_THREADS`` (8), at least 1."""
+    return min(MAX_DEFAULT_THREADS, local_workers())
+
+
+def parallelism(threads: int | None = None, client=None) -> int:
+    """How many items :func:`map_ordered` runs at once.
+
+    Parameters
+    ----------
+    threads : int, optional
+        Threads in this process (default :func:`default_threads`); ignored when ``client`` is given.
+    client : dask.distributed.Client, optional
+        Run as Dask tasks: the cluster's worker threads now.
+
+    Returns
+    -------
+    int, at least 1.
+
+    Raises
+    ------
+    mocapviz.ParameterError
+        ``threads`` not a positive integer.
+    """
+    if client is not None:
+        return n_threads(client)
+    return default_threads() if threads is None else count(threads, "threads")
+
+
+def map_ordered(fn: Callable, items: Iterable, threads: int | None = None, client=None,
+                name: str = "mocapviz") -> Iterator:
+    """``fn(item)`` of every item, on threads of this process or as Dask tasks, yielded in the order of ``items``.
+
+    At most ``AHEAD_PER_THREAD`` items per thread are started beyond the one waited for (see the module
+    docstring); ``items`` is consumed as far as that, lazily.
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(item) -> result``; for Dask, importable on the workers (a module-level function or a
+        ``functools.partial`` of one).
+    items : iterable
+        The arguments; for Dask, small and picklable.
+    threads : int, optional
+        Threads in this process (default :func:`default_threads`); 1 runs every item in the calling thread.
+        Ignored when ``client`` is given.
+    client : dask.distributed.Client, optional
+        Run each item as a Dask task of this client instead.
+    name : str
+        Prefix of the threads' names and of the Dask task keys (shown on the dashboard).
+
+    Yields
+    ------
+    ``fn(item)`` for each item, in order. The exception of the first failing item in order is raised here.
+
+    Raises
+    ------
+    mocapviz.ParameterError
+        ``threads`` not a positive integer (when the first result is asked for).
+    """
+    workers = parallelism(threads, client)
+    ahead = AHEAD_PER_THREAD * workers
+    if client is not None:
+        yield from _ordered(items, ahead, lambda item: client.submit(fn, item, key=f"{name}-{uuid.uuid4().hex}"),
+                            _dask_result, lambda pending: _dask_cancel(client, pending))  # fmt: skip
+    elif workers == 1:
+        yield from map(fn, items)
+    else:
+        with ThreadPoolExecutor(workers, thread_name_prefix=name) as pool:
+            yield from _ordered(items, ahead, lambda item: pool.submit(fn, item), lambda future: future.result(),
+                                lambda pending: [future.cancel() for future in pending])  # fmt: skip
+
+
+def _ordered(items: Iterable, ahead: int, submit: Callable, result: Callable, cancel: Callable) -> Iterator:
+    """The look-ahead loop of :func:`map_ordered` over futures: ``submit(item) -> future``, ``result(future)``
+    (waits), ``cancel(futures)`` of those still pending when the consumer stops."""
+    pending: collections.deque = collections.deque()
+    items = iter(items)
+    try:
+        while True:
+            pending.extend(submit(item) for item in itertools.islice(items, ahead + 1 - len(pending)))
+            if not pending:
+                return
+            yield result(pending.popleft())
+    finally:
+        if pending:
+            cancel(pending)
+
+
+def _dask_result(future):
+    """A Dask future's result (waits; raises the task's exception), and the future released."""
+    try:
+        return future.result()
+    finally:
+        future.release()
+
+
+def _dask_cancel(client, pending) -> None:
+    """Cancel the Dask futures still pending (a client already closed has dropped them)."""
+    if client.status == "running":
+        with contextlib.suppress(RuntimeError, OSError):
+            client.cancel(list(pending))
