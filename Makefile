@@ -34,10 +34,10 @@ demo: install
 	$(BIN)/mocapviz serve $(DEMO_DB) --port $(PORT)
 
 test: install $(CHROMIUM)
-	MOCAPVIZ_REQUIRE_BROWSER=1 $(PY) -m pytest tests notebooks --nbmake
+	MOCAPVIZ_REQUIRE_BROWSER=1 $(PY) -m pytest --doctest-modules mocapviz tests notebooks --nbmake
 
 test-fast: install
-	$(PY) -m pytest tests -m "not slow"
+	$(PY) -m pytest --doctest-modules mocapviz tests -m "not slow"
 
 # the notebooks at the papers' sizes (MOCAPVIZ_FULL=1: more random queries, the largest shared database); slow
 notebooks-full: install

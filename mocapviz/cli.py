@@ -4,11 +4,11 @@
     mocapviz info DB [--documents]
     mocapviz index DB [--relational-set 2005|2006] [--scheduler ADDRESS | --no-cluster]
     mocapviz query DB --example FILE|DOC_ID [--frames A:B] --features NAMES [--mode M] [--mismatch M [--mismatch-at I,J]]
-                      [--relational-set 2005|2006] [-K 20]
+                      [--relational-set 2005|2006] [-K 20] [--csv FILE]
     mocapviz features DB [--numeric-sets F15E,F30E,...] [--pca FILE|DB] [--scheduler ADDRESS | --no-cluster]
-    mocapviz knn DB --frame DOC:FRAME [--numeric-set F15E] [-k 16] [--radius R] [--eps E] [--exclude-document]
+    mocapviz knn DB --frame DOC:FRAME [--numeric-set F15E] [-k 16] [--radius R] [--eps E] [--exclude-document] [--csv FILE]
     mocapviz match DB --example FILE|DOC_ID [--frames A:B] [--numeric-set F15E] [-K 10] [-k 256] [--radius R] [--eps E]
-                                                                                    [--method lng|dtw] [--paths]
+                                                                        [--method lng|dtw] [--paths] [--csv FILE]
     mocapviz search DB --example FILE|DOC_ID [--frames A:B] [--numeric-set F15E] [-K 10] [--mode fast|exact|brute]
                        [--stretches [--min-length 0.5]] [--exclude-document] [--csv FILE] [--paths]
     mocapviz template learn DB --label CLASS [--actors A,B,...] [--relational-set 2005|2006] [--out FILE]
@@ -28,6 +28,10 @@ Options follow docs/glossary.md: ``-K`` / ``--matches`` is how many results (hit
 ``-k`` how many neighbours per query frame, ``--relational-set`` / ``--numeric-set(s)`` which features. The older
 spellings still work: ``--top`` (query, for ``-K``), ``--feature-set`` (for ``--relational-set``), ``--features``
 (knn, match, search: for ``--numeric-set``) and ``--sets`` (features: for ``--numeric-sets``).
+
+Every command that prints hits (``query``, ``knn``, ``match``, ``search``, ``template search``) prints and, with
+``--csv FILE``, writes the one hit table of :func:`mocapviz.db.hits.hit_table`: ``start`` and ``end`` within the
+document, half-open, ``start_s`` and ``end_s`` at the document's own rate.
 
 Errors print one line (``mocapviz: error: ...``): a value the argument parser refuses (not a number, out of its
 range, an unknown name, a list where one value is allowed) exits with status 2, one the command refuses (checked
@@ -70,7 +74,6 @@ from .features.numeric import default_pca
 from .relational.index import build
 from .io import load
 from .similarity.knn import KnnIndex, describe_frames
-from .match import lng, subsequence_dtw
 from .motion import FPS_RANGE
 from .relational.query import query_by_example
 from .features.segmentation import segment
@@ -184,14 +187,33 @@ def _index(args) -> None:
 
 
 def _example(db: MotionDB, text: str) -> int | Path:
-    """``--example``: a document id of ``db`` (digits) or a motion file, else a ParameterError naming both."""
-    ids = db.documents["doc_id"]
-    if text.isdigit() and int(text) in set(ids.tolist()):
-        return int(text)
-    if not text.isdigit() and Path(text).is_file():
+    """``--example``: a document id of ``db`` (digits; :meth:`MotionDB.document` refuses one it does not hold) or
+    a motion file."""
+    if text.isdigit():
+        try:
+            return int(db.document(int(text))["doc_id"])
+        except ParameterError as exc:
+            raise ParameterError(f"--example {text}: {exc}") from None
+    if Path(text).is_file():
         return Path(text)
+    ids = db.documents["doc_id"]
     raise ParameterError(f"--example {text} is neither a document id of {db.path} (doc ids {ids.min()}..{ids.max()}) "
                          "nor a motion file")
+
+
+def _write_csv(table: pd.DataFrame, path: str | None) -> None:
+    """``--csv FILE``: the ranked hit table, as printed but whole and without warping paths (atomically)."""
+    if path:
+        from .store import atomic_write
+
+        atomic_write(path, table.drop(columns=["path"], errors="ignore").to_csv(index=False).encode())
+        print(f"ranked table written to {path}")
+
+
+def _csv_folder(path: str | None) -> None:
+    """``--csv FILE`` checked before any work: its folder must exist."""
+    if path and not Path(path).parent.is_dir():
+        raise ParameterError(f"--csv {path}: no folder {Path(path).parent} to write it in")
 
 
 def _query_segments(example, features: list[str], relational_set: str) -> int:
@@ -204,6 +226,7 @@ def _query_segments(example, features: list[str], relational_set: str) -> int:
 
 
 def _query(args) -> None:
+    _csv_folder(args.csv)
     db = MotionDB.open(args.db)
     example = _example(db, args.example)
     motion = db.motion(example) if isinstance(example, int) else load(example)
@@ -235,9 +258,10 @@ def _query(args) -> None:
                             relational_set=args.relational_set, allowed=args.mismatch_at)
     ms = 1000 * (time.perf_counter() - t0)
     print(f"{len(hits)} hits in {ms:.1f} ms ({mode}, features: {', '.join(features or ['all'])})")
-    cols = [c for c in ("rank", "doc_id", "name", "start_frame", "end_frame", "score", "label") if c in hits]
+    cols = [c for c in ("rank", "doc_id", "name", "start", "end", "start_s", "end_s", "score", "label") if c in hits]
     with pd.option_context("display.width", 160, "display.max_rows", args.n_matches + 5):
         print(hits[cols].head(args.n_matches).round(3).to_string(index=False))
+    _write_csv(hits.head(args.n_matches), args.csv)
 
 
 def _pca_reference(text: str | None, names: list[str] | None) -> MotionDB | PCAModel | None:
@@ -297,13 +321,13 @@ def _scheduler_address(text: str, name: str) -> str:
 
 
 def _knn(args) -> None:
+    _csv_folder(args.csv)
     db = MotionDB.open(args.db)
     doc, frame = args.frame
-    ids = db.documents["doc_id"]
-    if doc not in set(ids.tolist()):
-        raise ParameterError(f"--frame {doc}:{frame}: no document {doc} in {db.path} (doc ids "
-                             f"{ids.min()}..{ids.max()})")
-    span = db.frames(doc)
+    try:
+        span = db.frames(doc)
+    except ParameterError as exc:
+        raise ParameterError(f"--frame {doc}:{frame}: {exc}") from None
     if not 0 <= frame < span.stop - span.start:
         raise ParameterError(f"document {doc} has frames 0..{span.stop - span.start - 1}; --frame asks for {frame}")
     features = numeric_of(db, args.numeric_set, progress=not args.quiet)
@@ -315,70 +339,47 @@ def _knn(args) -> None:
     hits = describe_frames(db, idx, dist)
     print(f"{len(hits)} neighbours of document {doc} frame {frame} by {args.numeric_set} in {ms:.2f} ms "
           f"({index})")
-    cols = [c for c in ("rank", "doc_id", "name", "doc_frame", "time_s", "distance", "label") if c in hits]
+    cols = [c for c in ("rank", "doc_id", "name", "start", "start_s", "distance", "label") if c in hits]
     with pd.option_context("display.width", 160, "display.max_rows", args.k + 5):
         print(hits[cols].round(3).to_string(index=False))
-
-
-def _example_features(db: MotionDB, example: str, frames, name: str, X) -> tuple[object, tuple | None]:
-    """The query's features: frames of a document of the DB (taken from the stored set) or of a motion file
-    (resampled to the DB's rate), and the [start, stop) database frames of its document (None for a file)."""
-    example = _example(db, example)
-    if isinstance(example, int):
-        span = db.frames(example)
-        a, b = frame_span(frames, span.stop - span.start, f"document {example}", "--frames")
-        return np.asarray(X[span.start + a : span.start + b]), (span.start, span.stop)
-    motion = load(example)
-    if db.typical_fps and abs(motion.fps - db.typical_fps) > 1e-6:
-        motion = motion.resample(db.typical_fps)
-    a, b = frame_span(frames, motion.n_frames, str(example), "--frames")
-    pca = default_pca(db) if name.startswith("Fp") else None  # the model the database's features were computed with
-    return numeric_features(motion[a:b], name, pca=pca, progress=False), None
+    _write_csv(hits, args.csv)
 
 
 def _match(args) -> None:
+    from .similarity.motion_matching import DEFAULT_K, match_motion
+
     if args.method == "dtw":
         given = [o for o, v in (("-k", args.k), ("--radius", args.radius), ("--eps", args.eps)) if v is not None]
         if given:
             raise ParameterError(f"{', '.join(given)} shape the neighbourhood graph of --method lng; subsequence DTW "
                                  "(--method dtw) compares every frame: leave them out")
-    k, eps = args.k or 256, args.eps or 0.0
+    _csv_folder(args.csv)
+    k, eps = args.k or DEFAULT_K, args.eps or 0.0
     db = MotionDB.open(args.db)
     name = args.numeric_set
     X = load_numeric(db, name)  # a clear error naming `mocapviz features DB` when the set is not stored
-    query, own = _example_features(db, args.example, args.frames, name, X)
-    starts = db.documents["start"].to_numpy()
-    t0 = time.perf_counter()
-    if args.method == "dtw":
-        n = args.n_matches
-        found = subsequence_dtw(query, X, starts, n_matches=n + (n if own else 0), paths=args.paths)
-        if own:
-            found = found[(found["end"] < own[0]) | (found["start"] >= own[1])].head(n)
-        what = "subsequence DTW"
-    else:
-        found = lng(query, KnnIndex(X), k=k, radius=args.radius, n_matches=args.n_matches, starts=starts,
-                    eps=eps, exclude=own, paths=args.paths)  # fmt: skip
-        what = f"lazy neighbourhood graph, k={k}" + (f", r={args.radius:g}" if args.radius else "")
-    ms = 1000 * (time.perf_counter() - t0)
-    print(f"{len(found)} matches of a {len(query)}-frame query by {name} ({what}) in {ms:.1f} ms"
-          + (" (the query's own document excluded)" if own else ""))  # fmt: skip
-    docs = db.documents.set_index("doc_id")
-    table = pd.DataFrame({
-        "rank": np.arange(1, len(found) + 1), "doc_id": found["doc_id"].to_numpy(),
-        "name": docs["name"].reindex(found["doc_id"]).to_numpy(),
-        "start_frame": (found["start"] - docs["start"].reindex(found["doc_id"]).to_numpy()).to_numpy(),
-        "end_frame": (found["end"] - docs["start"].reindex(found["doc_id"]).to_numpy()).to_numpy(),
-        "cost": found["cost"].to_numpy(), "cost_per_frame": (found["cost"] / len(query)).to_numpy(),
-    })  # fmt: skip
-    for col in db.label_columns:
-        table[col] = docs[col].reindex(found["doc_id"]).to_numpy()
+    example = _example(db, args.example)
+    table = match_motion(db, example, args.frames, name, args.method, args.n_matches, k, args.radius, eps,
+                         exclude_document=isinstance(example, int), paths=args.paths, features=X,
+                         option="--frames")  # fmt: skip
+    what = "subsequence DTW" if args.method == "dtw" else f"lazy neighbourhood graph, k={k}" + (
+        f", r={args.radius:g}" if args.radius else "")  # fmt: skip
+    own = isinstance(example, int)
+    print(f"{len(table)} matches of a {table.attrs['query_frames']}-frame query by {name} ({what}) in "
+          f"{table.attrs['ms']:.1f} ms" + (" (the query's own document excluded)" if own else ""))  # fmt: skip
     _print_ranked(table, args.n_matches, "the lazy neighbourhood graph needs a neighbour of every query frame along a whole "
                   "path: try a larger -k such as 1024, --method dtw, or `mocapviz search DB --stretches`"
                   if args.method == "lng" else "no document long enough outside the query's own")  # fmt: skip
-    if args.paths:
-        for rank, doc, path in zip(table["rank"], table["doc_id"], found["path"]):
-            first = int(docs.loc[doc, "start"])
-            print(f"path {rank} (query frame:frame of document {doc}): " + " ".join(f"{i}:{j - first}" for i, j in path))
+    _print_paths(table, args.paths)
+    _write_csv(table, args.csv)
+
+
+def _print_paths(table: pd.DataFrame, paths: bool) -> None:
+    """``--paths``: each hit's warping path as query frame:frame of its document."""
+    if paths:
+        for rank, doc, path in zip(table["rank"], table["doc_id"], table["path"]):
+            if path is not None:
+                print(f"path {rank} (query frame:frame of document {doc}): " + " ".join(f"{i}:{j}" for i, j in path))
 
 
 def _print_ranked(table: pd.DataFrame, n_rows: int, empty: str) -> None:
@@ -393,12 +394,10 @@ def _print_ranked(table: pd.DataFrame, n_rows: int, empty: str) -> None:
 
 def _search(args) -> None:
     from .similarity.search import SimilaritySearch
-    from .store import atomic_write
 
     if args.min_length is not None and not args.stretches:
         raise ParameterError("--min-length is the shortest stretch as a share of the query: it needs --stretches")
-    if args.csv and not Path(args.csv).parent.is_dir():
-        raise ParameterError(f"--csv {args.csv}: no folder {Path(args.csv).parent} to write it in")
+    _csv_folder(args.csv)
     db = MotionDB.open(args.db)
     example = _example(db, args.example)
     search = SimilaritySearch(db, args.numeric_set)
@@ -415,13 +414,8 @@ def _search(args) -> None:
                                                                  args.exclude_document else ""))  # fmt: skip
     _print_ranked(table, args.n_matches, "the query's own document is the only one long enough; try whole clips, a shorter "
                   "--frames span or a smaller --min-length" if args.stretches else "no other document to compare")
-    if args.paths:
-        for rank, doc, path in zip(table["rank"], table["doc_id"], table["path"]):
-            if path is not None:
-                print(f"path {rank} (query frame:frame of document {doc}): " + " ".join(f"{i}:{j}" for i, j in path))
-    if args.csv:
-        atomic_write(args.csv, table.drop(columns=["path"], errors="ignore").to_csv(index=False).encode())
-        print(f"ranked table written to {args.csv}")
+    _print_paths(table, args.paths)
+    _write_csv(table, args.csv)
 
 
 def _template_learn(args) -> None:
@@ -463,12 +457,9 @@ def _template_learn(args) -> None:
 
 
 def _template_search(args) -> None:
-    from .features import RELATIONAL_SETS
-    from .store import atomic_write
-    from .relational.templates import MotionTemplate, find_instances, load_template, shortest_instance
+    from .relational.templates import MotionTemplate, load_template, search_template, shortest_instance
 
-    if args.csv and not Path(args.csv).parent.is_dir():
-        raise ParameterError(f"--csv {args.csv}: no folder {Path(args.csv).parent} to write it in")
+    _csv_folder(args.csv)
     db = MotionDB.open(args.db)
     if Path(args.template).is_file():
         template = MotionTemplate.load(args.template)
@@ -477,39 +468,17 @@ def _template_search(args) -> None:
             template = load_template(db, args.template)
         except ParameterError as exc:  # not a stored name either
             raise ParameterError(f"{args.template}: no such template file, and {exc}") from None
-    relational_set = next((s for s in RELATIONAL_SETS if feature_names(s) == template.features), None)
-    if relational_set is None:
-        sets = ", ".join(f"{s}: {len(feature_names(s))}" for s in RELATIONAL_SETS)
-        raise ParameterError(f"{args.template}: the template's {len(template.features)} features are not those of a "
-                             f"relational set ({sets}); learn it again with `mocapviz template learn`")  # fmt: skip
-    values, _ = relational_features(db, relational_set, progress=False)
-    starts = db.documents["start"].to_numpy()
-    t0 = time.perf_counter()
-    ranges = None
-    if args.prefilter:
-        from .relational.index import load_or_build
-        from .relational.templates import keyframe_ranges
-
-        ranges = keyframe_ranges(template, load_or_build(db, relational_set), starts, db.n_frames)
-    hits = find_instances(template, values, starts, n_matches=args.n_matches, max_cost=args.max_cost,
-                          ranges=ranges)  # fmt: skip
-    ms = 1000 * (time.perf_counter() - t0)
-    docs = db.documents.iloc[hits["doc_id"].to_numpy(dtype=np.int64)].reset_index(drop=True)
-    first = docs["start"].to_numpy()
-    start, end = hits["start"].to_numpy(dtype=np.int64) - first, hits["end"].to_numpy(dtype=np.int64) - first
-    table = pd.DataFrame({
-        "rank": np.arange(1, len(docs) + 1), "doc_id": docs["doc_id"].to_numpy(), "name": docs["name"].to_numpy(),
-        "start": start, "end": end, "frames": end - start + 1, "cost": hits["cost"].to_numpy(dtype=np.float64),
-        "normalised_cost": hits["normalised_cost"].to_numpy(dtype=np.float64),
-    })  # fmt: skip
-    for col in db.label_columns:
-        table[col] = docs[col].to_numpy()
+    try:
+        table = search_template(db, template, n_matches=args.n_matches, max_cost=args.max_cost,
+                                prefilter=args.prefilter)  # fmt: skip
+    except ParameterError as exc:
+        raise ParameterError(f"{args.template}: {exc}") from None
     limit = "" if args.max_cost is None else f", normalised cost <= {args.max_cost:g}"
     n = template.n_examples
-    share = None if ranges is None else (ranges[:, 1] - ranges[:, 0]).sum() / db.n_frames
-    aligned = "" if share is None else f", keyframe pre-filter: {share:.0%} of the frames aligned"
+    aligned = f", keyframe pre-filter: {table.attrs['aligned']:.0%} of the frames aligned" if args.prefilter else ""
     print(f"{len(table)} matches of template {template.label!r} ({len(template.values)} frames, {n} "
-          f"example{'s' * (n != 1)}, {relational_set} set) in {db.path}{limit}{aligned}, in {ms:.1f} ms")
+          f"example{'s' * (n != 1)}, {table.attrs['relational_set']} set) in {db.path}{limit}{aligned}, in "
+          f"{table.attrs['ms']:.1f} ms")  # fmt: skip
     own = template.meta.get("threshold")
     if args.max_cost is not None:
         empty = "try a larger --max-cost" + ("" if own is None else f"; the examples' own best matches cost up to "
@@ -517,9 +486,7 @@ def _template_search(args) -> None:
     else:
         empty = f"no document holds the template's shortest instance, {shortest_instance(template)} frames"
     _print_ranked(table, args.n_matches, empty)
-    if args.csv:
-        atomic_write(args.csv, table.to_csv(index=False).encode())
-        print(f"ranked table written to {args.csv}")
+    _write_csv(table, args.csv)
 
 
 def _reproduce(args) -> None:
@@ -642,6 +609,7 @@ def build_parser() -> argparse.ArgumentParser:
                    choices=["2005", "2006"], help="relational set (default 2005; --feature-set: its old name)")
     _option(q, "-K", "--matches", "--top", check=_count(least=1), dest="n_matches", default=20,
             help="hits to print (default 20; --top: its old name)")
+    q.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
     q.set_defaults(func=_query)
 
     feat = sub.add_parser("features", help="compute and store the numeric feature sets of a MotionDB (kNN search)")
@@ -667,6 +635,7 @@ def build_parser() -> argparse.ArgumentParser:
             "eps >= 0")
     kn.add_argument("--exclude-document", action="store_true", help="leave out the frame's own document")
     kn.add_argument("--quiet", action="store_true", help="no progress bar")
+    kn.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
     kn.set_defaults(func=_knn)
 
     mt = sub.add_parser("match", help="stretches of the DB that move like an example, ranked (lazy neighbourhood "
@@ -687,6 +656,7 @@ def build_parser() -> argparse.ArgumentParser:
     mt.add_argument("--method", choices=["lng", "dtw"], default="lng", help="lng (default) or subsequence DTW")
     mt.add_argument("--paths", action="store_true", help="also print each match's alignment (query frame:document "
                     "frame pairs)")  # fmt: skip
+    mt.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
     mt.set_defaults(func=_match)
 
     se = sub.add_parser("search", help="the clips (or stretches of long takes) of the DB that move most like an "
@@ -706,7 +676,7 @@ def build_parser() -> argparse.ArgumentParser:
     _option(se, "--min-length", check=_number(low=0, high=1, low_open=True), help="with --stretches: the shortest "
             "match as a share of the query's frames, in (0, 1] (default 0.5)")  # fmt: skip
     se.add_argument("--exclude-document", action="store_true", help="leave out the example's own document")
-    se.add_argument("--csv", help="also write the ranked table (best first) to this CSV file")
+    se.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
     se.add_argument("--paths", action="store_true", help="also print each match's alignment (query frame:document "
                     "frame pairs)")  # fmt: skip
     se.set_defaults(func=_search)
@@ -726,8 +696,8 @@ def build_parser() -> argparse.ArgumentParser:
     ts = tsub.add_parser("search", help="the stretches of the DB that match a template, best first",
                          description="The K best non-overlapping stretches of the DB's documents that match a "
                          "template (subsequence DTW, its don't-care features left out). Columns: rank, doc_id, name, "
-                         "start and end (the stretch's first and last frame within its document, both included, as "
-                         "`mocapviz search` gives them), frames, cost (DTW cost), normalised_cost (cost per template "
+                         "start and end (the stretch's frames within its document, half-open: end is one past the last "
+                         "frame, as every result table of mocapviz), frames, start_s, end_s, cost (DTW cost), normalised_cost (cost per template "
                          "frame: the mean disagreement, in [0, 1]) and the document's labels.")  # fmt: skip
     ts.add_argument("db")
     ts.add_argument("template", metavar="FILE_OR_NAME", help="a template file, or the name of one stored in "
@@ -736,8 +706,7 @@ def build_parser() -> argparse.ArgumentParser:
             help="matches to report (default 10)")
     _option(ts, "--max-cost", check=_number(low=0, high=1), help="only matches of normalised cost at most this, in "
             "[0, 1] (default: the K best, whatever their cost)")  # fmt: skip
-    ts.add_argument("--csv", help="also write the ranked table (best first) to this CSV file; start and end are "
-                    "frames within the document")  # fmt: skip
+    ts.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
     ts.add_argument("--prefilter", action="store_true", help="align only where the template's keyframes occur in "
                     "order (read from the relational indexes, built and stored when missing): faster for a specific "
                     "template, and may miss a hit whose keyframes disagree")  # fmt: skip

@@ -93,14 +93,14 @@ def test_query_shows_the_library_hits_and_plays_one(name, sample_db, sample_dash
     assert "Precision" in text_of(page, ".mv-hit-quality")
     screenshot(f"{name}-hits")
     target = expected.iloc[1]
-    cell = rows.nth(1).locator('.tabulator-cell[tabulator-field="document"]')
+    cell = rows.nth(1).locator('.tabulator-cell[tabulator-field="name"]')
     assert cell.inner_text().strip() == target["name"]
     canvas = page.locator(".mv-query-player .mv-player canvas")
     expect(canvas).to_have_attribute("data-clips", "1")  # the query alone
     cell.click()
     caption = page.locator(".mv-hit-caption")
     expect(caption).to_contain_text(f"beside hit 2: {target['name']}")
-    expect(caption).to_contain_text(f"frames {target['start_frame']}–{target['end_frame']}")
+    expect(caption).to_contain_text(f"frames {target['start']}:{target['end']}")  # half-open, as in the table
     expect(canvas).to_have_attribute("data-clips", "2")  # query beside hit
     screenshot(f"{name}-hit-played")
 

@@ -70,11 +70,11 @@ def _corrected(page, css: str, typed: str, shown: int, note: str) -> None:
 
 
 def _query(page) -> tuple[int, int, tuple[int, int]]:
-    """(document, frame, (first, last)) that the page's query line names."""
+    """(document, frame, (start, end)) that the page's query line names: the span's frames, half-open."""
     page.locator(".mv-similarity-query", has_text="span").wait_for()
     text = text_of(page, ".mv-similarity-query")
-    doc, frame, first, last = re.search(r"document (\d+) .*frame (\d+) .*span (\d+)–(\d+)", text).groups()
-    return int(doc), int(frame), (int(first), int(last))
+    doc, frame, start, end = re.search(r"document (\d+) .*frame (\d+) .*span (\d+):(\d+)", text).groups()
+    return int(doc), int(frame), (int(start), int(end))
 
 
 def _set(page, css: str, value: int) -> None:
@@ -92,10 +92,11 @@ def _knn_library(db, doc: int, frame: int, k: int) -> pd.DataFrame:
 
 
 def _lng_library(db, doc: int, span: tuple[int, int], k: int, n_matches: int = 10) -> pd.DataFrame:
-    """LNG matches of a span of a document by F15E, its own document excluded, as ``mocapviz match`` computes them."""
+    """LNG matches of a span (start, end: half-open) of a document by F15E, its own document excluded, as
+    ``mocapviz match`` computes them."""
     X = numeric_of(db, "F15E")
     rows = db.frames(doc)
-    return lng(X[rows.start + span[0] : rows.start + span[1] + 1], KnnIndex(X), k=k, n_matches=n_matches,
+    return lng(X[rows.start + span[0] : rows.start + span[1]], KnnIndex(X), k=k, n_matches=n_matches,
                starts=db.documents["start"].to_numpy(), exclude=(rows.start, rows.stop))
 
 
@@ -144,7 +145,7 @@ def test_knn_of_the_current_frame_equals_the_library(page, sample_dashboard, sam
     assert _leading_int(page, ".mv-knn-count") == len(expected) == 32
     first = 8
     assert _cells(page, ".mv-knn-table", "doc_id", first) == [str(d) for d in expected["doc_id"][:first]]
-    assert _cells(page, ".mv-knn-table", "doc_frame", first) == [str(f) for f in expected["doc_frame"][:first]]
+    assert _cells(page, ".mv-knn-table", "start", first) == [str(f) for f in expected["start"][:first]]
     assert doc not in expected["doc_id"].to_numpy()
     screenshot("knn")
 
@@ -204,12 +205,12 @@ def test_search_of_clips_and_stretches_equals_the_library_and_plays_aligned(page
     _choose(page, sample_db, QUERY_NAME)
     open_tab(page, TAB)
     page.locator(".mv-similarity-query", has_text=QUERY_NAME).wait_for()
-    doc, _, (first, last) = _query(page)
+    doc, _, span = _query(page)
     search = SimilaritySearch(sample_db)
 
     # whole clips, exact (the defaults), K = 10, the query's own document excluded
     _first_click(page, "search", ".mv-search-run button", page.locator(".mv-search-count", has_text="clips"))
-    expected = search.clips(doc, frames=(first, last + 1), n_matches=10, mode="exact", exclude_document=True,
+    expected = search.clips(doc, frames=span, n_matches=10, mode="exact", exclude_document=True,
                             paths=True)
     assert _leading_int(page, ".mv-search-count") == len(expected) == 10
     assert _cells(page, ".mv-search-table", "doc_id", 10) == [str(d) for d in expected["doc_id"]]
@@ -228,7 +229,7 @@ def test_search_of_clips_and_stretches_equals_the_library_and_plays_aligned(page
     _set(page, ".mv-search-k", 5)
     page.locator(".mv-search-run button").click()
     page.locator(".mv-search-count", has_text="stretches").wait_for()
-    expected = search.stretches(doc, frames=(first, last + 1), n_matches=5, mode="fast", exclude_document=True,
+    expected = search.stretches(doc, frames=span, n_matches=5, mode="fast", exclude_document=True,
                                 paths=True)
     assert _leading_int(page, ".mv-search-count") == len(expected) > 0
     rows = len(expected)

@@ -1,6 +1,6 @@
 """The dashboard's Motion templates page (Müller & Röder 2006): its computations against :mod:`mocapviz.relational.templates`
 on the embedded sample, and the page in headless Chromium: the hits it shows are those of ``learn_class`` +
-``find_instances`` run here for the same inputs, the template is drawn and a hit plays beside a training example."""
+``search_template`` run here for the same inputs, the template is drawn and a hit plays beside a training example."""
 
 from __future__ import annotations
 
@@ -18,7 +18,8 @@ from mocapviz.app.pages import templates as page_mod
 from mocapviz.errors import ParameterError
 from mocapviz.features import relational_features
 from mocapviz.match import dtw
-from mocapviz.relational.templates import DELTA, DONT_CARE, find_instances, learn_class, template_distance
+from mocapviz.db.hits import database_frames
+from mocapviz.relational.templates import DELTA, DONT_CARE, learn_class, search_template, template_distance
 
 TAB = "Motion templates"
 KICK, SQUAT = "kickLFront1Reps", "squat1Reps"
@@ -36,10 +37,9 @@ def backend(sample_db):
 
 
 def _library(db, values, label, actors=None, relational_set="2006", delta=DELTA, k=20, max_cost=None):
-    """The template and hits as the library computes them (the reference of every check)."""
+    """The template and hits (the hit table) as the library computes them (the reference of every check)."""
     template = learn_class(db, label, actors=actors, relational_set=relational_set, values=values)
-    hits = find_instances(template, values, db.documents["start"].to_numpy(), n_matches=k, delta=delta,
-                          max_cost=max_cost)  # fmt: skip
+    hits = search_template(db, template, n_matches=k, delta=delta, max_cost=max_cost, values=values)
     return template, hits
 
 
@@ -64,17 +64,14 @@ def test_learn_and_search_equal_the_library_and_are_cached(sample_db, backend, f
     np.testing.assert_array_equal(template.values, expected_t.values)
     assert template.meta["doc_ids"] == [7, 18] and template.n_examples == 2
     assert len(table) == len(expected) == 20
-    docs = sample_db.documents
-    np.testing.assert_array_equal(table["doc_id"], docs["doc_id"].to_numpy()[expected["doc_id"]])
-    np.testing.assert_array_equal(table["start"], expected["start"])
+    np.testing.assert_array_equal(table["doc_id"], expected["doc_id"])
+    np.testing.assert_array_equal(table["start"], expected["start"])  # frames of the document, half-open
     np.testing.assert_array_equal(table["end"], expected["end"])
+    np.testing.assert_array_equal(table["frames"], expected["end"] - expected["start"])
     np.testing.assert_allclose(table["normalised_cost"], expected["normalised_cost"])
     np.testing.assert_allclose(table["cost"], expected["cost"])
-    first = docs["start"].to_numpy()[expected["doc_id"]]
-    np.testing.assert_array_equal(table["first"], expected["start"] - first)
-    np.testing.assert_array_equal(table["last"], expected["end"] - first)
-    np.testing.assert_allclose(table["start_s"], (expected["start"] - first) / 120.0)
-    np.testing.assert_allclose(table["end_s"], (expected["end"] - first + 1) / 120.0)
+    np.testing.assert_allclose(table["start_s"], expected["start"] / 120.0)
+    np.testing.assert_allclose(table["end_s"], expected["end"] / 120.0)
     assert list(table["rank"]) == list(range(1, 21))
     assert (table["label"].iloc[:2] == KICK).all()
     # cached: the same template again, and "no actor chosen" is "every actor"
@@ -138,13 +135,13 @@ def test_training_example_and_its_alignment(backend, features, sample_db):
     assert page_mod.training_example(template, 12) == 7
     one = page_mod.learn(backend, SQUAT, ("dg",), "2005")
     assert page_mod.training_example(one, 11) == 11  # the only example
-    start, end = 3213, 3250  # a stretch of document 12
-    path = page_mod.example_alignment(backend, template, 7, start, end)
+    start, end = 3213 - sample_db.frames(12).start, 3251 - sample_db.frames(12).start  # a stretch of document 12
+    path = page_mod.example_alignment(backend, template, 7, 12, start, end)
     rows = sample_db.frames(7)
-    _, expected = dtw(features["2006"][rows].astype(float), features["2006"][start : end + 1],
-                      distance=template_distance)
+    hit = features["2006"][database_frames(sample_db, 12, start, end)]
+    _, expected = dtw(features["2006"][rows].astype(float), hit, distance=template_distance)
     np.testing.assert_array_equal(path, expected)
-    assert tuple(path[0]) == (0, 0) and tuple(path[-1]) == (rows.stop - rows.start - 1, end - start)
+    assert tuple(path[0]) == (0, 0) and tuple(path[-1]) == (rows.stop - rows.start - 1, end - start - 1)
 
 
 def test_a_database_without_classes_says_so_in_one_line():
@@ -165,20 +162,18 @@ def _assert_table_shows(page, db, expected: pd.DataFrame, offset: int = 0, rows:
     """The table's visible page shows rows offset.. of the library's hits: document, frames, cost as shown."""
     part = expected.iloc[offset : offset + rows]
     n = len(part)
-    docs = db.documents
-    first = docs["start"].to_numpy()[part["doc_id"]]
     assert _cells(page, "rank", n) == [str(offset + i + 1) for i in range(n)]
-    assert _cells(page, "doc_id", n) == [str(d) for d in docs["doc_id"].to_numpy()[part["doc_id"]]]
-    assert _cells(page, "first", n) == [str(f) for f in part["start"] - first]
-    assert _cells(page, "last", n) == [str(f) for f in part["end"] - first]
+    assert _cells(page, "doc_id", n) == [str(d) for d in part["doc_id"]]
+    assert _cells(page, "start", n) == [str(f) for f in part["start"]]  # frames of the document, half-open
+    assert _cells(page, "end", n) == [str(f) for f in part["end"]]
     assert _cells(page, "normalised_cost", n) == [f"{v:.3f}" for v in part["normalised_cost"]]
 
 
-def _steps(values: np.ndarray, example: slice, hit: pd.Series) -> np.ndarray:
+def _steps(db, values: np.ndarray, example: slice, hit: pd.Series) -> np.ndarray:
     """The DTW path of a training example's clip (database frames ``example``) and a hit's frames, on the
     relational features ``values`` with the template's learning cost."""
-    _, path = dtw(values[example].astype(float), values[int(hit["start"]) : int(hit["end"]) + 1],
-                  distance=template_distance)
+    rows = database_frames(db, hit["doc_id"], hit["start"], hit["end"])
+    _, path = dtw(values[example].astype(float), values[rows], distance=template_distance)
     return path
 
 
@@ -217,7 +212,7 @@ def test_templates_page_shows_the_library_hits_and_plays_one(page, sample_dashbo
     # the second hit (document 18, a training example) plays beside the other example, document 7, aligned by DTW
     page.locator(".mv-templates-table .tabulator-row").nth(1).click()
     page.locator(".mv-templates-playing", has_text="Playing").wait_for()
-    path = _steps(features["2006"], sample_db.frames(7), expected.iloc[1])
+    path = _steps(sample_db, features["2006"], sample_db.frames(7), expected.iloc[1])
     assert "training example document 7 " in text_of(page, ".mv-templates-playing")
     assert "hit 2 (document 18," in text_of(page, ".mv-templates-playing")
     page.locator(".mv-templates-player .mv-player-caption", has_text=f"of {len(path)} ").wait_for()
@@ -251,7 +246,7 @@ def test_templates_page_shows_the_library_hits_and_plays_one(page, sample_dashbo
     page.locator(".mv-templates-view .bk-btn", has_text="quantised").click()
     page.locator(".mv-templates-legend", has_text="Quantised at δ = 0.2").wait_for()
     page.locator(".mv-templates-table .tabulator-row").nth(1).click()
-    path = _steps(features["2005"], sample_db.frames(11), expected.iloc[1])
+    path = _steps(sample_db, features["2005"], sample_db.frames(11), expected.iloc[1])
     page.locator(".mv-templates-player .mv-player-caption", has_text=f"of {len(path)} ").wait_for()
     assert "training example document 11 " in text_of(page, ".mv-templates-playing")
     screenshot("templates-actor")

@@ -186,7 +186,7 @@ def test_match_prints_the_library_matches(sample_db, capsys):
     assert len(rows) == len(ref) >= 1
     assert [int(r[1]) for r in rows] == ref["doc_id"].tolist()
     assert [int(r[3]) for r in rows] == (ref["start"] - starts[ref["doc_id"]]).tolist()
-    np.testing.assert_allclose([float(r[5]) for r in rows], ref["cost"], atol=1e-3)
+    np.testing.assert_allclose([float(r[8]) for r in rows], ref["cost"], atol=1e-3)  # after frames, start_s, end_s
 
     assert main(["match", str(sample_db.path), "--example", str(doc), "--frames", "5:35", "-K", "3", "--method",
                  "dtw", "--paths"]) == 0  # fmt: skip
@@ -194,7 +194,7 @@ def test_match_prints_the_library_matches(sample_db, capsys):
     ref = subsequence_dtw(q, X, starts, n_matches=20)
     ref = ref[ref["doc_id"] != doc].head(3)
     rows = _table(text.split("\npath 1")[0])
-    assert [int(r[4]) for r in rows] == (ref["end"] - starts[ref["doc_id"]]).tolist()
+    assert [int(r[4]) for r in rows] == (ref["end"] + 1 - starts[ref["doc_id"]]).tolist()  # end: half-open
     first = ref["path"].iloc[0]
     assert f"0:{first[0, 1] - starts[ref['doc_id'].iloc[0]]} " in text.split("\npath 1")[1]
 

@@ -59,7 +59,7 @@ def hdm05(module_home, fetch_archive) -> Path:
 def no_data(monkeypatch, tmp_path):
     """No base location: MOCAPVIZ_DATA_URL unset and the package seen as installed outside a checkout."""
     monkeypatch.delenv(datasets.DATA_URL_ENV, raising=False)
-    monkeypatch.setattr(datasets, "__file__", str(tmp_path / "site-packages" / "mocapviz" / "datasets.py"))
+    monkeypatch.setattr(datasets, "__file__", str(tmp_path / "site-packages" / "mocapviz" / "io" / "datasets.py"))
 
 
 @pytest.fixture
@@ -235,7 +235,7 @@ def test_no_base_location_says_where_the_archives_come_from(home, no_data):
 def test_default_folder_is_only_the_checkouts_shared_data(tmp_path, monkeypatch):
     assert datasets._default_folders() == [REPO.parent / "shared" / "data"]
     installed = tmp_path / "site-packages" / "mocapviz"
-    monkeypatch.setattr(datasets, "__file__", str(installed / "datasets.py"))
+    monkeypatch.setattr(datasets, "__file__", str(installed / "io" / "datasets.py"))
     assert datasets._default_folders() == []
     (tmp_path / "site-packages" / "pyproject.toml").parent.mkdir(parents=True, exist_ok=True)
     (tmp_path / "site-packages" / "pyproject.toml").write_text("[project]\n")
@@ -244,7 +244,7 @@ def test_default_folder_is_only_the_checkouts_shared_data(tmp_path, monkeypatch)
 
 def test_installed_package_without_the_variable_has_no_base_location(tmp_path, monkeypatch):
     monkeypatch.delenv(datasets.DATA_URL_ENV, raising=False)
-    monkeypatch.setattr(datasets, "__file__", str(tmp_path / "site-packages" / "mocapviz" / "datasets.py"))
+    monkeypatch.setattr(datasets, "__file__", str(tmp_path / "site-packages" / "mocapviz" / "io" / "datasets.py"))
     with pytest.raises(DatasetError, match="mocap archives not found"):
         datasets.data_url()
 

@@ -60,7 +60,7 @@ def test_the_ranking_is_brute_force_dtw_of_the_relational_candidates(db, f15e, l
     best = hits.drop_duplicates("doc_id").set_index("doc_id")
     row = ranked.iloc[0]
     assert (row["hit_start"], row["hit_end"], row["hit_score"]) == tuple(
-        best.loc[row["doc_id"], ["start_frame", "end_frame", "score"]])
+        best.loc[row["doc_id"], ["start", "end", "score"]])
     assert ranked.attrs == {"relational_hits": len(hits), "candidates": len(candidates)}
 
 

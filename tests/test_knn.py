@@ -274,9 +274,11 @@ def test_describe_frames_names_documents_and_frames(db):
     docs = db.documents
     picks = np.array([0, int(docs["start"].iloc[5]) + 3, -1, db.n_frames - 1])
     table = describe_frames(db, picks, distances=np.array([0.0, 1.5, np.inf, 2.0]))
-    assert table["rank"].tolist() == [1, 2, 4] and table["frame"].tolist() == [picks[0], picks[1], picks[3]]
+    assert table["rank"].tolist() == [1, 2, 3]  # the missing neighbour (-1) left out
     assert table["doc_id"].tolist() == [docs["doc_id"].iloc[0], docs["doc_id"].iloc[5], docs["doc_id"].iloc[-1]]
-    assert table["doc_frame"].tolist() == [0, 3, int(docs["n_frames"].iloc[-1]) - 1]
+    assert table["start"].tolist() == [0, 3, int(docs["n_frames"].iloc[-1]) - 1]  # one-frame hits
+    assert (table["end"] == table["start"] + 1).all() and (table["frames"] == 1).all()
+    np.testing.assert_allclose(table["start_s"], table["start"] / docs["fps"].iloc[[0, 5, -1]].to_numpy())
     assert table["label"].tolist() == docs["label"].iloc[[0, 5, -1]].tolist()
     assert table["distance"].tolist() == [0.0, 1.5, 2.0]
     with pytest.raises(ValueError, match="beyond the database"):

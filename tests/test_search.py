@@ -43,7 +43,7 @@ def test_exact_clips_equal_brute_force_dtw(search, doc):
         assert got["doc_id"].tolist() == ref["doc_id"].tolist(), mode
         np.testing.assert_allclose(got["normalised_cost"], ref["normalised_cost"], rtol=1e-12)
         assert got.attrs["cells"] <= got.attrs["brute_cells"]
-    assert (got["start"] == 0).all() and (got["end"] == got["frames"] - 1).all()
+    assert (got["start"] == 0).all() and (got["end"] == got["frames"]).all()  # half-open: the whole document
 
 
 def test_exact_clips_of_a_span_with_candidates(search, hdm05_db30):
@@ -67,7 +67,7 @@ def brute_stretches(search, q: np.ndarray, own: int, n_matches: int, shortest: i
     cost[(ends >= span.start) & (ends < span.stop) | (ends - first + 1 < shortest)] = np.inf
     chosen = best_ends(cost, first, starts, n_matches)
     doc_row = np.searchsorted(starts, chosen, side="right") - 1
-    return [(int(search.documents["doc_id"][r]), int(first[e] - starts[r]), int(e - starts[r]), cost[e])
+    return [(int(search.documents["doc_id"][r]), int(first[e] - starts[r]), int(e + 1 - starts[r]), cost[e])
             for e, r in zip(chosen, doc_row)]  # fmt: skip
 
 

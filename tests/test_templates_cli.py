@@ -104,9 +104,9 @@ def test_search_csv_equals_find_instances_with_frames_within_documents(by, db, k
     np.testing.assert_allclose(got["cost"], hits["cost"])
     np.testing.assert_allclose(got["normalised_cost"], hits["normalised_cost"])
     first = docs["start"].to_numpy()
-    assert np.array_equal(got["start"], hits["start"] - first) and np.array_equal(got["end"], hits["end"] - first)
-    assert (got["start"] >= 0).all() and (got["end"] < docs["n_frames"].to_numpy()).all()  # frames within the document
-    assert np.array_equal(got["frames"], got["end"] - got["start"] + 1)
+    assert np.array_equal(got["start"], hits["start"] - first) and np.array_equal(got["end"], hits["end"] + 1 - first)
+    assert (got["start"] >= 0).all() and (got["end"] <= docs["n_frames"].to_numpy()).all()  # frames within the document, half-open
+    assert np.array_equal(got["frames"], got["end"] - got["start"])
     assert got["name"].tolist() == docs["name"].tolist() and got["label"].tolist() == docs["label"].tolist()
     assert got["normalised_cost"].is_monotonic_increasing  # best first
     assert got.loc[0, "name"] == "HDM_dg_kickLFront1Reps_017_120" and got.loc[0, "cost"] == 0  # its own example

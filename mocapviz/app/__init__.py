@@ -110,7 +110,7 @@ def warm_up(backend: Backend) -> dict[str, float]:
 
     docs = backend.documents
     doc = int(docs.loc[docs["n_frames"].idxmax(), "doc_id"])
-    span = (0, min(WARM_SPAN, int(docs["n_frames"].max())) - 1)
+    span = (0, min(WARM_SPAN, int(docs["n_frames"].max())))  # frames of the document, half-open
     db, seconds = backend.db, {}
 
     def step(name: str, fn) -> None:
@@ -128,7 +128,7 @@ def warm_up(backend: Backend) -> dict[str, float]:
 
     def knn() -> None:
         table = similarity.nearest_frames(backend, "F15E", doc, 0, 8, True)
-        similarity.neighbours_png(backend, doc, 0, table["frame"].to_numpy())
+        similarity.neighbours_png(backend, doc, 0, table)
 
     def lng() -> None:
         k = min(similarity.scaled_k(similarity.LNG_K_AT_30HZ, backend.fps), db.n_frames)
@@ -136,7 +136,7 @@ def warm_up(backend: Backend) -> dict[str, float]:
 
     def relational_query() -> None:
         indexes = backend.indexes(relational.RELATIONAL_SET)
-        example = db.motion(doc)[span[0]:span[1] + 1]
+        example = db.motion(doc)[span[0]:span[1]]
         for mode in relational.MODES.values():
             query_by_example(db, example, list(relational.DEFAULT_FEATURES), mode, 1, relational.RELATIONAL_SET,
                              indexes)

@@ -95,15 +95,17 @@ class Backend:
         return self.cached(("numeric", name), lambda: numeric_of(self.db, name))
 
     def knn(self, name: str) -> KnnIndex:
-        """The kd-tree over a numeric set (Krüger et al. 2010 §3.3)."""
+        """The kd-tree over a numeric set (Krüger et al. 2010 §3.3): the one of this process, shared by the kNN
+        table, motion matching and :meth:`search`."""
         return self.cached(("knn", name), lambda: KnnIndex(self.numeric(name)))
 
     def search(self, name: str = "F15E"):
-        """The DTW search over a numeric set (:class:`mocapviz.similarity.search.SimilaritySearch`; its kd-tree and
-        coarse database are built on first use and kept with it)."""
+        """The DTW search over a numeric set (:class:`mocapviz.similarity.search.SimilaritySearch`), one per set,
+        over :meth:`numeric`'s features and :meth:`knn`'s kd-tree (its coarse database is built on first use)."""
         from ..similarity.search import SimilaritySearch
 
-        return self.cached(("search", name), lambda: SimilaritySearch(self.db, name))
+        return self.cached(("search", name), lambda: SimilaritySearch(self.db, name, features=self.numeric(name),
+                                                                     index=self.knn(name)))
 
     def retrieval(self, methods, label_column: str = "label", group_column=None, n_queries: int | None = None,
                   seed: int = 0) -> dict:  # fmt: skip

@@ -9,10 +9,23 @@ import param
 class Selection(param.Parameterized):
     """The current clip, frame and span of a dashboard session.
 
-    ``doc`` is a document id of the database; ``frame`` and ``span`` (first, last, inclusive) are frame numbers
-    within that document.
+    ``doc`` is a document id of the database; ``frame`` and ``span`` are frame numbers within that document,
+    ``span`` (start, end) half-open as a hit's (:func:`mocapviz.db.hits.hit_table`): frames start..end - 1. The
+    sliders show first and last frames; pages read positions only through :func:`mocapviz.db.hits.database_frames`.
     """
 
     doc = param.Integer(default=0, doc="document id")
     frame = param.Integer(default=0, bounds=(0, None), doc="frame within the document")
-    span = param.Tuple(default=(0, 0), length=2, doc="(first, last) frames within the document, inclusive")
+    span = param.Tuple(default=(0, 1), length=2, doc="(start, end) frames within the document, half-open")
+
+
+def half_open(value) -> tuple[int, int]:
+    """A span slider's (first, last) frames as a session's span (start, end), half-open."""
+    first, last = (int(v) for v in value)
+    return first, last + 1
+
+
+def inclusive(span) -> tuple[int, int]:
+    """A session's span (start, end), half-open, as a slider's (first, last) frames."""
+    start, end = (int(v) for v in span)
+    return start, end - 1

@@ -8,6 +8,23 @@ import math
 import pandas as pd
 import panel as pn
 
+# The titles of the hit table's columns (mocapviz.db.hits.hit_table), the same on every page: each page shows the
+# columns it wants, in this order, under these titles (``hit_columns``).
+HIT_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "label": "label", "start": "start frame",
+              "end": "end frame (excl.)", "frames": "frames", "start_s": "start (s)", "end_s": "end (s)",
+              "distance": "distance", "score": "score", "cost": "cost", "normalised_cost": "normalised cost",
+              "cost_per_frame": "cost / frame", "n_segments": "segments"}  # fmt: skip
+
+
+def hit_titles(*columns: str) -> dict:
+    """The :data:`HIT_TITLES` of ``columns``, in the order given (a page's table)."""
+    return {c: HIT_TITLES[c] for c in columns}
+
+
+def hit_columns(hits: pd.DataFrame, titles: dict, decimals: dict | None = None) -> pd.DataFrame:
+    """The columns of ``titles`` that ``hits`` has, in that order, rounded by ``decimals`` (column -> places)."""
+    return hits[[c for c in titles if c in hits]].round(decimals or {})
+
 
 class _KeepsBounds:
     """What :class:`BoundedIntInput` and :class:`BoundedFloatInput` share: the server enforces ``start`` / ``end``.

@@ -64,6 +64,40 @@ class MotionDB:
         ``content``/``style``).
     positions : np.ndarray [shape=(N, 24, 3)], float32 memory map, cm, canonical joints
     quaternions : np.ndarray [shape=(N, 24, 4)], float32 memory map, NaN for documents without rotations
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The database folder.
+    manifest : dict
+        Its parsed ``manifest.json``.
+    documents : pandas.DataFrame
+        The documents table.
+    arrays : dict
+        ``"positions"`` and ``"quaternions"`` arrays of all frames.
+
+    The constructor takes what :meth:`open` has read and checked; call :meth:`open`, :meth:`ingest`,
+    :meth:`create` or :meth:`sample` instead.
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. ACM TOG
+       24(3), 2005, §5: the database as one long document, the documents concatenated, their boundaries kept.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()
+    >>> len(db), db.n_frames, db.fps
+    (24, 5543, 120.0)
+    >>> db.select(label="squat1Reps")[["doc_id", "actor"]].to_numpy().tolist()
+    [[11, 'dg'], [22, 'mm']]
+    >>> m = db.motion(7)[0:120]  # a Motion on the 24 canonical joints; frames 0:120 of document 7
+    >>> m.positions.shape, m.fps, m.labels["label"]
+    ((120, 24, 3), 120.0, 'kickLFront1Reps')
+    >>> sl = db.frames(7)  # document 7's rows of db.positions
+    >>> sl.stop - sl.start, int(db.document(7)["n_frames"])
+    (129, 129)
     """
 
     def __init__(self, path, manifest: dict, documents: pd.DataFrame, arrays: dict):
@@ -82,11 +116,29 @@ class MotionDB:
         also against its sha256 (it is small); with ``verify`` the frame arrays' sha256 too (a few seconds per GB;
         ``mocapviz check DB`` does this).
 
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The database folder (holding ``manifest.json``).
+        verify : bool
+            Also check the sha256 of the frame arrays (slow on large databases).
+
+        Returns
+        -------
+        MotionDB
+            The frame arrays memory-mapped read-only, the documents table in memory.
+
         Raises
         ------
         MotionDBError
             Not a MotionDB, another format version, or a file missing, damaged (size or checksum) or inconsistent
             with the manifest; the message names the file.
+
+        Examples
+        --------
+        >>> db = MotionDB.open(MotionDB.sample().path, verify=True)
+        >>> len(db), db.positions.shape
+        (24, (5543, 24, 3))
         """
         path = Path(path)
         manifest = _read_manifest(path)
@@ -138,19 +190,74 @@ class MotionDB:
         return f"MotionDB({str(self.path)!r}: {len(self)} documents, {self.n_frames} frames, {fps})"
 
     def document(self, doc_id: int) -> pd.Series:
-        """The document table's row of ``doc_id`` (KeyError naming the valid ids when there is none)."""
+        """The document table's row of ``doc_id``.
+
+        Parameters
+        ----------
+        doc_id : int
+            A value of ``documents.doc_id``.
+
+        Returns
+        -------
+        pandas.Series
+            The row: ``name``, ``path``, ``start``, ``n_frames``, ``fps``, labels, ...
+
+        Raises
+        ------
+        KeyError
+            No such document (an UnknownKeyError naming the valid ids).
+        """
         rows = self.documents[self.documents["doc_id"] == doc_id]
         if rows.empty:
-            raise UnknownKeyError(f"{self.path}: no document {doc_id} (ids {self.documents['doc_id'].min()}..{self.documents['doc_id'].max()})")
+            raise UnknownKeyError(f"{self.path}: no document {doc_id} (doc ids {self.documents['doc_id'].min()}..{self.documents['doc_id'].max()})")
         return rows.iloc[0]
 
     def frames(self, doc_id: int) -> slice:
-        """The slice of the concatenated arrays that holds document ``doc_id``."""
+        """The slice of the concatenated arrays that holds document ``doc_id``.
+
+        Parameters
+        ----------
+        doc_id : int
+            A value of ``documents.doc_id``.
+
+        Returns
+        -------
+        slice
+            Rows ``start:start + n_frames`` of :attr:`positions` (database-wide frame numbers).
+
+        Examples
+        --------
+        >>> db = MotionDB.sample()
+        >>> sl = db.frames(7)
+        >>> db.positions[sl].shape
+        (129, 24, 3)
+        """
         row = self.document(doc_id)
         return slice(int(row["start"]), int(row["start"] + row["n_frames"]))
 
     def motion(self, doc_id: int) -> Motion:
-        """Document ``doc_id`` as a canonical Motion (arrays are views of the memory maps)."""
+        """Document ``doc_id`` as a canonical Motion (arrays are views of the memory maps).
+
+        Parameters
+        ----------
+        doc_id : int
+            A value of ``documents.doc_id``.
+
+        Returns
+        -------
+        Motion
+            Positions [shape=(n_frames, 24, 3)] in cm on the canonical joints, quaternions (None when the source
+            had no rotations), the document's ``fps``, ``source`` (its file) and ``labels``.
+
+        Examples
+        --------
+        >>> db = MotionDB.sample()
+        >>> m = db.motion(11)
+        >>> m.n_frames, m.fps, m.labels["label"], m.labels["actor"]
+        (159, 120.0, 'squat1Reps', 'dg')
+        >>> m[0:60].n_frames  # a span of frames is a Motion too
+        60
+        """
         row = self.document(doc_id)
         sl = self.frames(doc_id)
         quat = self.quaternions[sl]
@@ -173,7 +280,24 @@ class MotionDB:
         return ["label"] + [c for c in self.documents.columns if c not in _BASE_COLUMNS and c != "frames"]
 
     def document_of(self, frames) -> np.ndarray:
-        """Document id of each frame index (array in, array out)."""
+        """Document id of each database frame.
+
+        Parameters
+        ----------
+        frames : array_like of int
+            Rows of :attr:`positions` (database-wide frame numbers, e.g. kNN neighbours).
+
+        Returns
+        -------
+        np.ndarray
+            The doc id of each frame, in the shape of ``frames``.
+
+        Examples
+        --------
+        >>> db = MotionDB.sample()
+        >>> db.document_of([0, db.frames(7).start]).tolist()
+        [0, 7]
+        """
         starts = self.documents["start"].to_numpy()
         idx = np.searchsorted(starts, np.asarray(frames), side="right") - 1
         return self.documents["doc_id"].to_numpy()[idx]
@@ -183,10 +307,26 @@ class MotionDB:
 
         A value may be a scalar or a list of accepted values.
 
+        Parameters
+        ----------
+        **criteria
+            Column of :attr:`documents` -> accepted value or list of values; all criteria must hold.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The matching rows of :attr:`documents`, in their order.
+
         Raises
         ------
         KeyError
             A column the documents table does not have.
+
+        Examples
+        --------
+        >>> db = MotionDB.sample()
+        >>> db.select(label=["squat1Reps", "kickLFront1Reps"], actor="mm")["doc_id"].tolist()
+        [18, 22]
         """
         mask = np.ones(len(self.documents), dtype=bool)
         for col, want in criteria.items():
@@ -197,7 +337,20 @@ class MotionDB:
         return self.documents[mask]
 
     def summary(self) -> pd.DataFrame:
-        """Documents, frames and minutes per label (and a total row)."""
+        """Documents, frames and minutes per label (and a total row).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Indexed by label (``"(none)"`` for unlabelled documents, last ``"total"``); columns ``documents``,
+            ``frames`` and ``minutes`` (each document at its own rate).
+
+        Examples
+        --------
+        >>> per = MotionDB.sample().summary()
+        >>> [int(per.loc[row, "documents"]) for row in ("squat1Reps", "total")]
+        [2, 24]
+        """
         d = self.documents.assign(minutes=self.documents["n_frames"] / self.documents["fps"] / 60.0)
         per = d.groupby(d["label"].fillna("(none)")).agg(documents=("doc_id", "size"), frames=("n_frames", "sum"),
                                                          minutes=("minutes", "sum"))
@@ -234,7 +387,23 @@ class MotionDB:
     # ------------------------------------------------------------------ writing
     @classmethod
     def create(cls, path) -> MotionDB:
-        """An empty MotionDB at ``path`` (which must not exist or be an empty directory)."""
+        """An empty MotionDB at ``path`` (which must not exist or be an empty directory).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The new database folder.
+
+        Returns
+        -------
+        MotionDB
+            Generation 0, no documents.
+
+        Raises
+        ------
+        MotionDBError
+            ``path`` exists and is not an empty directory.
+        """
         path = Path(path)
         if path.exists() and (not path.is_dir() or any(path.iterdir())):
             raise MotionDBError(f"{path}: exists and is not an empty directory")
@@ -299,6 +468,22 @@ class MotionDB:
             A file fails to read and ``skip_bad`` is false; the database is left as it was.
         MotionDBError
             ``out`` exists but is not a MotionDB, or its frame rate differs from ``fps``.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from mocapviz.io import datasets
+        >>> amc = datasets.sample() / "hdm05-cut" / "amc"
+        >>> files = [amc / "HDM_dg_squat1Reps_033_120.amc", amc / "HDM_mm_squat1Reps_037_120.amc"]
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     db = MotionDB.ingest(files, f"{tmp}/squats.mdb", progress=False)
+        ...     again = db.append(files[0], progress=False)  # already held (same sha256): skipped
+        ...     print(db.documents[["doc_id", "label", "actor", "n_frames"]].to_string(index=False))
+        ...     print(len(again), again.n_frames, again.fps)
+         doc_id      label actor  n_frames
+              0 squat1Reps    dg       159
+              1 squat1Reps    mm       189
+        2 348 120.0
         """
         out = Path(out)
         files = expand_paths(paths)
@@ -327,11 +512,23 @@ class MotionDB:
     def append(self, paths, fps: float | None = None, labels=None, mapping: dict | None = None,
                skip_bad: bool = False, threads: int | None = None, progress: bool = True, scheduler=None,
                **load_options) -> MotionDB:
-        """Add motion files to this database; see :meth:`ingest`. Returns the reopened database.
+        """Add motion files to this database; see :meth:`ingest`.
 
         The writer lock is held for the whole transaction (what the database holds is read, the files are read,
         the new documents are committed), so a second writer waits; when it goes on, it sees the documents the
         first committed and skips those files.
+
+        Parameters
+        ----------
+        paths : str, os.PathLike or list of them
+            Files, folders or glob patterns, as for :meth:`ingest`.
+        fps, labels, mapping, skip_bad, threads, progress, scheduler, **load_options
+            As for :meth:`ingest`.
+
+        Returns
+        -------
+        MotionDB
+            The database reopened at its new generation (this object is left as it was).
         """
         options = IngestOptions(fps, labels, mapping, skip_bad, threads, progress, scheduler, load_options)
         return self._append_files(expand_paths(paths), options)
@@ -366,7 +563,8 @@ class MotionDB:
 
         Returns
         -------
-        MotionDB, reopened.
+        MotionDB
+            The database reopened at its new generation.
 
         Raises
         ------

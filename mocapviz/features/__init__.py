@@ -15,20 +15,23 @@ store_numeric     compute numeric sets of a MotionDB and store them in <db>/feat
 load_numeric      a stored numeric set, memory-mapped (MotionDBError when missing or stale).
 numeric_of        a MotionDB's numeric set: stored when current, else computed.
 NUMERIC_SETS      the numeric feature set names.
-"""
 
-from .numeric import (
-    NUMERIC_SETS,
-    PCAModel,
-    fit_pca,
-    load_numeric,
-    numeric_columns,
-    numeric_features,
-    numeric_of,
-    store_numeric,
-    window_offsets,
-)
-from .relational import RELATIONAL_SETS, feature_groups, feature_names, feature_table, relational_features
+The set names are defined here and the rest is imported when first used (``mocapviz._lazy``): the command line's
+parser lists the sets without loading numba, pandas or the feature modules.
+"""
+from .._lazy import lazy_exports
+
+NUMERIC_SETS = ("F15E", "F30E", "F39E", "F15x3E", "F15x5E", "F30x3E", "Fp8", "Fp16", "Fp25")
+"""The numeric feature sets, in the order of ``numeric.py`` (which defines each)."""
+RELATIONAL_SETS = ("2005", "2006")
+"""The relational feature sets: Müller, Röder & Clausen 2005 (31 features) and Müller & Röder 2006 (39)."""
+
+__getattr__, __dir__ = lazy_exports(__name__, {
+    **dict.fromkeys(["PCAModel", "fit_pca", "load_numeric", "numeric_columns", "numeric_features", "numeric_of",
+                     "store_numeric", "window_offsets"], ".numeric"),
+    **dict.fromkeys(["feature_groups", "feature_names", "feature_table", "relational_features"], ".relational"),
+    "NUMERIC_SETS": ".numeric", "RELATIONAL_SETS": ".relational",
+})  # fmt: skip
 
 __all__ = [
     "NUMERIC_SETS",

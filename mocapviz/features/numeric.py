@@ -79,6 +79,7 @@ from ..store import (
     verify,
 )
 from ..validation import finite_positions, one_of
+from . import NUMERIC_SETS  # the names, with the package: the command line lists them without importing this module
 
 __all__ = [
     "NUMERIC_SETS",
@@ -125,7 +126,8 @@ _SETS = {
     "F15x3E": _Set(_F15, 3), "F15x5E": _Set(_F15, 5), "F30x3E": _Set(_F30, 3),
     "Fp8": _Set(pcs=8), "Fp16": _Set(pcs=16), "Fp25": _Set(pcs=25),
 }  # fmt: skip
-NUMERIC_SETS = tuple(_SETS)
+if tuple(_SETS) != NUMERIC_SETS:  # pragma: no cover - a set defined here is named in features/__init__.py too
+    raise ImportError(f"mocapviz.features.NUMERIC_SETS {NUMERIC_SETS} differs from the sets defined, {tuple(_SETS)}")
 _PCA_COMPONENTS = max(s.pcs for s in _SETS.values())  # a default model serves every Fp set
 
 
@@ -145,12 +147,20 @@ def window_offsets(n_samples: int, fps: float) -> np.ndarray:
 
     Parameters
     ----------
-    n_samples : int, >= 1
-    fps : float, frames per second
+    n_samples : int
+        Samples per window, at least 1 (3 or 5 for the windowed sets).
+    fps : float
+        Frames per second of the document.
 
     Returns
     -------
-    np.ndarray [shape=(n_samples,)], int64 frames, ascending, symmetric about the 0 in the middle.
+    np.ndarray [shape=(n_samples,)], int64
+        Frame offsets from the centre frame, ascending, symmetric about the 0 in the middle.
+
+    Examples
+    --------
+    >>> window_offsets(3, 120).tolist(), window_offsets(5, 30).tolist()
+    ([-18, 0, 18], [-4, -2, 0, 2, 4])
     """
     if n_samples == 1:
         return np.zeros(1, dtype=np.int64)
@@ -252,7 +262,17 @@ class PCAModel:
     def project(self, poses: np.ndarray, n: int | None = None) -> np.ndarray:
         """Coefficients of the first ``n`` (default all) components of body-frame poses.
 
-        poses : np.ndarray [shape=(T, 72) or (T, 24, 3)], cm, body frame -> np.ndarray [shape=(T, n)], float64, cm.
+        Parameters
+        ----------
+        poses : np.ndarray [shape=(T, 72) or (T, 24, 3)]
+            Poses in the body frame (:func:`mocapviz.motion.skeleton.body_frame`), cm.
+        n : int, optional
+            Components, 1 <= n <= :attr:`n_components` (default all).
+
+        Returns
+        -------
+        np.ndarray [shape=(T, n)], float64
+            Coefficients, cm along the unit principal axes.
         """
         n = self.n_components if n is None else n
         if not 1 <= n <= self.n_components:
@@ -263,13 +283,27 @@ class PCAModel:
     def reconstruct(self, coefficients: np.ndarray) -> np.ndarray:
         """Body-frame poses from the coefficients of the first n components (the inverse of :meth:`project`).
 
-        coefficients : np.ndarray [shape=(T, n)], cm -> np.ndarray [shape=(T, 72)], float64, cm.
+        Parameters
+        ----------
+        coefficients : np.ndarray [shape=(T, n)]
+            Coefficients of the first n components, cm.
+
+        Returns
+        -------
+        np.ndarray [shape=(T, 72)], float64
+            Body-frame poses, joint-major x y z, cm.
         """
         c = np.asarray(coefficients, dtype=np.float64)
         return self.mean + c @ self.components[: c.shape[1]]
 
     def save(self, path) -> None:
-        """Write the model as an ``.npz`` (no pickled objects), atomically (temporary file, then rename)."""
+        """Write the model as an ``.npz`` (no pickled objects), atomically (temporary file, then rename).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (replaced if it exists).
+        """
         atomic_write(Path(path), self._npz_bytes())
 
     def _npz_bytes(self) -> bytes:
@@ -290,6 +324,15 @@ class PCAModel:
     @classmethod
     def load(cls, path) -> PCAModel:
         """Read a model written by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            A file written by :meth:`save`.
+
+        Returns
+        -------
+        PCAModel
 
         Raises
         ------
@@ -329,16 +372,31 @@ def fit_pca(
     ----------
     source : Motion or MotionDB
         The reference frames (a Motion on any skeleton is mapped with ``canonical()``).
-    n_components : int, 1 .. 72
+    n_components : int
+        Principal axes kept, 1 to 72.
     reference : str, optional
         Description stored with the model; default: the clip or database (path, generation, frames).
-    progress, threads, scheduler :
+    progress : bool
+        Progress bar, as for :func:`numeric_features`.
+    threads : int, optional
+        Threads over batches of documents, as for :func:`numeric_features`.
+    scheduler : None, "local", str or dask.distributed.Client
         As for :func:`numeric_features` (with Dask, the workers compute the body-frame poses; the moments are
         summed here, in batch order, so the model is the same).
 
     Returns
     -------
     PCAModel
+        ``mean`` [shape=(72,)] and ``components`` [shape=(n_components, 72)] in cm, ``explained_variance`` in cm².
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> pca = fit_pca(MotionDB.sample(), n_components=8, progress=False)
+    >>> pca.components.shape, pca.n_frames
+    ((8, 72), 5543)
+    >>> bool(pca.explained_variance_ratio.sum() < 1)
+    True
 
     Raises
     ------
@@ -492,6 +550,24 @@ def numeric_features(
         A Motion whose joints cannot be mapped onto the canonical skeleton.
     TypeError
         ``source`` is neither a Motion nor a MotionDB.
+
+    References
+    ----------
+    .. [1] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §3.2 (the feature sets F15E ... F30x3E) and §3.1 (the PCA sets Fp_n).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()
+    >>> x = numeric_features(db.motion(7)[0:120], "F15E")  # hands, feet and head in the body frame, cm
+    >>> x.shape, x.dtype, numeric_columns("F15E")[:3]
+    ((120, 15), dtype('float32'), ['lwrist.x', 'lwrist.y', 'lwrist.z'])
+    >>> numeric_features(db, "F15x3E", progress=False).shape  # every frame of the database, windows of 0.3 s
+    (5543, 45)
+    >>> pca = fit_pca(db, n_components=8, progress=False)
+    >>> numeric_features(db.motion(7), "Fp8", pca=pca).shape
+    (129, 8)
     """
     spec = _spec(numeric_set)
     out = np.empty((_n_frames(source), spec.dims), dtype=np.float32)
@@ -505,6 +581,21 @@ def numeric_columns(numeric_set: str) -> list[str]:
 
     ``"lwrist.x"`` ... for the frame sets; ``"lwrist.x@-0.150s"`` ... (nominal window offset) for the windowed
     ones, samples in time order; ``"pc1"`` ... for the PCA sets.
+
+    Parameters
+    ----------
+    numeric_set : str
+        One of :data:`NUMERIC_SETS`.
+
+    Returns
+    -------
+    list of str
+        d names, in column order.
+
+    Examples
+    --------
+    >>> numeric_columns("F15x3E")[:2], len(numeric_columns("F15x3E")), numeric_columns("Fp8")[0]
+    (['lwrist.x@-0.150s', 'lwrist.y@-0.150s'], 45, 'pc1')
     """
     spec = _spec(numeric_set)
     if spec.pcs:
@@ -538,14 +629,17 @@ def store_numeric(
     Parameters
     ----------
     db : MotionDB
+        The database; its folder must be writable.
     numeric_sets : str or list of str, optional
         Sets to compute (default: all of :data:`NUMERIC_SETS`).
     pca : PCAModel, optional
         The reference PCA for the Fp sets. Default: fitted on this database (the header says so; a ``pca.npz``
         fitted on this same generation is reused); the paper's reference is the entire HDM05 database, fitted
         once with :func:`fit_pca`.
-    progress, threads :
-        As for :func:`numeric_features`.
+    progress : bool
+        Progress bar, as for :func:`numeric_features`.
+    threads : int, optional
+        Threads over batches of documents, as for :func:`numeric_features`.
     scheduler : None, "local", str or dask.distributed.Client
         Compute the batches of documents as Dask tasks (one client for all the sets; see :func:`numeric_features`).
         The values are gathered here and written in frame order; the files are only renamed into place once a set
@@ -553,7 +647,8 @@ def store_numeric(
 
     Returns
     -------
-    dict name -> np.ndarray [shape=(N, d)], float32 memory maps of the stored files (:func:`load_numeric`).
+    dict
+        Set name -> np.ndarray [shape=(N, d)], float32 memory map of the stored file (:func:`load_numeric`), cm.
 
     Raises
     ------
@@ -641,9 +736,19 @@ def load_numeric(db: MotionDB, numeric_set: str, full_check: bool = False) -> np
     The data file's size is checked against the one recorded in its header; with ``full_check`` its sha256 too
     (``mocapviz check DB``).
 
+    Parameters
+    ----------
+    db : MotionDB
+        The database the set was stored with.
+    numeric_set : str
+        One of :data:`NUMERIC_SETS`.
+    full_check : bool
+        Also check the data file's sha256 (reads it whole).
+
     Returns
     -------
-    np.ndarray [shape=(N, d)], float32 memory map; row i is frame i of the database.
+    np.ndarray [shape=(N, d)], float32
+        A read-only memory map, cm; row i is frame i of the database.
 
     Raises
     ------
@@ -692,16 +797,25 @@ def numeric_of(db: MotionDB, numeric_set: str, pca: PCAModel | None = None, prog
     Parameters
     ----------
     db : MotionDB
+        The database.
     numeric_set : str
         One of :data:`NUMERIC_SETS`.
     pca : PCAModel, optional
         For an Fp set: computed with this model. Default: the stored set when current, else computed with
         :func:`default_pca`.
     progress : bool
+        Progress bar when computed.
 
     Returns
     -------
-    np.ndarray [shape=(N, d)], float32, cm (a read-only memory map when stored).
+    np.ndarray [shape=(N, d)], float32
+        Values of every database frame, cm (a read-only memory map when stored).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> numeric_of(MotionDB.sample(), "F30E").shape
+    (5543, 30)
     """
     if _spec(numeric_set).pcs and pca is not None:
         return numeric_features(db, numeric_set, pca=pca, progress=progress)
@@ -713,7 +827,20 @@ def numeric_of(db: MotionDB, numeric_set: str, pca: PCAModel | None = None, prog
 
 
 def default_pca(db: MotionDB, progress: bool = False) -> PCAModel:
-    """The PCA reference of a MotionDB when none is given: its stored ``features/pca.npz``, else fitted on it."""
+    """The PCA reference of a MotionDB when none is given: its stored ``features/pca.npz``, else fitted on it.
+
+    Parameters
+    ----------
+    db : MotionDB
+        The database.
+    progress : bool
+        Progress bar when fitted.
+
+    Returns
+    -------
+    PCAModel
+        Nothing is written when it is fitted here.
+    """
     return load_or_build(lambda: _stored_pca(db), lambda: fit_pca(db, progress=progress))
 
 

@@ -66,10 +66,10 @@ from ..errors import ParameterError
 from ..motion import Motion
 from ..motion.skeleton import CANONICAL_JOINTS, body_size_table
 from ..validation import finite_positions, one_of, renamed
+from . import RELATIONAL_SETS  # the set names, with the package
 
 __all__ = ["RELATIONAL_SETS", "feature_groups", "feature_names", "feature_table", "relational_features"]
 
-RELATIONAL_SETS = ("2005", "2006")
 GROUPS = ("lower", "upper", "mix")
 
 _INDEX = {name: k for k, name in enumerate(CANONICAL_JOINTS)}
@@ -950,15 +950,22 @@ def feature_names(relational_set: str = "2005") -> list[str]:
     Parameters
     ----------
     relational_set : {"2005", "2006"}
+        Which relational set.
 
     Returns
     -------
-    list of str: 31 names for "2005" (toolbox order: lower, upper, mix), 39 for "2006" (F1-F39).
+    list of str
+        31 names for "2005" (toolbox order: lower, upper, mix), 39 for "2006" (F1-F39).
 
     Raises
     ------
     ValueError
         An unknown set; the message lists the known ones.
+
+    Examples
+    --------
+    >>> len(feature_names("2005")), len(feature_names("2006"))
+    (31, 39)
     """
     return [f.name for f in _features(relational_set)]
 
@@ -967,6 +974,21 @@ def feature_groups(relational_set: str = "2005") -> dict[str, list[str]]:
     """Members of the groups "lower", "upper" and "mix" of a relational set, each in column order.
 
     "2005": 11 / 12 / 8 features (one inverted index per group, spec §1.7); "2006": 12 / 14 / 13.
+
+    Parameters
+    ----------
+    relational_set : {"2005", "2006"}
+        Which relational set.
+
+    Returns
+    -------
+    dict
+        ``"lower"``, ``"upper"``, ``"mix"`` -> list of feature names.
+
+    Examples
+    --------
+    >>> {group: len(names) for group, names in feature_groups("2005").items()}
+    {'lower': 11, 'upper': 12, 'mix': 8}
     """
     feats = _features(relational_set)
     return {g: [f.name for f in feats if f.group == g] for g in GROUPS}
@@ -975,12 +997,24 @@ def feature_groups(relational_set: str = "2005") -> dict[str, list[str]]:
 def feature_table(relational_set: str = "2005") -> pd.DataFrame:
     """One row per feature of a relational set, in column order.
 
+    Parameters
+    ----------
+    relational_set : {"2005", "2006"}
+        Which relational set.
+
     Returns
     -------
-    pandas.DataFrame with columns ``name``, ``group``, ``spec`` (spec row / paper feature), ``definition`` (the
-    quantity), ``op``, ``lax``, ``strict`` (thresholds in ``unit``; equal when there is no hysteresis), ``unit``
-    (a body size of :func:`mocapviz.motion.skeleton.body_sizes`, "deg", "cm" or "ratio" = of the touched segment's own
-    length), ``robust``.
+    pandas.DataFrame
+        Columns ``name``, ``group``, ``spec`` (spec row / paper feature), ``definition`` (the quantity), ``op``,
+        ``lax``, ``strict`` (thresholds in ``unit``; equal when there is no hysteresis), ``unit`` (a body size of
+        :func:`mocapviz.motion.skeleton.body_sizes`, "deg", "cm" or "ratio" = of the touched segment's own
+        length), ``robust``.
+
+    Examples
+    --------
+    >>> t = feature_table("2005")
+    >>> t.loc[t.name == "rknee_bent", ["group", "op", "lax", "strict", "unit"]].to_numpy().tolist()
+    [['lower', '<=', 120.0, 110.0, 'deg']]
     """
     return pd.DataFrame(
         [{"name": f.name, "group": f.group, "spec": f.spec, "definition": repr(f.quantity), "op": f.op,
@@ -1088,10 +1122,25 @@ def relational_features(source, relational_set: str = "2005", progress: bool = T
     TypeError
         ``source`` is neither a Motion nor a MotionDB.
 
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. ACM TOG
+       24(3), 2005, §3 (relational features; the 31 of Table 1 in the HDM05 toolbox's definitions).
+    .. [2] M. Müller, T. Röder. Motion templates for automatic classification and retrieval of motion capture
+       data. SCA 2006 (the 39 features of the "2006" set).
+
     Examples
     --------
-    >>> values, names = relational_features(mocapviz.load("HDM_bd_squat1Reps_001_120.amc"))  # doctest: +SKIP
-    >>> values[:, names.index("rknee_bent")].mean()  # doctest: +SKIP
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()
+    >>> values, names = relational_features(db.motion(7)[0:120])  # a kick of the left foot, 1 s
+    >>> values.shape, values.dtype, len(names)
+    ((120, 31), dtype('bool'), 31)
+    >>> names[:4]
+    ['rfoot_behind', 'lfoot_behind', 'rfoot_raised', 'lfoot_raised']
+    >>> all_values, _ = relational_features(db, "2006", progress=False)  # every frame, document by document
+    >>> all_values.shape
+    (5543, 39)
     """
     feats = _features(relational_set)
     names = [f.name for f in feats]

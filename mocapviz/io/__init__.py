@@ -49,10 +49,28 @@ def find_asf(amc_path) -> Path:
     (``HDM_bd_kick_001_120`` -> ``HDM_bd``, ``131_01`` -> ``131``), then after the AMC's folder
     (``amc/mjackson/131_01.amc`` -> ``asf/mjackson.asf``); last, the only ``.asf`` in the AMC's folder.
 
+    Parameters
+    ----------
+    amc_path : str or os.PathLike
+        An ``.amc`` file.
+
+    Returns
+    -------
+    pathlib.Path
+        The ASF file (absolute).
+
     Raises
     ------
     MocapFormatError
         No skeleton found; the message says to pass ``asf=``.
+
+    Examples
+    --------
+    >>> from mocapviz.io import datasets
+    >>> find_asf(datasets.sample() / "hdm05-cut/amc/HDM_mm_kickLFront1Reps_023_120.amc").name
+    'HDM_mm.asf'
+    >>> find_asf(datasets.sample() / "cmu-asfamc/amc/mjackson/131_01.amc").name
+    'mjackson.asf'
     """
     return _find_asf(Path(amc_path).resolve())  # found paths are cached; failures are looked up again
 
@@ -67,14 +85,18 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
     asf : str or os.PathLike, optional
         The ASF skeleton of an AMC file; default :func:`find_asf`.
     fps : float, optional
-        AMC: the capture rate (default 120, as CMU and HDM05). BVH: ignored (the file states it).
-    up, scale : BVH only, see :func:`mocapviz.io.bvh.read_bvh`.
+        AMC: the capture rate in frames per second (default 120, as CMU and HDM05). BVH: ignored (the file
+        states it).
+    up : {"auto", "y", "z"}
+        BVH only: the file's up axis (:func:`mocapviz.io.bvh.read_bvh`); the Motion is always y up.
+    scale : float, optional
+        BVH only: centimetres per file unit; default guessed from the figure's height.
 
     Returns
     -------
     Motion
-        Source joints, positions in cm, y up, local quaternions. ``Motion.canonical()`` maps it to the
-        24 canonical joints.
+        Source joints J, positions [shape=(T, J, 3)] float32 in cm, y up, local quaternions [shape=(T, J, 4)].
+        ``Motion.canonical()`` maps it to the 24 canonical joints.
 
     Raises
     ------
@@ -83,6 +105,21 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
         AMC too), or a value beyond the limits of :mod:`mocapviz.io.checks`.
     ParameterError
         ``fps`` outside 1 to 10,000, or a bad ``up`` or ``scale``.
+
+    See Also
+    --------
+    mocapviz.MotionDB.ingest : many files into a database.
+
+    Examples
+    --------
+    >>> from mocapviz import load
+    >>> from mocapviz.io import datasets
+    >>> m = load(datasets.sample() / "hdm05-cut/amc/HDM_mm_kickLFront1Reps_023_120.amc")  # ASF found beside it
+    >>> m.n_frames, m.fps, m.positions.shape, m.positions.dtype
+    (130, 120.0, (130, 31, 3), dtype('float32'))
+    >>> c = m.canonical()  # the 24 canonical joints
+    >>> c.positions.shape, c.joint_names[:3]
+    ((130, 24, 3), ('root', 'lhip', 'lknee'))
     """
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()

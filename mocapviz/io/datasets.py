@@ -316,7 +316,7 @@ def data_url() -> str:
 def _default_folders() -> list[Path]:
     """Folders tried, in order, when ``MOCAPVIZ_DATA_URL`` is unset: ``<checkout>/../shared/data`` when the
     package runs from a source checkout (its parent folder holds ``pyproject.toml``), else none."""
-    checkout = Path(__file__).resolve().parent.parent
+    checkout = Path(__file__).resolve().parents[2]  # <checkout>/mocapviz/io/datasets.py
     if not (checkout / "pyproject.toml").is_file():
         return []
     return [checkout.parent / "shared" / "data"]

@@ -5,7 +5,6 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import rotations
 from ..errors import ParameterError, UnknownKeyError
 
 FPS_RANGE = (1.0, 10_000.0)
@@ -146,6 +145,8 @@ class Motion:
         pos = self.positions[i0] + (self.positions[i1] - self.positions[i0]) * w[:, None, None].astype(np.float32)
         quat = None
         if self.quaternions is not None:
+            from . import rotations  # numba: loaded by the first resampling, not by every import of Motion
+
             quat = rotations.slerp(self.quaternions[i0], self.quaternions[i1], w[:, None]).astype(np.float32)
         euler = None
         if self.euler is not None:

@@ -248,6 +248,41 @@ class InvertedIndex:
     positions : np.ndarray [shape=(M,)], int32 -- all inverted lists, each sorted.
     rank : np.ndarray [shape=(M,)], int32 -- list index of each segment's code (codes = list_codes[rank]).
     meta : dict -- what the index was built from (database generation, feature set, group).
+
+    Parameters
+    ----------
+    sequence : FeatureSequence
+        F[D]: the segments' codes, start frames and lengths (:func:`mocapviz.features.segmentation.segment`).
+    doc_first_segment : array_like of int [shape=(D+1,)], optional
+        The first segment of each document, then M (default: one document).
+    feature_names : sequence of str, optional
+        The f feature names (default ``f1``, ``f2``, ...).
+    meta : dict, optional
+        Stored with the index.
+
+    Usually built with :meth:`from_features` (frame-wise values, segmented here) or, for a MotionDB, with
+    :func:`build`.
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. ACM TOG
+       24(3), 2005, §5.1 (inverted lists, exact hits), §5.2 (fuzzy, adaptive fuzzy and m-mismatch hits).
+
+    Examples
+    --------
+    Two features (bit 0: right foot raised, bit 1: left foot raised) over 9 frames, 7 runs of equal vectors:
+
+    >>> import numpy as np
+    >>> values = np.array([[0, 0], [1, 0], [1, 0], [1, 1], [0, 1], [0, 0], [1, 0], [1, 1], [1, 1]], dtype=bool)
+    >>> index = InvertedIndex.from_features(values, feature_names=["rfoot_raised", "lfoot_raised"])
+    >>> index.n_segments, index.codes.tolist(), index.starts.tolist()
+    (7, [0, 1, 3, 2, 0, 1, 3], [0, 1, 3, 4, 5, 6, 7])
+    >>> index.inverted_list(1).tolist()  # L(v) of v = (1, 0): the segments where only the right foot is raised
+    [1, 5]
+    >>> index.exact([[1, 0], [1, 1]]).tolist()  # segments k with F[Q] = (w_k, w_k+1)
+    [1, 5]
+    >>> index.frame_spans([1, 5], [3, 7])  # their frames: start, end (exclusive)
+    (array([1, 6]), array([4, 9]))
     """
 
     def __init__(self, sequence: FeatureSequence, doc_first_segment=None, feature_names=None, meta=None):
@@ -280,6 +315,19 @@ class InvertedIndex:
         ----------
         sequence : np.ndarray [shape=(M, f)], bool
             F[D]; each row is one segment (of length 1 frame).
+        feature_names : sequence of str, optional
+            The f feature names.
+
+        Returns
+        -------
+        InvertedIndex
+            One document of M segments (row k is segment k, frame k).
+
+        Examples
+        --------
+        >>> index = InvertedIndex.from_feature_sequence([[1, 0], [1, 1], [1, 0], [1, 1]])
+        >>> index.exact([[1, 0], [1, 1]]).tolist()
+        [0, 2]
         """
         sequence = np.asarray(sequence, dtype=bool)
         m = sequence.shape[0]
@@ -293,8 +341,19 @@ class InvertedIndex:
         Parameters
         ----------
         values : np.ndarray [shape=(T, f)], bool
+            Relational feature values of every frame.
         doc_starts : array-like of int, optional
-            First frame of each document in ``values`` (default: one document).
+            First frame of each document in ``values`` (default: one document); no segment crosses a document
+            boundary.
+        feature_names : sequence of str, optional
+            The f feature names.
+        meta : dict, optional
+            Stored with the index.
+
+        Returns
+        -------
+        InvertedIndex
+            Over the F-segments (runs of equal feature vectors) of ``values``.
         """
         doc_starts = np.asarray([0] if doc_starts is None else doc_starts, dtype=np.int64)
         seq = segment(values, doc_starts)
@@ -307,14 +366,36 @@ class InvertedIndex:
         return self.codes.shape[0]
 
     def inverted_list(self, code: int) -> np.ndarray:
-        """L(v) for the code of v: sorted 0-based segment positions (empty if v never occurs)."""
+        """L(v) for the code of v: sorted 0-based segment positions (empty if v never occurs).
+
+        Parameters
+        ----------
+        code : int
+            The feature vector v as a code (feature 1 = bit 0).
+
+        Returns
+        -------
+        np.ndarray [shape=(n,)], int32
+            Segment positions k with w_k = v, increasing (a view of the stored lists).
+        """
         i = np.searchsorted(self.list_codes, code)
         if i == self.list_codes.size or self.list_codes[i] != code:
             return np.empty(0, dtype=np.int32)
         return self.positions[self.list_offsets[i] : self.list_offsets[i + 1]]
 
     def union_list(self, codes) -> np.ndarray:
-        """L(V) = union of L(v) over the codes of V, sorted."""
+        """L(V) = union of L(v) over the codes of V, sorted.
+
+        Parameters
+        ----------
+        codes : array_like of int
+            The codes of the fuzzy set V (codes that never occur are ignored).
+
+        Returns
+        -------
+        np.ndarray [shape=(n,)], int64
+            Segment positions k with w_k in V, increasing.
+        """
         codes = np.unique(np.asarray(codes, dtype=np.int64))
         i = np.searchsorted(self.list_codes, codes)
         i = i[(i < self.list_codes.size) & (self.list_codes[np.minimum(i, self.list_codes.size - 1)] == codes)]
@@ -401,7 +482,14 @@ class InvertedIndex:
 
         Returns
         -------
-        np.ndarray [shape=(H,)], int64: sorted 0-based positions k of the first matching segment.
+        np.ndarray [shape=(H,)], int64
+            Sorted 0-based positions k of the first matching segment.
+
+        Examples
+        --------
+        >>> index = InvertedIndex.from_feature_sequence([[0, 0], [1, 0], [1, 1], [0, 1], [1, 0], [1, 1]])
+        >>> index.exact([[1, 0], [1, 1]]).tolist(), index.exact([1, 3]).tolist()  # vectors or their codes
+        ([1, 4], [1, 4])
         """
         q = self._query_codes(query)
         return self._fuzzy_hits(q, np.arange(q.size), q.size)
@@ -419,7 +507,16 @@ class InvertedIndex:
 
         Returns
         -------
-        np.ndarray [shape=(H,)], int64: sorted 0-based positions k.
+        np.ndarray [shape=(H,)], int64
+            Sorted 0-based positions k.
+
+        Examples
+        --------
+        >>> index = InvertedIndex.from_feature_sequence([[0, 0], [1, 0], [1, 1], [0, 1], [1, 0], [1, 1]])
+        >>> index.fuzzy([[1], [3, 1]]).tolist()  # V_1 = {(1, 0)}, V_2 = {(1, 1), (0, 1)}
+        [1, 4]
+        >>> index.fuzzy([[[0, 0], [0, 1]], [[1, 0]]]).tolist()  # left foot free in the first segment
+        [0, 3]
         """
         return self._fuzzy_hits(*self._query_sets(fuzzy_sets))
 

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from . import index as index_mod
+from ..db.hits import hit_table
 from ..errors import ParameterError
 from ..features import feature_groups, feature_names, relational_features
 from ..features.segmentation import segment
@@ -121,10 +122,11 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
 
     Returns
     -------
-    pandas.DataFrame, one row per hit, best first: ``rank``, ``doc_id``, ``name``, ``start_frame``,
-    ``end_frame`` (inclusive, in the document's frames), ``first_segment``, ``last_segment`` (database segment
-    positions, of the first group queried), ``n_segments`` (query segments), ``score`` (seconds of
-    segment-duration difference; lower is better), ``label`` and the other label columns of the documents.
+    pandas.DataFrame, one row per hit, best first: the hit table of :func:`mocapviz.db.hits.hit_table` (``rank``,
+    ``doc_id``, ``name``, ``start``, ``end`` in the document's frames, half-open, ``frames``, ``start_s``,
+    ``end_s``), then ``first_segment``, ``last_segment`` (database segment positions, of the first group queried),
+    ``n_segments`` (query segments), ``score`` (seconds of segment-duration difference; lower is better), and the
+    label columns of the documents.
 
     Raises
     ------
@@ -162,8 +164,8 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
         doc_start = docs["start"].to_numpy()[doc_row]
         tables.append(pd.DataFrame({
             "doc_row": doc_row,
-            "start_frame": idx.starts[first] - doc_start,
-            "end_frame": seg_frames[:, -1] - 1 - doc_start,
+            "start": idx.starts[first] - doc_start,
+            "end": seg_frames[:, -1] - doc_start,
             "first_segment": first,
             "last_segment": stop - 1,
             "n_segments": len(q_len),
@@ -173,16 +175,14 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     for other in tables[1:]:
         # several groups: keep pairs of hits in one document whose frame spans overlap
         joined = hits.merge(other, on="doc_row", suffixes=("", "_b"))
-        joined = joined[(joined["start_frame"] <= joined["end_frame_b"]) & (joined["start_frame_b"] <= joined["end_frame"])]
-        joined = joined.assign(start_frame=np.minimum(joined["start_frame"], joined["start_frame_b"]),
-                               end_frame=np.maximum(joined["end_frame"], joined["end_frame_b"]),
+        joined = joined[(joined["start"] < joined["end_b"]) & (joined["start_b"] < joined["end"])]
+        joined = joined.assign(start=np.minimum(joined["start"], joined["start_b"]),
+                               end=np.maximum(joined["end"], joined["end_b"]),
                                score=joined["score"] + joined["score_b"],
                                n_segments=joined["n_segments"] + joined["n_segments_b"])  # fmt: skip
         hits = joined[[c for c in hits.columns]]
-    labels = docs[["doc_id", "name", *db.label_columns]].reset_index(drop=True)
-    out = hits.join(labels, on="doc_row").drop(columns="doc_row")
-    out = out.sort_values(["score", "doc_id", "start_frame"], kind="stable").reset_index(drop=True)
-    out.insert(0, "rank", np.arange(1, len(out) + 1))
-    front = ["rank", "doc_id", "name", "start_frame", "end_frame", "first_segment", "last_segment", "n_segments",
-             "score", "label"]  # fmt: skip
-    return out[front + [c for c in out.columns if c not in front]]
+    hits = hits.assign(doc_id=docs["doc_id"].to_numpy()[hits["doc_row"].to_numpy(np.int64)])
+    hits = hits.sort_values(["score", "doc_id", "start"], kind="stable")
+    return hit_table(db, hits["doc_id"], hits["start"], hits["end"],
+                     **{c: hits[c].to_numpy() for c in ("first_segment", "last_segment", "n_segments", "score")})
+

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import json
 import re
+import time
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,7 +43,9 @@ import numpy as np
 import pandas as pd
 
 from .. import store
+from ..db.hits import from_database_frames, hit_table
 from ..errors import MotionDBError, ParameterError, UnknownKeyError
+from ..features import RELATIONAL_SETS, feature_names, relational_features
 from ..match import best_ends, dtw, subsequence_costs
 from ..match.time_warping import matches_frame
 from ..validation import count, number
@@ -422,8 +425,6 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     MotionTemplate; ``meta`` holds the relational set, the example doc ids, the actors, the database path and its
     ``generation`` (``db.manifest["generation"]``: the state of the database it was learned from).
     """
-    from ..features import relational_features
-
     docs = db.documents
     chosen = docs[docs["label"].astype("string") == str(label)]
     if actors is not None:
@@ -438,8 +439,6 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     if values is None:
         values, names = relational_features(db, relational_set, progress=False)
     else:
-        from ..features import feature_names
-
         names = feature_names(relational_set)
     examples = [values[s : s + n] for s, n in zip(chosen["start"], chosen["n_frames"])]
     template = learn_template(examples, names, str(label), iterations)
@@ -550,3 +549,87 @@ def _examples(examples, features) -> list[np.ndarray]:
         if not np.isin(x, (0, 1)).all():
             raise ParameterError(f"example {i} holds values other than 0/1 (boolean relational features expected)")
     return [x.astype(bool) for x in xs]
+
+
+def search_template(db, template: MotionTemplate, n_matches: int = 10, delta: float = DELTA,
+                    max_cost: float | None = None, prefilter: bool = False, values: np.ndarray | None = None,
+                    indexes: dict | None = None) -> pd.DataFrame:  # fmt: skip
+    """The instances of a motion template in a MotionDB, ranked, as the one hit table.
+
+    Parameters
+    ----------
+    db : MotionDB
+    template : MotionTemplate
+        Learned on a relational set (its features are all of that set's, in order).
+    n_matches : int
+        At most this many non-overlapping instances (K >= 1).
+    delta : float
+        The quantisation threshold δ, 0 <= δ < 0.5 (:meth:`MotionTemplate.quantised`).
+    max_cost : float, optional
+        Keep only instances whose normalised cost (mean mismatch per template frame, in [0, 1]) is at most this.
+    prefilter : bool
+        Align only where the template's keyframes occur (:func:`keyframe_ranges` on the relational indexes,
+        built and stored when missing).
+    values : np.ndarray [shape=(N, f)], bool, optional
+        The database's relational features of the template's set, if already computed (default: computed now).
+    indexes : dict, optional
+        Group -> InvertedIndex for ``prefilter``, if already loaded.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The hit table of :func:`mocapviz.db.hits.hit_table` (``start``, ``end``: frames of the document,
+        half-open), with ``cost`` (the DTW cost, a sum of per-frame mean mismatches) and ``normalised_cost``.
+        ``attrs``: ``relational_set``, ``ms`` (search time), ``aligned`` (share of the frames aligned; 1 without
+        the pre-filter).
+
+    Raises
+    ------
+    ParameterError
+        A template whose features are not those of a relational set, a bad K, δ or max cost.
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder. Motion templates for automatic classification and retrieval of motion capture
+       data. SCA 2006, §4-5 (matching a class template by subsequence DTW with don't-care entries).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()
+    >>> t = learn_class(db, "kickLFront1Reps", actors=["dg"])
+    >>> hits = search_template(db, t, n_matches=3)
+    >>> print(hits[["rank", "doc_id", "label", "start", "end", "normalised_cost"]].round(3).to_string(index=False))
+     rank  doc_id           label  start  end  normalised_cost
+        1       7 kickLFront1Reps      0  122            0.000
+        2       1 Start Walk Stop      5   70            0.160
+        3       1 Start Walk Stop     97  162            0.193
+    """
+    relational_set = next((s for s in RELATIONAL_SETS if feature_names(s) == template.features), None)
+    if relational_set is None:
+        sets = ", ".join(f"{s}: {len(feature_names(s))}" for s in RELATIONAL_SETS)
+        raise ParameterError(f"the template's {len(template.features)} features are not those of a relational set "
+                             f"({sets}); learn it again with `mocapviz template learn`")
+    n_matches = count(n_matches, "n_matches")
+    if max_cost is not None:
+        max_cost = number(max_cost, "max_cost (a mean mismatch per frame)", 0.0, 1.0)
+    if values is None:
+        values, _ = relational_features(db, relational_set, progress=False)
+    starts = db.documents["start"].to_numpy()
+    t0 = time.perf_counter()
+    ranges = None
+    if prefilter:
+        from .index import load_or_build
+
+        indexes = load_or_build(db, relational_set) if indexes is None else indexes
+        ranges = keyframe_ranges(template, indexes, starts, db.n_frames, delta=delta)
+    found = find_instances(template, values, starts, n_matches=n_matches, delta=delta, max_cost=max_cost,
+                           ranges=ranges)  # fmt: skip
+    ms = 1e3 * (time.perf_counter() - t0)
+    first = found["start"].to_numpy(np.int64)
+    doc_ids, a, b = from_database_frames(db, first, found["end"].to_numpy(np.int64) + 1)
+    table = hit_table(db, doc_ids, a, b, cost=found["cost"].to_numpy(np.float64),
+                      normalised_cost=found["normalised_cost"].to_numpy(np.float64))  # fmt: skip
+    aligned = 1.0 if ranges is None else float((ranges[:, 1] - ranges[:, 0]).sum() / max(1, db.n_frames))
+    table.attrs.update(relational_set=relational_set, ms=ms, aligned=aligned)
+    return table

@@ -17,10 +17,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ..db.hits import HitTable, hit_table
 from ..errors import ParameterError
 from ..motion import Motion
 from ..relational.query import MODES, query_by_example
-from .search import COLUMNS, SimilaritySearch
+from .search import SimilaritySearch
 from ..validation import count
 
 # Lenient selections per HDM05 class for the hybrid, as keyword arguments of hybrid_search: fewer features than
@@ -35,7 +36,7 @@ HYBRID_QUERIES: dict[str, dict] = {
     "throwBasketball": {"features": ["lhand_above_neck"], "mode": "adaptive", "numeric_set": "F15x3E"},
 }
 
-HIT_COLUMNS = {"start_frame": "hit_start", "end_frame": "hit_end", "score": "hit_score"}  # the best relational hit
+HIT_COLUMNS = {"start": "hit_start", "end": "hit_end", "score": "hit_score"}  # the best relational hit (half-open)
 
 
 def _example_motion(db, example) -> tuple[Motion, int | None]:
@@ -84,10 +85,11 @@ def hybrid_search(db, example, features=None, mode: str = "adaptive", mismatches
 
     Returns
     -------
-    pandas.DataFrame, one row per candidate document, best first: ``rank``, ``doc_id``, ``name``, ``frames`` (of
-    the document), ``cost`` (accumulated Euclidean DTW cost of the whole query against the whole document, in
+    pandas.DataFrame, one row per candidate document, best first: the hit table of
+    :func:`mocapviz.db.hits.hit_table` (``rank``, ``doc_id``, ``name``, ``start`` 0 and ``end`` the document's
+    frames, ``frames``, ``start_s``, ``end_s``), ``cost`` (accumulated Euclidean DTW cost of the whole query against the whole document, in
     ``numeric_set`` units), ``normalised_cost`` (cost / (query frames + document frames)), the label columns, and
-    the document's best relational hit: ``hit_start``, ``hit_end`` (frames, inclusive), ``hit_score`` (§6.2,
+    the document's best relational hit: ``hit_start``, ``hit_end`` (frames of the document, half-open), ``hit_score`` (§6.2,
     seconds). ``attrs``: ``relational_hits`` (hits of the relational stage), ``candidates`` (documents ranked).
 
     Raises
@@ -115,11 +117,10 @@ def hybrid_search(db, example, features=None, mode: str = "adaptive", mismatches
         keep &= best["doc_id"] != own
     best = best[keep]
     if best.empty:
-        ranked = pd.DataFrame(columns=[*COLUMNS, *db.label_columns])
+        ranked = hit_table(db, [], [], [], cost=np.zeros(0), normalised_cost=np.zeros(0))
     else:
         ranked = search.clips(motion if own is None else own, mode="exact", candidates=best["doc_id"].to_numpy(),
                               n_matches=len(best) if n_matches is None else min(n_matches, len(best)))  # fmt: skip
-    ranked = ranked.drop(columns=["start", "end"])  # whole documents: 0 and the last frame
-    out = ranked.merge(best, on="doc_id", how="left")
+    out = HitTable(ranked.merge(best, on="doc_id", how="left"))
     out.attrs.update(relational_hits=len(hits), candidates=len(best))
     return out

@@ -34,6 +34,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
 from ..parallel import map_ordered, parallelism
+from ..db.hits import from_database_frames, hit_table
 from ..errors import ParameterError
 from ..validation import count, one_of, renamed
 
@@ -367,34 +368,46 @@ class KnnIndex:
 
 
 def describe_frames(db, frames, distances=None) -> pd.DataFrame:
-    """Where database frames lie: their documents, their frame numbers within them and the documents' labels.
+    """Database frames (e.g. the neighbours of a kNN query) as hits: one-frame stretches of their documents.
 
     Parameters
     ----------
     db : MotionDB
-    frames : np.ndarray [shape=(n,)], int, frame numbers of the database; -1 entries (missing neighbours of a
-        radius search) are left out.
-    distances : np.ndarray [shape=(n,)], optional, the neighbours' distances (e.g. cm) to put beside them.
+    frames : np.ndarray [shape=(n,)], int
+        Frame numbers of the database (rows of ``db.positions``), e.g. ``KnnIndex.query``'s neighbours; -1
+        entries (missing neighbours of a radius search) are left out.
+    distances : np.ndarray [shape=(n,)], optional
+        The neighbours' distances (feature units, e.g. cm) to put beside them.
 
     Returns
     -------
-    pandas.DataFrame, one row per frame in the given order: ``rank`` (1-based position in ``frames``), ``frame``,
-    ``doc_id``, ``name``, ``doc_frame`` (frame within the document), ``time_s`` (its time in the document),
-    ``distance`` (when given) and the documents' label columns (``label``, ``actor``, ...).
+    pandas.DataFrame
+        The hit table of :func:`mocapviz.db.hits.hit_table`, one row per frame in the given order: ``rank``,
+        ``doc_id``, ``name``, ``start`` (the frame within its document), ``end`` (``start + 1``), ``frames`` (1),
+        ``start_s``, ``end_s``, ``distance`` (when given) and the documents' label columns.
+
+    Raises
+    ------
+    ParameterError
+        A frame beyond the database.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()
+    >>> d0 = db.frames(5).start
+    >>> hits = describe_frames(db, [d0 + 12, -1], [0.5, 9.0])
+    >>> print(hits[["rank", "doc_id", "start", "end", "frames", "distance"]].to_string(index=False))
+     rank  doc_id  start  end  frames  distance
+        1       5     12   13       1       0.5
     """
     frames = np.asarray(frames, dtype=np.int64).ravel()
     keep = frames >= 0
     if frames[keep].size and frames[keep].max() >= db.n_frames:
         raise ParameterError(f"frame {int(frames[keep].max())} is beyond the database's {db.n_frames:,} frames")
-    found = db.documents.set_index("doc_id").loc[db.document_of(frames[keep])].reset_index()
-    out = pd.DataFrame({"rank": np.flatnonzero(keep) + 1, "frame": frames[keep], "doc_id": found["doc_id"],
-                        "name": found["name"], "doc_frame": frames[keep] - found["start"].to_numpy()})  # fmt: skip
-    out["time_s"] = out["doc_frame"] / found["fps"].to_numpy()
-    if distances is not None:
-        out["distance"] = np.asarray(distances, dtype=np.float64).ravel()[keep]
-    for col in db.label_columns:
-        out[col] = found[col].to_numpy()
-    return out
+    doc_ids, starts, ends = from_database_frames(db, frames[keep], frames[keep] + 1)
+    columns = {} if distances is None else {"distance": np.asarray(distances, dtype=np.float64).ravel()[keep]}
+    return hit_table(db, doc_ids, starts, ends, **columns)
 
 
 # ============================================================================ fat-graph base poses (§5.3)

@@ -35,19 +35,23 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
+from ..db.hits import hit_table
 from ..errors import ParameterError
 from ..features import numeric_features, numeric_of
 from ..features.numeric import NUMERIC_SETS, default_pca
-from .knn import KnnIndex
 from ..match.bounds import box_rows, range_of, row_bounds
 from ..match.pruned import search_ranges
 from ..match.time_warping import dtw, select_matches
 from ..motion import Motion
 from ..validation import count, frame_span, one_of
+
+if TYPE_CHECKING:
+    from .knn import KnnIndex
 
 MODES = ("exact", "fast", "brute")
 NEIGHBOURS = 32  # k: nearest database frames per query frame (bounds and fast mode's seeds)
@@ -56,7 +60,6 @@ POOL_SECONDS = 0.2  # ... chosen by DTW on the means of 0.2 s blocks of frames (
 WINDOW_SPEED = 2.0  # fast mode, stretches: windows fit a match from 1/2 to 2 x the query's speed ...
 WINDOW_PAD = 0.5  # ... plus this share of the query on both sides; and windows around the
 COARSE_CANDIDATES = 3  # ... 3 K best matches of subsequence DTW on the coarse database
-COLUMNS = ["rank", "doc_id", "name", "start", "end", "frames", "cost", "normalised_cost"]
 
 
 def _mode(mode) -> str:
@@ -79,6 +82,11 @@ class SimilaritySearch:
         every document.
     k : int
         Nearest database frames per query frame for the bounds and fast mode's seeds.
+    features : np.ndarray [shape=(N, d)], optional
+        The numeric set's values of every database frame, if already loaded (default: read or computed now).
+    index : KnnIndex, optional
+        A kd-tree over ``features`` of exactly the searchable frames, if already built (default: built on first
+        use), so that a caller holding one (the dashboard) does not build a second.
 
     Attributes
     ----------
@@ -87,27 +95,30 @@ class SimilaritySearch:
     documents : pd.DataFrame, the searchable documents (doc_id, name, start, n_frames, labels), by start.
     """
 
-    def __init__(self, db, numeric_set: str = "F15E", documents=None, k: int = NEIGHBOURS):
+    def __init__(self, db, numeric_set: str = "F15E", documents=None, k: int = NEIGHBOURS, features=None,
+                 index: KnnIndex | None = None):  # fmt: skip
         self.db, self.numeric_set, self.k = db, one_of(numeric_set, "numeric set", NUMERIC_SETS), count(k, "k")
-        self.features = np.asarray(numeric_of(db, numeric_set))
+        self.features = np.asarray(numeric_of(db, numeric_set) if features is None else features)
         docs = db.documents.sort_values("start")
         if documents is not None:
             wanted = pd.Index(np.asarray(documents, dtype=np.int64).reshape(-1))
-            unknown = wanted.difference(docs["doc_id"])
-            if len(unknown):
-                raise ParameterError(f"documents {', '.join(map(str, unknown[:5]))} are not in {db.path} (doc ids "
-                                     f"{docs['doc_id'].min()}..{docs['doc_id'].max()})")  # fmt: skip
+            for doc_id in wanted.difference(docs["doc_id"])[:1]:
+                db.document(int(doc_id))  # the one "no such document" error
             docs = docs[docs["doc_id"].isin(wanted)]
         if docs.empty:
             raise ParameterError(f"no document to search in {db.path}")
         self.documents = docs.reset_index(drop=True)
-        every = db.documents
-        self._spans = dict(zip(every["doc_id"].tolist(), zip(every["start"].tolist(),
-                                                               (every["start"] + every["n_frames"]).tolist())))
         self._lo = self.documents["start"].to_numpy(np.int64)
         self._hi = self._lo + self.documents["n_frames"].to_numpy(np.int64)
         self._low, self._high = _boxes(self.features, self._lo, self._hi)
         self._index = None
+        if index is not None:
+            valid = np.zeros(len(self.features), dtype=bool)
+            for a, b in zip(self._lo, self._hi):
+                valid[a:b] = True
+            if index.n_frames != len(self.features) or not np.array_equal(index.valid, valid):
+                raise ParameterError("index must be a KnnIndex over the searchable frames of the numeric set")
+            self._index = index
         self._coarse = None
         rate = db.typical_fps
         self.pool = max(1, round(POOL_SECONDS * rate))
@@ -128,6 +139,8 @@ class SimilaritySearch:
     def knn_index(self) -> KnnIndex:
         """The kd-tree over the searchable documents' frames (built on first use)."""
         if self._index is None:
+            from .knn import KnnIndex  # scipy.spatial: loaded by a search of stretches, not of whole clips
+
             valid = np.zeros(len(self.features), dtype=bool)
             for a, b in zip(self._lo, self._hi):
                 valid[a:b] = True
@@ -136,51 +149,8 @@ class SimilaritySearch:
 
     # ------------------------------------------------------------------------ the query
     def query_features(self, example, frames=None) -> tuple[np.ndarray, int | None]:
-        """The query's feature values and its document.
-
-        Parameters
-        ----------
-        example : int, Motion, str or Path
-            A doc id of the database, a Motion (resampled to the database's rate when it differs) or a motion
-            file (read with :func:`mocapviz.load`).
-        frames : (int, int) or slice, optional
-            [start, stop) frames of the example (default: all); at least 2, inside the example.
-
-        Returns
-        -------
-        query : np.ndarray [shape=(m, d)], float32 feature values.
-        doc_id : int or None, the example's document (None for a Motion or file).
-        """
-        doc_id = None
-        if isinstance(example, (int, np.integer)) and not isinstance(example, (bool, np.bool_)):
-            if int(example) not in self._spans:
-                raise ParameterError(f"document {example} is not in {self.db.path} (doc ids "
-                                     f"{min(self._spans)}..{max(self._spans)})")  # fmt: skip
-            doc_id = int(example)
-            start, stop = self._spans[doc_id]
-            a, b = _span(frames, stop - start, f"document {doc_id}")
-            values = self.features[start + a : start + b]
-        else:
-            if isinstance(example, (str, os.PathLike)):
-                from ..io import load
-
-                example = load(Path(example))
-            if not isinstance(example, Motion):
-                raise ParameterError(f"example must be a doc id, a Motion or a motion file; got {type(example).__name__}")
-            rate = self.db.typical_fps
-            if rate and abs(example.fps - rate) > 1e-6:
-                example = example.resample(rate)
-            a, b = _span(frames, example.n_frames, str(example.source or "the example"))
-            pca = default_pca(self.db) if self.numeric_set.startswith("Fp") else None
-            try:
-                values = numeric_features(example[a:b], self.numeric_set, pca=pca, progress=False)
-            except ValueError as exc:  # a non-finite position of the clip, named with its frame and joint
-                raise ParameterError(f"the query: {exc}") from None
-        bad = ~np.isfinite(values).all(axis=1)
-        if bad.any():
-            raise ParameterError(f"the query's {self.numeric_set} features are not finite at frame "
-                                 f"{a + int(np.argmax(bad))}")  # fmt: skip
-        return np.ascontiguousarray(values, dtype=np.float32), doc_id
+        """The query's feature values and its document: :func:`example_features` on this search's numeric set."""
+        return example_features(self.db, self.features, example, frames, self.numeric_set)
 
     def _ranges(self, own: int | None, exclude_document: bool, candidates) -> np.ndarray:
         """Rows of :attr:`documents` to search."""
@@ -215,8 +185,9 @@ class SimilaritySearch:
 
         Returns
         -------
-        pd.DataFrame, best first: rank, doc_id, name, start (0), end (last frame), frames, cost (accumulated
-        Euclidean costs, feature units), normalised_cost (cost / (m + frames)), the label columns, [path].
+        pd.DataFrame, best first, the hit table of :func:`mocapviz.db.hits.hit_table`: rank, doc_id, name, start (0),
+        end (the document's frames: half-open), frames, start_s, end_s, cost (accumulated Euclidean costs, feature
+        units), normalised_cost (cost / (m + frames)), the label columns, [path].
         ``attrs``: mode, query_frames, ms (search time), documents (searched), aligned (documents aligned),
         cells (local costs computed), brute_cells (cells of brute force).
         """
@@ -254,8 +225,7 @@ class SimilaritySearch:
             found = np.r_[found, rest]
             costs[rest] = np.nan
         ms = 1e3 * (time.perf_counter() - t0)
-        table = self._table(rows_idx[found], np.zeros(len(found), np.int64), hi[found] - lo[found] - 1,
-                            costs[found], m)  # fmt: skip
+        table = self._table(rows_idx[found], np.zeros(len(found), np.int64), hi[found] - lo[found], costs[found], m)
         if paths:
             table["path"] = [dtw(q, self.features[a:b])[1] if np.isfinite(c) else None
                              for a, b, c in zip(lo[found], hi[found], costs[found])]  # fmt: skip
@@ -292,7 +262,7 @@ class SimilaritySearch:
 
         Returns
         -------
-        pd.DataFrame as :meth:`clips` (start, end: the stretch's first and last frame in its document);
+        pd.DataFrame as :meth:`clips` (start, end: the stretch's frames in its document, half-open);
         ``attrs`` also holds ``ranges`` (documents or fast mode's windows searched).
         """
         n_matches, mode = count(n_matches, "n_matches"), _mode(mode)
@@ -328,7 +298,7 @@ class SimilaritySearch:
         ms = 1e3 * (time.perf_counter() - t0)
         doc_row = np.searchsorted(self._lo, ends[chosen], side="right") - 1
         first = starts[chosen] - self._lo[doc_row]
-        table = self._table(doc_row, first, ends[chosen] - self._lo[doc_row], costs[chosen], m)
+        table = self._table(doc_row, first, ends[chosen] + 1 - self._lo[doc_row], costs[chosen], m)
         if paths:
             table["path"] = [dtw(q, self.features[s : e + 1])[1] + np.array([0, s - self._lo[r]])
                              for s, e, r in zip(starts[chosen], ends[chosen], doc_row)]  # fmt: skip
@@ -356,20 +326,85 @@ class SimilaritySearch:
         return _merge(a, b)
 
     def _table(self, doc_rows, start, end, cost, m: int) -> pd.DataFrame:
-        """The ranked result table (see :meth:`clips`)."""
-        docs = self.documents.iloc[np.asarray(doc_rows, dtype=np.int64)].reset_index(drop=True)
-        frames = np.asarray(end) - np.asarray(start) + 1
-        table = pd.DataFrame({
-            "rank": np.arange(1, len(docs) + 1), "doc_id": docs["doc_id"].to_numpy(), "name": docs["name"].to_numpy(),
-            "start": np.asarray(start, dtype=np.int64), "end": np.asarray(end, dtype=np.int64), "frames": frames,
-            "cost": np.asarray(cost, dtype=np.float64), "normalised_cost": np.asarray(cost) / (m + frames),
-        })  # fmt: skip
-        for col in self.db.label_columns:
-            table[col] = docs[col].to_numpy()
-        return table
+        """The ranked hit table (:func:`mocapviz.db.hits.hit_table`) of documents ``doc_rows`` (rows of
+        :attr:`documents`), frames ``start:end`` within each (half-open), with their DTW costs."""
+        docs = self.documents.iloc[np.asarray(doc_rows, dtype=np.int64)]
+        frames = np.asarray(end) - np.asarray(start)
+        return hit_table(self.db, docs["doc_id"].to_numpy(), start, end, cost=np.asarray(cost, dtype=np.float64),
+                         normalised_cost=np.asarray(cost, dtype=np.float64) / (m + frames))  # fmt: skip
 
 
-def _span(frames, n: int, what: str) -> tuple[int, int]:
+def example_features(db, features: np.ndarray, example, frames=None, numeric_set: str = "F15E",
+                     option: str = "frames") -> tuple[np.ndarray, int | None]:  # fmt: skip
+    """The feature values of a query by example: the one step from an example to the values a search compares.
+
+    Parameters
+    ----------
+    db : MotionDB
+    features : np.ndarray [shape=(N, d)]
+        The database's values of ``numeric_set`` (:func:`mocapviz.features.numeric_of`): a document's query is
+        read from them, not computed again.
+    example : int, Motion, str or os.PathLike
+        A doc id of ``db``, a Motion (resampled to the database's typical rate when it differs) or a motion file
+        (read with :func:`mocapviz.load`).
+    frames : (int, int) or slice, optional
+        [start, stop) frames of the example (default: all; None for either end); at least 2, inside the example.
+    numeric_set : str
+        The numeric set of ``features`` (Fp sets use the database's stored PCA model).
+    option : str
+        How the caller names ``frames`` in an error (the CLI: ``--frames``).
+
+    Returns
+    -------
+    query : np.ndarray [shape=(m, d)], float32
+        The feature values of the query's frames.
+    doc_id : int or None
+        The example's document (None for a Motion or a file).
+
+    Raises
+    ------
+    ParameterError
+        No such document (:meth:`MotionDB.document`), frames outside the example or fewer than 2, an example of
+        another type, or non-finite feature values (named with the frame).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.features import numeric_of
+    >>> db = MotionDB.sample()
+    >>> q, doc = example_features(db, numeric_of(db, "F15E"), 7, (0, 60))
+    >>> q.shape, doc
+    ((60, 15), 7)
+    """
+    doc_id = None
+    if isinstance(example, (int, np.integer)) and not isinstance(example, (bool, np.bool_)):
+        doc_id = int(example)
+        span = db.frames(doc_id)
+        a, b = _span(frames, span.stop - span.start, f"document {doc_id}", option)
+        values = features[span.start + a : span.start + b]
+    else:
+        if isinstance(example, (str, os.PathLike)):
+            from ..io import load
+
+            example = load(Path(example))
+        if not isinstance(example, Motion):
+            raise ParameterError(f"example must be a doc id, a Motion or a motion file; got {type(example).__name__}")
+        rate = db.typical_fps
+        if rate and abs(example.fps - rate) > 1e-6:
+            example = example.resample(rate)
+        a, b = _span(frames, example.n_frames, str(example.source or "the example"), option)
+        pca = default_pca(db) if numeric_set.startswith("Fp") else None
+        try:
+            values = numeric_features(example[a:b], numeric_set, pca=pca, progress=False)
+        except ValueError as exc:  # a non-finite position of the clip, named with its frame and joint
+            raise ParameterError(f"the query: {exc}") from None
+    bad = ~np.isfinite(values).all(axis=1)
+    if bad.any():
+        raise ParameterError(f"the query's {numeric_set} features are not finite at frame {a + int(np.argmax(bad))}")
+    return np.ascontiguousarray(values, dtype=np.float32), doc_id
+
+
+def _span(frames, n: int, what: str, option: str = "frames") -> tuple[int, int]:
     """[start, stop) of ``frames`` ((a, b), slice or None) inside 0..n, at least 2 frames, or a ParameterError."""
     if frames is None:
         a, b = 0, n
@@ -382,9 +417,10 @@ def _span(frames, n: int, what: str) -> tuple[int, int]:
             a, b = frames
         except (TypeError, ValueError):
             raise ParameterError(f"frames must be (start, stop); got {frames!r}") from None
+        a, b = 0 if a is None else a, n if b is None else b  # (an open end, as `--frames :30`)
     if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (a, b)):
         raise ParameterError(f"frames must be integers (start, stop); got {a!r}, {b!r}")
-    return frame_span((a, b), n, what)
+    return frame_span((a, b), n, what, option)
 
 
 def _boxes(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

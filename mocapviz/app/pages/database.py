@@ -12,6 +12,7 @@ from ...features import NUMERIC_SETS, feature_groups, numeric_columns
 from ...features.segmentation import segment
 from ...viz.timeline import numeric_curves, relational_timeline
 from ..player import SkeletonPlayer
+from ..state import half_open, inclusive
 from ..widgets import results_table
 
 TABLE_COLUMNS = ("doc_id", "name", "label", "actor", "seconds", "n_frames", "fps")
@@ -93,16 +94,16 @@ class DatabasePage(pn.viewable.Viewer):
 
     # ------------------------------------------------------------------ clip
     def show_document(self, doc: int, span=None) -> None:
-        """Load document ``doc`` into the player and the plots; ``span`` (first, last), default the whole clip,
-        becomes the session's span."""
+        """Load document ``doc`` into the player and the plots; ``span`` (start, end, half-open), default the whole
+        clip, becomes the session's span (the slider shows its first and last frames)."""
         row = self.backend.db.document(doc)
         n = int(row["n_frames"])
-        if span is None or not 0 <= span[0] <= span[1] < n:
-            span = (0, n - 1)
+        if span is None or not 0 <= span[0] < span[1] <= n:
+            span = (0, n)
         self.doc, self.n_frames, self.doc_fps = doc, n, float(row["fps"])
         self._loading = True  # the Selection's watchers (_follow) must not draw the plots a second time
         try:
-            self.span.param.update(start=0, end=max(n - 1, 1), value=tuple(span))
+            self.span.param.update(start=0, end=max(n - 1, 1), value=inclusive(span))
             self.selection.param.update(doc=doc, frame=0, span=tuple(span))
         finally:
             self._loading = False
@@ -118,8 +119,8 @@ class DatabasePage(pn.viewable.Viewer):
             return
         if doc != self.doc:
             self.show_document(doc, span)
-        elif span != tuple(self.span.value):
-            self.span.value = span
+        elif span != half_open(self.span.value):
+            self.span.value = inclusive(span)
             self._draw_timeline()
             self._draw_curves()
 
@@ -136,22 +137,22 @@ class DatabasePage(pn.viewable.Viewer):
         self._on_span()
 
     def _on_span(self, event=None) -> None:
-        self.selection.span = tuple(int(v) for v in self.span.value)
+        self.selection.span = half_open(self.span.value)
         self._draw_timeline()
         self._draw_curves()
 
     def _partial_span(self):
         """The span to shade: None when it is the whole clip."""
         a, b = self.selection.span
-        return None if (a, b) == (0, self.n_frames - 1) else (a, b)
+        return None if (a, b) == (0, self.n_frames) else (a, b)
 
     def _draw_timeline(self) -> None:
         values, names = self.backend.clip_relational(self.doc)
         a, b = self.selection.span
         self.timeline_info.object = (
             f"{len(names)} features of the 2005 set (lower blue, upper red, mix green), "
-            f"{len(segment(values).starts)} segments in the clip, {len(segment(values[a:b + 1]).starts)} "
-            f"in the span {a}..{b}")
+            f"{len(segment(values).starts)} segments in the clip, {len(segment(values[a:b]).starts)} "
+            f"in the span {a}..{b - 1}")
         self._show(self.timeline, "2005", self._timeline_frame)
 
     def _draw_curves(self) -> None:
@@ -182,8 +183,8 @@ class DatabasePage(pn.viewable.Viewer):
 def _framewise(plot: hv.Overlay, span, fps: float) -> hv.Overlay:
     """``plot`` with the span shaded as its last layer (of no width when ``span`` is None, so that every frame of a
     DynamicMap has the same layers), its axes following each frame, as wide as the page."""
-    a, b = span if span is not None else (0, -1)
-    shade = hv.VSpan(a / fps, (b + 1) / fps).opts(color="orange", alpha=0.2)
+    a, b = span if span is not None else (0, 0)  # (start, end) frames, half-open
+    shade = hv.VSpan(a / fps, b / fps).opts(color="orange", alpha=0.2)
     # as wide as the page, on the first frame and on the next ones (HoloViews sets a fixed size when it updates one)
     width = {"hooks": [_stretch_width]}
     layers = [layer.opts(framewise=True, **width, backend="bokeh") for layer in [*plot, shade]]

@@ -17,19 +17,22 @@ import asyncio
 import pandas as pd
 import panel as pn
 
+from ...db.hits import database_frames
 from ...features import feature_groups, relational_features
 from ...relational.query import query_by_example, query_segmentation
 from ...viz.query import precision_recall, precision_recall_plot
 from ..player import SkeletonPlayer
 from ..progress import Task
-from ..widgets import BoundedIntInput, action_button, notes, results_table
+from ..state import half_open, inclusive
+from ..widgets import BoundedIntInput, action_button, hit_columns, hit_titles, notes, results_table
 
 RELATIONAL_SET = "2005"
 # the "kicking" query of Müller et al. 2005 §6.2 (Fig. 9): F_l3, F_l4, F_l7, F_l8
 DEFAULT_FEATURES = ("rfoot_raised", "lfoot_raised", "rknee_bent", "lknee_bent")
 MODES = {"exact": "exact", "fuzzy": "fuzzy", "adaptive fuzzy": "adaptive", "mismatch": "mismatch"}
 GROUP_TITLES = {"lower": "lower body", "upper": "upper body", "mix": "mix"}
-HIT_COLUMNS = ["rank", "doc_id", "document", "label", "start (s)", "end (s)", "score"]
+HIT_TITLES = hit_titles("rank", "doc_id", "name", "label", "start", "end", "start_s", "end_s", "score")
+HIT_DECIMALS = {"start_s": 2, "end_s": 2, "score": 3}
 
 
 class RelationalPage(pn.viewable.Viewer):
@@ -61,12 +64,12 @@ class RelationalPage(pn.viewable.Viewer):
         self.message = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-query-message"])
         self.count = pn.pane.Markdown("", css_classes=["mv-hit-count"])
         self.quality = pn.pane.Markdown("", css_classes=["mv-hit-quality"])
-        self.table = results_table(pd.DataFrame(columns=HIT_COLUMNS), "mv-hits", selectable=True)
+        self.table = results_table(pd.DataFrame(columns=list(HIT_TITLES)), "mv-hits", HIT_TITLES, selectable=True)
         self.curve = pn.pane.HoloViews(None, visible=False, css_classes=["mv-precision-recall"])
         self.player = SkeletonPlayer(size=(640, 360))
         self.player_caption = pn.pane.Markdown("", css_classes=["mv-hit-caption"])
         self._watch()
-        self._set_query(selection.doc, selection.span)
+        self._set_query(selection.doc, inclusive(selection.span))
 
     def __panel__(self):
         features = pn.Row(*[pn.Column(f"**{GROUP_TITLES[g]}**", w) for g, w in self.features.items()])
@@ -92,8 +95,8 @@ class RelationalPage(pn.viewable.Viewer):
     # ------------------------------------------------------------------ the query clip and span
     def activate(self) -> None:
         """Take the session's clip and span (the Database page may have changed them) when the tab is shown."""
-        if (self.selection.doc, tuple(self.selection.span)) != (self.doc.value, tuple(self.span.value)):
-            self._set_query(self.selection.doc, self.selection.span)
+        if (self.selection.doc, tuple(self.selection.span)) != (self.doc.value, half_open(self.span.value)):
+            self._set_query(self.selection.doc, inclusive(self.selection.span))
         if not self.backend.is_cached(("indexes", RELATIONAL_SET)):
             pn.state.execute(self._load_indexes)
 
@@ -102,7 +105,8 @@ class RelationalPage(pn.viewable.Viewer):
         await self.task.run("Loading the relational indexes", self.backend.indexes, RELATIONAL_SET, busy=self.run)
 
     def _set_query(self, doc: int, span) -> None:
-        """Show document ``doc`` and ``span`` (first, last frames, inclusive; clipped to the document)."""
+        """Show document ``doc`` and ``span`` (first, last frames, inclusive, as the slider and the boxes show it;
+        clipped to the document)."""
         n = int(self.backend.db.document(doc)["n_frames"])
         first, last = sorted(min(max(int(v), 0), n - 1) for v in span)
         self._syncing = True
@@ -133,12 +137,12 @@ class RelationalPage(pn.viewable.Viewer):
     def _span_changed(self) -> None:
         """Tell the Selection, describe the span and show it in the player."""
         doc, (first, last) = self.doc.value, self.span.value
-        if (self.selection.doc, tuple(self.selection.span)) != (doc, (first, last)):
-            self.selection.param.update(doc=doc, frame=first, span=(first, last))
+        if (self.selection.doc, tuple(self.selection.span)) != (doc, (first, last + 1)):
+            self.selection.param.update(doc=doc, frame=first, span=(first, last + 1))
         fps = self._doc_fps(doc)
         self.span_info.object = (f"{last - first + 1} frames · {first / fps:.2f}–{(last + 1) / fps:.2f} s of "
                                  f"{self._doc_name(doc)}")
-        self.player.load([self._clip(doc, first, last)], titles=["query"], fps=fps)
+        self.player.load([self._clip(doc, first, last + 1)], titles=["query"], fps=fps)
         self.player_caption.object = f"Query: **{self._doc_name(doc)}**, frames {first}–{last}. Click a hit to " \
                                      "play it beside the query."
         self._bound_mismatches()
@@ -166,17 +170,18 @@ class RelationalPage(pn.viewable.Viewer):
 
     # ------------------------------------------------------------------ running
     def query(self) -> dict:
-        """The query the widgets describe: doc, span (first, last), features (names), mode, mismatches."""
+        """The query the widgets describe: doc, span (start, end: frames of the document, half-open), features
+        (names), mode, mismatches."""
         features = [n for w in self.features.values() for n in w.value]
-        return {"doc": int(self.doc.value), "span": tuple(int(v) for v in self.span.value), "features": features,
+        return {"doc": int(self.doc.value), "span": half_open(self.span.value), "features": features,
                 "mode": MODES[self.mode.value], "mismatches": int(self.mismatches.value)}
 
     def problem(self, q: dict) -> str | None:
         """Why the query ``q`` cannot run (a sentence for the user), or None when it can."""
         if not q["features"]:
             return "Tick at least one feature: the query compares the clips in the ticked features only."
-        first, last = q["span"]
-        if last <= first:
+        start, end = q["span"]
+        if end - start < 2:
             return ("The span must hold at least two frames (the velocity features need two): set its last frame "
                     "after its first.")
         return None
@@ -185,10 +190,10 @@ class RelationalPage(pn.viewable.Viewer):
         """The ranked hits of ``q`` (:func:`mocapviz.relational.query.query_by_example`), cached per database."""
         key = ("relational query", RELATIONAL_SET, q["doc"], q["span"], tuple(sorted(q["features"])), q["mode"],
                q["mismatches"] if q["mode"] == "mismatch" else 0)
-        first, last = q["span"]
+        start, end = q["span"]
         db = self.backend.db
         return self.backend.cached(key, lambda: query_by_example(
-            db, db.motion(q["doc"])[first:last + 1], q["features"], q["mode"], q["mismatches"], RELATIONAL_SET,
+            db, db.motion(q["doc"])[start:end], q["features"], q["mode"], q["mismatches"], RELATIONAL_SET,
             self.backend.indexes(RELATIONAL_SET)))
 
     async def _on_run(self, event=None) -> None:
@@ -210,11 +215,7 @@ class RelationalPage(pn.viewable.Viewer):
     # ------------------------------------------------------------------ results
     def _show_hits(self, q: dict, hits: pd.DataFrame) -> None:
         self.hits, self.shown_query = hits, q
-        fps = hits["doc_id"].map(self._doc_fps)
-        table = pd.DataFrame({"rank": hits["rank"], "doc_id": hits["doc_id"], "document": hits["name"],
-                              "label": hits["label"], "start (s)": (hits["start_frame"] / fps).round(2),
-                              "end (s)": ((hits["end_frame"] + 1) / fps).round(2), "score": hits["score"].round(3)})
-        self.table.param.update(selection=[], value=table)
+        self.table.param.update(selection=[], value=hit_columns(hits, HIT_TITLES, HIT_DECIMALS))
         n = len(hits)
         kind = f"{q['mode']} hits" + (f" with m = {q['mismatches']}" if q["mode"] == "mismatch" else "")
         self.count.object = f"**{n} hit{'s' if n != 1 else ''}** for {len(q['features'])} features, " \
@@ -250,20 +251,21 @@ class RelationalPage(pn.viewable.Viewer):
             return
         hit = self.hits.iloc[int(event.new[0])]
         q = self.shown_query
-        doc, start, end = int(hit["doc_id"]), int(hit["start_frame"]), int(hit["end_frame"])
+        doc, start, end = int(hit["doc_id"]), int(hit["start"]), int(hit["end"])
         self.player.load([self._clip(q["doc"], *q["span"]), self._clip(doc, start, end)],
                          titles=["query", f"hit {int(hit['rank'])}"], fps=self._doc_fps(doc))
-        self.player_caption.object = (f"Query: **{self._doc_name(q['doc'])}**, frames {q['span'][0]}–{q['span'][1]}"
-                                      f" · beside hit {int(hit['rank'])}: **{hit['name']}**, frames {start}–{end}")
+        self.player_caption.object = (f"Query: **{self._doc_name(q['doc'])}**, frames {q['span'][0]}:{q['span'][1]}"
+                                      f" · beside hit {int(hit['rank'])}: **{hit['name']}**, frames {start}:{end} "
+                                      "(end excluded, as in the table)")
 
     # ------------------------------------------------------------------ helpers
-    def _clip(self, doc: int, first: int, last: int):
-        """Frames first..last (inclusive) of document ``doc``: (T, 24, 3) cm."""
-        sl = self.backend.db.frames(doc)
-        return self.backend.db.positions[sl.start + first: sl.start + last + 1]
+    def _clip(self, doc: int, start: int, end: int):
+        """Frames start:end (half-open) of document ``doc``: (T, 24, 3) cm."""
+        return self.backend.db.positions[database_frames(self.backend.db, doc, start, end)]
 
     def _doc_fps(self, doc: int) -> float:
         return float(self.backend.db.document(int(doc))["fps"])
 
     def _doc_name(self, doc: int) -> str:
         return str(self.backend.db.document(int(doc))["name"])
+

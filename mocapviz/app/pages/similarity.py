@@ -20,18 +20,19 @@ import numpy as np
 import pandas as pd
 import panel as pn
 
+from ...db.hits import database_frames
 from ...errors import ParameterError
 from ...experiments.matching import similarity_matrices
 from ...features import NUMERIC_SETS
 from ...similarity.knn import describe_frames
-from ...match.neighbourhood_graph import lng
+from ...similarity.motion_matching import match_motion
 from ...similarity.search import MODES as SEARCH_MODES
 from ...validation import count
 from ...viz.matching import similarity_layout
 from ...viz.skeleton import neighbour_poses, png_bytes
 from ..player import SkeletonPlayer
 from ..progress import Task
-from ..widgets import BoundedIntInput, action_button, notes, results_table
+from ..widgets import BoundedIntInput, action_button, hit_columns, hit_titles, notes, results_table
 
 SEARCH_SETS = [s for s in NUMERIC_SETS if not s.startswith("Fp")]  # the numeric sets offered: Fp need a PCA model
 MAX_NEIGHBOURS = 256  # Fig. 1 draws 256 neighbours; more make an unreadable figure and a slow render
@@ -40,25 +41,19 @@ MAX_MATRIX_CELLS = 600_000  # query frames x small-database frames of the Fig. 3
 LNG_K_AT_30HZ = 256  # neighbours per query frame of §4.2's experiments (scaled with the frame rate)
 MATRIX_K_AT_30HZ = 32  # neighbours per query frame on Fig. 3's small database (similarity_matrices' default)
 MATRIX_DOCS = 3  # documents of the best matches forming the small database of Fig. 3
-KNN_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "doc_frame": "frame", "time_s": "time (s)",
-              "distance": "distance", "label": "label"}
-SHOWN_DECIMALS = {"start_s": 2, "end_s": 2, "cost": 1, "cost_per_frame": 2}
 SEARCH_KINDS = {"whole clips": "clips", "stretches": "stretches"}
-SEARCH_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "label": "label", "start": "first frame",
-                 "end": "last frame", "start_s": "start (s)", "end_s": "end (s)", "frames": "frames", "cost": "cost",
-                 "normalised_cost": "cost / (m + n)"}  # fmt: skip
+# the tables' columns, under the titles every page gives them (widgets.HIT_TITLES)
+KNN_TITLES = hit_titles("rank", "doc_id", "name", "label", "start", "start_s", "distance")
+KNN_DECIMALS = {"start_s": 3, "distance": 2}
+SEARCH_TITLES = hit_titles("rank", "doc_id", "name", "label", "start", "end", "frames", "start_s", "end_s", "cost",
+                           "normalised_cost")  # fmt: skip
 SEARCH_DECIMALS = {"start_s": 2, "end_s": 2, "cost": 1, "normalised_cost": 3}
-MATCH_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "label": "label", "start_s": "start (s)",
-                "end_s": "end (s)", "frames": "frames", "cost": "cost", "cost_per_frame": "cost / frame"}
+MATCH_TITLES = hit_titles("rank", "doc_id", "name", "label", "start", "end", "frames", "start_s", "end_s", "cost",
+                          "cost_per_frame")  # fmt: skip
+MATCH_DECIMALS = {"start_s": 2, "end_s": 2, "cost": 1, "cost_per_frame": 2}
 
 
 # ============================================================================ computations (worker thread)
-def _own_frames(backend, doc: int) -> tuple[int, int]:
-    """The [start, stop) database frames of document ``doc``."""
-    frames = backend.db.frames(doc)
-    return frames.start, frames.stop
-
-
 def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own: bool) -> pd.DataFrame:
     """The k nearest database frames of one frame (Krüger et al. 2010 §3.3).
 
@@ -72,98 +67,82 @@ def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own
 
     Returns
     -------
-    pd.DataFrame, :func:`mocapviz.similarity.knn.describe_frames` (rank, frame, doc_id, name, doc_frame, time_s, distance,
-    labels), nearest first.
+    pd.DataFrame, :func:`mocapviz.similarity.knn.describe_frames`: the hit table of one-frame hits (start = the
+    frame within its document, end = start + 1) with ``distance``, nearest first.
     """
-    start, stop = _own_frames(backend, doc)
-    if not 0 <= frame < stop - start:
-        raise ParameterError(f"frame {frame} is outside document {doc} (frames 0..{stop - start - 1})")
+    own = backend.db.frames(doc)  # the one "no such document" error
+    if not 0 <= frame < own.stop - own.start:
+        raise ParameterError(f"frame {frame} is outside document {doc} (frames 0..{own.stop - own.start - 1})")
     index = backend.knn(name)
     k = count(k, "k", 1, min(MAX_NEIGHBOURS, index.n_indexed))
-    query = backend.numeric(name)[start + frame]
-    distances, frames = index.query(query, k, exclude=(start, stop) if exclude_own else None)
+    query = backend.numeric(name)[database_frames(backend.db, doc, frame, frame + 1).start]
+    distances, frames = index.query(query, k, exclude=(own.start, own.stop) if exclude_own else None)
     return describe_frames(backend.db, frames, distances)
 
 
-def neighbours_png(backend, doc: int, frame: int, neighbours: np.ndarray) -> bytes:
+def neighbours_png(backend, doc: int, frame: int, neighbours: pd.DataFrame) -> bytes:
     """Fig. 1 of Krüger et al. 2010 as PNG bytes: the pose of ``frame`` of document ``doc`` (red) and the poses of
-    the database frames ``neighbours`` ((k,) int) drawn together in the body frame
+    the one-frame hits ``neighbours`` (:func:`nearest_frames`) drawn together in the body frame
     (:func:`mocapviz.viz.skeleton.neighbour_poses`)."""
-    positions = backend.db.positions
-    query, poses = positions[backend.db.frames(doc).start + frame], positions[neighbours]
-    return png_bytes(neighbour_poses(query, poses))
+    db = backend.db
+    rows = [database_frames(db, d, s, e).start for d, s, e in zip(neighbours["doc_id"], neighbours["start"],
+                                                                   neighbours["end"])]  # fmt: skip
+    positions = db.positions
+    query = positions[database_frames(db, doc, frame, frame + 1).start]
+    return png_bytes(neighbour_poses(query, positions[np.asarray(rows, dtype=np.int64)]))
 
 
-def _query_span(backend, doc: int, span: tuple[int, int]) -> tuple[int, int]:
-    """The span's [first, stop) database frames, or a ValueError when it is too short or too long."""
-    start, stop = _own_frames(backend, doc)
-    first, last = int(span[0]), int(span[1])
-    if not 0 <= first <= last < stop - start:
-        raise ParameterError(f"span {first}..{last} is outside document {doc} (frames 0..{stop - start - 1})")
+def _check_span(backend, span: tuple[int, int]) -> tuple[int, int]:
+    """The span (start, end), frames of its document, half-open, or a ParameterError when it is too short or
+    longer than any document (frames outside the document: the library's error)."""
+    start, end = int(span[0]), int(span[1])
+    if end - start < 2:
+        raise ParameterError(f"the span has {max(end - start, 0)} frame(s); matching needs at least 2 (set it on the "
+                             "Database page)")  # fmt: skip
     longest = int(backend.documents["n_frames"].max())
-    if last - first + 1 < 2:
-        raise ParameterError("the span is 1 frame long; matching needs at least 2 (set it on the Database page)")
-    if last - first + 1 > longest:
-        raise ParameterError(f"the span has {last - first + 1} frames, more than the longest document ({longest}); "
-                         "no match can be found")
-    return start + first, start + last + 1
+    if end - start > longest:
+        raise ParameterError(f"the span has {end - start} frames, more than the longest document ({longest}); "
+                             "no match can be found")
+    return start, end
 
 
 def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, n_matches: int,
                exclude_own: bool) -> pd.DataFrame:
-    """The K best matches of a span in the database by the lazy neighbourhood graph (Krüger et al. 2010 §4.1).
+    """The K best matches of a span in the database by the lazy neighbourhood graph (Krüger et al. 2010 §4.1):
+    :func:`mocapviz.similarity.motion_matching.match_motion` over the Backend's features and kd-tree.
 
     Parameters
     ----------
     backend : Backend
     name : str, numeric set.
-    doc : int, span : (first, last) frames of document ``doc``, inclusive; 2 <= length <= the longest document.
+    doc : int, span : (start, end) frames of document ``doc``, half-open; 2 <= length <= the longest document.
     k : int, neighbours per query frame (1 <= k <= indexed frames).
     n_matches : int, matches wanted (K, at most MAX_MATCHES).
     exclude_own : bool, no match inside the query's own document.
 
     Returns
     -------
-    pd.DataFrame, best first, one row per match: rank, doc_id, name, label (when the database has labels), start,
-    end (database frames, inclusive), start_s, end_s (seconds within the match's document), frames, cost (sum of
-    the local costs along the path, feature units), cost_per_frame (per query frame), path ((L, 2) int64 of (query
-    frame within the span, database frame)).
+    pd.DataFrame, the hit table, best first, with cost, cost_per_frame and path ((L, 2) int64 of (query frame
+    within the span, frame within the match's document)).
     """
-    q0, q1 = _query_span(backend, doc, span)
+    span = _check_span(backend, span)
     index = backend.knn(name)
     k = count(k, "k", 1, index.n_indexed)
     n_matches = count(n_matches, "K", 1, MAX_MATCHES)
-    docs = backend.documents
-    starts = docs["start"].to_numpy()
-    found = lng(backend.numeric(name)[q0:q1], index, k=k, n_matches=n_matches, starts=starts,
-                exclude=_own_frames(backend, doc) if exclude_own else None)
-    rows = docs.iloc[found["doc_id"].to_numpy()]
-    first = rows["start"].to_numpy()
-    fps = rows["fps"].to_numpy(dtype=np.float64)
-    table = pd.DataFrame({"rank": np.arange(1, len(found) + 1), "doc_id": rows["doc_id"].to_numpy(),
-                          "name": rows["name"].to_numpy()})
-    if "label" in rows:
-        table["label"] = rows["label"].to_numpy()
-    table["start"], table["end"] = found["start"].to_numpy(), found["end"].to_numpy()
-    table["start_s"] = (table["start"] - first) / fps
-    table["end_s"] = (table["end"] - first) / fps
-    table["frames"] = table["end"] - table["start"] + 1
-    table["cost"] = found["cost"].to_numpy()
-    table["cost_per_frame"] = table["cost"] / (q1 - q0)
-    table["path"] = found["path"].to_numpy()
-    return table
+    return match_motion(backend.db, doc, span, numeric_set=name, method="lng", n_matches=n_matches, k=k,
+                        exclude_document=exclude_own, paths=True, features=backend.numeric(name), index=index)
 
 
 def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, mode: str, n_matches: int,
                 exclude_own: bool) -> pd.DataFrame:  # fmt: skip
     """The documents (``kind="clips"``) or stretches (``"stretches"``) that move most like the span, by DTW on a
-    numeric set (:class:`mocapviz.similarity.search.SimilaritySearch`, cached per numeric set by the Backend).
+    numeric set (:class:`mocapviz.similarity.search.SimilaritySearch`, one per numeric set in the Backend).
 
     Parameters
     ----------
     backend : Backend
     name : str, numeric set.
-    doc, span : the query: frames first..last (inclusive) of document ``doc``.
+    doc, span : the query: frames start:end (half-open) of document ``doc``.
     kind : {"clips", "stretches"}
     mode : {"exact", "fast"} (or "brute").
     n_matches : int, results wanted (1..MAX_MATCHES).
@@ -171,22 +150,17 @@ def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, 
 
     Returns
     -------
-    pd.DataFrame, best first: :meth:`~mocapviz.similarity.search.SimilaritySearch.clips`' columns (rank, doc_id, name, start,
-    end (frames of the result's document), frames, cost, normalised_cost, labels, path ((L, 2) (query frame within
-    the span, document frame))) plus start_s and end_s (seconds). ``attrs``: the search's (ms, aligned, ...).
+    pd.DataFrame, the search's hit table as it is (rank, doc_id, name, start, end, frames, start_s, end_s, cost,
+    normalised_cost, labels, path ((L, 2) (query frame within the span, frame within the result's document))).
+    ``attrs``: the search's (ms, aligned, ...).
     """
-    q0, q1 = _query_span(backend, doc, span)
+    span = _check_span(backend, span)
     n_matches = count(n_matches, "K", 1, MAX_MATCHES)
     if kind not in SEARCH_KINDS.values():
         raise ParameterError(f"kind must be one of {', '.join(SEARCH_KINDS.values())}; got {kind!r}")
     search = backend.search(name)
-    frames = (q0 - _own_frames(backend, doc)[0], q1 - _own_frames(backend, doc)[0])
     run = search.clips if kind == "clips" else search.stretches
-    table = run(doc, frames=frames, n_matches=n_matches, mode=mode, exclude_document=exclude_own, paths=True)
-    fps = backend.documents.set_index("doc_id").loc[table["doc_id"], "fps"].to_numpy(dtype=np.float64)
-    table.insert(table.columns.get_loc("frames"), "start_s", table["start"] / fps if len(table) else [])
-    table.insert(table.columns.get_loc("frames"), "end_s", table["end"] / fps if len(table) else [])
-    return table
+    return run(doc, frames=span, n_matches=n_matches, mode=mode, exclude_document=exclude_own, paths=True)
 
 
 def scaled_k(k_at_30hz: int, fps: float) -> int:
@@ -201,8 +175,8 @@ def match_alignment(path: np.ndarray, match_start: int) -> np.ndarray:
 
     Parameters
     ----------
-    path : np.ndarray [shape=(L, 2)], int, (query frame within the span, database frame) per step.
-    match_start : int, the match's first database frame.
+    path : np.ndarray [shape=(L, 2)], int, (query frame within the span, frame within the match's document) per step.
+    match_start : int, the match's first frame within its document (the hit's ``start``).
 
     Returns
     -------
@@ -218,24 +192,23 @@ def matrix_docs(matches: pd.DataFrame, most: int = MATRIX_DOCS) -> list[int]:
 
 
 def similarity_result(backend, name: str, doc: int, span: tuple[int, int], k: int, database_docs: list[int]) -> dict:
-    """Fig. 3 of Krüger et al. 2010 for the span against ``database_docs``: the distance matrix by ``name``, the
-    cells the graph computed, its paths, and subsequence DTW on Dpc1 (:func:`similarity_matrices`).
+    """Fig. 3 of Krüger et al. 2010 for the span ((start, end) of ``doc``, half-open) against ``database_docs``:
+    the distance matrix by ``name``, the cells the graph computed, its paths, and subsequence DTW on Dpc1
+    (:func:`similarity_matrices`).
 
     Raises
     ------
-    ValueError
+    ParameterError
         No document to compare with, or a matrix of more than MAX_MATRIX_CELLS cells (shorten the span).
     """
-    q0, q1 = _query_span(backend, doc, span)
+    start, end = _check_span(backend, span)
     if not database_docs:
         raise ParameterError("no match to compare with: the span matched nothing")
     n = sum(backend.db.frames(d).stop - backend.db.frames(d).start for d in database_docs)
-    if (q1 - q0) * n > MAX_MATRIX_CELLS:
-        raise ParameterError(f"the matrix would have {q1 - q0} x {n:,} cells (at most {MAX_MATRIX_CELLS:,}); choose a "
-                         f"span of at most {MAX_MATRIX_CELLS // n} frames")
-    first = int(span[0])
-    return similarity_matrices(backend.db, doc, (first, first + q1 - q0), database_docs, numeric_sets=(name,),
-                               k=k)
+    if (end - start) * n > MAX_MATRIX_CELLS:
+        raise ParameterError(f"the matrix would have {end - start} x {n:,} cells (at most {MAX_MATRIX_CELLS:,}); "
+                             f"choose a span of at most {MAX_MATRIX_CELLS // n} frames")
+    return similarity_matrices(backend.db, doc, (start, end), database_docs, numeric_sets=(name,), k=k)
 
 
 # ============================================================================ the page
@@ -338,9 +311,10 @@ class SimilarityPage(pn.viewable.Viewer):
         s = self.selection
         row = self.backend.db.document(s.doc)
         fps = float(row["fps"])
-        first, last = s.span
+        start, end = s.span
         self.query.object = (f"**Query**: document {s.doc} ({row['name']}), frame {s.frame} ({s.frame / fps:.2f} s); "
-                             f"span {first}–{last} ({last - first + 1} frames, {(last - first + 1) / fps:.2f} s). "
+                             f"span {_frames(start, end)} ({end - start} frames, "
+                             f"{start / fps:.2f}–{end / fps:.2f} s). "
                              "Choose the document, frame and span on the Database page.")
 
     # ------------------------------------------------------------------ DTW search
@@ -356,14 +330,13 @@ class SimilarityPage(pn.viewable.Viewer):
                                            lambda: search_span(self.backend, *key), busy=self.search_button)
         if found is None:
             return
-        name, doc, (first, last), kind, mode, n_matches, own = key
-        self.results, self.search_query = found, (doc, first, last)
-        shown = found[[c for c in SEARCH_TITLES if c in found]].round(SEARCH_DECIMALS)
-        self.search_table.param.update(selection=[], value=shown)
+        name, doc, span, kind, mode, n_matches, own = key
+        self.results, self.search_query = found, (doc, span)
+        self.search_table.param.update(selection=[], value=hit_columns(found, SEARCH_TITLES, SEARCH_DECIMALS))
         self.search_player_box.visible = False
         what = "clips" if kind == "clips" else "stretches"
         ms = found.attrs.get("ms")
-        self.search_count.object = (f"**{len(found)} {what}** like document {doc} frames {first}–{last} by {name}, "
+        self.search_count.object = (f"**{len(found)} {what}** like document {doc} frames {_frames(*span)} by {name}, "
                                     f"{mode} DTW (K = {n_matches})" + (", its own document excluded" if own else "")
                                     + (f"; search {ms:.0f} ms, {found.attrs.get('aligned', 0)} alignments"
                                        if ms is not None else ""))  # fmt: skip
@@ -372,23 +345,23 @@ class SimilarityPage(pn.viewable.Viewer):
         if not event.new or self.results is None:
             return
         row = self.results.iloc[event.new[0]]
-        doc, first, last = self.search_query
-        d0 = self.backend.db.frames(int(row["doc_id"])).start
-        self._play(self.search_player, self.search_player_box, doc, first, last, d0 + int(row["start"]),
-                   d0 + int(row["end"]), match_alignment(row["path"], int(row["start"])),
-                   f"result {row['rank']}: document {row['doc_id']}")
-        self.search_playing.object = (f"Playing the query (document {doc}, frames {first}–{last}) beside result "
+        doc, span = self.search_query
+        self._play(self.search_player, self.search_player_box, doc, span, row, f"result {row['rank']}")
+        self.search_playing.object = (f"Playing the query (document {doc}, frames {_frames(*span)}) beside result "
                                       f"{row['rank']} (document {row['doc_id']}, {row['name']}, frames "
-                                      f"{row['start']}–{row['end']}), aligned by its DTW warping path "
+                                      f"{_frames(row['start'], row['end'])}), aligned by its DTW warping path "
                                       f"({len(row['path'])} steps).")
 
-    def _play(self, player, box, doc: int, first: int, last: int, m0: int, m1: int, alignment, title: str) -> None:
-        """Load the query span (frames first..last of ``doc``) beside database frames m0..m1 into ``player``, played
-        along ``alignment`` ((L, 2) frames of the two clips)."""
-        q0 = self.backend.db.frames(doc).start
-        positions = self.backend.db.positions
-        player.load([positions[q0 + first : q0 + last + 1], positions[m0 : m1 + 1]],
-                    titles=[f"query: document {doc}", title], fps=self.backend.fps_of(doc), alignment=alignment)
+    def _play(self, player, box, doc: int, span: tuple[int, int], hit, title: str) -> None:
+        """Load the query span (frames start:end of ``doc``) beside the hit ``hit`` (a row of a hit table, with its
+        ``path``) into ``player``, played along the hit's warping path."""
+        db = self.backend.db
+        positions = db.positions
+        hit_doc = int(hit["doc_id"])
+        clips = [positions[database_frames(db, doc, *span)],
+                 positions[database_frames(db, hit_doc, int(hit["start"]), int(hit["end"]))]]
+        player.load(clips, titles=[f"query: document {doc}", f"{title}: document {hit_doc}"],
+                    fps=self.backend.fps_of(doc), alignment=match_alignment(hit["path"], int(hit["start"])))
         box.visible = True
 
     # ------------------------------------------------------------------ kNN
@@ -402,11 +375,11 @@ class SimilarityPage(pn.viewable.Viewer):
                                         busy=self.knn_button)
         if table is None:
             return
-        self.knn_table.value = table[[c for c in KNN_TITLES if c in table]].round({"time_s": 3, "distance": 2})
+        self.knn_table.value = hit_columns(table, KNN_TITLES, KNN_DECIMALS)
         self.knn_count.object = (f"**{len(table)} neighbours** of document {doc} frame {frame} by {name}"
                                  + (", its own document excluded" if own else ""))
         image = await self.knn_task.run("Drawing the neighbours", self.backend.cached, (*key, "png"),
-                                        lambda: neighbours_png(self.backend, doc, frame, table["frame"].to_numpy()),
+                                        lambda: neighbours_png(self.backend, doc, frame, table),
                                         busy=self.knn_button)
         if image is not None:
             self.knn_poses.object = image
@@ -427,12 +400,11 @@ class SimilarityPage(pn.viewable.Viewer):
         found = await self.match_task.run("Matching", self._cached_matches, key, busy=self.match_button)
         if found is None:
             return
-        name, doc, (first, last), k, n_matches, own = key
-        self.matches, self.match_query = found, (doc, first, last)
-        shown = found[[c for c in MATCH_TITLES if c in found]].round(SHOWN_DECIMALS)
-        self.match_table.param.update(selection=[], value=shown)
+        name, doc, span, k, n_matches, own = key
+        self.matches, self.match_query = found, (doc, span)
+        self.match_table.param.update(selection=[], value=hit_columns(found, MATCH_TITLES, MATCH_DECIMALS))
         self.player_box.visible = False
-        self.match_count.object = (f"**{len(found)} matches** of document {doc} frames {first}–{last} by {name} "
+        self.match_count.object = (f"**{len(found)} matches** of document {doc} frames {_frames(*span)} by {name} "
                                    f"(k = {k}, K = {n_matches})" + (", its own document excluded" if own else "")
                                    + ("; try a larger k" if found.empty else ""))
 
@@ -440,14 +412,11 @@ class SimilarityPage(pn.viewable.Viewer):
         if not event.new or self.matches is None:
             return
         match = self.matches.iloc[event.new[0]]
-        doc, first, last = self.match_query
-        d0 = self.backend.db.frames(int(match["doc_id"])).start
-        self._play(self.player, self.player_box, doc, first, last, int(match["start"]), int(match["end"]),
-                   match_alignment(match["path"], int(match["start"])),
-                   f"match {match['rank']}: document {match['doc_id']}")
-        self.playing.object = (f"Playing the query (document {doc}, frames {first}–{last}) beside match "
+        doc, span = self.match_query
+        self._play(self.player, self.player_box, doc, span, match, f"match {match['rank']}")
+        self.playing.object = (f"Playing the query (document {doc}, frames {_frames(*span)}) beside match "
                                f"{match['rank']} (document {match['doc_id']}, {match['name']}, frames "
-                               f"{match['start'] - d0}–{match['end'] - d0}), aligned by its warping path "
+                               f"{_frames(match['start'], match['end'])}), aligned by its warping path "
                                f"({len(match['path'])} steps).")
 
     # ------------------------------------------------------------------ Fig. 3
@@ -477,6 +446,11 @@ MATRIX_LEGEND = ("The span against the documents of its best matches (at most th
                  "distances the graph computed (darker = more similar); blue: cells it never computed; red: its "
                  "warping paths; orange: document boundaries. Second panel: subsequence DTW on the point-cloud "
                  "distance Dpc1, computed in full.")
+
+
+def _frames(start: int, end: int) -> str:
+    """A half-open span of frames as the page writes it: "start:end" (end excluded, as in the tables)."""
+    return f"{int(start)}:{int(end)}"
 
 
 def _scoped(task: Task, css_class: str) -> pn.Column:

@@ -5,7 +5,7 @@ The user picks a class (a ``label`` shared by at least two documents), optionall
 it, the relational set, the quantisation threshold δ, K and an optional limit on the cost. "Learn and search" then,
 in a worker thread behind a progress bar: learns the template (:func:`mocapviz.relational.templates.learn_class`, cached per
 class, actors and set), computes the database's relational features of the set (once per set) and finds the K best
-instances by subsequence DTW (:func:`mocapviz.relational.templates.find_instances`). The template is drawn as the paper draws
+instances by subsequence DTW (:func:`mocapviz.relational.templates.search_template`). The template is drawn as the paper draws
 it (features × time, white 0, black 1, grey don't care; or its averaged values); a chosen hit plays beside one
 training example of the template, the two aligned by DTW of their relational features.
 """
@@ -18,21 +18,21 @@ import panel as pn
 
 from ...features import relational_features
 from ...match import dtw
-from ...relational.templates import DELTA, DONT_CARE, MotionTemplate, find_instances, learn_class, template_distance
+from ...db.hits import database_frames
+from ...relational.templates import DELTA, DONT_CARE, MotionTemplate, learn_class, template_distance
+from ...relational.templates import search_template as find_template
 from ...validation import count, number, one_of
 from ...viz.templates import template_image
 from ..player import SkeletonPlayer
 from ..progress import Task
-from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, notes, results_table
+from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, hit_titles, notes, results_table
 
 RELATIONAL_SETS = ["2006", "2005"]  # the 39 features of Müller & Röder 2006 (the paper's), or the 31 of 2005
 MAX_MATCHES = 100
 DEFAULT_MATCHES = 20
 DELTA_MAX = 0.49  # the library takes 0 <= δ < 0.5; the widget steps by 0.01, so its largest value is 0.49
 VIEWS = {"quantised": True, "averaged values": False}
-HIT_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "label": "label", "first": "first frame",
-              "last": "last frame", "start_s": "start (s)", "end_s": "end (s)",
-              "normalised_cost": "cost / template frame"}  # fmt: skip
+HIT_TITLES = hit_titles("rank", "doc_id", "name", "label", "start", "end", "start_s", "end_s", "normalised_cost")
 IMAGE_WIDTH = 640  # px of the template image; the player (640 px) stands beside it
 COST_DECIMALS = 3
 SECONDS_DECIMALS = 2
@@ -94,7 +94,8 @@ def learn(backend, label: str, actors, relational_set: str) -> MotionTemplate:
 
 def search_template(backend, template: MotionTemplate, delta: float, n_matches: int,
                     max_cost: float | None) -> pd.DataFrame:  # fmt: skip
-    """The instances of ``template`` in the whole database (:func:`mocapviz.relational.templates.find_instances`), described.
+    """The instances of ``template`` in the whole database: :func:`mocapviz.relational.templates.search_template`
+    over the Backend's relational features of the template's set, within the page's bounds.
 
     Parameters
     ----------
@@ -106,33 +107,14 @@ def search_template(backend, template: MotionTemplate, delta: float, n_matches: 
 
     Returns
     -------
-    pd.DataFrame, best first, one row per hit: rank, doc_id, name, label (when the documents have one), first, last
-    (frames within the document, inclusive), start_s, end_s (seconds within the document: first / fps, (last + 1)
-    / fps), start, end (database frames, inclusive), cost (DTW cost, sum of the per-frame mean mismatch),
-    normalised_cost (cost per template frame, in [0, 1]).
+    pd.DataFrame, the hit table, best first (start, end: frames of the document, half-open; start_s, end_s), with
+    cost (DTW cost, sum of the per-frame mean mismatch) and normalised_cost (cost per template frame, in [0, 1]).
     """
     n_matches = count(n_matches, "K", 1, MAX_MATCHES)
     if max_cost is not None:
         max_cost = number(max_cost, "the max cost (a mean mismatch per frame)", 0.0, 1.0)
     values, _ = database_features(backend, template.meta.get("relational_set", "2006"))
-    docs = backend.documents
-    found = find_instances(template, values, docs["start"].to_numpy(), n_matches=n_matches, delta=delta,
-                           max_cost=max_cost)  # fmt: skip
-    rows = docs.iloc[found["doc_id"].to_numpy(dtype=np.int64)]
-    first_frame = rows["start"].to_numpy(dtype=np.int64)
-    fps = rows["fps"].to_numpy(dtype=np.float64)
-    table = pd.DataFrame({"rank": np.arange(1, len(found) + 1), "doc_id": rows["doc_id"].to_numpy(dtype=np.int64),
-                          "name": rows["name"].to_numpy()})
-    if "label" in rows:
-        table["label"] = rows["label"].to_numpy()
-    table["first"] = found["start"].to_numpy(dtype=np.int64) - first_frame
-    table["last"] = found["end"].to_numpy(dtype=np.int64) - first_frame
-    table["start_s"] = table["first"] / fps
-    table["end_s"] = (table["last"] + 1) / fps
-    table["start"], table["end"] = found["start"].to_numpy(dtype=np.int64), found["end"].to_numpy(dtype=np.int64)
-    table["cost"] = found["cost"].to_numpy(dtype=np.float64)
-    table["normalised_cost"] = found["normalised_cost"].to_numpy(dtype=np.float64)
-    return table
+    return find_template(backend.db, template, n_matches=n_matches, delta=delta, max_cost=max_cost, values=values)
 
 
 def learn_and_search(backend, label: str, actors, relational_set: str, delta: float, n_matches: int,
@@ -144,7 +126,8 @@ def learn_and_search(backend, label: str, actors, relational_set: str, delta: fl
 
 
 def hits_view(hits: pd.DataFrame) -> pd.DataFrame:
-    """The hits table as shown: the columns of HIT_TITLES, seconds to 0.01, the cost to 0.001 (as text)."""
+    """The hits table as shown: the columns of HIT_TITLES (the titles of every page), seconds to 0.01, the cost
+    to 0.001 (as text)."""
     shown = hits[[c for c in HIT_TITLES if c in hits]].copy()
     for c in ("start_s", "end_s"):
         shown[c] = shown[c].map(lambda v: f"{v:.{SECONDS_DECIMALS}f}")
@@ -188,7 +171,8 @@ def training_example(template: MotionTemplate, hit_doc: int) -> int:
     return (others or docs)[0]
 
 
-def example_alignment(backend, template: MotionTemplate, example_doc: int, start: int, end: int) -> np.ndarray:
+def example_alignment(backend, template: MotionTemplate, example_doc: int, hit_doc: int, start: int,
+                      end: int) -> np.ndarray:  # fmt: skip
     """The DTW alignment of a training example's clip and a hit's clip, by their relational features of the
     template's set and the local cost of learning a template (:func:`mocapviz.relational.templates.template_distance`, the
     mean mismatch over the features).
@@ -198,7 +182,7 @@ def example_alignment(backend, template: MotionTemplate, example_doc: int, start
     backend : Backend
     template : MotionTemplate
     example_doc : int, the training document (its whole clip).
-    start, end : int, the hit's database frames (inclusive).
+    hit_doc, start, end : int, the hit: frames start:end (half-open) of document ``hit_doc``.
 
     Returns
     -------
@@ -207,7 +191,8 @@ def example_alignment(backend, template: MotionTemplate, example_doc: int, start
     """
     values, _ = database_features(backend, template.meta.get("relational_set", "2006"))
     rows = backend.db.frames(int(example_doc))
-    _, path = dtw(values[rows].astype(np.float64), values[int(start) : int(end) + 1], distance=template_distance)
+    hit = values[database_frames(backend.db, hit_doc, start, end)]
+    _, path = dtw(values[rows].astype(np.float64), hit, distance=template_distance)
     return path
 
 
@@ -308,15 +293,17 @@ class TemplatesPage(pn.viewable.Viewer):
         hit = self.hits.iloc[event.new[0]]
         doc = int(hit["doc_id"])
         example = training_example(self.template, doc)
-        path = example_alignment(self.backend, self.template, example, int(hit["start"]), int(hit["end"]))
+        start, end = int(hit["start"]), int(hit["end"])
+        path = example_alignment(self.backend, self.template, example, doc, start, end)
         positions = self.backend.db.positions
-        clips = [positions[self.backend.db.frames(example)], positions[int(hit["start"]) : int(hit["end"]) + 1]]
+        clips = [positions[self.backend.db.frames(example)],
+                 positions[database_frames(self.backend.db, doc, start, end)]]
         self.player.load(clips, titles=[f"example: document {example}", f"hit {hit['rank']}: document {doc}"],
                          fps=self.backend.fps_of(doc), alignment=path)
         self.player_box.visible = True
         name = self.backend.db.document(example)["name"]
         self.playing.object = (f"Playing training example document {example} ({name}) beside hit {hit['rank']} "
-                               f"(document {doc}, {hit['name']}, frames {hit['first']}–{hit['last']}), aligned by "
+                               f"(document {doc}, {hit['name']}, frames {start}:{end}), aligned by "
                                f"DTW of their relational features ({len(path)} steps).")
 
 

@@ -1,0 +1,114 @@
+"""Global motion matching in a MotionDB: the stretches that move like a query, by the lazy neighbourhood graph of
+Krüger, Tautges, Weber & Zinke 2010 §4.1 (``method="lng"``) or by subsequence DTW (``"dtw"``, its reference),
+as the one hit table (:func:`mocapviz.db.hits.hit_table`).
+
+The algorithms work on feature arrays (:mod:`mocapviz.match`); this module is where a MotionDB, its stored numeric
+set, the query by example and the hit table meet, for the command line (``mocapviz match``) and the dashboard.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pandas as pd
+
+from ..db.hits import from_database_frames, hit_table
+from ..errors import ParameterError
+from ..features.numeric import numeric_of
+from ..match import lng, subsequence_dtw
+from ..validation import count, number, one_of
+from .knn import KnnIndex
+from .search import example_features
+
+METHODS = ("lng", "dtw")
+DEFAULT_K = 256  # neighbours per query frame of the graph
+
+
+def match_motion(db, example, frames=None, numeric_set: str = "F15E", method: str = "lng", n_matches: int = 10,
+                 k: int = DEFAULT_K, radius: float | None = None, eps: float = 0.0, exclude_document: bool = False,
+                 paths: bool = False, features: np.ndarray | None = None, index: KnnIndex | None = None,
+                 option: str = "frames") -> pd.DataFrame:  # fmt: skip
+    """The stretches of a MotionDB most like a query, by the lazy neighbourhood graph or subsequence DTW.
+
+    Parameters
+    ----------
+    db : MotionDB
+        Its ``numeric_set`` is read when stored (``mocapviz features DB``), else computed.
+    example : int, Motion, str or os.PathLike
+        The query (:func:`~mocapviz.similarity.search.example_features`): a doc id, a Motion or a motion file.
+    frames : (int, int) or slice, optional
+        [start, stop) frames of the example (default: all).
+    numeric_set : str
+        The numeric set compared (default F15E, cm).
+    method : {"lng", "dtw"}
+        The lazy neighbourhood graph (§4.1, default) or subsequence DTW over every frame.
+    n_matches : int
+        Matches to return at most, best first.
+    k, radius, eps :
+        The graph's neighbours per query frame (default 256), their largest distance (feature units) and the kNN
+        approximation (:meth:`KnnIndex.query`); ``method="lng"`` only.
+    exclude_document : bool
+        Leave the query's own document out (when ``example`` is a doc id).
+    paths : bool
+        Add each match's warping path: an (L, 2) array of (query frame, frame of the hit's document).
+    features : np.ndarray [shape=(N, d)], optional
+        The stored numeric set, if already loaded; ``index`` a :class:`KnnIndex` over it, if already built.
+    option : str
+        How the caller names ``frames`` in an error.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The hit table (``start``, ``end``: the document's frames, half-open) with ``cost`` (accumulated DTW cost,
+        feature units) and ``cost_per_frame`` (cost / query frames), [``path``]. ``attrs``: ``method``,
+        ``query_frames``, ``ms``.
+
+    Raises
+    ------
+    ParameterError
+        A bad method, K, k, radius or eps, ``k``/``radius``/``eps`` given with ``method="dtw"``, a bad example.
+
+    References
+    ----------
+    .. [1] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §4.1 (the lazy neighbourhood graph) and §4.2 (against subsequence DTW).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()
+    >>> hits = match_motion(db, 7, (0, 60), method="dtw", n_matches=2, exclude_document=True)
+    >>> list(hits.columns[:10])
+    ['rank', 'doc_id', 'name', 'start', 'end', 'frames', 'start_s', 'end_s', 'cost', 'cost_per_frame']
+    """
+    method = one_of(method, "method", METHODS)
+    n_matches = count(n_matches, "n_matches")
+    k = count(k, "k")
+    if radius is not None:
+        radius = number(radius, "radius", 0.0, low_open=True)
+    eps = number(eps, "eps", 0.0)
+    if method == "dtw" and (k != DEFAULT_K or radius is not None or eps):
+        raise ParameterError("k, radius and eps shape the neighbourhood graph of method='lng'; subsequence DTW "
+                             "(method='dtw') compares every frame: leave them out")
+    X = np.asarray(numeric_of(db, numeric_set, progress=False)) if features is None else features
+    query, own = example_features(db, X, example, frames, numeric_set, option)
+    starts = db.documents["start"].to_numpy()
+    span = db.frames(own) if own is not None and exclude_document else None
+    t0 = time.perf_counter()
+    if method == "dtw":
+        found = subsequence_dtw(query, X, starts, n_matches=n_matches + (n_matches if span else 0), paths=paths)
+        if span is not None:
+            found = found[(found["end"] < span.start) | (found["start"] >= span.stop)].head(n_matches)
+    else:
+        index = KnnIndex(X) if index is None else index
+        found = lng(query, index, k=k, radius=radius, n_matches=n_matches, starts=starts, eps=eps,
+                    exclude=None if span is None else (span.start, span.stop), paths=paths)  # fmt: skip
+    ms = 1e3 * (time.perf_counter() - t0)
+    first = found["start"].to_numpy(np.int64)
+    doc_ids, a, b = from_database_frames(db, first, found["end"].to_numpy(np.int64) + 1)
+    columns = {"cost": found["cost"].to_numpy(np.float64), "cost_per_frame": found["cost"].to_numpy(np.float64) / len(query)}
+    if paths:
+        columns["path"] = [np.asarray(p) - np.array([0, f - s]) for p, f, s in zip(found["path"], first, a)]
+    table = hit_table(db, doc_ids, a, b, **columns)
+    table.attrs.update(method=method, query_frames=len(query), ms=ms)
+    return table
