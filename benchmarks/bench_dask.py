@@ -29,8 +29,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from mocapviz.common import REPO, BenchDB, CpuMonitor, _source_files, log, machine_info, write_results_csv
-from mocapviz.common import fmt as _f
+from .common import REPO, BenchDB, CpuMonitor, _source_files, log, machine_info, write_results_csv
+from .common import fmt as _f
 
 FPS = 30
 WORKERS = 2

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from mocapviz.common import REPO, CpuMonitor, fetch, log, machine_info, markdown
+from .common import REPO, CpuMonitor, fetch, log, machine_info, markdown
 
 TARGET_AMC = 100_000  # frames/s
 TARGET_BVH = 300_000  # frames/s

@@ -39,7 +39,7 @@ import pandas as pd
 
 from mocapviz.features import numeric_features
 
-from mocapviz.common import (
+from .common import (
     REPO,
     BenchDB,
     CpuMonitor,
@@ -52,7 +52,7 @@ from mocapviz.common import (
     package_version,
     write_results_csv,
 )
-from mocapviz.common import fmt as _f
+from .common import fmt as _f
 
 FPS = 30
 DATABASE = BenchDB("knn-v2", fps=FPS, min_frames=1_000_000)

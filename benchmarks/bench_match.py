@@ -55,8 +55,8 @@ import pandas as pd
 
 from mocapviz.features import numeric_features
 
-from mocapviz.bench_knn import DATABASE, FPS
-from mocapviz.common import (
+from .bench_knn import DATABASE, FPS
+from .common import (
     REPO,
     CpuMonitor,
     benchmark_db,
@@ -68,7 +68,7 @@ from mocapviz.common import (
     package_version,
     write_results_csv,
 )
-from mocapviz.common import fmt as _f
+from .common import fmt as _f
 
 SECONDS = (1, 3)  # query lengths
 K_MATCHES = 10

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mocapviz.common import (
+from .common import (
     REPO,
     BenchDB,
     CpuMonitor,
@@ -46,7 +46,7 @@ from mocapviz.common import (
     markdown,
     write_results_csv,
 )
-from mocapviz.common import fmt as _f
+from .common import fmt as _f
 
 FPS = 120
 MIN_FRAMES = 1_000_000

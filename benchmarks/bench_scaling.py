@@ -40,8 +40,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mocapviz.bench_dask import PeakRSS
-from mocapviz.common import (
+from .bench_dask import PeakRSS
+from .common import (
     REPO,
     BenchDB,
     CpuMonitor,
@@ -52,7 +52,7 @@ from mocapviz.common import (
     markdown,
     write_results_csv,
 )
-from mocapviz.common import fmt as _f
+from .common import fmt as _f
 
 FPS = 30
 SIZES = (250_000, 1_000_000, 4_000_000)
@@ -134,7 +134,7 @@ def measure(db, quick: bool, repeats: int) -> dict:
     from mocapviz.similarity.knn import KnnIndex
     from mocapviz.match import lng
 
-    from mocapviz.bench_match import pick_queries
+    from .bench_match import pick_queries
 
     n = db.n_frames
     out = {"frames": n, "documents": len(db)}

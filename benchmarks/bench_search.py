@@ -50,8 +50,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mocapviz.bench_knn import DATABASE, FPS
-from mocapviz.common import (
+from .bench_knn import DATABASE, FPS
+from .common import (
     REPO,
     BenchDB,
     CpuMonitor,
@@ -64,7 +64,7 @@ from mocapviz.common import (
     package_version,
     write_results_csv,
 )
-from mocapviz.common import fmt as _f
+from .common import fmt as _f
 
 REAL_DB = BenchDB("search-real", fps=FPS, min_frames=0)  # the shared archives alone: no mirrored copies
 CLIPS_DB = BenchDB("search-hdm05", fps=FPS, min_frames=0, archives=("hdm05-cut",), mirror_archives=(),
@@ -418,7 +418,7 @@ def _db_lines(db, record, label: str) -> list[str]:
 # ============================================================================ main
 def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> int:
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
-    from mocapviz.bench_match import _library
+    from .bench_match import _library
 
     t_start = time.perf_counter()
     monitor = CpuMonitor()

@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mocapviz.bench_relational import DATABASE
-from mocapviz.common import (
+from .bench_relational import DATABASE
+from .common import (
     REPO,
     CpuMonitor,
     benchmark_db,
@@ -38,7 +38,7 @@ from mocapviz.common import (
     markdown,
     write_results_csv,
 )
-from mocapviz.common import fmt as _f
+from .common import fmt as _f
 
 N_MATCHES = 50
 GOOD = 0.1  # normalised cost of the hits compared

@@ -3,8 +3,12 @@
 Every benchmark run by ``python -m benchmarks`` has its printed markdown saved as ``benchmarks/results/<name>.md``
 (``<name>-quick.md`` under --quick). This module puts them together, in ``SECTIONS`` order, under a header with
 the date, the commit and the machine description: ``benchmarks/REPORT.md`` (a --quick run writes
-``benchmarks/results/REPORT-quick.md`` instead, so that a smoke run never replaces the full report). A benchmark
-with no saved output gets a line saying so.
+``benchmarks/results/REPORT-quick.md`` instead, so that a smoke run never replaces the full report).
+
+A benchmark left out of a run (``python -m benchmarks --only NAME``) keeps its section of the existing report as it
+is (the saved outputs are not committed, so the report is where the figures of earlier runs live); a section comes
+from a saved output when its benchmark ran, or when the report has no figures for it yet. Only a benchmark with
+neither gets a line saying it was not run.
 """
 
 from __future__ import annotations
@@ -27,7 +31,9 @@ SECTIONS = (
     ("search", "Similarity search: exact / fast DTW search vs brute force and dtaidistance (bench_search)"),
     ("templates", "Motion templates: keyframe pre-filter vs the full DTW pass (bench_templates)"),
     ("scaling", "Cost growth at 250k / 1M / 4M frames (bench_scaling)"),
+    ("startup", "Start-up: import, --help and one search from a fresh process (bench_startup)"),
 )
+NOT_RUN = "not run: "  # how the line of a section with no figures begins
 
 
 def report_path(quick: bool) -> Path:
@@ -43,9 +49,46 @@ def _demote(text: str) -> str:
     return re.sub(r"^(#+) ", lambda m: "##" + m.group(1) + " ", text, flags=re.MULTILINE)
 
 
-def build(quick: bool = False, out_dir: Path = RESULTS, command: str | None = None) -> Path:
-    from mocapviz.common import machine_info
+def existing_sections(text: str) -> dict[str, str]:
+    """The sections of a report (its text) that hold figures: {benchmark name: the section's body as written}.
+    A section is found by its heading's title, or by the ``(bench_NAME)`` that ends it (a renamed title); a
+    "not run" section holds none."""
+    names = {title: name for name, title in SECTIONS}
+    found, name, body = {}, None, []
+    for line in [*text.splitlines(), "## end"]:
+        heading = re.match(r"^## (?:\d+\. )?(.*)$", line)
+        if heading:
+            if name and "\n".join(body).strip() and not "\n".join(body).strip().startswith(NOT_RUN):
+                found[name] = "\n".join(body).strip()
+            title = heading.group(1).strip()
+            suffix = re.search(r"\(bench_(\w+)\)$", title)
+            name = names.get(title) or (suffix.group(1) if suffix and suffix.group(1) in dict(SECTIONS) else None)
+            body = []
+        elif name:
+            body.append(line)
+    return found
 
+
+def build(quick: bool = False, out_dir: Path = RESULTS, command: str | None = None, ran=None) -> Path:
+    """Write the report and return its path.
+
+    Parameters
+    ----------
+    quick : bool
+        Assemble the --quick outputs into ``results/REPORT-quick.md``.
+    out_dir : Path
+        The folder of the saved outputs.
+    command : str, optional
+        The command line, for the report's header.
+    ran : iterable of str, optional
+        The benchmarks of this run: their sections come from their saved outputs; every other section is kept
+        from the existing report when it has figures there. Default (reassembling): every saved output is used.
+    """
+    from .common import machine_info
+
+    out = report_path(quick)
+    kept = existing_sections(out.read_text()) if out.is_file() else {}
+    ran = None if ran is None else set(ran)
     info = machine_info()
     lines = [
         f"# mocapviz benchmark report{' (QUICK smoke run: small subsets, not the papers’ scale)' if quick else ''}",
@@ -68,13 +111,15 @@ def build(quick: bool = False, out_dir: Path = RESULTS, command: str | None = No
     for i, (name, title) in enumerate(SECTIONS):
         lines += [f"## {i + 1}. {title}", ""]
         path = section_path(out_dir, name, quick)
-        if path.is_file():
+        fresh = path.is_file() and (name in ran if ran is not None else True)
+        if fresh or (path.is_file() and name not in kept):
             stamp = time.strftime("%Y-%m-%d %H:%M", time.localtime(path.stat().st_mtime))
             lines += [f"*(output of {path.name}, written {stamp})*", "", _demote(path.read_text().strip()), ""]
+        elif name in kept:  # left out of this run: its figures stay as the report had them
+            lines += [kept[name], ""]
         else:
-            lines += [(f"not run: no `{path.relative_to(HERE.parent) if path.is_relative_to(HERE.parent) else path}`"
+            lines += [(f"{NOT_RUN}no `{path.relative_to(HERE.parent) if path.is_relative_to(HERE.parent) else path}`"
                       " — run `python -m benchmarks` (or this benchmark alone) first"), ""]  # fmt: skip
-    out = report_path(quick)
     text = "\n".join(lines).replace(str(HERE.parent) + "/", "")  # paths relative to the repository, not this machine
     out.write_text(text.rstrip() + "\n")
     return out

@@ -7,7 +7,6 @@ attributes come from the new modules. The table is :data:`MOVED`; ``docs/glossar
 from __future__ import annotations
 
 import importlib
-import importlib.abc
 import importlib.util
 import sys
 import types
@@ -48,7 +47,7 @@ class _Split(types.ModuleType):
         raise AttributeError(f"{self.__name__}.{attr} is gone; look in {', '.join(self._targets)}")
 
 
-class _Loader(importlib.abc.Loader):
+class _Loader:  # the importlib.abc.Loader protocol (not the ABC: importlib.abc costs every command 10 ms)
     def __init__(self, targets: tuple[str, ...]):
         self.targets = targets
 
@@ -63,7 +62,7 @@ class _Loader(importlib.abc.Loader):
         """Nothing to run: the new modules are imported already (or on first attribute access)."""
 
 
-class _Finder(importlib.abc.MetaPathFinder):
+class _Finder:  # the importlib.abc.MetaPathFinder protocol
     def find_spec(self, fullname, path, target=None):
         targets = MOVED.get(fullname)
         if targets is None:

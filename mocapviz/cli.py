@@ -49,36 +49,21 @@ import sys
 import time
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-import pandas as pd
-
-from .io import datasets
-from .parallel import LOCAL, dask_client, optional_client
-from .db.database import MotionDB
-from .db.ingest import expand_paths
+# Only what the parser needs is imported here (``mocapviz --help`` loads neither pandas nor numba); each command
+# imports its modules in its handler (tests/test_startup.py, benchmarks/bench_startup.py).
 from .errors import MocapvizError, ParameterError
-from .features import (
-    NUMERIC_SETS,
-    PCAModel,
-    feature_groups,
-    feature_names,
-    fit_pca,
-    load_numeric,
-    numeric_features,
-    numeric_of,
-    relational_features,
-    store_numeric,
-)
-from .features.numeric import default_pca
-from .relational.index import build
-from .io import load
-from .similarity.knn import KnnIndex, describe_frames
+from .features import NUMERIC_SETS
 from .motion import FPS_RANGE
-from .relational.query import query_by_example
-from .features.segmentation import segment
-from .motion.skeleton import CANONICAL_JOINTS
+from .parallel import LOCAL, dask_client, optional_client  # light: dask itself is imported by dask_client
 from .validation import frame_span, parse_count, parse_integers, parse_names, parse_number, parse_port, parse_span
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from .db.database import MotionDB
+    from .features import PCAModel
 
 MAX_JOBS = 256
 """``ingest --jobs``: worker processes or reader threads at most."""
@@ -97,6 +82,8 @@ def _scheduler(args):
 def _mapping(path: str) -> dict[str, str]:
     """``--mapping FILE``: a JSON object {canonical joint: joint name}, its keys checked against the canonical joints
     (the joint names are the skeleton's, checked per file)."""
+    from .motion.skeleton import CANONICAL_JOINTS
+
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -116,6 +103,8 @@ def _mapping(path: str) -> dict[str, str]:
 
 
 def _ingest(args) -> None:
+    from .db.database import MotionDB
+    from .db.ingest import expand_paths
     from .io import read_asf
 
     mapping = _mapping(args.mapping) if args.mapping else None
@@ -152,6 +141,10 @@ def _check_out_folder(out: Path) -> None:
 
 
 def _info(args) -> None:
+    import pandas as pd
+
+    from .db.database import MotionDB
+
     db = MotionDB.open(args.db)
     print(db)
     with pd.option_context("display.max_rows", 200, "display.width", 160):
@@ -162,6 +155,8 @@ def _info(args) -> None:
 
 
 def _check(args) -> None:
+    import pandas as pd
+
     from .errors import MotionDBError
     from .integrity import check
 
@@ -174,7 +169,10 @@ def _check(args) -> None:
 
 
 def _index(args) -> None:
+    from .db.database import MotionDB
     from .experiments import index_statistics
+    from .features import relational_features
+    from .relational.index import build
 
     db = MotionDB.open(args.db)
     t0 = time.perf_counter()
@@ -219,6 +217,9 @@ def _csv_folder(path: str | None) -> None:
 def _query_segments(example, features: list[str], relational_set: str) -> int:
     """The segments of the example on the chosen features, fewest over the feature groups they touch: the L of an
     m-mismatch query (query_by_example segments each group's chosen features separately, m < L in each)."""
+    from .features import feature_groups, relational_features
+    from .features.segmentation import segment
+
     values, names = relational_features(example, relational_set)
     counts = [len(segment(values[:, [names.index(f) for f in features if f in members]]).codes)
               for members in feature_groups(relational_set).values() if any(f in members for f in features)]
@@ -226,6 +227,13 @@ def _query_segments(example, features: list[str], relational_set: str) -> int:
 
 
 def _query(args) -> None:
+    import pandas as pd
+
+    from .db.database import MotionDB
+    from .features import feature_names
+    from .io import load
+    from .relational.query import query_by_example
+
     _csv_folder(args.csv)
     db = MotionDB.open(args.db)
     example = _example(db, args.example)
@@ -266,6 +274,9 @@ def _query(args) -> None:
 
 def _pca_reference(text: str | None, names: list[str] | None) -> MotionDB | PCAModel | None:
     """``--pca``: a MotionDB to fit the PCA model on, or a saved model; refused when no Fp set is asked for."""
+    from .db.database import MotionDB
+    from .features import PCAModel
+
     if text is None:
         return None
     if names is not None and not set(names) & set(PCA_SETS):
@@ -281,6 +292,11 @@ def _pca_reference(text: str | None, names: list[str] | None) -> MotionDB | PCAM
 
 
 def _features(args) -> None:
+    import pandas as pd
+
+    from .db.database import MotionDB
+    from .features import fit_pca, store_numeric
+
     db = MotionDB.open(args.db)
     names = args.numeric_sets
     reference = _pca_reference(args.pca, names)
@@ -321,6 +337,12 @@ def _scheduler_address(text: str, name: str) -> str:
 
 
 def _knn(args) -> None:
+    import pandas as pd
+
+    from .db.database import MotionDB
+    from .features import numeric_of
+    from .similarity.knn import KnnIndex, describe_frames
+
     _csv_folder(args.csv)
     db = MotionDB.open(args.db)
     doc, frame = args.frame
@@ -346,6 +368,8 @@ def _knn(args) -> None:
 
 
 def _match(args) -> None:
+    from .db.database import MotionDB
+    from .features import load_numeric
     from .similarity.motion_matching import DEFAULT_K, match_motion
 
     if args.method == "dtw":
@@ -387,12 +411,15 @@ def _print_ranked(table: pd.DataFrame, n_rows: int, empty: str) -> None:
     if table.empty:
         print(f"no matches ({empty})")
         return
+    import pandas as pd
+
     with pd.option_context("display.width", 160, "display.max_rows", n_rows + 5):
         shown = table.drop(columns=["path"], errors="ignore").dropna(axis=1, how="all")  # label columns of others
         print(shown.round(3).to_string(index=False))
 
 
 def _search(args) -> None:
+    from .db.database import MotionDB
     from .similarity.search import SimilaritySearch
 
     if args.min_length is not None and not args.stretches:
@@ -419,6 +446,7 @@ def _search(args) -> None:
 
 
 def _template_learn(args) -> None:
+    from .db.database import MotionDB
     from .relational.templates import DELTA, DONT_CARE, learn_class, store_template
     from .validation import one_of, some_of
 
@@ -457,6 +485,7 @@ def _template_learn(args) -> None:
 
 
 def _template_search(args) -> None:
+    from .db.database import MotionDB
     from .relational.templates import MotionTemplate, load_template, search_template, shortest_instance
 
     _csv_folder(args.csv)
@@ -496,6 +525,8 @@ def _reproduce(args) -> None:
 
 
 def _datasets(args) -> None:
+    from .io import datasets
+
     if args.action == "list" and args.name:
         raise ParameterError(f"datasets list takes no NAME (got {args.name!r}); `mocapviz datasets fetch NAME` "
                              "fetches one")
@@ -748,6 +779,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _serve(args) -> None:
     from .app import serve, websocket_origins
     from .app.backend import sample_database
+    from .db.database import MotionDB
 
     websocket_origins(args.address, args.port, args.allow_origin)  # refused before the sample is ingested
     db = args.db if args.db else sample_database()
@@ -778,5 +810,33 @@ def main(argv=None) -> int:
     return 0
 
 
+def run() -> None:
+    """The ``mocapviz`` command (the console script, ``python -m mocapviz.cli``): :func:`main` on this process's
+    command line, then exit with its status.
+
+    The exit leaves out the interpreter's teardown, which frees a thousand modules (pandas, numba, LLVM) one by one:
+    0.1 to 0.25 s, a fifth of a search, that a finished command does not need. What a normal exit does for the
+    command is done first: the output flushed, the atexit handlers run. With a thread still running, or output that
+    cannot be flushed (a closed pipe), the exit is the normal one.
+    """
+    import atexit
+    import os
+    import threading
+
+    status = main()
+    if threading.active_count() > 1:  # a thread's work would be cut short
+        sys.exit(status)
+    try:
+        sys.stdout.flush()
+        sys.stderr.flush()
+    except (OSError, ValueError):  # let the normal exit report it
+        sys.exit(status)
+    atexit._run_exitfuncs()  # logging.shutdown, multiprocessing's children, weakref.finalize (temporary folders)
+    with contextlib.suppress(OSError, ValueError):
+        sys.stdout.flush()
+        sys.stderr.flush()
+    os._exit(status)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run()

@@ -32,6 +32,15 @@ class LabelTableError(MocapvizError, ValueError):
 class MocapFormatError(MocapvizError, ValueError):
     """A motion file is malformed: truncated, wrong channel count, unknown bone, non-finite value, ...
 
+    Parameters
+    ----------
+    path : str, os.PathLike or None
+        The file that failed (None: ``<input>``).
+    reason : str
+        What is wrong, in words.
+    line : int, optional
+        1-based line number in that file where the problem was found, if it has one.
+
     Attributes
     ----------
     path : str or None
@@ -40,6 +49,11 @@ class MocapFormatError(MocapvizError, ValueError):
         1-based line number in that file where the problem was found, if it has one.
     reason : str
         What is wrong, in words.
+
+    Examples
+    --------
+    >>> str(MocapFormatError("walk.bvh", "OFFSET needs three numbers", line=4))
+    'walk.bvh, line 4: OFFSET needs three numbers'
     """
 
     def __init__(self, path: str | os.PathLike | None, reason: str, line: int | None = None):

@@ -26,12 +26,21 @@ def check(path) -> pd.DataFrame:
 
     Parameters
     ----------
-    path : str or os.PathLike, the database folder.
+    path : str or os.PathLike
+        The database folder.
 
     Returns
     -------
-    pd.DataFrame, one row per file: ``file`` (relative to the database), ``what``, ``ok`` (bool), ``detail`` (the
-    reason when not ok: damaged, stale, unreadable). When the database itself does not open, one row saying why.
+    pandas.DataFrame
+        One row per file: ``file`` (relative to the database), ``what``, ``ok`` (bool), ``detail`` (the reason
+        when not ok: damaged, stale, unreadable). When the database itself does not open, one row saying why.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> report = check(MotionDB.sample().path)
+    >>> report[report["what"] == "MotionDB"][["file", "ok"]].values.tolist()  # and a row per derived file stored
+    [['positions.g1.npy', True], ['quaternions.g1.npy', True], ['documents.g1.parquet', True]]
     """
     from .features import numeric as numeric_mod
     from .relational.index import InvertedIndex

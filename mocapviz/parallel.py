@@ -64,7 +64,13 @@ CONNECT_TIMEOUT = 10.0  # seconds to wait for a scheduler given by address
 
 
 def local_workers() -> int:
-    """Worker processes of the default local cluster: the cores this process may run on (at least 1)."""
+    """Worker processes of the default local cluster: the cores this process may run on (at least 1).
+
+    Returns
+    -------
+    int
+        ``len(os.sched_getaffinity(0))`` (``os.cpu_count()`` where that does not exist).
+    """
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # pragma: no cover - not Linux
@@ -124,7 +130,18 @@ def dask_client(scheduler=LOCAL, n_workers: int | None = None, timeout: float | 
 
 @contextlib.contextmanager
 def optional_client(scheduler) -> Iterator:
-    """:func:`dask_client` of ``scheduler``, or None (no Dask: work in this process) when ``scheduler`` is None."""
+    """:func:`dask_client` of ``scheduler``, or None (no Dask: work in this process) when ``scheduler`` is None.
+
+    Parameters
+    ----------
+    scheduler : None, "local", str or dask.distributed.Client
+        As every ``scheduler=`` parameter of mocapviz (see the module docstring).
+
+    Yields
+    ------
+    dask.distributed.Client or None
+        Closed on exit when started here.
+    """
     if scheduler is None:
         yield None
         return
@@ -133,13 +150,33 @@ def optional_client(scheduler) -> Iterator:
 
 
 def n_threads(client) -> int:
-    """Worker threads of a Dask client's cluster now (at least 1)."""
+    """Worker threads of a Dask client's cluster now (at least 1).
+
+    Parameters
+    ----------
+    client : dask.distributed.Client
+        A connected client.
+
+    Returns
+    -------
+    int
+    """
     return max(1, sum(client.nthreads().values()))
 
 
 def default_threads() -> int:
     """The default ``threads`` of mocapviz: the cores this process may run on (``os.sched_getaffinity``), at most
-    ``MAX_DEFAULT_THREADS`` (8), at least 1."""
+    ``MAX_DEFAULT_THREADS`` (8), at least 1.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> 1 <= default_threads() <= MAX_DEFAULT_THREADS
+    True
+    """
     return min(MAX_DEFAULT_THREADS, local_workers())
 
 

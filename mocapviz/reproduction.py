@@ -39,7 +39,17 @@ _LARGE_ARCHIVES = ("hdm05-cut", "cmu-asfamc", "bandai-namco-1", "bandai-namco-2"
 
 @dataclass
 class Result:
-    """What a runner gives back: tables (CSV) and HoloViews figures (PNG + HTML), by file stem."""
+    """What a runner gives back: tables (CSV) and HoloViews figures (PNG + HTML), by file stem.
+
+    Parameters
+    ----------
+    tables : dict
+        File stem -> pandas.DataFrame.
+    figures : dict
+        File stem -> HoloViews object.
+    settings : dict
+        What the runner was run with (JSON-serialisable), written as ``settings.json``.
+    """
 
     tables: dict[str, pd.DataFrame] = field(default_factory=dict)
     figures: dict[str, object] = field(default_factory=dict)
@@ -341,7 +351,19 @@ def _write_csv(frame: pd.DataFrame, path: Path) -> None:
 def write_result(result: Result, folder) -> list[Path]:
     """Write a runner's tables (CSV), figures (PNG via matplotlib, HTML via bokeh) and settings into ``folder``.
 
-    Columns holding arrays (warping paths) are left out of the CSV files. Returns the files written.
+    Columns holding arrays (warping paths) are left out of the CSV files.
+
+    Parameters
+    ----------
+    result : Result
+        A runner's output.
+    folder : str or os.PathLike
+        The experiment's output folder (created).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
     """
     import holoviews as hv
 
@@ -377,7 +399,8 @@ def reproduce(names, out, full: bool = False, progress: bool = True, log: Callab
 
     Returns
     -------
-    dict: name -> the experiment's output folder.
+    dict
+        Experiment name -> its output folder (pathlib.Path).
 
     Raises
     ------

@@ -41,6 +41,13 @@ LOCK_FILE = ".lock"
 def atomic_write(target: str | os.PathLike, data: bytes) -> None:
     """Replace ``target`` by ``data`` atomically (:func:`atomic_file`).
 
+    Parameters
+    ----------
+    target : str or os.PathLike
+        The file to write (created or replaced).
+    data : bytes
+        Its new content.
+
     Raises
     ------
     OSError
@@ -55,9 +62,25 @@ def atomic_file(target: str | os.PathLike) -> Iterator[Path]:
     """A new, empty temporary file beside ``target`` for the block to write; when the block returns it is
     committed onto ``target`` (:func:`commit`), when the block raises it is removed and ``target`` is untouched.
 
+    Parameters
+    ----------
+    target : str or os.PathLike
+        The file to write (created or replaced); its folder must exist.
+
     Yields
     ------
-    pathlib.Path of the temporary file (write it by path: ``np.save``, ``to_parquet``, ``open_memmap``, ...).
+    pathlib.Path
+        The temporary file (write it by path: ``np.save``, ``to_parquet``, ``open_memmap``, ...).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     with atomic_file(Path(folder) / "table.csv") as tmp:
+    ...         _ = tmp.write_text("a,b\\n1,2\\n")  # the target does not exist until the block returns
+    ...     print(sorted(p.name for p in Path(folder).iterdir()))
+    ['table.csv']
     """
     with temporary_file(target) as tmp:
         yield tmp
@@ -67,7 +90,18 @@ def atomic_file(target: str | os.PathLike) -> Iterator[Path]:
 @contextlib.contextmanager
 def temporary_file(target: str | os.PathLike) -> Iterator[Path]:
     """A new, empty file beside ``target`` with a unique name (``.<target name>.<random>.tmp``), removed when the
-    block ends unless the block has committed it (:func:`commit`). For writers that must rename under a lock."""
+    block ends unless the block has committed it (:func:`commit`). For writers that must rename under a lock.
+
+    Parameters
+    ----------
+    target : str or os.PathLike
+        The file the temporary one will replace.
+
+    Yields
+    ------
+    pathlib.Path
+        The temporary file.
+    """
     target = Path(target)
     fd, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     os.close(fd)
@@ -80,7 +114,15 @@ def temporary_file(target: str | os.PathLike) -> Iterator[Path]:
 
 
 def commit(tmp: str | os.PathLike, target: str | os.PathLike) -> None:
-    """Make the written file ``tmp`` durable (fsync) and rename it onto ``target`` (the folder entry fsync'ed)."""
+    """Make the written file ``tmp`` durable (fsync) and rename it onto ``target`` (the folder entry fsync'ed).
+
+    Parameters
+    ----------
+    tmp : str or os.PathLike
+        The written temporary file (:func:`temporary_file`), in the folder of ``target``.
+    target : str or os.PathLike
+        The file it replaces.
+    """
     with open(tmp, "rb+") as fh:
         os.fsync(fh.fileno())
     os.replace(tmp, target)
@@ -95,6 +137,18 @@ def atomic_folder(target: str | os.PathLike, replace: bool = True) -> Iterator[P
     An existing ``target`` is replaced only once the new folder is complete (moved aside, then deleted). With
     ``replace=False`` a ``target`` that exists by then (another process finished first) is kept and the new
     folder discarded.
+
+    Parameters
+    ----------
+    target : str or os.PathLike
+        The folder to create or replace.
+    replace : bool
+        Replace an existing ``target`` (default), or keep it.
+
+    Yields
+    ------
+    pathlib.Path
+        The temporary folder to fill.
     """
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -121,13 +175,19 @@ def locked(folder: str | os.PathLike, shared: bool = False, wait: bool = True, w
 
     Parameters
     ----------
-    folder : the folder the lock protects (a MotionDB, its ``features/`` or ``index/`` folder); must exist.
+    folder : str or os.PathLike
+        The folder the lock protects (a MotionDB, its ``features/`` or ``index/`` folder); must exist.
     shared : bool
         A reader's shared lock (many at once) instead of a writer's exclusive one.
     wait : bool
         Wait for another holder to finish (default), or fail at once.
     what : str
         What the folder is, for the error message (default: the folder's path).
+
+    Yields
+    ------
+    None
+        The lock is held while the block runs.
 
     Raises
     ------
@@ -148,7 +208,24 @@ def locked(folder: str | os.PathLike, shared: bool = False, wait: bool = True, w
 
 
 def stamp(format_name: str, version: int) -> dict:
-    """The header fields of a stored format: ``{"format", "version", "written_by": "mocapviz X.Y.Z"}``."""
+    """The header fields of a stored format: ``{"format", "version", "written_by": "mocapviz X.Y.Z"}``.
+
+    Parameters
+    ----------
+    format_name : str
+        E.g. ``"mocapviz.MotionDB"``.
+    version : int
+        The format's version.
+
+    Returns
+    -------
+    dict
+
+    Examples
+    --------
+    >>> sorted(stamp("mocapviz.MotionDB", 1))
+    ['format', 'version', 'written_by']
+    """
     from ._version import __version__
 
     return {"format": format_name, "version": int(version), "written_by": f"mocapviz {__version__}"}
@@ -159,10 +236,26 @@ def check_format(header, format_name: str, version: int, where: str | os.PathLik
 
     Parameters
     ----------
-    header : the stored header (anything: a damaged file may hold a list or a string).
-    format_name, version : what this mocapviz reads.
-    where : the file (or folder) for the message.
-    rebuild : how to write it again, e.g. "rebuild it with `mocapviz index DB`" (appended to the message).
+    header : object
+        The stored header (anything: a damaged file may hold a list or a string).
+    format_name : str
+        The format this mocapviz reads.
+    version : int
+        The version this mocapviz reads.
+    where : str or os.PathLike
+        The file (or folder) for the message.
+    rebuild : str
+        How to write it again, e.g. "rebuild it with `mocapviz index DB`" (appended to the message).
+
+    Returns
+    -------
+    dict
+        ``header``, unchanged.
+
+    Raises
+    ------
+    MotionDBError
+        Not a dict, another format, or another version.
     """
     found_format = header.get("format") if isinstance(header, dict) else None
     found_version = header.get("version") if isinstance(header, dict) else None
@@ -175,7 +268,20 @@ def check_format(header, format_name: str, version: int, where: str | os.PathLik
 
 def load_or_build(load: Callable[[], T], build: Callable[[], T]) -> T:
     """``load()``, or ``build()`` when the artefact is missing, stale or unreadable (``load`` raised
-    MotionDBError): derived data can always be computed again from its MotionDB."""
+    MotionDBError): derived data can always be computed again from its MotionDB.
+
+    Parameters
+    ----------
+    load : callable
+        ``load() -> T``, raising MotionDBError when the stored artefact cannot be used.
+    build : callable
+        ``build() -> T`` (storing it, if it should be stored).
+
+    Returns
+    -------
+    T
+        What ``load`` or ``build`` returned.
+    """
     try:
         return load()
     except MotionDBError:
@@ -183,14 +289,42 @@ def load_or_build(load: Callable[[], T], build: Callable[[], T]) -> T:
 
 
 def fingerprint(path: str | os.PathLike) -> dict:
-    """``{"size": bytes, "sha256": hex}`` of a file (read in blocks: any size)."""
+    """``{"size": bytes, "sha256": hex}`` of a file (read in blocks: any size).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+
+    Returns
+    -------
+    dict
+        ``size`` (int, bytes) and ``sha256`` (str, 64 hex digits).
+    """
     with open(path, "rb") as fh:
         digest = hashlib.file_digest(fh, "sha256").hexdigest()
     return {"size": os.path.getsize(path), "sha256": digest}
 
 
 def digest(arrays: dict) -> str:
-    """sha256 over ``{name: np.ndarray}`` in name order: each name, dtype, shape and the C-ordered bytes."""
+    """sha256 over ``{name: np.ndarray}`` in name order: each name, dtype, shape and the C-ordered bytes.
+
+    Parameters
+    ----------
+    arrays : dict
+        Name -> np.ndarray.
+
+    Returns
+    -------
+    str
+        64 hex digits.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> digest({"a": np.arange(3)}) == digest({"a": np.arange(3)}) != digest({"a": np.arange(3.0)})
+    True
+    """
     import numpy as np
 
     h = hashlib.sha256()
@@ -204,8 +338,24 @@ def digest(arrays: dict) -> str:
 def verify(path: str | os.PathLike, expected: dict | None, full: bool = False, rebuild: str = "") -> None:
     """Check a stored file against its :func:`fingerprint`: its size always, its sha256 when ``full``.
 
-    ``expected`` None (a file written before fingerprints were kept) passes. Raises MotionDBError naming the file
-    and what differs ("… changed since it was written (size / sha256): …; REBUILD").
+    ``expected`` None (a file written before fingerprints were kept) passes.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The stored file.
+    expected : dict or None
+        Its :func:`fingerprint` as recorded when it was written.
+    full : bool
+        Also check the sha256 (reads the whole file).
+    rebuild : str
+        How to write it again, for the message.
+
+    Raises
+    ------
+    MotionDBError
+        Naming the file and what differs ("… changed since it was written (size / sha256): …; REBUILD"), or a
+        missing file.
     """
     if expected is None:
         return

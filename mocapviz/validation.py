@@ -30,7 +30,34 @@ from .errors import ParameterError
 def count(value, name: str, least: int = 1, most: int | None = None, most_is: str = "") -> int:
     """``value`` as an int in [least, most], or a ParameterError naming ``name`` (bools and floats are refused:
     2.5 neighbours is a mistake, not a request for 2). ``most_is`` says what the upper limit is ("the number of
-    indexed frames")."""
+    indexed frames").
+
+    Parameters
+    ----------
+    value : object
+        The argument given.
+    name : str
+        The parameter's name, for the message.
+    least : int
+        The smallest value allowed.
+    most : int, optional
+        The largest value allowed (None: no limit).
+    most_is : str
+        What ``most`` is, for the message.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> count(5, "k", 1, 10)
+    5
+    >>> count(2.5, "k")
+    Traceback (most recent call last):
+    ...
+    mocapviz.errors.ParameterError: k must be an integer; got 2.5
+    """
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
         raise ParameterError(f"{name} must be an integer; got {value!r}")
     if most is not None and not least <= value <= most:
@@ -42,12 +69,47 @@ def count(value, name: str, least: int = 1, most: int | None = None, most_is: st
 
 
 def one_of(value, what: str, options) -> str:
-    """``value`` when it is one of ``options``, else a ParameterError "unknown WHAT 'x'; choose one of a, b, c"."""
+    """``value`` when it is one of ``options``, else a ParameterError "unknown WHAT 'x'; choose one of a, b, c".
+
+    Parameters
+    ----------
+    value : object
+        The argument given.
+    what : str
+        What it names, for the message ("numeric set").
+    options : sequence
+        The allowed values.
+
+    Returns
+    -------
+    object
+        ``value``.
+
+    Examples
+    --------
+    >>> one_of("F15E", "numeric set", ("F15E", "F30E"))
+    'F15E'
+    """
     return some_of([value], what, options)[0]
 
 
 def some_of(values, what: str, options) -> list:
-    """``values`` (a list) when each is one of ``options``, else a ParameterError naming the unknown ones."""
+    """``values`` (a list) when each is one of ``options``, else a ParameterError naming the unknown ones.
+
+    Parameters
+    ----------
+    values : iterable
+        The arguments given.
+    what : str
+        What they name, for the message ("feature(s)").
+    options : sequence
+        The allowed values.
+
+    Returns
+    -------
+    list
+        ``values`` as a list.
+    """
     values = list(values)
     unknown = [v for v in values if v not in options]
     if unknown:
@@ -61,11 +123,19 @@ def finite_positions(positions: np.ndarray, where: Callable[[int], str], joints=
 
     Parameters
     ----------
-    positions : np.ndarray [shape=(N, 24, 3)], cm, on the canonical joints.
-    where : ``where(frame) -> str`` names the source of a frame (file or document, and the frame).
-    joints : sequence of int, optional: only these joints (indices) are checked; default all.
-    joint_names : sequence of str, optional: the joints' names for the message (e.g. ``CANONICAL_JOINTS``); default
-        their indices.
+    positions : np.ndarray [shape=(N, 24, 3)]
+        Joint positions on the canonical joints, cm.
+    where : callable
+        ``where(frame) -> str`` names the source of a frame (file or document, and the frame).
+    joints : sequence of int, optional
+        Only these joints (indices) are checked; default all.
+    joint_names : sequence of str, optional
+        The joints' names for the message (e.g. ``CANONICAL_JOINTS``); default their indices.
+
+    Raises
+    ------
+    ParameterError
+        A NaN or infinite position.
     """
     picked = positions if joints is None else positions[:, joints]
     ok = np.isfinite(picked).all(axis=2)
@@ -82,6 +152,27 @@ def renamed(**old_to_new: str) -> Callable:
 
     For the names the glossary (docs/glossary.md) retired that the README or notebooks once used, e.g.
     ``@renamed(k_matches="n_matches")``. Passing both names is a ParameterError.
+
+    Parameters
+    ----------
+    **old_to_new : str
+        Old keyword name -> new keyword name.
+
+    Returns
+    -------
+    callable
+        The decorator.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> @renamed(k="n_matches")
+    ... def search(n_matches=10):
+    ...     return n_matches
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     search(k=3), caught[0].category.__name__
+    (3, 'FutureWarning')
     """
 
     def wrap(fn: Callable) -> Callable:
@@ -104,7 +195,31 @@ def renamed(**old_to_new: str) -> Callable:
 def frame_span(frames, n: int, what: str, name: str = "frames", least: int = 2) -> tuple[int, int]:
     """``frames`` (``(first, last)`` with either None for "from the start" / "to the end", or None for all) as
     ``(first, last)`` inside a clip of ``n`` frames (``what`` names it: "document 3", a file) holding at least
-    ``least`` frames, or a ParameterError naming ``name`` and the clip's frames. Never clamps."""
+    ``least`` frames, or a ParameterError naming ``name`` and the clip's frames. Never clamps.
+
+    Parameters
+    ----------
+    frames : (int or None, int or None) or None
+        The span asked for, half-open.
+    n : int
+        Frames of the clip.
+    what : str
+        The clip, for the message.
+    name : str
+        The parameter's name, for the message.
+    least : int
+        The fewest frames the span must hold.
+
+    Returns
+    -------
+    (int, int)
+        ``(first, last)``, ``0 <= first < last <= n``, half-open.
+
+    Examples
+    --------
+    >>> frame_span((None, 60), 129, "document 7"), frame_span(None, 129, "document 7")
+    ((0, 60), (0, 129))
+    """
     first, last = (None, None) if frames is None else frames
     a = 0 if first is None else first
     b = n if last is None else last
@@ -127,7 +242,26 @@ def _range_text(least, most) -> str:
 
 def parse_count(text: str, name: str, least: int = 1, most: int | None = None, most_is: str = "") -> int:
     """The integer written in ``text``, checked by :func:`count`; a ParameterError naming ``name`` and the range when
-    ``text`` is not an integer ("2.5", "x", "")."""
+    ``text`` is not an integer ("2.5", "x", "").
+
+    Parameters
+    ----------
+    text : str
+        A command-line value.
+    name : str
+        The option, for the message (``"-k"``).
+    least, most, most_is
+        As for :func:`count`.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> parse_count(" 16 ", "-k", 1, 1024)
+    16
+    """
     try:
         value = int(str(text).strip())
     except ValueError:
@@ -136,7 +270,19 @@ def parse_count(text: str, name: str, least: int = 1, most: int | None = None, m
 
 
 def parse_port(text: str, name: str) -> int:
-    """A TCP port number (1..65535) written in ``text``, or a ParameterError naming ``name``."""
+    """A TCP port number (1..65535) written in ``text``, or a ParameterError naming ``name``.
+
+    Parameters
+    ----------
+    text : str
+        A command-line value.
+    name : str
+        The option, for the message (``"--port"``).
+
+    Returns
+    -------
+    int
+    """
     text = str(text).strip()
     if not (text.isdigit() and 1 <= int(text) <= 65535):
         raise ParameterError(f"{name} must be a port number from 1 to 65535; got {text!r}")
@@ -145,7 +291,26 @@ def parse_port(text: str, name: str) -> int:
 
 def parse_integers(text: str, name: str, least: int = 0) -> list[int]:
     """Comma-separated integers, each at least ``least`` (at least one of them), or a ParameterError naming
-    ``name``."""
+    ``name``.
+
+    Parameters
+    ----------
+    text : str
+        A command-line value (``"0,2,5"``).
+    name : str
+        The option, for the message.
+    least : int
+        The smallest value allowed.
+
+    Returns
+    -------
+    list of int
+
+    Examples
+    --------
+    >>> parse_integers("0,2,5", "--mismatch-at")
+    [0, 2, 5]
+    """
     try:
         values = [int(v) for v in str(text).split(",")]
     except ValueError:
@@ -159,7 +324,32 @@ def number(value, name: str, low: float | None = None, high: float | None = None
            high_open: bool = False) -> float:
     """``value`` (an int or float, not a bool) as a finite float inside the interval from ``low`` to ``high``
     (closed ends unless ``low_open`` / ``high_open``; None: unbounded), or a ParameterError naming ``name`` and the
-    interval."""
+    interval.
+
+    Parameters
+    ----------
+    value : object
+        The argument given.
+    name : str
+        The parameter's name, for the message.
+    low, high : float, optional
+        The interval's ends (None: unbounded).
+    low_open, high_open : bool
+        Leave out the end itself.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> number(0.1, "delta", 0.0, 0.5, high_open=True)
+    0.1
+    >>> number(0.5, "delta", 0.0, 0.5, high_open=True)
+    Traceback (most recent call last):
+    ...
+    mocapviz.errors.ParameterError: delta must be a number in [0, 0.5); got 0.5
+    """
     if low is not None and high is not None:
         interval = f"in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
     elif low is not None:
@@ -182,7 +372,21 @@ def number(value, name: str, low: float | None = None, high: float | None = None
 def parse_number(text: str, name: str, low: float | None = None, high: float | None = None, low_open: bool = False,
                  high_open: bool = False) -> float:
     """The finite number written in ``text`` inside the interval from ``low`` to ``high`` (see :func:`number`), or a
-    ParameterError naming ``name`` and the interval."""
+    ParameterError naming ``name`` and the interval.
+
+    Parameters
+    ----------
+    text : str
+        A command-line value.
+    name : str
+        The option, for the message.
+    low, high, low_open, high_open
+        As for :func:`number`.
+
+    Returns
+    -------
+    float
+    """
     try:
         value = float(str(text).strip())
     except ValueError:
@@ -195,7 +399,30 @@ def parse_number(text: str, name: str, low: float | None = None, high: float | N
 
 def parse_names(text: str, name: str, what: str, options, one: bool = False) -> list[str]:
     """Comma-separated names from ``options`` (``one``: exactly one name, not a list), or a ParameterError naming
-    ``name`` (the option), the unknown names and the allowed ones; empty text is refused."""
+    ``name`` (the option), the unknown names and the allowed ones; empty text is refused.
+
+    Parameters
+    ----------
+    text : str
+        A command-line value (``"F15E,F30E"``).
+    name : str
+        The option, for the message.
+    what : str
+        What the names name, for the message.
+    options : sequence of str
+        The allowed names.
+    one : bool
+        Exactly one name.
+
+    Returns
+    -------
+    list of str
+
+    Examples
+    --------
+    >>> parse_names("F15E, F30E", "--numeric-sets", "numeric set", ("F15E", "F30E", "F39E"))
+    ['F15E', 'F30E']
+    """
     names = [n.strip() for n in str(text).split(",")]
     allowed = ", ".join(map(str, options))
     if not all(names):
@@ -212,7 +439,25 @@ def parse_names(text: str, name: str, what: str, options, one: bool = False) -> 
 
 def parse_span(text: str, name: str) -> tuple[int | None, int | None]:
     """``"A:B"`` as ``(A, B)``: frame numbers from 0, either left out (None: from the start / to the end), A < B;
-    or a ParameterError naming ``name``. Whether the span lies inside a clip is :func:`frame_span`'s check."""
+    or a ParameterError naming ``name``. Whether the span lies inside a clip is :func:`frame_span`'s check.
+
+    Parameters
+    ----------
+    text : str
+        A command-line value (``"120:360"``, ``":60"``).
+    name : str
+        The option, for the message (``"--frames"``).
+
+    Returns
+    -------
+    (int or None, int or None)
+        First frame and stop (excluded).
+
+    Examples
+    --------
+    >>> parse_span("120:360", "--frames"), parse_span(":60", "--frames")
+    ((120, 360), (None, 60))
+    """
     parts = str(text).split(":")
     try:
         if len(parts) != 2:

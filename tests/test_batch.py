@@ -108,7 +108,7 @@ def test_map_documents_covers_the_database_in_frame_order(hdm05_dir, tmp_path, c
     # the progress bar counts documents, and only for databases of more documents than the threshold
     list(batches.map_documents(db, _frames_and_documents, longest, desc="test bar"))
     assert "test bar" not in capsys.readouterr().err
-    monkeypatch.setattr(batch, "PROGRESS_MIN_DOCUMENTS", 2)
+    monkeypatch.setattr(batches, "PROGRESS_MIN_DOCUMENTS", 2)
     list(batches.map_documents(db, _frames_and_documents, longest, desc="test bar"))
     err = capsys.readouterr().err
     assert "test bar" in err and f"{len(db)}/{len(db)}" in err

@@ -199,7 +199,7 @@ def test_cli_ingest_on_a_scheduler_by_address(files, serial_db, client, tmp_path
 
 
 def test_cli_unreachable_scheduler_is_one_line(files, tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", 1.0)
+    monkeypatch.setattr(parallel, "CONNECT_TIMEOUT", 1.0)
     out = tmp_path / "db"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

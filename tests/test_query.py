@@ -50,7 +50,7 @@ def scan_hits(db, values, names, example, chosen, m: int = 0, allowed=None) -> s
             differ = seq.codes[k : k + len(q)] != q
             if differ.sum() <= m and not (differ & ~free).any():
                 last = k + len(q) - 1
-                hits.add((row.doc_id, int(seq.starts[k]), int(seq.starts[last] + seq.lengths[last] - 1)))
+                hits.add((row.doc_id, int(seq.starts[k]), int(seq.starts[last] + seq.lengths[last])))  # half-open end
     return hits
 
 
@@ -69,17 +69,17 @@ def test_adaptive_query_equals_the_restricted_scan(db, db_values, label, chosen)
     doc = db.select(label=label)["doc_id"].iloc[0]
     example = db.motion(doc)
     hits = query_by_example(db, example, chosen)
-    got = set(zip(hits["doc_id"], hits["start_frame"], hits["end_frame"]))
+    got = set(zip(hits["doc_id"], hits["start"], hits["end"]))
     assert got == scan_hits(db, values, names, example, chosen)
     # the query document itself is found over its whole length, with a perfect temporal score
-    own = hits[(hits["doc_id"] == doc) & (hits["start_frame"] == 0)]
-    assert len(own) == 1 and own["end_frame"].iloc[0] == example.n_frames - 1
+    own = hits[(hits["doc_id"] == doc) & (hits["start"] == 0)]
+    assert len(own) == 1 and own["end"].iloc[0] == example.n_frames
     assert own["score"].iloc[0] == 0.0 and own["rank"].iloc[0] == 1 or hits["score"].iloc[0] == 0.0
     assert (np.diff(hits["score"]) >= 0).all() and hits["rank"].tolist() == list(range(1, len(hits) + 1))
 
 
 def spans(hits) -> set:
-    return set(zip(hits["doc_id"], hits["start_frame"], hits["end_frame"]))
+    return set(zip(hits["doc_id"], hits["start"], hits["end"]))
 
 
 @pytest.mark.parametrize(
@@ -107,7 +107,7 @@ def test_exact_and_mismatch_count_only_the_selected_features(hdm, label, chosen,
         hits = query_by_example(db, example, chosen, mode=mode, mismatches=m, allowed=allowed)
         expected = scan_hits(db, values, names, example, chosen, m, allowed)
         assert spans(hits) == expected and len(hits) == len(expected)
-        assert ((hits["doc_id"] == doc) & (hits["start_frame"] == 0)).any()  # the query finds itself
+        assert ((hits["doc_id"] == doc) & (hits["start"] == 0)).any()  # the query finds itself
         n_runs = len(segment(relational_features(example)[0][:, [names.index(f) for f in chosen]]).codes)
         assert (hits["n_segments"] == n_runs).all()  # the query is segmented on the selected features alone
         if mode == "exact":  # the selection's exact hits are its adaptive fuzzy hits (§5.2)
@@ -158,10 +158,10 @@ def test_plain_fuzzy_needs_one_stored_segment_per_query_segment(hdm):
         fuzzy = query_by_example(db, example, KICK, mode="fuzzy")
         assert sorted(fuzzy["first_segment"]) == expected
         own_segments = np.diff(idx.doc_first_segment)[row_of[doc]]
-        own = (fuzzy["doc_id"] == doc) & (fuzzy["start_frame"] == 0) & (fuzzy["end_frame"] == example.n_frames - 1)
+        own = (fuzzy["doc_id"] == doc) & (fuzzy["start"] == 0) & (fuzzy["end"] == example.n_frames)
         assert own.any() == (own_segments == len(q))  # found itself only if no left-out feature splits a segment
         adaptive = query_by_example(db, example, KICK, mode="adaptive")
-        assert ((adaptive["doc_id"] == doc) & (adaptive["start_frame"] == 0)).any()
+        assert ((adaptive["doc_id"] == doc) & (adaptive["start"] == 0)).any()
         if doc == kicks[0]:  # the documented example: nothing found, the clip's 7 runs are more stored segments
             assert fuzzy.empty and own_segments > len(q)
 
@@ -255,5 +255,5 @@ def test_hit_durations_use_each_documents_frame_rate(hdm05_dir, bandai1_files, t
     build(mixed, progress=False)
     for doc in mixed.documents["doc_id"]:
         hits = query_by_example(mixed, mixed.motion(int(doc)), ["rknee_bent", "lknee_bent", "rfoot_raised"])
-        own = hits[(hits["doc_id"] == doc) & (hits["start_frame"] == 0)]
+        own = hits[(hits["doc_id"] == doc) & (hits["start"] == 0)]
         assert len(own) == 1 and own["score"].iloc[0] == pytest.approx(0.0, abs=1e-9), hits.head()

@@ -467,7 +467,7 @@ def test_motiondb_equals_its_documents(hdm05_dir, hdm05_labels, tmp_path, monkey
         monkeypatch.undo()
     # the documents are computed apart: a hysteresis, a velocity window or a body size across a boundary would
     # make the concatenation differ from the single clips (checked above); the progress bar appears for many docs
-    monkeypatch.setattr(batch, "PROGRESS_MIN_DOCUMENTS", 2)
+    monkeypatch.setattr(batches, "PROGRESS_MIN_DOCUMENTS", 2)
     relational_features(db, progress=True)
     assert "relational features" in capsys.readouterr().err
     relational_features(db, progress=False)

@@ -3,8 +3,9 @@
 database.py  :class:`MotionDB`: open, the documents table, frames, motions, append (atomic generations).
 ingest.py    files, folders and globs read in parallel into new documents (``MotionDB.ingest``).
 batches.py   per-document work in batches of whole documents, on threads or Dask workers.
-hits.py      the result convention: :func:`hits.table` builds every hit table (doc_id, in-document half-open
-             ``start``/``end``, seconds at the document's own rate); :func:`hits.document` checks a doc id.
+hits.py      the result convention: :func:`hits.hit_table` builds every hit table (doc_id, in-document half-open
+             ``start``/``end``, seconds at the document's own rate); :func:`hits.from_database_frames` and
+             :func:`hits.database_frames` convert database-wide frame numbers.
 
 See ``docs/architecture.md``.
 """

@@ -19,7 +19,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from tqdm.auto import tqdm
 
 from ..errors import MotionDBError
 from ..motion.skeleton import CANONICAL_JOINTS
@@ -38,6 +37,7 @@ def document_batches(db: MotionDB, max_frames: int) -> tuple[pd.DataFrame, list[
     Parameters
     ----------
     db : MotionDB
+        The database.
     max_frames : int
         A batch holds documents while their frames add up to at most this many (at least one document each).
 
@@ -66,12 +66,22 @@ def document_batches(db: MotionDB, max_frames: int) -> tuple[pd.DataFrame, list[
 class FrameBatch:
     """The frames of documents ``docs.iloc[first:last]`` read from a MotionDB (:func:`read_batch`).
 
-    Attributes
+    The fields are its attributes.
+
+    Parameters
     ----------
-    start, stop : int -- the batch is database frames ``start:stop``
-    positions : np.ndarray [shape=(stop - start, 24, 3)], float32, cm
-    bounds : np.ndarray [shape=(D + 1,)], int64 -- document d is rows ``bounds[d]:bounds[d + 1]`` of ``positions``
-    fps : np.ndarray [shape=(D,)], float64 -- each document's frame rate
+    db_path : str
+        The database's folder (for messages).
+    docs : pandas.DataFrame
+        The batch's rows of the documents table.
+    start, stop : int
+        The batch is database frames ``start:stop``.
+    positions : np.ndarray [shape=(stop - start, 24, 3)], float32
+        The batch's joint positions, cm.
+    bounds : np.ndarray [shape=(D + 1,)], int64
+        Document d is rows ``bounds[d]:bounds[d + 1]`` of ``positions``.
+    fps : np.ndarray [shape=(D,)], float64
+        Each document's frame rate.
     """
 
     db_path: str
@@ -83,14 +93,40 @@ class FrameBatch:
     fps: np.ndarray
 
     def where(self, t: int) -> str:
-        """Names row ``t`` of ``positions`` for an error: database, document id, source file and frame."""
+        """Names row ``t`` of ``positions`` for an error: database, document id, source file and frame.
+
+        Parameters
+        ----------
+        t : int
+            A row of :attr:`positions`.
+
+        Returns
+        -------
+        str
+            ``"<db>: document <id> (<path>), frame <frame within the document>"``.
+        """
         d = int(np.searchsorted(self.bounds, t, side="right")) - 1
         row = self.docs.iloc[d]
         return f"{self.db_path}: document {row['doc_id']} ({row['path']}), frame {t - int(self.bounds[d])}"
 
 
 def read_batch(db: MotionDB, docs: pd.DataFrame, first: int, last: int) -> FrameBatch:
-    """The positions of documents ``docs.iloc[first:last]`` (one batch of :func:`document_batches`), in memory."""
+    """The positions of documents ``docs.iloc[first:last]`` (one batch of :func:`document_batches`), in memory.
+
+    Parameters
+    ----------
+    db : MotionDB
+        The database.
+    docs : pandas.DataFrame
+        Its documents, in frame order (as :func:`document_batches` returns them).
+    first, last : int
+        Rows ``first:last`` of ``docs``: whole documents, contiguous in the frames.
+
+    Returns
+    -------
+    FrameBatch
+        Their positions [shape=(frames, 24, 3)] copied from the memory map, cm, with document bounds and rates.
+    """
     part = docs.iloc[first:last]
     lengths = part["n_frames"].to_numpy(np.int64)
     start = int(part["start"].iloc[0])
@@ -111,6 +147,7 @@ def map_documents(db: MotionDB, work: Callable, max_frames: int, joints=None, th
     Parameters
     ----------
     db : MotionDB
+        The database.
     work : callable
         ``work(positions, bounds, fps) -> result`` with positions [shape=(n, 24, 3)] float32 cm (the batch's
         frames), bounds [shape=(D + 1,)] int64 (document d is rows ``bounds[d]:bounds[d + 1]``) and fps
@@ -120,8 +157,10 @@ def map_documents(db: MotionDB, work: Callable, max_frames: int, joints=None, th
         Frames per batch, at most (a longer document is a batch of its own).
     joints : sequence of int, optional
         Canonical joint indices checked for NaN / inf positions (default: all 24).
-    threads, client :
-        As for :func:`map_ordered`.
+    threads : int, optional
+        Threads in this process, as for :func:`mocapviz.parallel.map_ordered`.
+    client : dask.distributed.Client, optional
+        Run the batches as Dask tasks instead.
     desc : str
         Label of the progress bar.
     progress : bool
@@ -143,6 +182,17 @@ def map_documents(db: MotionDB, work: Callable, max_frames: int, joints=None, th
         database, the document, its file and the frame within it.
     mocapviz.MotionDBError
         (Dask) the database changed while the tasks ran.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> def documents_and_frames(positions, bounds, fps):  # the work of one batch
+    ...     return len(bounds) - 1, positions.shape[0]
+    >>> for frames, result in map_documents(MotionDB.sample(), documents_and_frames, 2000, progress=False):
+    ...     print(frames, result)
+    slice(0, 1934, None) (6, 1934)
+    slice(1934, 3840, None) (9, 1906)
+    slice(3840, 5543, None) (9, 1703)
     """
     docs, batches = document_batches(db, max_frames)
     joints = None if joints is None else [int(j) for j in joints]
@@ -151,6 +201,8 @@ def map_documents(db: MotionDB, work: Callable, max_frames: int, joints=None, th
     else:
         path, generation = str(Path(db.path).resolve()), db.manifest["generation"]
         fn, items = _remote_batch, [(path, generation, first, last, joints, work) for first, last in batches]
+    from tqdm.auto import tqdm  # here, not at import: a command that computes no features does not load it
+
     bar = tqdm(total=len(docs), desc=desc, unit="doc", disable=not progress or len(docs) <= PROGRESS_MIN_DOCUMENTS)
     with bar, contextlib.closing(map_ordered(fn, items, threads, client, name)) as results:
         for (first, last), (frames, result) in zip(batches, results):
@@ -184,8 +236,10 @@ def open_db(path, generation: int):
 
     Parameters
     ----------
-    path : str, the database directory (as the workers see it)
-    generation : int, the manifest generation the client planned its tasks for
+    path : str
+        The database directory (as the workers see it).
+    generation : int
+        The manifest generation the client planned its tasks for.
 
     Returns
     -------

@@ -74,10 +74,8 @@ class MotionDB:
     documents : pandas.DataFrame
         The documents table.
     arrays : dict
-        ``"positions"`` and ``"quaternions"`` arrays of all frames.
-
-    The constructor takes what :meth:`open` has read and checked; call :meth:`open`, :meth:`ingest`,
-    :meth:`create` or :meth:`sample` instead.
+        ``"positions"`` and ``"quaternions"`` arrays of all frames. (The constructor takes what :meth:`open` has
+        read and checked; call :meth:`open`, :meth:`ingest`, :meth:`create` or :meth:`sample` instead.)
 
     References
     ----------

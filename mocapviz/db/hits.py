@@ -159,6 +159,25 @@ def from_database_frames(db, first, stop) -> tuple[np.ndarray, np.ndarray, np.nd
 def database_frames(db, doc_id: int, start: int, end: int) -> slice:
     """The rows of ``db.positions`` of frames ``start:end`` of document ``doc_id`` (a hit's stretch).
 
+    Parameters
+    ----------
+    db : MotionDB
+        The database of the hit.
+    doc_id : int
+        The hit's document.
+    start, end : int
+        Frames within the document, half-open: ``0 <= start < end <= n_frames``.
+
+    Returns
+    -------
+    slice
+        Database-wide frames (rows of ``db.positions``), to play or cut the hit.
+
+    Raises
+    ------
+    ParameterError
+        A span outside the document.
+
     Examples
     --------
     >>> from mocapviz import MotionDB

@@ -23,7 +23,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from tqdm.auto import tqdm
 
 from .. import errors as errors_module
 from ..errors import LabelTableError, MocapFormatError, MocapvizError
@@ -42,12 +41,27 @@ _BASE_COLUMNS = BASE_COLUMNS
 def expand_paths(paths) -> list[Path]:
     """Motion files named by ``paths``: files, folders (searched recursively) and glob patterns.
 
-    Returns the absolute paths of the ``.amc`` / ``.bvh`` files, folders' contents sorted, duplicates removed.
+    Parameters
+    ----------
+    paths : str, os.PathLike or list of them
+        Files, folders and glob patterns (``**`` recursive).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The absolute paths of the ``.amc`` / ``.bvh`` files, folders' contents sorted, duplicates removed.
 
     Raises
     ------
     FileNotFoundError
         A path or pattern that names nothing.
+
+    Examples
+    --------
+    >>> from mocapviz.io import datasets
+    >>> files = expand_paths(datasets.sample() / "hdm05-cut")
+    >>> len(files), files[0].name
+    (22, 'HDM_dg_depositFloorR_013_120.amc')
     """
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
@@ -67,7 +81,20 @@ def expand_paths(paths) -> list[Path]:
 
 
 def file_checksum(path, asf=None) -> str:
-    """sha256 of a motion file's bytes (an AMC together with its ASF skeleton: ``asf`` or :func:`find_asf`)."""
+    """sha256 of a motion file's bytes (an AMC together with its ASF skeleton: ``asf`` or :func:`find_asf`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An ``.amc`` or ``.bvh`` file.
+    asf : str or os.PathLike, optional
+        An AMC's skeleton (default :func:`mocapviz.io.find_asf`).
+
+    Returns
+    -------
+    str
+        64 hex digits: the file's identity in a MotionDB (``documents.sha256``).
+    """
     h = hashlib.sha256()
     parts = [Path(path)]
     if Path(path).suffix.lower() == ".amc":
@@ -153,7 +180,23 @@ class _ReadFailure:
 
 @dataclass(frozen=True)
 class ReadJob:
-    """One file to read in an ingest (small and picklable: a Dask task carries a chunk of these)."""
+    """One file to read in an ingest (small and picklable: a Dask task carries a chunk of these).
+
+    Parameters
+    ----------
+    path : str
+        The motion file.
+    sha256 : str
+        Its :func:`file_checksum`.
+    fps : float or None
+        The target frame rate (None: the file's own).
+    labels : dict or None
+        Its label columns, if known.
+    mapping : dict or None
+        Canonical joint -> joint name overrides.
+    load_options : dict
+        Passed to :func:`mocapviz.io.load`.
+    """
 
     path: str
     sha256: str
@@ -230,7 +273,27 @@ def _labels_table(labels) -> dict[str, dict] | None:
 
 @dataclass(frozen=True)
 class IngestOptions:
-    """What an ingest was asked to do (the parameters of :meth:`MotionDB.ingest`, checked there)."""
+    """What an ingest was asked to do (the parameters of :meth:`MotionDB.ingest`, checked there).
+
+    Parameters
+    ----------
+    fps : float, optional
+        The target frame rate.
+    labels : path, DataFrame or dict, optional
+        A label table.
+    mapping : dict, optional
+        Canonical joint -> joint name overrides.
+    skip_bad : bool
+        Skip files that fail to read.
+    threads : int, optional
+        Reader threads.
+    progress : bool
+        Show a progress bar.
+    scheduler : None, "local", str or dask.distributed.Client
+        Read as Dask tasks.
+    load_options : dict
+        Passed to :func:`mocapviz.io.load`. (See :meth:`mocapviz.db.database.MotionDB.ingest` for each in full.)
+    """
 
     fps: float | None = None
     labels: object = None
@@ -285,6 +348,8 @@ def read_new(files: list[Path], known: set, options: IngestOptions) -> tuple[lis
     with optional_client(options.scheduler if todo else None) as client:
         chunks = _chunks(todo, 4 * parallelism(options.threads, client))
         results = map_ordered(_read_chunk, chunks, options.threads, client, name="mocapviz-read")
+        from tqdm.auto import tqdm  # here, not at import: opening a MotionDB does not load it
+
         bar = tqdm(total=len(todo), desc="ingest", unit="file", disable=not options.progress or not todo)
         # results in input order; the first file that fails (in that order) stops the run before any write, and
         # closing the results cancels what is pending (before the client closes)

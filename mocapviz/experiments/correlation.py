@@ -178,10 +178,18 @@ def available_measures(db) -> tuple[str, ...]:
     Parameters
     ----------
     db : MotionDB
+        The database.
 
     Returns
     -------
     tuple of str
+        Measure names, in the order of :data:`CORRELATION_MEASURES`.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> available_measures(MotionDB.sample())[-5:]  # the sample's files are all AMC: every measure
+    ('Deuler', 'Dquat', 'Dpc1', 'Dpc11', 'Dwb')
     """
     docs = db.documents
     rotations = (docs["format"].nunique() == 1
@@ -252,18 +260,22 @@ def correlation_sample(db, clips_per_class: int = 8, min_clips: int = 8, max_cla
 
     Parameters
     ----------
-    db : MotionDB, labelled (``label`` column).
-    clips_per_class : int, >= 1
+    db : MotionDB
+        Labelled (``label`` column).
+    clips_per_class : int
+        Clips drawn per class, >= 1.
     min_clips : int
         A class needs at least this many clips.
     max_classes : int
+        At most this many classes, the largest.
     seed : int
         The draw is reproducible: the same seed gives the same clips.
 
     Returns
     -------
-    pd.DataFrame: the chosen rows of ``db.documents`` (doc_id, path, start, n_frames, fps, label, ...), class by
-    class (largest first), by doc_id within a class.
+    pandas.DataFrame
+        The chosen rows of ``db.documents`` (doc_id, path, start, n_frames, fps, label, ...), class by class
+        (largest first), by doc_id within a class.
 
     Raises
     ------
@@ -356,7 +368,8 @@ def pose_correlations(db, rows=CORRELATION_MEASURES, columns=CORRELATION_MEASURE
 
     Parameters
     ----------
-    db : MotionDB at one frame rate (the paper: 30 Hz).
+    db : MotionDB
+        At one frame rate (the paper: 30 Hz).
     rows, columns : sequence of str
         Measures of :data:`CORRELATION_MEASURES` (default all 14, in Fig. 2's order).
     docs : pd.DataFrame (``doc_id`` column) or sequence of int, optional
@@ -368,15 +381,16 @@ def pose_correlations(db, rows=CORRELATION_MEASURES, columns=CORRELATION_MEASURE
     pca : PCAModel, optional
         Reference of the Fp sets (the paper: all of HDM05); default :func:`mocapviz.features.numeric.default_pca`.
     seed : int
+        Seed of the random query frames.
     progress : bool
         Progress bars (tqdm) over the rows and columns.
 
     Returns
     -------
-    pd.DataFrame [shape=(len(rows), len(columns))], mean rho in [-1, 1] (NaN only if every query had a constant
-    side); index named "neighbours by", columns "compared with". ``attrs``: ``n_queries``, ``k``, ``frames`` (frames
-    searched), ``documents``, ``queries`` (the query frames, list of int), ``seconds`` ({"neighbours": {row: s},
-    "distances": {column: s}}).
+    pandas.DataFrame [shape=(len(rows), len(columns))]
+        Mean rho in [-1, 1] (NaN only if every query had a constant side); index named "neighbours by", columns
+        "compared with". ``attrs``: ``n_queries``, ``k``, ``frames`` (frames searched), ``documents``, ``queries``
+        (the query frames, list of int), ``seconds`` ({"neighbours": {row: s}, "distances": {column: s}}).
 
     Raises
     ------
@@ -450,7 +464,8 @@ def segment_correlations(db, docs, measures=CORRELATION_MEASURES, n_first: int =
 
     Parameters
     ----------
-    db : MotionDB at one frame rate.
+    db : MotionDB
+        At one frame rate.
     docs : pd.DataFrame (``doc_id``, ``label``) or sequence of int
         The clips, e.g. :func:`correlation_sample`; at least ``n_first + 1``.
     measures : sequence of str
@@ -464,12 +479,13 @@ def segment_correlations(db, docs, measures=CORRELATION_MEASURES, n_first: int =
 
     Returns
     -------
-    pd.DataFrame [shape=(len(measures), len(measures))], mean rho in [-1, 1]; index "neighbours by" (the ranking
-    measure), columns "compared with". ``attrs``: ``clips``, ``frames``, ``n_first``, ``precision`` (pd.Series per
-    measure: the share of the first ``n_first`` clips of each ranking with the clip's own label, averaged over
-    the clips), ``chance`` (that share for a random ranking), ``dtw`` ({measure: pd.DataFrame (clips x clips) of
-    DTW distances, indexed by doc_id; 0 on the diagonal}), ``seconds`` (pd.DataFrame per measure: ``matrix``, the
-    pairwise frame distances, and ``dtw``).
+    pandas.DataFrame [shape=(len(measures), len(measures))]
+        Mean rho in [-1, 1]; index "neighbours by" (the ranking measure), columns "compared with". ``attrs``:
+        ``clips``, ``frames``, ``n_first``, ``precision`` (pd.Series per measure: the share of the first
+        ``n_first`` clips of each ranking with the clip's own label, averaged over the clips), ``chance`` (that
+        share for a random ranking), ``dtw`` ({measure: pd.DataFrame (clips x clips) of DTW distances, indexed by
+        doc_id; 0 on the diagonal}), ``seconds`` (pd.DataFrame per measure: ``matrix``, the pairwise frame
+        distances, and ``dtw``).
 
     Raises
     ------
@@ -545,19 +561,29 @@ def rank_correlations(db, large_db=None, clips_per_class: int = 8, n_queries: in
 
     Parameters
     ----------
-    db : MotionDB, labelled, one frame rate (the paper: HDM05 at 30 Hz).
+    db : MotionDB
+        Labelled, one frame rate (the paper: HDM05 at 30 Hz).
     large_db : MotionDB, optional
         The large database (the paper: HDM05 and CMU); its documents need no labels.
-    clips_per_class, n_queries, k, n_first, seed, progress :
-        As for the functions above (the paper: 8, 1024, 256, 8).
+    clips_per_class, n_queries, k, n_first, seed : int
+        As for :func:`correlation_sample`, :func:`pose_correlations` and :func:`segment_correlations` (the paper:
+        8, 1024, 256, 8).
     pca : PCAModel, optional
         Reference of the Fp sets for all three experiments; default ``default_pca(db)`` (the paper: one PCA fitted
         on the whole HDM05 database).
+    progress : bool
+        Progress bars.
 
     Returns
     -------
-    dict with keys "sample", "pose", "pose_large", "segment" and "precision" (pd.DataFrame indexed by measure:
-    ``precision``, ``chance``).
+    dict
+        Keys "sample", "pose", "pose_large", "segment" (pandas.DataFrame, as the functions above) and "precision"
+        (pandas.DataFrame indexed by measure: ``precision``, ``chance``).
+
+    References
+    ----------
+    .. [1] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §3.3, Fig. 2.
     """
     pca = default_pca(db) if pca is None else pca
     sample = correlation_sample(db, clips_per_class=clips_per_class, seed=seed)
@@ -673,9 +699,10 @@ def paper_claims(matrices, kind: str = "pose") -> pd.DataFrame:
 
     Returns
     -------
-    pd.DataFrame, :data:`PAPER_FIG2_CLAIMS` with ``ours`` (the values, text), ``value`` (the cells: their minimum
-    for a threshold, the first cell, or their mean), ``reference`` (the threshold, the second cell, or the mean it is
-    compared with) and ``holds`` (bool; None where a matrix or a measure is missing).
+    pandas.DataFrame
+        :data:`PAPER_FIG2_CLAIMS` with ``ours`` (the values, text), ``value`` (the cells: their minimum for a
+        threshold, the first cell, or their mean), ``reference`` (the threshold, the second cell, or the mean it is
+        compared with) and ``holds`` (bool; None where a matrix or a measure is missing).
     """
     mats = dict(matrices) if isinstance(matrices, dict) else {kind: matrices}
     out = []

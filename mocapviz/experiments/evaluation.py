@@ -56,6 +56,22 @@ def relevance(ranked_docs, labels: pd.Series, query_doc: int | None, candidates=
     ------
     ParameterError
         ``query_doc`` is not in ``labels``; neither or both of ``query_doc`` and ``label`` given.
+
+    Examples
+    --------
+    A search for clip 7 (a kick) of the sample returned documents 7 (itself), 18 (the other kick), 3 and 18 again:
+
+    >>> from mocapviz import MotionDB
+    >>> labels = MotionDB.sample().documents.set_index("doc_id")["label"]
+    >>> ranking, n_relevant = relevance([7, 18, 3, 18], labels, query_doc=7)
+    >>> print(ranking.to_string(index=False))  # the query's own document left out, repeats at their first rank
+     rank  doc_id  relevant
+        1      18      True
+        2       3     False
+    >>> n_relevant  # the other kick
+    1
+    >>> average_precision(ranking, n_relevant), precision_at(ranking, 2)
+    (1.0, 0.5)
     """
     if (query_doc is None) == (label is None):
         raise ParameterError("pass the query's document (query_doc) or, for a query that is no document, its label")
@@ -80,10 +96,26 @@ def relevance(ranked_docs, labels: pd.Series, query_doc: int | None, candidates=
 def precision_recall(ranking: pd.DataFrame, n_relevant: int) -> pd.DataFrame:
     """Precision and recall after every rank of a judged ranking (:func:`relevance`).
 
+    Parameters
+    ----------
+    ranking : pandas.DataFrame
+        The judged ranking of :func:`relevance` (``rank``, ``doc_id``, ``relevant``).
+    n_relevant : int
+        Relevant documents in all (:func:`relevance`'s second value).
+
     Returns
     -------
-    pd.DataFrame: the ranking's columns plus ``precision`` and ``recall`` (fractions in [0, 1]; recall NaN when
-    no other document is relevant). ``attrs["n_relevant"]`` holds ``n_relevant``.
+    pandas.DataFrame
+        The ranking's columns plus ``precision`` and ``recall`` (fractions in [0, 1]; recall NaN when no other
+        document is relevant). ``attrs["n_relevant"]`` holds ``n_relevant``.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> ranking = pd.DataFrame({"rank": [1, 2, 3], "doc_id": [4, 9, 2], "relevant": [True, False, True]})
+    >>> curve = precision_recall(ranking, n_relevant=4)
+    >>> curve["precision"].round(3).tolist(), curve["recall"].tolist()
+    ([1.0, 0.5, 0.667], [0.25, 0.25, 0.5])
     """
     found = np.cumsum(ranking["relevant"].to_numpy(dtype=bool))
     out = ranking.assign(
@@ -96,7 +128,27 @@ def precision_recall(ranking: pd.DataFrame, n_relevant: int) -> pd.DataFrame:
 
 def average_precision(ranking: pd.DataFrame, n_relevant: int) -> float:
     """AP of a judged ranking: mean precision at the ranks of the relevant documents over all ``n_relevant``
-    (unfound ones add 0). NaN when no other document is relevant."""
+    (unfound ones add 0). NaN when no other document is relevant.
+
+    Parameters
+    ----------
+    ranking : pandas.DataFrame
+        The judged ranking of :func:`relevance`.
+    n_relevant : int
+        Relevant documents in all.
+
+    Returns
+    -------
+    float
+        In [0, 1], or NaN.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> ranking = pd.DataFrame({"rank": [1, 2, 3], "doc_id": [4, 9, 2], "relevant": [True, False, True]})
+    >>> round(average_precision(ranking, n_relevant=4), 4)  # (1/1 + 2/3 + 0 + 0) / 4
+    0.4167
+    """
     if n_relevant == 0:
         return float("nan")
     relevant = ranking["relevant"].to_numpy(dtype=bool)
@@ -106,7 +158,27 @@ def average_precision(ranking: pd.DataFrame, n_relevant: int) -> float:
 
 def precision_at(ranking: pd.DataFrame, n: int) -> float:
     """Relevant documents among the first ``n`` of the ranking / n (precision@n); a ranking shorter than n counts
-    its missing ranks as not relevant (a search that returns nothing has precision 0, not NaN)."""
+    its missing ranks as not relevant (a search that returns nothing has precision 0, not NaN).
+
+    Parameters
+    ----------
+    ranking : pandas.DataFrame
+        The judged ranking of :func:`relevance`.
+    n : int
+        Ranks counted, at least 1.
+
+    Returns
+    -------
+    float
+        In [0, 1].
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> ranking = pd.DataFrame({"rank": [1, 2, 3], "doc_id": [4, 9, 2], "relevant": [True, False, True]})
+    >>> precision_at(ranking, 1), precision_at(ranking, 10)
+    (1.0, 0.2)
+    """
     if n < 1:
         raise ParameterError(f"n must be at least 1; got {n}")
     return float(ranking["relevant"].to_numpy(dtype=bool)[:n].sum() / n)

@@ -64,8 +64,9 @@ def krueger2010_table3() -> pd.DataFrame:
 
     Returns
     -------
-    pandas.DataFrame, one row per test motion: ``motion``, ``frames``, ``HDM_mean``, ``HDM_max``, ``CMU-_mean``,
-    ``CMU-_max``, ``CMU_mean``, ``CMU_max`` (cm). CMU_86_avg is the average over the 15 motions of collection 86.
+    pandas.DataFrame
+        One row per test motion: ``motion``, ``frames``, ``HDM_mean``, ``HDM_max``, ``CMU-_mean``, ``CMU-_max``,
+        ``CMU_mean``, ``CMU_max`` (cm). CMU_86_avg is the average over the 15 motions of collection 86.
     """
     rows = []
     for motion, (frames, *cells) in _PAPER_TABLE3.items():
@@ -82,7 +83,8 @@ def krueger2010_table4() -> pd.DataFrame:
 
     Returns
     -------
-    pandas.DataFrame, one row: ``motion``, then ``<set>_mean``, ``<set>_max`` for the nine sets in the paper's order.
+    pandas.DataFrame
+        One row: ``motion``, then ``<set>_mean``, ``<set>_max`` (cm) for the nine sets in the paper's order.
     """
     row = {"motion": "CMU_86_03"}
     for name, (mean, worst) in _PAPER_TABLE4.items():
@@ -93,7 +95,28 @@ def krueger2010_table4() -> pd.DataFrame:
 def default_test_docs(db, actor: str = "bk", full: bool = False) -> list[int]:
     """Test clips of ``db`` (the paper's HDM05 test motions are bk's): the first clip of ``actor`` in every class
     (11 clips, 839 frames at 30 Hz for bk in the shared HDM05 cut clips), or with ``full`` all of the actor's
-    clips (65, 4,518 frames); doc_ids in increasing order."""
+    clips (65, 4,518 frames); doc_ids in increasing order.
+
+    Parameters
+    ----------
+    db : MotionDB
+        A labelled database with an ``actor`` column.
+    actor : str
+        The test actor.
+    full : bool
+        All of the actor's clips, not one per class.
+
+    Returns
+    -------
+    list of int
+        Doc ids, increasing.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> default_test_docs(MotionDB.sample(), actor="mm")[:4]
+    [13, 14, 15, 16]
+    """
     docs = db.documents
     if "actor" not in docs or not (docs["actor"] == actor).any():
         raise ParameterError(f"{db.path} has no clip of actor {actor!r} (an 'actor' label column is needed)")
@@ -102,19 +125,44 @@ def default_test_docs(db, actor: str = "bk", full: bool = False) -> list[int]:
 
 
 def frame_actors(db) -> np.ndarray:
-    """The actor of every frame of a MotionDB: (N,) object array of the documents' ``actor`` labels."""
+    """The actor of every frame of a MotionDB.
+
+    Parameters
+    ----------
+    db : MotionDB
+        A database with an ``actor`` column.
+
+    Returns
+    -------
+    np.ndarray [shape=(N,)], object
+        The documents' ``actor`` labels, one per database frame.
+    """
     return db.documents.set_index("doc_id").loc[db.document_of(np.arange(db.n_frames)), "actor"].to_numpy()
 
 
 def marker_clip(db, doc: int, noise_cm: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A document of ``db`` as reconstruction test data (Krüger et al. 2010 §5.2).
 
+    Parameters
+    ----------
+    db : MotionDB
+        The database.
+    doc : int
+        The test clip's doc id.
+    noise_cm : float
+        Half-width of the uniform marker noise, cm (the paper: 0.1 cm).
+    seed : int
+        Seed of the noise (with ``doc``).
+
     Returns
     -------
-    truth : np.ndarray [shape=(T, 24, 3)], float64, cm, the clip's canonical joints.
-    markers : np.ndarray [shape=(T, 6, 3)], cm, the joints of :data:`mocapviz.similarity.reconstruction.MARKERS` with uniform noise
-        of +-``noise_cm`` per coordinate, drawn from ``np.random.default_rng([seed, doc])`` (reproducible per clip).
-    headings : np.ndarray [shape=(T,)], radians, the clip's heading.
+    truth : np.ndarray [shape=(T, 24, 3)], float64
+        The clip's canonical joints, cm.
+    markers : np.ndarray [shape=(T, 6, 3)]
+        The joints of :data:`mocapviz.similarity.reconstruction.MARKERS` with uniform noise of +-``noise_cm`` per
+        coordinate, drawn from ``np.random.default_rng([seed, doc])`` (reproducible per clip), cm.
+    headings : np.ndarray [shape=(T,)]
+        The clip's heading, radians.
     """
     truth = np.asarray(db.positions[db.frames(doc)], dtype=np.float64)
     markers = synthetic_markers(truth, noise_cm, np.random.default_rng([seed, doc]))
@@ -140,21 +188,32 @@ def reconstruction(db, other_db=None, test_docs=None, k: int = DEFAULT_K, numeri
     test_docs : list of int, optional
         doc_ids of ``db`` (default :func:`default_test_docs`: bk's first clip of every class, or with ``full`` all
         of bk's clips).
-    k : int, neighbours per frame.
-    numeric_sets : sequence of str, the numeric sets of Table 4 (F15E: one pass; the others: two passes).
-    table4_doc : int, optional, the Table 4 test clip (default the first test doc); empty ``numeric_sets``: no
-        Table 4.
-    noise_cm, seed : the marker noise (cm) and its seed (each clip's noise comes from (seed, doc_id)).
-    pca : PCAModel, optional, for the Fp sets (default :func:`mocapviz.features.numeric.default_pca` of ``db``).
-    baselines : bool, also run the nearest-neighbour pose and the weighted neighbour mean (``"baselines"``).
-    full : bool, the default test clips are all of bk's (about 6x the time) instead of one per class.
-    progress : bool, a progress bar over the test clips.
-    **options : passed to :func:`mocapviz.similarity.reconstruction.reconstruct` (variance, bandwidth, marker_sigma,
+    k : int
+        Neighbours per frame.
+    numeric_sets : sequence of str
+        The numeric sets of Table 4 (F15E: one pass; the others: two passes).
+    table4_doc : int, optional
+        The Table 4 test clip (default the first test doc); empty ``numeric_sets``: no Table 4.
+    noise_cm : float
+        The marker noise, +- cm per coordinate.
+    seed : int
+        Its seed (each clip's noise comes from (seed, doc_id)).
+    pca : PCAModel, optional
+        For the Fp sets (default :func:`mocapviz.features.numeric.default_pca` of ``db``).
+    baselines : bool
+        Also run the nearest-neighbour pose and the weighted neighbour mean (``"baselines"``).
+    full : bool
+        The default test clips are all of bk's (about 6x the time) instead of one per class.
+    progress : bool
+        A progress bar over the test clips.
+    **options
+        Passed to :func:`mocapviz.similarity.reconstruction.reconstruct` (variance, bandwidth, marker_sigma,
         smooth_sigma).
 
     Returns
     -------
-    dict of DataFrames:
+    dict
+        Name -> pandas.DataFrame:
         ``"table3"``: one row per test clip and a last row ``avg`` (all test frames: the frame-weighted mean of the
         means, the largest max): ``motion`` (name), ``doc_id``, ``class``, ``frames``, and per variant ``<v>_mean``,
         ``<v>_max`` (the worst frame's mean joint error), ``<v>_bone`` (mean bone-length error), all cm.

@@ -65,27 +65,52 @@ def lng_accuracy(db, numeric_set: str = "F15E", n_queries: int = 128, seconds=(1
 
     Parameters
     ----------
-    db : MotionDB, e.g. the HDM05 cut clips at 30 Hz.
-    numeric_set : str, a numeric set (:data:`mocapviz.features.NUMERIC_SETS`); its old name ``feature_set`` still
-        works, with a FutureWarning.
-    n_queries : int, per query length.
-    seconds : tuple of float, query lengths in seconds.
-    k, radius : the graph's neighbourhoods.
-    eps : tuple of float, kNN approximations tried.
-    n_matches : int, matches kept by both methods.
+    db : MotionDB
+        E.g. the HDM05 cut clips at 30 Hz.
+    numeric_set : str
+        A numeric set (:data:`mocapviz.features.NUMERIC_SETS`); its old name ``feature_set`` still works, with a
+        FutureWarning.
+    n_queries : int
+        Queries per query length.
+    seconds : tuple of float
+        Query lengths in seconds.
+    k : int
+        The graph's neighbours per query frame.
+    radius : float, optional
+        Their largest distance, feature units.
+    eps : tuple of float
+        kNN approximations tried.
+    n_matches : int
+        Matches kept by both methods.
     seed : int
-    features : np.ndarray [shape=(N, d)], optional, the set's values for every frame (default ``numeric_of``).
+        Seed of the random queries.
+    features : np.ndarray [shape=(N, d)], optional
+        The set's values for every frame (default ``numeric_of``).
     progress : bool
+        A progress bar over the queries.
 
     Returns
     -------
-    pd.DataFrame, one row per (seconds, eps, query): ``seconds``, ``eps``, ``query_doc``, ``query_start`` (database
-    frame), ``m`` (query frames), ``lng_matches``, ``spearman`` (rho between the graph's costs of its matches and
-    subsequence DTW's accumulated cost at the same end frames; NaN with fewer than 3 matches or a constant
-    side), ``equal`` (share of the graph's matches whose cost equals DTW's at their end, relative difference <
-    1e-9), ``below_dtw``, ``recall`` (share of DTW's best ``n_matches`` matches overlapped by a graph match),
-    ``same_best`` (the best matches overlap): see :func:`agreement`; ``knn_s``, ``graph_s``, ``dtw_s`` (subsequence DTW over the whole
-    database, seconds).
+    pandas.DataFrame
+        One row per (seconds, eps, query): ``seconds``, ``eps``, ``query_doc``, ``query_start`` (database frame),
+        ``m`` (query frames), ``lng_matches``, ``spearman`` (rho between the graph's costs of its matches and
+        subsequence DTW's accumulated cost at the same end frames; NaN with fewer than 3 matches or a constant
+        side), ``equal`` (share of the graph's matches whose cost equals DTW's at their end, relative difference
+        < 1e-9), ``below_dtw``, ``recall`` (share of DTW's best ``n_matches`` matches overlapped by a graph
+        match), ``same_best`` (the best matches overlap): see :func:`agreement`; ``knn_s``, ``graph_s``,
+        ``dtw_s`` (subsequence DTW over the whole database, seconds).
+
+    References
+    ----------
+    .. [1] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §4.2.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> per_query = lng_accuracy(MotionDB.sample(), n_queries=4, seconds=(0.5,), k=1024, eps=(0.0,))
+    >>> len(per_query), int(per_query["below_dtw"].sum())  # the graph never beats DTW's optimum
+    (4, 0)
     """
     X = numeric_of(db, numeric_set) if features is None else features
     index = KnnIndex(X)
@@ -132,18 +157,23 @@ def agreement(found: pd.DataFrame, cost: np.ndarray, ref_starts, ref_ends, rtol:
 
     Parameters
     ----------
-    found : matches DataFrame (start, end, cost) of the lazy neighbourhood graph.
-    cost : np.ndarray [shape=(n,)], subsequence DTW's accumulated cost at every end frame
-        (:func:`mocapviz.match.subsequence_costs`).
-    ref_starts, ref_ends : np.ndarray, subsequence DTW's best matches (:func:`mocapviz.match.best_ends`).
-    rtol : float, relative difference under which two costs count as equal.
+    found : pandas.DataFrame
+        The lazy neighbourhood graph's matches (start, end: database frames, inclusive; cost).
+    cost : np.ndarray [shape=(n,)]
+        Subsequence DTW's accumulated cost at every end frame (:func:`mocapviz.match.subsequence_costs`).
+    ref_starts, ref_ends : np.ndarray [shape=(K,)], int
+        Subsequence DTW's best matches (:func:`mocapviz.match.best_ends`), database frames, inclusive.
+    rtol : float
+        Relative difference under which two costs count as equal.
 
     Returns
     -------
-    dict: ``spearman`` (rho between the graph's match costs and DTW's at the same end frames; NaN with fewer than
-    3 matches or one side constant, 1.0 when both are), ``equal`` (share of the graph's costs equal to DTW's: it
-    found DTW's optimal path there), ``below_dtw`` (graph costs below DTW's: impossible unless one is wrong),
-    ``recall`` (share of DTW's matches some graph match overlaps), ``same_best`` (the best matches overlap).
+    dict
+        ``spearman`` (rho between the graph's match costs and DTW's at the same end frames; NaN with fewer than 3
+        matches or one side constant, 1.0 when both are), ``equal`` (share of the graph's costs equal to DTW's:
+        it found DTW's optimal path there), ``below_dtw`` (graph costs below DTW's: impossible unless one is
+        wrong), ``recall`` (share of DTW's matches some graph match overlaps), ``same_best`` (the best matches
+        overlap).
     """
     ends = found["end"].to_numpy(np.int64)
     ours, dtw_cost = found["cost"].to_numpy(np.float64), cost[ends]
@@ -165,7 +195,18 @@ def summarize_accuracy(per_query: pd.DataFrame) -> pd.DataFrame:
     """:func:`lng_accuracy`'s rows averaged per (seconds, eps), with the paper's figures beside: mean Spearman
     (paper > 0.99), equal-cost share, recall, same best match, mean kNN / graph / LNG / DTW seconds (paper: the
     alignment without kNN 0.03 s for 1 s queries, 0.08 s for 3 s, Fp16) and the speed-up of the graph (kNN
-    included) over subsequence DTW."""
+    included) over subsequence DTW.
+
+    Parameters
+    ----------
+    per_query : pandas.DataFrame
+        :func:`lng_accuracy`'s table, one row per query.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per (query seconds, eps).
+    """
     g = per_query.groupby(["seconds", "eps"])
     out = g.agg(queries=("m", "size"), spearman=("spearman", "mean"), spearman_min=("spearman", "min"),
                 equal=("equal", "mean"), recall=("recall", "mean"), same_best=("same_best", "mean"),
@@ -191,21 +232,37 @@ def similarity_matrices(db, query_doc: int, query_frames: tuple[int, int] | None
     Parameters
     ----------
     db : MotionDB
-    query_doc : int, the document the query comes from.
-    query_frames : (a, b), optional, frames [a, b) within it (default the whole document).
-    database_docs : list of int, the small database (default every other document of the query's label, at most 3).
-    numeric_sets : numeric sets (old name ``sets``, with a FutureWarning).
-    k, radius : the graph's neighbourhoods (on the small database).
-    n_matches : int, graph / DTW matches kept (old name ``k_matches``, with a FutureWarning).
-    dpc_window : int, frames of the Dpc window (1: Dpc1, the paper's choice for Fig. 3).
+        The database.
+    query_doc : int
+        The document the query comes from.
+    query_frames : (int, int), optional
+        Frames [a, b) within it (default the whole document).
+    database_docs : list of int, optional
+        The small database (default every other document of the query's label, at most 3).
+    numeric_sets : sequence of str
+        Numeric sets (old name ``sets``, with a FutureWarning).
+    k : int
+        The graph's neighbours per query frame (on the small database).
+    radius : float, optional
+        Their largest distance, feature units.
+    n_matches : int
+        Graph / DTW matches kept (old name ``k_matches``, with a FutureWarning).
+    dpc_window : int
+        Frames of the Dpc window (1: Dpc1, the paper's choice for Fig. 3).
 
     Returns
     -------
-    dict: ``"query"`` ({doc, frames}), ``"database_docs"``, ``"database_starts"`` (first frame of each database
-    document in the small database's frame numbers), and per numeric set name and ``"Dpc{n}"``: a dict with
-    ``"distance"`` ((m, n) local costs: Euclidean in the set's units; cm² for Dpc), ``"computed"`` ((m, n) bool,
-    the kNN cells the graph visited; all True for Dpc, which DTW computes in full) and ``"matches"`` (a matches
-    DataFrame, frames of the small database, with paths).
+    dict
+        ``"query"`` ({doc, frames}), ``"database_docs"``, ``"database_starts"`` (first frame of each database
+        document in the small database's frame numbers), and per numeric set name and ``"Dpc{n}"``: a dict with
+        ``"distance"`` ((m, n) local costs: Euclidean in the set's units; cm² for Dpc), ``"computed"`` ((m, n)
+        bool, the kNN cells the graph visited; all True for Dpc, which DTW computes in full) and ``"matches"`` (a
+        matches DataFrame, frames of the small database, with paths).
+
+    References
+    ----------
+    .. [1] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §4.1-4.2, Fig. 3.
     """
     docs = db.documents
     span = db.frames(query_doc)
@@ -279,20 +336,44 @@ def alignment(db, doc_a: int, doc_b: int, features=None, relational_set: str = "
     Parameters
     ----------
     db : MotionDB
-    doc_a, doc_b : int, the two clips (a: rows of the cost matrix, b: columns).
-    features : list of str, optional, relational features (default all of the set).
-    relational_set : "2005" or "2006".
-    numeric_set : str, the features of the fine DTW (Euclidean local cost).
-    margin : int, frames.
-    repeats : int, runs timed per method (median).
+        The database.
+    doc_a, doc_b : int
+        The two clips (a: rows of the cost matrix, b: columns).
+    features : list of str, optional
+        Relational features (default all of the set).
+    relational_set : {"2005", "2006"}
+        The relational set.
+    numeric_set : str
+        The features of the fine DTW (Euclidean local cost, feature units).
+    margin : int
+        Frames added to the band on every side.
+    repeats : int
+        Runs timed per method (median).
 
     Returns
     -------
-    dict: ``"summary"`` (one-row DataFrame: frames of each clip, segments of each, segment pairs, band cells and
-    their share of the matrix, full and band cost and seconds, the coarse stage's seconds, speed-up, whether the
-    paths are identical, mean and max path difference in frames of b per frame of a), ``"segments_a"``,
-    ``"segments_b"`` (FeatureSequence), ``"segment_path"`` ((P, 2) segment pairs), ``"band"`` ((m, 2)),
-    ``"path_full"``, ``"path_band"`` ((L, 2)), ``"cost"`` ((m, n) Euclidean local costs of the whole matrix, for plots).
+    dict
+        ``"summary"`` (one-row DataFrame: frames of each clip, segments of each, segment pairs, band cells and
+        their share of the matrix, full and band cost and seconds, the coarse stage's seconds, speed-up, whether
+        the paths are identical, mean and max path difference in frames of b per frame of a), ``"segments_a"``,
+        ``"segments_b"`` (FeatureSequence), ``"segment_path"`` ((P, 2) segment pairs), ``"band"`` ((m, 2)),
+        ``"path_full"``, ``"path_band"`` ((L, 2)), ``"cost"`` ((m, n) Euclidean local costs of the whole matrix,
+        for plots).
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. ACM TOG
+       24(3), 2005, §7, Fig. 11.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> result = alignment(MotionDB.sample(), 7, 18, features=["lfoot_raised", "lknee_bent"], repeats=1)
+    >>> summary = result["summary"].iloc[0]
+    >>> int(summary["segments_a"]), round(float(summary["band_share"]), 2)  # DTW computed on a quarter of the cells
+    (7, 0.25)
+    >>> bool(summary["cost_band"] >= summary["cost_full"]), result["band"].shape  # a band never beats full DTW
+    (True, (129, 2))
     """
     X = numeric_of(db, numeric_set)
     fa, fb = np.asarray(X[db.frames(doc_a)], np.float64), np.asarray(X[db.frames(doc_b)], np.float64)
@@ -356,23 +437,37 @@ def numerical_search(db, classes=None, numeric_sets=TABLE2_SETS, k: int = 256, n
 
     Parameters
     ----------
-    db : MotionDB with labels (e.g. HDM05 cut clips at 30 Hz).
-    classes : list of str, optional (default: kickLFront1Reps, elbowToKnee1RepsLelbowStart and squat1Reps when
-        present: a kick, an arm-and-leg motion and a whole-body motion, like the paper's kick, punch and skier).
-    numeric_sets : numeric sets (default Table 2's).
-    k : int, neighbours per query frame.
-    n_matches : int, matches per search (old name ``k_matches``, with a FutureWarning).
-    factor : float >= 1, the relative cost threshold.
-    iterations : int >= 0, rounds of logical search.
+    db : MotionDB
+        With labels (e.g. HDM05 cut clips at 30 Hz).
+    classes : list of str, optional
+        Default: kickLFront1Reps, elbowToKnee1RepsLelbowStart and squat1Reps when present: a kick, an arm-and-leg
+        motion and a whole-body motion, like the paper's kick, punch and skier.
+    numeric_sets : sequence of str
+        Numeric sets (default Table 2's).
+    k : int
+        Neighbours per query frame.
+    n_matches : int
+        Matches per search (old name ``k_matches``, with a FutureWarning).
+    factor : float
+        The relative cost threshold, >= 1.
+    iterations : int
+        Rounds of logical search, >= 0.
     label_column : str
+        The documents' column holding the class.
 
     Returns
     -------
-    pd.DataFrame, one row per (class, set): ``class``, ``set``, ``query_doc``, ``relevant`` (other documents of
-    the class), ``correct``, ``wrong`` (numerical hits), ``correct_new``, ``wrong_new`` (of those, hits that
-    overlap no hit of the first set — the paper's numbers in brackets against F15E), ``recall`` (documents of
-    the class with a correct hit / relevant), ``logical_correct``, ``logical_wrong``, ``logical_recall``,
-    ``recall_gain`` (logical_recall - recall).
+    pandas.DataFrame
+        One row per (class, set): ``class``, ``set``, ``query_doc``, ``relevant`` (other documents of the class),
+        ``correct``, ``wrong`` (numerical hits), ``correct_new``, ``wrong_new`` (of those, hits that overlap no
+        hit of the first set — the paper's numbers in brackets against F15E), ``recall`` (documents of the class
+        with a correct hit / relevant), ``logical_correct``, ``logical_wrong``, ``logical_recall``,
+        ``recall_gain`` (logical_recall - recall).
+
+    References
+    ----------
+    .. [1] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §5.1, Table 2 (:func:`krueger2010_table2` holds the paper's figures).
     """
     if factor < 1:
         raise ParameterError(f"factor must be >= 1 (a threshold relative to the best match); got {factor}")
@@ -432,7 +527,21 @@ def numerical_search(db, classes=None, numeric_sets=TABLE2_SETS, k: int = 256, n
 
 
 def krueger2010_table2() -> pd.DataFrame:
-    """Table 2 of Krüger et al. 2010 (whole HDM05): correct and wrong hits, in brackets those F15E did not find."""
+    """Table 2 of Krüger et al. 2010 (whole HDM05): correct and wrong hits, in brackets those F15E did not find.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per (query, numeric set): ``query``, ``set``, ``correct``, ``wrong``, ``correct_new``,
+        ``wrong_new`` (the bracketed figures; NaN for F15E), as :func:`numerical_search` gives them.
+
+    Examples
+    --------
+    >>> print(krueger2010_table2()[["query", "set", "correct", "wrong"]].head(2).to_string(index=False))
+                        query  set  correct  wrong
+    HDM_bk_kickRSide1Reps_007 F15E        5      0
+    HDM_bk_kickRSide1Reps_007  Fp8        1      0
+    """
     data = {
         "HDM_bk_kickRSide1Reps_007": ([5, 1, 4, 5, 3, 4], [0, 0, 0, 0, 0, 0], [None, 0, 0, 0, 0, 0], [None, 0, 0, 0, 0, 0]),
         "HDM_tr_punchRSide1Reps_023": ([6, 4, 6, 8, 6, 9], [0, 0, 0, 0, 0, 2], [None, 0, 0, 2, 3, 6], [None, 0, 0, 0, 0, 2]),

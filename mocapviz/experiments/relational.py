@@ -85,15 +85,33 @@ def index_statistics(db, relational_set: str = "2005", values: np.ndarray | None
 
     Returns
     -------
-    pandas.DataFrame, one row per group, columns ``index`` (``I_l^<minutes>`` ...), ``group``, ``minutes`` (of
-    motion), ``f``, ``2^f``, ``lists`` (non-empty inverted lists), ``frames``, ``segments``, ``MB`` (index size,
-    :meth:`InvertedIndex.nbytes` / 2^20, the paper's MB: 4.33 MB / 135,742 segments = 33.4 bytes/segment),
-    ``bytes/segment``, ``t_read``, ``t_features``, ``t_index``, ``t_total`` (seconds; ``t_total`` = sum of the
-    three, NaN parts count as 0).
+    pandas.DataFrame
+        One row per group, columns ``index`` (``I_l^<minutes>`` ...), ``group``, ``minutes`` (of motion), ``f``,
+        ``2^f``, ``lists`` (non-empty inverted lists), ``frames``, ``segments``, ``MB`` (index size,
+        :meth:`InvertedIndex.nbytes` / 2^20, the paper's MB: 4.33 MB / 135,742 segments = 33.4 bytes/segment),
+        ``bytes/segment``, ``t_read``, ``t_features``, ``t_index``, ``t_total`` (seconds; ``t_total`` = sum of
+        the three, NaN parts count as 0).
 
+    Notes
+    -----
     ``t_features`` is the time of all f features of the set, computed in one pass for the three groups (the
     paper computed each group on its own), so the same value appears on every row. ``t_index`` is the group's
     segmentation plus inverted-list construction (``time.perf_counter``), without writing the file.
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. ACM TOG
+       24(3), 2005, §6.1, Table 2 (:func:`mueller2005_table2` holds the paper's figures).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> table = index_statistics(MotionDB.sample())  # the sample's 0.8 minutes at 120 Hz
+    >>> print(table[["index", "group", "f", "lists", "frames", "segments"]].to_string(index=False))
+    index group  f  lists  frames  segments
+    I_l^1 lower 11     84    5543       338
+    I_u^1 upper 12    107    5543       281
+    I_m^1   mix  8     16    5543       144
     """
     names = feature_names(relational_set)
     if values is None:
@@ -136,6 +154,17 @@ def index_statistics(db, relational_set: str = "2005", values: np.ndarray | None
 def mueller2005_table2() -> pd.DataFrame:
     """Table 2 of Müller, Röder & Clausen 2005 (Matlab, 3.6 GHz Pentium 4), in the columns of
     :func:`index_statistics`: the indexes of the 60-minute subset D^60 and the 180-minute database D^180 (120 Hz).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Six rows (I_l, I_u, I_m of each database), the columns of :func:`index_statistics`; sizes in MB,
+        times in seconds.
+
+    Examples
+    --------
+    >>> mueller2005_table2()[["index", "f", "lists"]].head(2).values.tolist()
+    [['I_l^60', 11, 409], ['I_l^180', 11, 550]]
     """
     raw = [  # index, group, minutes, f, lists, frames, segments, MB, bytes/segment, t_read, t_features, t_index, total
         ("I_l^60", "lower", 60, 11, 409, 425_294, 21_108, 0.72, 35.8, 26, 10, 6, 42),
@@ -174,6 +203,7 @@ def random_queries(index, n_queries: int, length: int, mode: str = "exact", fuzz
     Parameters
     ----------
     index : InvertedIndex
+        The index queried (one feature group's).
     n_queries, length : int
         Number of queries and segments per query (L = |Q|).
     mode : {"exact", "fuzzy"}
@@ -182,7 +212,8 @@ def random_queries(index, n_queries: int, length: int, mode: str = "exact", fuzz
         at the run that contains segment k (also when the index conjoins overlapping neighbours).
     fuzzy_size : int
         Elements per fuzzy set (the paper: 64).
-    rng : numpy Generator or seed
+    rng : numpy.random.Generator, int or None
+        The random generator, or its seed.
     alternatives : {"disjoint", "random", "dont_care"}
         How the other ``fuzzy_size - 1`` codes of a fuzzy set are drawn (fuzzy queries only; the paper does not
         say). ``disjoint`` (default): at random among the codes {0, ..., 2^f - 1} outside V_{l-1} and other than
@@ -194,7 +225,8 @@ def random_queries(index, n_queries: int, length: int, mode: str = "exact", fuzz
 
     Returns
     -------
-    list of (k, query): k the segment position the query was taken from.
+    list of (int, query)
+        Per query the segment position k it was taken from, and the query (codes or fuzzy sets).
 
     Raises
     ------
@@ -271,14 +303,17 @@ def query_statistics(index, n_queries: int = 10_000, lengths=(5, 10, 20), modes=
     Parameters
     ----------
     index : InvertedIndex
+        One group's index (the paper: the upper group, I_u^180).
     n_queries : int
         Queries per (mode, L) cell (the paper: 10,000).
     lengths : tuple of int
         Query lengths |Q| in segments.
     modes : tuple of {"exact", "fuzzy"}
+        Exact queries, and adaptive fuzzy queries.
     fuzzy_size : int
         Alternatives per fuzzy set (the paper: 64).
     seed : int
+        Seed of the random queries.
     alternatives : {"disjoint", "random", "dont_care"}
         How fuzzy sets are drawn, see :func:`random_queries` (default: random codes, adjacent sets disjoint).
     per_query : bool
@@ -288,14 +323,35 @@ def query_statistics(index, n_queries: int = 10_000, lengths=(5, 10, 20), modes=
 
     Returns
     -------
-    pandas.DataFrame, one row per (mode, L, hits group "1–9" / "10–99" / "≥100"): ``queries`` (how many fell in
-    the group), ``mean_hits`` (µh), ``std_hits`` (σh, sample standard deviation), ``mean_ms`` (µt),
-    ``median_ms`` and ``p90_ms``. Groups without queries have NaN statistics.
+    pandas.DataFrame
+        One row per (mode, L, hits group "1–9" / "10–99" / "≥100"): ``queries`` (how many fell in the group),
+        ``mean_hits`` (µh), ``std_hits`` (σh, sample standard deviation), ``mean_ms`` (µt), ``median_ms`` and
+        ``p90_ms``. Groups without queries have NaN statistics.
 
     Raises
     ------
     RuntimeError
         A query found no hit (each one is built from the database, so this is a bug in the index).
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. ACM TOG
+       24(3), 2005, §6.2, Table 3 (:func:`mueller2005_table3` holds the paper's figures).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.relational.index import build
+    >>> upper = build(MotionDB.sample(), save=False, progress=False)["upper"]
+    >>> table = query_statistics(upper, n_queries=50, lengths=(3,), fuzzy_size=8)
+    >>> print(table[["mode", "L", "hits", "queries"]].to_string(index=False))  # a small database: few hits each
+     mode  L  hits  queries
+    exact  3   1–9       50
+    exact  3 10–99        0
+    exact  3  ≥100        0
+    fuzzy  3   1–9       50
+    fuzzy  3 10–99        0
+    fuzzy  3  ≥100        0
     """
     rng = np.random.default_rng(seed)
     rows = []
@@ -336,6 +392,11 @@ def mueller2005_table3() -> pd.DataFrame:
     """Table 3 of Müller, Röder & Clausen 2005: 10,000 random queries per row on I_u^180 (Matlab, Pentium 4),
     in the columns of :func:`query_statistics` (``mean_ms`` = the paper's µt; it gives no query counts, medians
     or p90, which are NaN). Fuzzy rows are adaptive fuzzy queries with 64 alternatives per set.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per (mode, L, hits group), the columns of :func:`query_statistics`; times in milliseconds.
     """
     raw = {  # (mode, L): ((µh, σh, µt) for 1-9, 10-99, >=100 hits)
         ("exact", 5): ((3.0, 2.4, 16), (44, 28, 20), (649, 567, 144)),
@@ -372,6 +433,7 @@ def relational_query(db, queries: dict | None = None, relational_set: str = "200
         {class: (doc_id or None, [feature names])}; doc_id None = the class's first document. Default: every
         class of :data:`DEFAULT_QUERIES` that ``db`` holds, each queried with its first document (lowest doc_id).
     relational_set : {"2005", "2006"}
+        The relational set of the features and indexes.
     indexes : dict, optional
         Group -> InvertedIndex, if already loaded.
     label_column : str
@@ -379,20 +441,37 @@ def relational_query(db, queries: dict | None = None, relational_set: str = "200
 
     Returns
     -------
-    pandas.DataFrame, one row per class: ``class``, ``query_doc``, ``query_name``, ``features`` (comma
-    separated), ``query_frames``, ``n_segments`` (query segments, summed over the groups touched), ``hits``,
-    ``self_retrieved`` (a hit lies in the query document), then the retrieval quality by
-    :mod:`mocapviz.experiments.evaluation` (documents ranked by their best hit's score, the query document left out of the
-    ranking and of the relevant set): ``hit_docs`` (other documents with a hit), ``relevant`` (other documents
-    of the class), ``relevant_retrieved``, ``precision`` (relevant_retrieved / hit_docs, NaN without hits),
-    ``recall`` (relevant_retrieved / relevant), ``r_precision`` (precision at rank ``relevant``), ``ap``
-    (average precision; unfound relevant documents add 0), and ``ms`` (query time: the query clip's features
-    included; index loading and the first call's compilation of the feature kernels excluded).
+    pandas.DataFrame
+        One row per class: ``class``, ``query_doc``, ``query_name``, ``features`` (comma separated),
+        ``query_frames``, ``n_segments`` (query segments, summed over the groups touched), ``hits``,
+        ``self_retrieved`` (a hit lies in the query document), then the retrieval quality by
+        :mod:`mocapviz.experiments.evaluation` (documents ranked by their best hit's score, the query document left
+        out of the ranking and of the relevant set): ``hit_docs`` (other documents with a hit), ``relevant``
+        (other documents of the class), ``relevant_retrieved``, ``precision`` (relevant_retrieved / hit_docs, NaN
+        without hits), ``recall`` (relevant_retrieved / relevant), ``r_precision`` (precision at rank
+        ``relevant``), ``ap`` (average precision; unfound relevant documents add 0), and ``ms`` (query time: the
+        query clip's features included; index loading and the first call's compilation of the feature kernels
+        excluded).
 
     Raises
     ------
     ValueError
         A class the database does not hold, or a query document of another class.
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. ACM TOG
+       24(3), 2005, §6.2, Figs. 7-9 (query by example with a few selected features).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.relational.index import build
+    >>> db = MotionDB.sample()
+    >>> table = relational_query(db, indexes=build(db, save=False, progress=False))  # one query per class
+    >>> rows = table.set_index("class").loc[["kickLFront1Reps", "squat1Reps"]]
+    >>> rows[["query_doc", "hits", "relevant"]].values.tolist()
+    [[7, 2, 1], [11, 2, 1]]
     """
     from ..relational.query import query_by_example
 

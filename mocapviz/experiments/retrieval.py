@@ -227,8 +227,21 @@ class _Runner:
 
 
 def relational_indexes(db, relational_set: str = "2005") -> dict:
-    """The relational indexes of ``db`` (group -> InvertedIndex): the stored ones when current, else built in memory
-    (nothing is written into the database, so a read-only database can be evaluated)."""
+    """The relational indexes of ``db``: the stored ones when current, else built in memory (nothing is written
+    into the database, so a read-only database can be evaluated).
+
+    Parameters
+    ----------
+    db : MotionDB
+        The database.
+    relational_set : {"2005", "2006"}
+        The relational set.
+
+    Returns
+    -------
+    dict
+        Group -> InvertedIndex.
+    """
     from ..relational.index import load_or_build
 
     return load_or_build(db, relational_set, save=False)
@@ -289,24 +302,34 @@ def retrieval_quality(db, methods=None, label_column: str = "label", group_colum
 
     Returns
     -------
-    dict of DataFrames:
+    dict
+        Name -> pandas.DataFrame:
 
-    - ``summary``: one row per method: ``method``, ``queries`` (queries the method ran on), ``map_loo``
-      (mean AP leave-one-out over the queries with another relevant document), ``map_lgo`` (mean AP
-      leave-group-out, queries with a relevant document in other groups), ``p_at_1``, ``p_at_10`` (LOO),
-      ``recall_dtw_top10`` (mean share of brute-force DTW's 10 best documents among the method's first 10, LOO),
-      ``ms_per_query`` (mean) and ``median_ms`` (K = 10, LOO), ``note``. ``attrs``: label_column,
-      group_column, numeric_set, queries, notes.
-    - ``per_class``: per (method, class): ``queries``, ``ap_loo`` (mean), ``n_loo`` (queries with a defined AP),
-      ``ap_lgo``, ``n_lgo``, ``p_at_1``. The summary's ``map_loo`` is the ``n_loo``-weighted mean of ``ap_loo``.
-    - ``curves``: per (method, protocol "loo" / "lgo", recall level of :data:`RECALL_LEVELS`): ``precision``,
-      the mean interpolated precision over the queries with a relevant document, and ``queries``.
-    - ``per_query``: one row per (method, query): :data:`PER_QUERY_COLUMNS`.
+        - ``summary``: one row per method: ``method``, ``queries`` (queries the method ran on), ``map_loo``
+          (mean AP leave-one-out over the queries with another relevant document), ``map_lgo`` (mean AP
+          leave-group-out, queries with a relevant document in other groups), ``p_at_1``, ``p_at_10`` (LOO),
+          ``recall_dtw_top10`` (mean share of brute-force DTW's 10 best documents among the method's first 10,
+          LOO), ``ms_per_query`` (mean) and ``median_ms`` (K = 10, LOO), ``note``. ``attrs``: label_column,
+          group_column, numeric_set, queries, notes.
+        - ``per_class``: per (method, class): ``queries``, ``ap_loo`` (mean), ``n_loo`` (queries with a defined
+          AP), ``ap_lgo``, ``n_lgo``, ``p_at_1``. The summary's ``map_loo`` is the ``n_loo``-weighted mean of
+          ``ap_loo``.
+        - ``curves``: per (method, protocol "loo" / "lgo", recall level of :data:`RECALL_LEVELS`): ``precision``,
+          the mean interpolated precision over the queries with a relevant document, and ``queries``.
+        - ``per_query``: one row per (method, query): :data:`PER_QUERY_COLUMNS`.
 
     Raises
     ------
     ParameterError
         An unknown method, a missing label or group column, no labelled document.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> result = retrieval_quality(MotionDB.sample(), methods=["exact"], queries=[7, 11], timing=False,
+    ...                            progress=False)
+    >>> result["summary"][["method", "queries"]].values.tolist()
+    [['exact', 2]]
     """
     methods = _check_methods(methods)
     docs = db.documents

@@ -38,27 +38,41 @@ def template_quality(db, relational_set: str = "2006", group: str = "actor", del
 
     Parameters
     ----------
-    db : MotionDB with ``label`` and ``group`` columns (HDM05: ``actor``).
-    relational_set : {"2005", "2006"}, the features the templates are learned on.
-    group : str, the column whose values are left out in turn.
-    delta : float, the quantisation threshold of the templates.
-    max_cost : float in [0, 1], optional: the normalised cost up to which a clip's best match counts as a hit
-        (precision and recall); default each template's own ``meta["threshold"]``, the worst cost of its examples.
-    progress : bool, a progress bar over the templates.
+    db : MotionDB
+        With ``label`` and ``group`` columns (HDM05: ``actor``).
+    relational_set : {"2005", "2006"}
+        The features the templates are learned on.
+    group : str
+        The column whose values are left out in turn.
+    delta : float
+        The quantisation threshold of the templates.
+    max_cost : float, optional
+        The normalised cost in [0, 1] up to which a clip's best match counts as a hit (precision and recall);
+        default each template's own ``meta["threshold"]``, the worst cost of its examples.
+    progress : bool
+        A progress bar over the templates.
 
     Returns
     -------
-    dict of DataFrames:
+    dict
+        Name -> pandas.DataFrame:
 
-    - ``per_template``: one row per (class, held-out group): ``class``, ``group``, ``examples`` (training clips),
-      ``frames`` (template length), ``cared`` (share of entries that are not don't care), ``ap_group``,
-      ``ap_all`` (average precision searching the group's clips / all clips), ``r_precision_group``,
-      ``precision_group``, ``recall_group`` (of the group's clips with a match of cost <= the threshold; precision
-      NaN when there is none), ``learn_s``, ``search_ms`` (searching the group's clips).
-    - ``per_class``: per class, the mean of those over the held-out groups.
-    - ``summary``: one row: ``templates``, ``map_group``, ``map_all``, ``min_class_ap_group``, ``precision_group``,
-      ``recall_group`` (means over the templates), ``classification_accuracy``, ``clips_classified``.
-    - ``classification``: one row per held-out clip: ``doc_id``, ``class``, ``predicted``, ``correct``.
+        - ``per_template``: one row per (class, held-out group): ``class``, ``group``, ``examples`` (training
+          clips), ``frames`` (template length), ``cared`` (share of entries that are not don't care),
+          ``ap_group``, ``ap_all`` (average precision searching the group's clips / all clips),
+          ``r_precision_group``, ``precision_group``, ``recall_group`` (of the group's clips with a match of cost
+          <= the threshold; precision NaN when there is none), ``learn_s``, ``search_ms`` (searching the group's
+          clips).
+        - ``per_class``: per class, the mean of those over the held-out groups.
+        - ``summary``: one row: ``templates``, ``map_group``, ``map_all``, ``min_class_ap_group``,
+          ``precision_group``, ``recall_group`` (means over the templates), ``classification_accuracy``,
+          ``clips_classified``.
+        - ``classification``: one row per held-out clip: ``doc_id``, ``class``, ``predicted``, ``correct``.
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder. Motion templates for automatic classification and retrieval of motion capture
+       data. SCA 2006, §5-6 (retrieval and classification with class templates).
     """
     if max_cost is not None:
         max_cost = number(max_cost, "max_cost", 0.0, 1.0)

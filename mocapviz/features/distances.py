@@ -256,7 +256,8 @@ def deuler(query: np.ndarray, frames: np.ndarray) -> np.ndarray:
 
     Returns
     -------
-    np.ndarray [shape=(m,)], float64, degrees.
+    np.ndarray [shape=(m,)], float64
+        Distances of ``query`` to each frame, degrees.
 
     Raises
     ------
@@ -273,9 +274,26 @@ def deuler(query: np.ndarray, frames: np.ndarray) -> np.ndarray:
 
 
 def deuler_pairwise(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Deuler between every frame of ``a`` [shape=(n, C)] and of ``b`` [shape=(m, C)] -> [shape=(n, m)], degrees.
+    """Deuler between every frame of ``a`` and of ``b``.
 
     Row i equals ``deuler(a[i], b)``; see :func:`deuler`.
+
+    Parameters
+    ----------
+    a : np.ndarray [shape=(n, C)]
+        Rotation channels in degrees.
+    b : np.ndarray [shape=(m, C)]
+        Rotation channels of the same skeleton, degrees.
+
+    Returns
+    -------
+    np.ndarray [shape=(n, m)], float64
+        Degrees.
+
+    Examples
+    --------
+    >>> deuler_pairwise(np.array([[179.0, 10.0], [0.0, 0.0]]), np.array([[-179.0, 10.0]])).round(2).tolist()
+    [[2.0], [179.28]]
     """
     a, b = _euler_inputs(a, b, 2)
     return _pairwise(_euler_kernel, a, b)
@@ -308,7 +326,8 @@ def dquat(query: np.ndarray, frames: np.ndarray, weights=None) -> np.ndarray:
 
     Returns
     -------
-    np.ndarray [shape=(m,)], float64, radians (weighted).
+    np.ndarray [shape=(m,)], float64
+        Distances of ``query`` to each frame, radians (weighted).
 
     Raises
     ------
@@ -320,9 +339,23 @@ def dquat(query: np.ndarray, frames: np.ndarray, weights=None) -> np.ndarray:
 
 
 def dquat_pairwise(a: np.ndarray, b: np.ndarray, weights=None) -> np.ndarray:
-    """Dquat between every frame of ``a`` [shape=(n, J, 4)] and of ``b`` [shape=(m, J, 4)] -> [shape=(n, m)].
+    """Dquat between every frame of ``a`` and of ``b``.
 
     Row i equals ``dquat(a[i], b, weights)``; see :func:`dquat`.
+
+    Parameters
+    ----------
+    a : np.ndarray [shape=(n, J, 4)]
+        Unit local quaternions (w, x, y, z).
+    b : np.ndarray [shape=(m, J, 4)]
+        Unit local quaternions of the same joints.
+    weights : None, "lee", "wb" or np.ndarray [shape=(J,)]
+        Joint weights (:func:`joint_weights`; None: all 1).
+
+    Returns
+    -------
+    np.ndarray [shape=(n, m)], float64
+        Weighted sums of rotation angles, radians.
     """
     a, b, w = _quat_inputs(a, b, 3, weights)
     return _pairwise(_quat_kernel, a, b, w)
@@ -352,7 +385,8 @@ def window_clouds(positions: np.ndarray, n: int, frames=None, lengths=None) -> n
 
     Returns
     -------
-    np.ndarray [shape=(F, n * J, 3)], float64 (as :func:`dpc` computes), cm.
+    np.ndarray [shape=(F, n * J, 3)], float64
+        One point cloud per frame (as :func:`dpc` computes), cm.
 
     Raises
     ------
@@ -499,7 +533,8 @@ def dpc(query: np.ndarray, clouds: np.ndarray, weights=None) -> np.ndarray:
 
     Returns
     -------
-    np.ndarray [shape=(m,)], float64, cm^2.
+    np.ndarray [shape=(m,)], float64
+        Distances of ``query`` to each cloud, cm^2.
 
     Raises
     ------
@@ -511,9 +546,23 @@ def dpc(query: np.ndarray, clouds: np.ndarray, weights=None) -> np.ndarray:
 
 
 def dpc_pairwise(a: np.ndarray, b: np.ndarray, weights=None) -> np.ndarray:
-    """Dpc_n between every cloud of ``a`` [shape=(n, K, 3)] and of ``b`` [shape=(m, K, 3)] -> [shape=(n, m)], cm^2.
+    """Dpc_n between every cloud of ``a`` and of ``b``.
 
     Row i equals ``dpc(a[i], b, weights)``; see :func:`dpc`.
+
+    Parameters
+    ----------
+    a : np.ndarray [shape=(n, K, 3)]
+        Point clouds of n-frame windows (:func:`window_clouds`), cm.
+    b : np.ndarray [shape=(m, K, 3)]
+        Point clouds of the same size, cm.
+    weights : np.ndarray [shape=(K,)], optional
+        Point weights (default all 1).
+
+    Returns
+    -------
+    np.ndarray [shape=(n, m)], float64
+        cm^2.
     """
     a, b, w = _cloud_inputs(a, b, 3, weights)
     moments = _cloud_moments(b, w)
@@ -619,7 +668,8 @@ def dwb(query: np.ndarray, frames: np.ndarray, weights="wb", nu: float = NU) -> 
 
     Returns
     -------
-    np.ndarray [shape=(m,)], float64, rad^2 (weighted).
+    np.ndarray [shape=(m,)], float64
+        Distances of ``query`` to each frame, rad^2 (weighted).
 
     Raises
     ------
@@ -631,9 +681,25 @@ def dwb(query: np.ndarray, frames: np.ndarray, weights="wb", nu: float = NU) -> 
 
 
 def dwb_pairwise(a: np.ndarray, b: np.ndarray, weights="wb", nu: float = NU) -> np.ndarray:
-    """Dwb between every frame of ``a`` [shape=(n, J, 7)] and of ``b`` [shape=(m, J, 7)] -> [shape=(n, m)].
+    """Dwb between every frame of ``a`` and of ``b``.
 
     Row i equals ``dwb(a[i], b, weights, nu)``; see :func:`dwb`.
+
+    Parameters
+    ----------
+    a : np.ndarray [shape=(n, J, 7)]
+        Local quaternions with angular velocities (:func:`lee_frames`).
+    b : np.ndarray [shape=(m, J, 7)]
+        The same descriptors of other frames.
+    weights : "wb", "lee", None or np.ndarray [shape=(J,)]
+        Joint weights (:func:`joint_weights`; default Wang & Bodenheimer's).
+    nu : float
+        Weight of the velocity term (:func:`dwb`).
+
+    Returns
+    -------
+    np.ndarray [shape=(n, m)], float64
+        rad^2 (weighted), as :func:`dwb`.
     """
     a, b, w = _lee_inputs(a, b, 3, weights, nu)
     return _pairwise(_lee_kernel, a, b, w, float(nu))

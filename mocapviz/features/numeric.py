@@ -214,15 +214,23 @@ def _joint_features(positions: np.ndarray, bounds: np.ndarray, fps: np.ndarray, 
 class PCAModel:
     """Principal components of body-frame poses (§3.1 Fp_n^pca), fitted once on a reference set.
 
-    Attributes
+    Made by :func:`fit_pca` or :meth:`load`; the parameters are its attributes.
+
+    Parameters
     ----------
-    mean : np.ndarray [shape=(72,)], float64, cm -- mean body-frame pose (joint-major x y z, canonical order)
-    components : np.ndarray [shape=(n, 72)], float64 -- orthonormal principal axes, by decreasing variance; the
-        sign of each makes its largest-magnitude entry positive
-    explained_variance : np.ndarray [shape=(n,)], float64, cm^2 -- the variance along each axis, decreasing
-    total_variance : float, cm^2 -- the variance of all 72 dimensions (for ratios)
-    n_frames : int -- frames the model was fitted on
-    reference : str -- what it was fitted on
+    mean : np.ndarray [shape=(72,)], float64
+        Mean body-frame pose (joint-major x y z, canonical order), cm.
+    components : np.ndarray [shape=(n, 72)], float64
+        Orthonormal principal axes, by decreasing variance; the sign of each makes its largest-magnitude entry
+        positive.
+    explained_variance : np.ndarray [shape=(n,)], float64
+        The variance along each axis, decreasing, cm^2.
+    total_variance : float
+        The variance of all 72 dimensions (for ratios), cm^2.
+    n_frames : int
+        Frames the model was fitted on.
+    reference : str
+        What it was fitted on.
     """
 
     mean: np.ndarray
@@ -389,6 +397,11 @@ def fit_pca(
     PCAModel
         ``mean`` [shape=(72,)] and ``components`` [shape=(n_components, 72)] in cm, ``explained_variance`` in cm².
 
+    Raises
+    ------
+    ValueError
+        ``n_components`` out of range, fewer than 2 frames, or a NaN / infinite position (names the frame).
+
     Examples
     --------
     >>> from mocapviz import MotionDB
@@ -397,11 +410,6 @@ def fit_pca(
     ((8, 72), 5543)
     >>> bool(pca.explained_variance_ratio.sum() < 1)
     True
-
-    Raises
-    ------
-    ValueError
-        ``n_components`` out of range, fewer than 2 frames, or a NaN / infinite position (names the frame).
     """
     if not 1 <= n_components <= _POSE_DIMS:
         raise ParameterError(f"n_components must be in 1..{_POSE_DIMS}, got {n_components}")
@@ -539,7 +547,8 @@ def numeric_features(
 
     Returns
     -------
-    np.ndarray [shape=(T, d)], float32, cm (Fp: cm along unit principal axes).
+    np.ndarray [shape=(T, d)], float32
+        One row per frame, cm (Fp: cm along unit principal axes); columns :func:`numeric_columns`.
 
     Raises
     ------

@@ -22,14 +22,18 @@ MAX_FEATURES = 62  # codes are int64
 
 
 class FeatureSequence(NamedTuple):
-    """The feature sequence F[D] of a segmentation.
+    """The feature sequence F[D] of a segmentation (a named tuple: the fields are its attributes).
 
-    Attributes
+    Parameters
     ----------
-    codes : np.ndarray [shape=(M,)], int64 -- feature vector of each segment (feature 1 = bit 0).
-    starts : np.ndarray [shape=(M,)], int64 -- first frame of each segment.
-    lengths : np.ndarray [shape=(M,)], int64 -- frames in each segment.
-    n_features : int -- f.
+    codes : np.ndarray [shape=(M,)], int64
+        Feature vector of each segment (feature 1 = bit 0).
+    starts : np.ndarray [shape=(M,)], int64
+        First frame of each segment.
+    lengths : np.ndarray [shape=(M,)], int64
+        Frames in each segment.
+    n_features : int
+        f.
     """
 
     codes: np.ndarray
@@ -38,7 +42,13 @@ class FeatureSequence(NamedTuple):
     n_features: int
 
     def vectors(self) -> np.ndarray:
-        """The feature vectors, shape (M, f) bool."""
+        """The feature vectors.
+
+        Returns
+        -------
+        np.ndarray [shape=(M, f)], bool
+            One row per segment.
+        """
         return decode(self.codes, self.n_features)
 
 
@@ -59,10 +69,17 @@ def encode(values: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     values : np.ndarray [shape=(T, f)], bool
+        Feature values, f <= 62.
 
     Returns
     -------
-    np.ndarray [shape=(T,)], int64: sum of ``values[:, k] << k``.
+    np.ndarray [shape=(T,)], int64
+        The sum of ``values[:, k] << k``.
+
+    Examples
+    --------
+    >>> encode(np.array([[1, 0], [0, 1], [1, 1]], bool)).tolist()
+    [1, 2, 3]
     """
     return _encode_kernel(_check(values))
 
@@ -81,7 +98,24 @@ def _encode_kernel(values):  # pragma: no cover - compiled
 
 
 def decode(codes: np.ndarray, n_features: int) -> np.ndarray:
-    """Integer codes back to feature vectors, shape (M, n_features) bool."""
+    """Integer codes back to feature vectors (the inverse of :func:`encode`).
+
+    Parameters
+    ----------
+    codes : np.ndarray [shape=(M,)], int
+        Codes, feature 1 = bit 0.
+    n_features : int
+        f.
+
+    Returns
+    -------
+    np.ndarray [shape=(M, f)], bool
+
+    Examples
+    --------
+    >>> decode(np.array([1, 2, 3]), 2).astype(int).tolist()
+    [[1, 0], [0, 1], [1, 1]]
+    """
     codes = np.asarray(codes, dtype=np.int64)
     return ((codes[:, None] >> np.arange(n_features, dtype=np.int64)) & 1).astype(bool)
 
@@ -99,6 +133,12 @@ def segment(values: np.ndarray, doc_starts=None) -> FeatureSequence:
     Returns
     -------
     FeatureSequence
+        The segments' codes, start frames and lengths.
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. ACM TOG
+       24(3), 2005, §4 (adaptive segmentation: F-segments, the feature sequence F[D]).
 
     Examples
     --------

@@ -3,6 +3,9 @@
 load          path -> Motion (ASF/AMC, BVH), dispatching on the file extension.
 find_asf      the ASF skeleton of an AMC file, by the CMU and HDM05 folder conventions.
 read_asf, read_amc, read_bvh   the format readers (``asfamc``, ``bvh`` modules).
+
+The readers (and numba, which they compile with) are imported when first used: opening a MotionDB, which imports
+this package through ingest, reads no motion file.
 """
 from __future__ import annotations
 
@@ -10,10 +13,18 @@ import functools
 import os
 from pathlib import Path
 
+from .._lazy import lazy_exports
 from ..errors import MocapFormatError
 from ..motion import Motion
-from .asfamc import AsfSkeleton, read_amc, read_asf
-from .bvh import read_bvh
+
+_getattr, _readers = lazy_exports(__name__, {"AsfSkeleton": ".asfamc", "read_amc": ".asfamc", "read_asf": ".asfamc",
+                                             "read_bvh": ".bvh"})  # fmt: skip
+__getattr__ = _getattr
+
+
+def __dir__():
+    return sorted({*globals(), *_readers()})
+
 
 FORMATS = (".amc", ".bvh")
 
@@ -126,6 +137,8 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
     if not os.path.isfile(path):
         raise MocapFormatError(path, "no such file")
     if ext == ".amc":
+        from .asfamc import read_amc, read_asf
+
         asf = asf if asf is not None else find_asf(path)
         try:
             skeleton = read_asf(asf)
@@ -133,6 +146,8 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
             raise MocapFormatError(exc.path, f"{exc.reason} (the skeleton of {os.path.basename(path)})", exc.line) from None
         return read_amc(path, skeleton, fps=120.0 if fps is None else fps)
     if ext == ".bvh":
+        from .bvh import read_bvh
+
         return read_bvh(path, up=up, scale=scale)
     raise MocapFormatError(path, f"unsupported file type {ext or '(none)'!r}; supported: {', '.join(FORMATS)}")
 

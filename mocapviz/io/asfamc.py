@@ -50,21 +50,36 @@ _UNIT_RANGE = (1e-3, 1e3)  # ``:units length`` u: one file unit is 1/u inch
 class AsfSkeleton:
     """An ASF skeleton: the root plus B bones, in an order where parents come first.
 
-    Attributes
+    Read with :func:`read_asf`; the fields are its attributes.
+
+    Parameters
     ----------
     path : str
+        The ASF file.
     bone_names : tuple of str [length B]
-    parents : np.ndarray [shape=(B,)] -- index of the parent bone, -1 for the root.
-    offsets : np.ndarray [shape=(B, 3)] -- length * direction, centimetres.
-    axis_quaternions : np.ndarray [shape=(B, 4)] -- the bones' C.
-    axis_orders : tuple of str [length B] -- rotation order of each bone (``"XYZ"``...).
-    dofs : tuple of tuple of str -- each bone's rotational DOFs in AMC column order.
-    root_order : tuple of str -- the root's AMC channels, e.g. ``("TX", "TY", "TZ", "RX", "RY", "RZ")``.
+        The bones, parents first.
+    parents : np.ndarray [shape=(B,)]
+        Index of the parent bone, -1 for the root.
+    offsets : np.ndarray [shape=(B, 3)]
+        length * direction, cm.
+    axis_quaternions : np.ndarray [shape=(B, 4)]
+        The bones' C, (w, x, y, z).
+    axis_orders : tuple of str [length B]
+        Rotation order of each bone (``"XYZ"``...).
+    dofs : tuple of tuple of str
+        Each bone's rotational DOFs in AMC column order.
+    root_order : tuple of str
+        The root's AMC channels, e.g. ``("TX", "TY", "TZ", "RX", "RY", "RZ")``.
     root_axis : str
-    root_position : np.ndarray [shape=(3,)], cm
-    root_quaternion : np.ndarray [shape=(4,)] -- the root's C (from ``orientation``).
+        The root's rotation order.
+    root_position : np.ndarray [shape=(3,)]
+        Added to the root translation, cm.
+    root_quaternion : np.ndarray [shape=(4,)]
+        The root's C (from ``orientation``).
     cm_per_unit : float
+        Centimetres per length unit of the file (2.54 / ``:units length``).
     degrees : bool
+        Angles in degrees (else radians).
     """
 
     path: str

@@ -32,7 +32,29 @@ _BLOCK = 1 << 18  # joint-frames per forward-kinematics block: about 40 MB of te
 
 
 def check_frame_rate(fps: float, path, line: int | None, what: str) -> float:
-    """``fps`` when it is inside :data:`FPS_RANGE`, else a MocapFormatError naming ``what`` (``"Frame Time 1e+308 s"``)."""
+    """``fps`` when it is inside :data:`FPS_RANGE`, else a MocapFormatError naming ``what`` (``"Frame Time 1e+308 s"``).
+
+    Parameters
+    ----------
+    fps : float
+        Frames per second, as the file states it.
+    path : str or os.PathLike
+        The file, for the message.
+    line : int or None
+        Its line, for the message.
+    what : str
+        How the file states the rate (``"Frame Time 1e+308 s"``).
+
+    Returns
+    -------
+    float
+        ``fps``, unchanged.
+
+    Raises
+    ------
+    MocapFormatError
+        A rate outside 1 to 10,000 fps, or not finite.
+    """
     problem = fps_problem(fps)
     if problem:
         raise MocapFormatError(path, f"{what}: {problem}", line)
@@ -45,7 +67,19 @@ def first_outside(values: np.ndarray, limit) -> tuple | None:
     Parameters
     ----------
     values : np.ndarray [shape=(N, C)]
-    limit : float or np.ndarray [shape=(C,)] -- per column.
+        A block of a file's values.
+    limit : float or np.ndarray [shape=(C,)]
+        The largest magnitude allowed, one for all or per column.
+
+    Returns
+    -------
+    tuple of int or None
+        (row, column) of the first offending value; None when every value is within the limit.
+
+    Examples
+    --------
+    >>> first_outside(np.array([[1.0, 2.0], [np.nan, 5.0]]), 10.0), first_outside(np.ones((2, 2)), 10.0)
+    ((1, 0), None)
     """
     bad = ~(np.abs(values) <= limit)  # NaN compares false
     if not bad.any():
@@ -54,7 +88,23 @@ def first_outside(values: np.ndarray, limit) -> tuple | None:
 
 
 def describe(value: float) -> str:
-    """A value for an error message: ``1e+39``, ``-inf``, ``12.5``."""
+    """A value for an error message: ``1e+39``, ``-inf``, ``12.5``.
+
+    Parameters
+    ----------
+    value : float
+        The offending value.
+
+    Returns
+    -------
+    str
+        At most 6 significant digits.
+
+    Examples
+    --------
+    >>> describe(1e39), describe(-np.inf), describe(12.5)
+    ('1e+39', '-inf', '12.5')
+    """
     return f"{value:.6g}"
 
 
@@ -78,22 +128,33 @@ def checked_forward_kinematics(
     Parameters
     ----------
     n_frames : int
-    parents, orders : see :func:`mocapviz.motion.rotations.forward_kinematics` (J joints).
-    block : ``block(a, b) -> (euler, translations)``
-        Euler angles [shape=(b-a, J, 3)] and local translations [shape=(b-a, J, 3)] (file units) of frames a to b-1
-        (it may also keep what else the reader returns of those frames, such as the file's channel values).
-    names : sequence of str [length J] -- joint names, for error messages.
-    path : str -- the file, for error messages.
-    frame_line : ``frame_line(frame) -> int or None`` -- the file line of a frame (0-based), for error messages.
-    scale : float or ``scale(positions) -> float``
-        Centimetres per file unit, or a function of the first frame's positions [shape=(J, 3)] (file units).
-    **fk_options : ``own_frame``, ``pre``, ``post``, ``degrees`` of :func:`~mocapviz.motion.rotations.forward_kinematics`.
+        Frames of the clip (T).
+    parents, orders
+        The joint tree and rotation orders, see :func:`mocapviz.motion.rotations.forward_kinematics` (J joints).
+    block : callable
+        ``block(a, b) -> (euler, translations)``: Euler angles [shape=(b-a, J, 3)] and local translations
+        [shape=(b-a, J, 3)] (file units) of frames a to b-1 (it may also keep what else the reader returns of
+        those frames, such as the file's channel values).
+    names : sequence of str [length J]
+        Joint names, for error messages.
+    path : str
+        The file, for error messages.
+    frame_line : callable
+        ``frame_line(frame) -> int or None``: the file line of a frame (0-based), for error messages.
+    scale : float or callable
+        Centimetres per file unit, or ``scale(positions) -> float`` of the first frame's positions [shape=(J, 3)]
+        (file units).
+    **fk_options
+        ``own_frame``, ``pre``, ``post``, ``degrees`` of :func:`~mocapviz.motion.rotations.forward_kinematics`.
 
     Returns
     -------
-    positions : np.ndarray [shape=(T, J, 3)], float32, cm
-    quaternions : np.ndarray [shape=(T, J, 4)], float32 -- local rotations (w, x, y, z).
-    scale : float -- the centimetres per file unit used.
+    positions : np.ndarray [shape=(T, J, 3)], float32
+        Global joint positions, cm.
+    quaternions : np.ndarray [shape=(T, J, 4)], float32
+        Local rotations (w, x, y, z).
+    scale : float
+        The centimetres per file unit used.
 
     Raises
     ------

@@ -48,9 +48,9 @@ class DatasetError(MocapvizError, RuntimeError):
 
 @dataclass(frozen=True)
 class Archive:
-    """One registered archive.
+    """One registered archive (an entry of ``ARCHIVES``); the fields are its attributes.
 
-    Attributes
+    Parameters
     ----------
     name : str
         Registry name; the file is ``<name>.tar.xz`` and unpacks to a top folder ``<name>/``.
@@ -176,7 +176,18 @@ INFO_COLUMNS = ["name", "description", "files", "frames", "fps", "size", "embedd
 
 
 def names() -> list[str]:
-    """Names of the shared archives (``ARCHIVES``), in registry order; the embedded sample is :data:`SAMPLE`."""
+    """Names of the shared archives (``ARCHIVES``), in registry order; the embedded sample is :data:`SAMPLE`.
+
+    Returns
+    -------
+    list of str
+        Names for :func:`fetch`.
+
+    Examples
+    --------
+    >>> names()
+    ['hdm05-cut', 'cmu-asfamc', 'bandai-namco-1', 'bandai-namco-2']
+    """
     return list(ARCHIVES)
 
 
@@ -273,6 +284,14 @@ def sample() -> Path:
     pathlib.Path
         ``<cache>/sample-<12 hex digits of the archive's sha256>/sample``, holding ``hdm05-cut/``,
         ``cmu-asfamc/``, ``LICENSE.md`` and ``README.md``.
+
+    Examples
+    --------
+    >>> folder = sample()
+    >>> sorted(p.name for p in folder.iterdir())
+    ['LICENSE.md', 'README.md', 'cmu-asfamc', 'hdm05-cut']
+    >>> len(list((folder / "hdm05-cut" / "amc").glob("*.amc")))
+    22
     """
     with resources.as_file(_sample_archive()) as archive:
         digest = hashlib.sha256(archive.read_bytes()).hexdigest()
@@ -335,7 +354,13 @@ def _not_found_message() -> str:
 
 
 def cache_dir() -> Path:
-    """The cache folder: ``MOCAPVIZ_HOME`` or the user cache of the operating system."""
+    """The cache folder: ``MOCAPVIZ_HOME`` or the user cache of the operating system.
+
+    Returns
+    -------
+    pathlib.Path
+        Absolute; archive ``NAME`` unpacks into ``<cache>/NAME/``.
+    """
     return Path(os.environ.get(HOME_ENV) or pooch.os_cache("mocapviz")).expanduser().resolve()
 
 

@@ -40,6 +40,16 @@ _BOMS = {b"\xff\xfe\x00\x00": "UTF-32", b"\x00\x00\xfe\xff": "UTF-32", b"\xff\xf
 def read_bytes(path) -> bytes:
     """The bytes of a motion file, without a leading UTF-8 byte-order mark.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+
+    Returns
+    -------
+    bytes
+        Its content.
+
     Raises
     ------
     MocapFormatError
@@ -65,7 +75,22 @@ def read_bytes(path) -> bytes:
 
 
 def decode(raw: bytes) -> str:
-    """``raw`` decoded as UTF-8, or as Latin-1 where it is not valid UTF-8 (every byte is a Latin-1 character)."""
+    """``raw`` decoded as UTF-8, or as Latin-1 where it is not valid UTF-8 (every byte is a Latin-1 character).
+
+    Parameters
+    ----------
+    raw : bytes
+        A file's bytes (:func:`read_bytes`).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> decode("café".encode("utf-8")), decode(b"caf\\xe9")  # UTF-8, else Latin-1
+    ('café', 'café')
+    """
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError:
@@ -74,18 +99,59 @@ def decode(raw: bytes) -> str:
 
 def words(line: str) -> list[str]:
     """``line`` split at runs of ASCII white space (not at the other characters ``str.split()`` takes, such as
-    U+00A0, so that a header is split as the numeric scanner splits the body)."""
+    U+00A0, so that a header is split as the numeric scanner splits the body).
+
+    Parameters
+    ----------
+    line : str
+        One line of a file.
+
+    Returns
+    -------
+    list of str
+        Its words.
+
+    Examples
+    --------
+    >>> words("ROOT\\tHips \\x0b x"), words("a\\u00a0b")
+    (['ROOT', 'Hips', 'x'], ['a\\xa0b'])
+    """
     return _WORD.findall(line)
 
 
 def number(token: str) -> float | None:
     """``token`` as a float when it is a decimal number as the scanner reads them (``12``, ``-.5``, ``1e-3``),
-    else None: no ``nan``, ``inf``, ``1_000``, hexadecimal or non-ASCII digits. May be infinite (``1e999``)."""
+    else None: no ``nan``, ``inf``, ``1_000``, hexadecimal or non-ASCII digits. May be infinite (``1e999``).
+
+    Parameters
+    ----------
+    token : str
+        One word of a file.
+
+    Returns
+    -------
+    float or None
+
+    Examples
+    --------
+    >>> number("-.5"), number("1e-3"), number("nan"), number("1_000")
+    (-0.5, 0.001, None, None)
+    """
     return float(token) if _NUMBER.fullmatch(token) else None
 
 
 def name_hash(name: str) -> np.uint64:
-    """64-bit FNV-1a hash of a name's Latin-1 bytes, as the scanner computes it for leading names."""
+    """64-bit FNV-1a hash of a name's Latin-1 bytes, as the scanner computes it for leading names.
+
+    Parameters
+    ----------
+    name : str
+        A name (Latin-1 characters only).
+
+    Returns
+    -------
+    np.uint64
+    """
     h = int(_FNV_OFFSET)
     for b in name.encode("latin-1"):
         h = ((h ^ b) * int(_FNV_PRIME)) & 0xFFFFFFFFFFFFFFFF
@@ -196,16 +262,22 @@ def _scan_kernel(buf, offset, pow10, values, first_value, n_values, name_start, 
 
 @dataclass
 class Scan:
-    """Numbers and per-line layout of a block of text.
+    """Numbers and per-line layout of a block of text (what :func:`scan` returns); the fields are its attributes.
 
-    Attributes
+    Parameters
     ----------
-    values : np.ndarray [shape=(V,)], float64 -- every number, in order.
-    first_value, n_values : np.ndarray [shape=(L,)], int32 (int64 for files of 2 GB or more) -- where each line's
-        numbers are in ``values``.
-    name_start : np.ndarray [shape=(L,)], int32 or int64 -- byte offset of a leading name token (-1 if none).
-    name_hash : np.ndarray [shape=(L,)], uint64 -- :func:`name_hash` of that name (0 if none).
-    first_line : int -- 1-based number in the file of the block's first line.
+    data : np.ndarray [shape=(B,)], uint8
+        The block's bytes.
+    values : np.ndarray [shape=(V,)], float64
+        Every number, in order.
+    first_value, n_values : np.ndarray [shape=(L,)], int32 (int64 for files of 2 GB or more)
+        Where each line's numbers are in ``values``.
+    name_start : np.ndarray [shape=(L,)], int32 or int64
+        Byte offset of a leading name token (-1 if none).
+    name_hash : np.ndarray [shape=(L,)], uint64
+        :func:`name_hash` of that name (0 if none).
+    first_line : int
+        1-based number in the file of the block's first line.
     """
 
     data: np.ndarray
@@ -221,7 +293,18 @@ class Scan:
         return self.n_values.shape[0]
 
     def token(self, line: int) -> str:
-        """The leading name of block line ``line`` (0-based), or '' if it has none."""
+        """The leading name of a line of the block.
+
+        Parameters
+        ----------
+        line : int
+            0-based line of the block.
+
+        Returns
+        -------
+        str
+            The name (Latin-1), or '' if the line has none.
+        """
         s = e = self.name_start[line]
         if s < 0:
             return ""
@@ -298,7 +381,22 @@ def scan(data: bytes, path, first_line: int = 1, start: int = 0) -> Scan:
 
 
 def check_finite(values: np.ndarray, scan_: Scan, path) -> None:
-    """Raise MocapFormatError at the line of the first non-finite (overflowing) value, if any."""
+    """Raise MocapFormatError at the line of the first non-finite (overflowing) value, if any.
+
+    Parameters
+    ----------
+    values : np.ndarray [shape=(V,)]
+        Numbers of the block (``scan_.values`` or a part of them from the start).
+    scan_ : Scan
+        The block they were read from (for the line).
+    path : str or os.PathLike
+        The file, for the message.
+
+    Raises
+    ------
+    MocapFormatError
+        A value is not finite (e.g. ``1e999``); the message names the file and line.
+    """
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
         line = int(np.searchsorted(scan_.first_value, bad[0], side="right") - 1)

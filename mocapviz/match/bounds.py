@@ -21,12 +21,20 @@ def range_of(frames: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    frames : np.ndarray [shape=(...)], int database frames (-1: missing neighbour).
-    lo, hi : np.ndarray [shape=(R,)], int: ranges [lo, hi), sorted by lo and disjoint.
+    frames : np.ndarray [shape=(...)], int
+        Database frames (-1: missing neighbour).
+    lo, hi : np.ndarray [shape=(R,)], int
+        Ranges [lo, hi), sorted by lo and disjoint.
 
     Returns
     -------
-    np.ndarray [shape=frames.shape], int64 range numbers.
+    np.ndarray [shape=frames.shape], int64
+        Range numbers.
+
+    Examples
+    --------
+    >>> range_of(np.array([0, 5, 12, -1]), np.array([0, 10]), np.array([4, 20])).tolist()
+    [0, -1, 1, -1]
     """
     r = np.searchsorted(lo, frames, side="right") - 1
     inside = (frames >= 0) & (r >= 0)
@@ -39,16 +47,20 @@ def row_bounds(distances: np.ndarray, frames: np.ndarray, lo: np.ndarray, hi: np
 
     Parameters
     ----------
-    distances : np.ndarray [shape=(m, k)], float, increasing per row (inf where missing): the query frames' k
-        nearest database frames, exact (eps = 0), in the search's feature units.
-    frames : np.ndarray [shape=(m, k)], int64 their database frames (-1 where missing: then every indexed frame
-        was returned, and a range with none of them holds no indexed frame).
-    lo, hi : np.ndarray [shape=(R,)], int ranges [lo, hi), sorted and disjoint.
+    distances : np.ndarray [shape=(m, k)], float
+        Increasing per row (inf where missing): the query frames' k nearest database frames, exact (eps = 0), in
+        the search's feature units.
+    frames : np.ndarray [shape=(m, k)], int64
+        Their database frames (-1 where missing: then every indexed frame was returned, and a range with none of
+        them holds no indexed frame).
+    lo, hi : np.ndarray [shape=(R,)], int
+        Ranges [lo, hi), sorted and disjoint.
 
     Returns
     -------
-    np.ndarray [shape=(R, m)], float64: the nearest neighbour of the query frame inside the range, else the
-    k-th neighbour's distance (inf when the list is not full).
+    np.ndarray [shape=(R, m)], float64
+        The nearest neighbour of the query frame inside the range, else the k-th neighbour's distance (inf when
+        the list is not full).
     """
     m, k = distances.shape
     full = frames[:, -1] >= 0
@@ -67,13 +79,16 @@ def box_rows(q, low, high):  # pragma: no cover - compiled
 
     Parameters
     ----------
-    q : np.ndarray [shape=(m, d)], the query's features.
-    low, high : np.ndarray [shape=(R, d)], per range the least and greatest value of every feature.
+    q : np.ndarray [shape=(m, d)]
+        The query's features (feature units).
+    low, high : np.ndarray [shape=(R, d)]
+        Per range the least and greatest value of every feature.
 
     Returns
     -------
-    np.ndarray [shape=(R, m)], float64: no frame of the range is nearer the query frame than its box (LB_Keogh's
-    envelope distance with the whole range as the envelope).
+    np.ndarray [shape=(R, m)], float64
+        No frame of the range is nearer the query frame than its box (LB_Keogh's envelope distance with the whole
+        range as the envelope).
     """
     n_r, m, d = low.shape[0], q.shape[0], q.shape[1]
     out = np.empty((n_r, m))

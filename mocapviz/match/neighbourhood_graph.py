@@ -35,16 +35,27 @@ def neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: f
 
     Parameters
     ----------
-    query : np.ndarray [shape=(m, d)], features of the query frames in the index's feature set.
-    knn_index : mocapviz.similarity.knn.KnnIndex over the database's features (N, d).
-    k, radius, eps, threads : see :meth:`mocapviz.similarity.knn.KnnIndex.query`.
+    query : np.ndarray [shape=(m, d)]
+        Features of the query frames in the index's feature set (F15E: cm).
+    knn_index : mocapviz.similarity.knn.KnnIndex
+        The index over the database's features (N, d).
+    k : int
+        At most this many neighbours per query frame.
+    radius : float, optional
+        Only neighbours at distance < radius, feature units.
+    eps : float
+        ε-approximate kNN (:meth:`mocapviz.similarity.knn.KnnIndex.query`; 0: exact).
     exclude : np.ndarray [shape=(2,)], int, optional
         One [start, stop) range of database frames no query frame may match (e.g. the query's own document).
+    threads : int, optional
+        Threads of the kNN search.
 
     Returns
     -------
-    distances : np.ndarray [shape=(m, k)], float64, increasing per row; inf where missing.
-    frames : np.ndarray [shape=(m, k)], int64 database frames; -1 where missing.
+    distances : np.ndarray [shape=(m, k)], float64
+        Increasing per row; inf where missing.
+    frames : np.ndarray [shape=(m, k)], int64
+        Database frames; -1 where missing.
     """
     q = _sequence(query, "query", knn_index.dim, other="the index")
     if len(q) < 2:
@@ -127,16 +138,22 @@ def graph_matches(distances, frames, starts=None, n_frames: int | None = None, n
 
     Parameters
     ----------
-    distances, frames : np.ndarray [shape=(m, k)], from :func:`neighbourhoods` (inf / -1 where missing).
-    starts : np.ndarray [shape=(B,)], int, optional: first frame of every document; default one document.
-    n_frames : int, optional: database frames (default: the largest neighbour frame + 1).
-    n_matches : int, matches wanted.
-    paths : bool, return each match's path.
+    distances, frames : np.ndarray [shape=(m, k)]
+        From :func:`neighbourhoods` (inf / -1 where missing).
+    starts : np.ndarray [shape=(B,)], int, optional
+        First frame of every document; default one document.
+    n_frames : int, optional
+        Database frames (default: the largest neighbour frame + 1).
+    n_matches : int
+        Matches wanted.
+    paths : bool
+        Return each match's path.
 
     Returns
     -------
-    pd.DataFrame like :func:`mocapviz.match.subsequence_dtw`'s: doc_id, start, end (database frames, inclusive),
-    cost (sum of the local costs along the path, feature units), path ((L, 2) (query frame, database frame)).
+    pandas.DataFrame
+        Like :func:`mocapviz.match.subsequence_dtw`'s: doc_id, start, end (database frames, inclusive), cost (sum
+        of the local costs along the path, feature units), path ((L, 2) (query frame, database frame)).
     """
     d = np.asarray(distances, dtype=np.float64)
     f = np.asarray(frames, dtype=np.int64)
@@ -163,29 +180,58 @@ def lng(query, knn_index, k: int = 64, radius: float | None = None, n_matches: i
 
     Parameters
     ----------
-    query : np.ndarray [shape=(m, d)], m >= 2, features of the query frames in the index's feature set.
-    knn_index : mocapviz.similarity.knn.KnnIndex over the database's features (N, d), e.g. ``KnnIndex(load_numeric(db,
-        "F15E"))``.
-    k : int, at most this many neighbours per query frame (1 <= k <= indexed frames).
-    radius : float, optional, only neighbours at distance < radius (feature units).
-    n_matches : int, matches wanted (its old name ``k_matches`` still works, with a FutureWarning).
-    starts : np.ndarray [shape=(B,)], int, optional: first frame of every document (``db.documents.start``);
-        default one document.
-    eps : float, ε-approximate kNN (see :meth:`mocapviz.similarity.knn.KnnIndex.query`).
-    exclude : [start, stop), optional: database frames not to match (the query's own document).
-    threads : int, optional, kNN threads (default :func:`mocapviz.parallel.default_threads`).
-    paths : bool, return each match's path.
+    query : np.ndarray [shape=(m, d)]
+        Features of the query frames (m >= 2) in the index's feature set (F15E: cm).
+    knn_index : mocapviz.similarity.knn.KnnIndex
+        Over the database's features (N, d), e.g. ``KnnIndex(numeric_of(db, "F15E"))``.
+    k : int
+        At most this many neighbours per query frame (1 <= k <= indexed frames).
+    radius : float, optional
+        Only neighbours at distance < radius (feature units).
+    n_matches : int
+        Matches wanted (its old name ``k_matches`` still works, with a FutureWarning).
+    starts : np.ndarray [shape=(B,)], int, optional
+        First frame of every document (``db.documents.start``); default one document.
+    eps : float
+        ε-approximate kNN (see :meth:`mocapviz.similarity.knn.KnnIndex.query`).
+    exclude : (int, int), optional
+        A [start, stop) range of database frames not to match (the query's own document).
+    threads : int, optional
+        kNN threads (default :func:`mocapviz.parallel.default_threads`).
+    paths : bool
+        Return each match's path.
 
     Returns
     -------
-    pd.DataFrame, best first: doc_id (index into ``starts``), start, end (database frames, inclusive), cost, path
-    ((L, 2) int64 (query frame, database frame)). ``attrs["seconds"]`` holds {"knn": ..., "graph": ...}.
+    pandas.DataFrame
+        Best first: doc_id (index into ``starts``), start, end (database frames, inclusive), cost (feature
+        units), path ((L, 2) int64 (query frame, database frame)). ``attrs["seconds"]`` holds {"knn": ...,
+        "graph": ...}. :func:`mocapviz.similarity.motion_matching.match_motion` gives the matches of a MotionDB
+        as the hit table.
 
     Raises
     ------
     ValueError / TypeError
         A query of fewer than 2 frames, longer than the longest document or of the wrong dimension, k or radius
         out of range (from the index).
+
+    References
+    ----------
+    .. [1] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §4.1 (the lazy neighbourhood graph) and §4.2 (against subsequence DTW).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.features import numeric_of
+    >>> from mocapviz.similarity.knn import KnnIndex
+    >>> db = MotionDB.sample()
+    >>> x, starts = numeric_of(db, "F15E"), db.documents["start"].to_numpy()
+    >>> own = db.frames(7)
+    >>> matches = lng(x[own.start : own.start + 60], KnnIndex(x), k=1024, starts=starts, n_matches=2,
+    ...               exclude=(own.start, own.stop))  # 0.5 s of a kick, its own clip left out
+    >>> matches["doc_id"].tolist(), matches["cost"].round(1).tolist()  # the cost of subsequence DTW's best match
+    ([18, 18], [2489.7, 3473.5])
     """
     check_query_length(len(query), _check_document_starts(starts, knn_index.n_frames), knn_index.n_frames)
     t0 = time.perf_counter()

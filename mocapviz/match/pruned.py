@@ -197,17 +197,50 @@ def search_ranges(q, x, lo, hi, order, bound, rows, n_matches, whole, min_length
                   qmax):  # pragma: no cover
     """Align the query with ranges [lo[r], hi[r]) of x in ``order`` and collect the candidate matches.
 
-    whole: True = DTW of the query against each whole range, one candidate per range (lo, hi - 1, cost), the
-    n_matches best kept by normalised cost cost / (m + n); False = subsequence DTW inside each range, the
-    candidates the local minima of the end cost among matches of at least ``min_length`` frames, the limit the
-    n_matches-th best per-range minimum (see the module docstring).
-    bound (R,): a lower bound of each range's best (normalised, when ``whole``) cost; rows (R, m): per-range row
-    bounds (raw cost). qmin, qmax (d,): the query's bounding box (whole: every frame of a range is on the path,
-    each costs at least its distance to the box; checked before a range is aligned). prune: use the bounds and
-    the running limit (False: brute force, every cell of every range). budget: ranges to align at most (-1: all).
+    Compiled (numba): every argument must be given, positionally, with the dtype shown.
 
-    Returns candidate starts, ends (inclusive frames of x), raw costs, the number of ranges aligned and of cells
-    computed."""
+    Parameters
+    ----------
+    q : np.ndarray [shape=(m, d)], float32
+        The query's features (feature units, e.g. cm).
+    x : np.ndarray [shape=(N, d)], float32
+        The database's features.
+    lo, hi : np.ndarray [shape=(R,)], int64
+        The ranges [lo, hi) of x (documents or windows).
+    order : np.ndarray [shape=(R,)], int64
+        The order in which ranges are aligned (most promising first).
+    bound : np.ndarray [shape=(R,)], float64
+        A lower bound of each range's best (normalised, when ``whole``) cost.
+    rows : np.ndarray [shape=(R, m)], float64
+        Per-range row bounds (raw cost, :mod:`mocapviz.match.bounds`).
+    n_matches : int
+        K: the running limit is the K-th best.
+    whole : bool
+        True: DTW of the query against each whole range, one candidate per range (lo, hi - 1, cost), the K best
+        kept by normalised cost cost / (m + n). False: subsequence DTW inside each range, the candidates the local
+        minima of the end cost among matches of at least ``min_length`` frames, the limit the K-th best per-range
+        minimum (see the module docstring).
+    min_length : int
+        The shortest match, frames (``whole=False``).
+    prune : bool
+        Use the bounds and the running limit (False: brute force, every cell of every range).
+    budget : int
+        Ranges to align at most (-1: all).
+    qmin, qmax : np.ndarray [shape=(d,)]
+        The query's bounding box (whole: every frame of a range is on the path, each costs at least its distance
+        to the box; checked before a range is aligned).
+
+    Returns
+    -------
+    starts, ends : np.ndarray [shape=(C,)], int64
+        The candidates' first and last frames of x (inclusive).
+    costs : np.ndarray [shape=(C,)], float64
+        Their raw costs.
+    aligned : int
+        Ranges aligned.
+    cells : int
+        Local costs computed.
+    """
     m = q.shape[0]
     out_s = np.empty(64, np.int64)
     out_e = np.empty(64, np.int64)

@@ -98,7 +98,17 @@ def _check_document_starts(starts, n: int) -> np.ndarray:
 
 
 def check_query_length(m: int, doc_starts: np.ndarray, n: int) -> None:
-    """A ValueError unless 2 <= m <= the longest document's frame count (no match could exist)."""
+    """A ValueError unless 2 <= m <= the longest document's frame count (no match could exist).
+
+    Parameters
+    ----------
+    m : int
+        The query's frames.
+    doc_starts : np.ndarray [shape=(B,)], int
+        First frame of every document.
+    n : int
+        Frames of the database.
+    """
     longest = int(np.diff(np.r_[doc_starts, n]).max())
     if m < 2:
         raise ParameterError(f"a query needs at least 2 frames; got {m}")
@@ -232,6 +242,32 @@ def dtw(a, b, distance=None, steps="basic", band=None) -> tuple[float, np.ndarra
     ------
     ValueError
         Empty or non-finite sequences (the frame is named), different dimensions, a bad step set or band.
+
+    References
+    ----------
+    .. [1] M. Müller. Information Retrieval for Music and Motion. Springer 2007, §4.1 (DTW).
+    .. [2] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. ACM TOG
+       24(3), 2005, §7 (a segment-wise alignment refined by DTW restricted to a band, Fig. 11).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = np.array([[0.0], [1.0], [2.0], [3.0]])
+    >>> b = np.array([[0.0], [0.0], [1.0], [2.0], [2.0], [3.0]])  # the same course, slower
+    >>> cost, path = dtw(a, b)
+    >>> cost, path.tolist()
+    (0.0, [[0, 0], [0, 1], [1, 2], [2, 3], [2, 4], [3, 5]])
+    >>> dtw(a, b, band=band_from_path(path, (4, 6), margin=1))[0]  # only the cells near the path
+    0.0
+
+    Two kicks of the sample, F15E in cm:
+
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.features import numeric_features
+    >>> db = MotionDB.sample()
+    >>> cost, path = dtw(numeric_features(db.motion(7), "F15E"), numeric_features(db.motion(18), "F15E"))
+    >>> round(cost, 1), path.shape, path[-1].tolist()  # 129 and 130 frames
+    (6280.4, (148, 2), [128, 129])
     """
     steps_arr = _steps(steps)
     a, b = _pair(a, b, ("a", "b"), distance)
@@ -255,9 +291,22 @@ def band_from_path(path, shape: tuple[int, int], margin: int = 0) -> np.ndarray:
 
     Parameters
     ----------
-    path : np.ndarray [shape=(L, 2)], int: (row, column) cells; every row 0..m-1 must occur.
-    shape : (m, n)
-    margin : int, frames added on every side.
+    path : np.ndarray [shape=(L, 2)], int
+        (row, column) cells; every row 0..m-1 must occur.
+    shape : (int, int)
+        (m, n), the cost matrix's shape.
+    margin : int
+        Frames added on every side.
+
+    Returns
+    -------
+    np.ndarray [shape=(m, 2)], int64
+        Per row the [lo, hi) columns of the band, clipped to 0..n (``band=`` of :func:`dtw`).
+
+    Examples
+    --------
+    >>> band_from_path([[0, 0], [1, 1], [2, 1], [3, 2]], (4, 3)).tolist()
+    [[0, 1], [1, 2], [1, 2], [2, 3]]
     """
     m, n = shape
     cells = np.asarray(path, dtype=np.int64)
@@ -329,22 +378,35 @@ def subsequence_costs(query, database, starts=None, distance=None, steps="basic"
 
     Parameters
     ----------
-    query : np.ndarray [shape=(m, d)], real, feature units (or what ``distance`` takes).
-    database : np.ndarray [shape=(n, d)], the features of all database frames.
+    query : np.ndarray [shape=(m, d)], real
+        The query frames' features, in feature units (or what ``distance`` takes).
+    database : np.ndarray [shape=(n, d)]
+        The features of all database frames.
     starts : np.ndarray [shape=(B,)], int, optional
         First frame of every document (``db.documents.start``); alignments never cross a document boundary.
         Default: one document.
     distance : callable, optional
         ``distance(query, frames) -> (m, len(frames))``; default Euclidean.
-    steps : str or array (S, 3)
+    steps : str or np.ndarray [shape=(S, 3)]
+        The step set, as for :func:`dtw`.
     progress : bool
         A tqdm bar over blocks of database frames.
 
     Returns
     -------
-    cost : np.ndarray [shape=(n,)], float64; inf where no alignment ends (e.g. too close to a document start for
-        the "slope" steps).
-    start : np.ndarray [shape=(n,)], int64 first frame of that alignment; -1 where cost is inf.
+    cost : np.ndarray [shape=(n,)], float64
+        Accumulated cost per end frame; inf where no alignment ends (e.g. too close to a document start for the
+        "slope" steps).
+    start : np.ndarray [shape=(n,)], int64
+        First frame of that alignment; -1 where cost is inf.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> database = np.array([[5.0], [0.0], [1.0], [2.0], [9.0], [9.0], [0.5], [1.5], [2.5], [9.0]])
+    >>> cost, start = subsequence_costs(np.array([[0.0], [1.0], [2.0]]), database, starts=[0, 5])
+    >>> cost.tolist()[:5], start.tolist()[:5]
+    ([12.0, 3.0, 1.0, 0.0, 7.0], [0, 1, 1, 1, 1])
     """
     steps_arr = _steps(steps)
     query, database = _pair(query, database, ("query", "database"), distance)
@@ -399,9 +461,22 @@ def select_matches(starts, ends, costs, n_matches: int) -> np.ndarray:
 
     Parameters
     ----------
-    starts, ends : np.ndarray [shape=(c,)], int, database frames (inclusive).
-    costs : np.ndarray [shape=(c,)], float; inf candidates are never taken.
-    n_matches : int, matches wanted.
+    starts, ends : np.ndarray [shape=(c,)], int
+        The candidates' first and last database frames (inclusive).
+    costs : np.ndarray [shape=(c,)], float
+        Their costs; inf candidates are never taken.
+    n_matches : int
+        Matches wanted.
+
+    Returns
+    -------
+    np.ndarray [shape=(<= n_matches,)], int64
+        Indices into the candidates, best first.
+
+    Examples
+    --------
+    >>> select_matches([0, 1, 5], [3, 4, 8], [1.0, 0.5, 2.0], n_matches=2).tolist()  # 0:3 overlaps 1:4
+    [1, 2]
     """
     starts, ends = np.asarray(starts, dtype=np.int64), np.asarray(ends, dtype=np.int64)
     costs = np.asarray(costs, dtype=np.float64)
@@ -418,14 +493,18 @@ def best_ends(cost, first, starts, n_matches: int) -> np.ndarray:
 
     Parameters
     ----------
-    cost, first : np.ndarray [shape=(n,)], from :func:`subsequence_costs` (set ``cost`` to inf where no match may
-        end, e.g. inside the query's own document).
-    starts : np.ndarray [shape=(B,)], int, first frame of every document (None: one document).
-    n_matches : int, matches wanted.
+    cost, first : np.ndarray [shape=(n,)]
+        From :func:`subsequence_costs` (set ``cost`` to inf where no match may end, e.g. inside the query's own
+        document).
+    starts : np.ndarray [shape=(B,)], int
+        First frame of every document (None: one document).
+    n_matches : int
+        Matches wanted.
 
     Returns
     -------
-    np.ndarray [shape=(<= n_matches,)], int64 end frames, best first; the matches start at ``first[ends]``.
+    np.ndarray [shape=(<= n_matches,)], int64
+        End frames, best first; the matches start at ``first[ends]``.
     """
     cost = np.asarray(cost, dtype=np.float64)
     n = len(cost)
@@ -438,9 +517,25 @@ def best_ends(cost, first, starts, n_matches: int) -> np.ndarray:
 
 
 def matches_frame(doc_starts: np.ndarray, starts, ends, costs, paths) -> pd.DataFrame:
-    """The matches table shared by subsequence DTW and the lazy neighbourhood graph: doc_id (document number, the
-    position in ``doc_starts``), start, end (database frames, inclusive), cost, path ((L, 2) array of (query
-    frame, database frame))."""
+    """The matches table shared by subsequence DTW and the lazy neighbourhood graph.
+
+    Parameters
+    ----------
+    doc_starts : np.ndarray [shape=(B,)], int
+        First frame of every document.
+    starts, ends : array_like of int [shape=(n,)]
+        The matches' first and last database frames (inclusive).
+    costs : array_like of float [shape=(n,)]
+        Their costs, in feature units.
+    paths : sequence of np.ndarray [shape=(L, 2)] or None
+        Their warping paths.
+
+    Returns
+    -------
+    pandas.DataFrame
+        doc_id (document number, the position in ``doc_starts``), start, end (database frames, inclusive), cost,
+        path ((L, 2) array of (query frame, database frame)).
+    """
     starts, ends = np.asarray(starts, dtype=np.int64), np.asarray(ends, dtype=np.int64)
     return pd.DataFrame({
         "doc_id": np.searchsorted(doc_starts, ends, side="right") - 1, "start": starts, "end": ends,
@@ -458,26 +553,54 @@ def subsequence_dtw(query, database, starts=None, n_matches: int = 10, distance=
 
     Parameters
     ----------
-    query : np.ndarray [shape=(m, d)] features of the query frames, 2 <= m <= the longest document.
-    database : np.ndarray [shape=(n, d)] features of all database frames, e.g. ``load_numeric(db, "F15E")``.
-    starts : np.ndarray [shape=(B,)], int, optional: first frame of every document (``db.documents.start``).
-    n_matches : int, matches wanted (fewer when the database has fewer non-overlapping ones); its old name ``k``
-        still works, with a FutureWarning.
-    distance, steps : see :func:`subsequence_costs`.
-    paths : bool, compute each match's path (by DTW of the query against the matched stretch; same cost).
+    query : np.ndarray [shape=(m, d)]
+        Features of the query frames, 2 <= m <= the longest document, feature units (F15E: cm).
+    database : np.ndarray [shape=(n, d)]
+        Features of all database frames, e.g. ``numeric_of(db, "F15E")``.
+    starts : np.ndarray [shape=(B,)], int, optional
+        First frame of every document (``db.documents.start``); default one document.
+    n_matches : int
+        Matches wanted (fewer when the database has fewer non-overlapping ones); its old name ``k`` still works,
+        with a FutureWarning.
+    distance : callable, optional
+        Local costs, as for :func:`subsequence_costs` (default Euclidean).
+    steps : str or np.ndarray [shape=(S, 3)]
+        The step set, as for :func:`dtw`.
+    paths : bool
+        Compute each match's path (by DTW of the query against the matched stretch; same cost).
     progress : bool
+        A progress bar over blocks of database frames.
 
     Returns
     -------
-    pd.DataFrame, one row per match, best first: doc_id (index into ``starts``), start, end (database frames,
-    inclusive), cost (accumulated local costs, feature units), path ((L, 2) int64 (query frame, database frame),
-    or None when ``paths`` is False).
+    pandas.DataFrame
+        One row per match, best first: doc_id (index into ``starts``), start, end (database frames, inclusive),
+        cost (accumulated local costs, feature units), path ((L, 2) int64 (query frame, database frame), or None
+        when ``paths`` is False). :func:`mocapviz.similarity.motion_matching.match_motion` gives the same matches
+        of a MotionDB as the hit table.
 
     Raises
     ------
     ValueError / TypeError
         A query shorter than 2 frames or longer than the longest document, non-finite frames (named), feature
         dimensions that differ, bad document starts or step set, n_matches not a positive integer.
+
+    References
+    ----------
+    .. [1] M. Müller. Information Retrieval for Music and Motion. Springer 2007, §4.4 (subsequence DTW).
+    .. [2] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §4 (the reference the lazy neighbourhood graph is compared with, §4.2).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.features import numeric_of
+    >>> db = MotionDB.sample()
+    >>> x, starts = numeric_of(db, "F15E"), db.documents["start"].to_numpy()
+    >>> own = db.frames(7)
+    >>> matches = subsequence_dtw(x[own.start : own.start + 60], x, starts, n_matches=3)  # 0.5 s of a kick
+    >>> matches["doc_id"].tolist(), matches["cost"].round(1).tolist()  # itself first, then the other kick
+    ([7, 18, 18], [0.0, 2489.7, 3412.8])
     """
     n_matches = count(n_matches, "n_matches")
     n = len(database)

@@ -13,7 +13,23 @@ header (``Frame Time: 1e308``), not a capture."""
 
 
 def fps_problem(fps: float) -> str | None:
-    """Why ``fps`` is not a frame rate mocapviz accepts (outside :data:`FPS_RANGE`, not finite), or None."""
+    """Why ``fps`` is not a frame rate mocapviz accepts (outside :data:`FPS_RANGE`, not finite), or None.
+
+    Parameters
+    ----------
+    fps : float
+        Frames per second.
+
+    Returns
+    -------
+    str or None
+        The reason in words; None for an accepted rate.
+
+    Examples
+    --------
+    >>> fps_problem(120) is None, fps_problem(0.5)
+    (True, '0.5 frames per second is outside 1 to 10,000 frames per second')
+    """
     low, high = FPS_RANGE
     if not (np.isfinite(fps) and low <= fps <= high):
         return f"{fps:g} frames per second is outside {low:g} to {high:,g} frames per second"
@@ -24,7 +40,10 @@ def fps_problem(fps: float) -> str | None:
 class Motion:
     """One motion clip.
 
-    Attributes
+    Every reader returns one (:func:`mocapviz.io.load`), and so does :meth:`mocapviz.MotionDB.motion`. The
+    parameters are its attributes, with ``n_frames`` (T), ``n_joints`` (J) and ``duration`` (seconds).
+
+    Parameters
     ----------
     positions : np.ndarray [shape=(T, J, 3)], float32
         Joint positions in centimetres, y up (right-handed).
@@ -46,6 +65,15 @@ class Motion:
         root's rotation channels, then each bone's DOFs, bones in skeleton order; BVH: the rotation channels
         in file order). They describe the source skeleton, so :meth:`canonical` keeps them unchanged
         (needed for Krüger et al. 2010 §3.1 Deuler, ``mocapviz.features.distances``).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> m = MotionDB.sample().motion(7)
+    >>> m.n_frames, m.n_joints, m.fps, m.duration
+    (129, 24, 120.0, 1.075)
+    >>> m[0:60].n_frames, m.resample(30).n_frames, m.joint("lankle").shape
+    (60, 33, (129, 3))
     """
 
     positions: np.ndarray
@@ -100,7 +128,23 @@ class Motion:
         return self.n_frames / self.fps
 
     def joint(self, name: str) -> np.ndarray:
-        """Trajectory of one joint, shape (T, 3), cm."""
+        """Trajectory of one joint.
+
+        Parameters
+        ----------
+        name : str
+            One of :attr:`joint_names`.
+
+        Returns
+        -------
+        np.ndarray [shape=(T, 3)], float32
+            Its positions, cm (a view).
+
+        Raises
+        ------
+        KeyError
+            No such joint (an UnknownKeyError listing the joints).
+        """
         try:
             return self.positions[:, self.joint_names.index(name)]
         except ValueError:
@@ -109,7 +153,22 @@ class Motion:
     def canonical(self, mapping: dict | None = None) -> Motion:
         """This clip on the 24 canonical joints (``mocapviz.motion.skeleton``), in their fixed order.
 
-        ``mapping`` (canonical name -> this motion's joint name) overrides the automatic rules.
+        Parameters
+        ----------
+        mapping : dict, optional
+            Canonical name -> this motion's joint name, overriding the automatic rules
+            (:func:`mocapviz.motion.skeleton.guess_mapping`).
+
+        Returns
+        -------
+        Motion
+            Positions [shape=(T, 24, 3)] in cm, local rotations on the canonical tree where the source has them,
+            the same ``fps``, ``source``, ``labels`` and ``euler``.
+
+        Raises
+        ------
+        SkeletonMappingError
+            A rig that cannot be mapped; the message holds a template for ``mapping``.
         """
         from .skeleton import to_canonical
 
@@ -121,6 +180,16 @@ class Motion:
         Frame k of the result is at time k / fps; the last frame is the last one at or before the end of
         the clip. Positions are interpolated linearly, rotations by slerp between the two nearest frames,
         Euler angles linearly along the shorter way round (so 179 and -179 degrees meet at 180).
+
+        Parameters
+        ----------
+        fps : float
+            The new frame rate, frames per second.
+
+        Returns
+        -------
+        Motion
+            floor((T - 1) / self.fps x fps) + 1 frames: every frame time up to the time of the last frame.
 
         Raises
         ------

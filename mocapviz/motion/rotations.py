@@ -39,7 +39,8 @@ def from_euler(order: str, angles: np.ndarray, degrees: bool = True) -> np.ndarr
 
     Returns
     -------
-    np.ndarray [shape=(..., 4)], float64, ``(w, x, y, z)``.
+    np.ndarray [shape=(..., 4)], float64
+        Unit quaternions ``(w, x, y, z)``.
 
     Examples
     --------
@@ -62,7 +63,22 @@ def from_euler(order: str, angles: np.ndarray, degrees: bool = True) -> np.ndarr
 
 
 def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product ``a * b`` (rotation ``b`` first, then ``a``) of arrays [shape=(..., 4)]."""
+    """Hamilton product ``a * b`` (rotation ``b`` first, then ``a``).
+
+    Parameters
+    ----------
+    a, b : np.ndarray [shape=(..., 4)]
+        Quaternions ``(w, x, y, z)``, broadcast against each other.
+
+    Returns
+    -------
+    np.ndarray [shape=(..., 4)]
+
+    Examples
+    --------
+    >>> multiply(from_euler("XYZ", [0, 0, 90]), from_euler("XYZ", [90, 0, 0])).round(3)  # x by 90°, then z
+    array([0.5, 0.5, 0.5, 0.5])
+    """
     aw, ax, ay, az = np.moveaxis(np.asarray(a), -1, 0)
     bw, bx, by, bz = np.moveaxis(np.asarray(b), -1, 0)
     return np.stack(
@@ -77,7 +93,25 @@ def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors ``v`` [shape=(..., 3)] by unit quaternions ``q`` [shape=(..., 4)] (broadcasting)."""
+    """Rotate vectors by unit quaternions (broadcasting): ``R(q) @ v``.
+
+    Parameters
+    ----------
+    q : np.ndarray [shape=(..., 4)]
+        Unit quaternions ``(w, x, y, z)``.
+    v : np.ndarray [shape=(..., 3)]
+        Vectors (e.g. cm).
+
+    Returns
+    -------
+    np.ndarray [shape=(..., 3)]
+        The rotated vectors, in the units of ``v``.
+
+    Examples
+    --------
+    >>> rotate(from_euler("XYZ", [0, 0, 90]), [1.0, 0.0, 0.0]).round(3)  # x turned 90° about z
+    array([0., 1., 0.])
+    """
     q = np.asarray(q)
     w = q[..., :1]
     u = q[..., 1:]
@@ -86,7 +120,24 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Angle in radians [0, pi] of the rotation taking ``a`` to ``b``; arrays [shape=(..., 4)] -> (...)."""
+    """Angle of the rotation taking ``a`` to ``b``.
+
+    Parameters
+    ----------
+    a, b : np.ndarray [shape=(..., 4)]
+        Unit quaternions ``(w, x, y, z)``, broadcast against each other.
+
+    Returns
+    -------
+    np.ndarray [shape=(...)]
+        Radians in [0, pi] (``q`` and ``-q`` are one rotation: angle 0).
+
+    Examples
+    --------
+    >>> q = from_euler("XYZ", [90, 0, 0])
+    >>> float(angle(q, from_euler("XYZ", [0, 0, 0])).round(4)), float(angle(q, -q))
+    (1.5708, 0.0)
+    """
     d = np.abs(np.sum(np.asarray(a) * np.asarray(b), axis=-1))
     return 2.0 * np.arccos(np.clip(d, 0.0, 1.0))
 

@@ -141,8 +141,14 @@ def guess_mapping(motion: Motion, partial: bool = False) -> dict[str, str]:
     Parameters
     ----------
     motion : Motion
+        A clip on its source skeleton (its positions are read, cm).
     partial : bool
         Return what could be mapped instead of raising.
+
+    Returns
+    -------
+    dict
+        Canonical joint name -> joint name of ``motion``; all 24 unless ``partial``.
 
     Raises
     ------
@@ -151,6 +157,15 @@ def guess_mapping(motion: Motion, partial: bool = False) -> dict[str, str]:
         spine, legs, arms, head, sides) and a template for ``mapping=``: a dict literal of canonical joint ->
         "?" with the candidate joints found as comments. The error's ``missing`` (list of canonical joints)
         and ``template`` (str) attributes hold the same.
+
+    Examples
+    --------
+    >>> from mocapviz import load
+    >>> from mocapviz.io import datasets
+    >>> m = load(datasets.sample() / "hdm05-cut/amc/HDM_mm_kickLFront1Reps_023_120.amc")
+    >>> mapping = guess_mapping(m)
+    >>> len(mapping), mapping["lknee"], mapping["head"]  # an ASF bone's tip is the joint below it
+    (24, 'lfemur', 'upperneck')
     """
     found, reason, candidates = _guess(motion)
     missing = [c for c in CANONICAL_JOINTS if c not in found]
@@ -199,7 +214,19 @@ def _mapping_error(motion: Motion, missing: list, reason: str, candidates: dict)
 
 @functools.lru_cache(maxsize=256)
 def name_mapping(names: tuple) -> dict[str, str]:
-    """Canonical joint -> joint, by the name rules alone (cached: many files share a rig)."""
+    """Canonical joint -> joint, by the name rules alone (cached: many files share a rig).
+
+    Parameters
+    ----------
+    names : tuple of str
+        A rig's joint names.
+
+    Returns
+    -------
+    dict
+        Canonical joint name -> joint name, for the canonical joints whose names were found (may be fewer than
+        24).
+    """
     by_key: dict[tuple[str, str], str] = {}
     for n in names:
         by_key.setdefault(_side_and_part(n), n)
@@ -658,12 +685,19 @@ def heading(positions: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    positions : np.ndarray [shape=(T, 24, 3)], canonical joints, y up
+    positions : np.ndarray [shape=(T, 24, 3)]
+        Canonical joints, cm, y up.
 
     Returns
     -------
-    np.ndarray [shape=(T,)], radians: 0 when the body faces +z, pi/2 when it faces +x. The forward
-    direction is the horizontal hip line (left hip minus right hip) crossed with the up axis.
+    np.ndarray [shape=(T,)]
+        Radians: 0 when the body faces +z, pi/2 when it faces +x. The forward direction is the horizontal hip
+        line (left hip minus right hip) crossed with the up axis.
+
+    References
+    ----------
+    .. [1] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §3.2 (features in a body-centred frame).
     """
     across = positions[:, _index("lhip")] - positions[:, _index("rhip")]
     # forward = across x up = (-across_z, 0, across_x)
@@ -675,11 +709,20 @@ def body_frame(positions: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    positions : np.ndarray [shape=(T, 24, 3)], canonical joints, cm, y up
+    positions : np.ndarray [shape=(T, 24, 3)]
+        Canonical joints, cm, y up.
 
     Returns
     -------
-    np.ndarray [shape=(T, 24, 3)], float32, cm. In this frame the left joints have x > 0.
+    np.ndarray [shape=(T, 24, 3)], float32
+        cm. In this frame the left joints have x > 0.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> pose = body_frame(MotionDB.sample().motion(7).positions[:1])
+    >>> pose.shape, bool(np.abs(pose[0, 0]).max() == 0)  # the root at the origin
+    ((1, 24, 3), True)
     """
     positions = np.asarray(positions)
     centred = positions - positions[:, :1]
@@ -709,11 +752,13 @@ def body_size_table(frames: np.ndarray) -> pd.DataFrame:
 
     Parameters
     ----------
-    frames : np.ndarray [shape=(D, 24, 3)], canonical joints, cm -- e.g. the first frame of each of D clips.
+    frames : np.ndarray [shape=(D, 24, 3)]
+        Canonical joints, cm, e.g. the first frame of each of D clips.
 
     Returns
     -------
-    pandas.DataFrame [shape=(D, 8)], cm, the columns of :func:`body_sizes`.
+    pandas.DataFrame [shape=(D, 8)]
+        cm, the columns of :func:`body_sizes`.
     """
     p = np.asarray(frames, dtype=np.float64)
     length = lambda a, b: np.linalg.norm(p[:, _index(a)] - p[:, _index(b)], axis=-1)
@@ -725,13 +770,15 @@ def body_sizes(positions: np.ndarray) -> pd.Series:
 
     Parameters
     ----------
-    positions : np.ndarray [shape=(T, 24, 3)], canonical joints, cm
+    positions : np.ndarray [shape=(T, 24, 3)]
+        Canonical joints, cm.
 
     Returns
     -------
-    pandas.Series of float, cm: ``humerus_r``, ``humerus_l`` (shoulder-elbow), ``femur_r``, ``femur_l``
-    (hip-knee), ``hip_width``, ``shoulder_width``, ``chest_length`` (chest-neck), ``body_length`` (rankle-rknee
-    + rknee-rhip + root-belly + belly-chest + chest-neck + neck-head + head-headtop).
+    pandas.Series of float
+        cm: ``humerus_r``, ``humerus_l`` (shoulder-elbow), ``femur_r``, ``femur_l`` (hip-knee), ``hip_width``,
+        ``shoulder_width``, ``chest_length`` (chest-neck), ``body_length`` (rankle-rknee + rknee-rhip +
+        root-belly + belly-chest + chest-neck + neck-head + head-headtop).
     """
     return body_size_table(np.asarray(positions)[:1]).iloc[0]
 

@@ -258,10 +258,8 @@ class InvertedIndex:
     feature_names : sequence of str, optional
         The f feature names (default ``f1``, ``f2``, ...).
     meta : dict, optional
-        Stored with the index.
-
-    Usually built with :meth:`from_features` (frame-wise values, segmented here) or, for a MotionDB, with
-    :func:`build`.
+        Stored with the index. (Usually built with :meth:`from_features`, frame-wise values segmented there, or,
+        for a MotionDB, with :func:`build`.)
 
     References
     ----------
@@ -513,7 +511,7 @@ class InvertedIndex:
         Examples
         --------
         >>> index = InvertedIndex.from_feature_sequence([[0, 0], [1, 0], [1, 1], [0, 1], [1, 0], [1, 1]])
-        >>> index.fuzzy([[1], [3, 1]]).tolist()  # V_1 = {(1, 0)}, V_2 = {(1, 1), (0, 1)}
+        >>> index.fuzzy([[1], [3, 2]]).tolist()  # V_1 = {(1, 0)}, V_2 = {(1, 1), (0, 1)} as codes
         [1, 4]
         >>> index.fuzzy([[[0, 0], [0, 1]], [[1, 0]]]).tolist()  # left foot free in the first segment
         [0, 3]
@@ -538,12 +536,21 @@ class InvertedIndex:
 
         Parameters
         ----------
-        fuzzy_sets : as for :meth:`fuzzy`.
+        fuzzy_sets : list of (codes [shape=(n_l,)] or bool vectors [shape=(n_l, f)])
+            The fuzzy sets V_1..V_L, as for :meth:`fuzzy`.
 
         Returns
         -------
-        np.ndarray [shape=(H, L+1)], int64: per hit the 0-based segment indices k_1 < ... < k_L where each
-        coarsened segment starts, and the index one past the end of the last one.
+        np.ndarray [shape=(H, L+1)], int64
+            Per hit the 0-based segment indices k_1 < ... < k_L where each coarsened segment starts, and the
+            index one past the end of the last one.
+
+        Examples
+        --------
+        >>> index = InvertedIndex.from_feature_sequence([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0], [1, 0], [1, 1]])
+        >>> index.adaptive_fuzzy([[0, 1], [3]])  # a run of (0, 0) or (1, 0) segments, then (1, 1)
+        array([[0, 2, 3],
+               [4, 6, 7]])
         """
         codes, set_id, n_sets = self._query_sets(fuzzy_sets)
         member, sizes = self._membership(codes, set_id, n_sets)
@@ -564,7 +571,8 @@ class InvertedIndex:
 
         Parameters
         ----------
-        query : as for :meth:`exact` (L segments).
+        query : np.ndarray [shape=(L, f)] bool vectors or [shape=(L,)] int codes
+            The query's feature sequence, as for :meth:`exact`.
         m : int
             0 <= m < L.
         allowed : array-like of int, optional
@@ -572,7 +580,16 @@ class InvertedIndex:
 
         Returns
         -------
-        np.ndarray [shape=(H,)], int64: sorted 0-based positions k.
+        np.ndarray [shape=(H,)], int64
+            Sorted 0-based positions k.
+
+        Examples
+        --------
+        >>> index = InvertedIndex.from_feature_sequence([[0, 0], [1, 0], [1, 1], [0, 1], [1, 0], [0, 0]])
+        >>> index.exact([1, 3, 2]).tolist(), index.mismatch([1, 3, 2], m=1).tolist()
+        ([1], [1])
+        >>> index.mismatch([1, 3, 0], m=1).tolist(), index.mismatch([1, 3, 0], m=1, allowed=[0]).tolist()
+        ([1], [])
         """
         q = self._query_codes(query)
         n = q.size
@@ -609,8 +626,9 @@ class InvertedIndex:
 
         Returns
         -------
-        np.ndarray [shape=(H, L+1)], int64, rows sorted: per hit the 0-based stored segment where each coarsened
-        run starts, and the index one past the end of the last one (as :meth:`adaptive_fuzzy`).
+        np.ndarray [shape=(H, L+1)], int64
+            Rows sorted: per hit the 0-based stored segment where each coarsened run starts, and the index one past
+            the end of the last one (as :meth:`adaptive_fuzzy`).
 
         Raises
         ------
@@ -641,14 +659,32 @@ class InvertedIndex:
 
     # ------------------------------------------------------------------ frames
     def frame_spans(self, first: np.ndarray, stop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Frames covered by segments ``first`` .. ``stop - 1``: (start frame, end frame exclusive)."""
+        """Frames covered by segments ``first`` .. ``stop - 1``: (start frame, end frame exclusive).
+
+        Parameters
+        ----------
+        first, stop : array_like of int [shape=(H,)]
+            Per hit its first segment and one past its last (e.g. the columns 0 and L of
+            :meth:`adaptive_fuzzy`'s rows).
+
+        Returns
+        -------
+        start, end : np.ndarray [shape=(H,)], int64
+            Frames of the indexed values (database-wide for :func:`build`'s indexes), half-open.
+        """
         first = np.asarray(first, dtype=np.int64)
         last = np.asarray(stop, dtype=np.int64) - 1
         return self.starts[first], self.starts[last] + self.lengths[last]
 
     # ------------------------------------------------------------------ storage
     def nbytes(self) -> int:
-        """Bytes of what is stored on disk: the lists, segment starts and lengths, document boundaries."""
+        """Bytes of what is stored on disk: the lists, segment starts and lengths, document boundaries.
+
+        Returns
+        -------
+        int
+            Bytes of the stored arrays (the ``MB`` of Müller et al. 2005 Table 2 is this / 2^20).
+        """
         return int(sum(a.nbytes for a in self._stored().values()))
 
     def _stored(self) -> dict:
@@ -662,7 +698,13 @@ class InvertedIndex:
         }
 
     def save(self, path) -> None:
-        """Write the index to ``path`` (.npz, no pickle) atomically: a temporary file renamed into place."""
+        """Write the index to ``path`` (.npz, no pickle) atomically: a temporary file renamed into place.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file (its folder is created); its header holds the format, names, meta and the arrays' sha256.
+        """
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         arrays = self._stored()
@@ -674,6 +716,15 @@ class InvertedIndex:
     @classmethod
     def load(cls, path) -> InvertedIndex:
         """Read an index written by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            A file written by :meth:`save`.
+
+        Returns
+        -------
+        InvertedIndex
 
         Raises
         ------
@@ -700,7 +751,22 @@ class InvertedIndex:
 
 # ---------------------------------------------------------------------- MotionDB indexes
 def index_path(db, relational_set: str, group: str) -> Path:
-    """Where the index of one feature group of a MotionDB is stored."""
+    """Where the index of one feature group of a MotionDB is stored.
+
+    Parameters
+    ----------
+    db : MotionDB
+        The database.
+    relational_set : {"2005", "2006"}
+        The relational set.
+    group : {"lower", "upper", "mix"}
+        The feature group.
+
+    Returns
+    -------
+    pathlib.Path
+        ``DB/index/relational-<set>-<group>.npz``.
+    """
     return Path(db.path) / "index" / f"relational-{relational_set}-{group}.npz"
 
 
@@ -709,11 +775,15 @@ def feature_group_values(values: np.ndarray, relational_set: str = "2005") -> di
 
     Parameters
     ----------
-    values : np.ndarray [shape=(N, f)], bool -- :func:`mocapviz.features.relational_features` of the set.
+    values : np.ndarray [shape=(N, f)], bool
+        :func:`mocapviz.features.relational_features` of the set.
+    relational_set : {"2005", "2006"}
+        The set of ``values``' columns.
 
     Returns
     -------
-    dict: group -> (member names, values of the members [shape=(N, f_group)]; a view when they are adjacent).
+    dict
+        Group -> (member names, values of the members [shape=(N, f_group)]; a view when they are adjacent).
     """
     from ..features import feature_groups, feature_names
 
@@ -733,7 +803,9 @@ def build(db, relational_set: str = "2005", progress: bool = True, values: np.nd
     Parameters
     ----------
     db : MotionDB
+        The database (writable when ``save``).
     relational_set : {"2005", "2006"}
+        The relational set whose groups are indexed.
     progress : bool
         Progress bar over the documents while the features are computed.
     values : np.ndarray [shape=(N, f)], bool, optional
@@ -746,7 +818,25 @@ def build(db, relational_set: str = "2005", progress: bool = True, values: np.nd
 
     Returns
     -------
-    dict: group name -> InvertedIndex (segment positions over the whole database; documents kept apart).
+    dict
+        Group name -> InvertedIndex (segment positions over the whole database; documents kept apart).
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. ACM TOG
+       24(3), 2005, §5.3 (one index per feature group, I_l, I_u, I_m) and §6.1 (Table 2).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()
+    >>> indexes = build(db, save=False, progress=False)  # in memory: nothing written
+    >>> {group: (index.n_features, index.n_segments) for group, index in indexes.items()}
+    {'lower': (11, 338), 'upper': (12, 281), 'mix': (8, 144)}
+    >>> lower = indexes["lower"]
+    >>> query = lower.codes[lower.doc_first_segment[7]:][:4]  # the first 4 segments of document 7
+    >>> db.document_of(lower.starts[lower.exact(query)]).tolist()  # the documents of the exact hits
+    [7]
     """
     from ..features import relational_features
 
@@ -768,9 +858,21 @@ def load_or_build(db, relational_set: str = "2005", save: bool = True, progress:
     """The saved indexes of a MotionDB when current (:func:`load`), else built now (:func:`build`), and saved
     unless ``save`` is False (then nothing is written: a read-only database can be queried).
 
+    Parameters
+    ----------
+    db : MotionDB
+        The database.
+    relational_set : {"2005", "2006"}
+        The relational set.
+    save : bool
+        Write the indexes when they are built here.
+    progress : bool
+        Progress bar while the features are computed.
+
     Returns
     -------
-    dict: group name -> InvertedIndex.
+    dict
+        Group name -> InvertedIndex.
     """
     return store.load_or_build(lambda: load(db, relational_set),
                                lambda: build(db, relational_set, progress=progress, save=save))
@@ -778,6 +880,18 @@ def load_or_build(db, relational_set: str = "2005", save: bool = True, progress:
 
 def load(db, relational_set: str = "2005") -> dict:
     """The saved indexes of a MotionDB, one per feature group.
+
+    Parameters
+    ----------
+    db : MotionDB
+        The database.
+    relational_set : {"2005", "2006"}
+        The relational set.
+
+    Returns
+    -------
+    dict
+        Group name (``"lower"``, ``"upper"``, ``"mix"``) -> InvertedIndex.
 
     Raises
     ------

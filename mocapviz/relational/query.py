@@ -41,16 +41,30 @@ def query_segmentation(values: np.ndarray, names: list[str], features, relationa
 
     Parameters
     ----------
-    values : np.ndarray [shape=(T, f)], bool: the example's relational features, columns ``names``.
-    names : list of str [length f], the feature names of ``relational_set``.
-    features : list of str, the selected feature names (checked against the set).
+    values : np.ndarray [shape=(T, f)], bool
+        The example's relational features, columns ``names``.
+    names : list of str [length f]
+        The feature names of ``relational_set``.
+    features : list of str
+        The selected feature names (checked against the set); None: all.
     relational_set : {"2005", "2006"}
+        The relational set.
 
     Returns
     -------
-    dict group -> (chosen, seq): ``chosen`` the selected columns within the group's features, ``seq`` the
-    :class:`~mocapviz.features.segmentation.Segmentation` (``seq.codes``: the L query segments); groups without a selected
-    feature are left out.
+    dict
+        Group -> (chosen, seq): ``chosen`` the selected columns within the group's features, ``seq`` the
+        :class:`~mocapviz.features.segmentation.FeatureSequence` (``seq.codes``: the L query segments,
+        ``seq.lengths`` their frames); groups without a selected feature are left out.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.features import relational_features
+    >>> values, names = relational_features(MotionDB.sample().motion(7))
+    >>> groups = query_segmentation(values, names, ["lfoot_raised", "rhand_in_front"])
+    >>> {group: (chosen, len(seq.codes)) for group, (chosen, seq) in groups.items()}
+    {'lower': ([3], 3), 'upper': ([0], 1)}
     """
     chosen = _check_features(features, relational_set)
     out = {}
@@ -136,6 +150,30 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
         ``mismatches`` below 0, ``allowed`` positions outside the query's segments.
     MotionDBError
         The database has no (current) index.
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. ACM TOG
+       24(3), 2005, §5.2 (fuzzy and adaptive fuzzy hits, m-mismatch hits: a selection of features as fuzzy sets)
+       and §6.2 (query by example, hits ranked by the temporal heuristic).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.relational.index import build
+    >>> db = MotionDB.sample()
+    >>> indexes = build(db, save=False, progress=False)  # or stored once: `mocapviz index DB`
+    >>> hits = query_by_example(db, db.motion(7), ["lfoot_raised"], indexes=indexes)  # kick with the left foot
+    >>> print(hits[["rank", "doc_id", "label", "score"]].round(3).to_string(index=False))
+     rank  doc_id           label  score
+        1       7 kickLFront1Reps  0.000
+        2      11      squat1Reps  0.250
+        3      18 kickLFront1Reps  0.358
+        4      22      squat1Reps  0.500
+        5       2   depositFloorR  1.350
+    >>> hits = query_by_example(db, db.motion(7), ["lfoot_raised", "lknee_bent"], indexes=indexes)
+    >>> hits["label"].tolist()  # two aspects: only the kicks
+    ['kickLFront1Reps', 'kickLFront1Reps']
     """
     if mode not in MODES:
         raise ParameterError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")

@@ -79,6 +79,36 @@ class MotionTemplate:
 
     ``save(path)`` writes it as an ``.npz`` (no pickle) through :mod:`mocapviz.store` with a format header and the
     sha256 of its values; ``MotionTemplate.load(path)`` checks both.
+
+    Parameters
+    ----------
+    values : np.ndarray [shape=(K, f)], float64
+        The averaged feature values in [0, 1].
+    features : list of str
+        The f feature names.
+    label : str
+        The class.
+    n_examples : int
+        Examples it was learned from.
+    iterations : int
+        Warping-and-averaging rounds.
+    meta : dict
+        Anything else worth keeping. (Learned with :func:`learn_template` from feature matrices or with
+        :func:`learn_class` from a MotionDB's class.)
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder. Motion templates for automatic classification and retrieval of motion capture
+       data. SCA 2006, §3-4 (templates learned by iterative warping and averaging; quantised with δ).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> slow = np.array([[0, 0], [0, 0], [1, 0], [1, 1], [1, 1]], dtype=bool)  # two features over 5 frames
+    >>> fast = np.array([[0, 0], [1, 0], [1, 1]], dtype=bool)  # the same course in 3 frames
+    >>> t = learn_template([slow, fast], ["rfoot_raised", "lfoot_raised"], label="toy")
+    >>> t.values.tolist(), t.n_examples  # the medoid's length, the examples warped onto it and averaged
+    ([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]], 2)
     """
 
     values: np.ndarray
@@ -91,7 +121,20 @@ class MotionTemplate:
     def quantised(self, delta: float = DELTA) -> np.ndarray:
         """The template with entries < δ set to 0, > 1 − δ set to 1 and the rest to :data:`DONT_CARE` (0.5).
 
-        Returns np.ndarray [shape=(K, f)], float64 in {0, 0.5, 1}.
+        Parameters
+        ----------
+        delta : float
+            The threshold δ, 0 <= δ < 0.5.
+
+        Returns
+        -------
+        np.ndarray [shape=(K, f)], float64
+            Values in {0, 0.5, 1}.
+
+        Examples
+        --------
+        >>> MotionTemplate(np.array([[0.05, 0.5, 0.95]]), ["a", "b", "c"]).quantised(0.1).tolist()
+        [[0.0, 0.5, 1.0]]
         """
         delta = number(delta, "delta", 0.0, 0.5, high_open=True)
         out = np.full(self.values.shape, DONT_CARE)
@@ -101,7 +144,13 @@ class MotionTemplate:
 
 
     def save(self, path) -> None:
-        """Write the template to ``path`` (.npz) atomically, with its header and checksum."""
+        """Write the template to ``path`` (.npz) atomically, with its header and checksum.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file (its folder is created; an existing file is replaced).
+        """
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         header = {**store.stamp(FORMAT, VERSION), "features": self.features, "label": self.label,
@@ -112,7 +161,22 @@ class MotionTemplate:
 
     @classmethod
     def load(cls, path) -> MotionTemplate:
-        """A template written by :meth:`save`; MotionDBError naming the file when it is not one or is damaged."""
+        """A template written by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            A file written by :meth:`save`.
+
+        Returns
+        -------
+        MotionTemplate
+
+        Raises
+        ------
+        MotionDBError
+            The file is not a template or is damaged; the message names it.
+        """
         path = Path(path)
         try:
             with np.load(path, allow_pickle=False) as z:
@@ -131,10 +195,12 @@ def template_distance(template: np.ndarray, frames: np.ndarray, mask: np.ndarray
 
     Parameters
     ----------
-    template : np.ndarray [shape=(K, f)], values in [0, 1].
-    frames : np.ndarray [shape=(n, f)], bool or {0, 1} (relational features of database frames).
-    mask : np.ndarray [shape=(K, f)], bool, optional: the entries that count (default all). A row that cares
-        about no feature costs 0 against every frame.
+    template : np.ndarray [shape=(K, f)]
+        Template rows, values in [0, 1].
+    frames : np.ndarray [shape=(n, f)], bool or {0, 1}
+        Relational features of database frames.
+    mask : np.ndarray [shape=(K, f)], bool, optional
+        The entries that count (default all). A row that cares about no feature costs 0 against every frame.
 
     Returns
     -------
@@ -153,7 +219,26 @@ def template_distance(template: np.ndarray, frames: np.ndarray, mask: np.ndarray
 def quantised_distance(template: np.ndarray, frames: np.ndarray) -> np.ndarray:
     """:func:`template_distance` of quantised template rows (values 0, 1 or :data:`DONT_CARE`), ignoring the
     don't-care entries: the local cost of matching a template, as ``distance=`` of
-    :func:`mocapviz.match.subsequence_dtw`. Shapes as for :func:`template_distance`."""
+    :func:`mocapviz.match.subsequence_dtw`.
+
+    Parameters
+    ----------
+    template : np.ndarray [shape=(K, f)]
+        Quantised template rows (:meth:`MotionTemplate.quantised`).
+    frames : np.ndarray [shape=(n, f)], bool or {0, 1}
+        Relational features of database frames.
+
+    Returns
+    -------
+    np.ndarray [shape=(K, n)], float64
+        Mean mismatch over the cared-for features, in [0, 1].
+
+    Examples
+    --------
+    >>> frames = np.array([[0, 1], [1, 0]], dtype=bool)
+    >>> template_distance([[0.5, 1.0]], frames).tolist(), quantised_distance([[0.5, 1.0]], frames).tolist()
+    ([[0.25, 0.75]], [[0.0, 1.0]])
+    """
     rows = np.asarray(template, dtype=np.float64)
     return template_distance(rows, frames, rows != DONT_CARE)
 
@@ -164,19 +249,40 @@ def learn_template(examples, features: list[str], label: str = "", iterations: i
 
     Parameters
     ----------
-    examples : sequence of np.ndarray [shape=(T_i, f)], bool or {0, 1}: the relational features of each example
-        clip (e.g. rows of :func:`mocapviz.features.relational_features` of a document), at least one, each at
-        least one frame, all with the same f.
-    features : list of str [length f], the feature names of the columns.
-    label : str, the class.
-    iterations : int, at most this many warping-and-averaging rounds (default 10).
-    tol : float, stop when no template entry changes by more than this.
+    examples : sequence of np.ndarray [shape=(T_i, f)], bool or {0, 1}
+        The relational features of each example clip (e.g. rows of :func:`mocapviz.features.relational_features`
+        of a document), at least one, each at least one frame, all with the same f.
+    features : list of str [length f]
+        The feature names of the columns.
+    label : str
+        The class.
+    iterations : int
+        At most this many warping-and-averaging rounds (default 10).
+    tol : float
+        Stop when no template entry changes by more than this.
 
     Returns
     -------
-    MotionTemplate; ``meta`` holds ``example_frames`` (each example's length), ``example_costs`` (each example's
-    best normalised match cost, :func:`document_costs`) and ``threshold``, the highest of those: the cost up to which
-    a match is as good as the examples' own (a default threshold for hits).
+    MotionTemplate
+        ``values`` [shape=(K, f)] with K the medoid example's frames; ``meta`` holds ``example_frames`` (each
+        example's length), ``example_costs`` (each example's best normalised match cost, :func:`document_costs`)
+        and ``threshold``, the highest of those: the cost up to which a match is as good as the examples' own (a
+        default threshold for hits).
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder. Motion templates for automatic classification and retrieval of motion capture
+       data. SCA 2006, §3-4.
+
+    Examples
+    --------
+    >>> fast = np.array([[0, 0], [1, 0], [1, 1]], dtype=bool)
+    >>> slow = np.array([[0, 1], [1, 0], [1, 0], [1, 1]], dtype=bool)
+    >>> t = learn_template([fast, slow], ["rfoot_raised", "lfoot_raised"])
+    >>> t.values.round(2).tolist()  # the first frames disagree in lfoot_raised: 0.5, "don't care"
+    [[0.0, 0.5], [1.0, 0.0], [1.0, 1.0]]
+    >>> t.quantised(0.1).tolist()
+    [[0.0, 0.5], [1.0, 0.0], [1.0, 1.0]]
     """
     xs = _examples(examples, features)
     count(iterations, "iterations")
@@ -203,7 +309,20 @@ def learn_template(examples, features: list[str], label: str = "", iterations: i
 def shortest_instance(template: MotionTemplate, speed: float = SPEED) -> int:
     """The fewest frames a match of ``template`` may span: its fastest example's frames (``meta["example_frames"]``;
     the template's own length when not recorded) over ``speed``, at least 1. Shorter alignments squeeze the template
-    onto a few frames that agree with its don't-care rows, and are no instances."""
+    onto a few frames that agree with its don't-care rows, and are no instances.
+
+    Parameters
+    ----------
+    template : MotionTemplate
+        A learned template.
+    speed : float
+        At least 1: how much faster than the fastest example an instance may be.
+
+    Returns
+    -------
+    int
+        Frames.
+    """
     frames = template.meta.get("example_frames") or [len(template.values)]
     return max(1, int(np.ceil(min(frames) / number(speed, "speed", 1.0))))
 
@@ -217,16 +336,23 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
     Parameters
     ----------
     template : MotionTemplate
-    values : np.ndarray [shape=(N, f)], bool: the database's relational features, columns as ``template.features``.
-    starts : np.ndarray [shape=(B,)], int, optional: the first frame of every document (matches stay inside one).
-    n_matches : int, at most this many non-overlapping matches.
-    delta : float, the quantisation threshold.
-    max_cost : float, optional: keep only matches whose ``normalised_cost`` (cost per template frame, the mean
-        mismatch per frame in [0, 1]) is at most this.
-    ranges : np.ndarray [shape=(R, 2)], int, optional: align only within these [start, stop) frame ranges, each
-        inside one document (:func:`keyframe_ranges`, the pre-filter); default the whole database.
-    min_frames : int, optional: no match spans fewer frames (default :func:`shortest_instance`: half the fastest
-        example's frames).
+        A learned template.
+    values : np.ndarray [shape=(N, f)], bool
+        The database's relational features, columns as ``template.features``.
+    starts : np.ndarray [shape=(B,)], int, optional
+        The first frame of every document (matches stay inside one).
+    n_matches : int
+        At most this many non-overlapping matches.
+    delta : float
+        The quantisation threshold δ.
+    max_cost : float, optional
+        Keep only matches whose ``normalised_cost`` (cost per template frame, the mean mismatch per frame in
+        [0, 1]) is at most this.
+    ranges : np.ndarray [shape=(R, 2)], int, optional
+        Align only within these [start, stop) frame ranges, each inside one document (:func:`keyframe_ranges`,
+        the pre-filter); default the whole database.
+    min_frames : int, optional
+        No match spans fewer frames (default :func:`shortest_instance`: half the fastest example's frames).
 
     Returns
     -------
@@ -279,20 +405,29 @@ def keyframe_ranges(template: MotionTemplate, indexes: dict, doc_starts, n_frame
 
     Parameters
     ----------
-    template : MotionTemplate of a relational set whose indexes are given.
-    indexes : dict group -> mocapviz.relational.index.InvertedIndex (``mocapviz.relational.index.load_or_build(db, relational_set)``).
-    doc_starts : np.ndarray [shape=(B,)], int: first frame of every document.
-    n_frames : int, frames of the database.
-    delta : float, the quantisation threshold.
-    keyframes : int, 1 .. template frames (default 4).
-    tolerance : float in [0, 1], the share of a keyframe's cared-for features that may disagree (default 0.2; 1
-        makes every frame an occurrence: the ranges then cover every document at least as long as a chain).
-    speed : float >= 1, how much faster than the fastest example or slower than the slowest an instance may be
-        (default 2).
+    template : MotionTemplate
+        A template of a relational set whose indexes are given.
+    indexes : dict
+        Group -> mocapviz.relational.index.InvertedIndex
+        (``mocapviz.relational.index.load_or_build(db, relational_set)``).
+    doc_starts : np.ndarray [shape=(B,)], int
+        First frame of every document.
+    n_frames : int
+        Frames of the database.
+    delta : float
+        The quantisation threshold δ.
+    keyframes : int
+        Keyframes, 1 .. template frames (default 4).
+    tolerance : float
+        The share in [0, 1] of a keyframe's cared-for features that may disagree (default 0.2; 1 makes every
+        frame an occurrence: the ranges then cover every document at least as long as a chain).
+    speed : float
+        How much faster than the fastest example or slower than the slowest an instance may be (>= 1, default 2).
 
     Returns
     -------
-    np.ndarray [shape=(R, 2)], int64: [start, stop) frame ranges, inside documents, in frame order.
+    np.ndarray [shape=(R, 2)], int64
+        [start, stop) database frame ranges, inside documents, in frame order.
     """
     q = template.quantised(delta)
     k = len(q)
@@ -372,8 +507,35 @@ def document_costs(template: MotionTemplate, values: np.ndarray, starts, delta: 
     """The best (least) normalised cost of a match of ``template`` ending in each document: every document gets
     one, so whole clips can be ranked by how well they hold an instance.
 
-    Parameters and units as for :func:`find_instances`; returns np.ndarray [shape=(B,)], float64 (inf for a
-    document where no match ends).
+    Parameters
+    ----------
+    template : MotionTemplate
+        A learned template.
+    values : np.ndarray [shape=(N, f)], bool
+        The database's relational features, columns as ``template.features``.
+    starts : np.ndarray [shape=(B,)], int
+        The first frame of every document.
+    delta : float
+        The quantisation threshold δ.
+    min_frames : int, optional
+        No match spans fewer frames (default :func:`shortest_instance`).
+
+    Returns
+    -------
+    np.ndarray [shape=(B,)], float64
+        Per document the least normalised cost (mean mismatch per template frame, in [0, 1]); inf for a document
+        where no match ends.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.features import relational_features
+    >>> db = MotionDB.sample()
+    >>> values, _ = relational_features(db, "2006", progress=False)
+    >>> t = learn_class(db, "squat1Reps", values=values)
+    >>> costs = document_costs(t, values, db.documents["start"].to_numpy())
+    >>> db.documents["doc_id"].to_numpy()[np.argsort(costs, kind="stable")[:3]].tolist()  # its examples first
+    [11, 22, 0]
     """
     x = np.asarray(values)
     q = template.quantised(delta)
@@ -387,13 +549,33 @@ def classify(values: np.ndarray, templates, delta: float = DELTA) -> pd.DataFram
 
     Parameters
     ----------
-    values : np.ndarray [shape=(T, f)], bool: the clip's relational features.
-    templates : sequence of MotionTemplate (same features).
-    delta : float, the quantisation threshold.
+    values : np.ndarray [shape=(T, f)], bool
+        The clip's relational features.
+    templates : sequence of MotionTemplate
+        Templates over the same features.
+    delta : float
+        The quantisation threshold δ.
 
     Returns
     -------
-    pd.DataFrame, best first: label, cost (DTW cost normalised by template + clip frames).
+    pandas.DataFrame
+        Best first: label, cost (DTW cost normalised by template + clip frames).
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder. Motion templates for automatic classification and retrieval of motion capture
+       data. SCA 2006, §6 (classification by the nearest template).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.features import relational_features
+    >>> db = MotionDB.sample()
+    >>> values, _ = relational_features(db, "2006", progress=False)
+    >>> squat = learn_class(db, "squat1Reps", actors=["dg"], values=values)
+    >>> kick = learn_class(db, "kickLFront1Reps", actors=["dg"], values=values)
+    >>> classify(values[db.frames(22)], [squat, kick])["label"].tolist()  # a squat of actor mm
+    ['squat1Reps', 'kickLFront1Reps']
     """
     x = np.asarray(values)
     rows = []
@@ -412,18 +594,40 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     Parameters
     ----------
     db : MotionDB
-    label : str, a value of the documents' ``label`` column.
-    actors : sequence of str, optional: only the documents whose ``group`` column (default ``actor``) is one of
-        these.
-    relational_set : {"2005", "2006"}, the features (default the 39 of Müller & Röder 2006, as in the paper).
-    values : np.ndarray [shape=(N, f)], bool, optional: the database's relational features when already computed.
-    iterations : int, see :func:`learn_template`.
-    group : str, the column ``actors`` selects from (e.g. ``style`` in Bandai Namco's data).
+        The database holding the examples.
+    label : str
+        A value of the documents' ``label`` column.
+    actors : sequence of str, optional
+        Only the documents whose ``group`` column (default ``actor``) is one of these.
+    relational_set : {"2005", "2006"}
+        The features (default the 39 of Müller & Röder 2006, as in the paper).
+    values : np.ndarray [shape=(N, f)], bool, optional
+        The database's relational features when already computed.
+    iterations : int
+        At most this many rounds, see :func:`learn_template`.
+    group : str
+        The column ``actors`` selects from (e.g. ``style`` in Bandai Namco's data).
 
     Returns
     -------
-    MotionTemplate; ``meta`` holds the relational set, the example doc ids, the actors, the database path and its
-    ``generation`` (``db.manifest["generation"]``: the state of the database it was learned from).
+    MotionTemplate
+        ``meta`` holds the relational set, the example doc ids, the actors, the database path and its
+        ``generation`` (``db.manifest["generation"]``: the state of the database it was learned from).
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder. Motion templates for automatic classification and retrieval of motion capture
+       data. SCA 2006, §3-4 (a class template from its labelled examples).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()
+    >>> t = learn_class(db, "squat1Reps")  # the two squats of the sample, the 39 features of 2006
+    >>> t.values.shape, t.n_examples, t.meta["doc_ids"], t.meta["example_frames"]
+    ((159, 39), 2, [11, 22], [159, 189])
+    >>> float((t.quantised(0.1) == 0.5).mean().round(2))  # share of don't-care entries
+    0.12
     """
     docs = db.documents
     chosen = docs[docs["label"].astype("string") == str(label)]
@@ -453,6 +657,18 @@ def template_path(db, name: str) -> Path:
 
     ``name`` is filename-safe: letters, digits, ``.``, ``_`` and ``-``, not starting with ``.``, at most 128
     characters; anything else is a ParameterError.
+
+    Parameters
+    ----------
+    db : MotionDB
+        The database.
+    name : str
+        The template's name.
+
+    Returns
+    -------
+    pathlib.Path
+        ``DB/templates/<name>.npz``.
     """
     if not isinstance(name, str) or not _NAME.fullmatch(name):
         raise ParameterError(f"template name {name!r} is not filename-safe: use letters, digits, '.', '_' and '-' "
@@ -466,13 +682,17 @@ def store_template(db, template: MotionTemplate, name: str | None = None) -> Pat
     Parameters
     ----------
     db : MotionDB
+        The database (writable).
     template : MotionTemplate
-    name : str, optional: default the label, then ``-`` and each actor when it was learned from some only
-        (``squat1Reps-bd-dg``), with every character that is not filename-safe replaced by ``_``.
+        The template to store.
+    name : str, optional
+        Default the label, then ``-`` and each actor when it was learned from some only (``squat1Reps-bd-dg``),
+        with every character that is not filename-safe replaced by ``_``.
 
     Returns
     -------
-    pathlib.Path of the stored file (written atomically under the lock of ``DB/templates/``).
+    pathlib.Path
+        The stored file (written atomically under the lock of ``DB/templates/``).
     """
     if name is None:
         words = [template.label, *(template.meta.get("actors") or [])]
@@ -487,6 +707,17 @@ def store_template(db, template: MotionTemplate, name: str | None = None) -> Pat
 def load_template(db, name: str) -> MotionTemplate:
     """The template stored as ``name`` with a MotionDB (:func:`store_template`), whatever database generation it was
     learned from (a template is portable; :func:`stored_templates` shows the generation).
+
+    Parameters
+    ----------
+    db : MotionDB
+        The database it is stored with.
+    name : str
+        The name it was stored under.
+
+    Returns
+    -------
+    MotionTemplate
 
     Raises
     ------
@@ -506,11 +737,22 @@ def load_template(db, name: str) -> MotionTemplate:
 def stored_templates(db) -> pd.DataFrame:
     """The templates stored with a MotionDB, by name.
 
+    Parameters
+    ----------
+    db : MotionDB
+        The database.
+
     Returns
     -------
-    pd.DataFrame, one row per template: name, label, n_examples, frames (template rows), relational_set, actors
-    (comma-separated; empty when learned from every actor), generation (of the database it was learned from; None
-    when unknown) and current (that generation is the database's now). A damaged file raises MotionDBError naming it.
+    pandas.DataFrame
+        One row per template: name, label, n_examples, frames (template rows), relational_set, actors
+        (comma-separated; empty when learned from every actor), generation (of the database it was learned from;
+        None when unknown) and current (that generation is the database's now).
+
+    Raises
+    ------
+    MotionDBError
+        A damaged file; the message names it.
     """
     rows = []
     for path in sorted((Path(db.path) / TEMPLATES).glob("*.npz")):

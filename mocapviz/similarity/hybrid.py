@@ -97,6 +97,22 @@ def hybrid_search(db, example, features=None, mode: str = "adaptive", mismatches
     ParameterError
         A bad ``example``, ``mode`` or ``n_matches``, a ``search`` over another numeric set; the relational and
         numeric stages raise their own errors.
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. ACM TOG
+       24(3), 2005, §6.2 (hits of a query by example, to be refined by DTW-based techniques, §7).
+    .. [2] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §3.2 (the numeric features the DTW compares).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.relational.index import build
+    >>> db = MotionDB.sample()
+    >>> ranked = hybrid_search(db, 7, ["lfoot_raised"], indexes=build(db, save=False, progress=False))
+    >>> ranked["label"].tolist(), ranked["normalised_cost"].round(2).tolist()  # 4 candidates, the other kick first
+    (['kickLFront1Reps', 'depositFloorR', 'squat1Reps', 'squat1Reps'], [24.25, 53.03, 54.83, 68.01])
     """
     if mode not in MODES:
         raise ParameterError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")

@@ -255,6 +255,26 @@ class KnnIndex:
     ValueError
         Unknown engine, features not (N, d) real and finite (the first bad frame is named), a bad ``valid``
         mask or one selecting no frame, leafsize < 1.
+
+    References
+    ----------
+    .. [1] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §3.3 (kd-tree k nearest neighbours of poses, Table 1) and §4.1 (the
+       fixed-radius search step of the lazy neighbourhood graph).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.features import numeric_of
+    >>> db = MotionDB.sample()
+    >>> index = KnnIndex(numeric_of(db, "F15E"))  # every frame of the database, F15E in cm
+    >>> index.n_indexed, index.dim
+    (5543, 15)
+    >>> own = db.frames(7)
+    >>> distances, frames = index.query(numeric_of(db, "F15E")[own.start + 40], k=3, exclude=[own.start, own.stop])
+    >>> db.document_of(frames).tolist(), np.round(distances, 1).tolist()  # the nearest poses of another kick
+    ([18, 18, 18], [41.3, 41.5, 41.8])
     """
 
     def __init__(self, features, engine: str = "ckdtree", valid=None, leafsize: int = LEAFSIZE):
@@ -288,7 +308,8 @@ class KnnIndex:
 
         Parameters
         ----------
-        x : np.ndarray [shape=(d,) or (q, d)], real, feature units (cm for F15E).
+        x : np.ndarray [shape=(d,) or (q, d)], real
+            One query or q queries, in the features' units (cm for F15E).
         k : int
             Neighbours per query, 1 <= k <= n_indexed.
         radius : float, optional
@@ -316,6 +337,16 @@ class KnnIndex:
             bad threads, ``exclude`` not one [start, stop) range per query.
         TypeError
             k not an integer.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> index = KnnIndex(np.array([[0.0, 0.0], [1.0, 0.0], [3.0, 0.0], [0.0, 2.0]]))
+        >>> distances, frames = index.query([[0.0, 0.0], [2.9, 0.0]], k=2)
+        >>> frames.tolist(), np.round(distances, 2).tolist()
+        ([[0, 1], [2, 1]], [[0.0, 1.0], [0.1, 1.9]])
+        >>> index.query([0.0, 0.0], k=3, radius=1.5)[1].tolist()  # at most k within the radius, -1 padded
+        [0, 1, -1]
         """
         queries = _check_queries(x, self.dim)
         k = count(k, "k", 1, self.n_indexed, "the number of indexed frames")
@@ -361,7 +392,15 @@ class KnnIndex:
 
         Returns
         -------
-        KnnIndex with ``valid = self.valid & ~frames``; building it costs about ``build_seconds``.
+        KnnIndex
+            With ``valid = self.valid & ~frames``; building it costs about ``build_seconds``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> index = KnnIndex(np.arange(10.0)[:, None])
+        >>> index.exclude(np.array([[0, 4]])).query([0.0], k=2)[1].tolist()  # frames 0-3 left out
+        [4, 5]
         """
         drop = frames_mask(frames, self.n_frames)
         return KnnIndex(self._features, self.engine, valid=self.valid & ~drop, leafsize=self.leafsize)
@@ -524,8 +563,23 @@ def base_poses(features, radius: float, k: int = 32, valid=None, threads: int | 
 
     Returns
     -------
-    base : np.ndarray [shape=(B,)], int64 frame numbers of the base poses, in the order chosen.
-    cluster : np.ndarray [shape=(N,)], int64, the base pose of each frame; -1 for frames not valid.
+    base : np.ndarray [shape=(B,)], int64
+        Frame numbers of the base poses, in the order chosen.
+    cluster : np.ndarray [shape=(N,)], int64
+        The base pose of each frame; -1 for frames not valid.
+
+    References
+    ----------
+    .. [1] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §5.3 (fast fat graphs: base poses from kd-tree radius searches).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> poses = np.array([[0.0], [0.5], [1.0], [5.0], [5.2], [9.0]])  # 1-d "features" for the picture
+    >>> base, cluster = base_poses(poses, radius=1.1, k=4)
+    >>> base.tolist(), cluster.tolist()
+    ([0, 3, 5], [0, 0, 0, 3, 3, 5])
     """
     radius, k = _check_fat_graph(radius, k)
     frames, nb = _neighbour_table(features, radius, k, valid, threads)
@@ -539,8 +593,25 @@ def base_poses_quadratic(features, radius: float, k: int = 32, valid=None):
     cost; Krüger et al. 2010 §5.3): the reference for tests and benchmarks, for a few thousand frames.
 
     Neighbours of a frame: the k nearest other valid frames by (distance, frame number) at distance < radius.
-    The greedy step recounts remaining neighbours from the adjacency matrix. Parameters and returns as
-    :func:`base_poses`.
+    The greedy step recounts remaining neighbours from the adjacency matrix.
+
+    Parameters
+    ----------
+    features : np.ndarray [shape=(N, d)], real
+        As for :func:`base_poses` (a few thousand frames: the distance matrix is (N, N) float64).
+    radius : float
+        Neighbourhood radius in feature units.
+    k : int
+        Most neighbours per frame.
+    valid : np.ndarray [shape=(N,)], bool, optional
+        Frames to cluster (default all).
+
+    Returns
+    -------
+    base : np.ndarray [shape=(B,)], int64
+        Frame numbers of the base poses, in the order chosen (equal to :func:`base_poses`').
+    cluster : np.ndarray [shape=(N,)], int64
+        The base pose of each frame; -1 for frames not valid.
     """
     radius, k = _check_fat_graph(radius, k)
     arr = _check_features(features)

@@ -129,14 +129,17 @@ def synthetic_markers(positions, noise_cm: float = 0.1, seed=None) -> np.ndarray
 
     Parameters
     ----------
-    positions : np.ndarray [shape=(T, 24, 3)], canonical joints, cm, y up.
-    noise_cm : float >= 0
-        Each coordinate gets independent uniform noise in [-noise_cm, noise_cm] cm (default 0.1 cm = 1 mm).
+    positions : np.ndarray [shape=(T, 24, 3)]
+        Canonical joints, cm, y up.
+    noise_cm : float
+        Each coordinate gets independent uniform noise in [-noise_cm, noise_cm] cm (>= 0; default 0.1 cm = 1 mm).
     seed : int or np.random.Generator, optional
+        The noise's generator or seed.
 
     Returns
     -------
-    np.ndarray [shape=(T, 6, 3)], float64, cm, markers in the order of :data:`MARKERS`.
+    np.ndarray [shape=(T, 6, 3)], float64
+        Markers in the order of :data:`MARKERS`, cm.
     """
     pos = np.asarray(positions)
     if pos.ndim != 3 or pos.shape[1:] != (len(CANONICAL_JOINTS), 3):
@@ -175,13 +178,16 @@ def body_frame_markers(markers, headings) -> np.ndarray:
 
     Parameters
     ----------
-    markers : np.ndarray [shape=(T, 6, 3)], cm, y up, in the order of :data:`MARKERS`.
-    headings : np.ndarray [shape=(T,)], radians (:func:`mocapviz.motion.skeleton.heading`: 0 facing +z).
+    markers : np.ndarray [shape=(T, 6, 3)]
+        Marker positions, cm, y up, in the order of :data:`MARKERS`.
+    headings : np.ndarray [shape=(T,)]
+        Radians (:func:`mocapviz.motion.skeleton.heading`: 0 facing +z).
 
     Returns
     -------
-    np.ndarray [shape=(T, 5, 3)], float64, cm: lwrist, rwrist, lankle, rankle, head minus the root marker, rotated
-    by minus the heading about y (the transform of :func:`mocapviz.motion.skeleton.body_frame`).
+    np.ndarray [shape=(T, 5, 3)], float64
+        lwrist, rwrist, lankle, rankle, head minus the root marker, rotated by minus the heading about y (the
+        transform of :func:`mocapviz.motion.skeleton.body_frame`), cm.
     """
     m, h = _check_markers(markers, headings)
     d = m[:, :5] - m[:, 5:]
@@ -190,7 +196,20 @@ def body_frame_markers(markers, headings) -> np.ndarray:
 
 
 def marker_query(markers, headings) -> np.ndarray:
-    """:func:`body_frame_markers` as F15E feature vectors (T, 15), float64, cm: the kd-tree query of §5.2."""
+    """:func:`body_frame_markers` as F15E feature vectors: the kd-tree query of §5.2.
+
+    Parameters
+    ----------
+    markers : np.ndarray [shape=(T, 6, 3)]
+        Marker positions, cm, y up, in the order of :data:`MARKERS`.
+    headings : np.ndarray [shape=(T,)]
+        Radians (:func:`mocapviz.motion.skeleton.heading`: 0 facing +z).
+
+    Returns
+    -------
+    np.ndarray [shape=(T, 15)], float64
+        cm, in the column order of F15E (:func:`mocapviz.features.numeric_columns`).
+    """
     return body_frame_markers(markers, headings).reshape(-1, 15)
 
 
@@ -268,11 +287,32 @@ class PosePrior:
         return f"PosePrior({self.db.path}: {self.n_valid:,} of {self.db.n_frames:,} frames)"
 
     def restrict(self, valid) -> PosePrior:
-        """The same database with another valid mask; poses, features and PCA are shared, trees are rebuilt."""
+        """The same database with another valid mask; poses, features and PCA are shared, trees are rebuilt.
+
+        Parameters
+        ----------
+        valid : np.ndarray [shape=(N,)], bool
+            The frames that may be neighbours (e.g. all but the test clip's).
+
+        Returns
+        -------
+        PosePrior
+        """
         return PosePrior(self.db, valid, engine=self.engine, _shared=self._shared)
 
     def features(self, numeric_set: str) -> np.ndarray:
-        """The database's values of a numeric set (N, d), computed once (``numeric_of``; Fp sets with :attr:`pca`)."""
+        """The database's values of a numeric set, computed once (``numeric_of``; Fp sets with :attr:`pca`).
+
+        Parameters
+        ----------
+        numeric_set : str
+            One of :data:`mocapviz.features.NUMERIC_SETS`.
+
+        Returns
+        -------
+        np.ndarray [shape=(N, d)]
+            Every database frame's values, cm.
+        """
         if numeric_set not in NUMERIC_SETS:
             raise ParameterError(f"unknown numeric set {numeric_set!r}; known sets: {', '.join(NUMERIC_SETS)}")
         cache = self._shared["features"]
@@ -282,7 +322,17 @@ class PosePrior:
         return cache[numeric_set]
 
     def index(self, numeric_set: str = "F15E") -> KnnIndex:
-        """The kd-tree over the valid frames' values of a set (built on first use)."""
+        """The kd-tree over the valid frames' values of a set (built on first use).
+
+        Parameters
+        ----------
+        numeric_set : str
+            One of :data:`mocapviz.features.NUMERIC_SETS` (default F15E).
+
+        Returns
+        -------
+        KnnIndex
+        """
         if numeric_set not in self._indexes:
             self._indexes[numeric_set] = KnnIndex(self.features(numeric_set), engine=self.engine, valid=self.valid)
         return self._indexes[numeric_set]
@@ -402,10 +452,12 @@ def reconstruct(markers, headings, prior, numeric_set: str = "F15E", k: int = DE
 
     Parameters
     ----------
-    markers : np.ndarray [shape=(T, 6, 3)], cm, y up, in the order of :data:`MARKERS` (e.g.
-        :func:`synthetic_markers`), at the prior database's frame rate.
-    headings : np.ndarray [shape=(T,)], radians, the body's heading per frame (the root marker cluster's;
-        :func:`mocapviz.motion.skeleton.heading` of the test motion in the experiments).
+    markers : np.ndarray [shape=(T, 6, 3)]
+        Marker positions, cm, y up, in the order of :data:`MARKERS` (e.g. :func:`synthetic_markers`), at the
+        prior database's frame rate.
+    headings : np.ndarray [shape=(T,)]
+        The body's heading per frame, radians (the root marker cluster's; :func:`mocapviz.motion.skeleton.heading`
+        of the test motion in the experiments).
     prior : PosePrior or MotionDB
         The pose prior; a MotionDB is wrapped in a :class:`PosePrior` (with ``valid`` and ``pca``). Pass a
         PosePrior to reuse its kd-trees for several motions.
@@ -413,26 +465,33 @@ def reconstruct(markers, headings, prior, numeric_set: str = "F15E", k: int = DE
         Numeric set of the neighbour search. "F15E": one pass, queried with the markers. Any other set of
         :data:`mocapviz.features.NUMERIC_SETS`: pass 1 with F15E, pass 2 with the set computed on the pass-1
         result ([UNCERTAIN], module docstring).
-    k : int, neighbours per frame (1 <= k <= valid frames of the prior).
+    k : int
+        Neighbours per frame (1 <= k <= valid frames of the prior).
     valid : np.ndarray [shape=(N,)], bool, optional
         Frames of the prior database that may be used (only with a MotionDB; a PosePrior carries its own).
-    pca : PCAModel, optional, for the Fp sets (only with a MotionDB).
+    pca : PCAModel, optional
+        For the Fp sets (only with a MotionDB).
     method : str
         "llm": the local linear model (the method); baselines: "mean" (the kernel-weighted mean of the k
         neighbours), "nn" (the nearest neighbour's pose). All are placed with the root marker and heading.
-    variance : float in (0, 1], share of the local variance the model keeps.
-    bandwidth : float > 0 or None, the kernel width in units of the median neighbour distance (None: equal weights).
-    marker_sigma : float > 0, cm, the marker term's standard deviation.
-    smooth_sigma : float > 0 or None, cm, the smoothness term's (None: no smoothness term).
+    variance : float
+        Share in (0, 1] of the local variance the model keeps.
+    bandwidth : float or None
+        The kernel width (> 0) in units of the median neighbour distance (None: equal weights).
+    marker_sigma : float
+        The marker term's standard deviation, cm (> 0).
+    smooth_sigma : float or None
+        The smoothness term's, cm (> 0; None: no smoothness term).
     return_info : bool
         Also return a dict: ``"frames"`` (T, k) the last pass's neighbour frames of the prior database,
         ``"pass1"`` (T, 24, 3) the F15E result when two passes were run.
-    progress : bool, progress bar over the frames of the sequential solve.
+    progress : bool
+        Progress bar over the frames of the sequential solve.
 
     Returns
     -------
-    np.ndarray [shape=(T, 24, 3)], float64, cm, world coordinates (y up), canonical joints; with ``return_info``,
-    (positions, info).
+    np.ndarray [shape=(T, 24, 3)], float64
+        World coordinates in cm (y up) of the canonical joints; with ``return_info``, (positions, info).
 
     Raises
     ------
@@ -442,6 +501,27 @@ def reconstruct(markers, headings, prior, numeric_set: str = "F15E", k: int = DE
         range, a windowed set on a database with mixed frame rates.
     TypeError
         ``prior`` neither a PosePrior nor a MotionDB.
+
+    References
+    ----------
+    .. [1] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §5.2 (reconstruction from few markers, kd-tree neighbours), Tables 3-4.
+    .. [2] J. Chai, J. K. Hodgins. Performance animation from low-dimensional control signals. ACM TOG 24(3),
+       2005 (local linear models of the neighbour poses).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.motion.skeleton import heading
+    >>> db = MotionDB.sample()
+    >>> truth = np.asarray(db.motion(18).positions[:60])  # 0.5 s of a kick, cm
+    >>> markers = synthetic_markers(truth, seed=0)  # six markers, +-1 mm of noise
+    >>> prior = np.ones(db.n_frames, dtype=bool)
+    >>> prior[db.frames(18)] = False  # the test clip is not in the prior
+    >>> estimate = reconstruct(markers, heading(truth), db, k=256, valid=prior)
+    >>> estimate.shape, bool(reconstruction_errors(truth, estimate)["mean_cm"] < 10)
+    ((60, 24, 3), True)
     """
     m, h = _check_markers(markers, headings)
     if isinstance(prior, MotionDB):
@@ -489,11 +569,12 @@ def reconstruction_errors(truth, estimate) -> dict:
 
     Parameters
     ----------
-    truth, estimate : np.ndarray [shape=(T, 24, 3)], cm, canonical joints, the same frames.
+    truth, estimate : np.ndarray [shape=(T, 24, 3)]
+        Canonical joints of the same frames, cm.
 
     Returns
     -------
-    dict with
+    dict
         ``mean_cm`` : float, the mean over frames and joints of the Euclidean joint error.
         ``max_cm`` : float, the largest *per-frame mean* joint error over the frames (our reading of the paper's
             "max ... per joint": the worst frame, measured like the mean). [UNCERTAIN]

@@ -74,6 +74,7 @@ class SimilaritySearch:
     Parameters
     ----------
     db : MotionDB
+        The database searched.
     numeric_set : str
         A numeric set (:data:`mocapviz.features.NUMERIC_SETS`), the stored one when current (``mocapviz features
         DB``), else computed now. Default F15E (cm).
@@ -93,6 +94,30 @@ class SimilaritySearch:
     numeric_set : str, the numeric set searched.
     features : np.ndarray [shape=(N, d)], float32, the numeric set's values of every database frame.
     documents : pd.DataFrame, the searchable documents (doc_id, name, start, n_frames, labels), by start.
+
+    References
+    ----------
+    .. [1] B. Krüger, J. Tautges, A. Weber, A. Zinke. Fast local and global similarity searches in large motion
+       capture databases. SCA 2010, §3.2 (the numeric feature sets compared) and §4 (motion matching by DTW; the
+       kNN of §3.3 give fast mode's candidates and the lower bounds).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()
+    >>> search = SimilaritySearch(db, "F15E")
+    >>> hits = search.clips(7, n_matches=3, mode="exact", exclude_document=True)  # the clips most like clip 7
+    >>> print(hits[["rank", "doc_id", "label", "normalised_cost"]].round(2).to_string(index=False))
+     rank  doc_id                       label  normalised_cost
+        1      18             kickLFront1Reps            24.25
+        2      21           sneak2StepsLStart            40.88
+        3      14 elbowToKnee1RepsLelbowStart            42.49
+    >>> fast = search.clips(7, n_matches=3, exclude_document=True)  # fast mode (default): here the same ranking
+    >>> fast["doc_id"].tolist()
+    [18, 21, 14]
+    >>> stretches = search.stretches(7, (0, 60), n_matches=2, mode="exact", exclude_document=True)
+    >>> stretches["label"].tolist(), stretches["cost"].round(1).tolist()
+    (['kickLFront1Reps', 'elbowToKnee1RepsLelbowStart'], [2489.7, 4091.2])
     """
 
     def __init__(self, db, numeric_set: str = "F15E", documents=None, k: int = NEIGHBOURS, features=None,
@@ -149,7 +174,22 @@ class SimilaritySearch:
 
     # ------------------------------------------------------------------------ the query
     def query_features(self, example, frames=None) -> tuple[np.ndarray, int | None]:
-        """The query's feature values and its document: :func:`example_features` on this search's numeric set."""
+        """The query's feature values and its document: :func:`example_features` on this search's numeric set.
+
+        Parameters
+        ----------
+        example : int, Motion, str or os.PathLike
+            A doc id, a Motion or a motion file.
+        frames : (int, int) or slice, optional
+            [start, stop) frames of the example (default all).
+
+        Returns
+        -------
+        query : np.ndarray [shape=(m, d)], float32
+            The query frames' values of :attr:`numeric_set`.
+        doc_id : int or None
+            The example's document (None for a Motion or a file).
+        """
         return example_features(self.db, self.features, example, frames, self.numeric_set)
 
     def _ranges(self, own: int | None, exclude_document: bool, candidates) -> np.ndarray:
@@ -175,13 +215,22 @@ class SimilaritySearch:
 
         Parameters
         ----------
-        example, frames : the query (:meth:`query_features`).
-        n_matches : int, documents to return (K >= 1).
-        mode : {"fast", "exact", "brute"}, see the module docstring.
-        exclude_document : bool, leave out the query's own document.
-        paths : bool, add each match's warping path ((L, 2) (query frame, document frame)).
-        candidates : sequence of int, optional: rank only these doc ids (e.g. relational hits).
-        budget : int, optional: fast mode's documents aligned at most (default max(CLIP_BUDGET, 2 K)).
+        example : int, Motion, str or os.PathLike
+            The query: a doc id of the database, a Motion or a motion file (:func:`example_features`).
+        frames : (int, int) or slice, optional
+            [start, stop) frames of the example (default all), at least 2.
+        n_matches : int
+            Documents to return (K >= 1).
+        mode : {"fast", "exact", "brute"}
+            See the module docstring.
+        exclude_document : bool
+            Leave out the query's own document.
+        paths : bool
+            Add each match's warping path ((L, 2) (query frame, document frame)).
+        candidates : sequence of int, optional
+            Rank only these doc ids (e.g. relational hits).
+        budget : int, optional
+            Fast mode's documents aligned at most (default max(CLIP_BUDGET, 2 K)).
 
         Returns
         -------
@@ -254,11 +303,20 @@ class SimilaritySearch:
 
         Parameters
         ----------
-        example, frames : the query (:meth:`query_features`), 2 <= m <= the longest searchable document.
-        n_matches : int, stretches to return (K >= 1; fewer when there are fewer).
+        example : int, Motion, str or os.PathLike
+            The query, as for :meth:`clips`.
+        frames : (int, int) or slice, optional
+            [start, stop) frames of the example; the query's m frames: 2 <= m <= the longest searchable document.
+        n_matches : int
+            Stretches to return (K >= 1; fewer when there are fewer).
         mode : {"fast", "exact", "brute"}
-        min_length : float in (0, 1]: the shortest match, a share of the query's frames (0.5: half as long).
-        exclude_document, paths : as :meth:`clips`.
+            See the module docstring.
+        min_length : float
+            The shortest match, a share in (0, 1] of the query's frames (0.5: half as long).
+        exclude_document : bool
+            Leave out the query's own document.
+        paths : bool
+            Add each match's warping path ((L, 2) (query frame, frame of the hit's document)).
 
         Returns
         -------

@@ -33,7 +33,23 @@ VALUE_CHARS = 5  # "-0.12": the widest value printed
 def value_font(cell: int) -> int | None:
     """The font size (points) of the values printed in cells of ``cell`` pixels: the largest within
     :data:`VALUE_FONT_PT` whose values fit the cell (:data:`VALUE_CHARS` characters of about 0.62 em, 2 pixels of
-    margin on each side); None when even the smallest would not."""
+    margin on each side); None when even the smallest would not.
+
+    Parameters
+    ----------
+    cell : int
+        The cell's width, pixels.
+
+    Returns
+    -------
+    int or None
+        Points.
+
+    Examples
+    --------
+    >>> value_font(40), value_font(5)
+    (8, None)
+    """
     font = min(int((cell - 4) / (VALUE_CHARS * 0.62 * 4 / 3)), VALUE_FONT_PT[1])
     return font if font >= VALUE_FONT_PT[0] else None
 
@@ -53,20 +69,22 @@ def correlation_heatmap(matrix: pd.DataFrame, title: str = "", cell: int = 46) -
         by, columns = the measure they are compared with (:func:`mocapviz.experiments.correlation.pose_correlations`,
         ``segment_correlations``). Not symmetric in general, and drawn as it is.
     title : str
+        The figure's title.
     cell : int
         Size of one cell in screen pixels (bokeh); the matplotlib figure is scaled alike (80 pixels per inch). The
         values' font grows with it (:func:`value_font`); in cells too small for them, hovering shows the values.
 
     Returns
     -------
-    hv.Overlay of
+    hv.Overlay
+        Of
 
-    - an hv.HeatMap: x = column position 0..C-1, ticks the column names left to right in the matrix's order
-      (axis label "compared with"); y = row position 0..R-1, ticks the row names top to bottom in the matrix's
-      order ("neighbours by"); colour = rho on the fixed diverging scale -1 (blue) .. 0 (white) .. +1 (red), the
-      same for every matrix. Bokeh: hover shows the row and column names and rho;
-    - two hv.Labels with the values to 2 decimals, centred in their cells: black, and white where |rho| >= 0.75
-      (dark cells); left out when the cells are too small to hold them.
+        - an hv.HeatMap: x = column position 0..C-1, ticks the column names left to right in the matrix's order
+          (axis label "compared with"); y = row position 0..R-1, ticks the row names top to bottom in the
+          matrix's order ("neighbours by"); colour = rho on the fixed diverging scale -1 (blue) .. 0 (white) ..
+          +1 (red), the same for every matrix. Bokeh: hover shows the row and column names and rho;
+        - two hv.Labels with the values to 2 decimals, centred in their cells: black, and white where
+          |rho| >= 0.75 (dark cells); left out when the cells are too small to hold them.
 
     Raises
     ------

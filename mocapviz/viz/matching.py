@@ -60,21 +60,24 @@ def similarity_layout(result: dict, cols: int = 3, width: int = 380, height: int
         float local costs: Euclidean in cm for the numeric sets, cm² for Dpc), ``"computed"`` ((m, n) bool, the
         kNN cells the graph visited) and ``"matches"`` (DataFrame with a ``path`` column of (L, 2) int (query
         frame, small-database frame) arrays).
-    cols : int, panels per row.
-    width, height : int, pixels per panel.
+    cols : int
+        Panels per row.
+    width, height : int
+        Pixels per panel.
 
     Returns
     -------
-    hv.Layout with one panel per feature set and the Dpc panel, in the result's order. Each panel is an
-    hv.Overlay labelled with the set's name of
+    hv.Layout
+        One panel per feature set and the Dpc panel, in the result's order. Each panel is an hv.Overlay labelled
+        with the set's name of
 
-    - an hv.Image (x: small-database frame 0..n-1, y: query frame 0..m-1) of the distances of the computed
-      cells in grey, darker = more similar (its own colour range per panel); cells not computed are NaN and
-      drawn in flat blue (``clipping_colors``), as in the paper: "blue regions do not have to be computed";
-    - hv.VLines at the document boundaries of the small database (x = start - 0.5);
-    - an hv.Path in red, one sub-path per match: x = database frame, y = query frame.
+        - an hv.Image (x: small-database frame 0..n-1, y: query frame 0..m-1) of the distances of the computed
+          cells in grey, darker = more similar (its own colour range per panel); cells not computed are NaN and
+          drawn in flat blue (``clipping_colors``), as in the paper: "blue regions do not have to be computed";
+        - hv.VLines at the document boundaries of the small database (x = start - 0.5);
+        - an hv.Path in red, one sub-path per match: x = database frame, y = query frame.
 
-    The title gives the set and the share of cells computed.
+        The title gives the set and the share of cells computed.
     """
     names = _panels(result)
     if not names:
@@ -120,7 +123,18 @@ def band_polygon(band) -> np.ndarray:
 
     Parameters
     ----------
-    band : np.ndarray [shape=(m, 2)], int: per frame i of a the [lo, hi) frames of b (non-decreasing bounds).
+    band : np.ndarray [shape=(m, 2)], int
+        Per frame i of a the [lo, hi) frames of b (non-decreasing bounds).
+
+    Returns
+    -------
+    np.ndarray [shape=(V, 2)], float64
+        The vertices (x, y), in frames.
+
+    Examples
+    --------
+    >>> polygon_area(band_polygon(np.array([[0, 2], [1, 3]])))  # 2 + 2 cells
+    4.0
     """
     band = np.asarray(band, dtype=np.float64)
     m = len(band)
@@ -132,7 +146,18 @@ def band_polygon(band) -> np.ndarray:
 
 
 def polygon_area(vertices) -> float:
-    """The area of a simple (or staircase) polygon (V, 2) by the shoelace formula."""
+    """The area of a simple (or staircase) polygon by the shoelace formula.
+
+    Parameters
+    ----------
+    vertices : np.ndarray [shape=(V, 2)]
+        The outline, in order.
+
+    Returns
+    -------
+    float
+        In the squared units of the vertices.
+    """
     x, y = np.asarray(vertices, dtype=np.float64).T
     return float(abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))) / 2)
 
@@ -148,17 +173,20 @@ def alignment_layout(result: dict, width: int = 430, height: int = 400) -> hv.La
         per frame of a), ``"path_full"`` and ``"path_band"`` ((L, 2) int (frame of a, frame of b)),
         ``"segments_a"`` / ``"segments_b"`` (FeatureSequence: ``starts``, ``lengths``), ``"segment_path"``
         ((P, 2) matched segment pairs) and ``"summary"`` (one-row DataFrame).
-    width, height : int, pixels per panel.
+    width, height : int
+        Pixels per panel.
 
     Returns
     -------
-    hv.Layout of two panels (x: frame of b, y: frame of a, frame 0 at the bottom):
+    hv.Layout
+        Two panels (x: frame of b, y: frame of a, frame 0 at the bottom):
 
-    - ``cost``: the local cost matrix in grey (darker = lower cost), the segment boundaries of both clips as thin
-      lines (hv.HLines for a, hv.VLines for b), the full DTW path (red) and the band DTW path (dashed cyan);
-    - ``band``: the rectangles of the matched segment pairs (hv.Rectangles, light grey), the band they span,
-      enlarged by the margin (hv.Polygons outline of :func:`band_polygon`, grey: only these cells are computed),
-      the segment boundaries and both paths.
+        - ``cost``: the local cost matrix in grey (darker = lower cost), the segment boundaries of both clips as
+          thin lines (hv.HLines for a, hv.VLines for b), the full DTW path (red) and the band DTW path (dashed
+          cyan);
+        - ``band``: the rectangles of the matched segment pairs (hv.Rectangles, light grey), the band they span,
+          enlarged by the margin (hv.Polygons outline of :func:`band_polygon`, grey: only these cells are
+          computed), the segment boundaries and both paths.
     """
     cost = np.asarray(result["cost"], dtype=np.float64)
     m, n = cost.shape
@@ -223,7 +251,18 @@ def _setting(seconds, eps) -> str:
 def accuracy_table(per_query: pd.DataFrame) -> pd.DataFrame:
     """:func:`mocapviz.experiments.matching.lng_accuracy`'s rows as the long table :func:`accuracy_plot` draws:
     one row per (setting, measure) with the mean over the queries where the measure is defined (``queries``);
-    Spearman is NaN for queries where the graph found fewer than 3 matches, and those are left out."""
+    Spearman is NaN for queries where the graph found fewer than 3 matches, and those are left out.
+
+    Parameters
+    ----------
+    per_query : pandas.DataFrame
+        :func:`mocapviz.experiments.matching.lng_accuracy`'s rows.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per (setting, measure): the mean and the number of queries it is defined for.
+    """
     rows = []
     for (sec, eps), g in per_query.groupby(["seconds", "eps"], sort=True):
         for col, label in MEASURES.items():
@@ -246,16 +285,19 @@ def accuracy_plot(per_query: pd.DataFrame, paper_seconds: dict | None = None, pa
     paper_seconds : dict, optional
         {query seconds: the paper's alignment time in s} (``experiments.matching.PAPER_SECONDS``: 0.03 s for 1 s
         queries, 0.08 s for 3 s, Fp16, kNN excluded), drawn as a fourth bar per setting.
-    paper_spearman : float, optional, the paper's rank correlation (> 0.99), a dashed horizontal line.
-    width, height : int, pixels per panel.
+    paper_spearman : float, optional
+        The paper's rank correlation (> 0.99), a dashed horizontal line.
+    width, height : int
+        Pixels per panel.
 
     Returns
     -------
-    hv.Layout of two panels:
+    hv.Layout
+        Two panels:
 
-    - ``quality``: hv.Bars of the mean Spearman ρ, equal-cost share, recall and same-best share per setting
-      ("<seconds> s, ε=<eps>"), grouped by measure (:func:`accuracy_table`; hover shows the queries counted);
-    - ``time``: hv.Bars of the mean kNN, graph and subsequence DTW seconds per query for each setting (log y).
+        - ``quality``: hv.Bars of the mean Spearman ρ, equal-cost share, recall and same-best share per setting
+          ("<seconds> s, ε=<eps>"), grouped by measure (:func:`accuracy_table`; hover shows the queries counted);
+        - ``time``: hv.Bars of the mean kNN, graph and subsequence DTW seconds per query for each setting (log y).
     """
     need = {"seconds", "eps", *MEASURES, *TIMES}
     missing = need - set(per_query.columns)

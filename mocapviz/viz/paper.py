@@ -30,7 +30,22 @@ def _check_columns(table: pd.DataFrame, columns, what: str) -> None:
 
 def log_floor(smallest: float) -> float:
     """The power of ten strictly below ``smallest`` (> 0): the lower end of a log axis on which the bar of
-    ``smallest`` still shows."""
+    ``smallest`` still shows.
+
+    Parameters
+    ----------
+    smallest : float
+        The smallest value drawn, > 0.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> [float(log_floor(v)) for v in (0.03, 1.0, 250)]
+    [0.01, 0.1, 100.0]
+    """
     low = 10.0 ** np.floor(np.log10(float(smallest)))
     return low / 10 if low >= smallest else low
 
@@ -47,12 +62,16 @@ def comparison_bars(table: pd.DataFrame, category: str, value: str, source: str 
     category, value, source : str
         Column names.
     title, ylabel : str
+        The figure's title and the value axis's label (default ``value``).
     logy : bool
         Logarithmic value axis (times spanning orders of magnitude).
+    width, height : int
+        Pixels (bokeh).
 
     Returns
     -------
     hv.Bars
+        x = category and source, y = ``value``.
     """
     _check_columns(table, [category, value, source], "comparison_bars")
     data = table[[category, source, value]].dropna(subset=[value]).copy()
@@ -83,13 +102,18 @@ def curves(table: pd.DataFrame, x: str, y: str, group: str, title: str = "", xla
     x, y, group : str
         Column names.
     title, xlabel, ylabel : str
+        The figure's title and the axes' labels (default the column names).
     logx, logy : bool
+        Logarithmic axes.
     markers : bool
         A marker on every point (few points, e.g. query lengths); off for dense series such as frames.
+    width, height : int
+        Pixels (bokeh).
 
     Returns
     -------
-    hv.Overlay of hv.Curve and hv.Scatter per group.
+    hv.Overlay
+        An hv.Curve and an hv.Scatter per group.
     """
     _check_columns(table, [x, y, group], "curves")
     data = table.dropna(subset=[y]).sort_values(x)

@@ -26,18 +26,22 @@ def precision_recall(hit_docs, documents: pd.DataFrame, query_doc: int) -> pd.Da
 
     Parameters
     ----------
-    hit_docs : sequence of int [shape=(H,)], the document id of each hit, best first.
-    documents : pandas.DataFrame with ``doc_id`` and ``label`` (the database's document table).
-    query_doc : int, the query clip's document id.
+    hit_docs : sequence of int [shape=(H,)]
+        The document id of each hit, best first.
+    documents : pandas.DataFrame
+        With ``doc_id`` and ``label`` (the database's document table).
+    query_doc : int
+        The query clip's document id.
 
     Returns
     -------
-    pandas.DataFrame, one row per distinct document with a hit, other than the query's, in the order of its first
-    hit: ``rank`` (1-based rank of the document), ``doc_id``, ``relevant`` (bool), ``precision`` and ``recall``
-    after this document (:func:`mocapviz.experiments.evaluation.precision_recall`), ``hit_rank`` (1-based position of the
-    document's first hit in ``hit_docs``, as in the hits table). ``attrs["n_relevant"]`` is the number of other
-    documents with the query's label (recall is NaN when 0) and ``attrs["average_precision"]`` the ranking's AP
-    (:func:`mocapviz.experiments.evaluation.average_precision`).
+    pandas.DataFrame
+        One row per distinct document with a hit, other than the query's, in the order of its first hit:
+        ``rank`` (1-based rank of the document), ``doc_id``, ``relevant`` (bool), ``precision`` and ``recall``
+        after this document (:func:`mocapviz.experiments.evaluation.precision_recall`), ``hit_rank`` (1-based
+        position of the document's first hit in ``hit_docs``, as in the hits table). ``attrs["n_relevant"]`` is
+        the number of other documents with the query's label (recall is NaN when 0) and
+        ``attrs["average_precision"]`` the ranking's AP (:func:`mocapviz.experiments.evaluation.average_precision`).
 
     Raises
     ------
@@ -62,12 +66,17 @@ def precision_recall_plot(curve: pd.DataFrame, label: str = "", width: int = 720
 
     Parameters
     ----------
-    curve : pandas.DataFrame with ``rank``, ``precision``, ``recall`` (and ``doc_id``, ``relevant`` for the hover).
-    label : str, the query's label (for the title).
+    curve : pandas.DataFrame
+        With ``rank``, ``precision``, ``recall`` (and ``doc_id``, ``relevant`` for the hover).
+    label : str
+        The query's label (for the title).
+    width, height : int
+        Pixels.
 
     Returns
     -------
-    holoviews.Overlay of two step curves with markers (y: fraction 0..1, x: rank of the document).
+    holoviews.Overlay
+        Two step curves with markers (y: fraction 0..1, x: rank of the document).
     """
     y = hv.Dimension("fraction", range=(-0.04, 1.05))  # a line at 0 stays visible above the axis
     layers = []

@@ -55,13 +55,16 @@ def compare_table3(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
 
     Parameters
     ----------
-    ours : :func:`mocapviz.experiments.marker_reconstruction.reconstruction`'s ``"table3"`` (its ``avg`` row is used).
-    paper : :func:`mocapviz.experiments.marker_reconstruction.krueger2010_table3`.
+    ours : pandas.DataFrame
+        :func:`mocapviz.experiments.marker_reconstruction.reconstruction`'s ``"table3"`` (its ``avg`` row is used).
+    paper : pandas.DataFrame
+        :func:`mocapviz.experiments.marker_reconstruction.krueger2010_table3`.
 
     Returns
     -------
-    pandas.DataFrame: ``setting``, ``source`` ("ours (<frames> frames)", "paper, HDM05 test motions" (the mean of
-    its two HDM_bk rows, the larger max), "paper, CMU_86_avg"), ``mean_cm``, ``max_cm``.
+    pandas.DataFrame
+        ``setting``, ``source`` ("ours (<frames> frames)", "paper, HDM05 test motions" (the mean of its two HDM_bk
+        rows, the larger max), "paper, CMU_86_avg"), ``mean_cm``, ``max_cm``.
     """
     _check(ours, ["motion", "frames"], "compare_table3 (ours)")
     _check(paper, ["motion"], "compare_table3 (paper)")
@@ -88,7 +91,20 @@ def compare_table3(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
 
 def compare_table4(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
     """Our Table 4 beside the paper's: ``set``, ``source`` ("ours: <motion>" / "paper: CMU_86_03"), ``mean_cm``,
-    ``max_cm``; the sets in the paper's order (those only one side has are kept)."""
+    ``max_cm``; the sets in the paper's order (those only one side has are kept).
+
+    Parameters
+    ----------
+    ours : pandas.DataFrame
+        Our Table 4 (:func:`mocapviz.experiments.marker_reconstruction.reconstruction`'s ``table4``).
+    paper : pandas.DataFrame
+        :func:`mocapviz.experiments.marker_reconstruction.krueger2010_table4`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The tidy comparison; errors in cm.
+    """
     _check(ours, ["motion"], "compare_table4 (ours)")
     _check(paper, ["motion"], "compare_table4 (paper)")
     rows = []
@@ -110,13 +126,18 @@ def joint_error_bars(joints: pd.DataFrame, title: str = "Mean error per joint", 
 
     Parameters
     ----------
-    joints : pandas.DataFrame, long: ``joint`` (canonical names), ``variant``, ``error_cm``
-        (the experiment's ``"joints"``).
+    joints : pandas.DataFrame
+        Long: ``joint`` (canonical names), ``variant``, ``error_cm`` (the experiment's ``"joints"``).
+    title : str
+        The figure's title.
+    width, height : int
+        Pixels.
 
     Returns
     -------
-    hv.Bars, x = joint in canonical order (root, legs, spine, arms) and variant, y = error in cm. The marker joints
-    (wrists, ankles, head, root) are near the noise level; the knees, elbows, toes and fingers carry the error.
+    hv.Bars
+        x = joint in canonical order (root, legs, spine, arms) and variant, y = error in cm. The marker joints
+        (wrists, ankles, head, root) are near the noise level; the knees, elbows, toes and fingers carry the error.
     """
     _check(joints, ["joint", "variant", "error_cm"], "joint_error_bars")
     order = {j: i for i, j in enumerate(CANONICAL_JOINTS)}
@@ -131,13 +152,19 @@ def error_curves(frames: pd.DataFrame, title: str = "Error over time", x: str = 
 
     Parameters
     ----------
-    frames : pandas.DataFrame, long: ``x`` (``time_s`` or ``frame``), ``variant``, ``error_cm`` (the experiment's
-        ``"frames"``).
-    x : str, the time axis column.
+    frames : pandas.DataFrame
+        Long: ``x`` (``time_s`` or ``frame``), ``variant``, ``error_cm`` (the experiment's ``"frames"``).
+    title : str
+        The figure's title.
+    x : str
+        The time axis column.
+    width, height : int
+        Pixels.
 
     Returns
     -------
-    hv.Overlay of one hv.Curve per variant (labelled with it), x = time (s) or frame, y = error (cm).
+    hv.Overlay
+        One hv.Curve per variant (labelled with it), x = time (s) or frame, y = error (cm).
     """
     _check(frames, [x, "variant", "error_cm"], "error_curves")
     return curves(frames, x, "error_cm", "variant", title=title, xlabel="time (s)" if x == "time_s" else x,
@@ -149,9 +176,23 @@ def paper_bars(table: pd.DataFrame, category: str = "setting", value: str = "mea
     """A tidy comparison (:func:`compare_table3` with ``category="setting"``, :func:`compare_table4` with
     ``category="set"``) as bars per category, one per ``source`` (ours, the paper's).
 
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The tidy comparison, with ``source``, ``category`` and ``value`` columns.
+    category : str
+        The column on the x axis (``"setting"`` or ``"set"``).
+    value : str
+        The column drawn (``"mean_cm"`` or ``"max_cm"``).
+    title : str
+        The figure's title.
+    width, height : int
+        Pixels.
+
     Returns
     -------
-    hv.Bars, x = category and source, y = ``value`` (cm; ``max_cm`` for the worst frames).
+    hv.Bars
+        x = category and source, y = ``value`` (cm; ``max_cm`` for the worst frames).
     """
     _check(table, [category, "source", value], "paper_bars")
     label = ERROR_LABEL if value == "mean_cm" else "worst frame's mean joint error (cm)" if value == "max_cm" else value
@@ -164,12 +205,17 @@ def baseline_bars(baselines: pd.DataFrame, title: str = "Local linear model agai
 
     Parameters
     ----------
-    baselines : pandas.DataFrame, the experiment's ``"baselines"``: ``variant``, ``method`` (llm / mean / nn),
-        ``frames``, ``mean_cm``.
+    baselines : pandas.DataFrame
+        The experiment's ``"baselines"``: ``variant``, ``method`` (llm / mean / nn), ``frames``, ``mean_cm``.
+    title : str
+        The figure's title.
+    width, height : int
+        Pixels.
 
     Returns
     -------
-    hv.Bars, x = variant and method (named in full), y = error (cm).
+    hv.Bars
+        x = variant and method (named in full), y = error (cm).
     """
     _check(baselines, ["variant", "method", "frames", "mean_cm"], "baseline_bars")
     b = baselines.assign(weighted=baselines["mean_cm"] * baselines["frames"])
@@ -186,14 +232,17 @@ def reconstruction_figures(result: dict, paper_table3: pd.DataFrame | None = Non
 
     Parameters
     ----------
-    result : dict of DataFrames (``table3``, ``table4``, ``baselines``, ``frames``, ``joints``; missing ones skipped).
-    paper_table3, paper_table4 : the paper's tables (``krueger2010_table3()``, ``krueger2010_table4()``), for the
-        comparisons.
+    result : dict
+        Name -> pandas.DataFrame (``table3``, ``table4``, ``baselines``, ``frames``, ``joints``; missing ones
+        skipped).
+    paper_table3, paper_table4 : pandas.DataFrame, optional
+        The paper's tables (``krueger2010_table3()``, ``krueger2010_table4()``), for the comparisons.
 
     Returns
     -------
-    dict: ``table3`` (mean error by setting, ours beside the paper's), ``table3_max`` (the same for the worst
-    frame), ``table4`` (per feature set), ``joints``, ``frames``, ``baselines``.
+    dict
+        File stem -> HoloViews element: ``table3`` (mean error by setting, ours beside the paper's), ``table3_max``
+        (the same for the worst frame), ``table4`` (per feature set), ``joints``, ``frames``, ``baselines``.
     """
     figures: dict[str, hv.Element] = {}
     if paper_table3 is not None and isinstance(result.get("table3"), pd.DataFrame):

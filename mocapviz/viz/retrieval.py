@@ -47,13 +47,19 @@ def class_ap_bars(per_class: pd.DataFrame, protocol: str = "loo", title: str | N
 
     Parameters
     ----------
-    per_class : pandas.DataFrame, ``retrieval_quality(...)["per_class"]`` (method, class, ap_loo, ap_lgo, ...).
-    protocol : {"loo", "lgo"}, leave-one-out or leave-group-out AP.
-    title : str, optional.
+    per_class : pandas.DataFrame
+        ``retrieval_quality(...)["per_class"]`` (method, class, ap_loo, ap_lgo, ...).
+    protocol : {"loo", "lgo"}
+        Leave-one-out or leave-group-out AP.
+    title : str, optional
+        Default: "average precision per class (protocol)".
+    width, height : int
+        Pixels.
 
     Returns
     -------
-    hv.Bars (kdims class, method; vdim AP in [0, 1]); classes without a defined AP for a method have no bar.
+    hv.Bars
+        kdims class, method; vdim AP in [0, 1]; classes without a defined AP for a method have no bar.
     """
     name = _protocol(protocol, per_class)
     column = f"ap_{protocol}"
@@ -76,12 +82,19 @@ def pr_curves(curves: pd.DataFrame, protocol: str = "loo", title: str | None = N
 
     Parameters
     ----------
-    curves : pandas.DataFrame, ``retrieval_quality(...)["curves"]`` (method, protocol, recall, precision).
-    protocol : {"loo", "lgo"}.
+    curves : pandas.DataFrame
+        ``retrieval_quality(...)["curves"]`` (method, protocol, recall, precision).
+    protocol : {"loo", "lgo"}
+        Leave-one-out or leave-group-out.
+    title : str, optional
+        The figure's title.
+    width, height : int
+        Pixels.
 
     Returns
     -------
-    hv.Overlay of an hv.Curve and hv.Scatter per method (x: recall 0..1, y: precision 0..1).
+    hv.Overlay
+        An hv.Curve and an hv.Scatter per method (x: recall 0..1, y: precision 0..1).
     """
     _check(curves, ["method", "protocol", "recall", "precision"], "pr_curves")
     name = _protocol(protocol, curves)
@@ -109,7 +122,26 @@ def pr_curves(curves: pd.DataFrame, protocol: str = "loo", title: str | None = N
 def summary_bars(summary: pd.DataFrame, measure: str = "map_loo", title: str | None = None, logy: bool = False,
                  width: int = 560, height: int = 320) -> hv.Bars:  # fmt: skip
     """One bar per method of a summary measure (:data:`MEASURES`: ``map_loo``, ``map_lgo``, ``p_at_1``,
-    ``p_at_10``, ``recall_dtw_top10``, ``ms_per_query``)."""
+    ``p_at_10``, ``recall_dtw_top10``, ``ms_per_query``).
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        :func:`~mocapviz.experiments.retrieval_quality`'s ``"summary"``, one row per method.
+    measure : str
+        The column drawn.
+    title : str, optional
+        Default: the measure's label.
+    logy : bool
+        A log y axis (for times).
+    width, height : int
+        Pixels.
+
+    Returns
+    -------
+    hv.Bars
+        x = method, y = the measure (fractions in [0, 1], or milliseconds).
+    """
     if measure not in MEASURES:
         raise ParameterError(f"measure must be one of {', '.join(MEASURES)}; got {measure!r}")
     _check(summary, ["method", measure], "summary_bars")
@@ -132,7 +164,19 @@ def summary_bars(summary: pd.DataFrame, measure: str = "map_loo", title: str | N
 
 def retrieval_layout(result: dict, width: int = 900) -> hv.Layout:
     """The per-class AP bars and the P/R curves of a :func:`~mocapviz.experiments.retrieval_quality` result, one
-    row per protocol: leave-one-out, and leave-group-out when the result has its figures."""
+    row per protocol: leave-one-out, and leave-group-out when the result has its figures.
+
+    Parameters
+    ----------
+    result : dict
+        :func:`~mocapviz.experiments.retrieval_quality`'s DataFrames by name.
+    width : int
+        Pixels of each row.
+
+    Returns
+    -------
+    hv.Layout
+    """
     per_class, curves = result["per_class"], result["curves"]
     protocols = ["loo"] + (["lgo"] if per_class["ap_lgo"].notna().any() else [])
     panels = []

@@ -49,11 +49,20 @@ def scene_bounds(*clips, margin_cm: float = 20.0) -> np.ndarray:
 
     Parameters
     ----------
-    *clips : np.ndarray [shape=(T, J, 3) or (J, 3)], cm, y up.
+    *clips : np.ndarray [shape=(T, J, 3) or (J, 3)]
+        Joint positions, cm, y up.
+    margin_cm : float
+        Added on every side, cm.
 
     Returns
     -------
-    np.ndarray [shape=(2, 3)], float: (min, max) corners in cm; the floor (y = 0) is always inside.
+    np.ndarray [shape=(2, 3)], float64
+        (min, max) corners in cm; the floor (y = 0) is always inside.
+
+    Examples
+    --------
+    >>> scene_bounds(np.array([[0.0, 10.0, 0.0], [50.0, 170.0, 20.0]]), margin_cm=10.0).tolist()
+    [[-10.0, 0.0, -10.0], [60.0, 180.0, 30.0]]
     """
     pts = np.concatenate([np.asarray(c, dtype=np.float64).reshape(-1, 3) for c in clips])
     lo, hi = np.nanmin(pts, axis=0) - margin_cm, np.nanmax(pts, axis=0) + margin_cm
@@ -77,18 +86,26 @@ def render_skeletons(poses, bounds=None, size: tuple[int, int] = (480, 360), ove
 
     Parameters
     ----------
-    poses : sequence of np.ndarray [shape=(24, 3)], cm, y up.
-    bounds : np.ndarray [shape=(2, 3)], optional, the box the camera frames (:func:`scene_bounds`, so a playing
-        clip does not make the camera jump); default the poses' own box.
-    size : (width, height) of the whole image in pixels.
-    overlay : bool, all poses in one scene (Fig. 1) instead of one viewport each, side by side.
-    colours, opacities : one per pose (default :data:`COLOURS`, opaque).
-    titles : one caption per viewport (side by side) or one for the scene (overlay).
-    azimuth : float, degrees the camera is turned about the vertical axis from its front-right view.
+    poses : sequence of np.ndarray [shape=(24, 3)]
+        Canonical joints, cm, y up.
+    bounds : np.ndarray [shape=(2, 3)], optional
+        The box the camera frames (:func:`scene_bounds`, so a playing clip does not make the camera jump), cm;
+        default the poses' own box.
+    size : (int, int)
+        (width, height) of the whole image in pixels.
+    overlay : bool
+        All poses in one scene (Fig. 1) instead of one viewport each, side by side.
+    colours, opacities : sequence, optional
+        One per pose (default :data:`COLOURS`, opaque).
+    titles : sequence of str, optional
+        One caption per viewport (side by side) or one for the scene (overlay).
+    azimuth : float
+        Degrees the camera is turned about the vertical axis from its front-right view.
 
     Returns
     -------
-    np.ndarray [shape=(height, width, 3)], uint8 RGB.
+    np.ndarray [shape=(height, width, 3)], uint8
+        RGB pixels.
     """
     poses = _check_poses(poses)
     colours = list(colours or [COLOURS[i % len(COLOURS)] for i in range(len(poses))])
@@ -156,13 +173,20 @@ def neighbour_poses(query_pose, neighbours, size: tuple[int, int] = (480, 420), 
 
     Parameters
     ----------
-    query_pose : np.ndarray [shape=(24, 3)], cm, y up (world coordinates).
-    neighbours : np.ndarray [shape=(k, 24, 3)], cm, y up: the neighbour frames' poses (world coordinates).
+    query_pose : np.ndarray [shape=(24, 3)]
+        The query frame's canonical joints, cm, y up (world coordinates).
+    neighbours : np.ndarray [shape=(k, 24, 3)]
+        The neighbour frames' poses, cm, y up (world coordinates).
+    size : (int, int)
+        (width, height) of the image in pixels.
+    azimuth : float
+        Degrees the camera is turned about the vertical axis from its front-right view.
 
     Returns
     -------
-    np.ndarray [shape=(height, width, 3)], uint8 RGB: the neighbours faint grey-blue, the query red, all with the
-    root at the origin facing +z (so only the posture differs, as in the figure).
+    np.ndarray [shape=(height, width, 3)], uint8
+        RGB: the neighbours faint grey-blue, the query red, all with the root at the origin facing +z (so only the
+        posture differs, as in the figure).
     """
     neighbours = np.asarray(neighbours, dtype=np.float64).reshape(-1, len(CANONICAL_PARENTS), 3)
     poses = body_frame(np.concatenate([neighbours, np.asarray(query_pose, dtype=np.float64)[None]]))
@@ -174,7 +198,18 @@ def neighbour_poses(query_pose, neighbours, size: tuple[int, int] = (480, 420), 
 
 
 def png_bytes(image: np.ndarray) -> bytes:
-    """(H, W, 3) uint8 RGB -> PNG file bytes (fast compression)."""
+    """An RGB image as PNG file bytes (fast compression).
+
+    Parameters
+    ----------
+    image : np.ndarray [shape=(H, W, 3)], uint8
+        RGB pixels.
+
+    Returns
+    -------
+    bytes
+        A PNG file.
+    """
     from PIL import Image
 
     buf = io.BytesIO()

@@ -24,8 +24,18 @@ _COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728")  # Category10, one per m
 
 
 def median_times(per_query: pd.DataFrame) -> pd.DataFrame:
-    """The median query time per (mode, hit count): columns ``mode``, ``hits`` (int), ``ms`` (float, milliseconds),
-    sorted by mode (first appearance) and hits."""
+    """The median query time per (mode, hit count).
+
+    Parameters
+    ----------
+    per_query : pandas.DataFrame
+        :func:`mocapviz.experiments.relational.query_statistics` with ``per_query=True``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``mode``, ``hits`` (int), ``ms`` (float, milliseconds), sorted by mode (first appearance) and hits.
+    """
     modes = list(dict.fromkeys(per_query["mode"]))
     out = per_query.groupby(["mode", "hits"], sort=True)["ms"].median().reset_index()
     out["order"] = out["mode"].map(modes.index)

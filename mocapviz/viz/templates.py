@@ -21,14 +21,19 @@ def template_image(template: MotionTemplate, quantised: bool = True, delta: floa
     Parameters
     ----------
     template : MotionTemplate
-    quantised : bool, draw the quantised template (0 white, 1 black, don't care grey); False: the real values
-        (a grey scale from white 0 to black 1).
-    delta : float, the quantisation threshold.
-    width, height : pixels (height default: 12 px per feature).
+        A learned template.
+    quantised : bool
+        Draw the quantised template (0 white, 1 black, don't care grey); False: the real values (a grey scale
+        from white 0 to black 1).
+    delta : float
+        The quantisation threshold δ.
+    width, height : int
+        Pixels (height default: 12 px per feature).
 
     Returns
     -------
-    hv.Image with key dimensions ``frame`` and ``feature`` (row f - 1 - i is feature i) and value ``value``.
+    hv.Image
+        Key dimensions ``frame`` and ``feature`` (row f - 1 - i is feature i) and value ``value``.
     """
     values = template.quantised(delta) if quantised else template.values
     k, f = values.shape

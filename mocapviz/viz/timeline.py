@@ -31,12 +31,18 @@ def runs(values: np.ndarray) -> pd.DataFrame:
 
     Parameters
     ----------
-    values : np.ndarray [shape=(T, f)], bool.
+    values : np.ndarray [shape=(T, f)], bool
+        E.g. a clip's relational features.
 
     Returns
     -------
-    pandas.DataFrame: ``feature`` (column number), ``start``, ``stop`` (frames, stop exclusive), by feature then
-    start.
+    pandas.DataFrame
+        ``feature`` (column number), ``start``, ``stop`` (frames, stop exclusive), by feature then start.
+
+    Examples
+    --------
+    >>> runs(np.array([[1, 0], [1, 1], [0, 1], [1, 0]], dtype=bool)).values.tolist()
+    [[0, 0, 2], [0, 3, 4], [1, 1, 3]]
     """
     values = np.asarray(values, dtype=bool)
     if values.ndim != 2:
@@ -55,17 +61,27 @@ def relational_timeline(values: np.ndarray, names, fps: float, groups: dict | No
 
     Parameters
     ----------
-    values : np.ndarray [shape=(T, f)], bool: the clip's relational features (:func:`mocapviz.features.relational_features`).
-    names : list of str, the f feature names (rows, top to bottom).
-    fps : float, frames per second (x is in seconds).
-    groups : dict group -> list of names (:func:`mocapviz.features.feature_groups`), for the colours; default one
-        colour.
-    span : (first, last) frames, optional: shaded (the query span).
-    segments : bool, draw the segment boundaries of the whole feature vector.
+    values : np.ndarray [shape=(T, f)], bool
+        The clip's relational features (:func:`mocapviz.features.relational_features`).
+    names : list of str
+        The f feature names (rows, top to bottom).
+    fps : float
+        Frames per second (x is in seconds).
+    groups : dict, optional
+        Group -> list of names (:func:`mocapviz.features.feature_groups`), for the colours; default one colour.
+    span : (int, int), optional
+        (first, last) frames, shaded (the query span).
+    width : int
+        Pixels.
+    row_height : int
+        Pixels per feature row.
+    segments : bool
+        Draw the segment boundaries of the whole feature vector.
 
     Returns
     -------
-    holoviews.Overlay of Rectangles (the runs; hover shows feature and times), the boundaries and the span.
+    holoviews.Overlay
+        Rectangles (the runs; hover shows feature and times), the boundaries and the span.
     """
     values = np.asarray(values, dtype=bool)
     names = list(names)
@@ -107,16 +123,25 @@ def numeric_curves(values: np.ndarray, columns, fps: float, title: str = "", wid
 
     Parameters
     ----------
-    values : np.ndarray [shape=(T, d)], float (cm for the end-effector sets).
-    columns : list of str, the d coordinate names (:func:`mocapviz.features.numeric_columns`).
-    fps : float.
-    span : (first, last) frames, optional: shaded.
+    values : np.ndarray [shape=(T, d)], float
+        The clip's numeric features (cm for the end-effector sets).
+    columns : list of str
+        The d coordinate names (:func:`mocapviz.features.numeric_columns`).
+    fps : float
+        Frames per second (x is in seconds).
+    title : str
+        The figure's title.
+    width, height : int
+        Pixels.
+    span : (int, int), optional
+        (first, last) frames, shaded.
 
     Returns
     -------
-    holoviews.Overlay of one Curve per coordinate (legend clickable to hide), x in seconds. The legend stays beside
-    the plot area: in as many columns (at most three) as its entries need to fit the plot's height, the figure made
-    taller than ``height`` when three are not enough.
+    holoviews.Overlay
+        One Curve per coordinate (legend clickable to hide), x in seconds. The legend stays beside the plot area:
+        in as many columns (at most three) as its entries need to fit the plot's height, the figure made taller
+        than ``height`` when three are not enough.
     """
     values = np.asarray(values, dtype=np.float64)
     columns = list(columns)
@@ -141,7 +166,27 @@ def numeric_curves(values: np.ndarray, columns, fps: float, title: str = "", wid
 
 def legend_layout(entries: int, height: int) -> tuple[int, int]:
     """(legend columns, figure height) so that a legend of ``entries`` beside a figure of ``height`` pixels stays
-    within its plot area: more columns, up to :data:`LEGEND_COLUMNS`, then a taller figure."""
+    within its plot area: more columns, up to :data:`LEGEND_COLUMNS`, then a taller figure.
+
+    Parameters
+    ----------
+    entries : int
+        Legend entries.
+    height : int
+        The figure's height, pixels.
+
+    Returns
+    -------
+    columns : int
+        Legend columns.
+    height : int
+        The figure's height, pixels (at least the one given).
+
+    Examples
+    --------
+    >>> legend_layout(3, 300)
+    (1, 300)
+    """
     rows = max(1, (height - LEGEND_MARGIN) // LEGEND_ROW)
     cols = -(-entries // rows)
     if cols <= LEGEND_COLUMNS:
