@@ -92,20 +92,6 @@ def neighbours_png(backend, doc: int, frame: int, neighbours: pd.DataFrame) -> b
     return png_bytes(neighbour_poses(query, positions[np.asarray(rows, dtype=np.int64)]))
 
 
-def _check_span(backend, span: tuple[int, int]) -> tuple[int, int]:
-    """The span (start, end), frames of its document, half-open, or a ParameterError when it is too short or
-    longer than any document (frames outside the document: the library's error)."""
-    start, end = int(span[0]), int(span[1])
-    if end - start < 2:
-        raise ParameterError(f"the span has {max(end - start, 0)} frame(s); matching needs at least 2 (set it on the "
-                             "Database page)")  # fmt: skip
-    longest = int(backend.documents["n_frames"].max())
-    if end - start > longest:
-        raise ParameterError(f"the span has {end - start} frames, more than the longest document ({longest}); "
-                             "no match can be found")
-    return start, end
-
-
 def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, n_matches: int,
                exclude_own: bool) -> pd.DataFrame:
     """The K best matches of a span in the database by the lazy neighbourhood graph (Krüger et al. 2010 §4.1):
@@ -115,7 +101,7 @@ def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, n_ma
     ----------
     backend : Backend
     name : str, numeric set.
-    doc : int, span : (start, end) frames of document ``doc``, half-open; 2 <= length <= the longest document.
+    doc : int, span : (start, end) frames of document ``doc``, half-open, at least 2 (the library checks it).
     k : int, neighbours per query frame (1 <= k <= indexed frames).
     n_matches : int, matches wanted (K, at most MAX_MATCHES).
     exclude_own : bool, no match inside the query's own document.
@@ -125,7 +111,6 @@ def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, n_ma
     pd.DataFrame, the hit table, best first, with cost, cost_per_frame and path ((L, 2) int64 of (query frame
     within the span, frame within the match's document)).
     """
-    span = _check_span(backend, span)
     index = backend.knn(name)
     k = count(k, "k", 1, index.n_indexed)
     n_matches = count(n_matches, "K", 1, MAX_MATCHES)
@@ -154,7 +139,6 @@ def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, 
     normalised_cost, labels, path ((L, 2) (query frame within the span, frame within the result's document))).
     ``attrs``: the search's (ms, aligned, ...).
     """
-    span = _check_span(backend, span)
     n_matches = count(n_matches, "K", 1, MAX_MATCHES)
     if kind not in SEARCH_KINDS.values():
         raise ParameterError(f"kind must be one of {', '.join(SEARCH_KINDS.values())}; got {kind!r}")
@@ -201,7 +185,7 @@ def similarity_result(backend, name: str, doc: int, span: tuple[int, int], k: in
     ParameterError
         No document to compare with, or a matrix of more than MAX_MATRIX_CELLS cells (shorten the span).
     """
-    start, end = _check_span(backend, span)
+    start, end = int(span[0]), int(span[1])  # the span match_span checked
     if not database_docs:
         raise ParameterError("no match to compare with: the span matched nothing")
     n = sum(backend.db.frames(d).stop - backend.db.frames(d).start for d in database_docs)
