@@ -92,9 +92,9 @@ def _timed(fn, repeats: int, before=None) -> dict:
 
 def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> int:
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
-    from mocapviz.parallel import dask_client
     from mocapviz.db.database import MotionDB
     from mocapviz.features import relational_features, store_numeric
+    from mocapviz.parallel import dask_client
 
     t_start = time.perf_counter()
     monitor = CpuMonitor()

@@ -130,9 +130,9 @@ def measure(db, quick: bool, repeats: int) -> dict:
     """Every step's time on one database."""
     from mocapviz.experiments.relational import random_queries
     from mocapviz.features import numeric_features, relational_features
+    from mocapviz.match import lng
     from mocapviz.relational.index import build
     from mocapviz.similarity.knn import KnnIndex
-    from mocapviz.match import lng
 
     from .bench_match import pick_queries
 

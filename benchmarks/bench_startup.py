@@ -113,7 +113,7 @@ def commands(db: Path) -> list[dict]:
 
 def _run(argv: list[str], env: dict) -> float:
     t0 = time.perf_counter()
-    proc = subprocess.run(argv, env=env, capture_output=True, cwd=WORK)
+    proc = subprocess.run(argv, env=env, capture_output=True, cwd=WORK, check=False)
     seconds = time.perf_counter() - t0
     if proc.returncode:
         raise RuntimeError(f"{' '.join(argv)} exited with {proc.returncode}: {proc.stderr.decode()[-2000:]}")
@@ -136,7 +136,7 @@ def loaded_packages(argv: list[str], env: dict) -> list[str]:
         wrapped = [sys.executable, "-c", report + argv[2]]
     else:  # a script
         wrapped = [sys.executable, "-c", report + f"import runpy; runpy.run_path({argv[1]!r}, run_name='__main__')"]
-    proc = subprocess.run(wrapped, env=env, capture_output=True, text=True, cwd=WORK)
+    proc = subprocess.run(wrapped, env=env, capture_output=True, text=True, cwd=WORK, check=False)
     line = next((ln for ln in proc.stderr.splitlines() if ln.startswith("LOADED")), "LOADED")
     return line.split()[1:]
 

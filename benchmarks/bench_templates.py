@@ -56,8 +56,8 @@ def _timed(fn, repeats: int) -> tuple[float, object]:
 
 def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> int:
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
-    from mocapviz.relational import index
     from mocapviz.features import relational_features
+    from mocapviz.relational import index
     from mocapviz.relational.templates import find_instances, keyframe_ranges, learn_class
 
     t_start = time.perf_counter()

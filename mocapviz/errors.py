@@ -72,3 +72,29 @@ class SkeletonMappingError(MocapvizError, ValueError):
 
 class MotionDBError(MocapvizError, ValueError):
     """A MotionDB on disk is missing, of another format version, or inconsistent."""
+
+
+class DescriptionError(ParameterError):
+    """A scene description (``docs/descriptions.md``) that cannot be read: a syntax error, an unknown body part,
+    state word or name, a bad time. The message starts with the line and column.
+
+    Parameters
+    ----------
+    reason : str
+        What is wrong, in words (with the closest valid names where there are some).
+    line, column : int, optional
+        1-based position in the description's text.
+    source : str, optional
+        Where the text came from when it is not the query itself (a file, the shipped library).
+
+    Examples
+    --------
+    >>> str(DescriptionError("unknown body part 'rkne'; did you mean 'rknee'?", 1, 1))
+    "line 1, column 1: unknown body part 'rkne'; did you mean 'rknee'?"
+    """
+
+    def __init__(self, reason: str, line: int | None = None, column: int | None = None, source: str | None = None):
+        self.reason, self.line, self.column, self.source = reason, line, column, source
+        where = ", ".join(x for x in (source, None if line is None else f"line {line}",
+                                      None if column is None else f"column {column}") if x)  # fmt: skip
+        super().__init__(f"{where}: {reason}" if where else reason)

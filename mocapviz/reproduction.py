@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .io import datasets
 from .db.database import MotionDB
 from .errors import ParameterError
+from .io import datasets
 from .store import atomic_folder
 
 __all__ = ["EXPERIMENTS", "Result", "reproduce", "write_result"]

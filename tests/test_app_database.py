@@ -80,8 +80,8 @@ def test_warm_up_fills_what_the_first_clicks_need(sample_db):
     the DTW search and the index queries are compiled."""
     from mocapviz import app
     from mocapviz.app.backend import Backend
-    from mocapviz.relational import index
     from mocapviz.match import neighbourhood_graph, pruned, time_warping
+    from mocapviz.relational import index
 
     backend = Backend(sample_db)  # not the shared one of Backend.open: its caches start empty
     seconds = app.warm_up(backend)

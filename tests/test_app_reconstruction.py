@@ -7,8 +7,8 @@ from browser_helpers import assert_no_exception_names, open_dashboard, open_tab,
 from playwright.sync_api import expect
 
 from mocapviz.app.pages.reconstruction import DEFAULT_NOISE_CM, SEED, default_k
-from mocapviz.similarity.reconstruction import PosePrior, reconstruct, reconstruction_errors, synthetic_markers
 from mocapviz.motion.skeleton import heading
+from mocapviz.similarity.reconstruction import PosePrior, reconstruct, reconstruction_errors, synthetic_markers
 
 TEST_DOC = 3  # HDM_dg_elbowToKnee1RepsLelbowStart_017_120: 100 frames of actor dg
 ERROR = ".mv-recon-error p"

@@ -7,13 +7,20 @@ import re
 import time
 
 import pytest
-from browser_helpers import (assert_no_exception_names, open_dashboard, open_tab, record_first_answer, record_timing,
-                             text_of, timed)
+from browser_helpers import (
+    assert_no_exception_names,
+    open_dashboard,
+    open_tab,
+    record_first_answer,
+    record_timing,
+    text_of,
+    timed,
+)
 from playwright.sync_api import expect
 
-from mocapviz.relational import index
 from mocapviz.app.pages.relational import DEFAULT_FEATURES, MODES
 from mocapviz.features import feature_groups
+from mocapviz.relational import index
 from mocapviz.relational.query import query_by_example
 
 COUNT = ".mv-hit-count"

@@ -10,15 +10,22 @@ import time
 import numpy as np
 import pandas as pd
 import pytest
-from browser_helpers import (assert_no_exception_names, open_dashboard, open_tab, record_first_answer, record_timing,
-                             text_of, timed)
+from browser_helpers import (
+    assert_no_exception_names,
+    open_dashboard,
+    open_tab,
+    record_first_answer,
+    record_timing,
+    text_of,
+    timed,
+)
 
 from mocapviz.app.pages.retrieval import DEFAULT_METHODS, label_columns, summary_view
 from mocapviz.app.pages.similarity import LNG_K_AT_30HZ, match_alignment, matrix_docs, scaled_k
 from mocapviz.experiments.retrieval import retrieval_quality
 from mocapviz.features import numeric_of
-from mocapviz.similarity.knn import KnnIndex, describe_frames
 from mocapviz.match.neighbourhood_graph import lng
+from mocapviz.similarity.knn import KnnIndex, describe_frames
 from mocapviz.similarity.search import SimilaritySearch
 
 QUERY_NAME = "HDM_dg_kickLFront1Reps"  # a kick of the sample: its mm twin must come first

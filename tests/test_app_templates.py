@@ -15,10 +15,10 @@ from playwright.sync_api import expect
 
 from mocapviz.app.backend import Backend
 from mocapviz.app.pages import templates as page_mod
+from mocapviz.db.hits import database_frames
 from mocapviz.errors import ParameterError
 from mocapviz.features import relational_features
 from mocapviz.match import dtw
-from mocapviz.db.hits import database_frames
 from mocapviz.relational.templates import DELTA, DONT_CARE, learn_class, search_template, template_distance
 
 TAB = "Motion templates"

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from mocapviz import MotionDB, cli
-from mocapviz.io import datasets
 from mocapviz.cli import main
+from mocapviz.io import datasets
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -170,8 +170,8 @@ def test_match_prints_the_library_matches(sample_db, capsys):
     """`mocapviz match` with a document of the DB as the example: the graph's (and subsequence DTW's) matches
     outside that document, as :func:`mocapviz.match.lng` / ``subsequence_dtw`` find them."""
     from mocapviz.features import load_numeric
-    from mocapviz.similarity.knn import KnnIndex
     from mocapviz.match import lng, subsequence_dtw
+    from mocapviz.similarity.knn import KnnIndex
 
     assert main(["features", str(sample_db.path), "--numeric-sets", "F15E", "--quiet"]) == 0
     capsys.readouterr()

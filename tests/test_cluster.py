@@ -16,7 +16,6 @@ distributed = pytest.importorskip("distributed")
 cloudpickle = pytest.importorskip("cloudpickle")
 
 from mocapviz import MotionDB, parallel
-from mocapviz.db import batches
 from mocapviz.cli import main
 from mocapviz.db.batches import document_batches
 from mocapviz.errors import MocapFormatError

@@ -204,8 +204,8 @@ def test_a_waiting_ingest_survives_the_removal_of_the_empty_database_a_failed_on
 @pytest.fixture
 def derived(reference, tmp_path):
     """A copy of the reference database with its relational indexes and two numeric sets (one of them Fp)."""
-    from mocapviz.relational import index
     from mocapviz.features import store_numeric
+    from mocapviz.relational import index
 
     db = MotionDB.open(_copy(reference, tmp_path))
     index.build(db, progress=False)
@@ -223,9 +223,9 @@ def test_check_reads_every_file_back(derived):
 
 
 def test_damaged_derived_files_are_named_never_answered(derived):
-    from mocapviz.relational import index
     from mocapviz.features import load_numeric
     from mocapviz.integrity import check
+    from mocapviz.relational import index
 
     lower = index.index_path(derived, "2005", "lower")
     with np.load(lower) as z:  # permuted codes, same size: silently different answers before

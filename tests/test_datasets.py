@@ -20,8 +20,8 @@ from pathlib import Path
 import pooch
 import pytest
 
-from mocapviz.io import datasets
 from mocapviz.cli import main
+from mocapviz.io import datasets
 from mocapviz.io.datasets import DatasetError
 from mocapviz.io.labels import read_labels_tsv
 

@@ -12,7 +12,6 @@ import math
 import numpy as np
 import pytest
 
-from mocapviz.motion import rotations
 from mocapviz.features.distances import (
     LEE_WEIGHTS,
     WB_WEIGHTS,
@@ -30,7 +29,7 @@ from mocapviz.features.distances import (
     window_clouds,
 )
 from mocapviz.io import load, read_asf
-from mocapviz.motion import Motion
+from mocapviz.motion import Motion, rotations
 from mocapviz.motion.skeleton import CANONICAL_JOINTS
 
 JOG = "HDM_bd_jogLeftCircle4StepsRstart_001_120.amc"  # turns on a circle: root rz runs from -706 to -547 degrees

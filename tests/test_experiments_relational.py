@@ -21,9 +21,9 @@ from mocapviz.experiments.relational import (
     mueller2005_table3,
 )
 from mocapviz.features import feature_groups, feature_names, relational_features
+from mocapviz.features.segmentation import encode
 from mocapviz.relational.index import build
 from mocapviz.relational.query import query_by_example
-from mocapviz.features.segmentation import encode
 
 PER_CLASS = 5  # 11 classes: 55 clips
 

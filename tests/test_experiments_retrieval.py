@@ -10,9 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mocapviz.experiments import evaluation
 from mocapviz.errors import ParameterError
-from mocapviz.experiments import retrieval_quality
+from mocapviz.experiments import evaluation, retrieval_quality
 from mocapviz.experiments.relational import DEFAULT_QUERIES
 from mocapviz.experiments.retrieval import METHODS, RECALL_LEVELS, relational_indexes
 from mocapviz.features import numeric_of

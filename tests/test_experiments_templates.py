@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from mocapviz import MotionDB, ParameterError
-from mocapviz.io import datasets
 from mocapviz.experiments.evaluation import average_precision, relevance
 from mocapviz.experiments.templates import template_quality
 from mocapviz.features import relational_features
+from mocapviz.io import datasets
 from mocapviz.relational.templates import MotionTemplate, document_costs, learn_class
 
 

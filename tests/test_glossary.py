@@ -15,8 +15,8 @@ import pytest
 import mocapviz
 from mocapviz.cli import build_parser
 from mocapviz.errors import ParameterError
-from mocapviz.similarity.knn import KnnIndex
 from mocapviz.match import lng, subsequence_dtw
+from mocapviz.similarity.knn import KnnIndex
 from mocapviz.validation import renamed
 
 # retired for: relational_set / numeric_set, n_matches, numeric_sets, threads, threads

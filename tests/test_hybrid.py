@@ -8,10 +8,10 @@ import pytest
 
 from mocapviz.errors import ParameterError
 from mocapviz.features import numeric_of
-from mocapviz.similarity.hybrid import HYBRID_QUERIES, hybrid_search
-from mocapviz.relational.index import build
 from mocapviz.match import dtw
+from mocapviz.relational.index import build
 from mocapviz.relational.query import query_by_example
+from mocapviz.similarity.hybrid import HYBRID_QUERIES, hybrid_search
 from mocapviz.similarity.search import SimilaritySearch
 
 LENIENT = ["lfoot_raised", "rfoot_raised"]

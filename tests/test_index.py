@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mocapviz.relational.index import InvertedIndex, merge_adjacent
 from mocapviz.features.segmentation import decode, encode, segment
+from mocapviz.relational.index import InvertedIndex, merge_adjacent
 
 
 def vecs(text: str) -> np.ndarray:

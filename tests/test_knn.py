@@ -13,8 +13,8 @@ import pytest
 from scipy.spatial.distance import cdist
 
 from mocapviz import MotionDB, ParameterError
-from mocapviz.similarity.knn import KnnIndex, base_poses, base_poses_quadratic, frames_mask
 from mocapviz.motion.skeleton import CANONICAL_JOINTS, body_frame, mirror
+from mocapviz.similarity.knn import KnnIndex, base_poses, base_poses_quadratic, frames_mask
 
 END_EFFECTORS = [CANONICAL_JOINTS.index(j) for j in ("lwrist", "rwrist", "lankle", "rankle", "head")]
 

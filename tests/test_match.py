@@ -16,9 +16,9 @@ import pytest
 from mocapviz import MotionDB, ParameterError
 from mocapviz.features.distances import dquat_pairwise
 from mocapviz.features.numeric import numeric_features
-from mocapviz.similarity.knn import KnnIndex
 from mocapviz.match import STEP_SETS, band_from_path, dtw, lng, select_matches, subsequence_costs, subsequence_dtw
 from mocapviz.match.neighbourhood_graph import graph_matches, neighbourhoods
+from mocapviz.similarity.knn import KnnIndex
 
 dtw_mod = importlib.import_module("mocapviz.match.time_warping")  # the module, not the function the package exports
 

@@ -8,9 +8,9 @@ from mocapviz import MotionDB, MotionDBError
 from mocapviz.cli import main
 from mocapviz.errors import ParameterError
 from mocapviz.features import feature_groups, relational_features
+from mocapviz.features.segmentation import segment
 from mocapviz.relational.index import build, load
 from mocapviz.relational.query import query_by_example, query_segmentation
-from mocapviz.features.segmentation import segment
 
 KICK = ["rfoot_raised", "lfoot_raised", "rknee_bent", "lknee_bent"]  # Fig. 9 of the paper (DEFAULT_QUERIES)
 

@@ -17,6 +17,7 @@ import pytest
 
 from mocapviz.experiments.marker_reconstruction import VARIANTS, krueger2010_table3, krueger2010_table4, reconstruction
 from mocapviz.features.numeric import numeric_of
+from mocapviz.motion.skeleton import CANONICAL_JOINTS, heading
 from mocapviz.similarity.reconstruction import (
     BONES,
     MARKERS,
@@ -27,7 +28,6 @@ from mocapviz.similarity.reconstruction import (
     reconstruction_errors,
     synthetic_markers,
 )
-from mocapviz.motion.skeleton import CANONICAL_JOINTS, heading
 from mocapviz.viz.reconstruction import compare_table3, compare_table4, reconstruction_figures
 
 CLASSES = ("jogLeftCircle4StepsRstart", "squat1Reps", "elbowToKnee1RepsLelbowStart", "hopBothLegs1hops")

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 import mocapviz
-from mocapviz import MotionDB, ParameterError, parallel
+from mocapviz import MotionDB, ParameterError
 from mocapviz.db import batches
 from mocapviz.features import RELATIONAL_SETS, feature_groups, feature_names, feature_table, relational_features
 from mocapviz.motion.skeleton import CANONICAL_JOINTS

@@ -12,9 +12,9 @@ from mocapviz.relational.templates import (
     DONT_CARE,
     classify,
     find_instances,
-    shortest_instance,
     learn_template,
     quantised_distance,
+    shortest_instance,
     template_distance,
 )
 

@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..relational import index as index_mod
 from ..db.database import MotionDB
 from ..errors import MotionDBError
 from ..features import numeric_of, relational_features
+from ..relational import index as index_mod
 from ..similarity.knn import KnnIndex
 
 _BACKENDS: dict = {}

@@ -54,8 +54,8 @@ from ..db.ingest import read_document
 from ..errors import ParameterError
 from ..features.distances import deuler_pairwise, dpc_pairwise, dquat_pairwise, dwb_pairwise, lee_frames, window_clouds
 from ..features.numeric import default_pca, numeric_of
-from ..similarity.knn import KnnIndex
 from ..match.time_warping import dtw
+from ..similarity.knn import KnnIndex
 
 __all__ = [
     "CORRELATION_MEASURES", "DISTANCE_MEASURES", "PAPER_FIG2_CLAIMS", "TABLE1_SETS", "available_measures",

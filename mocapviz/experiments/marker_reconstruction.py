@@ -33,8 +33,8 @@ from tqdm.auto import tqdm
 
 from ..errors import ParameterError
 from ..features.numeric import NUMERIC_SETS, PCAModel
-from ..similarity.reconstruction import DEFAULT_K, PosePrior, reconstruct, reconstruction_errors, synthetic_markers
 from ..motion.skeleton import CANONICAL_JOINTS, heading
+from ..similarity.reconstruction import DEFAULT_K, PosePrior, reconstruct, reconstruction_errors, synthetic_markers
 from ..validation import some_of
 
 __all__ = ["VARIANTS", "default_test_docs", "krueger2010_table3", "krueger2010_table4", "reconstruction"]

@@ -27,10 +27,10 @@ from ..errors import ParameterError
 from ..features.distances import dpc_pairwise, window_clouds
 from ..features.numeric import numeric_of
 from ..features.relational import relational_features
-from ..similarity.knn import KnnIndex
+from ..features.segmentation import segment
 from ..match.neighbourhood_graph import graph_matches, neighbourhoods
 from ..match.time_warping import band_from_path, best_ends, dtw, subsequence_costs, subsequence_dtw
-from ..features.segmentation import segment
+from ..similarity.knn import KnnIndex
 from ..validation import renamed
 
 # §4.2: "For the queries of length 1 sec (3 sec) it took on average 0.03 sec (0.08 sec.) to construct the

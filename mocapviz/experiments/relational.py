@@ -16,10 +16,10 @@ import time
 import numpy as np
 import pandas as pd
 
-from . import evaluation
-from ..relational import index as index_mod
 from ..errors import ParameterError
 from ..features import feature_names, relational_features
+from ..relational import index as index_mod
+from . import evaluation
 
 __all__ = [
     "ALTERNATIVES",

@@ -44,9 +44,9 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from . import evaluation
 from ..errors import ParameterError
 from ..similarity.search import CLIP_BUDGET
+from . import evaluation
 
 __all__ = ["METHODS", "RECALL_LEVELS", "relational_indexes", "retrieval_quality"]
 

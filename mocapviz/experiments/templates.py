@@ -23,11 +23,11 @@ import time
 import numpy as np
 import pandas as pd
 
-from . import evaluation
 from ..errors import ParameterError
 from ..features import relational_features
 from ..relational.templates import DELTA, classify, document_costs, learn_class
 from ..validation import number
+from . import evaluation
 
 __all__ = ["template_quality"]
 

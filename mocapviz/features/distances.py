@@ -45,8 +45,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..motion import rotations
 from ..errors import ParameterError
+from ..motion import rotations
 from ..motion.skeleton import CANONICAL_JOINTS
 
 __all__ = [

@@ -62,11 +62,11 @@ from pathlib import Path
 import numpy as np
 
 from ..db.batches import map_documents
-from ..parallel import optional_client
 from ..db.database import MotionDB
 from ..errors import MotionDBError, ParameterError
 from ..motion import Motion
 from ..motion.skeleton import CANONICAL_JOINTS, body_frame, heading
+from ..parallel import optional_client
 from ..store import (
     atomic_write,
     check_format,

@@ -60,11 +60,11 @@ import numpy as np
 import pandas as pd
 
 from ..db.batches import map_documents
-from ..parallel import optional_client
 from ..db.database import MotionDB
 from ..errors import ParameterError
 from ..motion import Motion
 from ..motion.skeleton import CANONICAL_JOINTS, body_size_table
+from ..parallel import optional_client
 from ..validation import finite_positions, one_of, renamed
 from . import RELATIONAL_SETS  # the set names, with the package
 

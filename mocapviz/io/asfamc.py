@@ -35,9 +35,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ..motion import rotations
 from ..errors import MocapFormatError, ParameterError
-from ..motion import Motion, fps_problem
+from ..motion import Motion, fps_problem, rotations
 from .checks import ANGLE_LIMIT_DEG, DISTANCE_LIMIT_CM, checked_forward_kinematics, describe, first_outside
 from .text import name_hash, number, read_bytes, scan, words
 

@@ -29,9 +29,8 @@ import re
 
 import numpy as np
 
-from ..motion import rotations
 from ..errors import MocapFormatError, ParameterError
-from ..motion import Motion
+from ..motion import Motion, rotations
 from .checks import (
     ANGLE_LIMIT_DEG,
     DISTANCE_LIMIT_CM,

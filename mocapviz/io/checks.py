@@ -19,9 +19,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..motion import rotations
 from ..errors import MocapFormatError
-from ..motion import FPS_RANGE, fps_problem
+from ..motion import FPS_RANGE, fps_problem, rotations
 
 __all__ = ["ANGLE_LIMIT_DEG", "DISTANCE_LIMIT_CM", "FPS_RANGE", "check_frame_rate", "checked_forward_kinematics",
            "describe", "first_outside"]

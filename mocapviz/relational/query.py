@@ -15,12 +15,12 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from . import index as index_mod
 from ..db.hits import hit_table
 from ..errors import ParameterError
 from ..features import feature_groups, feature_names, relational_features
 from ..features.segmentation import segment
 from ..validation import some_of
+from . import index as index_mod
 
 MODES = ("adaptive", "fuzzy", "exact", "mismatch")
 

@@ -21,8 +21,8 @@ from ..db.hits import HitTable, hit_table
 from ..errors import ParameterError
 from ..motion import Motion
 from ..relational.query import MODES, query_by_example
-from .search import SimilaritySearch
 from ..validation import count
+from .search import SimilaritySearch
 
 # Lenient selections per HDM05 class for the hybrid, as keyword arguments of hybrid_search: fewer features than
 # DEFAULT_QUERIES (mocapviz.experiments.relational), so that the relational stage keeps (nearly) every clip of the

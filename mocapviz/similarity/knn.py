@@ -33,9 +33,9 @@ import pandas as pd
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
-from ..parallel import map_ordered, parallelism
 from ..db.hits import from_database_frames, hit_table
 from ..errors import ParameterError
+from ..parallel import map_ordered, parallelism
 from ..validation import count, one_of, renamed
 
 ENGINES = ("ckdtree", "brute")

@@ -84,10 +84,10 @@ from tqdm.auto import tqdm
 from ..db.database import MotionDB
 from ..errors import ParameterError
 from ..features.numeric import NUMERIC_SETS, PCAModel, default_pca, numeric_features, numeric_of
-from .knn import KnnIndex
 from ..motion import Motion
 from ..motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS, body_frame
 from ..validation import count
+from .knn import KnnIndex
 
 __all__ = [
     "BONES",

@@ -17,8 +17,8 @@ import holoviews.plotting.bokeh  # registers the bokeh backend and its options
 import numpy as np
 import pandas as pd
 
-from ..experiments import evaluation
 from ..errors import ParameterError
+from ..experiments import evaluation
 
 
 def precision_recall(hit_docs, documents: pd.DataFrame, query_doc: int) -> pd.DataFrame:

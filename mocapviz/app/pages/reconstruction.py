@@ -20,8 +20,8 @@ import panel as pn
 from ...errors import ParameterError
 from ...experiments.marker_reconstruction import frame_actors, marker_clip
 from ...features import NUMERIC_SETS
-from ...similarity.reconstruction import DEFAULT_K, MARKERS, PosePrior, reconstruct, reconstruction_errors
 from ...motion.skeleton import CANONICAL_JOINTS
+from ...similarity.reconstruction import DEFAULT_K, MARKERS, PosePrior, reconstruct, reconstruction_errors
 from ...viz.reconstruction import error_curves, joint_error_bars
 from ..player import SkeletonPlayer
 from ..progress import Task

@@ -16,9 +16,9 @@ import numpy as np
 import pandas as pd
 import panel as pn
 
+from ...db.hits import database_frames
 from ...features import relational_features
 from ...match import dtw
-from ...db.hits import database_frames
 from ...relational.templates import DELTA, DONT_CARE, MotionTemplate, learn_class, template_distance
 from ...relational.templates import search_template as find_template
 from ...validation import count, number, one_of

@@ -1,0 +1,543 @@
+"""The scene description language (Müller, Röder & Clausen 2005 §6.3, Fig. 10; grammar in docs/descriptions.md).
+
+A description says what a motion looks like in the words of the relational features, without an example clip::
+
+    define kick_right:
+        rknee: straight bent straight bent straight
+        and rfoot: lowered raised lowered
+        and overlap rknee bent, rfoot raised
+        and rfoot raised for 0.1..1.5 s;
+    kick_right then punch_left within 2 s
+
+- a **progression** ``part: state state ...`` is one feature's run of states (``*``: either state);
+- an **event** joins progressions with ``and``: they run concurrently (all share some frame); ``overlap A, B`` asks
+  for a frame where two of their states hold together; ``A for LO..HI s`` bounds how long a state lasts;
+- ``template:NAME`` is a stored motion template's instances, ``NAME`` a defined or shipped description;
+- ``A then B within T s``: B starts after A ends, at most T seconds later; ``A | B``: either.
+
+:func:`parse_description` turns the text into the tree of this module's classes, every name resolved against one
+relational set's :mod:`~mocapviz.relational.vocabulary`; :mod:`mocapviz.relational.scene` evaluates it.
+
+References
+----------
+.. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. SIGGRAPH 2005,
+   §6.3 "Towards scene descriptions", Fig. 10.
+"""
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass, field
+from functools import cache
+from importlib import resources
+
+from lark import Lark, Token, Transformer, Tree, v_args
+from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken, VisitError
+
+from ..errors import DescriptionError, ParameterError
+from .vocabulary import vocabulary
+
+__all__ = ["DEFAULT_WITHIN", "Alternatives", "Description", "Duration", "Event", "Named", "Overlap", "Progression",
+           "Sequence", "StateRef", "TemplateAtom", "named_descriptions", "parse_description", "template_names"]
+
+DEFAULT_WITHIN = 2.0  # seconds: "A then B" without "within"
+LIBRARY = "named_descriptions.txt"  # the shipped descriptions, beside this module
+
+GRAMMAR = r"""
+start: definition* expr?
+definition: "define" NAME ":" expr ";"
+?expr: sequence ("|" sequence)*  -> alternatives
+?sequence: primary then*
+then: "then" primary within?
+within: "within" NUMBER "s"
+?primary: event
+        | NAME -> named
+        | TEMPLATE -> template
+        | "(" expr ")"
+event: clause ("and" clause)*
+?clause: progression | overlap | duration
+progression: NAME ":" step+
+step: NAME | NUMBER | STAR
+overlap: "overlap" ref ("," | "with") ref
+ref: NAME NAME ("[" NUMBER "]")?
+duration: ref "for" range "s"
+range: NUMBER? RANGE NUMBER?
+
+TEMPLATE.2: /template:[^\s()|;,]+/
+NAME: /[A-Za-z_][A-Za-z0-9_]*/
+NUMBER: /\d+(\.\d+)?/
+RANGE: ".."
+STAR: "*"
+COMMENT: /#[^\n]*/
+%import common.WS
+%ignore WS
+%ignore COMMENT
+"""
+
+_EXPECTED = {"NAME": "a name", "NUMBER": "a number", "STAR": "*", "TEMPLATE": "template:NAME", "RANGE": "..",
+             "SEMICOLON": "';' (the end of a definition)", "COLON": "':'", "LPAR": "'('", "RPAR": "')'",
+             "VBAR": "'|'", "COMMA": "','", "LSQB": "'['", "RSQB": "']'", "$END": "the end of the text"}  # fmt: skip
+
+
+# ================================================================================================ the tree
+@dataclass(frozen=True)
+class Progression:
+    """One feature's progression of states (the paper's "rknee straight/bent/straight").
+
+    Attributes
+    ----------
+    part : str
+        As written (``rknee``).
+    feature : str
+        The relational feature (``rknee_bent``).
+    values : tuple of {0, 1, None}
+        One per step; None: either state (``*``).
+    words : tuple of str
+        The steps as written.
+    """
+
+    part: str
+    feature: str
+    values: tuple
+    words: tuple
+
+    def __str__(self) -> str:
+        return f"{self.part}: {' '.join(self.words)}"
+
+
+@dataclass(frozen=True)
+class StateRef:
+    """A state of one progression of an event: ``rknee bent`` (every step in that state) or ``rknee bent[2]``.
+
+    Attributes
+    ----------
+    progression : int
+        Index of the progression within its event.
+    steps : tuple of int
+        The 0-based steps meant.
+    text : str
+        As written.
+    """
+
+    progression: int
+    steps: tuple
+    text: str
+
+    def __str__(self) -> str:
+        return self.text
+
+
+@dataclass(frozen=True)
+class Overlap:
+    """Some frame where state ``a`` and state ``b`` hold together (Fig. 10's arrows)."""
+
+    a: StateRef
+    b: StateRef
+
+    def __str__(self) -> str:
+        return f"overlap {self.a}, {self.b}"
+
+
+@dataclass(frozen=True)
+class Duration:
+    """Every run of state ``ref`` lasts from ``low`` to ``high`` seconds (None: unbounded), at the document's rate."""
+
+    ref: StateRef
+    low: float | None
+    high: float | None
+
+    def __str__(self) -> str:
+        low = "" if self.low is None else f"{self.low:g}"
+        high = "" if self.high is None else f"{self.high:g}"
+        return f"{self.ref} for {low}..{high} s"
+
+
+@dataclass(frozen=True)
+class Event:
+    """Concurrent progressions with their overlap and duration conditions."""
+
+    progressions: tuple
+    overlaps: tuple = ()
+    durations: tuple = ()
+
+    def __str__(self) -> str:
+        return "\n    and ".join(str(c) for c in (*self.progressions, *self.overlaps, *self.durations))
+
+
+@dataclass(frozen=True)
+class TemplateAtom:
+    """The instances of a stored motion template (``template:NAME``: a name under ``DB/templates/`` or a file)."""
+
+    name: str
+
+    def __str__(self) -> str:
+        return f"template:{self.name}"
+
+
+@dataclass(frozen=True)
+class Named:
+    """A defined or shipped description used by its name."""
+
+    name: str
+    body: object = field(compare=False)
+
+    def __str__(self) -> str:
+        return self.name
+
+
+@dataclass(frozen=True)
+class Sequence:
+    """``first then second within`` seconds: ``second`` starts after ``first`` ends, at most ``within`` s later."""
+
+    first: object
+    second: object
+    within: float
+
+    def __str__(self) -> str:
+        return f"{_inner(self.first)} then {_inner(self.second)} within {self.within:g} s"
+
+
+@dataclass(frozen=True)
+class Alternatives:
+    """Any of ``options``."""
+
+    options: tuple
+
+    def __str__(self) -> str:
+        return " | ".join(_inner(o) for o in self.options)
+
+
+def _inner(node) -> str:
+    text = str(node)
+    return f"({text})" if isinstance(node, (Alternatives, Event)) and ("\n" in text or "|" in text) else text
+
+
+@dataclass(frozen=True)
+class Description:
+    """A parsed description: its tree, the relational set its words name, and its own definitions.
+
+    Attributes
+    ----------
+    root : Event, Named, TemplateAtom, Sequence or Alternatives
+    relational_set : {"2005", "2006"}
+    definitions : dict
+        Name -> tree, the text's own ``define`` statements.
+    text : str
+    """
+
+    root: object
+    relational_set: str
+    definitions: dict
+    text: str
+
+    def __str__(self) -> str:
+        defs = [f"define {name}:\n    {body};" for name, body in self.definitions.items()]
+        return "\n".join([*defs, str(self.root)])
+
+    def templates(self) -> list[str]:
+        """The names of the template atoms the description uses (through its names too)."""
+        return list(dict.fromkeys(_template_names(self.root)))
+
+
+def _template_names(node):
+    if isinstance(node, TemplateAtom):
+        yield node.name
+    elif isinstance(node, Named):
+        yield from _template_names(node.body)
+    elif isinstance(node, Sequence):
+        yield from _template_names(node.first)
+        yield from _template_names(node.second)
+    elif isinstance(node, Alternatives):
+        for o in node.options:
+            yield from _template_names(o)
+
+
+# ================================================================================================ parsing
+@cache
+def _parser() -> Lark:
+    return Lark(GRAMMAR, parser="lalr", propagate_positions=True, maybe_placeholders=False)
+
+
+def _syntax(text: str, source: str | None) -> Tree:
+    try:
+        return _parser().parse(text)
+    except UnexpectedInput as exc:
+        raise DescriptionError(_syntax_reason(exc, text), exc.line if exc.line > 0 else None,
+                               exc.column if exc.column > 0 else None, source) from None  # fmt: skip
+
+
+def _syntax_reason(exc: UnexpectedInput, text: str) -> str:
+    if isinstance(exc, UnexpectedCharacters):
+        char = text[exc.pos_in_stream]
+        if char == "-":
+            return "unexpected '-': times and counts are numbers >= 0 (e.g. within 2 s, for 0.1..1 s)"
+        return f"unexpected character {char!r}"
+    if isinstance(exc, UnexpectedEOF):
+        return "the description ends too early"
+    if isinstance(exc, UnexpectedToken):
+        got = "the end of the text" if exc.token.type == "$END" else repr(str(exc.token))
+        expected = sorted({_EXPECTED.get(t, repr(_parser().get_terminal(t).pattern.value).lower()) for t in exc.expected})
+        hint = ""
+        if "SEMICOLON" in exc.expected and str(exc.token) == "define":
+            hint = "; end each definition with ';'"
+        return f"unexpected {got}; expected {' or '.join(expected)}{hint}"
+    return str(exc)
+
+
+def template_names(text: str) -> list[str]:
+    """The template atoms (``template:NAME``) a description's text names, in order, without resolving anything
+    else (to decide its relational set from the templates' before :func:`parse_description`).
+
+    Examples
+    --------
+    >>> template_names("template:kickLFront1Reps-bd-dg then template:squat1Reps-bd-dg within 4 s")
+    ['kickLFront1Reps-bd-dg', 'squat1Reps-bd-dg']
+    """
+    tree = _syntax(text, None)
+    return list(dict.fromkeys(str(t)[len("template:"):] for t in tree.scan_values(
+        lambda v: isinstance(v, Token) and v.type == "TEMPLATE")))  # fmt: skip
+
+
+class _Resolve(Transformer):
+    """The lark tree -> the description tree, every name resolved in one vocabulary (position on each error)."""
+
+    def __init__(self, relational_set: str, names: dict, source: str | None):
+        super().__init__()
+        self.words, self.names, self.source = vocabulary(relational_set), names, source
+
+    def _fail(self, reason: str, where) -> DescriptionError:
+        line = getattr(where, "line", None)
+        column = getattr(where, "column", None)
+        return DescriptionError(reason, line, column, self.source)
+
+    @v_args(meta=True)
+    def progression(self, meta, children):
+        part, steps = children[0], children[1:]
+        try:
+            feature, values = self.words.resolve(str(part), [str(s) for s in steps])
+        except ParameterError as exc:
+            raise self._fail(str(exc), part) from None
+        if len(values) < 2:
+            raise self._fail(f"{part}: a progression needs at least two states (one state alone holds in every "
+                             f"stretch where it holds); write e.g. '{part}: {self._states(feature)}'", part)
+        for a, b, token in zip(values, values[1:], steps[1:]):
+            if a is not None and a == b:
+                raise self._fail(f"{part}: '{token}' twice in a row can never be seen (a state lasts until the "
+                                 "other begins); write it once", token)  # fmt: skip
+        return Progression(str(part), feature, tuple(values), tuple(str(s) for s in steps))
+
+    def _states(self, feature: str) -> str:
+        zero, one = self.words.states(feature)
+        return f"{zero} {one} {zero}"
+
+    def step(self, children):
+        return children[0]
+
+    @v_args(meta=True)
+    def ref(self, meta, children):
+        return ("ref", children, meta)
+
+    def range(self, children):
+        numbers = [c for c in children if c.type == "NUMBER"]
+        low = float(numbers[0]) if numbers and children[0].type == "NUMBER" else None
+        high = float(numbers[-1]) if numbers and children[-1].type == "NUMBER" else None
+        return (low, high, children[0])
+
+    def overlap(self, children):
+        return ("overlap", children)
+
+    def duration(self, children):
+        return ("duration", children)
+
+    @v_args(meta=True)
+    def event(self, meta, children):
+        progressions = [c for c in children if isinstance(c, Progression)]
+        if not progressions:
+            raise self._fail("an event needs at least one progression (part: state state ...) for its overlap or "
+                             "duration to refer to", meta)  # fmt: skip
+        seen = {}
+        for p in progressions:
+            if p.feature in seen:
+                raise self._fail(f"two progressions of {p.feature} in one event; join them into one", meta)
+            seen[p.feature] = p
+        overlaps, durations = [], []
+        for kind, args in (c for c in children if isinstance(c, tuple)):
+            if kind == "overlap":
+                overlaps.append(Overlap(self._ref(args[0], progressions), self._ref(args[1], progressions)))
+            else:
+                ref, (low, high, token) = self._ref(args[0], progressions), args[1]
+                if low is not None and high is not None and low > high:
+                    raise self._fail(f"{ref} for {low:g}..{high:g} s: the shortest time is longer than the longest",
+                                     token)  # fmt: skip
+                if low is None and high is None:
+                    raise self._fail(f"{ref} for ..: give a shortest or a longest time (e.g. 0.1..1 s)", token)
+                durations.append(Duration(ref, low, high))
+        return Event(tuple(progressions), tuple(overlaps), tuple(durations))
+
+    def _ref(self, ref, progressions) -> StateRef:
+        _, tokens, meta = ref
+        part, word = str(tokens[0]), str(tokens[1])
+        matches = [i for i, p in enumerate(progressions) if p.part == part or p.feature == part]
+        if not matches:
+            raise self._fail(f"{part} {word}: no progression of this event describes {part} (it has "
+                             f"{', '.join(p.part for p in progressions)})", tokens[0])  # fmt: skip
+        for i in matches:
+            p = progressions[i]
+            try:
+                value = self.words.state_of(part, word, p.feature)
+            except ParameterError:
+                continue
+            steps = [k for k, v in enumerate(p.values) if v == value]
+            text = f"{part} {word}"
+            if len(tokens) > 2:
+                n = tokens[2]
+                if "." in n or not 1 <= int(n) <= len(steps):
+                    raise self._fail(f"{part} {word}[{n}]: {p} has {len(steps)} '{word}' state(s); number them "
+                                     f"1..{len(steps)}", n)  # fmt: skip
+                steps, text = [steps[int(n) - 1]], f"{text}[{n}]"
+            if not steps:
+                raise self._fail(f"{part} {word}: the progression '{p}' has no step '{word}'", tokens[1])
+            return StateRef(i, tuple(steps), text)
+        states = " or ".join(f"{progressions[i].part}: {'/'.join(self.words.states(progressions[i].feature))}"
+                             for i in matches)  # fmt: skip
+        raise self._fail(f"{part} {word}: not a state of this event's progression ({states})", tokens[1])
+
+    def named(self, children):
+        token = children[0]
+        name = str(token)
+        if name not in self.names:
+            raise self._fail(f"unknown description {name!r}" + _closest(name, self.names)
+                             + ("" if _closest(name, self.names) else "; see `mocapviz find --list`"), token)
+        found = self.names[name]
+        if isinstance(found, DescriptionError):
+            raise self._fail(f"{name} cannot be used with the {self.words.relational_set} relational set: "
+                             f"{found.reason}", token)  # fmt: skip
+        return Named(name, found)
+
+    def template(self, children):
+        return TemplateAtom(str(children[0])[len("template:"):])
+
+    def within(self, children):
+        return (float(children[0]), children[0])
+
+    def then(self, children):
+        return ("then", children)
+
+    def sequence(self, children):
+        node = children[0]
+        for _, (second, *within) in children[1:]:
+            seconds = within[0][0] if within else DEFAULT_WITHIN
+            node = Sequence(node, second, seconds)
+        return node
+
+    def alternatives(self, children):
+        return children[0] if len(children) == 1 else Alternatives(tuple(children))
+
+    def definition(self, children):
+        return ("define", children[0], children[1])
+
+    def start(self, children):
+        return children
+
+
+def _closest(word: str, options) -> str:
+    near = difflib.get_close_matches(word, list(options), n=3, cutoff=0.6)
+    return f"; did you mean {' or '.join(repr(n) for n in near)}?" if near else ""
+
+
+def _resolve(tree, relational_set: str, names: dict, source: str | None):
+    try:
+        return _Resolve(relational_set, names, source).transform(tree)
+    except VisitError as exc:
+        if isinstance(exc.orig_exc, DescriptionError):
+            raise exc.orig_exc from None
+        raise
+
+
+def _program(text: str, relational_set: str, names: dict, source: str | None, keep_errors: bool = False):
+    """(definitions, expression) of a text; definitions are added to ``names`` in order (later ones see earlier)."""
+    tree = _syntax(text, source)
+    definitions, root = {}, None
+    for child in tree.children:
+        if isinstance(child, Tree) and child.data == "definition":
+            name_token, body = child.children
+            try:
+                definitions[str(name_token)] = _resolve(body, relational_set, names, source)
+            except DescriptionError as exc:
+                if not keep_errors:
+                    raise
+                definitions[str(name_token)] = exc
+            names = {**names, str(name_token): definitions[str(name_token)]}
+        else:
+            root = _resolve(child, relational_set, names, source)
+    return definitions, root
+
+
+@cache
+def named_descriptions(relational_set: str = "2005") -> dict:
+    """The shipped descriptions (``named_descriptions.txt`` beside this module), resolved in a relational set.
+
+    Parameters
+    ----------
+    relational_set : {"2005", "2006"}
+
+    Returns
+    -------
+    dict
+        Name -> description tree, or the DescriptionError saying why that name cannot be used with this set.
+
+    Examples
+    --------
+    >>> print(named_descriptions()["kick_right"])
+    rknee: straight bent straight
+        and rfoot: lowered raised lowered
+        and overlap rknee bent, rfoot raised
+    """
+    text = resources.files(__package__).joinpath(LIBRARY).read_text(encoding="utf-8")
+    definitions, root = _program(text, relational_set, {}, f"{__package__}/{LIBRARY}", keep_errors=True)
+    assert root is None, "the shipped library holds definitions only"
+    return definitions
+
+
+def parse_description(text: str, relational_set: str = "2005") -> Description:
+    """Read a scene description: its definitions and its query, every name resolved.
+
+    Parameters
+    ----------
+    text : str
+        The description (docs/descriptions.md): optional ``define NAME: ...;`` statements, then one expression.
+    relational_set : {"2005", "2006"}
+        The set whose features the part and state words name (and whose relational index answers it).
+
+    Returns
+    -------
+    Description
+
+    Raises
+    ------
+    DescriptionError
+        A syntax error, an unknown part, state or name (with the closest valid ones), a progression of one state,
+        a negative or reversed time; the message starts with the line and column.
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. SIGGRAPH
+       2005, §6.3, Fig. 10.
+
+    Examples
+    --------
+    >>> d = parse_description("kick_right then punch_left within 2 s")
+    >>> type(d.root).__name__, d.root.within
+    ('Sequence', 2.0)
+    >>> parse_description("rknee: straight bnt straight")
+    Traceback (most recent call last):
+    ...
+    mocapviz.errors.DescriptionError: line 1, column 1: 'bnt' is not a state of rknee in the 2005 set; did you mean 'bent'?
+    """
+    if not isinstance(text, str):
+        raise ParameterError(f"a description must be text; got {type(text).__name__}")
+    names = dict(named_descriptions(vocabulary(relational_set).relational_set))
+    definitions, root = _program(text, relational_set, names, None)
+    if root is None:
+        raise DescriptionError("the description has no query: after the definitions, write what to find (e.g. "
+                               f"{next(iter(definitions), 'kick_right')})")  # fmt: skip
+    return Description(root, relational_set, definitions, text)

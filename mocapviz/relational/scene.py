@@ -1,0 +1,522 @@
+"""Finding what a scene description describes (Müller, Röder & Clausen 2005 §6.3): through the relational index,
+and by a frame-wise scan that defines the answer.
+
+Semantics (docs/descriptions.md):
+
+- A **progression** ``part: s_1 ... s_L`` of feature f matches L consecutive maximal runs of f in one document whose
+  values are s_1 ... s_L (``*``: either). Its first and last states only frame the motion: the hit runs from the
+  last frame of the first run to the first frame of the last run (so ``straight bent straight`` is the bend, plus
+  one frame on either side). Through the index it is the adaptive query of §5.2 on f's group index with only f
+  selected (:meth:`~mocapviz.relational.index.InvertedIndex.adaptive_mismatch`; ``*`` steps are allowed
+  mismatches).
+- ``A for LO..HI s`` keeps the hits where every run in state A lasts LO..HI seconds at the document's rate.
+- An **event** (progressions joined by ``and``) matches one hit of each progression, all sharing at least one frame;
+  each ``overlap A, B`` needs a frame where a run in state A and a run in state B hold together. The event's hit is
+  the union of its progressions' hits.
+- ``A then B within T s``: a hit of A and a later hit of B in the same document, B starting at or after A's end and
+  at most T s later; the hit spans from A's start to B's end. ``A | B``: the hits of either.
+- A ``template:NAME`` atom's hits are the template's instances (:func:`~mocapviz.relational.templates.search_template`)
+  whose normalised cost is at most ``template_cost``.
+
+Every hit is scored by its length in seconds (the tightest first) and overlapping hits in one document are
+resolved best first, as :func:`mocapviz.match.subsequence_dtw` does; ``overlapping=True`` keeps them all.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numba
+import numpy as np
+import pandas as pd
+
+from ..db.hits import hit_table
+from ..errors import DescriptionError, MotionDBError, ParameterError
+from ..validation import count, number, one_of
+from .description import (
+    Alternatives,
+    Description,
+    Event,
+    Named,
+    Progression,
+    Sequence,
+    TemplateAtom,
+    parse_description,
+    template_names,
+)
+from .vocabulary import vocabulary
+
+__all__ = ["TEMPLATE_COST", "find", "find_by_scan"]
+
+TEMPLATE_COST = 0.15  # a template atom's instances: normalised cost (mean mismatch per frame) at most this
+TEMPLATE_MATCHES = 100_000  # instances of a template atom considered at most
+
+
+# ================================================================================================ hit sets
+@dataclass
+class _Hits:
+    """The hits of one node: global frames [start, end), and how to recover the parts that made each one."""
+
+    label: str
+    start: np.ndarray
+    end: np.ndarray
+    children: list = field(default_factory=list)
+    index: np.ndarray | None = None  # (n, len(children)) rows of the children joined into each hit
+    pick: np.ndarray | None = None  # alternatives: (n,) which child each hit comes from (index: its row there)
+
+    def __len__(self) -> int:
+        return int(self.start.size)
+
+    def parts(self, i: int) -> list[tuple[str, int, int]]:
+        """The leaf parts (label, start, end) of hit ``i``, global frames."""
+        if self.pick is not None:
+            return self.children[self.pick[i]].parts(int(self.index[i, 0]))
+        if not self.children:
+            return [(self.label, int(self.start[i]), int(self.end[i]))]
+        return [p for child, row in zip(self.children, self.index[i]) for p in child.parts(int(row))]
+
+
+def _leaf(label: str, start, end) -> _Hits:
+    start, end = np.asarray(start, dtype=np.int64), np.asarray(end, dtype=np.int64)
+    order = np.lexsort((end, start))
+    start, end = start[order], end[order]
+    keep = np.ones(start.size, dtype=bool)
+    keep[1:] = (np.diff(start) != 0) | (np.diff(end) != 0)
+    return _Hits(label, start[keep], end[keep])
+
+
+def _unique(label: str, start, end, children, index) -> _Hits:
+    """Joined hits, one per distinct (start, end) (the first of each in (start, end, rows) order)."""
+    start, end = np.asarray(start, dtype=np.int64), np.asarray(end, dtype=np.int64)
+    index = np.asarray(index, dtype=np.int64)
+    order = np.lexsort((*index.T[::-1], end, start))
+    start, end, index = start[order], end[order], index[order]
+    keep = np.ones(start.size, dtype=bool)
+    keep[1:] = (np.diff(start) != 0) | (np.diff(end) != 0)
+    return _Hits(label, start[keep], end[keep], children, index[keep])
+
+
+# ================================================================================================ the context
+class _Context:
+    """What evaluating a description over one database needs: documents, rates, relational values or indexes."""
+
+    def __init__(self, db, relational_set: str, template_cost: float, indexes=None, values=None):
+        self.db, self.relational_set, self.template_cost = db, relational_set, template_cost
+        docs = db.documents
+        self.doc_start = docs["start"].to_numpy(np.int64)
+        self.doc_end = self.doc_start + docs["n_frames"].to_numpy(np.int64)
+        self.fps = docs["fps"].to_numpy(np.float64)
+        self.indexes, self.values = indexes, values
+        self.counts: list[tuple[str, int]] = []  # (node, raw hits), in evaluation order (--explain)
+
+    def doc_of(self, frames: np.ndarray) -> np.ndarray:
+        return np.searchsorted(self.doc_start, frames, side="right") - 1
+
+    def seconds(self, frames: np.ndarray, at: np.ndarray) -> np.ndarray:
+        """``frames`` (counts) in seconds at the rate of the documents holding frames ``at``."""
+        return frames / self.fps[self.doc_of(at)]
+
+    def note(self, label: str, hits: _Hits) -> _Hits:
+        self.counts.append((label, len(hits)))
+        return hits
+
+
+def _label(prefix: str, node) -> str:
+    text = node.part if isinstance(node, Progression) else str(node)
+    return f"{prefix}/{text}" if prefix else text
+
+
+# ================================================================================================ runs
+def _index_runs(ctx: _Context, p: Progression) -> tuple[np.ndarray, np.ndarray]:
+    """(run starts, run ends) [shape=(H, L)], global frames, of the progression's hits, from the relational index."""
+    group = vocabulary(ctx.relational_set).group[p.feature]
+    index = ctx.indexes[group]
+    bit = index.feature_names.index(p.feature)
+    stars = [k for k, v in enumerate(p.values) if v is None]
+    query = np.array([(v or 0) << bit for v in p.values], dtype=np.int64)
+    rows = index.adaptive_mismatch(query, [bit], m=len(stars), allowed=stars or None)
+    n = len(p.values)
+    starts = index.starts[rows[:, :n]]
+    last = rows[:, n] - 1
+    ends = np.concatenate([starts[:, 1:], (index.starts[last] + index.lengths[last])[:, None]], axis=1)
+    return starts, ends
+
+
+def _scan_runs(ctx: _Context, p: Progression) -> tuple[np.ndarray, np.ndarray]:
+    """The same as :func:`_index_runs`, by walking the runs of the feature's frame-wise values in every document."""
+    column = ctx.values[:, vocabulary(ctx.relational_set).features.index(p.feature)]
+    n = len(p.values)
+    found_s, found_e = [], []
+    for a, b in zip(ctx.doc_start, ctx.doc_end):
+        x = column[a:b]
+        cuts = np.flatnonzero(x[1:] != x[:-1]) + 1
+        run_start = np.concatenate([[0], cuts]) + a
+        run_end = np.concatenate([cuts, [b - a]]) + a
+        run_value = x[run_start - a]
+        for k in range(len(run_start) - n + 1):
+            if all(v is None or run_value[k + i] == v for i, v in enumerate(p.values)):
+                found_s.append(run_start[k : k + n])
+                found_e.append(run_end[k : k + n])
+    if not found_s:
+        return np.empty((0, n), dtype=np.int64), np.empty((0, n), dtype=np.int64)
+    return np.array(found_s, dtype=np.int64), np.array(found_e, dtype=np.int64)
+
+
+def _framed(ctx: _Context, p: Progression, starts: np.ndarray, ends: np.ndarray, durations) -> tuple:
+    """Runs kept by the event's duration conditions on this progression, and the hits they frame: from the last frame
+    of the first run to the first frame of the last run, inclusive (half-open: ``end(r_1) - 1 .. start(r_L) + 1``)."""
+    keep = np.ones(len(starts), dtype=bool)
+    for d in durations:
+        lengths = ctx.seconds(ends[:, list(d.ref.steps)] - starts[:, list(d.ref.steps)], starts[:, :1])
+        if d.low is not None:
+            keep &= (lengths >= d.low - 1e-9).all(axis=1)
+        if d.high is not None:
+            keep &= (lengths <= d.high + 1e-9).all(axis=1)
+    starts, ends = starts[keep], ends[keep]
+    return starts, ends, ends[:, 0] - 1, starts[:, -1] + 1
+
+
+# ================================================================================================ the index path
+def _evaluate(ctx: _Context, node, prefix: str = "") -> _Hits:
+    if isinstance(node, Named):
+        hits = _evaluate(ctx, node.body, node.name)
+        hits.label = node.name
+        return ctx.note(node.name, hits) if not isinstance(node.body, Named) else hits
+    if isinstance(node, TemplateAtom):
+        return ctx.note(str(node), _template_hits(ctx, node))
+    if isinstance(node, Event):
+        return _event(ctx, node, prefix)
+    if isinstance(node, Sequence):
+        first, second = _evaluate(ctx, node.first, prefix), _evaluate(ctx, node.second, prefix)
+        return ctx.note(str(node), _then(ctx, first, second, node.within, str(node)))
+    if isinstance(node, Alternatives):
+        options = [_evaluate(ctx, o, prefix) for o in node.options]
+        return ctx.note(str(node), _union(str(node), options))
+    raise TypeError(f"not a description node: {node!r}")
+
+
+def _event(ctx: _Context, event: Event, prefix: str) -> _Hits:
+    runs, leaves = [], []
+    for i, p in enumerate(event.progressions):
+        starts, ends = (_index_runs if ctx.indexes is not None else _scan_runs)(ctx, p)
+        starts, ends, a, b = _framed(ctx, p, starts, ends, [d for d in event.durations if d.ref.progression == i])
+        runs.append((starts, ends))
+        leaves.append(ctx.note(_label(prefix, p), _Hits(_label(prefix, p), a, b)))
+    if len(leaves) == 1 and not event.overlaps:
+        return leaves[0]
+    rows = _concurrent(ctx, leaves) if ctx.indexes is not None else _concurrent_scan(ctx, leaves)
+    ok = np.ones(len(rows), dtype=bool)
+    for o in event.overlaps:
+        (sa, ea), (sb, eb) = runs[o.a.progression], runs[o.b.progression]
+        ia, ib = rows[:, o.a.progression], rows[:, o.b.progression]
+        meet = np.zeros(len(rows), dtype=bool)
+        for s in o.a.steps:
+            for t in o.b.steps:
+                meet |= (sa[ia, s] < eb[ib, t]) & (sb[ib, t] < ea[ia, s])
+        ok &= meet
+    rows = rows[ok]
+    start = np.min([leaf.start[rows[:, k]] for k, leaf in enumerate(leaves)], axis=0) if len(rows) else rows[:, 0]
+    end = np.max([leaf.end[rows[:, k]] for k, leaf in enumerate(leaves)], axis=0) if len(rows) else rows[:, 0]
+    joined = _unique(prefix or str(event), start, end, leaves, rows)
+    return joined if prefix else ctx.note(str(event), joined)
+
+
+def _concurrent(ctx: _Context, leaves: list[_Hits]) -> np.ndarray:
+    """Rows (one per leaf) of the tuples of hits that share a frame, by sorted interval joins."""
+    rows = np.arange(len(leaves[0]))[:, None]
+    lo, hi = leaves[0].start.copy(), leaves[0].end.copy()
+    for leaf in leaves[1:]:
+        order = np.argsort(leaf.start, kind="stable")
+        s, e = leaf.start[order], leaf.end[order]
+        longest = int((e - s).max()) if len(s) else 0
+        first = np.searchsorted(s, lo - longest, side="left")
+        stop = np.searchsorted(s, hi, side="left")
+        i, j = _expand(first, stop)
+        j = order[j]
+        keep = leaf.end[j] > lo[i]
+        i, j = i[keep], j[keep]
+        rows = np.concatenate([rows[i], j[:, None]], axis=1)
+        lo, hi = np.maximum(lo[i], leaf.start[j]), np.minimum(hi[i], leaf.end[j])
+    return rows
+
+
+def _expand(first: np.ndarray, stop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """All pairs (i, j) with first[i] <= j < stop[i]."""
+    sizes = np.maximum(stop - first, 0)
+    i = np.repeat(np.arange(first.size), sizes)
+    offsets = np.arange(sizes.sum()) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    return i, first[i] + offsets
+
+
+def _then(ctx: _Context, a: _Hits, b: _Hits, within: float, label: str) -> _Hits:
+    if ctx.indexes is None:
+        return _then_scan(ctx, a, b, within, label)
+    order = np.argsort(b.start, kind="stable")
+    s = b.start[order]
+    reach = a.end + np.floor(within * ctx.fps[ctx.doc_of(a.start)] + 1e-9).astype(np.int64)
+    i, j = _expand(np.searchsorted(s, a.end, side="left"), np.searchsorted(s, reach, side="right"))
+    j = order[j]
+    same = ctx.doc_of(b.start[j]) == ctx.doc_of(a.start[i])
+    i, j = i[same], j[same]
+    return _unique(label, a.start[i], b.end[j], [a, b], np.stack([i, j], axis=1))
+
+
+def _union(label: str, options: list[_Hits]) -> _Hits:
+    start = np.concatenate([o.start for o in options])
+    end = np.concatenate([o.end for o in options])
+    which = np.concatenate([np.full(len(o), k) for k, o in enumerate(options)]).astype(np.int64)
+    row = np.concatenate([np.arange(len(o)) for o in options]).astype(np.int64)
+    hits = _unique(label, start, end, options, np.stack([which, row], axis=1))
+    hits.pick, hits.index = hits.index[:, 0], hits.index[:, 1:]
+    return hits
+
+
+def _template_hits(ctx: _Context, atom: TemplateAtom) -> _Hits:
+    from .templates import search_template
+
+    template = _load_template(ctx.db, atom.name)
+    values = ctx.values if ctx.values is not None else None
+    found = search_template(ctx.db, template, n_matches=TEMPLATE_MATCHES, max_cost=ctx.template_cost, values=values)
+    offset = ctx.doc_start[np.searchsorted(ctx.db.documents["doc_id"].to_numpy(), found["doc_id"].to_numpy())]
+    return _leaf(str(atom), found["start"].to_numpy() + offset, found["end"].to_numpy() + offset)
+
+
+# ================================================================================================ the scan path
+def _concurrent_scan(ctx: _Context, leaves: list[_Hits]) -> np.ndarray:
+    """:func:`_concurrent` by checking every combination of hits within each document."""
+    import itertools
+
+    doc = [ctx.doc_of(leaf.start) for leaf in leaves]
+    rows = []
+    for d in np.unique(doc[0]):
+        per = [np.flatnonzero(x == d) for x in doc]
+        for combo in itertools.product(*per):
+            lo = max(leaves[k].start[r] for k, r in enumerate(combo))
+            hi = min(leaves[k].end[r] for k, r in enumerate(combo))
+            if lo < hi:
+                rows.append(combo)
+    return np.array(rows, dtype=np.int64).reshape(-1, len(leaves))
+
+
+def _then_scan(ctx: _Context, a: _Hits, b: _Hits, within: float, label: str) -> _Hits:
+    pairs = []
+    for i in range(len(a)):
+        d = ctx.doc_of(a.start[i : i + 1])[0]
+        for j in range(len(b)):
+            gap = b.start[j] - a.end[i]
+            if ctx.doc_of(b.start[j : j + 1])[0] == d and 0 <= gap <= within * ctx.fps[d] + 1e-9:
+                pairs.append((i, j))
+    pairs = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+    return _unique(label, a.start[pairs[:, 0]], b.end[pairs[:, 1]], [a, b], pairs)
+
+
+# ================================================================================================ ranking
+@numba.njit(cache=True)
+def _non_overlapping(start, end, order, n_frames, limit):  # pragma: no cover - compiled
+    taken = np.zeros(n_frames, dtype=np.bool_)
+    out = np.empty(order.size, dtype=np.int64)
+    n = 0
+    for r in order:
+        free = True
+        for f in range(start[r], end[r]):
+            if taken[f]:
+                free = False
+                break
+        if free:
+            taken[start[r] : end[r]] = True
+            out[n] = r
+            n += 1
+            if n == limit:
+                break
+    return out[:n]
+
+
+def _ranked(ctx: _Context, hits: _Hits, n_matches: int | None, overlapping: bool) -> pd.DataFrame:
+    score = ctx.seconds(hits.end - hits.start, hits.start)
+    order = np.lexsort((hits.start, score))
+    limit = len(hits) if n_matches is None else n_matches
+    if overlapping:
+        chosen = order[:limit]
+    else:
+        chosen = _non_overlapping(hits.start, hits.end, order.astype(np.int64), int(ctx.doc_end.max(initial=0)),
+                                  limit)  # fmt: skip
+    doc_row = ctx.doc_of(hits.start[chosen])
+    offset = ctx.doc_start[doc_row]
+    parts = [", ".join(f"{label} {s - o}:{e - o}" for label, s, e in hits.parts(int(r)))
+             for r, o in zip(chosen, offset)]  # fmt: skip
+    doc_ids = ctx.db.documents["doc_id"].to_numpy()[doc_row]
+    return hit_table(ctx.db, doc_ids, hits.start[chosen] - offset, hits.end[chosen] - offset,
+                     score=score[chosen], parts=np.array(parts, dtype=object))  # fmt: skip
+
+
+# ================================================================================================ the entry points
+def _load_template(db, name: str):
+    from .templates import MotionTemplate, load_template
+
+    path = Path(name)
+    if path.suffix and path.is_file():
+        return MotionTemplate.load(path)
+    try:
+        return load_template(db, name)
+    except (MotionDBError, ParameterError, FileNotFoundError) as exc:
+        raise DescriptionError(f"template:{name}: {exc}") from None
+
+
+def _prepare(db, description, relational_set, template_cost) -> tuple[Description, float]:
+    from ..db.database import MotionDB
+    from ..features import RELATIONAL_SETS, feature_names
+
+    if not isinstance(db, MotionDB):
+        raise ParameterError(f"db must be a MotionDB; got {type(db).__name__}")
+    template_cost = number(template_cost, "template_cost (a mean mismatch per frame)", 0.0, 1.0)
+    if isinstance(description, Description):
+        if relational_set is not None and relational_set != description.relational_set:
+            raise ParameterError(f"the description was read with the {description.relational_set} set, not "
+                                 f"{relational_set}")  # fmt: skip
+        parsed = description
+    elif isinstance(description, str):
+        sets = {}
+        for name in template_names(description):
+            template = _load_template(db, name)
+            sets[name] = next((s for s in RELATIONAL_SETS if feature_names(s) == template.features), None)
+            if sets[name] is None:
+                raise DescriptionError(f"template:{name} was not learned on a relational set's features")
+        wanted = set(sets.values())
+        if relational_set is not None:
+            one_of(relational_set, "relational set", RELATIONAL_SETS)
+            other = [n for n, s in sets.items() if s != relational_set]
+            if other:
+                raise DescriptionError(f"template:{other[0]} was learned on the {sets[other[0]]} relational set; this "
+                                       f"description is read with the {relational_set} set: learn the template on "
+                                       f"{relational_set} (`mocapviz template learn --relational-set "
+                                       f"{relational_set}`) or find with --relational-set {sets[other[0]]}")
+        elif len(wanted) > 1:
+            raise DescriptionError(f"the templates were learned on different relational sets ({sets}); learn them "
+                                   "on one set")  # fmt: skip
+        else:
+            relational_set = wanted.pop() if wanted else "2005"
+        parsed = parse_description(description, relational_set)
+    else:
+        raise ParameterError(f"description must be text or a Description; got {type(description).__name__}")
+    for name in parsed.templates():
+        template = _load_template(db, name)
+        if feature_names(parsed.relational_set) != template.features:
+            raise DescriptionError(f"template:{name} was learned on another relational set than the description's "
+                                   f"{parsed.relational_set} words; find with the template's set")
+    return parsed, template_cost
+
+
+def _empty_reason(counts: list[tuple[str, int]]) -> str:
+    zero = [label for label, n in counts if n == 0]
+    if not zero:
+        return ""
+    first = zero[0]
+    found = [f"{label} ({n})" for label, n in counts if n and label != first]
+    if found:
+        return f"no hit: '{first}' found nothing (its parts found: {', '.join(found[-3:])})"
+    return f"no hit: '{first}' found nothing"
+
+
+def _run(db, description, n_matches, relational_set, template_cost, overlapping, indexes, values, scan: bool):
+    parsed, template_cost = _prepare(db, description, relational_set, template_cost)
+    n_matches = None if n_matches is None else count(n_matches, "n_matches")
+    if scan:
+        if values is None:
+            from ..features import relational_features
+
+            values, _ = relational_features(db, parsed.relational_set, progress=False)
+        ctx = _Context(db, parsed.relational_set, template_cost, values=values)
+    else:
+        if indexes is None:
+            from .index import load as load_indexes
+
+            indexes = load_indexes(db, parsed.relational_set)
+        ctx = _Context(db, parsed.relational_set, template_cost, indexes=indexes, values=values)
+    t0 = time.perf_counter()
+    hits = _evaluate(ctx, parsed.root)
+    table = _ranked(ctx, hits, n_matches, overlapping)
+    table.attrs.update(description=str(parsed), relational_set=parsed.relational_set, counts=ctx.counts,
+                       candidates=len(hits), ms=1e3 * (time.perf_counter() - t0),
+                       empty_reason=_empty_reason(ctx.counts) if table.empty else "")  # fmt: skip
+    return table
+
+
+def find(db, description, n_matches: int | None = None, relational_set: str | None = None,
+         template_cost: float = TEMPLATE_COST, overlapping: bool = False, indexes: dict | None = None,
+         values: np.ndarray | None = None) -> pd.DataFrame:  # fmt: skip
+    """The stretches of a MotionDB that a scene description describes, through its relational indexes.
+
+    Parameters
+    ----------
+    db : MotionDB
+        With the relational index of the description's set (``mocapviz index DB``).
+    description : str or Description
+        The text (docs/descriptions.md) or a parsed :class:`~mocapviz.relational.description.Description`.
+    n_matches : int, optional
+        At most this many hits (default: all).
+    relational_set : {"2005", "2006"}, optional
+        The set whose words the text uses (default: its templates' set, else "2005").
+    template_cost : float
+        A template atom's instances: normalised cost at most this (0..1, default 0.15).
+    overlapping : bool
+        Keep hits that overlap a better one in the same document (default: the best of them only).
+    indexes : dict, optional
+        Group -> InvertedIndex, if already loaded.
+    values : np.ndarray [shape=(N, f)], bool, optional
+        The database's relational values of the set, for template atoms, if already computed.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The hit table (:func:`mocapviz.db.hits.hit_table`) with ``score`` (the hit's length in seconds, shortest
+        first) and ``parts`` (each progression or template and its frames within the document: ``kick_right/rfoot
+        102:131, ...``). ``attrs``: ``description`` (as read), ``counts`` ((part, hits) per part, for
+        ``--explain``), ``candidates`` (hits before overlaps were resolved), ``empty_reason`` (which part found
+        nothing), ``ms``, ``relational_set``.
+
+    Raises
+    ------
+    DescriptionError
+        The text cannot be read (line and column named), or a template atom is missing or of another set.
+    MotionDBError
+        No relational index of the set (build it with ``mocapviz index``).
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. SIGGRAPH
+       2005, §6.3 (scene descriptions, Fig. 10) and §5.2 (adaptive fuzzy queries).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.relational.index import build
+    >>> db = MotionDB.sample()
+    >>> indexes = build(db, save=False, progress=False)
+    >>> hits = find(db, "kick_left", indexes=indexes)
+    >>> hits["label"].value_counts().to_dict()
+    {'kickLFront1Reps': 2}
+    """
+    return _run(db, description, n_matches, relational_set, template_cost, overlapping, indexes, values, False)
+
+
+def find_by_scan(db, description, n_matches: int | None = None, relational_set: str | None = None,
+                 template_cost: float = TEMPLATE_COST, overlapping: bool = False,
+                 values: np.ndarray | None = None) -> pd.DataFrame:  # fmt: skip
+    """:func:`find` without the index: every feature's runs walked frame by frame in every document, events and
+    sequences by checking every combination of hits. The reference :func:`find` must equal (and the baseline of
+    its benchmark).
+
+    Parameters
+    ----------
+    db, description, n_matches, relational_set, template_cost, overlapping
+        As :func:`find`.
+    values : np.ndarray [shape=(N, f)], bool, optional
+        The database's frame-wise relational values of the set (default: computed now).
+
+    Returns
+    -------
+    pandas.DataFrame
+        As :func:`find`.
+    """
+    return _run(db, description, n_matches, relational_set, template_cost, overlapping, None, values, True)
