@@ -272,6 +272,49 @@ def _query(args) -> None:
     _write_csv(hits.head(args.n_matches), args.csv)
 
 
+def _find(args) -> None:
+    import pandas as pd
+
+    from .db.database import MotionDB
+    from .relational.description import named_descriptions
+
+    if args.list:
+        for name, body in named_descriptions().items():
+            print(f"{name}:\n    {body}")
+        return
+    if (args.description is None) == (args.file is None):
+        raise ParameterError("give a description (in quotes) or --file FILE, not both; `mocapviz find --list` lists "
+                             "the shipped names")  # fmt: skip
+    if args.db is None:
+        raise ParameterError("give the database: mocapviz find DB \"DESCRIPTION\"")
+    text = args.description
+    if args.file is not None:
+        try:
+            text = Path(args.file).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ParameterError(f"--file {args.file}: {exc.strerror if isinstance(exc, OSError) else exc}") from None
+    _csv_folder(args.csv)
+    from .relational.scene import find
+
+    db = MotionDB.open(args.db)
+    hits = find(db, text, n_matches=args.n_matches, relational_set=args.relational_set,
+                template_cost=args.template_cost)  # fmt: skip
+    if args.explain:
+        print(hits.attrs["description"])
+        print("matched: " + "; ".join(f"{label}: {n}" for label, n in hits.attrs["counts"]))
+    print(f"{len(hits)} hits in {hits.attrs['ms']:.1f} ms ({hits.attrs['candidates']} before overlaps were "
+          f"resolved; {hits.attrs['relational_set']} set)")  # fmt: skip
+    if hits.empty:
+        print(hits.attrs["empty_reason"])
+        _write_csv(hits, args.csv)
+        return
+    cols = [c for c in ("rank", "doc_id", "name", "start", "end", "start_s", "end_s", "score", "label") if c in hits]
+    cols += ["parts"] if args.explain else []
+    with pd.option_context("display.width", 200, "display.max_rows", len(hits) + 5, "display.max_colwidth", 120):
+        print(hits[cols].round(3).to_string(index=False))
+    _write_csv(hits, args.csv)
+
+
 def _pca_reference(text: str | None, names: list[str] | None) -> MotionDB | PCAModel | None:
     """``--pca``: a MotionDB to fit the PCA model on, or a saved model; refused when no Fp set is asked for."""
     from .db.database import MotionDB
@@ -642,6 +685,31 @@ def build_parser() -> argparse.ArgumentParser:
             help="hits to print (default 20; --top: its old name)")
     q.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
     q.set_defaults(func=_query)
+
+    fd = sub.add_parser("find", help="the stretches a scene description describes (\"kick_right then punch_left "
+                        "within 2 s\"; docs/descriptions.md), through the relational index",
+                        description="Find what a scene description describes (Müller et al. 2005 §6.3): progressions "
+                        "of the relational features' states (rknee: straight bent straight), joined by 'and' "
+                        "(concurrent), 'then ... within T s' and '|'; shipped names (mocapviz find --list) and stored "
+                        "templates (template:NAME). Needs the relational index (mocapviz index DB). Columns as every "
+                        "result table: start and end within the document, half-open; score = the hit's length in "
+                        "seconds (shortest first); parts = where each part matched.")  # fmt: skip
+    fd.add_argument("db", nargs="?", help="the MotionDB")
+    fd.add_argument("description", nargs="?", help="the description, in quotes")
+    fd.add_argument("--file", help="read the description from this file instead")
+    _option(fd, "-K", "--matches", check=_count(least=1), dest="n_matches", default=100,
+            help="hits to report (default 100)")
+    fd.add_argument("--relational-set", dest="relational_set", choices=["2005", "2006"],
+                    help="the set whose words the description uses (default: the one its 'set' statement or its "
+                    "templates name, else 2005)")  # fmt: skip
+    _option(fd, "--template-cost", check=_number(low=0, high=1), default=0.15, help="template:NAME atoms: instances "
+            "of normalised cost at most this, in [0, 1] (default 0.15)")  # fmt: skip
+    fd.add_argument("--explain", action="store_true", help="print the description as read, the hits of each part "
+                    "and where each hit's parts matched")  # fmt: skip
+    fd.add_argument("--list", action="store_true", help="list the shipped named descriptions and exit")
+    fd.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as "
+                    "docs/glossary.md, Results: start and end within the document, half-open)")  # fmt: skip
+    fd.set_defaults(func=_find)
 
     feat = sub.add_parser("features", help="compute and store the numeric feature sets of a MotionDB (kNN search)")
     feat.add_argument("db")

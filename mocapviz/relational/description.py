@@ -34,16 +34,19 @@ from lark import Lark, Token, Transformer, Tree, v_args
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken, VisitError
 
 from ..errors import DescriptionError, ParameterError
+from ..features import RELATIONAL_SETS
 from .vocabulary import vocabulary
 
 __all__ = ["DEFAULT_WITHIN", "Alternatives", "Description", "Duration", "Event", "Named", "Overlap", "Progression",
-           "Sequence", "StateRef", "TemplateAtom", "named_descriptions", "parse_description", "template_names"]
+           "Sequence", "StateRef", "TemplateAtom", "declared_set", "named_descriptions", "parse_description",
+           "template_names"]
 
 DEFAULT_WITHIN = 2.0  # seconds: "A then B" without "within"
 LIBRARY = "named_descriptions.txt"  # the shipped descriptions, beside this module
 
 GRAMMAR = r"""
-start: definition* expr?
+start: set_statement? definition* expr?
+set_statement: "set" NUMBER ";"
 definition: "define" NAME ":" expr ";"
 ?expr: sequence ("|" sequence)*  -> alternatives
 ?sequence: primary then*
@@ -63,7 +66,7 @@ duration: ref "for" range "s"
 range: NUMBER? RANGE NUMBER?
 
 TEMPLATE.2: /template:[^\s()|;,]+/
-NAME: /[A-Za-z_][A-Za-z0-9_]*/
+NAME: /(?!(define|then|and|within|overlap|with|for|set)\b)[A-Za-z_][A-Za-z0-9_]*/
 NUMBER: /\d+(\.\d+)?/
 RANGE: ".."
 STAR: "*"
@@ -228,10 +231,11 @@ class Description:
     relational_set: str
     definitions: dict
     text: str
+    declared: bool = False
 
     def __str__(self) -> str:
         defs = [f"define {name}:\n    {body};" for name, body in self.definitions.items()]
-        return "\n".join([*defs, str(self.root)])
+        return "\n".join([*([f"set {self.relational_set};"] if self.declared else []), *defs, str(self.root)])
 
     def templates(self) -> list[str]:
         """The names of the template atoms the description uses (through its names too)."""
@@ -274,13 +278,32 @@ def _syntax_reason(exc: UnexpectedInput, text: str) -> str:
     if isinstance(exc, UnexpectedEOF):
         return "the description ends too early"
     if isinstance(exc, UnexpectedToken):
-        got = "the end of the text" if exc.token.type == "$END" else repr(str(exc.token))
+        got = "end of the text" if exc.token.type == "$END" else repr(str(exc.token))
         expected = sorted({_EXPECTED.get(t, repr(_parser().get_terminal(t).pattern.value).lower()) for t in exc.expected})
         hint = ""
         if "SEMICOLON" in exc.expected and str(exc.token) == "define":
             hint = "; end each definition with ';'"
         return f"unexpected {got}; expected {' or '.join(expected)}{hint}"
     return str(exc)
+
+
+def declared_set(text: str) -> str | None:
+    """The relational set a description's text names in its ``set 2006;`` statement, or None.
+
+    Examples
+    --------
+    >>> declared_set("set 2006; rknee: straight bent straight"), declared_set("kick_left")
+    ('2006', None)
+    """
+    tree = _syntax(text, None)
+    for child in tree.children:
+        if isinstance(child, Tree) and child.data == "set_statement":
+            token = child.children[0]
+            if str(token) not in RELATIONAL_SETS:
+                raise DescriptionError(f"set {token}: the relational sets are {', '.join(RELATIONAL_SETS)}",
+                                       token.line, token.column)  # fmt: skip
+            return str(token)
+    return None
 
 
 def template_names(text: str) -> list[str]:
@@ -315,7 +338,7 @@ class _Resolve(Transformer):
         try:
             feature, values = self.words.resolve(str(part), [str(s) for s in steps])
         except ParameterError as exc:
-            raise self._fail(str(exc), part) from None
+            raise self._fail(str(exc), next((s for s in steps if repr(str(s)) in str(exc)), part)) from None
         if len(values) < 2:
             raise self._fail(f"{part}: a progression needs at least two states (one state alone holds in every "
                              f"stretch where it holds); write e.g. '{part}: {self._states(feature)}'", part)
@@ -458,6 +481,8 @@ def _program(text: str, relational_set: str, names: dict, source: str | None, ke
     tree = _syntax(text, source)
     definitions, root = {}, None
     for child in tree.children:
+        if isinstance(child, Tree) and child.data == "set_statement":
+            continue
         if isinstance(child, Tree) and child.data == "definition":
             name_token, body = child.children
             try:
@@ -498,15 +523,16 @@ def named_descriptions(relational_set: str = "2005") -> dict:
     return definitions
 
 
-def parse_description(text: str, relational_set: str = "2005") -> Description:
+def parse_description(text: str, relational_set: str | None = None) -> Description:
     """Read a scene description: its definitions and its query, every name resolved.
 
     Parameters
     ----------
     text : str
         The description (docs/descriptions.md): optional ``define NAME: ...;`` statements, then one expression.
-    relational_set : {"2005", "2006"}
-        The set whose features the part and state words name (and whose relational index answers it).
+    relational_set : {"2005", "2006"}, optional
+        The set whose features the part and state words name (and whose relational index answers it); default:
+        the one the text names (``set 2006;`` before everything else), else "2005".
 
     Returns
     -------
@@ -535,9 +561,13 @@ def parse_description(text: str, relational_set: str = "2005") -> Description:
     """
     if not isinstance(text, str):
         raise ParameterError(f"a description must be text; got {type(text).__name__}")
+    declared = declared_set(text)
+    if relational_set is not None and declared is not None and relational_set != declared:
+        raise DescriptionError(f"the description says 'set {declared};' but is read with the {relational_set} set")
+    relational_set = relational_set or declared or "2005"
     names = dict(named_descriptions(vocabulary(relational_set).relational_set))
     definitions, root = _program(text, relational_set, names, None)
     if root is None:
         raise DescriptionError("the description has no query: after the definitions, write what to find (e.g. "
                                f"{next(iter(definitions), 'kick_right')})")  # fmt: skip
-    return Description(root, relational_set, definitions, text)
+    return Description(root, relational_set, definitions, text, declared is not None)

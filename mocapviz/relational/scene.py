@@ -42,12 +42,13 @@ from .description import (
     Progression,
     Sequence,
     TemplateAtom,
+    declared_set,
     parse_description,
     template_names,
 )
 from .vocabulary import vocabulary
 
-__all__ = ["TEMPLATE_COST", "find", "find_by_scan"]
+__all__ = ["TEMPLATE_COST", "describe", "find", "find_by_scan"]
 
 TEMPLATE_COST = 0.15  # a template atom's instances: normalised cost (mean mismatch per frame) at most this
 TEMPLATE_MATCHES = 100_000  # instances of a template atom considered at most
@@ -382,21 +383,20 @@ def _prepare(db, description, relational_set, template_cost) -> tuple[Descriptio
             sets[name] = next((s for s in RELATIONAL_SETS if feature_names(s) == template.features), None)
             if sets[name] is None:
                 raise DescriptionError(f"template:{name} was not learned on a relational set's features")
-        wanted = set(sets.values())
         if relational_set is not None:
             one_of(relational_set, "relational set", RELATIONAL_SETS)
-            other = [n for n, s in sets.items() if s != relational_set]
-            if other:
-                raise DescriptionError(f"template:{other[0]} was learned on the {sets[other[0]]} relational set; this "
-                                       f"description is read with the {relational_set} set: learn the template on "
-                                       f"{relational_set} (`mocapviz template learn --relational-set "
-                                       f"{relational_set}`) or find with --relational-set {sets[other[0]]}")
-        elif len(wanted) > 1:
+        chosen = relational_set or declared_set(description)
+        if chosen is None and len(set(sets.values())) > 1:
             raise DescriptionError(f"the templates were learned on different relational sets ({sets}); learn them "
                                    "on one set")  # fmt: skip
-        else:
-            relational_set = wanted.pop() if wanted else "2005"
-        parsed = parse_description(description, relational_set)
+        chosen = chosen or next(iter(sets.values()), "2005")
+        other = [n for n, s in sets.items() if s != chosen]
+        if other:
+            raise DescriptionError(f"template:{other[0]} was learned on the {sets[other[0]]} relational set; this "
+                                   f"description is read with the {chosen} set: learn the template on {chosen} "
+                                   f"(`mocapviz template learn --relational-set {chosen}`) or find with the "
+                                   f"{sets[other[0]]} set")  # fmt: skip
+        parsed = parse_description(description, chosen)
     else:
         raise ParameterError(f"description must be text or a Description; got {type(description).__name__}")
     for name in parsed.templates():
@@ -405,6 +405,16 @@ def _prepare(db, description, relational_set, template_cost) -> tuple[Descriptio
             raise DescriptionError(f"template:{name} was learned on another relational set than the description's "
                                    f"{parsed.relational_set} words; find with the template's set")
     return parsed, template_cost
+
+
+def _has_events(node) -> bool:
+    if isinstance(node, Event):
+        return True
+    if isinstance(node, Named):
+        return _has_events(node.body)
+    if isinstance(node, Sequence):
+        return _has_events(node.first) or _has_events(node.second)
+    return isinstance(node, Alternatives) and any(_has_events(o) for o in node.options)
 
 
 def _empty_reason(counts: list[tuple[str, int]]) -> str:
@@ -428,11 +438,12 @@ def _run(db, description, n_matches, relational_set, template_cost, overlapping,
             values, _ = relational_features(db, parsed.relational_set, progress=False)
         ctx = _Context(db, parsed.relational_set, template_cost, values=values)
     else:
-        if indexes is None:
+        if indexes is None and _has_events(parsed.root):
             from .index import load as load_indexes
 
             indexes = load_indexes(db, parsed.relational_set)
-        ctx = _Context(db, parsed.relational_set, template_cost, indexes=indexes, values=values)
+        ctx = _Context(db, parsed.relational_set, template_cost, indexes={} if indexes is None else indexes,
+                       values=values)
     t0 = time.perf_counter()
     hits = _evaluate(ctx, parsed.root)
     table = _ranked(ctx, hits, n_matches, overlapping)
@@ -493,9 +504,17 @@ def find(db, description, n_matches: int | None = None, relational_set: str | No
     >>> from mocapviz.relational.index import build
     >>> db = MotionDB.sample()
     >>> indexes = build(db, save=False, progress=False)
-    >>> hits = find(db, "kick_left", indexes=indexes)
-    >>> hits["label"].value_counts().to_dict()
-    {'kickLFront1Reps': 2}
+    >>> kick = ("lfoot: lowered raised lowered and lknee: straight bent straight"
+    ...         " and overlap lfoot raised, lknee bent and lfoot raised for 0.3..2 s")
+    >>> hits = find(db, kick, indexes=indexes)
+    >>> print(hits[["rank", "doc_id", "label", "start", "end", "score"]].round(3).to_string(index=False))
+     rank  doc_id           label  start  end  score
+        1      18 kickLFront1Reps     36   98  0.517
+        2       7 kickLFront1Reps     10   76  0.550
+        3      11      squat1Reps     22  136  0.950
+        4      22      squat1Reps     28  144  0.967
+    >>> hits["parts"].iloc[0]  # each progression's frames within the document
+    'lfoot 52:98, lknee 36:66'
     """
     return _run(db, description, n_matches, relational_set, template_cost, overlapping, indexes, values, False)
 
@@ -520,3 +539,132 @@ def find_by_scan(db, description, n_matches: int | None = None, relational_set: 
         As :func:`find`.
     """
     return _run(db, description, n_matches, relational_set, template_cost, overlapping, None, values, True)
+
+
+# ================================================================================================ learned descriptions
+def _feature_runs(column: np.ndarray) -> list[list]:
+    """[value, first, stop] runs of one quantised template column (0, 0.5, 1) with don't-care runs resolved: dropped
+    at the ends, merged into equal neighbours, split between different ones."""
+    cuts = np.flatnonzero(column[1:] != column[:-1]) + 1
+    bounds = np.concatenate([[0], cuts, [column.size]])
+    runs = [[float(column[a]), int(a), int(b)] for a, b in zip(bounds[:-1], bounds[1:])]
+    while runs and runs[0][0] == 0.5:
+        runs.pop(0)
+    while runs and runs[-1][0] == 0.5:
+        runs.pop()
+    out: list[list] = []
+    for k, run in enumerate(runs):
+        if run[0] != 0.5:
+            if out and out[-1][0] == run[0]:
+                out[-1][2] = run[2]
+            else:
+                out.append(run)
+            continue
+        after = runs[k + 1]
+        if out[-1][0] == after[0]:
+            out[-1][2] = run[2]
+        else:
+            middle = (run[1] + run[2]) // 2
+            out[-1][2], after[1] = middle, middle
+    return out
+
+
+def describe(template, delta: float = 0.1, progressions: int = 4, longest: int = 5) -> str:
+    """A motion template as an editable scene description (the paper's future work: descriptions learned from
+    examples).
+
+    Every feature whose quantised course (δ) changes and changes back becomes a candidate progression (don't-care
+    stretches dropped at the ends, merged into the state around them); the ``progressions`` most consistent ones
+    (the largest share of template frames that are not don't-care) with at most ``longest`` states are kept, and
+    overlaps of middle states, the longest the template shows first, link every progression to another.
+
+    Parameters
+    ----------
+    template : MotionTemplate
+        Learned on the 2005 or 2006 relational set (:func:`mocapviz.relational.templates.learn_class`).
+    delta : float
+        The quantisation threshold δ, 0 <= δ < 0.5.
+    progressions : int
+        Progressions kept, >= 1.
+    longest : int
+        Most states in one progression, >= 2.
+
+    Returns
+    -------
+    str
+        The description, in the words of the template's relational set, with a comment line saying where it came
+        from; :func:`find` reads it.
+
+    Raises
+    ------
+    ParameterError
+        A template not learned on a relational set, bad δ or counts, or a template in which no feature changes.
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. SIGGRAPH
+       2005, §6.3 ("learn such geometric scene descriptions from example motions").
+    .. [2] M. Müller, T. Röder. Motion templates for automatic classification and retrieval of motion capture
+       data. SCA 2006, §3 (quantised templates).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mocapviz.features import feature_names
+    >>> from mocapviz.relational.templates import MotionTemplate
+    >>> names = feature_names("2005")
+    >>> values = np.zeros((6, len(names)))
+    >>> values[1:5, names.index("lknee_bent")] = 1.0
+    >>> values[2:4, names.index("lfoot_raised")] = 1.0
+    >>> print(describe(MotionTemplate(values, names, label="toy kick", n_examples=1)))
+    # described from the template 'toy kick' (1 examples, 2005 set, δ = 0.1)
+    set 2005;
+    lfoot: lowered raised lowered
+        and lknee: straight bent straight
+        and overlap lfoot raised, lknee bent
+    """
+    from ..features import RELATIONAL_SETS, feature_names
+
+    relational_set = next((s for s in RELATIONAL_SETS if feature_names(s) == list(template.features)), None)
+    if relational_set is None:
+        raise ParameterError("the template was not learned on the features of a relational set")
+    progressions = count(progressions, "progressions")
+    longest = count(longest, "longest", 2)
+    q = template.quantised(delta)
+    words = vocabulary(relational_set)
+    candidates = []
+    for j, feature in enumerate(template.features):
+        runs = _feature_runs(q[:, j])
+        if 3 <= len(runs) <= longest:
+            candidates.append((-float(np.mean(q[:, j] != 0.5)), j, feature, runs))
+    if not candidates:
+        raise ParameterError(f"no feature of the template '{template.label}' changes with δ = {delta:g}: nothing to "
+                             "describe (try a larger δ)")  # fmt: skip
+    chosen = sorted(candidates)[:progressions]
+    chosen.sort(key=lambda c: c[1])
+    lines, steps = [], []
+    for _, _, feature, runs in chosen:
+        states = [words.states(feature)[int(v)] for v, _, _ in runs]
+        lines.append(f"{words.part(feature)}: {' '.join(states)}")
+        steps.append([(words.part(feature), states[k], states[: k + 1].count(states[k]), runs[k][1], runs[k][2],
+                       states.count(states[k])) for k in range(1, len(runs) - 1)])  # fmt: skip
+    pairs = []
+    for a in range(len(chosen)):
+        for b in range(a + 1, len(chosen)):
+            best = max(((min(x[4], y[4]) - max(x[3], y[3]), x, y) for x in steps[a] for y in steps[b]),
+                       default=(0, None, None), key=lambda t: t[0])  # fmt: skip
+            if best[0] > 0:
+                pairs.append((-best[0], a, b, f"overlap {_ref_text(best[1])}, {_ref_text(best[2])}"))
+    linked: set[int] = set()
+    for _, a, b, line in sorted(pairs):  # the longest shared stretches first, until every progression is linked
+        if not {a, b} <= linked:
+            lines.append(line)
+            linked |= {a, b}
+    head = (f"# described from the template '{template.label}' ({template.n_examples} examples, {relational_set} "
+            f"set, δ = {delta:g})")  # fmt: skip
+    return f"{head}\nset {relational_set};\n" + "\n    and ".join(lines)
+
+
+def _ref_text(step) -> str:
+    part, word, nth, _, _, total = step
+    return f"{part} {word}" if total == 1 else f"{part} {word}[{nth}]"

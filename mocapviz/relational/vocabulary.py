@@ -166,9 +166,11 @@ def vocabulary_table(relational_set: str = "2005") -> pd.DataFrame:
 
     Examples
     --------
-    >>> vocabulary_table("2005").query("part == 'rfoot'")[["feature", "state_0", "state_1"]].to_string(index=False)
-    ...  # doctest: +NORMALIZE_WHITESPACE
-    '     feature state_0 state_1\\n rfoot_behind   front  behind\\n rfoot_raised lowered  raised\\n  rfoot_fast    slow    fast'
+    >>> print(vocabulary_table("2005").query("part == 'rfoot'")[["feature", "state_0", "state_1"]].to_string(index=False))
+         feature state_0 state_1
+    rfoot_behind   front  behind
+    rfoot_raised lowered  raised
+      rfoot_fast    slow    fast
     """
     words = vocabulary(relational_set)
     return pd.DataFrame([{"feature": f, "group": words.group[f], "part": words.part(f), "state_0": words.states(f)[0],

@@ -1,0 +1,222 @@
+"""Scene descriptions (Müller et al. 2005 §6.3): the language's errors, its answers through the relational index
+against the frame-wise scan on real databases (every shipped description, sequences on CMU's long takes), learned
+descriptions finding their templates' examples, and the `find` command."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mocapviz import MotionDB, ParameterError
+from mocapviz.cli import main
+from mocapviz.db.hits import COLUMNS
+from mocapviz.errors import DescriptionError
+from mocapviz.features import relational_features
+from mocapviz.relational.description import (
+    Event,
+    Named,
+    Sequence,
+    declared_set,
+    named_descriptions,
+    parse_description,
+)
+from mocapviz.relational.index import build
+from mocapviz.relational.scene import describe, find, find_by_scan
+from mocapviz.relational.templates import learn_class, store_template
+from mocapviz.relational.vocabulary import vocabulary, vocabulary_table
+
+SEQUENCES = ["kick_right then punch_left within 2 s", "kick_left | kick_right", "squat then jump within 3 s",
+             "(kick_left | kick_right) then (punch_left | punch_right) within 1.5 s"]  # fmt: skip
+
+
+# ================================================================================================ the language
+def test_every_feature_has_two_words_and_each_word_one_meaning():
+    for relational_set in ("2005", "2006"):
+        table = vocabulary_table(relational_set)
+        words = vocabulary(relational_set)
+        assert len(table) == len(words.features) and table["feature"].is_unique
+        pairs = pd.concat([table[["part", "state_0"]].set_axis(["part", "word"], axis=1),
+                           table[["part", "state_1"]].set_axis(["part", "word"], axis=1)])  # fmt: skip
+        assert not pairs.duplicated().any(), pairs[pairs.duplicated()]
+        for row in table.itertuples():
+            assert words.resolve(row.part, [row.state_0, row.state_1]) == (row.feature, [0, 1])
+            assert words.resolve(row.feature, ["0", "1", "*"]) == (row.feature, [0, 1, None])
+
+
+def test_shipped_descriptions_read_and_print_back():
+    for name, body in named_descriptions("2005").items():
+        assert not isinstance(body, DescriptionError), (name, body)
+        again = parse_description(f"define copy: {body}; copy").definitions["copy"]
+        assert again == body, name
+    d = parse_description("kick_right then punch_left within 2 s")
+    assert isinstance(d.root, Sequence) and d.root.within == 2.0
+    assert isinstance(d.root.first, Named) and isinstance(d.root.first.body, Event)
+    assert parse_description("kick_right then punch_left").root.within == 2.0  # the default, docs/descriptions.md
+
+
+@pytest.mark.parametrize("text, where, says", [
+    ("rkne: straight bent straight", (1, 1), "unknown body part or feature 'rkne' in the 2005 set; did you mean 'rknee'"),
+    ("rknee: straight bnt straight", (1, 17), "'bnt' is not a state of rknee in the 2005 set; did you mean 'bent'"),
+    ("rknee: bent", (1, 1), "a progression needs at least two states"),
+    ("rknee: straight straight bent", (1, 17), "'straight' twice in a row"),
+    ("rfoot: lowered fast", (1, 1), "mixes the states of two features"),
+    ("rknee: *  *", (1, 1), "at least one state other than *"),
+    ("kick_right then punch_left within -1 s", (1, 35), "times and counts are numbers >= 0"),
+    ("rknee: straight bent straight and rknee bent for 2..1 s", (1, 50), "the shortest time is longer"),
+    ("kick_rigth", (1, 1), "unknown description 'kick_rigth'; did you mean 'kick_right'"),
+    ("rknee: straight bent straight and overlap rknee bent, rfoot raised", (1, 55), "no progression of this event "
+     "describes rfoot"),
+    ("rknee: straight bent straight and overlap rknee bent[3], rknee bent", (1, 54), "has 1 'bent' state(s)"),
+    ("rknee: straight bent straight\n  and rfoot: lowered raised lowered\n  then", (3, 3), "unexpected end of the text"),
+    ("define k: rknee: straight bent straight\ndefine j: k; k", (2, 1), "end each definition with ';'"),
+    ("set 2004; kick_right", (1, 5), "the relational sets are 2005, 2006"),
+    ("set 2006; rhand: back in_front back", (1, 18), "'back' is not a state of rhand in the 2006 set"),
+])  # fmt: skip
+def test_bad_descriptions_say_what_and_where(text, where, says):
+    with pytest.raises(DescriptionError) as err:
+        parse_description(text)
+    assert (err.value.line, err.value.column) == where, str(err.value)
+    assert says in str(err.value) and str(err.value).startswith(f"line {where[0]}, column {where[1]}: ")
+    assert isinstance(err.value, ParameterError)
+
+
+def test_the_set_statement_and_the_set_argument():
+    assert declared_set("set 2006; rfoot: lowered raised lowered") == "2006"
+    assert parse_description("set 2006; rfoot: lowered raised lowered").root.progressions[0].feature == "rfoot_raised_2006"
+    assert parse_description("rfoot: lowered raised lowered").root.progressions[0].feature == "rfoot_raised"
+    with pytest.raises(DescriptionError, match="says 'set 2006;' but is read with the 2005 set"):
+        parse_description("set 2006; rknee: straight bent straight", "2005")
+    assert str(parse_description("set 2006; rknee: straight bent straight")).startswith("set 2006;")
+
+
+# ================================================================================================ the answers
+@pytest.fixture(scope="module")
+def hdm05(hdm05_db30):
+    """All 287 HDM05 cut clips (30 Hz), their 2005 indexes (not saved) and frame-wise values."""
+    values, _ = relational_features(hdm05_db30, "2005", progress=False)
+    return hdm05_db30, build(hdm05_db30, "2005", progress=False, values=values, save=False), values
+
+
+@pytest.fixture(scope="module")
+def cmu(cmu_db30):
+    """The 32 CMU trials (30 Hz; long takes: martial arts, dance, walks)."""
+    values, _ = relational_features(cmu_db30, "2005", progress=False)
+    return cmu_db30, build(cmu_db30, "2005", progress=False, values=values, save=False), values
+
+
+def _spans(hits: pd.DataFrame) -> list[tuple]:
+    return sorted(zip(hits["doc_id"], hits["start"], hits["end"]))
+
+
+def _same_answer(db, indexes, values, text) -> pd.DataFrame:
+    every = find(db, text, indexes=indexes, overlapping=True)
+    assert _spans(every) == _spans(find_by_scan(db, text, values=values, overlapping=True)), text
+    best = find(db, text, indexes=indexes)
+    scan = find_by_scan(db, text, values=values)
+    assert best[["doc_id", "start", "end", "score"]].equals(scan[["doc_id", "start", "end", "score"]]), text
+    return best
+
+
+@pytest.mark.parametrize("name", list(named_descriptions("2005")))
+def test_every_shipped_description_equals_the_frame_wise_scan(hdm05, name):
+    db, indexes, values = hdm05
+    hits = _same_answer(db, indexes, values, name)
+    assert list(hits.columns[: len(COLUMNS)]) == COLUMNS and hits["rank"].tolist() == list(range(1, len(hits) + 1))
+    assert (np.diff(hits["score"]) >= 0).all()
+    assert np.allclose(hits["score"], (hits["end"] - hits["start"]) / 30.0)
+    for doc, group in hits.groupby("doc_id"):  # the best of overlapping hits only
+        spans = group.sort_values("start")
+        assert (spans["start"].to_numpy()[1:] >= spans["end"].to_numpy()[:-1]).all(), doc
+
+
+@pytest.mark.parametrize("text", SEQUENCES)
+def test_sequences_on_long_takes_equal_the_frame_wise_scan(cmu, text):
+    db, indexes, values = cmu
+    hits = _same_answer(db, indexes, values, text)
+    if " then " in text and len(hits):
+        parts = hits["parts"].iloc[0]
+        assert "/" in parts  # each named event's progressions and their frames
+    for row in hits.itertuples():
+        assert 0 <= row.start < row.end <= db.document(row.doc_id)["n_frames"]
+
+
+def test_progression_framing_and_durations_on_a_real_clip(hdm05):
+    """The hits of 'lknee: straight bent straight' are the knee's bent runs (read off the clip's own frame-wise
+    values), plus one frame on either side; a duration bound keeps the runs of that length."""
+    db, indexes, values = hdm05
+    doc = int(db.select(label="kickLFront1Reps")["doc_id"].iloc[0])
+    row = db.document(doc)
+    col = values[row["start"] : row["start"] + row["n_frames"], vocabulary().features.index("lknee_bent")]
+    cuts = np.flatnonzero(np.diff(col.astype(int))) + 1
+    bounds = np.concatenate([[0], cuts, [col.size]])
+    bent = [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if col[a] and a > 0 and b < col.size]
+    hits = find(db, "lknee: straight bent straight", indexes=indexes, overlapping=True)
+    got = sorted((s, e) for d, s, e in _spans(hits) if d == doc)
+    assert got == [(a - 1, b + 1) for a, b in bent] and got
+    longest = max(b - a for a, b in bent) / 30.0
+    hits = find(db, f"lknee: straight bent straight and lknee bent for {longest - 1e-6:.6f}.. s", indexes=indexes,
+                overlapping=True)  # fmt: skip
+    assert len([s for d, s, e in _spans(hits) if d == doc]) == sum(b - a == round(longest * 30) for a, b in bent)
+
+
+def test_an_empty_answer_says_which_part_found_nothing(hdm05):
+    db, indexes, _ = hdm05
+    hits = find(db, "kick_left then kick_left within 0.1 s", indexes=indexes)
+    assert hits.empty and "kick_left then kick_left" in hits.attrs["empty_reason"]
+    assert "kick_left (" in hits.attrs["empty_reason"]  # what its parts did find
+    hits = find(db, "rknee: straight bent straight and rknee bent for 30.. s", indexes=indexes)
+    assert hits.empty and hits.attrs["empty_reason"] == "no hit: 'rknee' found nothing"
+
+
+# ================================================================================================ learned descriptions
+@pytest.mark.parametrize("label", ["kickLFront1Reps", "squat1Reps", "hopBothLegs1hops", "lieDownFloor"])
+def test_a_described_template_finds_its_own_examples(sample_db, tmp_path, label):
+    """describe(learn_class(...)) read back by find: every training clip of the sample's class is hit."""
+    template = learn_class(sample_db, label)
+    text = describe(template)
+    assert text.splitlines()[1] == "set 2006;" and parse_description(text).relational_set == "2006"
+    indexes = build(sample_db, "2006", progress=False, save=False)
+    hits = find(sample_db, text, indexes=indexes)
+    examples = set(template.meta["doc_ids"])
+    assert examples <= set(hits["doc_id"]), (text, hits[["doc_id", "label"]])
+
+
+def test_template_atoms(sample_db, tmp_path):
+    db = MotionDB.ingest(sample_db.documents["path"].tolist(), tmp_path / "db", progress=False)
+    kick = learn_class(db, "kickLFront1Reps")  # 2006 set
+    store_template(db, kick, "kick-dg")
+    hits = find(db, "template:kick-dg", template_cost=0.2)
+    assert set(db.select(label="kickLFront1Reps")["doc_id"]) <= set(hits["doc_id"])
+    assert hits.attrs["relational_set"] == "2006" and hits["parts"].str.startswith("template:kick-dg").all()
+    with pytest.raises(DescriptionError, match="template:kick-dg was learned on the 2006 relational set"):
+        find(db, "template:kick-dg then kick_left within 2 s", relational_set="2005")
+    with pytest.raises(DescriptionError, match="template:nothing-here"):
+        find(db, "template:nothing-here")
+
+
+# ================================================================================================ the command
+def test_find_command(sample_db, tmp_path, capsys):
+    db = MotionDB.ingest(sample_db.documents["path"].tolist(), tmp_path / "db", progress=False)
+    assert main(["index", str(db.path), "--quiet"]) == 0
+    capsys.readouterr()
+    out = tmp_path / "hits.csv"
+    text = "lfoot: lowered raised lowered and lknee: straight bent straight and overlap lfoot raised, lknee bent"
+    assert main(["find", str(db.path), text, "-K", "3", "--csv", str(out), "--explain"]) == 0
+    printed = capsys.readouterr().out
+    expected = find(db, text, n_matches=3)
+    written = pd.read_csv(out)
+    assert written[["doc_id", "start", "end"]].equals(expected[["doc_id", "start", "end"]].reset_index(drop=True))
+    assert list(written.columns) == list(expected.columns)
+    assert "matched: lfoot: " in printed and expected["parts"].iloc[0] in printed
+    file = tmp_path / "kick.txt"
+    file.write_text(f"# a left kick\ndefine k:\n    {text};\nk\n")
+    assert main(["find", str(db.path), "--file", str(file), "-K", "3"]) == 0
+    assert f"{len(expected)} hits" in capsys.readouterr().out
+    assert main(["find", str(db.path), "lknee: straight bnt straight"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == ("mocapviz: error: line 1, column 17: 'bnt' is not a state of lknee in the 2005 set; did you mean "
+                   "'bent'?")  # fmt: skip
+    assert main(["find", str(db.path), "kick_left", "--file", str(file)]) == 1
+    assert "not both" in capsys.readouterr().err
+    assert main(["find", "--list"]) == 0
+    assert "kick_right:" in capsys.readouterr().out
