@@ -23,7 +23,7 @@ from mocapviz.relational.description import (
 from mocapviz.relational.index import build
 from mocapviz.relational.scene import describe, find, find_by_scan
 from mocapviz.relational.templates import learn_class, store_template
-from mocapviz.relational.vocabulary import vocabulary, vocabulary_table
+from mocapviz.relational.vocabulary import vocabulary_of, vocabulary_table
 
 SEQUENCES = ["kick_right then punch_left within 2 s", "kick_left | kick_right", "squat then jump within 3 s",
              "(kick_left | kick_right) then (punch_left | punch_right) within 1.5 s"]  # fmt: skip
@@ -33,7 +33,7 @@ SEQUENCES = ["kick_right then punch_left within 2 s", "kick_left | kick_right", 
 def test_every_feature_has_two_words_and_each_word_one_meaning():
     for relational_set in ("2005", "2006"):
         table = vocabulary_table(relational_set)
-        words = vocabulary(relational_set)
+        words = vocabulary_of(relational_set)
         assert len(table) == len(words.features) and table["feature"].is_unique
         pairs = pd.concat([table[["part", "state_0"]].set_axis(["part", "word"], axis=1),
                            table[["part", "state_1"]].set_axis(["part", "word"], axis=1)])  # fmt: skip
@@ -146,7 +146,7 @@ def test_progression_framing_and_durations_on_a_real_clip(hdm05):
     db, indexes, values = hdm05
     doc = int(db.select(label="kickLFront1Reps")["doc_id"].iloc[0])
     row = db.document(doc)
-    col = values[row["start"] : row["start"] + row["n_frames"], vocabulary().features.index("lknee_bent")]
+    col = values[row["start"] : row["start"] + row["n_frames"], vocabulary_of().features.index("lknee_bent")]
     cuts = np.flatnonzero(np.diff(col.astype(int))) + 1
     bounds = np.concatenate([[0], cuts, [col.size]])
     bent = [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if col[a] and a > 0 and b < col.size]
@@ -220,3 +220,15 @@ def test_find_command(sample_db, tmp_path, capsys):
     assert "not both" in capsys.readouterr().err
     assert main(["find", "--list"]) == 0
     assert "kick_right:" in capsys.readouterr().out
+
+
+def test_the_documentation_shows_the_grammar_and_words_the_code_uses():
+    from pathlib import Path
+
+    from mocapviz.relational.description import GRAMMAR
+
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "descriptions.md").read_text()
+    assert GRAMMAR.strip() in doc
+    for relational_set in ("2005", "2006"):
+        for row in vocabulary_table(relational_set).itertuples():
+            assert f"| `{row.feature}` | {row.group} | `{row.part}` | {row.state_0} | {row.state_1} |" in doc

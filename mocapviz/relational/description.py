@@ -35,7 +35,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..errors import DescriptionError, ParameterError
 from ..features import RELATIONAL_SETS
-from .vocabulary import vocabulary
+from .vocabulary import vocabulary_of
 
 __all__ = ["DEFAULT_WITHIN", "Alternatives", "Description", "Duration", "Event", "Named", "Overlap", "Progression",
            "Sequence", "StateRef", "TemplateAtom", "declared_set", "named_descriptions", "parse_description",
@@ -325,7 +325,7 @@ class _Resolve(Transformer):
 
     def __init__(self, relational_set: str, names: dict, source: str | None):
         super().__init__()
-        self.words, self.names, self.source = vocabulary(relational_set), names, source
+        self.words, self.names, self.source = vocabulary_of(relational_set), names, source
 
     def _fail(self, reason: str, where) -> DescriptionError:
         line = getattr(where, "line", None)
@@ -565,7 +565,7 @@ def parse_description(text: str, relational_set: str | None = None) -> Descripti
     if relational_set is not None and declared is not None and relational_set != declared:
         raise DescriptionError(f"the description says 'set {declared};' but is read with the {relational_set} set")
     relational_set = relational_set or declared or "2005"
-    names = dict(named_descriptions(vocabulary(relational_set).relational_set))
+    names = dict(named_descriptions(vocabulary_of(relational_set).relational_set))
     definitions, root = _program(text, relational_set, names, None)
     if root is None:
         raise DescriptionError("the description has no query: after the definitions, write what to find (e.g. "

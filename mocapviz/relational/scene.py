@@ -46,7 +46,7 @@ from .description import (
     parse_description,
     template_names,
 )
-from .vocabulary import vocabulary
+from .vocabulary import vocabulary_of
 
 __all__ = ["TEMPLATE_COST", "describe", "find", "find_by_scan"]
 
@@ -131,7 +131,7 @@ def _label(prefix: str, node) -> str:
 # ================================================================================================ runs
 def _index_runs(ctx: _Context, p: Progression) -> tuple[np.ndarray, np.ndarray]:
     """(run starts, run ends) [shape=(H, L)], global frames, of the progression's hits, from the relational index."""
-    group = vocabulary(ctx.relational_set).group[p.feature]
+    group = vocabulary_of(ctx.relational_set).group[p.feature]
     index = ctx.indexes[group]
     bit = index.feature_names.index(p.feature)
     stars = [k for k, v in enumerate(p.values) if v is None]
@@ -146,7 +146,7 @@ def _index_runs(ctx: _Context, p: Progression) -> tuple[np.ndarray, np.ndarray]:
 
 def _scan_runs(ctx: _Context, p: Progression) -> tuple[np.ndarray, np.ndarray]:
     """The same as :func:`_index_runs`, by walking the runs of the feature's frame-wise values in every document."""
-    column = ctx.values[:, vocabulary(ctx.relational_set).features.index(p.feature)]
+    column = ctx.values[:, vocabulary_of(ctx.relational_set).features.index(p.feature)]
     n = len(p.values)
     found_s, found_e = [], []
     for a, b in zip(ctx.doc_start, ctx.doc_end):
@@ -631,7 +631,7 @@ def describe(template, delta: float = 0.1, progressions: int = 4, longest: int =
     progressions = count(progressions, "progressions")
     longest = count(longest, "longest", 2)
     q = template.quantised(delta)
-    words = vocabulary(relational_set)
+    words = vocabulary_of(relational_set)
     candidates = []
     for j, feature in enumerate(template.features):
         runs = _feature_runs(q[:, j])

@@ -21,7 +21,7 @@ import pandas as pd
 from ..errors import ParameterError
 from ..features import RELATIONAL_SETS, feature_groups
 
-__all__ = ["Vocabulary", "vocabulary", "vocabulary_table"]
+__all__ = ["Vocabulary", "vocabulary_of", "vocabulary_table"]
 
 # the word for a feature's 0 state, by its 1-state word (else "not_<word>")
 ANTONYMS = {
@@ -55,7 +55,7 @@ class Vocabulary:
 
     Examples
     --------
-    >>> words = vocabulary("2005")
+    >>> words = vocabulary_of("2005")
     >>> words.resolve("rknee", ["straight", "bent", "straight"])
     ('rknee_bent', [0, 1, 0])
     >>> words.states("rfoot_raised")
@@ -145,7 +145,7 @@ class Vocabulary:
 
 
 @cache
-def vocabulary(relational_set: str = "2005") -> Vocabulary:
+def vocabulary_of(relational_set: str = "2005") -> Vocabulary:
     """The :class:`Vocabulary` of a relational set (cached)."""
     if relational_set not in RELATIONAL_SETS:
         raise ParameterError(f"relational set must be one of {', '.join(RELATIONAL_SETS)}; got {relational_set!r}")
@@ -172,7 +172,7 @@ def vocabulary_table(relational_set: str = "2005") -> pd.DataFrame:
     rfoot_raised lowered  raised
       rfoot_fast    slow    fast
     """
-    words = vocabulary(relational_set)
+    words = vocabulary_of(relational_set)
     return pd.DataFrame([{"feature": f, "group": words.group[f], "part": words.part(f), "state_0": words.states(f)[0],
                           "state_1": words.states(f)[1]} for f in words.features])  # fmt: skip
 
