@@ -702,8 +702,9 @@ def build_parser() -> argparse.ArgumentParser:
     fd.add_argument("--relational-set", dest="relational_set", choices=["2005", "2006"],
                     help="the set whose words the description uses (default: the one its 'set' statement or its "
                     "templates name, else 2005)")  # fmt: skip
-    _option(fd, "--template-cost", check=_number(low=0, high=1), default=0.15, help="template:NAME atoms: instances "
-            "of normalised cost at most this, in [0, 1] (default 0.15)")  # fmt: skip
+    _option(fd, "--template-cost", check=_number(low=0, high=1), help="template:NAME atoms: instances of normalised "
+            "cost at most this, in [0, 1] (default: each template's learned threshold, the worst cost of its own "
+            "examples)")  # fmt: skip
     fd.add_argument("--explain", action="store_true", help="print the description as read, the hits of each part "
                     "and where each hit's parts matched")  # fmt: skip
     fd.add_argument("--list", action="store_true", help="list the shipped named descriptions and exit")

@@ -232,3 +232,21 @@ def test_the_documentation_shows_the_grammar_and_words_the_code_uses():
     for relational_set in ("2005", "2006"):
         for row in vocabulary_table(relational_set).itertuples():
             assert f"| `{row.feature}` | {row.group} | `{row.part}` | {row.state_0} | {row.state_1} |" in doc
+
+
+def test_find_with_stored_templates_as_written_in_the_issue(sample_db, tmp_path, capsys):
+    """`template:NAME` takes the names `mocapviz template learn` stores, hyphens included."""
+    db = MotionDB.ingest(sample_db.documents["path"].tolist(), tmp_path / "db", progress=False)
+    for label in ("kickLFront1Reps", "squat1Reps"):
+        assert main(["template", "learn", str(db.path), "--label", label, "--actors", "dg,mm"]) == 0
+    capsys.readouterr()
+    out = tmp_path / "seq.csv"
+    text = "template:kickLFront1Reps-dg-mm then template:squat1Reps-dg-mm within 4 s"
+    assert main(["find", str(db.path), text, "-K", "1000", "--csv", str(out), "--template-cost", "0.3"]) == 0
+    printed = capsys.readouterr().out
+    expected = find(db, text, template_cost=0.3)
+    assert f"{len(expected)} hits" in printed and len(pd.read_csv(out)) == len(expected) > 0
+    for row in expected.itertuples():  # a kick's instance, then a squat's starting at most 4 s after it ends
+        (_, k0, k1), (_, s0, s1) = [(p.split(" ")[0], *map(int, p.split(" ")[1].split(":")))
+                                    for p in row.parts.split(", ")]  # fmt: skip
+        assert row.start == k0 and row.end == s1 and 0 <= s0 - k1 <= 4 * db.document(row.doc_id)["fps"]

@@ -16,7 +16,7 @@ Semantics (docs/descriptions.md):
 - ``A then B within T s``: a hit of A and a later hit of B in the same document, B starting at or after A's end and
   at most T s later; the hit spans from A's start to B's end. ``A | B``: the hits of either.
 - A ``template:NAME`` atom's hits are the template's instances (:func:`~mocapviz.relational.templates.search_template`)
-  whose normalised cost is at most ``template_cost``.
+  whose normalised cost is at most ``template_cost`` (default: the template's learned threshold).
 
 Every hit is scored by its length in seconds (the tightest first) and overlapping hits in one document are
 resolved best first, as :func:`mocapviz.match.subsequence_dtw` does; ``overlapping=True`` keeps them all.
@@ -50,7 +50,7 @@ from .vocabulary import vocabulary_of
 
 __all__ = ["TEMPLATE_COST", "describe", "find", "find_by_scan"]
 
-TEMPLATE_COST = 0.15  # a template atom's instances: normalised cost (mean mismatch per frame) at most this
+TEMPLATE_COST = 0.15  # a template atom's instances without a learned threshold: normalised cost at most this
 TEMPLATE_MATCHES = 100_000  # instances of a template atom considered at most
 
 
@@ -277,8 +277,10 @@ def _template_hits(ctx: _Context, atom: TemplateAtom) -> _Hits:
     from .templates import search_template
 
     template = _load_template(ctx.db, atom.name)
-    values = ctx.values if ctx.values is not None else None
-    found = search_template(ctx.db, template, n_matches=TEMPLATE_MATCHES, max_cost=ctx.template_cost, values=values)
+    cost = ctx.template_cost
+    if cost is None:  # the template's own: the worst cost of its examples
+        cost = min(1.0, float(template.meta.get("threshold", TEMPLATE_COST)))
+    found = search_template(ctx.db, template, n_matches=TEMPLATE_MATCHES, max_cost=cost, values=ctx.values)
     offset = ctx.doc_start[np.searchsorted(ctx.db.documents["doc_id"].to_numpy(), found["doc_id"].to_numpy())]
     return _leaf(str(atom), found["start"].to_numpy() + offset, found["end"].to_numpy() + offset)
 
@@ -370,7 +372,8 @@ def _prepare(db, description, relational_set, template_cost) -> tuple[Descriptio
 
     if not isinstance(db, MotionDB):
         raise ParameterError(f"db must be a MotionDB; got {type(db).__name__}")
-    template_cost = number(template_cost, "template_cost (a mean mismatch per frame)", 0.0, 1.0)
+    if template_cost is not None:
+        template_cost = number(template_cost, "template_cost (a mean mismatch per frame)", 0.0, 1.0)
     if isinstance(description, Description):
         if relational_set is not None and relational_set != description.relational_set:
             raise ParameterError(f"the description was read with the {description.relational_set} set, not "
@@ -454,7 +457,7 @@ def _run(db, description, n_matches, relational_set, template_cost, overlapping,
 
 
 def find(db, description, n_matches: int | None = None, relational_set: str | None = None,
-         template_cost: float = TEMPLATE_COST, overlapping: bool = False, indexes: dict | None = None,
+         template_cost: float | None = None, overlapping: bool = False, indexes: dict | None = None,
          values: np.ndarray | None = None) -> pd.DataFrame:  # fmt: skip
     """The stretches of a MotionDB that a scene description describes, through its relational indexes.
 
@@ -468,8 +471,9 @@ def find(db, description, n_matches: int | None = None, relational_set: str | No
         At most this many hits (default: all).
     relational_set : {"2005", "2006"}, optional
         The set whose words the text uses (default: its templates' set, else "2005").
-    template_cost : float
-        A template atom's instances: normalised cost at most this (0..1, default 0.15).
+    template_cost : float, optional
+        A template atom's instances: normalised cost at most this (0..1; default: each template's learned
+        threshold ``meta["threshold"]``, the worst cost of its own examples, else 0.15).
     overlapping : bool
         Keep hits that overlap a better one in the same document (default: the best of them only).
     indexes : dict, optional
@@ -520,7 +524,7 @@ def find(db, description, n_matches: int | None = None, relational_set: str | No
 
 
 def find_by_scan(db, description, n_matches: int | None = None, relational_set: str | None = None,
-                 template_cost: float = TEMPLATE_COST, overlapping: bool = False,
+                 template_cost: float | None = None, overlapping: bool = False,
                  values: np.ndarray | None = None) -> pd.DataFrame:  # fmt: skip
     """:func:`find` without the index: every feature's runs walked frame by frame in every document, events and
     sequences by checking every combination of hits. The reference :func:`find` must equal (and the baseline of
