@@ -24,6 +24,7 @@ them into hits, :func:`database_frames` turns a hit back into them (to play or c
 from __future__ import annotations
 
 import warnings
+import weakref
 
 import numpy as np
 import pandas as pd
@@ -93,18 +94,18 @@ def hit_table(db, doc_ids, starts, ends, **columns) -> HitTable:
     ends = np.asarray(ends, dtype=np.int64).reshape(-1)
     if not len(doc_ids) == len(starts) == len(ends):
         raise ParameterError(f"{len(doc_ids)} doc ids, {len(starts)} starts and {len(ends)} ends: give one each per hit")
-    docs = db.documents.set_index("doc_id")
-    missing = ~np.isin(doc_ids, docs.index.to_numpy())
+    docs = _documents(db)
+    pos = np.searchsorted(docs["doc_id"], doc_ids)
+    missing = (pos >= len(docs["doc_id"])) | (docs["doc_id"][np.minimum(pos, len(docs["doc_id"]) - 1)] != doc_ids)
     if missing.any():
         raise ParameterError(f"hit {int(np.argmax(missing)) + 1}: no document {doc_ids[missing][0]} in {db.path}")
-    rows = docs.loc[doc_ids]
-    n_frames, fps = rows["n_frames"].to_numpy(np.int64), rows["fps"].to_numpy(np.float64)
+    n_frames, fps = docs["n_frames"][pos], docs["fps"][pos]
     bad = (starts < 0) | (ends <= starts) | (ends > n_frames)
     if bad.any():
         i = int(np.argmax(bad))
         raise ParameterError(f"hit {i + 1}: frames {starts[i]}:{ends[i]} are not a stretch of document {doc_ids[i]} "
                              f"(0:{n_frames[i]})")  # fmt: skip
-    table = {"rank": np.arange(1, len(doc_ids) + 1), "doc_id": doc_ids, "name": rows["name"].to_numpy(),
+    table = {"rank": np.arange(1, len(doc_ids) + 1), "doc_id": doc_ids, "name": docs["name"][pos],
              "start": starts, "end": ends, "frames": ends - starts, "start_s": starts / fps, "end_s": ends / fps}
     for name, values in columns.items():
         if name in table:
@@ -112,8 +113,28 @@ def hit_table(db, doc_ids, starts, ends, **columns) -> HitTable:
         table[name] = values.to_numpy() if isinstance(values, pd.Series) else values
     for name in db.label_columns:
         if name not in table:
-            table[name] = rows[name].to_numpy()
+            table[name] = docs[name][pos]
     return HitTable(table)
+
+
+_DOCUMENTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _documents(db) -> dict:
+    """The columns of ``db.documents`` a hit table takes, as numpy arrays sorted by doc id (made once per MotionDB:
+    pandas' own row lookups cost milliseconds per search)."""
+    got = _DOCUMENTS.get(db)
+    if got is None or got["_table"] is not db.documents:
+        docs = db.documents.sort_values("doc_id")
+        got = {"_table": db.documents, "doc_id": docs["doc_id"].to_numpy(np.int64),
+               "n_frames": docs["n_frames"].to_numpy(np.int64), "fps": docs["fps"].to_numpy(np.float64),
+               "name": docs["name"].to_numpy(dtype=object)}  # fmt: skip
+        for name in db.label_columns:
+            column = docs[name] if name in docs else pd.Series([None] * len(docs), dtype=object)
+            numeric = pd.api.types.is_numeric_dtype(column) or pd.api.types.is_bool_dtype(column)
+            got[name] = column.to_numpy() if numeric else column.to_numpy(dtype=object)
+        _DOCUMENTS[db] = got
+    return got
 
 
 def from_database_frames(db, first, stop) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
