@@ -105,7 +105,7 @@ def hit_table(db, doc_ids, starts, ends, **columns) -> HitTable:
         i = int(np.argmax(bad))
         raise ParameterError(f"hit {i + 1}: frames {starts[i]}:{ends[i]} are not a stretch of document {doc_ids[i]} "
                              f"(0:{n_frames[i]})")  # fmt: skip
-    table = {"rank": np.arange(1, len(doc_ids) + 1), "doc_id": doc_ids, "name": docs["name"][pos],
+    table = {"rank": np.arange(1, len(doc_ids) + 1), "doc_id": doc_ids, "name": docs["name"].take(pos),
              "start": starts, "end": ends, "frames": ends - starts, "start_s": starts / fps, "end_s": ends / fps}
     for name, values in columns.items():
         if name in table:
@@ -113,7 +113,7 @@ def hit_table(db, doc_ids, starts, ends, **columns) -> HitTable:
         table[name] = values.to_numpy() if isinstance(values, pd.Series) else values
     for name in db.label_columns:
         if name not in table:
-            table[name] = docs[name][pos]
+            table[name] = docs[name].take(pos)
     return HitTable(table)
 
 
@@ -121,18 +121,16 @@ _DOCUMENTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _documents(db) -> dict:
-    """The columns of ``db.documents`` a hit table takes, as numpy arrays sorted by doc id (made once per MotionDB:
-    pandas' own row lookups cost milliseconds per search)."""
+    """The columns of ``db.documents`` a hit table takes, sorted by doc id (numpy arrays; names and labels as pandas
+    arrays of their own dtype), made once per MotionDB: pandas' row lookups cost milliseconds per search."""
     got = _DOCUMENTS.get(db)
     if got is None or got["_table"] is not db.documents:
         docs = db.documents.sort_values("doc_id")
         got = {"_table": db.documents, "doc_id": docs["doc_id"].to_numpy(np.int64),
                "n_frames": docs["n_frames"].to_numpy(np.int64), "fps": docs["fps"].to_numpy(np.float64),
-               "name": docs["name"].to_numpy(dtype=object)}  # fmt: skip
+               "name": docs["name"].array}  # fmt: skip
         for name in db.label_columns:
-            column = docs[name] if name in docs else pd.Series([None] * len(docs), dtype=object)
-            numeric = pd.api.types.is_numeric_dtype(column) or pd.api.types.is_bool_dtype(column)
-            got[name] = column.to_numpy() if numeric else column.to_numpy(dtype=object)
+            got[name] = (docs[name] if name in docs else pd.Series([None] * len(docs), dtype=object)).array
         _DOCUMENTS[db] = got
     return got
 

@@ -655,7 +655,8 @@ class InvertedIndex:
         cand, anchor = np.concatenate(cand), np.concatenate(anchor)
         out = np.empty((cand.size, n + 1), dtype=np.int64)
         h = _mismatch_walk(self.codes, self.segment_doc, mask, q, free, m, cand, anchor, out)
-        return np.unique(out[:h], axis=0)
+        rows = out[:h]  # a hit is fixed by the run it starts at: one row per first segment, sorted
+        return rows[np.unique(rows[:, 0], return_index=True)[1]]
 
     # ------------------------------------------------------------------ frames
     def frame_spans(self, first: np.ndarray, stop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

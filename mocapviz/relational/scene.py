@@ -69,14 +69,6 @@ class _Hits:
     def __len__(self) -> int:
         return int(self.start.size)
 
-    def parts(self, i: int) -> list[tuple[str, int, int]]:
-        """The leaf parts (label, start, end) of hit ``i``, global frames."""
-        if self.pick is not None:
-            return self.children[self.pick[i]].parts(int(self.index[i, 0]))
-        if not self.children:
-            return [(self.label, int(self.start[i]), int(self.end[i]))]
-        return [p for child, row in zip(self.children, self.index[i]) for p in child.parts(int(row))]
-
 
 def _leaf(label: str, start, end) -> _Hits:
     start, end = np.asarray(start, dtype=np.int64), np.asarray(end, dtype=np.int64)
@@ -315,6 +307,24 @@ def _then_scan(ctx: _Context, a: _Hits, b: _Hits, within: float, label: str) -> 
 
 
 # ================================================================================================ ranking
+def _part_texts(hits: _Hits, rows: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """``parts`` of hits ``rows``: each leaf's ``label start:end`` (frames of the document: global minus ``offset``),
+    joined by ", ", walking the hit tree once for all rows."""
+    out = np.empty(rows.size, dtype=object)
+    if hits.pick is not None:
+        for branch, child in enumerate(hits.children):
+            mask = hits.pick[rows] == branch
+            out[mask] = _part_texts(child, hits.index[rows[mask], 0], offset[mask])
+        return out
+    if not hits.children:
+        out[:] = [f"{hits.label} {s}:{e}" for s, e in zip(hits.start[rows] - offset, hits.end[rows] - offset)]
+        return out
+    texts = [_part_texts(child, hits.index[rows, k], offset) for k, child in enumerate(hits.children)]
+    out[:] = [", ".join(t) for t in zip(*texts)]
+    return out
+
+
+
 @numba.njit(cache=True)
 def _non_overlapping(start, end, order, n_frames, limit):  # pragma: no cover - compiled
     taken = np.zeros(n_frames, dtype=np.bool_)
@@ -346,8 +356,7 @@ def _ranked(ctx: _Context, hits: _Hits, n_matches: int | None, overlapping: bool
                                   limit)  # fmt: skip
     doc_row = ctx.doc_of(hits.start[chosen])
     offset = ctx.doc_start[doc_row]
-    parts = [", ".join(f"{label} {s - o}:{e - o}" for label, s, e in hits.parts(int(r)))
-             for r, o in zip(chosen, offset)]  # fmt: skip
+    parts = _part_texts(hits, chosen, offset)
     doc_ids = ctx.db.documents["doc_id"].to_numpy()[doc_row]
     return hit_table(ctx.db, doc_ids, hits.start[chosen] - offset, hits.end[chosen] - offset,
                      score=score[chosen], parts=np.array(parts, dtype=object))  # fmt: skip
