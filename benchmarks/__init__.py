@@ -8,4 +8,5 @@ bench_io          readers (parse + forward kinematics, ASF/AMC and BVH) and ``Mo
 bench_relational  relational features, inverted-index build and queries (Müller et al. 2005, Tables 2-3).
 bench_knn         kNN search per feature set and fat-graph base poses (Krüger et al. 2010, Table 1, §5.3).
 bench_startup     wall time of ``import mocapviz``, ``mocapviz --help`` and one search from a fresh process.
+bench_descriptions  scene descriptions (issue 25): ``find`` through the 2005 indexes vs the frame-wise scan.
 """

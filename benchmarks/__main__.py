@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-NAMES = ("io", "dask", "relational", "knn", "match", "search", "templates", "scaling", "startup")
+NAMES = ("io", "dask", "relational", "knn", "match", "search", "templates", "scaling", "startup", "descriptions")
 
 
 class _Tee(io.TextIOBase):
@@ -50,6 +50,7 @@ def main(argv=None) -> int:
 
     from . import (
         bench_dask,
+        bench_descriptions,
         bench_io,
         bench_knn,
         bench_match,
@@ -67,7 +68,8 @@ def main(argv=None) -> int:
         **{name: (lambda mod=mod: mod.main(quick=args.quick, repeats=args.repeats, out_dir=args.out))
            for name, mod in (("dask", bench_dask), ("relational", bench_relational), ("knn", bench_knn),
                              ("match", bench_match), ("search", bench_search), ("templates", bench_templates),
-                             ("scaling", bench_scaling), ("startup", bench_startup))},
+                             ("scaling", bench_scaling), ("startup", bench_startup),
+                             ("descriptions", bench_descriptions))},
     }  # fmt: skip
     status = 0
     for name in args.only or NAMES:

@@ -32,6 +32,7 @@ SECTIONS = (
     ("templates", "Motion templates: keyframe pre-filter vs the full DTW pass (bench_templates)"),
     ("scaling", "Cost growth at 250k / 1M / 4M frames (bench_scaling)"),
     ("startup", "Start-up: import, --help and one search from a fresh process (bench_startup)"),
+    ("descriptions", "Scene descriptions: index vs frame-wise scan (bench_descriptions)"),
 )
 NOT_RUN = "not run: "  # how the line of a section with no figures begins
 
