@@ -262,8 +262,10 @@ def _query(args) -> None:
                                  f"chosen features); got {', '.join(map(str, outside))}")
     mode = "mismatch" if args.mismatch else args.mode or "adaptive"
     t0 = time.perf_counter()
-    hits = query_by_example(db, motion, features, mode=mode, mismatches=args.mismatch,
-                            relational_set=args.relational_set, allowed=args.mismatch_at)
+    with _sharded(args, db) as sharded:
+        run = query_by_example if sharded is None else (lambda _, *a, **k: sharded.query_by_example(*a, **k))
+        hits = run(db, motion, features, mode=mode, mismatches=args.mismatch, relational_set=args.relational_set,
+                   allowed=args.mismatch_at)  # fmt: skip
     ms = 1000 * (time.perf_counter() - t0)
     print(f"{len(hits)} hits in {ms:.1f} ms ({mode}, features: {', '.join(features or ['all'])})")
     cols = [c for c in ("rank", "doc_id", "name", "start", "end", "start_s", "end_s", "score", "label") if c in hits]
@@ -297,8 +299,10 @@ def _find(args) -> None:
     from .relational.scene import find
 
     db = MotionDB.open(args.db)
-    hits = find(db, text, n_matches=args.n_matches, relational_set=args.relational_set,
-                template_cost=args.template_cost)  # fmt: skip
+    with _sharded(args, db) as sharded:
+        run = find if sharded is None else (lambda _, *a, **k: sharded.find(*a, **k))
+        hits = run(db, text, n_matches=args.n_matches, relational_set=args.relational_set,
+                   template_cost=args.template_cost)  # fmt: skip
     if args.explain:
         print(hits.attrs["description"])
         print("matched: " + "; ".join(f"{label}: {n}" for label, n in hits.attrs["counts"]))
@@ -379,6 +383,19 @@ def _scheduler_address(text: str, name: str) -> str:
     return text
 
 
+@contextlib.contextmanager
+def _sharded(args, db):
+    """``--scheduler local|ADDRESS`` of a search command: a ShardedDB over that cluster (mocapviz.sharded), else
+    None (the search runs in this process)."""
+    if getattr(args, "scheduler", None) is None:
+        yield None
+        return
+    from .sharded import ShardedDB
+
+    with ShardedDB(db, args.scheduler) as sharded:
+        yield sharded
+
+
 def _knn(args) -> None:
     import pandas as pd
 
@@ -396,14 +413,21 @@ def _knn(args) -> None:
     if not 0 <= frame < span.stop - span.start:
         raise ParameterError(f"document {doc} has frames 0..{span.stop - span.start - 1}; --frame asks for {frame}")
     features = numeric_of(db, args.numeric_set, progress=not args.quiet)
-    index = KnnIndex(features)
     own = (span.start, span.stop) if args.exclude_document else None
-    t0 = time.perf_counter()
-    dist, idx = index.query(features[span.start + frame], args.k, radius=args.radius, eps=args.eps, exclude=own)
-    ms = 1000 * (time.perf_counter() - t0)
+    with _sharded(args, db) as sharded:
+        if sharded is None:
+            index = KnnIndex(features)
+            t0 = time.perf_counter()
+            dist, idx = index.query(features[span.start + frame], args.k, radius=args.radius, eps=args.eps,
+                                    exclude=own)  # fmt: skip
+            how = str(index)
+        else:
+            t0 = time.perf_counter()
+            dist, idx = sharded.knn(features[span.start + frame], args.k, args.numeric_set, args.radius, args.eps, own)
+            dist, idx, how = dist[0], idx[0], repr(sharded)
+        ms = 1000 * (time.perf_counter() - t0)
     hits = describe_frames(db, idx, dist)
-    print(f"{len(hits)} neighbours of document {doc} frame {frame} by {args.numeric_set} in {ms:.2f} ms "
-          f"({index})")
+    print(f"{len(hits)} neighbours of document {doc} frame {frame} by {args.numeric_set} in {ms:.2f} ms ({how})")
     cols = [c for c in ("rank", "doc_id", "name", "start", "start_s", "distance", "label") if c in hits]
     with pd.option_context("display.width", 160, "display.max_rows", args.k + 5):
         print(hits[cols].round(3).to_string(index=False))
@@ -470,16 +494,20 @@ def _search(args) -> None:
     _csv_folder(args.csv)
     db = MotionDB.open(args.db)
     example = _example(db, args.example)
-    search = SimilaritySearch(db, args.numeric_set)
     options = {"n_matches": args.n_matches, "mode": args.mode, "exclude_document": args.exclude_document, "paths": args.paths}
     frames = None if args.frames is None else slice(*args.frames)  # checked against the example by the search
-    if args.stretches:
-        min_length = 0.5 if args.min_length is None else args.min_length
-        table = search.stretches(example, frames=frames, min_length=min_length, **options)
-    else:
-        table = search.clips(example, frames=frames, **options)
+    with _sharded(args, db) as sharded:
+        if sharded is not None:
+            search, options = sharded, {**options, "numeric_set": args.numeric_set}
+        else:
+            search = SimilaritySearch(db, args.numeric_set)
+        if args.stretches:
+            min_length = 0.5 if args.min_length is None else args.min_length
+            table = search.stretches(example, frames=frames, min_length=min_length, **options)
+        else:
+            table = search.clips(example, frames=frames, **options)
     what = "stretches" if args.stretches else "clips"
-    print(f"{len(table)} {what} like {args.example} ({table.attrs['query_frames']} frames) by DTW on {search.numeric_set}"
+    print(f"{len(table)} {what} like {args.example} ({table.attrs['query_frames']} frames) by DTW on {args.numeric_set}"
           f", {args.mode} mode, in {table.attrs['ms']:.1f} ms" + (" (its own document excluded)" if
                                                                  args.exclude_document else ""))  # fmt: skip
     _print_ranked(table, args.n_matches, "the query's own document is the only one long enough; try whole clips, a shorter "
@@ -540,9 +568,16 @@ def _template_search(args) -> None:
             template = load_template(db, args.template)
         except ParameterError as exc:  # not a stored name either
             raise ParameterError(f"{args.template}: no such template file, and {exc}") from None
+    if args.prefilter and args.scheduler:
+        raise ParameterError("--prefilter runs in one process: leave it out with --scheduler")
     try:
-        table = search_template(db, template, n_matches=args.n_matches, max_cost=args.max_cost,
-                                prefilter=args.prefilter)  # fmt: skip
+        with _sharded(args, db) as sharded:
+            if sharded is None:
+                table = search_template(db, template, n_matches=args.n_matches, max_cost=args.max_cost,
+                                        prefilter=args.prefilter)  # fmt: skip
+            else:
+                table = sharded.search_template(template, n_matches=args.n_matches, max_cost=args.max_cost)
+                table.attrs.setdefault("aligned", 1.0)
     except ParameterError as exc:
         raise ParameterError(f"{args.template}: {exc}") from None
     limit = "" if args.max_cost is None else f", normalised cost <= {args.max_cost:g}"
@@ -629,6 +664,13 @@ def _cluster_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-cluster", action="store_true", help="no Dask: work in this process (threads)")
 
 
+def _search_scheduler(p: argparse.ArgumentParser) -> None:
+    _option(p, "--scheduler", check=_scheduler_address, metavar="ADDRESS", help="search the database sharded over "
+            "a Dask cluster: 'local' (a local cluster, one worker per core) or a scheduler's address such as "
+            "tcp://host:8786 (its workers must see the database's path); the same answer as without (exact "
+            "modes); default: this process")  # fmt: skip
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="mocapviz", description="Content-based retrieval in motion-capture databases.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -684,6 +726,7 @@ def build_parser() -> argparse.ArgumentParser:
     _option(q, "-K", "--matches", "--top", check=_count(least=1), dest="n_matches", default=20,
             help="hits to print (default 20; --top: its old name)")
     q.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
+    _search_scheduler(q)
     q.set_defaults(func=_query)
 
     fd = sub.add_parser("find", help="the stretches a scene description describes (\"kick_right then punch_left "
@@ -710,6 +753,7 @@ def build_parser() -> argparse.ArgumentParser:
     fd.add_argument("--list", action="store_true", help="list the shipped named descriptions and exit")
     fd.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as "
                     "docs/glossary.md, Results: start and end within the document, half-open)")  # fmt: skip
+    _search_scheduler(fd)
     fd.set_defaults(func=_find)
 
     feat = sub.add_parser("features", help="compute and store the numeric feature sets of a MotionDB (kNN search)")
@@ -736,6 +780,7 @@ def build_parser() -> argparse.ArgumentParser:
     kn.add_argument("--exclude-document", action="store_true", help="leave out the frame's own document")
     kn.add_argument("--quiet", action="store_true", help="no progress bar")
     kn.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
+    _search_scheduler(kn)
     kn.set_defaults(func=_knn)
 
     mt = sub.add_parser("match", help="stretches of the DB that move like an example, ranked (lazy neighbourhood "
@@ -779,6 +824,7 @@ def build_parser() -> argparse.ArgumentParser:
     se.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
     se.add_argument("--paths", action="store_true", help="also print each match's alignment (query frame:document "
                     "frame pairs)")  # fmt: skip
+    _search_scheduler(se)
     se.set_defaults(func=_search)
 
     tp = sub.add_parser("template", help="motion templates (Müller & Röder 2006): learn a class from its labelled "
@@ -810,6 +856,7 @@ def build_parser() -> argparse.ArgumentParser:
     ts.add_argument("--prefilter", action="store_true", help="align only where the template's keyframes occur in "
                     "order (read from the relational indexes, built and stored when missing): faster for a specific "
                     "template, and may miss a hit whose keyframes disagree")  # fmt: skip
+    _search_scheduler(ts)
     ts.set_defaults(func=_template_search)
 
     rp = sub.add_parser("reproduce", help="re-run the papers' experiments on the shared data; write CSV tables and "

@@ -98,3 +98,8 @@ class DescriptionError(ParameterError):
         where = ", ".join(x for x in (source, None if line is None else f"line {line}",
                                       None if column is None else f"column {column}") if x)  # fmt: skip
         super().__init__(f"{where}: {reason}" if where else reason)
+
+
+class ClusterError(MocapvizError, RuntimeError):
+    """A sharded search could not get a whole answer from its Dask cluster (a worker died and no other could take
+    its shards, or a shard failed twice). Never a partial answer: the message names the shard and what happened."""

@@ -24,6 +24,7 @@ LAYERS = [
     ("match", ["mocapviz.match"]),
     ("relational", ["mocapviz.relational"]),
     ("similarity", ["mocapviz.similarity"]),
+    ("sharded", ["mocapviz.sharded"]),
     ("experiments", ["mocapviz.experiments"]),
     ("viz", ["mocapviz.viz"]),
     ("runners", ["mocapviz.app", "mocapviz.cli", "mocapviz.reproduction", "mocapviz.integrity"]),

@@ -97,6 +97,27 @@ def _group_hits(idx: index_mod.InvertedIndex, seq, chosen: list[int], mode: str,
     return idx.adaptive_fuzzy(sets), seq.lengths
 
 
+def longer_than_every_document(db, example) -> str:
+    """Why ``example`` can match nothing in ``db`` (it lasts longer than every document), or "".
+
+    Parameters
+    ----------
+    db : MotionDB
+    example : Motion
+
+    Returns
+    -------
+    str
+        The message of the ParameterError :func:`query_by_example` raises, or "" when some document is as long.
+    """
+    docs = db.documents
+    longest = float((docs["n_frames"] / docs["fps"]).max()) if len(docs) else 0.0
+    if example.duration <= longest:
+        return ""
+    return (f"the query lasts {example.duration:.2f} s, longer than every document of {db.path} (longest "
+            f"{longest:.2f} s); choose a shorter span")
+
+
 def query_by_example(db, example, features=None, mode: str = "adaptive", mismatches: int = 1,
                      relational_set: str = "2005", indexes: dict | None = None, allowed=None) -> pd.DataFrame:
     """Find the stretches of a MotionDB that move like ``example`` in the chosen feature aspects.
@@ -183,10 +204,9 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     _check_features(features, relational_set)
     indexes = index_mod.load(db, relational_set) if indexes is None else indexes
     docs = db.documents
-    longest = float((docs["n_frames"] / docs["fps"]).max()) if len(docs) else 0.0
-    if example.duration > longest:
-        raise ParameterError(f"the query lasts {example.duration:.2f} s, longer than every document of {db.path} "
-                         f"(longest {longest:.2f} s); choose a shorter span")
+    too_long = longer_than_every_document(db, example)
+    if too_long:
+        raise ParameterError(too_long)
     values, names = relational_features(example, relational_set)
     doc_fps = docs["fps"].to_numpy(np.float64)  # per document: a database may mix frame rates
     tables = []

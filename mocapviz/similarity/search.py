@@ -35,7 +35,7 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -173,7 +173,7 @@ class SimilaritySearch:
         return self._index
 
     # ------------------------------------------------------------------------ the query
-    def query_features(self, example, frames=None) -> tuple[np.ndarray, int | None]:
+    def query_features(self, example, frames=None) -> Query:
         """The query's feature values and its document: :func:`example_features` on this search's numeric set.
 
         Parameters
@@ -392,8 +392,17 @@ class SimilaritySearch:
                          normalised_cost=np.asarray(cost, dtype=np.float64) / (m + frames))  # fmt: skip
 
 
+class Query(NamedTuple):
+    """A query's feature values and its document (None for a Motion or a file): what :func:`example_features`
+    returns, and what a search accepts as its example when the values are already computed (a sharded search
+    computes them once and sends them to every shard)."""
+
+    values: np.ndarray
+    doc_id: int | None
+
+
 def example_features(db, features: np.ndarray, example, frames=None, numeric_set: str = "F15E",
-                     option: str = "frames") -> tuple[np.ndarray, int | None]:  # fmt: skip
+                     option: str = "frames") -> Query:  # fmt: skip
     """The feature values of a query by example: the one step from an example to the values a search compares.
 
     Parameters
@@ -414,10 +423,10 @@ def example_features(db, features: np.ndarray, example, frames=None, numeric_set
 
     Returns
     -------
-    query : np.ndarray [shape=(m, d)], float32
-        The feature values of the query's frames.
-    doc_id : int or None
-        The example's document (None for a Motion or a file).
+    Query
+        ``values`` (np.ndarray [shape=(m, d)], float32: the query frames' feature values) and ``doc_id`` (the
+        example's document, None for a Motion or a file); a Query given as ``example`` is returned as it is (its
+        values cut to ``frames``).
 
     Raises
     ------
@@ -435,7 +444,14 @@ def example_features(db, features: np.ndarray, example, frames=None, numeric_set
     ((60, 15), 7)
     """
     doc_id = None
-    if isinstance(example, (int, np.integer)) and not isinstance(example, (bool, np.bool_)):
+    if isinstance(example, Query):
+        values = np.asarray(example.values)
+        if values.ndim != 2 or values.shape[1] != features.shape[1]:
+            raise ParameterError(f"a Query of {numeric_set} has ({features.shape[1]}) values per frame; got shape "
+                                 f"{values.shape}")  # fmt: skip
+        a, b = _span(frames, len(values), "the query", option)
+        values, doc_id = values[a:b], example.doc_id
+    elif isinstance(example, (int, np.integer)) and not isinstance(example, (bool, np.bool_)):
         doc_id = int(example)
         span = db.frames(doc_id)
         a, b = _span(frames, span.stop - span.start, f"document {doc_id}", option)
@@ -459,7 +475,7 @@ def example_features(db, features: np.ndarray, example, frames=None, numeric_set
     bad = ~np.isfinite(values).all(axis=1)
     if bad.any():
         raise ParameterError(f"the query's {numeric_set} features are not finite at frame {a + int(np.argmax(bad))}")
-    return np.ascontiguousarray(values, dtype=np.float32), doc_id
+    return Query(np.ascontiguousarray(values, dtype=np.float32), doc_id)
 
 
 def _span(frames, n: int, what: str, option: str = "frames") -> tuple[int, int]:

@@ -1,0 +1,277 @@
+"""Sharded search: one MotionDB searched by a Dask cluster, its documents split into shards kept resident on the
+workers (:class:`~mocapviz.sharded.shard.Shard`, Dask actors), every query fanned out and the hit tables merged.
+
+Why the merge is exact: a hit never crosses a document and a shard holds whole documents, so each shard's K best
+hits (by the search's own order: cost, then the document or the frame) contain every hit of the global K best that
+lies in its documents, and the overlaps a search resolves are within one document. Merging the shards' lists by the
+same order therefore gives the single-process answer: the same hits, order and costs (tested on every query path).
+Fast mode of the similarity search is not exact on one process either: its coarse pass and budget are per shard.
+
+A worker that dies mid-query: its shards are started again on the workers left and the query is asked of them once
+more (the whole answer, recomputed); when that fails too, a :class:`~mocapviz.errors.ClusterError`, never a partial
+answer.
+"""
+from __future__ import annotations
+
+import contextlib
+import time
+
+import numpy as np
+import pandas as pd
+
+from ..db.database import MotionDB
+from ..db.hits import hit_table
+from ..db.shards import split_documents
+from ..errors import ClusterError, MocapvizError, ParameterError
+from ..parallel import dask_client
+from ..validation import count
+from .shard import Shard
+
+__all__ = ["ShardedDB"]
+
+
+class ShardedDB:
+    """A MotionDB searched by a Dask cluster, one shard per worker (or ``n_shards``), each kept resident there.
+
+    The methods are the library's searches with their own parameters, answered by every shard and merged:
+    :meth:`knn` (:meth:`KnnIndex.query`), :meth:`clips` and :meth:`stretches` (:class:`SimilaritySearch`),
+    :meth:`query_by_example`, :meth:`find` (scene descriptions), :meth:`search_template`. Each returns the hit
+    table the single process returns (docs/glossary.md, "Results").
+
+    Parameters
+    ----------
+    db : MotionDB or str or os.PathLike
+        The database; its folder must be readable by every worker at the same path.
+    scheduler : "local", str or dask.distributed.Client
+        As every ``scheduler=`` of mocapviz (:func:`mocapviz.parallel.dask_client`): a local cluster for this
+        object's life, a scheduler's address, or a Client.
+    n_shards : int, optional
+        Shards (default: one per worker at the start).
+    numeric_sets, relational_sets : sequence of str
+        Derived data every shard makes now rather than on its first query (kd-trees, inverted indexes).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()
+    >>> with ShardedDB(db, "local", n_shards=2) as sharded:  # doctest: +SKIP
+    ...     hits = sharded.clips(7, n_matches=3, mode="exact")
+    """
+
+    def __init__(self, db, scheduler="local", n_shards: int | None = None, numeric_sets=(), relational_sets=()):
+        self.db = db if isinstance(db, MotionDB) else MotionDB.open(db)
+        self._stack = contextlib.ExitStack()
+        try:
+            self.client = self._stack.enter_context(dask_client(scheduler))
+            workers = self._workers()
+            if not workers:
+                raise ClusterError(f"the dask cluster at {self.client.scheduler.address} has no worker")
+            self.shards = split_documents(self.db, count(n_shards, "n_shards") if n_shards else len(workers))
+            self.actors = [self._start(i, workers[i % len(workers)]) for i in range(len(self.shards))]
+            if numeric_sets or relational_sets:
+                self._fan("warm", tuple(numeric_sets), tuple(relational_sets))
+        except BaseException:
+            self._stack.close()
+            raise
+        self._features: dict[str, np.ndarray] = {}
+
+    def close(self) -> None:
+        """Let the shards go (and stop a local cluster started here)."""
+        self.actors = []
+        self._stack.close()
+
+    def __enter__(self) -> ShardedDB:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"ShardedDB({str(self.db.path)!r}: {len(self.shards)} shards on {len(self._workers())} workers)"
+
+    # ------------------------------------------------------------------ the shards
+    def _workers(self) -> list[str]:
+        return sorted(self.client.scheduler_info()["workers"])
+
+    def _start(self, i: int, worker: str | None):
+        future = self.client.submit(Shard, str(self.db.path), self.shards[i].tolist(), self.db.manifest["generation"],
+                                    actor=True, workers=None if worker is None else [worker], pure=False)  # fmt: skip
+        return future.result()
+
+    def _fan(self, method: str, *args, **kwargs) -> list:
+        """``method(*args, **kwargs)`` on every shard at once; a shard whose worker failed is started again on a
+        live worker and asked once more; then a ClusterError."""
+        calls = []
+        for actor in self.actors:
+            try:
+                calls.append(getattr(actor, method)(*args, **kwargs))
+            except Exception as lost:  # the worker holding the shard is known to be gone
+                calls.append(lost)
+        results = []
+        for i, call in enumerate(calls):
+            try:
+                if isinstance(call, Exception):
+                    raise call
+                results.append(call.result())
+            except MocapvizError:
+                raise
+            except Exception as first:  # the worker or its connection is gone
+                results.append(self._again(i, method, args, kwargs, first))
+        return results
+
+    def _again(self, i: int, method: str, args, kwargs, first: Exception):
+        workers = self._workers()
+        if not workers:
+            raise ClusterError(f"shard {i + 1} of {len(self.shards)} failed ({_why(first)}) and no worker is left; "
+                               "no answer") from None  # fmt: skip
+        try:
+            self.actors[i] = self._start(i, workers[i % len(workers)])
+            return getattr(self.actors[i], method)(*args, **kwargs).result()
+        except MocapvizError:
+            raise
+        except Exception as second:
+            raise ClusterError(f"shard {i + 1} of {len(self.shards)} failed twice ({_why(first)}; then {_why(second)}); "
+                               "no answer") from None  # fmt: skip
+
+    def features(self, numeric_set: str) -> np.ndarray:
+        """The database's values of a numeric set, here (to turn an example into its query once)."""
+        if numeric_set not in self._features:
+            from ..features import numeric_of
+
+            self._features[numeric_set] = numeric_of(self.db, numeric_set)
+        return self._features[numeric_set]
+
+    def _query(self, example, frames, numeric_set: str):
+        from ..similarity.search import example_features
+
+        return example_features(self.db, self.features(numeric_set), example, frames, numeric_set)
+
+    # ------------------------------------------------------------------ searches
+    def knn(self, queries, k: int, numeric_set: str = "F15E", radius: float | None = None, eps: float = 0.0,
+            exclude=None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """:meth:`mocapviz.similarity.knn.KnnIndex.query` over every shard: the k nearest database frames.
+
+        Parameters
+        ----------
+        queries : np.ndarray [shape=(q, d) or (d,)]
+            Query rows of ``numeric_set``.
+        k : int
+            Neighbours, >= 1.
+        numeric_set : str
+        radius, eps
+            As :meth:`KnnIndex.query`.
+        exclude : np.ndarray [shape=(q, 2) or (2,)], int, optional
+            Database-wide [a, b) frames left out, per query.
+
+        Returns
+        -------
+        distances : np.ndarray [shape=(q, k)], float64 (inf where fewer)
+        frames : np.ndarray [shape=(q, k)], int64, database-wide (-1 where fewer); nearest first.
+        """
+        k = count(k, "k")
+        queries = np.atleast_2d(np.asarray(queries, dtype=np.float32))
+        if exclude is not None:
+            exclude = np.broadcast_to(np.asarray(exclude, dtype=np.int64).reshape(-1, 2), (len(queries), 2))
+        parts = self._fan("knn", numeric_set, queries, k, radius, eps, exclude)
+        distances = np.concatenate([d for d, _ in parts], axis=1)
+        frames = np.concatenate([f for _, f in parts], axis=1)
+        order = np.lexsort((np.where(frames < 0, np.iinfo(np.int64).max, frames), distances), axis=1)[:, :k]
+        distances, frames = np.take_along_axis(distances, order, 1), np.take_along_axis(frames, order, 1)
+        if distances.shape[1] < k:
+            pad = k - distances.shape[1]
+            distances = np.pad(distances, ((0, 0), (0, pad)), constant_values=np.inf)
+            frames = np.pad(frames, ((0, 0), (0, pad)), constant_values=-1)
+        return distances, frames
+
+    def clips(self, example, frames=None, n_matches: int = 10, numeric_set: str = "F15E", mode: str = "fast",
+              exclude_document: bool = False, paths: bool = False) -> pd.DataFrame:  # fmt: skip
+        """:meth:`SimilaritySearch.clips` over every shard: the documents that move most like the example, by
+        normalised DTW cost then doc id (``mode="exact"`` / ``"brute"``: exactly the single process's answer)."""
+        query = self._query(example, frames, numeric_set)
+        n_matches = count(n_matches, "n_matches")
+        t0 = time.perf_counter()
+        tables = self._fan("clips", numeric_set, query, n_matches=n_matches, mode=mode,
+                           exclude_document=exclude_document, paths=paths)  # fmt: skip
+        return self._merged(tables, ["normalised_cost", "doc_id"], n_matches, t0)
+
+    def stretches(self, example, frames=None, n_matches: int = 10, numeric_set: str = "F15E", mode: str = "fast",
+                  min_length: float = 0.5, exclude_document: bool = False, paths: bool = False) -> pd.DataFrame:
+        """:meth:`SimilaritySearch.stretches` over every shard: the K best non-overlapping stretches by DTW cost, then
+        by their last frame in the database (exact and brute mode: the single process's answer)."""
+        query = self._query(example, frames, numeric_set)
+        n_matches = count(n_matches, "n_matches")
+        t0 = time.perf_counter()
+        tables = self._fan("stretches", numeric_set, query, n_matches=n_matches, mode=mode, min_length=min_length,
+                           exclude_document=exclude_document, paths=paths)  # fmt: skip
+        return self._merged(tables, ["cost", "_last"], n_matches, t0)
+
+    def query_by_example(self, example, features=None, mode: str = "adaptive", mismatches: int = 1,
+                         relational_set: str = "2005", allowed=None) -> pd.DataFrame:  # fmt: skip
+        """:func:`mocapviz.relational.query.query_by_example` over every shard (each with its own inverted indexes):
+        the hits ranked by score, then doc id and start, as on one process."""
+        from ..relational.query import longer_than_every_document
+
+        too_long = longer_than_every_document(self.db, example)
+        if too_long:
+            raise ParameterError(too_long)
+        t0 = time.perf_counter()
+        tables = self._fan("query_by_example", example, features, relational_set, mode=mode, mismatches=mismatches,
+                           allowed=allowed)  # fmt: skip
+        return self._merged([t for t in tables if t is not None], ["score", "doc_id", "start"], None, t0)
+
+    def find(self, description, n_matches: int | None = None, relational_set: str | None = None,
+             template_cost: float | None = None, overlapping: bool = False) -> pd.DataFrame:  # fmt: skip
+        """:func:`mocapviz.relational.scene.find` over every shard: hits by score (seconds), then database frame."""
+        from ..relational.scene import _prepare
+
+        parsed, template_cost = _prepare(self.db, description, relational_set, template_cost)
+        n_matches = None if n_matches is None else count(n_matches, "n_matches")
+        t0 = time.perf_counter()
+        results = self._fan("find", parsed.text, parsed.relational_set, n_matches=n_matches,
+                            template_cost=template_cost, overlapping=overlapping)  # fmt: skip
+        table = self._merged([t for t, _ in results], ["score", "_first"], n_matches, t0)
+        counts: dict[str, int] = {}
+        for _, attrs in results:
+            for label, n in attrs["counts"]:
+                counts[label] = counts.get(label, 0) + n
+        from ..relational.scene import _empty_reason
+
+        table.attrs.update(description=str(parsed), relational_set=parsed.relational_set, counts=list(counts.items()),
+                           candidates=sum(a["candidates"] for _, a in results),
+                           empty_reason=_empty_reason(list(counts.items())) if table.empty else "")  # fmt: skip
+        return table
+
+    def search_template(self, template, n_matches: int = 10, delta: float | None = None,
+                        max_cost: float | None = None) -> pd.DataFrame:  # fmt: skip
+        """:func:`mocapviz.relational.templates.search_template` over every shard: instances by cost, then by their
+        last frame in the database, as on one process."""
+        n_matches = count(n_matches, "n_matches")
+        options = {"n_matches": n_matches, "max_cost": max_cost, **({} if delta is None else {"delta": delta})}
+        t0 = time.perf_counter()
+        tables = self._fan("search_template", template, **options)
+        return self._merged(tables, ["cost", "_last"], n_matches, t0)
+
+    # ------------------------------------------------------------------ the merge
+    def _merged(self, tables: list, order: list[str], n_matches: int | None, t0: float) -> pd.DataFrame:
+        """The shards' hit tables as one, in ``order`` (``_first`` / ``_last``: the hit's first / last database
+        frame), the first ``n_matches``, ranked again."""
+        if not tables:
+            return hit_table(self.db, [], [], [])
+        found = [t for t in tables if len(t)]
+        table = pd.concat(found, ignore_index=True) if found else tables[0]
+        starts = self.db.documents.set_index("doc_id").loc[table["doc_id"], "start"].to_numpy()
+        keys = {"_first": starts + table["start"].to_numpy(), "_last": starts + table["end"].to_numpy() - 1}
+        sort = [keys[c] if c in keys else table[c].to_numpy() for c in order]
+        rows = np.lexsort(sort[::-1])[:n_matches]
+        own = ("rank", "doc_id", "name", "start", "end", "frames", "start_s", "end_s", *self.db.label_columns)
+        columns = {c: table[c].to_numpy()[rows] for c in table.columns if c not in own}
+        merged = hit_table(self.db, table["doc_id"].to_numpy()[rows], table["start"].to_numpy()[rows],
+                           table["end"].to_numpy()[rows], **columns)  # fmt: skip
+        merged.attrs.update({k: v for k, v in tables[0].attrs.items() if isinstance(v, (str, int, float))})
+        merged.attrs.update(shards=len(self.shards), ms=1e3 * (time.perf_counter() - t0))
+        return merged
+
+
+def _why(exc: Exception) -> str:
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__

@@ -1,0 +1,147 @@
+"""One shard of a sharded MotionDB, resident on a Dask worker (a Dask actor): its documents as a view of the
+database (:func:`mocapviz.db.shards.shard_view`), and the derived data its searches need, made once and kept across
+queries: each numeric set's rows with its similarity search and kd-tree, each relational set's frame-wise values and
+inverted indexes.
+
+Every method runs one library function on the shard and returns its hit table (doc ids and in-document frames as
+on the whole database): :class:`mocapviz.sharded.engine.ShardedDB` merges them.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..db.database import MotionDB
+from ..db.shards import shard_view
+from ..errors import MotionDBError
+
+__all__ = ["Shard"]
+
+
+class Shard:
+    """The documents ``doc_ids`` of the MotionDB at ``path`` and their derived data, made on first use and kept.
+
+    Parameters
+    ----------
+    path : str
+        The MotionDB's folder, as the worker sees it.
+    doc_ids : sequence of int
+        Consecutive documents in storage order (:func:`mocapviz.db.shards.split_documents`).
+    generation : int
+        The database's generation the coordinator opened: a shard refuses another (the database changed).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.db.shards import split_documents
+    >>> db = MotionDB.sample()
+    >>> shard = Shard(str(db.path), split_documents(db, 2)[1].tolist(), db.manifest["generation"])
+    >>> shard.offset, len(shard.view)
+    (2810, 14)
+    """
+
+    def __init__(self, path: str, doc_ids, generation):
+        parent = MotionDB.open(path)
+        if parent.manifest.get("generation") != generation:
+            raise MotionDBError(f"{path} changed since the sharded search opened it; open it again")
+        self.parent, self.view = parent, shard_view(parent, doc_ids)
+        self.offset = self.view.shard_frames[0]
+        self.doc_ids = np.asarray(doc_ids, dtype=np.int64)
+        self._numeric, self._searches, self._values, self._indexes = {}, {}, {}, {}
+
+    # ------------------------------------------------------------------ derived data, made once
+    def numeric(self, numeric_set: str) -> np.ndarray:
+        """The shard's rows of a numeric set: the database's stored ones, else computed on the shard (Fp sets with
+        the database's PCA model, as on the whole database)."""
+        if numeric_set not in self._numeric:
+            from ..features.numeric import _spec, default_pca, load_numeric, numeric_features
+
+            a, b = self.view.shard_frames
+            try:
+                values = load_numeric(self.parent, numeric_set)[a:b]
+            except MotionDBError:
+                pca = default_pca(self.parent) if _spec(numeric_set).pcs else None
+                values = numeric_features(self.view, numeric_set, pca=pca, progress=False)
+            self._numeric[numeric_set] = values
+        return self._numeric[numeric_set]
+
+    def search(self, numeric_set: str):
+        """The shard's :class:`~mocapviz.similarity.search.SimilaritySearch` of a numeric set (its kd-tree too)."""
+        if numeric_set not in self._searches:
+            from ..similarity.search import SimilaritySearch
+
+            self._searches[numeric_set] = SimilaritySearch(self.view, numeric_set, features=self.numeric(numeric_set))
+        return self._searches[numeric_set]
+
+    def values(self, relational_set: str) -> np.ndarray:
+        """The shard's frame-wise relational values of a set (computed per document, as on the whole database)."""
+        if relational_set not in self._values:
+            from ..features import relational_features
+
+            self._values[relational_set] = relational_features(self.view, relational_set, progress=False)[0]
+        return self._values[relational_set]
+
+    def indexes(self, relational_set: str) -> dict:
+        """The shard's inverted indexes of a relational set (built from :meth:`values`, kept in memory)."""
+        if relational_set not in self._indexes:
+            from ..relational.index import build
+
+            self._indexes[relational_set] = build(self.view, relational_set, progress=False,
+                                                  values=self.values(relational_set), save=False)  # fmt: skip
+        return self._indexes[relational_set]
+
+    def warm(self, numeric_sets=(), relational_sets=()) -> int:
+        """Make the derived data of these sets now (before the first query); returns the shard's frames."""
+        for name in numeric_sets:
+            self.search(name).knn_index  # noqa: B018 - built on first use
+        for name in relational_sets:
+            self.indexes(name)
+        return self.view.n_frames
+
+    # ------------------------------------------------------------------ searches
+    def knn(self, numeric_set: str, queries: np.ndarray, k: int, radius=None, eps: float = 0.0, exclude=None):
+        """The k nearest frames of the shard to each query row: (distances (q, k'), database-wide frames (q, k'),
+        -1 where fewer), k' = min(k, the shard's indexed frames). ``exclude``: database-wide [a, b) per query."""
+        index = self.search(numeric_set).knn_index
+        k = min(int(k), index.n_indexed)
+        if exclude is not None:
+            exclude = np.asarray(exclude, dtype=np.int64).reshape(-1, 2) - self.offset
+            exclude = np.clip(exclude, 0, self.view.n_frames)
+        distances, frames = index.query(np.atleast_2d(queries), k, radius=radius, eps=eps, exclude=exclude)
+        return distances, np.where(frames >= 0, frames + self.offset, -1)
+
+    def clips(self, numeric_set: str, query, **options):
+        """:meth:`SimilaritySearch.clips` on the shard (``query``: a :class:`~mocapviz.similarity.search.Query`)."""
+        return self.search(numeric_set).clips(query, **options)
+
+    def stretches(self, numeric_set: str, query, **options):
+        """:meth:`SimilaritySearch.stretches` on the shard."""
+        return self.search(numeric_set).stretches(query, **options)
+
+    def query_by_example(self, example, features, relational_set: str = "2005", **options):
+        """:func:`~mocapviz.relational.query.query_by_example` on the shard; None when the example is longer than
+        every document of the shard (nothing can match here)."""
+        from ..relational.query import longer_than_every_document, query_by_example
+
+        if longer_than_every_document(self.view, example):
+            return None
+        return query_by_example(self.view, example, features, relational_set=relational_set,
+                                indexes=self.indexes(relational_set), **options)  # fmt: skip
+
+    def find(self, description: str, relational_set: str, **options):
+        """:func:`~mocapviz.relational.scene.find` on the shard: (hit table, its attrs)."""
+        from ..relational.description import template_names
+        from ..relational.scene import find
+
+        values = self.values(relational_set) if template_names(description) else None
+        hits = find(self.view, description, relational_set=relational_set, indexes=self.indexes(relational_set),
+                    values=values, **options)  # fmt: skip
+        return hits, dict(hits.attrs)
+
+    def search_template(self, template, **options):
+        """:func:`~mocapviz.relational.templates.search_template` on the shard (the template's relational set)."""
+        from ..features import RELATIONAL_SETS, feature_names
+        from ..relational.templates import search_template
+
+        relational_set = next((s for s in RELATIONAL_SETS if feature_names(s) == list(template.features)), None)
+        values = self.values(relational_set) if relational_set else None
+        return search_template(self.view, template, values=values, **options)
