@@ -81,17 +81,18 @@ def test_warm_up_fills_what_the_first_clicks_need(sample_db):
     from mocapviz import app
     from mocapviz.app.backend import Backend
     from mocapviz.match import neighbourhood_graph, pruned, time_warping
-    from mocapviz.relational import index
+    from mocapviz.relational import index, scene
 
     backend = Backend(sample_db)  # not the shared one of Backend.open: its caches start empty
     seconds = app.warm_up(backend)
-    assert set(seconds) == {"search", "knn", "lng", "relational", "row_click"}
+    assert set(seconds) == {"search", "knn", "lng", "relational", "row_click", "describe"}
     longest = int(sample_db.documents.loc[sample_db.documents["n_frames"].idxmax(), "doc_id"])
     for key in (("numeric", "F15E"), ("knn", "F15E"), ("search", "F15E"), ("indexes", "2005"),
                 ("relational", longest, "2005")):
         assert backend.is_cached(key), key
     for kernel in (neighbourhood_graph._shortest_paths, neighbourhood_graph._graph_path, pruned.search_ranges,
-                   time_warping._accumulate, time_warping._backtrack, index._adaptive_walk, index._mismatch_walk):
+                   time_warping._accumulate, time_warping._backtrack, index._adaptive_walk, index._mismatch_walk,
+                   scene._non_overlapping):
         assert kernel.signatures, kernel
 
 

@@ -10,8 +10,9 @@ pages/         one module per page: database (documents, player, timelines, curv
                example, Müller et al. 2005), similarity (DTW search of clips and stretches, kNN of a frame, LNG
                matching, similarity matrix; Krüger et al. 2010), retrieval (retrieval quality of every search
                method: mAP, per-class AP, P/R curves), templates (motion templates, Müller & Röder 2006: a class
-               learned from its examples, drawn, its instances found and played), correlations (Fig. 2), statistics
-               (Müller Tables 2-3, Krüger Table 1), reconstruction (Krüger §5.2).
+               learned from its examples, drawn, its instances found and played), describe (scene descriptions,
+               Müller et al. 2005 §6.3: written, read as typed, found; a hit's features drawn, the hit played),
+               correlations (Fig. 2), statistics (Müller Tables 2-3, Krüger Table 1), reconstruction (Krüger §5.2).
 
 :func:`dashboard` builds one session's page; :func:`warm_up` runs a small one of each slow first action so that the
 first click answers at once; :func:`serve` runs the server (bound to 127.0.0.1 unless told otherwise);
@@ -42,11 +43,22 @@ TITLE = "mocapviz"
 
 
 def _pages():
-    from .pages import correlations, database, reconstruction, relational, retrieval, similarity, statistics, templates
+    from .pages import (
+        correlations,
+        database,
+        describe,
+        reconstruction,
+        relational,
+        retrieval,
+        similarity,
+        statistics,
+        templates,
+    )
 
     return [("Database", database.DatabasePage), ("Relational query", relational.RelationalPage),
             ("Similarity search", similarity.SimilarityPage), ("Retrieval quality", retrieval.RetrievalPage),
-            ("Motion templates", templates.TemplatesPage), ("Correlations", correlations.CorrelationsPage),
+            ("Motion templates", templates.TemplatesPage), ("Describe", describe.DescribePage),
+            ("Correlations", correlations.CorrelationsPage),
             ("Index statistics", statistics.StatisticsPage), ("Reconstruction", reconstruction.ReconstructionPage)]
 
 
@@ -100,12 +112,14 @@ def warm_up(backend: Backend) -> dict[str, float]:
     - Relational query: the relational indexes (:meth:`Backend.indexes`, built and saved when missing) and a query by
       example of each kind of hit.
     - Database page: a clip's relational features (its row click draws them).
+    - Describe page: a shipped scene description found through the 2005 indexes (the ranking kernel loaded).
 
     The small queries use a few frames of the longest document; their results are not kept. A step the database
     cannot run (a :class:`~mocapviz.errors.MocapvizError`) is skipped. Returns the seconds of each step (logged at INFO
     level).
     """
     from ..relational.query import query_by_example
+    from ..relational.scene import find
     from .pages import relational, similarity
 
     docs = backend.documents
@@ -146,6 +160,7 @@ def warm_up(backend: Backend) -> dict[str, float]:
     step("lng", lng)
     step("relational", relational_query)
     step("row_click", lambda: backend.clip_relational(doc))
+    step("describe", lambda: find(db, "kick_right", n_matches=1, indexes=backend.indexes("2005")))
     LOG.info("warmed up in %.1f s (%s)", sum(seconds.values()),
              ", ".join(f"{name} {s:.1f} s" for name, s in seconds.items()))
     return seconds

@@ -13,7 +13,7 @@ import panel as pn
 HIT_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "label": "label", "start": "start frame",
               "end": "end frame (excl.)", "frames": "frames", "start_s": "start (s)", "end_s": "end (s)",
               "distance": "distance", "score": "score", "cost": "cost", "normalised_cost": "normalised cost",
-              "cost_per_frame": "cost / frame", "n_segments": "segments"}  # fmt: skip
+              "cost_per_frame": "cost / frame", "n_segments": "segments", "parts": "parts"}  # fmt: skip
 
 
 def hit_titles(*columns: str) -> dict:
