@@ -450,9 +450,15 @@ def _match(args) -> None:
     name = args.numeric_set
     X = load_numeric(db, name)  # a clear error naming `mocapviz features DB` when the set is not stored
     example = _example(db, args.example)
-    table = match_motion(db, example, args.frames, name, args.method, args.n_matches, k, args.radius, eps,
-                         exclude_document=isinstance(example, int), paths=args.paths, features=X,
-                         option="--frames")  # fmt: skip
+    with _sharded(args, db) as sharded:
+        if sharded is None:
+            table = match_motion(db, example, args.frames, name, args.method, args.n_matches, k, args.radius, eps,
+                                 exclude_document=isinstance(example, int), paths=args.paths, features=X,
+                                 option="--frames")  # fmt: skip
+        else:
+            table = sharded.match_motion(example, args.frames, name, args.method, args.n_matches,
+                                         None if args.method == "dtw" else k, args.radius, eps,
+                                         exclude_document=isinstance(example, int), paths=args.paths)  # fmt: skip
     what = "subsequence DTW" if args.method == "dtw" else f"lazy neighbourhood graph, k={k}" + (
         f", r={args.radius:g}" if args.radius else "")  # fmt: skip
     own = isinstance(example, int)
@@ -802,6 +808,7 @@ def build_parser() -> argparse.ArgumentParser:
     mt.add_argument("--paths", action="store_true", help="also print each match's alignment (query frame:document "
                     "frame pairs)")  # fmt: skip
     mt.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
+    _search_scheduler(mt)
     mt.set_defaults(func=_match)
 
     se = sub.add_parser("search", help="the clips (or stretches of long takes) of the DB that move most like an "

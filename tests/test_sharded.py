@@ -81,6 +81,20 @@ def test_similarity_search_is_exactly_the_single_process_answer(hdm05, sharded):
              sharded.stretches(doc, (0, 20), n_matches=6, mode="exact"), "cost")  # fmt: skip
 
 
+def test_motion_matching_is_exactly_the_single_process_answer(hdm05, sharded):
+    """The lazy neighbourhood graph on the shards' merged neighbours, subsequence DTW on every shard."""
+    from mocapviz.similarity.motion_matching import match_motion
+
+    db = hdm05[0]
+    for doc in (3, 77, 150):
+        for method, options in (("lng", {"k": 64}), ("dtw", {})):
+            for exclude in (False, True):
+                one = match_motion(db, doc, (0, 20), method=method, n_matches=6, exclude_document=exclude, **options)
+                many = sharded.match_motion(doc, (0, 20), method=method, n_matches=6, exclude_document=exclude,
+                                            **options)  # fmt: skip
+                same(one, many, "cost")
+
+
 def test_knn_is_exactly_the_single_process_answer(hdm05, sharded):
     db = hdm05[0]
     features = numeric_of(db, "F15E")

@@ -205,6 +205,26 @@ class ShardedDB:
                            exclude_document=exclude_document, paths=paths)  # fmt: skip
         return self._merged(tables, ["cost", "_last"], n_matches, t0)
 
+    def match_motion(self, example, frames=None, numeric_set: str = "F15E", method: str = "lng", n_matches: int = 10,
+                     k: int | None = None, radius: float | None = None, eps: float = 0.0,
+                     exclude_document: bool = False, paths: bool = False) -> pd.DataFrame:  # fmt: skip
+        """:func:`mocapviz.similarity.motion_matching.match_motion` over the cluster. ``method="lng"``: the k nearest
+        neighbours of every query frame come from every shard and are merged (:meth:`knn`), the graph is built
+        here; ``"dtw"``: subsequence DTW on every shard, matches merged by cost, then by their last frame."""
+        from ..similarity.motion_matching import DEFAULT_K, match_motion
+
+        if method == "dtw":
+            query = self._query(example, frames, numeric_set)
+            n_matches = count(n_matches, "n_matches")
+            t0 = time.perf_counter()
+            tables = self._fan("match_dtw", numeric_set, query, n_matches, exclude_document, paths)
+            table = self._merged(tables, ["cost", "_last"], n_matches, t0)
+            table.attrs.update(method="dtw", query_frames=len(query.values))
+            return table
+        return match_motion(self.db, example, frames, numeric_set, method, n_matches, DEFAULT_K if k is None else k,
+                            radius, eps, exclude_document, paths, features=self.features(numeric_set),
+                            index=_ShardedIndex(self, numeric_set))  # fmt: skip
+
     def query_by_example(self, example, features=None, mode: str = "adaptive", mismatches: int = 1,
                          relational_set: str = "2005", allowed=None) -> pd.DataFrame:  # fmt: skip
         """:func:`mocapviz.relational.query.query_by_example` over every shard (each with its own inverted indexes):
@@ -270,6 +290,19 @@ class ShardedDB:
         merged.attrs.update({k: v for k, v in tables[0].attrs.items() if isinstance(v, (str, int, float))})
         merged.attrs.update(shards=len(self.shards), ms=1e3 * (time.perf_counter() - t0))
         return merged
+
+
+class _ShardedIndex:
+    """What the lazy neighbourhood graph asks of a kd-tree (:class:`mocapviz.similarity.knn.KnnIndex`), answered by
+    the shards: the k nearest database frames of each query frame, merged (:meth:`ShardedDB.knn`)."""
+
+    def __init__(self, sharded: ShardedDB, numeric_set: str):
+        self.sharded, self.numeric_set = sharded, numeric_set
+        self.n_frames, self.dim = sharded.features(numeric_set).shape
+        self.n_indexed = self.n_frames
+
+    def query(self, x, k: int, radius=None, eps: float = 0.0, threads=None, exclude=None):
+        return self.sharded.knn(x, k, self.numeric_set, radius, eps, exclude)
 
 
 def _why(exc: Exception) -> str:

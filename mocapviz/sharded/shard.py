@@ -117,6 +117,15 @@ class Shard:
         """:meth:`SimilaritySearch.stretches` on the shard."""
         return self.search(numeric_set).stretches(query, **options)
 
+    def match_dtw(self, numeric_set: str, query, n_matches: int, exclude_document: bool, paths: bool):
+        """:func:`~mocapviz.similarity.motion_matching.match_motion` by subsequence DTW on the shard (the query's own
+        document left out when it is one of the shard's)."""
+        from ..similarity.motion_matching import match_motion
+
+        own = exclude_document and query.doc_id is not None and query.doc_id in self.doc_ids
+        return match_motion(self.view, query, numeric_set=numeric_set, method="dtw", n_matches=n_matches,
+                            exclude_document=own, paths=paths, features=self.numeric(numeric_set))  # fmt: skip
+
     def query_by_example(self, example, features, relational_set: str = "2005", **options):
         """:func:`~mocapviz.relational.query.query_by_example` on the shard; None when the example is longer than
         every document of the shard (nothing can match here)."""
