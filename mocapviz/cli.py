@@ -889,6 +889,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "loopback: an address browsers open the dashboard at, e.g. myhost.example.org:5006 (repeatable; "
                     "only pages from these may use its WebSocket, never '*')")
     sv.add_argument("--show", action="store_true", help="open the dashboard in a web browser")
+    _search_scheduler(sv)
     sv.set_defaults(func=_serve)
 
     ds = sub.add_parser("datasets", help="list the registered motion-capture datasets (the shared archives and the "
@@ -909,7 +910,8 @@ def _serve(args) -> None:
     MotionDB.open(db)  # a bad path fails before the server starts
     print(f"mocapviz: serving {db} on http://{args.address}:{args.port}/ (Ctrl-C stops)", flush=True)
     with contextlib.suppress(KeyboardInterrupt):
-        serve(db, port=args.port, address=args.address, show=args.show, allow_origin=args.allow_origin)
+        serve(db, port=args.port, address=args.address, show=args.show, allow_origin=args.allow_origin,
+              scheduler=args.scheduler)
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:

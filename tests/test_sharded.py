@@ -202,3 +202,58 @@ def test_a_real_cluster_and_a_killed_worker(hdm05, real_cluster):
         procs[2].wait()
         with pytest.raises(ClusterError, match="no worker is left|failed twice"):
             sharded.clips(40, n_matches=6, mode="exact")
+
+
+# ================================================================================================ the dashboard
+def test_the_dashboards_searches_through_the_cluster(sample_db, tmp_path):
+    """A Backend with a scheduler answers every page's search as the one without (mocapviz serve --scheduler)."""
+    from mocapviz.app.backend import Backend
+    from mocapviz.app.pages import describe, similarity, templates
+
+    db = MotionDB.ingest(sample_db.documents["path"].tolist(), tmp_path / "db", progress=False)
+    build(db, progress=False)
+    local = Backend(db)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        remote = Backend(db, scheduler="local")
+    try:
+        for fn, args in ((similarity.nearest_frames, ("F15E", 7, 30, 8, True)),
+                         (similarity.match_span, ("F15E", 7, (10, 60), 64, 4, True)),
+                         (similarity.search_span, ("F15E", 7, (10, 60), "clips", "exact", 4, False)),
+                         (similarity.search_span, ("F15E", 7, (10, 60), "stretches", "exact", 4, True)),
+                         (describe.search, ("kick_left", "2005", 5))):  # fmt: skip
+            same(fn(local, *args), fn(remote, *args))
+        example = db.motion(7)[0:60]
+        same(local.query_by_example(example, ["lfoot_raised", "lknee_bent"], "adaptive", 0, "2005"),
+             remote.query_by_example(example, ["lfoot_raised", "lknee_bent"], "adaptive", 0, "2005"), "score")
+        template = learn_class(db, "squat1Reps")
+        same(templates.search_template(local, template, 0.1, 5, None),
+             templates.search_template(remote, template, 0.1, 5, None), "cost")
+    finally:
+        remote.sharded.close()
+
+
+def test_serve_with_a_scheduler_answers_http(sample_db, tmp_path):
+    import urllib.request
+
+    port = _free_port()
+    env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+    proc = subprocess.Popen([sys.executable, "-m", "mocapviz.cli", "serve", str(sample_db.path), "--port", str(port),
+                             "--scheduler", "local"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env)  # fmt: skip
+    try:
+        for _ in range(300):
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=5) as answer:
+                    assert answer.status == 200 and b"mocapviz" in answer.read()
+                    break
+            except OSError:
+                assert proc.poll() is None, proc.stdout.read().decode()[-2000:]
+                time.sleep(1)
+        else:
+            raise AssertionError("the dashboard did not answer within 300 s")
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()

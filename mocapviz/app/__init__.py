@@ -62,12 +62,12 @@ def _pages():
             ("Index statistics", statistics.StatisticsPage), ("Reconstruction", reconstruction.ReconstructionPage)]
 
 
-def dashboard(db_path) -> pn.viewable.Viewable:
+def dashboard(db_path, scheduler=None) -> pn.viewable.Viewable:
     """One session's dashboard over the MotionDB at ``db_path``: a header and one tab per page.
 
     Pages are built when their tab is first opened (the first page at once), so the first page shows quickly.
     """
-    backend = Backend.open(db_path)
+    backend = Backend.open(db_path, scheduler)
     selection = Selection(doc=int(backend.documents["doc_id"].iloc[0]))
     pages = _pages()
     built: dict[int, object] = {}
@@ -225,14 +225,16 @@ def websocket_origins(address: str, port: int, allow_origin=()) -> list[str]:
 
 
 def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, threaded: bool = False,
-          allow_origin=()):
+          allow_origin=(), scheduler=None):
     """Serve the dashboard of the MotionDB at ``db_path`` on http://address:port/ until interrupted.
 
     The database is opened (and checked), one dashboard built and :func:`warm_up` run before the server starts, so
     a bad path fails at once, the first page comes quickly and the first search, kNN, matching and relational query
     answer in about a second. Any address other than loopback (127.0.0.1, localhost, ::1) exposes the
     database to the network: ``allow_origin`` must then list the origins (``HOST:PORT``) users open it at (see
-    :func:`websocket_origins`), and a warning says who can reach it.
+    :func:`websocket_origins`), and a warning says who can reach it. With ``scheduler`` (a Dask scheduler's address,
+    or "local") every session's searches run sharded on that cluster (:class:`mocapviz.sharded.ShardedDB`, one for
+    the server), with the same answers.
 
     Raises
     ------
@@ -242,9 +244,11 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, t
         Not loopback and no ``allow_origin``, or a malformed origin (:func:`websocket_origins`).
     """
     origins = websocket_origins(address, port, allow_origin)
-    dashboard(db_path)  # once before listening: the first visitor then finds numba kernels, the EGL context,
+    dashboard(db_path, scheduler)  # once before listening: the first visitor then finds numba kernels, the EGL
+    # context,
     # HoloViews' option trees and the first clip's features ready
-    warm_up(Backend.open(db_path))  # and the first search, kNN, matching and relational query answer at once
+    warm_up(Backend.open(db_path, scheduler))  # and the first search, kNN, matching and relational query answer at
+    # once
     # bokehjs sends a model it received from the server in full with the first message it sends after receiving it,
     # e.g. a button of a page just opened, clicked before anything else changed on the page; the server then warns
     # that it knows the model already, and goes on with the one it has: harmless, and nothing a page can change
@@ -254,7 +258,8 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, t
                       f"{db_path} (pages of {', '.join(origins)} may use it)", UserWarning, stacklevel=2)
     pn.extension("tabulator", notifications=False)
     path = Path(db_path)
-    return pn.serve({"/": lambda: dashboard(path)}, port=port, address=address, show=show, threaded=threaded,
+    return pn.serve({"/": lambda: dashboard(path, scheduler)}, port=port, address=address, show=show,
+                    threaded=threaded,
                     websocket_origin=origins, title=f"{TITLE} · {path.name}")
 
 

@@ -35,8 +35,14 @@ class Backend:
         :meth:`fps_of` that document.
     """
 
-    def __init__(self, db: MotionDB):
+    def __init__(self, db: MotionDB, scheduler=None):
         self.db = db
+        self.scheduler = scheduler
+        self.sharded = None
+        if scheduler is not None:  # every search asked of the cluster's shards (mocapviz.sharded)
+            from ..sharded import ShardedDB
+
+            self.sharded = ShardedDB(db, scheduler)
         self.documents = db.documents
         self.fps = db.typical_fps
         self._results: dict = {}
@@ -48,8 +54,9 @@ class Backend:
         return float(self.db.document(doc_id)["fps"])
 
     @classmethod
-    def open(cls, path) -> Backend:
-        """The Backend of the MotionDB at ``path`` (one per database path and generation, shared).
+    def open(cls, path, scheduler=None) -> Backend:
+        """The Backend of the MotionDB at ``path`` (one per database path, generation and scheduler, shared); with a
+        ``scheduler`` (a Dask scheduler's address, or "local") its searches run sharded on that cluster.
 
         Raises
         ------
@@ -59,10 +66,10 @@ class Backend:
         db = MotionDB.open(path)
         if len(db) == 0:
             raise MotionDBError(f"{path}: the database holds no documents; ingest some first (`mocapviz ingest`)")
-        key = (str(Path(path).resolve()), db.manifest.get("generation"))
+        key = (str(Path(path).resolve()), db.manifest.get("generation"), scheduler)
         with _OPEN_LOCK:
             if key not in _BACKENDS:
-                _BACKENDS[key] = cls(db)
+                _BACKENDS[key] = cls(db, scheduler)
             return _BACKENDS[key]
 
     def cached(self, key, compute):
@@ -96,16 +103,51 @@ class Backend:
 
     def knn(self, name: str) -> KnnIndex:
         """The kd-tree over a numeric set (Krüger et al. 2010 §3.3): the one of this process, shared by the kNN
-        table, motion matching and :meth:`search`."""
+        table, motion matching and :meth:`search` (sharded: one that asks the cluster's shards)."""
+        if self.sharded is not None:
+            return self.cached(("knn", name), lambda: self.sharded.knn_index(name))
         return self.cached(("knn", name), lambda: KnnIndex(self.numeric(name)))
 
     def search(self, name: str = "F15E"):
         """The DTW search over a numeric set (:class:`mocapviz.similarity.search.SimilaritySearch`), one per set,
-        over :meth:`numeric`'s features and :meth:`knn`'s kd-tree (its coarse database is built on first use)."""
+        over :meth:`numeric`'s features and :meth:`knn`'s kd-tree (its coarse database is built on first use);
+        sharded: its ``clips`` and ``stretches`` asked of the cluster's shards."""
         from ..similarity.search import SimilaritySearch
 
+        if self.sharded is not None:
+            return self.cached(("search", name), lambda: self.sharded.search(name))
         return self.cached(("search", name), lambda: SimilaritySearch(self.db, name, features=self.numeric(name),
                                                                      index=self.knn(name)))
+
+    # ------------------------------------------------------------------ searches the pages ask
+    def query_by_example(self, example, features, mode: str, mismatches: int, relational_set: str):
+        """:func:`mocapviz.relational.query.query_by_example` with this Backend's indexes, or of the shards."""
+        if self.sharded is not None:
+            return self.sharded.query_by_example(example, features, mode, mismatches, relational_set)
+        from ..relational.query import query_by_example
+
+        return query_by_example(self.db, example, features, mode, mismatches, relational_set,
+                                self.indexes(relational_set))  # fmt: skip
+
+    def find(self, text: str, n_matches: int | None, relational_set: str, values=None):
+        """:func:`mocapviz.relational.scene.find` with this Backend's indexes (and relational ``values`` for
+        template atoms), or of the shards."""
+        if self.sharded is not None:
+            return self.sharded.find(text, n_matches=n_matches, relational_set=relational_set)
+        from ..relational.scene import find
+
+        return find(self.db, text, n_matches=n_matches, relational_set=relational_set,
+                    indexes=self.indexes(relational_set), values=values)  # fmt: skip
+
+    def search_template(self, template, n_matches: int, delta: float, max_cost, values=None):
+        """:func:`mocapviz.relational.templates.search_template` over ``values`` (the template's set), or of the
+        shards."""
+        if self.sharded is not None:
+            return self.sharded.search_template(template, n_matches=n_matches, delta=delta, max_cost=max_cost)
+        from ..relational.templates import search_template
+
+        return search_template(self.db, template, n_matches=n_matches, delta=delta, max_cost=max_cost,
+                               values=values)  # fmt: skip
 
     def retrieval(self, methods, label_column: str = "label", group_column=None, n_queries: int | None = None,
                   seed: int = 0) -> dict:  # fmt: skip

@@ -105,7 +105,7 @@ class ShardedDB:
         for actor in self.actors:
             try:
                 calls.append(getattr(actor, method)(*args, **kwargs))
-            except Exception as lost:  # the worker holding the shard is known to be gone
+            except Exception as lost:  # noqa: BLE001 - the worker holding the shard is known to be gone
                 calls.append(lost)
         results = []
         for i, call in enumerate(calls):
@@ -115,7 +115,7 @@ class ShardedDB:
                 results.append(call.result())
             except MocapvizError:
                 raise
-            except Exception as first:  # the worker or its connection is gone
+            except Exception as first:  # noqa: BLE001 - the worker or its connection is gone (many types)
                 results.append(self._again(i, method, args, kwargs, first))
         return results
 
@@ -129,7 +129,7 @@ class ShardedDB:
             return getattr(self.actors[i], method)(*args, **kwargs).result()
         except MocapvizError:
             raise
-        except Exception as second:
+        except Exception as second:  # noqa: BLE001 - as above
             raise ClusterError(f"shard {i + 1} of {len(self.shards)} failed twice ({_why(first)}; then {_why(second)}); "
                                "no answer") from None  # fmt: skip
 
@@ -145,6 +145,16 @@ class ShardedDB:
         from ..similarity.search import example_features
 
         return example_features(self.db, self.features(numeric_set), example, frames, numeric_set)
+
+    def knn_index(self, numeric_set: str = "F15E"):
+        """A stand-in for a :class:`~mocapviz.similarity.knn.KnnIndex` of a numeric set whose ``query`` asks every
+        shard (what the lazy neighbourhood graph and the dashboard's kNN table use)."""
+        return _ShardedIndex(self, numeric_set)
+
+    def search(self, numeric_set: str = "F15E"):
+        """A stand-in for a :class:`~mocapviz.similarity.search.SimilaritySearch` of a numeric set: its ``clips`` and
+        ``stretches`` ask every shard."""
+        return _ShardedSearch(self, numeric_set)
 
     # ------------------------------------------------------------------ searches
     def knn(self, queries, k: int, numeric_set: str = "F15E", radius: float | None = None, eps: float = 0.0,
@@ -287,6 +297,8 @@ class ShardedDB:
         columns = {c: table[c].to_numpy()[rows] for c in table.columns if c not in own}
         merged = hit_table(self.db, table["doc_id"].to_numpy()[rows], table["start"].to_numpy()[rows],
                            table["end"].to_numpy()[rows], **columns)  # fmt: skip
+        if set(merged.columns) == set(table.columns):
+            merged = merged[list(table.columns)]  # the shards' column order (a path after the labels)
         merged.attrs.update({k: v for k, v in tables[0].attrs.items() if isinstance(v, (str, int, float))})
         merged.attrs.update(shards=len(self.shards), ms=1e3 * (time.perf_counter() - t0))
         return merged
@@ -302,7 +314,21 @@ class _ShardedIndex:
         self.n_indexed = self.n_frames
 
     def query(self, x, k: int, radius=None, eps: float = 0.0, threads=None, exclude=None):
-        return self.sharded.knn(x, k, self.numeric_set, radius, eps, exclude)
+        distances, frames = self.sharded.knn(x, k, self.numeric_set, radius, eps, exclude)
+        return (distances[0], frames[0]) if np.ndim(x) == 1 else (distances, frames)
+
+
+class _ShardedSearch:
+    """``clips`` and ``stretches`` of :class:`~mocapviz.similarity.search.SimilaritySearch`, asked of the shards."""
+
+    def __init__(self, sharded: ShardedDB, numeric_set: str):
+        self.sharded, self.numeric_set = sharded, numeric_set
+
+    def clips(self, example, frames=None, **options) -> pd.DataFrame:
+        return self.sharded.clips(example, frames, numeric_set=self.numeric_set, **options)
+
+    def stretches(self, example, frames=None, **options) -> pd.DataFrame:
+        return self.sharded.stretches(example, frames, numeric_set=self.numeric_set, **options)
 
 
 def _why(exc: Exception) -> str:

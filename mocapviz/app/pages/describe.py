@@ -287,7 +287,6 @@ def search(backend, text: str, relational_set: str, n_matches: int) -> pd.DataFr
     -------
     pandas.DataFrame, the hit table of ``find`` (its ``attrs`` too: ``empty_reason``, ``counts``, ...).
     """
-    from ...relational.scene import find
 
     relational_set = one_of(str(relational_set), "relational set", RELATIONAL_SETS)
     n_matches = count(n_matches, "K")
@@ -295,9 +294,8 @@ def search(backend, text: str, relational_set: str, n_matches: int) -> pd.DataFr
     key = ("describe.find", relational_set, str(text), n_matches, stamps)
 
     def compute() -> pd.DataFrame:
-        values = database_features(backend, relational_set)[0] if stamps else None
-        return find(backend.db, text, n_matches=n_matches, relational_set=relational_set,
-                    indexes=backend.indexes(relational_set), values=values)  # fmt: skip
+        values = database_features(backend, relational_set)[0] if stamps and backend.sharded is None else None
+        return backend.find(text, n_matches, relational_set, values)
 
     return backend.cached(key, compute)
 

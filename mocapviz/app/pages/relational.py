@@ -19,7 +19,7 @@ import panel as pn
 
 from ...db.hits import database_frames
 from ...features import feature_groups, relational_features
-from ...relational.query import query_by_example, query_segmentation
+from ...relational.query import query_segmentation
 from ...viz.query import precision_recall, precision_recall_plot
 from ..player import SkeletonPlayer
 from ..progress import Task
@@ -192,9 +192,8 @@ class RelationalPage(pn.viewable.Viewer):
                q["mismatches"] if q["mode"] == "mismatch" else 0)
         start, end = q["span"]
         db = self.backend.db
-        return self.backend.cached(key, lambda: query_by_example(
-            db, db.motion(q["doc"])[start:end], q["features"], q["mode"], q["mismatches"], RELATIONAL_SET,
-            self.backend.indexes(RELATIONAL_SET)))
+        return self.backend.cached(key, lambda: self.backend.query_by_example(
+            db.motion(q["doc"])[start:end], q["features"], q["mode"], q["mismatches"], RELATIONAL_SET))
 
     async def _on_run(self, event=None) -> None:
         q = self.query()

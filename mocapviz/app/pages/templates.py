@@ -20,7 +20,6 @@ from ...db.hits import database_frames
 from ...features import relational_features
 from ...match import dtw
 from ...relational.templates import DELTA, DONT_CARE, MotionTemplate, learn_class, template_distance
-from ...relational.templates import search_template as find_template
 from ...validation import count, number, one_of
 from ...viz.templates import template_image
 from ..player import SkeletonPlayer
@@ -113,8 +112,9 @@ def search_template(backend, template: MotionTemplate, delta: float, n_matches: 
     n_matches = count(n_matches, "K", 1, MAX_MATCHES)
     if max_cost is not None:
         max_cost = number(max_cost, "the max cost (a mean mismatch per frame)", 0.0, 1.0)
-    values, _ = database_features(backend, template.meta.get("relational_set", "2006"))
-    return find_template(backend.db, template, n_matches=n_matches, delta=delta, max_cost=max_cost, values=values)
+    values = None if backend.sharded is not None else database_features(backend, template.meta.get(
+        "relational_set", "2006"))[0]
+    return backend.search_template(template, n_matches, delta, max_cost, values)
 
 
 def learn_and_search(backend, label: str, actors, relational_set: str, delta: float, n_matches: int,
