@@ -14,6 +14,8 @@ from mocapviz.errors import ParameterError
 from mocapviz.experiments.descriptions import (
     CMU_TAKES,
     clip_quality,
+    cmu_sequence_quality,
+    cmu_sequence_streams,
     composite_quality,
     composite_streams,
     composite_truth,
@@ -163,17 +165,19 @@ def test_hdm05_fire_rates_elsewhere(hdm05_quality):
 
 def test_sides_on_bandai(bandai1_dir, tmp_path):
     """The one Bandai kick clip kicks with the right foot, punch 001 punches with the left hand, 002 with the right
-    (seen in their feature runs): the kick and the left punch fire on their own clip, not the other side's. (The
-    right punch misses clip 002 at 30 Hz: its hand speed flickers within the drive; measured, not asserted.)"""
+    (seen in their feature runs): the kick fires on its own clip, not the other side's. The punches fire on no
+    Bandai punch clip and at most 3 % of the other clips (measured, shipped library): both clips keep the hand above
+    the neck from their start, and a progression needs the state to change (issue 25's report)."""
     db = MotionDB.ingest([bandai1_dir], tmp_path / "db", progress=False)
     q = clip_quality(db, ["kick_right", "kick_left", "punch_right", "punch_left"])
     fired = q["fired"]
     names = {d: set(fired.loc[fired["description"] == d, "name"]) for d in q["per_description"]["description"]}
     assert "dataset-1_kick_normal_001" in names["kick_right"] and "dataset-1_kick_normal_001" not in names["kick_left"]
-    assert "dataset-1_punch_normal_001" in names["punch_left"]
+    assert "dataset-1_punch_normal_002" not in names["punch_left"]  # never the other side's clip
     assert "dataset-1_punch_normal_001" not in names["punch_right"]
     per = q["per_description"].set_index("description")
-    assert per.loc["punch_left", "clips"] == 1 and per.loc["punch_left", "recall"] == 1.0
+    assert per.loc["punch_left", "clips"] == 1 and per.loc["punch_right", "clips"] == 1
+    assert (per.loc[["punch_left", "punch_right"], "fire_rate_other"] <= 0.05).all()
     assert per.loc["kick_right", "recall"] == 1.0 and per.loc["kick_left", "tp"] == 0
 
 
@@ -219,6 +223,9 @@ def test_event_quality_on_cmu(cmu_120):
     # measured with the shipped library: kick_right 1.00 / 0.86 (6 of 7 right kicks), kick_left 1.00 / 1.00
     assert s.loc["kick_right", "precision"] >= 0.8 and s.loc["kick_right", "recall"] >= 0.7
     assert s.loc["kick_left", "precision"] >= 0.8 and s.loc["kick_left", "recall"] >= 0.8
+    # the punches (issue 25): left 0.50 / 0.80, right 0.83 / 0.77 in the annotated takes; before, 0.38 / 0.60 and
+    # 0.50 / 0.46
+    assert s.loc["punch_left", "f1"] >= 0.55 and s.loc["punch_right", "f1"] >= 0.7
     assert set(res["hits"]["doc_id"]) <= set(table["doc_id"]) | set(
         cmu_120.documents.loc[cmu_120.documents["name"].isin(CMU_TAKES), "doc_id"])
 
@@ -234,3 +241,61 @@ def test_read_annotations_rejects_bad_rows(tmp_path, cmu_120):
     bad.write_text("file,event,start,end\n135_02.amc,kick,0,10\n")
     with pytest.raises(ParameterError, match="side"):
         read_annotations(bad)
+
+
+# ================================================================================================ CMU sequence streams
+def test_cmu_sequence_streams_are_the_annotated_motion(cmu_120):
+    """Derived documents: every kick and punch cut with its margin is its take's motion, translated on the floor,
+    outside the blends; the events keep their frames; the units are apart by more than 2 s, so "kick then punch"
+    has one true event per kick-punch unit and none in the punch-kick and single streams."""
+    table = read_annotations(_annotation(), cmu_120)
+    motions, metas, parts = cmu_sequence_streams(cmu_120, table, margin_s=0.75, blend_s=0.1)
+    blend, fps = 12, 120.0
+    kinds = {m["kind"] for m in metas}
+    assert kinds == {"kick_punch", "punch_kick", "single"}
+    assert all(m["derived"].startswith("cut and concatenated CMU 135") and m["label"] == "derived" for m in metas)
+    by_name = cmu_120.documents.set_index("name")
+    events = parts[parts["role"] != "filler"]
+    # the two right punches of 135_02 that overlap an uncertain left thrust are left out; all certain rows else
+    assert set(events.loc[events["kind"] == "single", "row"]) == set(table.index[table["certain"] == 1]) - {4, 6}
+    for k, motion in enumerate(motions):
+        mine = parts[parts["stream"] == k].sort_values("order")
+        assert motion.n_frames == (mine["end"] - mine["start"]).sum() - blend * (len(mine) - 1)
+        for _, clip in mine.iterrows():
+            source = np.asarray(cmu_120.motion(int(by_name.loc[clip["take"], "doc_id"])).positions)
+            source = source[clip["cut_start"] : clip["cut_end"]]
+            inner = motion.positions[clip["start"] + blend : clip["end"] - blend]
+            shift = inner - source[blend : len(source) - blend]
+            assert np.allclose(shift[..., 1], 0, atol=1e-3) and np.allclose(shift, shift[0, 0], atol=1e-2)
+            if clip["role"] != "filler":  # the event's frames, frame-exact, away from the blends
+                row = table.loc[clip["row"]]
+                assert clip["event_start"] - clip["start"] == row["start"] - clip["cut_start"] >= blend
+                assert clip["end"] - clip["event_end"] == clip["cut_end"] - row["end"] >= blend
+                assert 0 < row["start"] - clip["cut_start"] <= 90 and 0 < clip["cut_end"] - row["end"] <= 90
+            else:
+                assert clip["take"] in {"135_03", "135_05", "135_10"} and clip["end"] - clip["start"] == 300
+    events = events.rename(columns={"role": "event"})
+    events = events.assign(doc_id=events["stream"], start=events["event_start"], end=events["event_end"])
+    truth = sequence_events(events, {"event": "kick"}, {"event": "punch"}, 2.0, fps)
+    assert len(truth) == 14 and set(events.loc[truth["first_row"], "kind"]) == {"kick_punch"}
+    right_left = sequence_events(events, {"event": "kick", "side": "right"}, {"event": "punch", "side": "left"},
+                                 2.0, fps)  # fmt: skip
+    assert len(right_left) == 7
+    assert len(sequence_events(events, {"event": "punch"}, {"event": "kick"}, 2.0, fps)) == 14  # the punch-kick units
+
+
+def test_cmu_sequence_quality(cmu_120):
+    """kick then punch on the derived CMU streams (measured, shipped library: kick_right then punch_left P 1.00
+    R 0.57, 4 of 7; (kick_left | kick_right) then (punch_left | punch_right) P 0.58 R 0.79, 11 of 14; no hit of
+    kick_right then punch_left in the punch-kick and single streams). Issue 25's target, recall >= 0.9 at precision
+    >= 0.8, is not reached; the bars pin today's numbers."""
+    res = cmu_sequence_quality(cmu_120, read_annotations(_annotation(), cmu_120))
+    s = res["summary"].set_index("query")
+    rl, any_ = s.loc["kick_right then punch_left within 2 s"], s.loc["kick then punch within 2 s"]
+    assert rl["events"] == 7 and any_["events"] == 14
+    assert rl["precision"] >= 0.8 and rl["recall"] >= 0.5, rl.to_dict()
+    assert any_["precision"] >= 0.5 and any_["recall"] >= 0.7, any_.to_dict()
+    assert rl["hits_punch_kick"] == 0 and rl["hits_single"] == 0
+    assert (s["tp_both"] <= s["tp"]).all()
+    per = res["per_kind"]
+    assert per.loc[per["kind"] != "kick_punch", "tp"].sum() == 0  # no truth outside the kick-punch streams

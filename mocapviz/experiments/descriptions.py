@@ -11,7 +11,11 @@ Three measurements of :func:`mocapviz.relational.scene.find`, each against a dif
 - **composite streams** (:func:`composite_streams`, :func:`composite_quality`): documents made by concatenating real
   HDM05 cut clips of different classes in a known order (derived data: each next clip translated on the floor to
   continue where the previous ended, a short linear blend between them), searched with ``template:A then template:B
-  within T s`` where the templates are learned from *other* actors, and the reversed order.
+  within T s`` where the templates are learned from *other* actors, and the reversed order;
+- **derived CMU streams** (:func:`cmu_sequence_streams`, :func:`cmu_sequence_quality`): the annotated takes hold no
+  kick followed by a punch, so every annotated kick and punch is cut from its take with a margin of its own motion
+  and the cuts are concatenated kick-punch, punch-kick and alone (derived documents, cut and concatenated), for
+  ``kick_right then punch_left within 2 s`` with a frame-exact truth.
 
 clip_quality        db, descriptions -> per-description precision / recall / fire rates on labelled cut clips.
 match_events        hits, events -> greedy one-to-one matching of hits to annotated intervals.
@@ -20,6 +24,9 @@ read_annotations    the hand annotation CSV (file, event, side, start, end, cert
 sequence_events     annotated events -> "X followed by Y within T s" events (the truth of a sequence query).
 composite_streams   a labelled MotionDB -> concatenated derived streams (motions, metas, truth).
 composite_quality   templates of other actors, "A then B" on the streams -> F1, and the hits of "B then A".
+cmu_sequence_streams  the annotated CMU kicks and punches cut with margins -> derived kick-punch / punch-kick / single
+                    streams with frame-exact events.
+cmu_sequence_quality  "kick then punch within 2 s" on those derived streams -> precision, recall, F1.
 
 References
 ----------
@@ -40,8 +47,9 @@ import pandas as pd
 from ..errors import ParameterError
 from ..validation import number
 
-__all__ = ["CMU_TAKES", "SIDES", "TARGETS", "clip_quality", "composite_quality", "composite_streams", "event_quality",
-           "match_events", "read_annotations", "sequence_events"]
+__all__ = ["CMU_SEQUENCE_QUERIES", "CMU_TAKES", "SIDES", "TARGETS", "clip_quality", "cmu_sequence_quality",
+           "cmu_sequence_streams", "composite_quality", "composite_streams", "event_quality", "match_events",
+           "read_annotations", "sequence_events"]
 
 # description -> the labels (HDM05 ``class``, Bandai Namco 1 ``content``) of the cut clips it should fire on; a
 # description missing here has no labelled class in the shared data (its fire rate is reported, nothing else)
@@ -721,3 +729,282 @@ def composite_quality(db, pairs=PAIRS, within: float = 2.0, template_cost: float
                                                       blend_s=metas[0]["blend_s"])  # fmt: skip
     return {"per_stream": per_stream, "per_pair": per_pair, "summary": summary, "parts": parts,
             "hits": pd.concat(all_hits, ignore_index=True)}
+
+
+# ================================================================================================ CMU sequence streams
+# the sequence queries measured on the derived CMU streams: name -> (description, first events, second events)
+CMU_SEQUENCE_QUERIES = {
+    "kick_right then punch_left within 2 s": ("kick_right then punch_left within 2 s",
+                                              {"event": "kick", "side": "right"}, {"event": "punch", "side": "left"}),
+    "kick then punch within 2 s": ("(kick_left | kick_right) then (punch_left | punch_right) within 2 s",
+                                   {"event": "kick"}, {"event": "punch"}),
+}  # fmt: skip
+CMU_SEQUENCE_DERIVED = "cut and concatenated CMU 135 takes (annotated kicks and punches with margins, fillers)"
+
+
+def _event_cuts(annotations: pd.DataFrame, n_frames: dict, margin: int, blend: int) -> pd.DataFrame:
+    """One window per certain annotated event: the event with up to ``margin`` frames of its own take either side,
+    shortened so that no other annotated event (certain or not) is inside or cut; events that overlap another
+    one, or whose window leaves fewer than ``blend`` frames on a side (the blend would touch the event), are left
+    out."""
+    sure = (annotations["certain"].astype(str).str.lower().isin(["1", "true", "yes", "y"])
+            if "certain" in annotations.columns else pd.Series(True, index=annotations.index))  # fmt: skip
+    rows = []
+    for label, ev in annotations[sure].iterrows():
+        same = annotations[(annotations["doc_id"] == ev["doc_id"]) & (annotations.index != label)]
+        if ((same["start"] < ev["end"]) & (same["end"] > ev["start"])).any():
+            continue
+        before = same.loc[same["end"] <= ev["start"], "end"].to_numpy()
+        after = same.loc[same["start"] >= ev["end"], "start"].to_numpy()
+        lo = max(0, int(ev["start"]) - margin, int(before.max(initial=0)))
+        hi = min(int(n_frames[ev["doc_id"]]), int(ev["end"]) + margin, int(after.min(initial=np.iinfo(np.int64).max)))
+        if ev["start"] - lo < blend or hi - ev["end"] < blend:
+            continue
+        rows.append({"row": label, "take": ev["name"], "take_doc": int(ev["doc_id"]), "event": ev["event"],
+                     "side": ev["side"], "cut_start": lo, "cut_end": hi, "event_start": int(ev["start"]),
+                     "event_end": int(ev["end"])})  # fmt: skip
+    return pd.DataFrame(rows)
+
+
+def cmu_sequence_streams(db, annotations: pd.DataFrame, margin_s: float = 0.75, filler_s: float = 2.5,
+                         blend_s: float = 0.1, within: float = 2.0, units_per_stream: int = 4, seed: int = 0,
+                         filler_takes=None) -> tuple[list, list, pd.DataFrame]:  # fmt: skip
+    """Derived long documents of real CMU kicks and punches in a known order: the truth of ``kick then punch``.
+
+    Every certain annotated kick and punch (:func:`read_annotations`) is cut from its own take with up to
+    ``margin_s`` of the real motion around it (less where another annotated event is nearer; events overlapping
+    another one are left out). The cuts are joined into *units* — a kick then a punch (every right kick with a left
+    punch, every left kick with a right punch), the same pairs punch first, and every kick and every punch alone —
+    and the units of one kind into streams, separated by *fillers*: ``filler_s`` seconds of a take without
+    annotated events (the CMU takes 135_03, 135_05, 135_10: steps, blocks), so that nothing of one unit follows
+    anything of another within ``within`` s. Clips are joined as :func:`composite_streams` joins them (each next clip
+    translated on the floor to continue the previous one, a linear blend of ``blend_s``). These are **derived**
+    documents (``derived`` = "cut and concatenated CMU 135 takes ..."), not recordings; their events are known
+    frame-exactly.
+
+    Parameters
+    ----------
+    db : MotionDB
+        Holding the annotated takes (the CMU trials, one frame rate).
+    annotations : pandas.DataFrame
+        :func:`read_annotations` with ``db`` (``doc_id``; ``event`` kick / punch; ``side``; ``certain``).
+    margin_s : float
+        Real motion kept either side of an event, seconds (at most; 0.5 … 1 s keeps the kick's end and the punch's
+        start closer than 2 s).
+    filler_s : float
+        Length of the fillers between units, seconds; more than ``within + 2 * blend_s``.
+    blend_s : float
+        The blend between consecutive clips in seconds, rounded to frames.
+    within : float
+        Seconds; the fillers keep the units further apart than this.
+    units_per_stream : int
+        Units per stream, >= 1.
+    seed : int
+        The order of the cuts, the pairing and the fillers' choice.
+    filler_takes : sequence of str, optional
+        The takes fillers are cut from (default: the :data:`CMU_TAKES` without annotated events, at least
+        ``filler_s`` long).
+
+    Returns
+    -------
+    motions : list of Motion
+        One per stream, canonical positions at ``db``'s rate.
+    metas : list of dict
+        ``name`` (``cmu_sequence_<kind>_<k>``), ``label`` ("derived"), ``kind`` ("kick_punch", "punch_kick",
+        "single"), ``derived``, ``clips`` (``take:start-end`` per clip), ``blend_s``, ``margin_s``.
+    parts : pandas.DataFrame
+        One row per clip: ``stream``, ``name``, ``kind``, ``unit``, ``order``, ``take``, ``role`` ("kick", "punch",
+        "filler"), ``side``, ``row`` (annotation row, -1 for fillers), ``cut_start``, ``cut_end`` (in the take),
+        ``start``, ``end`` (the clip in the stream, half-open), ``event_start``, ``event_end`` (the event in the
+        stream; -1 for fillers).
+
+    Raises
+    ------
+    ParameterError
+        No kick or no punch to cut, no filler take, ``filler_s`` too short, or several frame rates.
+    """
+    from ..motion.motion import Motion
+    from ..motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
+
+    margin_s = number(margin_s, "margin_s (seconds)", 0.0)
+    blend_s = number(blend_s, "blend_s (seconds)", 0.0, 1.0)
+    within = number(within, "within (seconds)", 0.0)
+    filler_s = number(filler_s, "filler_s (seconds)", 0.0)
+    if filler_s <= within + 2 * blend_s:
+        raise ParameterError(f"filler_s must exceed within + 2 * blend_s = {within + 2 * blend_s:g} s; "
+                             f"got {filler_s:g}")
+    if int(units_per_stream) != units_per_stream or units_per_stream < 1:
+        raise ParameterError(f"units_per_stream must be a whole number >= 1; got {units_per_stream!r}")
+    if "doc_id" not in annotations.columns:
+        raise ParameterError("annotations need a doc_id column: read them with read_annotations(path, db)")
+    docs = db.documents.set_index("doc_id")
+    fps = float(docs.loc[annotations["doc_id"].iloc[0], "fps"]) if len(annotations) else float(db.fps)
+    blend, margin, filler = round(blend_s * fps), round(margin_s * fps), round(filler_s * fps)
+    cuts = _event_cuts(annotations, docs["n_frames"].to_dict(), margin, blend)
+    if not len(cuts) or not (cuts["event"] == "kick").any() or not (cuts["event"] == "punch").any():
+        raise ParameterError("the annotations need at least one certain kick and one certain punch to cut")
+    by_name = db.documents.set_index("name")
+    if filler_takes is None:
+        filler_takes = [t for t in CMU_TAKES if t in by_name.index and t not in set(annotations["name"])]
+    filler_takes = [t for t in filler_takes if t in by_name.index and by_name.loc[t, "n_frames"] >= filler]
+    if not filler_takes:
+        raise ParameterError(f"no filler take of at least {filler_s:g} s without annotated events")
+    if not np.allclose(by_name.loc[list(filler_takes) + list(cuts["take"].unique()), "fps"], fps):
+        raise ParameterError("the takes are at several frame rates; ingest at one rate (fps=...)")
+    rng = np.random.default_rng(seed)
+
+    def pick(event, side):
+        chosen = cuts[(cuts["event"] == event) & (cuts["side"] == side)].index.to_numpy()
+        return list(rng.permutation(chosen))
+
+    kicks = {s: pick("kick", s) for s in ("right", "left")}
+    punches = {s: pick("punch", s) for s in ("left", "right")}
+    pairs = []  # a right kick with a left punch, a left kick with a right punch (punches reused when too few)
+    for kick_side, punch_side in (("right", "left"), ("left", "right")):
+        mine = punches[punch_side] or punches["left"] or punches["right"]
+        pairs += [(k, mine[i % len(mine)]) for i, k in enumerate(kicks[kick_side])]
+    singles = [(k,) for k in cuts.index]
+    units = {"kick_punch": pairs, "punch_kick": [(p, k) for k, p in pairs], "single": singles}
+    motions, metas, parts = [], [], []
+    cache = {}
+
+    def positions(take_doc):
+        if take_doc not in cache:
+            cache[take_doc] = np.asarray(db.motion(int(take_doc)).positions)
+        return cache[take_doc]
+
+    for kind, todo in units.items():
+        todo = [todo[i] for i in rng.permutation(len(todo))]
+        for k in range(0, len(todo), int(units_per_stream)):
+            clips, rows = [], []
+            for u, unit in enumerate(todo[k : k + int(units_per_stream)]):
+                if u:
+                    take = filler_takes[int(rng.integers(len(filler_takes)))]
+                    n = int(by_name.loc[take, "n_frames"])
+                    s = int(rng.integers(0, n - filler + 1))
+                    clips.append(positions(by_name.loc[take, "doc_id"])[s : s + filler])
+                    rows.append({"unit": u - 0.5, "take": take, "role": "filler", "side": "", "row": -1,
+                                 "cut_start": s, "cut_end": s + filler, "offset": None})  # fmt: skip
+                for c in unit:
+                    cut = cuts.loc[c]
+                    clips.append(positions(cut["take_doc"])[cut["cut_start"] : cut["cut_end"]])
+                    rows.append({"unit": u, "take": cut["take"], "role": cut["event"], "side": cut["side"],
+                                 "row": cut["row"], "cut_start": int(cut["cut_start"]), "cut_end": int(cut["cut_end"]),
+                                 "offset": (int(cut["event_start"]) - int(cut["cut_start"]),
+                                            int(cut["event_end"]) - int(cut["cut_start"]))})  # fmt: skip
+            joined, starts = _concatenate(clips, blend)
+            name = f"cmu_sequence_{kind}_{k // int(units_per_stream)}"
+            for order, (row, s, clip) in enumerate(zip(rows, starts, clips)):
+                offset = row.pop("offset")
+                parts.append({"stream": len(motions), "name": name, "kind": kind, "order": order, **row,
+                              "unit": int(np.floor(row["unit"])) if row["role"] != "filler" else -1,
+                              "start": int(s), "end": int(s + len(clip)),
+                              "event_start": int(s + offset[0]) if offset else -1,
+                              "event_end": int(s + offset[1]) if offset else -1})  # fmt: skip
+            motions.append(Motion(positions=joined, fps=fps, joint_names=CANONICAL_JOINTS, parents=CANONICAL_PARENTS,
+                                  source=name, labels={"label": "derived"}))  # fmt: skip
+            metas.append({"name": name, "label": "derived", "kind": kind, "derived": CMU_SEQUENCE_DERIVED,
+                          "clips": " ".join(f"{r['take']}:{r['cut_start']}-{r['cut_end']}" for r in rows),
+                          "blend_s": blend / fps, "margin_s": margin / fps})  # fmt: skip
+    return motions, metas, pd.DataFrame(parts)
+
+
+def cmu_sequence_quality(db, annotations: pd.DataFrame, queries: dict | None = None, definitions: str = "",
+                         within: float = 2.0, margin_s: float = 0.75, filler_s: float = 2.5, blend_s: float = 0.1,
+                         units_per_stream: int = 4, seed: int = 0, folder=None) -> dict:  # fmt: skip
+    """``kick then punch`` on derived streams of the real CMU kicks and punches (:func:`cmu_sequence_streams`),
+    against their frame-exact truth (:func:`sequence_events`, :func:`match_events`).
+
+    The annotated CMU takes hold no kick followed by a punch, so the sequence query has no truth there; these
+    **derived** (cut and concatenated) documents put every annotated kick before a punch, after a punch, and alone.
+    Every hit in every stream counts (a hit in a punch-then-kick or single stream is false: their truth is empty).
+
+    Parameters
+    ----------
+    db : MotionDB
+        The CMU takes (120 Hz: the annotation's rate).
+    annotations : pandas.DataFrame
+        :func:`read_annotations` with ``db``.
+    queries : dict, optional
+        Name -> (description, selection of the first events, of the second events); default
+        :data:`CMU_SEQUENCE_QUERIES`.
+    definitions : str
+        ``define`` statements read before every query (e.g. a candidate ``punch_left``; default: the shipped ones).
+    within : float
+        The truth's time limit in seconds (the description says its own).
+    margin_s, filler_s, blend_s, units_per_stream, seed
+        As :func:`cmu_sequence_streams`.
+    folder : str or os.PathLike, optional
+        Where the streams' MotionDB (``cmu_sequences.mdb``) is made and kept; default a temporary folder, removed.
+
+    Returns
+    -------
+    dict
+        ``summary``: one row per query: ``query``, ``description``, ``events``, ``hits``, ``tp``, ``precision``,
+        ``recall``, ``f1``, ``tp_both`` (matched hits that overlap both the first and the second event of their
+        truth, not only one of them), ``hits_punch_kick`` and ``hits_single`` (hits in the streams without truth:
+        should be 0), ``streams``, ``within_s``, ``margin_s``; ``per_kind``: the same per query and stream kind;
+        ``parts``: the streams' clips; ``truth``: every query's events; ``hits``: every hit with ``query``,
+        ``kind`` and ``matched``.
+
+    References
+    ----------
+    .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. SIGGRAPH
+       2005, §1 and §6.3 ("a kick of the right foot followed by a punch").
+    """
+    import tempfile
+
+    from ..db.database import MotionDB
+    from ..relational.index import build
+    from ..relational.scene import find
+
+    queries = CMU_SEQUENCE_QUERIES if queries is None else queries
+    motions, metas, parts = cmu_sequence_streams(db, annotations, margin_s, filler_s, blend_s, within,
+                                                 units_per_stream, seed)  # fmt: skip
+    tmp = None
+    if folder is None:
+        tmp = tempfile.TemporaryDirectory(prefix="mocapviz-cmu-sequences-")
+        folder = tmp.name
+    try:
+        streams = MotionDB.create(Path(folder) / "cmu_sequences.mdb").append_motions(motions, metas)
+        doc_of = dict(zip(streams.documents["name"], streams.documents["doc_id"]))
+        parts["doc_id"] = [doc_of[n] for n in parts["name"]]
+        kind_of = {doc_of[m["name"]]: m["kind"] for m in metas}
+        fps = float(streams.documents["fps"].iloc[0])
+        indexes = build(streams, "2005", progress=False, save=False)
+        events = parts[parts["role"] != "filler"].rename(columns={"role": "event"})
+        events = events.assign(start=events["event_start"], end=events["event_end"])
+        rows, per_kind, all_hits, truths = [], [], [], []
+        for name, (text, first, second) in queries.items():
+            hits = find(streams, definitions + "\n" + text, indexes=indexes)
+            hits["kind"] = hits["doc_id"].map(kind_of)
+            truth = sequence_events(events, first, second, within, fps).reset_index(drop=True)
+            m = match_events(hits, truth)
+            both = 0
+            for i in np.flatnonzero(m["matched"] >= 0):
+                t = truth.iloc[m["matched"][i]]
+                h = hits.iloc[i]
+                a, b = events.loc[t["first_row"]], events.loc[t["second_row"]]
+                both += int(h["start"] < a["end"] and h["end"] > a["start"] and h["start"] < b["end"]
+                            and h["end"] > b["start"])  # fmt: skip
+            rows.append({"query": name, "description": text, "events": m["events"], "hits": m["hits"], "tp": m["tp"],
+                         "precision": m["precision"], "recall": m["recall"], "f1": m["f1"], "tp_both": both,
+                         "hits_punch_kick": int((hits["kind"] == "punch_kick").sum()),
+                         "hits_single": int((hits["kind"] == "single").sum()), "streams": len(motions),
+                         "within_s": within, "margin_s": metas[0]["margin_s"]})  # fmt: skip
+            truth_kind = truth["doc_id"].map(kind_of)
+            hit_tp = pd.Series(m["matched"] >= 0, index=hits.index)
+            for kind in ("kick_punch", "punch_kick", "single"):
+                n_hits, tp = int((hits["kind"] == kind).sum()), int(hit_tp[hits["kind"] == kind].sum())
+                n_events = int((truth_kind == kind).sum())
+                per_kind.append({"query": name, "kind": kind, "streams": sum(m_["kind"] == kind for m_ in metas),
+                                 "events": n_events, "hits": n_hits, "tp": tp,
+                                 "precision": tp / n_hits if n_hits else np.nan,
+                                 "recall": tp / n_events if n_events else np.nan})  # fmt: skip
+            all_hits.append(hits.assign(query=name, matched=m["matched"]))
+            truths.append(truth.assign(query=name))
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
+    return {"summary": pd.DataFrame(rows), "per_kind": pd.DataFrame(per_kind), "parts": parts,
+            "truth": pd.concat(truths, ignore_index=True), "hits": pd.concat(all_hits, ignore_index=True)}
