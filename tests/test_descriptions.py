@@ -250,3 +250,17 @@ def test_find_with_stored_templates_as_written_in_the_issue(sample_db, tmp_path,
         (_, k0, k1), (_, s0, s1) = [(p.split(" ")[0], *map(int, p.split(" ")[1].split(":")))
                                     for p in row.parts.split(", ")]  # fmt: skip
         assert row.start == k0 and row.end == s1 and 0 <= s0 - k1 <= 4 * db.document(row.doc_id)["fps"]
+
+
+@pytest.mark.parametrize("text", ["lknee: straight bent straight and somewhere lfoot raised",
+                                  "lknee: straight bent straight and never lfoot raised",
+                                  "rarm: in sideways in and somewhere rhand above_neck and never arms crossed"])
+def test_state_conditions_equal_the_scan_and_split_the_hits(hdm05, text):
+    db, indexes, values = hdm05
+    _same_answer(db, indexes, values, text)
+    if "lknee" in text:  # somewhere and never split the event's hits between them
+        base = "lknee: straight bent straight"
+        counts = [len(find(db, t, indexes=indexes, overlapping=True)) for t in
+                  (base, f"{base} and somewhere lfoot raised", f"{base} and never lfoot raised")]
+        assert counts[0] == counts[1] + counts[2] and min(counts[1:]) > 0
+    assert "never" in str(parse_description(text)) or "somewhere" in str(parse_description(text))

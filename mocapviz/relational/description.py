@@ -12,6 +12,7 @@ A description says what a motion looks like in the words of the relational featu
 - a **progression** ``part: state state ...`` is one feature's run of states (``*``: either state);
 - an **event** joins progressions with ``and``: they run concurrently (all share some frame); ``overlap A, B`` asks
   for a frame where two of their states hold together; ``A for LO..HI s`` bounds how long a state lasts;
+  ``somewhere part state`` / ``never part state``: a state of any feature holds at some / no frame of the hit;
 - ``template:NAME`` is a stored motion template's instances, ``NAME`` a defined or shipped description;
 - ``A then B within T s``: B starts after A ends, at most T seconds later; ``A | B``: either.
 
@@ -37,7 +38,7 @@ from ..errors import DescriptionError, ParameterError
 from ..features import RELATIONAL_SETS
 from .vocabulary import vocabulary_of
 
-__all__ = ["DEFAULT_WITHIN", "Alternatives", "Description", "Duration", "Event", "Named", "Overlap", "Progression",
+__all__ = ["DEFAULT_WITHIN", "Alternatives", "Condition", "Description", "Duration", "Event", "Named", "Overlap", "Progression",
            "Sequence", "StateRef", "TemplateAtom", "declared_set", "named_descriptions", "parse_description",
            "template_names"]
 
@@ -57,16 +58,18 @@ within: "within" NUMBER "s"
         | TEMPLATE -> template
         | "(" expr ")"
 event: clause ("and" clause)*
-?clause: progression | overlap | duration
+?clause: progression | overlap | duration | condition
 progression: NAME ":" step+
 step: NAME | NUMBER | STAR
 overlap: "overlap" ref ("," | "with") ref
 ref: NAME NAME ("[" NUMBER "]")?
 duration: ref "for" range "s"
+condition: CONDITION NAME NAME
 range: NUMBER? RANGE NUMBER?
 
 TEMPLATE.2: /template:[^\s()|;,]+/
-NAME: /(?!(define|then|and|within|overlap|with|for|set)\b)[A-Za-z_][A-Za-z0-9_]*/
+CONDITION.2: /(never|somewhere)\b/
+NAME: /(?!(define|then|and|within|overlap|with|for|set|never|somewhere)\b)[A-Za-z_][A-Za-z0-9_]*/
 NUMBER: /\d+(\.\d+)?/
 RANGE: ".."
 STAR: "*"
@@ -77,6 +80,7 @@ COMMENT: /#[^\n]*/
 """
 
 _EXPECTED = {"NAME": "a name", "NUMBER": "a number", "STAR": "*", "TEMPLATE": "template:NAME", "RANGE": "..",
+             "CONDITION": "never or somewhere",
              "SEMICOLON": "';' (the end of a definition)", "COLON": "':'", "LPAR": "'('", "RPAR": "')'",
              "VBAR": "'|'", "COMMA": "','", "LSQB": "'['", "RSQB": "']'", "$END": "the end of the text"}  # fmt: skip
 
@@ -155,15 +159,31 @@ class Duration:
 
 
 @dataclass(frozen=True)
+class Condition:
+    """A state that holds at some frame of the event's hit (``somewhere rhand above_neck``) or at none of them
+    (``never arms crossed``); any feature of the set, described by a progression or not."""
+
+    kind: str
+    feature: str
+    value: int
+    text: str
+
+    def __str__(self) -> str:
+        return f"{self.kind} {self.text}"
+
+
+@dataclass(frozen=True)
 class Event:
-    """Concurrent progressions with their overlap and duration conditions."""
+    """Concurrent progressions with their overlap, duration and state conditions."""
 
     progressions: tuple
     overlaps: tuple = ()
     durations: tuple = ()
+    conditions: tuple = ()
 
     def __str__(self) -> str:
-        return "\n    and ".join(str(c) for c in (*self.progressions, *self.overlaps, *self.durations))
+        clauses = (*self.progressions, *self.overlaps, *self.durations, *self.conditions)
+        return "\n    and ".join(str(c) for c in clauses)
 
 
 @dataclass(frozen=True)
@@ -371,6 +391,16 @@ class _Resolve(Transformer):
     def duration(self, children):
         return ("duration", children)
 
+    def condition(self, children):
+        kind, part, word = children
+        try:
+            feature, values = self.words.resolve(str(part), [str(word)])
+        except ParameterError as exc:
+            raise self._fail(str(exc), word if repr(str(word)) in str(exc) else part) from None
+        if values[0] is None:
+            raise self._fail(f"{kind} {part} *: name a state ({' or '.join(self.words.states(feature))})", word)
+        return ("condition", Condition(str(kind), feature, int(values[0]), f"{part} {word}"))
+
     @v_args(meta=True)
     def event(self, meta, children):
         progressions = [c for c in children if isinstance(c, Progression)]
@@ -382,9 +412,11 @@ class _Resolve(Transformer):
             if p.feature in seen:
                 raise self._fail(f"two progressions of {p.feature} in one event; join them into one", meta)
             seen[p.feature] = p
-        overlaps, durations = [], []
+        overlaps, durations, conditions = [], [], []
         for kind, args in (c for c in children if isinstance(c, tuple)):
-            if kind == "overlap":
+            if kind == "condition":
+                conditions.append(args)
+            elif kind == "overlap":
                 overlaps.append(Overlap(self._ref(args[0], progressions), self._ref(args[1], progressions)))
             else:
                 ref, (low, high, token) = self._ref(args[0], progressions), args[1]
@@ -394,7 +426,7 @@ class _Resolve(Transformer):
                 if low is None and high is None:
                     raise self._fail(f"{ref} for ..: give a shortest or a longest time (e.g. 0.1..1 s)", token)
                 durations.append(Duration(ref, low, high))
-        return Event(tuple(progressions), tuple(overlaps), tuple(durations))
+        return Event(tuple(progressions), tuple(overlaps), tuple(durations), tuple(conditions))
 
     def _ref(self, ref, progressions) -> StateRef:
         _, tokens, meta = ref

@@ -102,6 +102,7 @@ class _Context:
         self.fps = docs["fps"].to_numpy(np.float64)
         self.indexes, self.values = indexes, values
         self.counts: list[tuple[str, int]] = []  # (node, raw hits), in evaluation order (--explain)
+        self.cache: dict = {}  # per feature: what the state conditions count frames with
 
     def doc_of(self, frames: np.ndarray) -> np.ndarray:
         return np.searchsorted(self.doc_start, frames, side="right") - 1
@@ -156,6 +157,33 @@ def _scan_runs(ctx: _Context, p: Progression) -> tuple[np.ndarray, np.ndarray]:
     return np.array(found_s, dtype=np.int64), np.array(found_e, dtype=np.int64)
 
 
+def _frames_in_state(ctx: _Context, feature: str, value: int, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Frames of [lo, hi) (global, per row) where ``feature`` == ``value``: from the group index's segments (their
+    codes hold the feature's bit), or by the scan from the frame-wise column."""
+    key = ("ones", feature)
+    if key not in ctx.cache:
+        if ctx.indexes:
+            index = ctx.indexes[vocabulary_of(ctx.relational_set).group[feature]]
+            bit = (index.codes >> index.feature_names.index(feature)) & 1
+            ones = np.concatenate([[0], np.cumsum(bit * index.lengths)])
+            ctx.cache[key] = (index.starts, bit, ones)
+        else:
+            column = ctx.values[:, vocabulary_of(ctx.relational_set).features.index(feature)]
+            ctx.cache[key] = np.concatenate([[0], np.cumsum(column, dtype=np.int64)])
+    got = ctx.cache[key]
+    if isinstance(got, tuple):
+        starts, bit, ones = got
+
+        def before(f):  # frames with the bit set among the frames before f
+            seg = np.searchsorted(starts, f, side="right") - 1
+            return ones[seg] + (f - starts[seg]) * bit[seg]
+
+        count = before(hi) - before(lo)
+    else:
+        count = got[hi] - got[lo]
+    return count if value == 1 else (hi - lo) - count
+
+
 def _framed(ctx: _Context, p: Progression, starts: np.ndarray, ends: np.ndarray, durations) -> tuple:
     """Runs kept by the event's duration conditions on this progression, and the hits they frame: from the last frame
     of the first run to the first frame of the last run, inclusive (half-open: ``end(r_1) - 1 .. start(r_L) + 1``)."""
@@ -196,7 +224,7 @@ def _event(ctx: _Context, event: Event, prefix: str) -> _Hits:
         starts, ends, a, b = _framed(ctx, p, starts, ends, [d for d in event.durations if d.ref.progression == i])
         runs.append((starts, ends))
         leaves.append(ctx.note(_label(prefix, p), _Hits(_label(prefix, p), a, b)))
-    if len(leaves) == 1 and not event.overlaps:
+    if len(leaves) == 1 and not event.overlaps and not event.conditions:
         return leaves[0]
     rows = _concurrent(ctx, leaves) if ctx.indexes is not None else _concurrent_scan(ctx, leaves)
     ok = np.ones(len(rows), dtype=bool)
@@ -209,6 +237,13 @@ def _event(ctx: _Context, event: Event, prefix: str) -> _Hits:
                 meet |= (sa[ia, s] < eb[ib, t]) & (sb[ib, t] < ea[ia, s])
         ok &= meet
     rows = rows[ok]
+    if event.conditions and len(rows):
+        lo = np.min([leaf.start[rows[:, k]] for k, leaf in enumerate(leaves)], axis=0)
+        hi = np.max([leaf.end[rows[:, k]] for k, leaf in enumerate(leaves)], axis=0)
+        for c in event.conditions:
+            held = _frames_in_state(ctx, c.feature, c.value, lo, hi)
+            rows = rows[held > 0] if c.kind == "somewhere" else rows[held == 0]
+            lo, hi = (lo[held > 0], hi[held > 0]) if c.kind == "somewhere" else (lo[held == 0], hi[held == 0])
     start = np.min([leaf.start[rows[:, k]] for k, leaf in enumerate(leaves)], axis=0) if len(rows) else rows[:, 0]
     end = np.max([leaf.end[rows[:, k]] for k, leaf in enumerate(leaves)], axis=0) if len(rows) else rows[:, 0]
     joined = _unique(prefix or str(event), start, end, leaves, rows)
