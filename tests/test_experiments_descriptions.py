@@ -139,10 +139,11 @@ def hdm05_quality(hdm05_120):
 
 
 # (description, least precision, least recall) on the 287 HDM05 cut clips, measured 2026-11 with the shipped
-# library: kick_left 1.00 / 1.00 (29 clips), squat 0.85 / 0.98 (52), lie_down 1.00 / 0.95 (20), hop 0.58 / 0.86
-# (36), throw 0.35 / 1.00 (14); the bars leave about one clip of slack each
-BARS = [("kick_left", 0.95, 0.95), ("squat", 0.80, 0.95), ("lie_down", 0.95, 0.90), ("hop", 0.50, 0.80),
-        ("throw", 0.30, 0.90)]  # fmt: skip
+# library: kick_left 1.00 / 1.00 (29 clips), squat 0.85 / 0.98 (52), lie_down 1.00 / 0.95 (20), hop 0.97 / 0.86
+# (36; 0.58 / 0.86 before its never / somewhere clauses), throw 0.78 / 1.00 (14; 0.35 / 1.00 before); the bars
+# leave about one clip of slack each
+BARS = [("kick_left", 0.95, 0.95), ("squat", 0.80, 0.95), ("lie_down", 0.95, 0.90), ("hop", 0.90, 0.80),
+        ("throw", 0.70, 0.90)]  # fmt: skip
 
 
 @pytest.mark.parametrize("name, precision, recall", BARS)
@@ -223,9 +224,10 @@ def test_event_quality_on_cmu(cmu_120):
     # measured with the shipped library: kick_right 1.00 / 0.86 (6 of 7 right kicks), kick_left 1.00 / 1.00
     assert s.loc["kick_right", "precision"] >= 0.8 and s.loc["kick_right", "recall"] >= 0.7
     assert s.loc["kick_left", "precision"] >= 0.8 and s.loc["kick_left", "recall"] >= 0.8
-    # the punches (issue 25): left 0.50 / 0.80, right 0.83 / 0.77 in the annotated takes; before, 0.38 / 0.60 and
+    # the punches (issue 25): left 0.57 / 0.80 (F1 0.67), right 0.91 / 0.77 (F1 0.83) in the annotated takes with
+    # "never <other hand> touching_leg"; before it 0.50 / 0.80 and 0.83 / 0.77, and before issue 25 0.38 / 0.60 and
     # 0.50 / 0.46
-    assert s.loc["punch_left", "f1"] >= 0.55 and s.loc["punch_right", "f1"] >= 0.7
+    assert s.loc["punch_left", "f1"] >= 0.6 and s.loc["punch_right", "f1"] >= 0.8
     assert set(res["hits"]["doc_id"]) <= set(table["doc_id"]) | set(
         cmu_120.documents.loc[cmu_120.documents["name"].isin(CMU_TAKES), "doc_id"])
 
