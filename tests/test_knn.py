@@ -303,3 +303,25 @@ def test_per_query_exclusion_equals_an_index_without_those_frames(db, tree, feat
     np.testing.assert_array_equal(single_i, tree.query(queries[:1], 16, exclude=ranges[:1])[1][0])
     with pytest.raises(ValueError, match="one \\[start, stop\\) frame range per query"):
         tree.query(queries[:3], 4, exclude=ranges[:2])
+
+
+def test_single_queries_are_the_rows_of_the_batch_on_every_path(features, queries):
+    """A single query (its own short path: no leaf ordering, one thread, no frame mapping when every frame is
+    indexed) returns exactly the batch's row, distances to the bit, with or without a valid mask."""
+    valid = np.ones(len(features), dtype=bool)
+    valid[::3] = False
+    for index in (KnnIndex(features), KnnIndex(features, valid=valid)):
+        for k in (1, 16):
+            d, i = index.query(queries, k)  # >= 64 queries: searched in the tree's leaf order
+            for r in (0, 7, 250):
+                for threads in (None, 1, 2):
+                    d1, i1 = index.query(queries[r], k, threads=threads)
+                    np.testing.assert_array_equal(i1, i[r])
+                    np.testing.assert_array_equal(d1, d[r])
+                    d2, i2 = index.query(queries[r : r + 1], k, threads=threads)
+                    assert d2.shape == i2.shape == (1, k)
+                    np.testing.assert_array_equal(i2[0], i[r])
+            own = [0, 50]
+            np.testing.assert_array_equal(index.query(queries[3], k, exclude=own)[1],
+                                          index.query(queries[3:4], k, exclude=[own])[1][0])  # fmt: skip
+            assert index.valid[index.query(queries[3], k)[1]].all()

@@ -213,3 +213,32 @@ def test_search_command_errors(hdm05_db30, capsys, args, words, status):
     assert main(["search", str(hdm05_db30.path), "--example", "101", *args]) == status
     err = capsys.readouterr().err.strip()
     assert err.startswith("mocapviz: error:") and words in err and len(err.splitlines()) == 1
+
+
+# ============================================================================ the fixed costs removed (issue 26)
+@pytest.mark.slow
+def test_exact_whole_clips_of_every_document_are_brute_forces(search, hdm05_db30):
+    """All 287 clips, each without and with its own document: exact mode (bounds, pruning, the vectorised kernel)
+    returns brute force's hits and costs (every cell of every document computed), to the last bit."""
+    for doc in sorted(hdm05_db30.documents["doc_id"].tolist()):
+        for exclude in (False, True):
+            exact = search.clips(doc, n_matches=10, mode="exact", exclude_document=exclude)
+            brute = search.clips(doc, n_matches=10, mode="brute", exclude_document=exclude)
+            assert exact["doc_id"].tolist() == brute["doc_id"].tolist(), (doc, exclude)
+            assert np.array_equal(exact["cost"].to_numpy(), brute["cost"].to_numpy()), (doc, exclude)
+            assert exact.attrs["cells"] <= brute.attrs["cells"]
+
+
+def test_column_local_costs_are_the_cell_by_cell_ones():
+    """The kernel's vectorised column of local costs: bit for bit the Euclidean distances of one cell at a time."""
+    from mocapviz.match.pruned import _column, _local
+
+    rng = np.random.default_rng(3)
+    q = (rng.normal(size=(37, 15)) * 40).astype(np.float32)
+    x = (rng.normal(size=(9, 15)) * 40).astype(np.float32)
+    qt = np.ascontiguousarray(q.T, dtype=np.float64)
+    out = np.full(37, np.nan)
+    for j in range(len(x)):
+        for first, stop in ((0, 37), (5, 6), (11, 30)):
+            _column(qt, x, j, first, stop, out)
+            assert all(out[i] == _local(q, x, i, j) for i in range(first, stop))

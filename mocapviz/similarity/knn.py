@@ -128,11 +128,11 @@ def _check_queries(x, dim: int) -> np.ndarray:
     arr = np.asarray(x)
     if arr.ndim not in (1, 2) or arr.shape[-1] != dim:
         raise ParameterError(f"queries must have shape ({dim},) or (q, {dim}) to match the index; got {arr.shape}")
-    if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+    if arr.dtype.kind not in "fiu":  # np.floating or np.integer (not bool, complex or objects)
         raise ParameterError(f"queries must be real numbers; got dtype {arr.dtype}")
-    arr = np.ascontiguousarray(np.atleast_2d(arr), dtype=np.float64)
-    bad = ~np.isfinite(arr).all(axis=1)
-    if bad.any():
+    arr = np.ascontiguousarray(arr.reshape(1, -1) if arr.ndim == 1 else arr, dtype=np.float64)
+    if not np.isfinite(arr).all():  # one reduction when all is well (a single query: microseconds count)
+        bad = ~np.isfinite(arr).all(axis=1)
         raise ParameterError(f"query row {int(np.argmax(bad))} is not finite (NaN or inf); {int(bad.sum())} such row(s)")
     return arr
 
@@ -173,10 +173,14 @@ def _query_ckdtree(structure, x: np.ndarray, k: int, radius: float | None, eps: 
     least ``_ORDER_MIN`` queries are searched in leaf order."""
     tree, rank = structure
     bound = np.inf if radius is None else radius
-    order = _leaf_order(tree, rank, x, threads) if len(x) >= _ORDER_MIN else np.arange(len(x))
-    d_sorted, i_sorted = tree.query(x[order], k=k, eps=eps, distance_upper_bound=bound, workers=threads)
-    d, i = np.empty((len(x), k)), np.empty((len(x), k), dtype=np.int64)
-    d[order], i[order] = d_sorted.reshape(len(x), k), i_sorted.reshape(len(x), k)
+    if len(x) < _ORDER_MIN:  # as given, and one thread for one query (threads split a batch, never one query)
+        d, i = tree.query(x, k=k, eps=eps, distance_upper_bound=bound, workers=threads if len(x) > 1 else 1)
+        d, i = d.reshape(len(x), k), i.reshape(len(x), k).astype(np.int64, copy=False)
+    else:
+        order = _leaf_order(tree, rank, x, threads)
+        d_sorted, i_sorted = tree.query(x[order], k=k, eps=eps, distance_upper_bound=bound, workers=threads)
+        d, i = np.empty((len(x), k)), np.empty((len(x), k), dtype=np.int64)
+        d[order], i[order] = d_sorted.reshape(len(x), k), i_sorted.reshape(len(x), k)
     i[i == tree.n] = -1
     return d, i
 
@@ -217,7 +221,10 @@ _ENGINES = {
 
 def _ties_by_frame(d: np.ndarray, i: np.ndarray):
     """Rows sorted by distance, re-sorted so that equal distances come in increasing position order."""
-    tied = ((d[:, 1:] == d[:, :-1]) & np.isfinite(d[:, 1:])).any(axis=1)
+    same = d[:, 1:] == d[:, :-1]
+    if not same.any():  # the usual case: no tie at all, one comparison
+        return d, i
+    tied = (same & np.isfinite(d[:, 1:])).any(axis=1)
     if tied.any():
         order = np.lexsort((i[tied], d[tied]), axis=1)
         i[tied] = np.take_along_axis(i[tied], order, axis=1)
@@ -287,6 +294,7 @@ class KnnIndex:
         self.valid = _check_valid(valid, self.n_frames)
         self.frames = np.flatnonzero(self.valid)
         self.n_indexed = len(self.frames)
+        self._every = self.n_indexed == self.n_frames  # positions in the structure are frame numbers
         t0 = time.perf_counter()
         picked = self._features if self.n_indexed == self.n_frames else self._features[self.frames]
         data = np.ascontiguousarray(picked, dtype=np.float64)
@@ -355,12 +363,14 @@ class KnnIndex:
             d, i = self._search(queries, k, radius, eps, threads)
         else:
             d, i = self._search_excluding(queries, k, radius, eps, threads, _check_exclude(exclude, len(queries)))
-        return (d[0], i[0]) if np.ndim(x) == 1 else (d, i)
+        return (d[0], i[0]) if (x.ndim if isinstance(x, np.ndarray) else np.ndim(x)) == 1 else (d, i)
 
     def _search(self, queries: np.ndarray, k: int, radius, eps: float, threads: int):
         """Checked queries (q, d) -> distances (q, k), database frame numbers (q, k) (-1 missing)."""
         d, i = _ENGINES[self.engine][1](self._structure, queries, k, radius, eps, threads)
         d, i = _ties_by_frame(d, i)
+        if self._every:  # every frame indexed: positions are frame numbers already (-1 where missing)
+            return d, i
         return d, np.where(i >= 0, self.frames[np.maximum(i, 0)], -1)
 
     def _search_excluding(self, queries, k: int, radius, eps: float, threads: int, ranges: np.ndarray):

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import os
 import time
+import weakref
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -133,6 +134,7 @@ class SimilaritySearch:
         if docs.empty:
             raise ParameterError(f"no document to search in {db.path}")
         self.documents = docs.reset_index(drop=True)
+        self._doc_ids = self.documents["doc_id"].to_numpy(np.int64)  # numpy, not pandas, in the per-query path
         self._lo = self.documents["start"].to_numpy(np.int64)
         self._hi = self._lo + self.documents["n_frames"].to_numpy(np.int64)
         self._low, self._high = _boxes(self.features, self._lo, self._hi)
@@ -194,11 +196,13 @@ class SimilaritySearch:
 
     def _ranges(self, own: int | None, exclude_document: bool, candidates) -> np.ndarray:
         """Rows of :attr:`documents` to search."""
-        keep = np.ones(len(self.documents), dtype=bool)
+        if candidates is None and not (exclude_document and own is not None):
+            return np.arange(len(self._doc_ids))
+        keep = np.ones(len(self._doc_ids), dtype=bool)
         if exclude_document and own is not None:
-            keep &= self.documents["doc_id"].to_numpy() != own
+            keep &= self._doc_ids != own
         if candidates is not None:
-            keep &= self.documents["doc_id"].isin(np.asarray(candidates, dtype=np.int64).reshape(-1)).to_numpy()
+            keep &= np.isin(self._doc_ids, np.asarray(candidates, dtype=np.int64).reshape(-1))
         return np.flatnonzero(keep)
 
     def _neighbours(self, q: np.ndarray):
@@ -268,7 +272,7 @@ class SimilaritySearch:
                                              budget_n)  # fmt: skip
         norm = costs / (m + hi - lo)
         found = np.flatnonzero(np.isfinite(norm))
-        found = found[np.lexsort((self.documents["doc_id"].to_numpy()[rows_idx[found]], norm[found]))][:n_matches]
+        found = found[np.lexsort((self._doc_ids[rows_idx[found]], norm[found]))][:n_matches]
         if coarse is not None and len(found) < n_matches:  # fast mode with a budget below K: the coarse order after
             rest = order[~np.isin(order, found)][: n_matches - len(found)]
             found = np.r_[found, rest]
@@ -386,10 +390,10 @@ class SimilaritySearch:
     def _table(self, doc_rows, start, end, cost, m: int) -> pd.DataFrame:
         """The ranked hit table (:func:`mocapviz.db.hits.hit_table`) of documents ``doc_rows`` (rows of
         :attr:`documents`), frames ``start:end`` within each (half-open), with their DTW costs."""
-        docs = self.documents.iloc[np.asarray(doc_rows, dtype=np.int64)]
         frames = np.asarray(end) - np.asarray(start)
-        return hit_table(self.db, docs["doc_id"].to_numpy(), start, end, cost=np.asarray(cost, dtype=np.float64),
-                         normalised_cost=np.asarray(cost, dtype=np.float64) / (m + frames))  # fmt: skip
+        cost = np.asarray(cost, dtype=np.float64)
+        return hit_table(self.db, self._doc_ids[np.asarray(doc_rows, dtype=np.int64)], start, end, cost=cost,
+                         normalised_cost=cost / (m + frames))  # fmt: skip
 
 
 class Query(NamedTuple):
@@ -453,9 +457,9 @@ def example_features(db, features: np.ndarray, example, frames=None, numeric_set
         values, doc_id = values[a:b], example.doc_id
     elif isinstance(example, (int, np.integer)) and not isinstance(example, (bool, np.bool_)):
         doc_id = int(example)
-        span = db.frames(doc_id)
-        a, b = _span(frames, span.stop - span.start, f"document {doc_id}", option)
-        values = features[span.start + a : span.start + b]
+        start, n = _document_span(db, doc_id)
+        a, b = _span(frames, n, f"document {doc_id}", option)
+        values = features[start + a : start + b]
     else:
         if isinstance(example, (str, os.PathLike)):
             from ..io import load
@@ -476,6 +480,26 @@ def example_features(db, features: np.ndarray, example, frames=None, numeric_set
     if bad.any():
         raise ParameterError(f"the query's {numeric_set} features are not finite at frame {a + int(np.argmax(bad))}")
     return Query(np.ascontiguousarray(values, dtype=np.float32), doc_id)
+
+
+_SPANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _document_span(db, doc_id: int) -> tuple[int, int]:
+    """(start, n_frames) of document ``doc_id`` from a {doc_id: (start, n_frames)} made once per MotionDB (and
+    document table): :meth:`MotionDB.frames` filters the pandas table, a millisecond per query on a few hundred
+    clips. An unknown doc id raises :meth:`MotionDB.frames`' own error."""
+    got = _SPANS.get(db)
+    if got is None or got[0] is not db.documents:
+        docs = db.documents
+        got = (docs, dict(zip(docs["doc_id"].tolist(),
+                              zip(docs["start"].tolist(), docs["n_frames"].tolist()))))  # fmt: skip
+        _SPANS[db] = got
+    span = got[1].get(doc_id)
+    if span is None:
+        sl = db.frames(doc_id)  # the one "no such document" error (or a document added since)
+        return sl.start, sl.stop - sl.start
+    return span
 
 
 def _span(frames, n: int, what: str, option: str = "frames") -> tuple[int, int]:
