@@ -113,3 +113,64 @@ def test_a_template_longer_than_an_instance_finds_it_down_to_half_the_fastest_ex
     assert find_instances(t, np.concatenate([A, C]), np.array([0, 3]), n_matches=2).empty  # 3 frames: too short
     hits = find_instances(t, np.concatenate([A, C]), np.array([0, 3]), n_matches=2, min_frames=1)
     assert hits["doc_id"].tolist()[0] == 0 and hits["cost"].iloc[0] == 0
+
+
+def test_bounded_rows_is_plain_subsequence_dtw_when_unbounded_and_stops_pile_ups():
+    """The row-bounded subsequence DTW (every aligned cell pays) equals the basic step set's costs when the bound
+    is the template's length, over several documents; bounded, a template cannot squeeze onto a short stretch."""
+    from mocapviz.match import subsequence_costs
+    from mocapviz.relational.templates import _bounded_costs
+
+    rng = np.random.default_rng(1)
+    q = np.where(rng.random((9, 6)) < 0.3, DONT_CARE, rng.random((9, 6)) < 0.5).astype(float)
+    x = rng.random((80, 6)) < 0.5
+    starts = np.array([0, 17, 40, 41, 60])
+    want, _ = subsequence_costs(q, x, starts, distance=quantised_distance)
+    got, first = _bounded_costs(q, x, starts, len(q))
+    np.testing.assert_allclose(got, want)
+    doc = np.searchsorted(starts, np.arange(80), side="right") - 1
+    ok = np.isfinite(got)
+    assert (doc[first[ok]] == doc[ok]).all()  # no match crosses a document start
+    bounded, first = _bounded_costs(q, x, starts, 3)
+    assert (bounded[ok] >= got[ok] - 1e-12).all()
+    assert (np.arange(80) - first + 1 >= 3)[np.isfinite(bounded)].all()  # 9 rows, at most 3 per frame
+    # a slow template (each phase 4 rows) against a stretch holding each phase for one frame
+    slow = learn_template([np.repeat(A, 4, axis=0)] * 2, ["f1", "f2"])
+    assert find_instances(slow, A, None, min_frames=1).iloc[0]["cost"] == 0  # 4 rows per frame: allowed
+    assert find_instances(slow, A, None, min_frames=1, max_rows=2).empty  # 12 rows on 3 frames: not
+
+
+def test_a_feature_one_group_does_otherwise_is_dont_care_when_learned_by_group():
+    """Four 'actors' of two examples each: seven examples never raise feature 2 while feature 1 rises, one of actor
+    d raises it in the middle. Pooled, feature 2's middle is 1/8 < δ = 0.2: cared for (0). By group, actor d's mean
+    is 1/2 and a share 1/4 >= δ of the groups disagree: don't care. Feature 1 is kept either way."""
+    plain = np.array([[0, 0], [1, 0], [1, 0], [0, 0]], bool)
+    other = np.array([[0, 0], [1, 1], [1, 1], [0, 0]], bool)
+    examples = [plain] * 7 + [other]
+    groups = ["a", "a", "b", "b", "c", "c", "d", "d"]
+    t = learn_template(examples, ["f1", "f2"], groups=groups)
+    assert t.meta["groups"] == ["a", "b", "c", "d"] and t.group_values.shape == (4, 4, 2)
+    np.testing.assert_allclose(t.group_values.mean(axis=0), t.values)  # equal group sizes: the pooled mean
+    assert t.quantised(0.2, by_group=False)[1, 1] == 0.0
+    assert t.quantised(0.2)[1, 1] == DONT_CARE
+    np.testing.assert_array_equal(t.quantised(0.2)[:, 0], [0, 1, 1, 0])  # feature 1: every group agrees
+    assert learn_template(examples, ["f1", "f2"]).group_values is None
+    with pytest.raises(ParameterError, match="one group per example"):
+        learn_template(examples, ["f1", "f2"], groups=groups[:-1])
+
+
+def test_group_values_survive_save_and_load_and_are_checked(tmp_path):
+    from mocapviz import MotionDBError
+    from mocapviz.relational.templates import MotionTemplate
+
+    t = learn_template([A, B, C], ["f1", "f2"], groups=["x", "y", "y"])
+    t.save(tmp_path / "t.npz")
+    back = MotionTemplate.load(tmp_path / "t.npz")
+    np.testing.assert_array_equal(back.group_values, t.group_values)
+    np.testing.assert_array_equal(back.quantised(0.2), t.quantised(0.2))
+    with np.load(tmp_path / "t.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["group_values"] = arrays["group_values"] * 0.5
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(MotionDBError, match="group values differ"):
+        MotionTemplate.load(tmp_path / "bad.npz")
