@@ -221,6 +221,8 @@ class BenchDB:
                                :func:`add_mirrored`: mirrored copies first, then TIME-STRETCHED copies
                                (original and mirrored, slowed down by each factor in turn), no repeats
     quick_min_frames : int     frames to reach in a --quick run (0: no copies added in quick runs)
+    chunk_frames : int         derived frames appended per commit (:func:`add_variants`); larger chunks rewrite
+                               the growing arrays fewer times (each commit writes a new generation) at more RAM
     """
 
     tag: str
@@ -232,6 +234,7 @@ class BenchDB:
                                                        "bandai-namco-2": 0})  # fmt: skip
     stretches: tuple = ()
     quick_min_frames: int = 0
+    chunk_frames: int = 500_000
 
 
 def _source_files(spec: BenchDB, quick: bool) -> tuple[dict, list[str]]:
@@ -308,19 +311,20 @@ def on_source_frames(n_out: int, factor: float) -> int:
     return (n_out - 1) // p + 1 if n_out else 0
 
 
-def add_variants(db, archives, need: int, stretches) -> tuple:
+def add_variants(db, archives, need: int, stretches, chunk_frames: int = 500_000) -> tuple:
     """Append derived copies of the documents of ``archives`` until ``db`` holds ``need`` frames, in rounds:
     round 1 a left/right mirrored copy of each document; then for each factor s of ``stretches``, the original
     and its mirror image slowed down by s (:func:`stretched`: new, interpolated frames, a slower performance of
     the same motion). A stretched frame whose time falls exactly on a source frame equals that frame of the
     original or of the mirror image (every 11th frame at s = 1.1, every 6th at 1.2: :func:`on_source_frames`);
-    these are counted as ``repeated_frames``; all other frames are new. Appended in chunks
+    these are counted as ``repeated_frames``; all other frames are new. Appended in chunks of ``chunk_frames``
     (``MotionDB.append_motions``) to bound memory.
 
     Returns the reopened database and {"documents", "frames", "repeated_frames", "rounds": {name: frames}}.
     """
     from mocapviz.motion.skeleton import mirror
 
+    chunk_size = chunk_frames
     docs = db.documents[np.isin(_archive_of(db, archives), archives)]
     rounds = [("mirrored", False, 1.0)]
     for s in stretches:
@@ -346,7 +350,7 @@ def add_variants(db, archives, need: int, stretches) -> tuple:
             chunk_frames += m.n_frames
             per_round[name] = per_round.get(name, 0) + m.n_frames
             added_docs += 1
-            if chunk_frames >= 500_000:
+            if chunk_frames >= chunk_size:
                 db = db.append_motions(*chunk)
                 chunk, chunk_frames = ([], []), 0
                 log(f"  {frames:,} frames")
@@ -392,7 +396,7 @@ def benchmark_db(spec: BenchDB, quick: bool):
     mirrored = {"documents": 0, "frames": 0, "repeated_frames": 0}
     need = spec.quick_min_frames if quick else spec.min_frames
     if spec.stretches and db.n_frames < need:
-        db, mirrored = add_variants(db, spec.mirror_archives, need, spec.stretches)
+        db, mirrored = add_variants(db, spec.mirror_archives, need, spec.stretches, spec.chunk_frames)
         log(f"  added {mirrored['documents']:,} mirrored / time-stretched documents, {mirrored['frames']:,} frames")
     elif db.n_frames < spec.min_frames and not quick:
         db, mirrored = add_mirrored(db, spec.mirror_archives, spec.min_frames)
@@ -411,6 +415,15 @@ def benchmark_db(spec: BenchDB, quick: bool):
     }  # fmt: skip
     record_file.write_text(json.dumps(record, indent=2))
     return db, record | {"cached": False}
+
+
+def _on_source_text(variant_frames: dict) -> str:
+    """"every 11th at s = 1.1, 6th at 1.2": which stretched frames fall on a source frame, per factor used."""
+    from fractions import Fraction
+
+    factors = sorted({float(k.rsplit("x", 1)[1]) for k in variant_frames if "stretched x" in k})
+    parts = [f"every {Fraction(s).limit_denominator(1000).numerator}th at s = {s:g}" for s in factors]
+    return ", ".join(parts) or "none stretched"
 
 
 def ingest_how(record: dict) -> str:
@@ -446,7 +459,7 @@ def describe_db(db, record: dict) -> list[str]:
             "slower, linearly interpolated positions / slerped rotations). Frames per kind: "
             + "; ".join(f"{k} {v:,}" for k, v in record["variant_frames"].items())
             + f". Of the stretched frames, **{record['repeated_frames']:,} fall exactly on a source frame** "
-            "(every 11th at s = 1.1, 6th at 1.2, 13th at 1.3) and so duplicate a frame of the original or of its "
+            f"({_on_source_text(record['variant_frames'])}) and so duplicate a frame of the original or of its "
             "mirror image; every other frame is new"
         )
     elif record["mirrored_documents"]:

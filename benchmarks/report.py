@@ -30,7 +30,7 @@ SECTIONS = (
     ("match", "LNG global matching vs subsequence DTW (bench_match)"),
     ("search", "Similarity search: exact / fast DTW search vs brute force and dtaidistance (bench_search)"),
     ("templates", "Motion templates: keyframe pre-filter vs the full DTW pass (bench_templates)"),
-    ("scaling", "Cost growth at 250k / 1M / 4M frames (bench_scaling)"),
+    ("scaling", "Cost growth at 1M / 4M / 10M frames: every query path, one process and sharded (bench_scaling)"),
     ("startup", "Start-up: import, --help and one search from a fresh process (bench_startup)"),
     ("descriptions", "Scene descriptions: index vs frame-wise scan (bench_descriptions)"),
 )
