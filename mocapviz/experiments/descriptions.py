@@ -37,7 +37,9 @@ References
 """
 from __future__ import annotations
 
+import contextlib
 import re
+import tempfile
 import time
 from pathlib import Path
 
@@ -616,6 +618,19 @@ def composite_truth(parts: pd.DataFrame, within: float, fps: float) -> pd.DataFr
     return pd.DataFrame(rows, columns=["doc_id", "start", "end"])
 
 
+@contextlib.contextmanager
+def _streams_db(motions: list, metas: list, folder, name: str):
+    """A MotionDB ``name`` of derived stream documents in ``folder`` (kept), or in a temporary folder removed on exit,
+    and {document name: doc_id}."""
+    from ..db.database import MotionDB
+
+    with contextlib.ExitStack() as stack:
+        if folder is None:
+            folder = stack.enter_context(tempfile.TemporaryDirectory(prefix=f"mocapviz-{name}-"))
+        streams = MotionDB.create(Path(folder) / f"{name}.mdb").append_motions(motions, metas)
+        yield streams, dict(zip(streams.documents["name"], streams.documents["doc_id"]))
+
+
 def composite_quality(db, pairs=PAIRS, within: float = 2.0, template_cost: float = 0.15, relational_set: str = "2006",
                       repeats: int = 2, actors=None, blend_s: float = 0.1, seed: int = 0, folder=None,
                       progress: bool = False) -> dict:  # fmt: skip
@@ -658,22 +673,13 @@ def composite_quality(db, pairs=PAIRS, within: float = 2.0, template_cost: float
     .. [2] M. Müller, T. Röder. Motion templates for automatic classification and retrieval of motion capture
        data. SCA 2006.
     """
-    import tempfile
-
-    from ..db.database import MotionDB
     from ..features import relational_features
     from ..relational.index import build
     from ..relational.scene import find
     from ..relational.templates import learn_class, store_template
 
     motions, metas, parts = composite_streams(db, pairs, actors, repeats, within, blend_s, seed)
-    tmp = None
-    if folder is None:
-        tmp = tempfile.TemporaryDirectory(prefix="mocapviz-composite-")
-        folder = tmp.name
-    try:
-        streams = MotionDB.create(Path(folder) / "composite.mdb").append_motions(motions, metas)
-        doc_of = dict(zip(streams.documents["name"], streams.documents["doc_id"]))
+    with _streams_db(motions, metas, folder, "composite") as (streams, doc_of):
         parts["stream_doc"] = [doc_of[n] for n in parts["name"]]
         fps = float(streams.documents["fps"].iloc[0])
         indexes = build(streams, relational_set, progress=False, save=False)
@@ -711,9 +717,6 @@ def composite_quality(db, pairs=PAIRS, within: float = 2.0, template_cost: float
             if progress:
                 print(f"{meta['name']}: {row['tp']}/{row['events']} found, {row['hits']} hits, "
                       f"{row['reversed_hits']} reversed")  # fmt: skip
-    finally:
-        if tmp is not None:
-            tmp.cleanup()
     per_stream = pd.DataFrame(rows)
 
     def summed(frame: pd.DataFrame) -> pd.Series:
@@ -952,22 +955,13 @@ def cmu_sequence_quality(db, annotations: pd.DataFrame, queries: dict | None = N
     .. [1] M. Müller, T. Röder, M. Clausen. Efficient content-based retrieval of motion capture data. SIGGRAPH
        2005, §1 and §6.3 ("a kick of the right foot followed by a punch").
     """
-    import tempfile
-
-    from ..db.database import MotionDB
     from ..relational.index import build
     from ..relational.scene import find
 
     queries = CMU_SEQUENCE_QUERIES if queries is None else queries
     motions, metas, parts = cmu_sequence_streams(db, annotations, margin_s, filler_s, blend_s, within,
                                                  units_per_stream, seed)  # fmt: skip
-    tmp = None
-    if folder is None:
-        tmp = tempfile.TemporaryDirectory(prefix="mocapviz-cmu-sequences-")
-        folder = tmp.name
-    try:
-        streams = MotionDB.create(Path(folder) / "cmu_sequences.mdb").append_motions(motions, metas)
-        doc_of = dict(zip(streams.documents["name"], streams.documents["doc_id"]))
+    with _streams_db(motions, metas, folder, "cmu_sequences") as (streams, doc_of):
         parts["doc_id"] = [doc_of[n] for n in parts["name"]]
         kind_of = {doc_of[m["name"]]: m["kind"] for m in metas}
         fps = float(streams.documents["fps"].iloc[0])
@@ -1003,8 +997,5 @@ def cmu_sequence_quality(db, annotations: pd.DataFrame, queries: dict | None = N
                                  "recall": tp / n_events if n_events else np.nan})  # fmt: skip
             all_hits.append(hits.assign(query=name, matched=m["matched"]))
             truths.append(truth.assign(query=name))
-    finally:
-        if tmp is not None:
-            tmp.cleanup()
     return {"summary": pd.DataFrame(rows), "per_kind": pd.DataFrame(per_kind), "parts": parts,
             "truth": pd.concat(truths, ignore_index=True), "hits": pd.concat(all_hits, ignore_index=True)}

@@ -23,6 +23,7 @@ resolved best first, as :func:`mocapviz.match.subsequence_dtw` does; ``overlappi
 """
 from __future__ import annotations
 
+import itertools
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,7 +49,7 @@ from .description import (
 )
 from .vocabulary import vocabulary_of
 
-__all__ = ["TEMPLATE_COST", "describe", "find", "find_by_scan"]
+__all__ = ["TEMPLATE_COST", "describe", "empty_reason", "find", "find_by_scan", "read_description"]
 
 TEMPLATE_COST = 0.15  # a template atom's instances without a learned threshold: normalised cost at most this
 TEMPLATE_MATCHES = 100_000  # instances of a template atom considered at most
@@ -94,8 +95,8 @@ def _unique(label: str, start, end, children, index) -> _Hits:
 class _Context:
     """What evaluating a description over one database needs: documents, rates, relational values or indexes."""
 
-    def __init__(self, db, relational_set: str, template_cost: float, indexes=None, values=None):
-        self.db, self.relational_set, self.template_cost = db, relational_set, template_cost
+    def __init__(self, db, relational_set: str, template_cost: float, templates: dict, indexes=None, values=None):
+        self.db, self.relational_set, self.template_cost, self.templates = db, relational_set, template_cost, templates
         docs = db.documents
         self.doc_start = docs["start"].to_numpy(np.int64)
         self.doc_end = self.doc_start + docs["n_frames"].to_numpy(np.int64)
@@ -303,7 +304,7 @@ def _union(label: str, options: list[_Hits]) -> _Hits:
 def _template_hits(ctx: _Context, atom: TemplateAtom) -> _Hits:
     from .templates import search_template
 
-    template = _load_template(ctx.db, atom.name)
+    template = ctx.templates[atom.name]
     cost = ctx.template_cost
     if cost is None:  # the template's own: the worst cost of its examples
         cost = min(1.0, float(template.meta.get("threshold", TEMPLATE_COST)))
@@ -315,8 +316,6 @@ def _template_hits(ctx: _Context, atom: TemplateAtom) -> _Hits:
 # ================================================================================================ the scan path
 def _concurrent_scan(ctx: _Context, leaves: list[_Hits]) -> np.ndarray:
     """:func:`_concurrent` by checking every combination of hits within each document."""
-    import itertools
-
     doc = [ctx.doc_of(leaf.start) for leaf in leaves]
     rows = []
     for d in np.unique(doc[0]):
@@ -410,7 +409,33 @@ def _load_template(db, name: str):
         raise DescriptionError(f"template:{name}: {exc}") from None
 
 
-def _prepare(db, description, relational_set, template_cost) -> tuple[Description, float]:
+def read_description(db, description, relational_set: str | None = None,
+                     template_cost: float | None = None) -> tuple[Description, float | None, dict]:
+    """A description read for ``db``, as :func:`find` reads it (a sharded search reads it once, for every shard).
+
+    Parameters
+    ----------
+    db : MotionDB
+    description : str or Description
+    relational_set : {"2005", "2006"}, optional
+        As :func:`find`.
+    template_cost : float, optional
+        As :func:`find` (checked here).
+
+    Returns
+    -------
+    parsed : Description
+        Read in the relational set given, or the one the text names (``set 2006;``), or its templates' set, else
+        "2005".
+    template_cost : float or None
+    templates : dict
+        Name -> MotionTemplate of every template atom, each read once.
+
+    Raises
+    ------
+    DescriptionError
+        The text cannot be read, a template is missing, or was learned on another relational set.
+    """
     from ..db.database import MotionDB
     from ..features import RELATIONAL_SETS, feature_names
 
@@ -418,40 +443,35 @@ def _prepare(db, description, relational_set, template_cost) -> tuple[Descriptio
         raise ParameterError(f"db must be a MotionDB; got {type(db).__name__}")
     if template_cost is not None:
         template_cost = number(template_cost, "template_cost (a mean mismatch per frame)", 0.0, 1.0)
+    if relational_set is not None:
+        one_of(relational_set, "relational set", RELATIONAL_SETS)
     if isinstance(description, Description):
         if relational_set is not None and relational_set != description.relational_set:
             raise ParameterError(f"the description was read with the {description.relational_set} set, not "
                                  f"{relational_set}")  # fmt: skip
-        parsed = description
+        names, chosen = description.templates(), description.relational_set
     elif isinstance(description, str):
-        sets = {}
-        for name in template_names(description):
-            template = _load_template(db, name)
-            sets[name] = next((s for s in RELATIONAL_SETS if feature_names(s) == template.features), None)
-            if sets[name] is None:
-                raise DescriptionError(f"template:{name} was not learned on a relational set's features")
-        if relational_set is not None:
-            one_of(relational_set, "relational set", RELATIONAL_SETS)
-        chosen = relational_set or declared_set(description)
-        if chosen is None and len(set(sets.values())) > 1:
-            raise DescriptionError(f"the templates were learned on different relational sets ({sets}); learn them "
-                                   "on one set")  # fmt: skip
-        chosen = chosen or next(iter(sets.values()), "2005")
-        other = [n for n, s in sets.items() if s != chosen]
-        if other:
-            raise DescriptionError(f"template:{other[0]} was learned on the {sets[other[0]]} relational set; this "
-                                   f"description is read with the {chosen} set: learn the template on {chosen} "
-                                   f"(`mocapviz template learn --relational-set {chosen}`) or find with the "
-                                   f"{sets[other[0]]} set")  # fmt: skip
-        parsed = parse_description(description, chosen)
+        names, chosen = template_names(description), relational_set or declared_set(description)
     else:
         raise ParameterError(f"description must be text or a Description; got {type(description).__name__}")
-    for name in parsed.templates():
-        template = _load_template(db, name)
-        if feature_names(parsed.relational_set) != template.features:
-            raise DescriptionError(f"template:{name} was learned on another relational set than the description's "
-                                   f"{parsed.relational_set} words; find with the template's set")
-    return parsed, template_cost
+    templates, sets = {}, {}
+    for name in names:
+        templates[name] = _load_template(db, name)
+        sets[name] = next((s for s in RELATIONAL_SETS if feature_names(s) == templates[name].features), None)
+        if sets[name] is None:
+            raise DescriptionError(f"template:{name} was not learned on a relational set's features")
+    if chosen is None and len(set(sets.values())) > 1:
+        raise DescriptionError(f"the templates were learned on different relational sets ({sets}); learn them on "
+                               "one set")  # fmt: skip
+    chosen = chosen or next(iter(sets.values()), "2005")
+    other = [n for n, s in sets.items() if s != chosen]
+    if other:
+        raise DescriptionError(f"template:{other[0]} was learned on the {sets[other[0]]} relational set; this "
+                               f"description is read with the {chosen} set: learn the template on {chosen} "
+                               f"(`mocapviz template learn --relational-set {chosen}`) or find with the "
+                               f"{sets[other[0]]} set")  # fmt: skip
+    parsed = description if isinstance(description, Description) else parse_description(description, chosen)
+    return parsed, template_cost, templates
 
 
 def _has_events(node) -> bool:
@@ -464,7 +484,18 @@ def _has_events(node) -> bool:
     return isinstance(node, Alternatives) and any(_has_events(o) for o in node.options)
 
 
-def _empty_reason(counts: list[tuple[str, int]]) -> str:
+def empty_reason(counts: list[tuple[str, int]]) -> str:
+    """Why a description found nothing: the first part with no hit, and what its parts found (or "").
+
+    Parameters
+    ----------
+    counts : list of (str, int)
+        (part, hits) in evaluation order (``attrs["counts"]`` of :func:`find`).
+
+    Returns
+    -------
+    str
+    """
     zero = [label for label, n in counts if n == 0]
     if not zero:
         return ""
@@ -476,27 +507,27 @@ def _empty_reason(counts: list[tuple[str, int]]) -> str:
 
 
 def _run(db, description, n_matches, relational_set, template_cost, overlapping, indexes, values, scan: bool):
-    parsed, template_cost = _prepare(db, description, relational_set, template_cost)
+    parsed, template_cost, templates = read_description(db, description, relational_set, template_cost)
     n_matches = None if n_matches is None else count(n_matches, "n_matches")
     if scan:
         if values is None:
             from ..features import relational_features
 
             values, _ = relational_features(db, parsed.relational_set, progress=False)
-        ctx = _Context(db, parsed.relational_set, template_cost, values=values)
+        ctx = _Context(db, parsed.relational_set, template_cost, templates, values=values)
     else:
         if indexes is None and _has_events(parsed.root):
             from .index import load as load_indexes
 
             indexes = load_indexes(db, parsed.relational_set)
-        ctx = _Context(db, parsed.relational_set, template_cost, indexes={} if indexes is None else indexes,
+        ctx = _Context(db, parsed.relational_set, template_cost, templates, indexes={} if indexes is None else indexes,
                        values=values)
     t0 = time.perf_counter()
     hits = _evaluate(ctx, parsed.root)
     table = _ranked(ctx, hits, n_matches, overlapping)
     table.attrs.update(description=str(parsed), relational_set=parsed.relational_set, counts=ctx.counts,
                        candidates=len(hits), ms=1e3 * (time.perf_counter() - t0),
-                       empty_reason=_empty_reason(ctx.counts) if table.empty else "")  # fmt: skip
+                       empty_reason=empty_reason(ctx.counts) if table.empty else "")  # fmt: skip
     return table
 
 
@@ -595,7 +626,7 @@ def _feature_runs(column: np.ndarray) -> list[list]:
     at the ends, merged into equal neighbours, split between different ones."""
     cuts = np.flatnonzero(column[1:] != column[:-1]) + 1
     bounds = np.concatenate([[0], cuts, [column.size]])
-    runs = [[float(column[a]), int(a), int(b)] for a, b in zip(bounds[:-1], bounds[1:])]
+    runs = [[float(column[a]), int(a), int(b)] for a, b in itertools.pairwise(bounds)]
     while runs and runs[0][0] == 0.5:
         runs.pop(0)
     while runs and runs[-1][0] == 0.5:

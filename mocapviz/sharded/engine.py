@@ -130,8 +130,8 @@ class ShardedDB:
         except MocapvizError:
             raise
         except Exception as second:  # noqa: BLE001 - as above
-            raise ClusterError(f"shard {i + 1} of {len(self.shards)} failed twice ({_why(first)}; then {_why(second)}); "
-                               "no answer") from None  # fmt: skip
+            raise ClusterError(f"shard {i + 1} of {len(self.shards)} failed twice ({_why(first)}; then "
+                               f"{_why(second)}); no answer") from None  # fmt: skip
 
     def features(self, numeric_set: str) -> np.ndarray:
         """The database's values of a numeric set, here (to turn an example into its query once)."""
@@ -252,9 +252,9 @@ class ShardedDB:
     def find(self, description, n_matches: int | None = None, relational_set: str | None = None,
              template_cost: float | None = None, overlapping: bool = False) -> pd.DataFrame:  # fmt: skip
         """:func:`mocapviz.relational.scene.find` over every shard: hits by score (seconds), then database frame."""
-        from ..relational.scene import _prepare
+        from ..relational.scene import empty_reason, read_description
 
-        parsed, template_cost = _prepare(self.db, description, relational_set, template_cost)
+        parsed, template_cost, _ = read_description(self.db, description, relational_set, template_cost)
         n_matches = None if n_matches is None else count(n_matches, "n_matches")
         t0 = time.perf_counter()
         results = self._fan("find", parsed.text, parsed.relational_set, n_matches=n_matches,
@@ -264,11 +264,9 @@ class ShardedDB:
         for _, attrs in results:
             for label, n in attrs["counts"]:
                 counts[label] = counts.get(label, 0) + n
-        from ..relational.scene import _empty_reason
-
         table.attrs.update(description=str(parsed), relational_set=parsed.relational_set, counts=list(counts.items()),
                            candidates=sum(a["candidates"] for _, a in results),
-                           empty_reason=_empty_reason(list(counts.items())) if table.empty else "")  # fmt: skip
+                           empty_reason=empty_reason(list(counts.items())) if table.empty else "")  # fmt: skip
         return table
 
     def search_template(self, template, n_matches: int = 10, delta: float | None = None,
