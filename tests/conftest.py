@@ -72,6 +72,12 @@ def bandai2_dir() -> Path:
 
 
 @pytest.fixture(scope="session")
+def c3d_dir() -> Path:
+    """The unpacked C3D marker files: 7 CMU trials, 2 HDM05 scene takes, 3 gait-lab files, ``MANIFEST.md``."""
+    return _fetch("c3d-markers")
+
+
+@pytest.fixture(scope="session")
 def hdm05_labels(hdm05_dir):
     """``labels.tsv`` of HDM05 (file, actor, class, take, frames, fps, split)."""
     import pandas as pd

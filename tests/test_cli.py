@@ -44,7 +44,7 @@ def test_ingest_then_info(sample_dir, tmp_path, capsys):
 def test_datasets_list_and_fetch_sample(capsys):
     assert main(["datasets", "list"]) == 0
     text = capsys.readouterr().out
-    for name in ("hdm05-cut", "cmu-asfamc", "bandai-namco-1", "bandai-namco-2"):
+    for name in ("hdm05-cut", "cmu-asfamc", "bandai-namco-1", "bandai-namco-2", "c3d-markers"):
         assert name in text
     assert main(["datasets", "fetch", "sample"]) == 0
     assert Path(capsys.readouterr().out.strip()) == datasets.sample()

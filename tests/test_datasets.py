@@ -89,7 +89,7 @@ def test_fetch_again_reuses_the_cache_and_info_reports_it(hdm05):
 def test_registry_matches_the_manifest(archives_folder):
     manifest = (archives_folder / "MANIFEST.md").read_text(encoding="utf-8")
     flat = " ".join(manifest.split())
-    assert datasets.names() == ["hdm05-cut", "cmu-asfamc", "bandai-namco-1", "bandai-namco-2"]
+    assert datasets.names() == ["hdm05-cut", "cmu-asfamc", "bandai-namco-1", "bandai-namco-2", "c3d-markers"]
     shared = datasets.info().query("not embedded")
     assert shared["name"].tolist() == datasets.names()
     for row in shared.itertuples():

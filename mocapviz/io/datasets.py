@@ -155,6 +155,24 @@ ARCHIVES: dict[str, Archive] = {
             size=79_372_188,
             source=_BANDAI_SOURCE,
         ),
+        Archive(
+            name="c3d-markers",
+            description="C3D marker trajectories: 7 CMU trials, 2 HDM05 scene takes, 3 Vicon Plug-in Gait files",
+            files="12 C3D + MANIFEST.md (source, markers, rate, frames, gaps of each)",
+            frames=22_393,
+            fps=120,
+            licence=(
+                "CMU: free for research, credit mocap.cs.cmu.edu (NSF EIA-0196217); HDM05: CC BY-SA 3.0 (cite "
+                "Müller et al., Tech. Rep. CG-2007-2); BTKData gait files: BSD-3-Clause"
+            ),
+            sha256="6d9cc365a7350daf9499fe95fc6636bd2bcaed809cbe2b276cc6b6b2478d4bfc",
+            size=8_958_048,
+            source=(
+                "github.com/numediart/MocapRecovery @ 8b18571, surenkum/c3d_to_xyz @ 10448e5, "
+                "Nisarg-M-Patel/pylayers-py3 @ 80df0cb, Mohaoui-S/Tucker_MoCap @ aeeab9b, "
+                "Biomechanical-ToolKit/BTKData @ 6aee093"
+            ),
+        ),
     )
 }
 
