@@ -257,3 +257,19 @@ def test_hit_durations_use_each_documents_frame_rate(hdm05_dir, bandai1_files, t
         hits = query_by_example(mixed, mixed.motion(int(doc)), ["rknee_bent", "lknee_bent", "rfoot_raised"])
         own = hits[(hits["doc_id"] == doc) & (hits["start"] == 0)]
         assert len(own) == 1 and own["score"].iloc[0] == pytest.approx(0.0, abs=1e-9), hits.head()
+
+
+def test_an_examples_values_query_as_the_clip(db):
+    """What a sharded query sends its shards (the example's relational values, not the clip) finds the same hits,
+    for every mode; values of the other relational set are refused, naming the set to compute."""
+    from mocapviz.relational.query import relational_example
+
+    example = db.motion(7)[10:100]
+    values = relational_example(example)
+    assert values.values.shape == (90, len(relational_features(example)[1])) and values.duration == example.duration
+    for mode in ("adaptive", "exact", "fuzzy", "mismatch"):
+        a = query_by_example(db, example, ["lfoot_raised", "lknee_bent"], mode=mode)
+        b = query_by_example(db, values, ["lfoot_raised", "lknee_bent"], mode=mode)
+        assert a.equals(b) and len(a), mode
+    with pytest.raises(ParameterError, match="of the 2006 set.*relational_example"):
+        query_by_example(db, relational_example(example, "2006"), relational_set="2005")

@@ -83,6 +83,30 @@ def test_exact_stretches_equal_subsequence_dtw(search, doc, frames, min_length):
         assert (got["frames"] >= np.ceil(min_length * len(q))).all()
 
 
+@pytest.mark.parametrize("doc", QUERIES[:3])
+def test_a_starting_limit_prunes_only_what_costs_more(search, doc):
+    """A limit reached by K documents elsewhere (the sharded search's shared K-th best) keeps every document of the
+    brute-force top K costing no more than it, and aligns fewer documents; a limit below the best leaves nothing."""
+    q, _ = search.query_features(doc)
+    ref = brute_clips(search, q, doc, 10)
+    free = search.clips(doc, n_matches=10, mode="exact", exclude_document=True)
+    for at in (9, 4):
+        limit = ref["normalised_cost"].iloc[at]
+        got = search.clips(doc, n_matches=10, mode="exact", exclude_document=True, limit=limit * (1 + 1e-9))
+        assert got["doc_id"].tolist() == ref["doc_id"].tolist()[: at + 1]
+        assert got.attrs["aligned"] <= free.attrs["aligned"]
+    assert search.clips(doc, n_matches=10, mode="exact", exclude_document=True,
+                        limit=0.5 * ref["normalised_cost"].iloc[0]).empty
+    q, _ = search.query_features(doc, (0, 30))
+    ref = brute_stretches(search, q, doc, 10, 15)
+    limit = max(c for *_, c in ref[:5])
+    got = search.stretches(doc, (0, 30), n_matches=10, mode="exact", exclude_document=True, limit=limit * (1 + 1e-9))
+    assert list(zip(got["doc_id"], got["start"], got["end"]))[:5] == [r[:3] for r in ref[:5]]
+    assert (got["cost"] <= limit * (1 + 1e-9)).all()
+    with pytest.raises(ParameterError, match="limit must be a number >= 0"):
+        search.clips(doc, limit=-1.0)
+
+
 def test_stretches_agree_with_subsequence_dtw_without_length_limit(search):
     """With no minimum length and nothing excluded, the K best stretches are subsequence_dtw's matches."""
     q, _ = search.query_features(37, (3, 33))

@@ -31,7 +31,7 @@ import pandas as pd
 
 from ..errors import ParameterError
 
-__all__ = ["COLUMNS", "HitTable", "database_frames", "from_database_frames", "hit_table"]
+__all__ = ["COLUMNS", "HitTable", "database_frames", "first_frames", "from_database_frames", "hit_table"]
 
 COLUMNS = ["rank", "doc_id", "name", "start", "end", "frames", "start_s", "end_s"]
 # columns of earlier releases, still readable (with a FutureWarning) with their old meaning: the last frame included
@@ -128,11 +128,35 @@ def _documents(db) -> dict:
         docs = db.documents.sort_values("doc_id")
         got = {"_table": db.documents, "doc_id": docs["doc_id"].to_numpy(np.int64),
                "n_frames": docs["n_frames"].to_numpy(np.int64), "fps": docs["fps"].to_numpy(np.float64),
-               "name": docs["name"].array}  # fmt: skip
+               "first": docs["start"].to_numpy(np.int64), "name": docs["name"].array}  # fmt: skip
         for name in db.label_columns:
             got[name] = (docs[name] if name in docs else pd.Series([None] * len(docs), dtype=object)).array
         _DOCUMENTS[db] = got
     return got
+
+
+def first_frames(db, doc_ids) -> np.ndarray:
+    """The database-wide frame (row of ``db.positions``) where each of ``doc_ids`` begins.
+
+    Parameters
+    ----------
+    db : MotionDB
+    doc_ids : array_like [shape=(n,)], int
+        Documents of ``db`` (not checked: a hit table's own).
+
+    Returns
+    -------
+    np.ndarray [shape=(n,)], int64
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()
+    >>> first_frames(db, [1, 0]).tolist() == [db.frames(1).start, db.frames(0).start]
+    True
+    """
+    docs = _documents(db)
+    return docs["first"][np.searchsorted(docs["doc_id"], np.asarray(doc_ids, dtype=np.int64))]
 
 
 def from_database_frames(db, first, stop) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -22,7 +22,9 @@ exceeds the limit is never opened (ranges may come in any order: the best first 
 The limit is the running K-th best: of the normalised costs (whole) or of
 the best match per range (stretches: the K best per-range minima are K candidates in K different ranges, and
 the greedy choice of non-overlapping matches takes at least K matches no worse than the K-th of them, so the
-final K-th cost cannot exceed it).
+final K-th cost cannot exceed it). It may start lower than infinity: at a cost that K matches are known to reach
+in other ranges (K whole-range costs, or K per-range minima of K different ranges, found by a cheaper search), by
+the same argument; a sharded search shares it between shards (:class:`mocapviz.sharded.ShardedDB`).
 """
 
 from __future__ import annotations
@@ -221,7 +223,7 @@ def _local_minima(end_cost, end_start, a, min_length, out_s, out_e, out_c, n_out
 
 
 @numba.njit(cache=True)
-def search_ranges(q, x, lo, hi, order, bound, rows, n_matches, whole, min_length, prune, budget, qmin,
+def search_ranges(q, x, lo, hi, order, bound, rows, n_matches, whole, min_length, prune, budget, limit, qmin,
                   qmax):  # pragma: no cover
     """Align the query with ranges [lo[r], hi[r]) of x in ``order`` and collect the candidate matches.
 
@@ -254,6 +256,9 @@ def search_ranges(q, x, lo, hi, order, bound, rows, n_matches, whole, min_length
         Use the bounds and the running limit (False: brute force, every cell of every range).
     budget : int
         Ranges to align at most (-1: all).
+    limit : float
+        The running limit's start (``np.inf``: none): a cost that K matches are known to reach elsewhere (another
+        shard's, :class:`mocapviz.sharded.ShardedDB`), normalised as the limit; what costs more is pruned here.
     qmin, qmax : np.ndarray [shape=(d,)]
         The query's bounding box (whole: every frame of a range is on the path, each costs at least its distance
         to the box; checked before a range is aligned).
@@ -274,7 +279,7 @@ def search_ranges(q, x, lo, hi, order, bound, rows, n_matches, whole, min_length
     out_e = np.empty(64, np.int64)
     out_c = np.empty(64)
     n_out = 0
-    best = np.full(n_matches, np.inf)
+    best = np.full(n_matches, limit)
     aligned = 0
     cells = 0
     buf_c = np.empty(0)

@@ -7,10 +7,14 @@ feature vectors (§5.2: restricting F to some components = a special choice of f
 groups are joined when they overlap in the same document. Hits are ranked by the temporal heuristic of
 §6.2: the sum over query segments of the difference between query and hit segment durations.
 
-query_by_example   Motion + feature names -> DataFrame of ranked hits.
+query_by_example   Motion (or its RelationalExample) + feature names -> DataFrame of ranked hits.
+relational_example a Motion's frame-wise values of a relational set: what a query needs of its example (a few kB,
+                   what a sharded query sends to its shards instead of the clip).
 query_segmentation the query sequence per feature group: the example's segmentation on the selected features.
 """
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -23,6 +27,66 @@ from ..validation import some_of
 from . import index as index_mod
 
 MODES = ("adaptive", "fuzzy", "exact", "mismatch")
+
+
+class RelationalExample(NamedTuple):
+    """What query by example needs of its example clip: the frame-wise values of one relational set and the rate.
+
+    Attributes
+    ----------
+    values : np.ndarray [shape=(T, f)], bool
+        The example's relational features (:func:`mocapviz.features.relational_features`), columns ``names``.
+    names : list of str [length f]
+        The feature names of ``relational_set``.
+    fps : float
+        The example's frames per second.
+    relational_set : str
+        "2005" or "2006".
+    """
+
+    values: np.ndarray
+    names: list
+    fps: float
+    relational_set: str
+
+    @property
+    def duration(self) -> float:
+        """The example's length in seconds (T / fps)."""
+        return len(self.values) / self.fps
+
+
+def relational_example(example, relational_set: str = "2005") -> RelationalExample:
+    """The values of ``relational_set`` of an example clip, computed once (a RelationalExample is returned as is).
+
+    Parameters
+    ----------
+    example : Motion or RelationalExample
+    relational_set : {"2005", "2006"}
+
+    Returns
+    -------
+    RelationalExample
+
+    Raises
+    ------
+    ParameterError
+        A RelationalExample of another relational set.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> ex = relational_example(MotionDB.sample().motion(7))
+    >>> ex.values.shape, ex.fps, round(ex.duration, 3)
+    ((129, 31), 120.0, 1.075)
+    """
+    if isinstance(example, RelationalExample):
+        if example.relational_set != relational_set:
+            raise ParameterError(f"the example's values are of the {example.relational_set} set; the query asks for "
+                                 f"the {relational_set} set: compute them with relational_example(motion, "
+                                 f"{relational_set!r})")  # fmt: skip
+        return example
+    values, names = relational_features(example, relational_set)
+    return RelationalExample(values, list(names), float(example.fps), relational_set)
 
 
 def _check_features(features, relational_set: str) -> list[str]:
@@ -126,8 +190,9 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     ----------
     db : MotionDB
         With relational indexes built (:func:`mocapviz.relational.index.build` / ``mocapviz index DB``).
-    example : Motion
-        The query clip (any skeleton; e.g. ``db.motion(3)[120:360]`` or ``mocapviz.load(path)``).
+    example : Motion or RelationalExample
+        The query clip (any skeleton; e.g. ``db.motion(3)[120:360]`` or ``mocapviz.load(path)``), or its values
+        (:func:`relational_example`).
     features : list of str, optional
         Feature names of ``relational_set`` (any groups); the rest are "don't care". Default: all.
     mode : {"adaptive", "fuzzy", "exact", "mismatch"}
@@ -207,7 +272,7 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     too_long = longer_than_every_document(db, example)
     if too_long:
         raise ParameterError(too_long)
-    values, names = relational_features(example, relational_set)
+    values, names, _, _ = relational_example(example, relational_set)
     doc_fps = docs["fps"].to_numpy(np.float64)  # per document: a database may mix frame rates
     tables = []
     for group, (picked, seq) in query_segmentation(values, names, features, relational_set).items():

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from ..db.database import MotionDB
-from ..db.hits import hit_table
+from ..db.hits import first_frames, hit_table
 from ..db.shards import split_documents
 from ..errors import ClusterError, MocapvizError, ParameterError
 from ..parallel import dask_client
@@ -200,8 +200,9 @@ class ShardedDB:
         query = self._query(example, frames, numeric_set)
         n_matches = count(n_matches, "n_matches")
         t0 = time.perf_counter()
-        tables = self._fan("clips", numeric_set, query, n_matches=n_matches, mode=mode,
-                           exclude_document=exclude_document, paths=paths)  # fmt: skip
+        options = {"n_matches": n_matches, "exclude_document": exclude_document}
+        limit = self._limit("clips", numeric_set, query, "normalised_cost", mode, options)
+        tables = self._fan("clips", numeric_set, query, mode=mode, paths=paths, limit=limit, **options)
         return self._merged(tables, ["normalised_cost", "doc_id"], n_matches, t0)
 
     def stretches(self, example, frames=None, n_matches: int = 10, numeric_set: str = "F15E", mode: str = "fast",
@@ -211,9 +212,26 @@ class ShardedDB:
         query = self._query(example, frames, numeric_set)
         n_matches = count(n_matches, "n_matches")
         t0 = time.perf_counter()
-        tables = self._fan("stretches", numeric_set, query, n_matches=n_matches, mode=mode, min_length=min_length,
-                           exclude_document=exclude_document, paths=paths)  # fmt: skip
+        options = {"n_matches": n_matches, "min_length": min_length, "exclude_document": exclude_document}
+        limit = self._limit("stretches", numeric_set, query, "cost", mode, options)
+        tables = self._fan("stretches", numeric_set, query, mode=mode, paths=paths, limit=limit, **options)
         return self._merged(tables, ["cost", "_last"], n_matches, t0)
+
+    def _limit(self, method: str, numeric_set: str, query, column: str, mode: str, options: dict) -> float | None:
+        """The K-th best cost shared by every shard in exact mode (:func:`mocapviz.match.pruned.search_ranges`): a
+        first, fast round on every shard finds real matches; the K-th least of their documents' best costs is
+        reached by K documents, so each shard's exact search prunes what costs more from the start (None: fewer
+        than K documents found, or not exact mode). Raised by 1e-9 of itself: a cost equal to it, normalised on
+        another shard, must not fall just above it by rounding."""
+        if mode != "exact" or len(self.actors) < 2:
+            return None
+        packs = self._fan(method, numeric_set, query, mode="fast", **options)
+        doc_ids = np.concatenate([p["columns"]["doc_id"] for p in packs])
+        costs = np.concatenate([p["columns"][column] for p in packs]).astype(np.float64)
+        costs = pd.Series(costs).groupby(doc_ids).min().to_numpy()  # each document's best
+        costs = np.sort(costs[np.isfinite(costs)])
+        k = options["n_matches"]
+        return float(costs[k - 1]) * (1 + 1e-9) if len(costs) >= k else None
 
     def match_motion(self, example, frames=None, numeric_set: str = "F15E", method: str = "lng", n_matches: int = 10,
                      k: int | None = None, radius: float | None = None, eps: float = 0.0,
@@ -239,15 +257,16 @@ class ShardedDB:
                          relational_set: str = "2005", allowed=None) -> pd.DataFrame:  # fmt: skip
         """:func:`mocapviz.relational.query.query_by_example` over every shard (each with its own inverted indexes):
         the hits ranked by score, then doc id and start, as on one process."""
-        from ..relational.query import longer_than_every_document
+        from ..relational.query import longer_than_every_document, relational_example
 
         too_long = longer_than_every_document(self.db, example)
         if too_long:
             raise ParameterError(too_long)
         t0 = time.perf_counter()
+        example = relational_example(example, relational_set)  # once, here; the shards get its values (a few kB)
         tables = self._fan("query_by_example", example, features, relational_set, mode=mode, mismatches=mismatches,
                            allowed=allowed)  # fmt: skip
-        return self._merged([t for t in tables if t is not None], ["score", "doc_id", "start"], None, t0)
+        return self._merged(tables, ["score", "doc_id", "start"], None, t0)
 
     def find(self, description, n_matches: int | None = None, relational_set: str | None = None,
              template_cost: float | None = None, overlapping: bool = False) -> pd.DataFrame:  # fmt: skip
@@ -259,13 +278,13 @@ class ShardedDB:
         t0 = time.perf_counter()
         results = self._fan("find", parsed.text, parsed.relational_set, n_matches=n_matches,
                             template_cost=template_cost, overlapping=overlapping)  # fmt: skip
-        table = self._merged([t for t, _ in results], ["score", "_first"], n_matches, t0)
+        table = self._merged(results, ["score", "_first"], n_matches, t0)
         counts: dict[str, int] = {}
-        for _, attrs in results:
+        for attrs in (p["attrs"] for p in results):
             for label, n in attrs["counts"]:
                 counts[label] = counts.get(label, 0) + n
         table.attrs.update(description=str(parsed), relational_set=parsed.relational_set, counts=list(counts.items()),
-                           candidates=sum(a["candidates"] for _, a in results),
+                           candidates=sum(p["attrs"]["candidates"] for p in results),
                            empty_reason=empty_reason(list(counts.items())) if table.empty else "")  # fmt: skip
         return table
 
@@ -280,24 +299,22 @@ class ShardedDB:
         return self._merged(tables, ["cost", "_last"], n_matches, t0)
 
     # ------------------------------------------------------------------ the merge
-    def _merged(self, tables: list, order: list[str], n_matches: int | None, t0: float) -> pd.DataFrame:
-        """The shards' hit tables as one, in ``order`` (``_first`` / ``_last``: the hit's first / last database
-        frame), the first ``n_matches``, ranked again."""
-        if not tables:
+    def _merged(self, packs: list, order: list[str], n_matches: int | None, t0: float) -> pd.DataFrame:
+        """The shards' packed hit tables (:meth:`Shard.packed`; None: nothing could match there) as one hit table, in
+        ``order`` (``_first`` / ``_last``: the hit's first / last database frame), the first ``n_matches``, ranked
+        again, with the shards' column order."""
+        packs = [p for p in packs if p is not None]
+        if not packs:
             return hit_table(self.db, [], [], [])
-        found = [t for t in tables if len(t)]
-        table = pd.concat(found, ignore_index=True) if found else tables[0]
-        starts = self.db.documents.set_index("doc_id").loc[table["doc_id"], "start"].to_numpy()
-        keys = {"_first": starts + table["start"].to_numpy(), "_last": starts + table["end"].to_numpy() - 1}
-        sort = [keys[c] if c in keys else table[c].to_numpy() for c in order]
-        rows = np.lexsort(sort[::-1])[:n_matches]
-        own = ("rank", "doc_id", "name", "start", "end", "frames", "start_s", "end_s", *self.db.label_columns)
-        columns = {c: table[c].to_numpy()[rows] for c in table.columns if c not in own}
-        merged = hit_table(self.db, table["doc_id"].to_numpy()[rows], table["start"].to_numpy()[rows],
-                           table["end"].to_numpy()[rows], **columns)  # fmt: skip
-        if set(merged.columns) == set(table.columns):
-            merged = merged[list(table.columns)]  # the shards' column order (a path after the labels)
-        merged.attrs.update({k: v for k, v in tables[0].attrs.items() if isinstance(v, (str, int, float))})
+        data = {c: np.concatenate([p["columns"][c] for p in packs]) for c in packs[0]["columns"]}
+        first = first_frames(self.db, data["doc_id"])
+        keys = {"_first": first + data["start"], "_last": first + data["end"] - 1}
+        rows = np.lexsort([keys[c] if c in keys else data[c] for c in order][::-1])[:n_matches]
+        picked = {c: v[rows] for c, v in data.items()}
+        merged = hit_table(self.db, picked.pop("doc_id"), picked.pop("start"), picked.pop("end"), **picked)
+        if set(merged.columns) == set(packs[0]["order"]):
+            merged = merged[packs[0]["order"]]  # the shards' column order (a path after the labels)
+        merged.attrs.update({k: v for k, v in packs[0]["attrs"].items() if isinstance(v, (str, int, float))})
         merged.attrs.update(shards=len(self.shards), ms=1e3 * (time.perf_counter() - t0))
         return merged
 

@@ -3,8 +3,10 @@ database (:func:`mocapviz.db.shards.shard_view`), and the derived data its searc
 queries: each numeric set's rows with its similarity search and kd-tree, each relational set's frame-wise values and
 inverted indexes.
 
-Every method runs one library function on the shard and returns its hit table (doc ids and in-document frames as
-on the whole database): :class:`mocapviz.sharded.engine.ShardedDB` merges them.
+Every search method runs one library function on the shard and returns its hit table packed (:meth:`Shard.packed`:
+doc ids, in-document frames and the search's own columns as numpy arrays, as on the whole database; names, seconds
+and labels are added once, by :class:`mocapviz.sharded.engine.ShardedDB` when it merges them): a DataFrame costs
+milliseconds to pickle, its arrays microseconds.
 """
 from __future__ import annotations
 
@@ -109,48 +111,55 @@ class Shard:
         distances, frames = index.query(np.atleast_2d(queries), k, radius=radius, eps=eps, exclude=exclude)
         return distances, np.where(frames >= 0, frames + self.offset, -1)
 
-    def clips(self, numeric_set: str, query, **options):
+    def packed(self, table) -> dict:
+        """A hit table as it travels to the coordinator: ``columns`` (doc_id, start, end and the search's own
+        columns, numpy arrays), ``order`` (the table's column order) and ``attrs``."""
+        derived = {"rank", "name", "frames", "start_s", "end_s", *self.view.label_columns}
+        return {"columns": {c: table[c].to_numpy() for c in table.columns if c not in derived},
+                "order": list(table.columns), "attrs": dict(table.attrs)}  # fmt: skip
+
+    def clips(self, numeric_set: str, query, **options) -> dict:
         """:meth:`SimilaritySearch.clips` on the shard (``query``: a :class:`~mocapviz.similarity.search.Query`)."""
-        return self.search(numeric_set).clips(query, **options)
+        return self.packed(self.search(numeric_set).clips(query, **options))
 
-    def stretches(self, numeric_set: str, query, **options):
+    def stretches(self, numeric_set: str, query, **options) -> dict:
         """:meth:`SimilaritySearch.stretches` on the shard."""
-        return self.search(numeric_set).stretches(query, **options)
+        return self.packed(self.search(numeric_set).stretches(query, **options))
 
-    def match_dtw(self, numeric_set: str, query, n_matches: int, exclude_document: bool, paths: bool):
+    def match_dtw(self, numeric_set: str, query, n_matches: int, exclude_document: bool, paths: bool) -> dict:
         """:func:`~mocapviz.similarity.motion_matching.match_motion` by subsequence DTW on the shard (the query's own
         document left out when it is one of the shard's)."""
         from ..similarity.motion_matching import match_motion
 
         own = exclude_document and query.doc_id is not None and query.doc_id in self.doc_ids
-        return match_motion(self.view, query, numeric_set=numeric_set, method="dtw", n_matches=n_matches,
-                            exclude_document=own, paths=paths, features=self.numeric(numeric_set))  # fmt: skip
+        return self.packed(match_motion(self.view, query, numeric_set=numeric_set, method="dtw", n_matches=n_matches,
+                                        exclude_document=own, paths=paths, features=self.numeric(numeric_set)))
 
-    def query_by_example(self, example, features, relational_set: str = "2005", **options):
-        """:func:`~mocapviz.relational.query.query_by_example` on the shard; None when the example is longer than
-        every document of the shard (nothing can match here)."""
+    def query_by_example(self, example, features, relational_set: str = "2005", **options) -> dict | None:
+        """:func:`~mocapviz.relational.query.query_by_example` on the shard (``example``: a Motion or its
+        :class:`~mocapviz.relational.query.RelationalExample`); None when the example is longer than every document
+        of the shard (nothing can match here)."""
         from ..relational.query import longer_than_every_document, query_by_example
 
         if longer_than_every_document(self.view, example):
             return None
-        return query_by_example(self.view, example, features, relational_set=relational_set,
-                                indexes=self.indexes(relational_set), **options)  # fmt: skip
+        return self.packed(query_by_example(self.view, example, features, relational_set=relational_set,
+                                            indexes=self.indexes(relational_set), **options))  # fmt: skip
 
-    def find(self, description: str, relational_set: str, **options):
-        """:func:`~mocapviz.relational.scene.find` on the shard: (hit table, its attrs)."""
+    def find(self, description: str, relational_set: str, **options) -> dict:
+        """:func:`~mocapviz.relational.scene.find` on the shard (its attrs: the hits of each part, ``counts``)."""
         from ..relational.description import template_names
         from ..relational.scene import find
 
         values = self.values(relational_set) if template_names(description) else None
-        hits = find(self.view, description, relational_set=relational_set, indexes=self.indexes(relational_set),
-                    values=values, **options)  # fmt: skip
-        return hits, dict(hits.attrs)
+        return self.packed(find(self.view, description, relational_set=relational_set,
+                                indexes=self.indexes(relational_set), values=values, **options))  # fmt: skip
 
-    def search_template(self, template, **options):
+    def search_template(self, template, **options) -> dict:
         """:func:`~mocapviz.relational.templates.search_template` on the shard (the template's relational set)."""
         from ..features import RELATIONAL_SETS, feature_names
         from ..relational.templates import search_template
 
         relational_set = next((s for s in RELATIONAL_SETS if feature_names(s) == list(template.features)), None)
         values = self.values(relational_set) if relational_set else None
-        return search_template(self.view, template, values=values, **options)
+        return self.packed(search_template(self.view, template, values=values, **options))

@@ -49,7 +49,7 @@ from ..match.bounds import box_rows, range_of, row_bounds
 from ..match.pruned import search_ranges
 from ..match.time_warping import dtw, select_matches
 from ..motion import Motion
-from ..validation import count, frame_span, one_of
+from ..validation import count, frame_span, number, one_of
 
 if TYPE_CHECKING:
     from .knn import KnnIndex
@@ -214,7 +214,8 @@ class SimilaritySearch:
 
     # ------------------------------------------------------------------------ whole clips
     def clips(self, example, frames=None, n_matches: int = 10, mode: str = "fast", exclude_document: bool = False,
-              paths: bool = False, candidates=None, budget: int | None = None) -> pd.DataFrame:  # fmt: skip
+              paths: bool = False, candidates=None, budget: int | None = None,
+              limit: float | None = None) -> pd.DataFrame:  # fmt: skip
         """The documents that move most like the query, ranked by DTW cost / (query frames + document frames).
 
         Parameters
@@ -235,6 +236,10 @@ class SimilaritySearch:
             Rank only these doc ids (e.g. relational hits).
         budget : int, optional
             Fast mode's documents aligned at most (default max(CLIP_BUDGET, 2 K)).
+        limit : float, optional
+            A normalised cost that K documents are known to reach elsewhere (e.g. on other shards): documents
+            costing more are pruned from the start (exact mode stays exact for the K best overall; fewer than K
+            rows may come back).
 
         Returns
         -------
@@ -269,7 +274,7 @@ class SimilaritySearch:
                 rows[bounded, -1] = _costs(q[-1], self.features[hi[bounded] - 1])
             bound = rows.sum(axis=1) / (m + hi - lo)
         costs, aligned, cells = _whole_costs(q, self.features, lo, hi, order, bound, rows, n_matches, mode != "brute",
-                                             budget_n)  # fmt: skip
+                                             budget_n, _limit(limit))  # fmt: skip
         norm = costs / (m + hi - lo)
         found = np.flatnonzero(np.isfinite(norm))
         found = found[np.lexsort((self._doc_ids[rows_idx[found]], norm[found]))][:n_matches]
@@ -301,7 +306,7 @@ class SimilaritySearch:
 
     # ------------------------------------------------------------------------ stretches
     def stretches(self, example, frames=None, n_matches: int = 10, mode: str = "fast", min_length: float = 0.5,
-                  exclude_document: bool = False, paths: bool = False) -> pd.DataFrame:  # fmt: skip
+                  exclude_document: bool = False, paths: bool = False, limit: float | None = None) -> pd.DataFrame:
         """The K best non-overlapping stretches of the documents by subsequence DTW (raw cost, as
         :func:`mocapviz.match.subsequence_dtw` ranks them), each at least ``min_length`` × the query's frames.
 
@@ -321,6 +326,9 @@ class SimilaritySearch:
             Leave out the query's own document.
         paths : bool
             Add each match's warping path ((L, 2) (query frame, frame of the hit's document)).
+        limit : float, optional
+            A cost that the best matches of K different documents are known to reach elsewhere (e.g. on other
+            shards): what costs more is pruned from the start (exact mode stays exact for the K best overall).
 
         Returns
         -------
@@ -355,7 +363,8 @@ class SimilaritySearch:
             bound = rows.sum(axis=1)
             order = np.argsort(bound, kind="stable")
         starts, ends, costs, aligned, cells = search_ranges(q, self.features, lo, hi, order, bound, rows, n_matches,
-                                                            False, shortest, mode != "brute", -1, *_box(q))  # fmt: skip
+                                                            False, shortest, mode != "brute", -1, _limit(limit),
+                                                            *_box(q))  # fmt: skip
         chosen = select_matches(starts, ends, costs, n_matches)
         ms = 1e3 * (time.perf_counter() - t0)
         doc_row = np.searchsorted(self._lo, ends[chosen], side="right") - 1
@@ -378,7 +387,7 @@ class SimilaritySearch:
         want = COARSE_CANDIDATES * n_matches
         starts, ends, costs, _, _ = search_ranges(qc, y, lo, hi, np.arange(len(lo)), np.zeros(len(lo)),
                                                   np.zeros((len(lo), len(qc))), want, False,
-                                                  max(1, shortest // self.pool), True, -1, *_box(qc))  # fmt: skip
+                                                  max(1, shortest // self.pool), True, -1, np.inf, *_box(qc))  # fmt: skip
         chosen = select_matches(starts, ends, costs, want)
         r = np.searchsorted(lo, ends[chosen], side="right") - 1
         pad = int(np.ceil(WINDOW_PAD * len(q)))
@@ -535,15 +544,20 @@ def _box(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return q.min(axis=0).astype(np.float64), q.max(axis=0).astype(np.float64)
 
 
-def _whole_costs(q, x, lo, hi, order, bound, rows, n_matches: int, prune: bool, budget: int):
+def _whole_costs(q, x, lo, hi, order, bound, rows, n_matches: int, prune: bool, budget: int, limit: float = np.inf):
     """Whole-range DTW costs (R,) of the query against ranges [lo, hi) (sorted by lo; inf: not aligned, or pruned
     above the running n_matches-th best normalised cost), the ranges aligned and the cells computed
     (:func:`mocapviz.match.pruned.search_ranges`)."""
     first, _, found, aligned, cells = search_ranges(q, x, lo, hi, order, bound, rows, n_matches, True, 1, prune,
-                                                    budget, *_box(q))  # fmt: skip
+                                                    budget, limit, *_box(q))  # fmt: skip
     costs = np.full(len(lo), np.inf)
     costs[np.searchsorted(lo, first)] = found
     return costs, aligned, cells
+
+
+def _limit(limit) -> float:
+    """A search's starting limit (:func:`mocapviz.match.pruned.search_ranges`): ``limit`` as a float, inf for None."""
+    return np.inf if limit is None else number(limit, "limit", 0.0)
 
 
 def _costs(frame: np.ndarray, frames: np.ndarray) -> np.ndarray:
