@@ -79,9 +79,6 @@ N = {"relational": (40, 6), "knn_single": (500, 50), "knn_batch": (1000, 200), "
 N_SHARDED = {"relational": (10, 3), "knn_single": (100, 20), "knn_batch": (1000, 200), "stretches": (6, 2),
              "clips": (6, 2), "lng": (6, 2)}  # fmt: skip
 QUERY_SECONDS = 1.0  # stretches, LNG and relational examples: 1 s of a real document
-# ShardedDB.search_template has no pre-filter: its full DTW pass (~30 s per 500k-frame shard for a 167-frame
-# template) is measured up to this size only
-SHARDED_TEMPLATE_MAX = 1_500_000
 GROUPS = ("open", "relational", "knn", "search", "lng", "templates", "sharded")
 
 
@@ -483,9 +480,8 @@ def _group_sharded(db, plan, quick, out):
             "clips, fast": (clips, lambda d: sh.clips(d, n_matches=K_SEARCH, mode="fast", exclude_document=True)),
             "LNG 1 s, k = 256": (lng, lambda e: sh.match_motion(e[0], e[1], n_matches=K_SEARCH,
                                                                  exclude_document=True)),
-            # no pre-filter in ShardedDB.search_template: a full pass per shard, timed once
-            **({"template search, pre-filter": ([template], lambda t: sh.search_template(t, n_matches=K_SEARCH))}
-               if db.n_frames <= SHARDED_TEMPLATE_MAX else {}),
+            "template search, pre-filter": ([template], lambda t: sh.search_template(t, n_matches=K_SEARCH,
+                                                                                      prefilter=True)),
         }  # fmt: skip
         for name, (items, fn) in calls.items():
             fn(items[0])  # warm-up: numba in the workers, first use of the shard's data
@@ -522,8 +518,8 @@ def _group_sharded(db, plan, quick, out):
         "clips, exact": (q_clip, lambda q: s.clips("F15E", q, n_matches=K_SEARCH, mode="exact", exclude_document=True)),
         "clips, fast": (q_clip, lambda q: s.clips("F15E", q, n_matches=K_SEARCH, mode="fast", exclude_document=True)),
         "LNG 1 s, k = 256": (q_lng, lambda q: s.knn("F15E", q, 256)),  # the shards' part of LNG: the kNN
-        **({"template search, pre-filter": ([template], lambda t: s.search_template(t, n_matches=K_SEARCH))}
-           if db.n_frames <= SHARDED_TEMPLATE_MAX else {}),
+        "template search, pre-filter": ([template], lambda t: s.search_template(t, n_matches=K_SEARCH,
+                                                                                prefilter=True)),
     }  # fmt: skip
     shard_out = []
     for i, ids in enumerate(parts):
@@ -871,10 +867,10 @@ def render(ctx: dict, big, record: dict, out_dir: Path) -> None:
               f"peak RSS of the coordinator and its 2 workers (psutil, incl. file-backed pages): "
               f"{sh.get('sharded_peak_rss_MB', 0):,.0f} MB")
         print()
-    print("Library notes: `ShardedDB.search_template` has no `prefilter` option (each `Shard.search_template` runs "
-          "the full DTW pass over its frames), so its sharded row compares a full pass with the one process's "
-          f"pre-filtered search, and is measured up to {SHARDED_TEMPLATE_MAX:,} frames only (the full pass costs ~1 min per "
-          "million frames); `ShardedDB.match_motion` (LNG) asks the shards for the 256 nearest frames of every "
+    print("Library notes: `ShardedDB.search_template(..., prefilter=True)`: each shard pre-filters on its own "
+          "inverted indexes; exact clips and stretches run a fast round on every shard first and share the K-th best "
+          "cost it finds as each shard's starting limit (the round's time is in the sharded figure); "
+          "`ShardedDB.match_motion` (LNG) asks the shards for the 256 nearest frames of every "
           "query frame and builds the graph at the coordinator: its per-shard work is that kNN "
           "(`Shard.knn(F15E, 120 rows, 256)`) and its transfer 120 x 256 (distance, frame) pairs per shard.")
     print()

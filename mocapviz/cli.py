@@ -574,16 +574,14 @@ def _template_search(args) -> None:
             template = load_template(db, args.template)
         except ParameterError as exc:  # not a stored name either
             raise ParameterError(f"{args.template}: no such template file, and {exc}") from None
-    if args.prefilter and args.scheduler:
-        raise ParameterError("--prefilter runs in one process: leave it out with --scheduler")
     try:
         with _sharded(args, db) as sharded:
             if sharded is None:
                 table = search_template(db, template, n_matches=args.n_matches, max_cost=args.max_cost,
                                         prefilter=args.prefilter)  # fmt: skip
             else:
-                table = sharded.search_template(template, n_matches=args.n_matches, max_cost=args.max_cost)
-                table.attrs.setdefault("aligned", 1.0)
+                table = sharded.search_template(template, n_matches=args.n_matches, max_cost=args.max_cost,
+                                                prefilter=args.prefilter)  # fmt: skip
     except ParameterError as exc:
         raise ParameterError(f"{args.template}: {exc}") from None
     limit = "" if args.max_cost is None else f", normalised cost <= {args.max_cost:g}"

@@ -132,13 +132,19 @@ def test_template_search_is_exactly_the_single_process_answer(hdm05, sharded):
     db = hdm05[0]
     template = learn_class(db, "squat1Reps", actors=["bd"])
     same(search_template(db, template, n_matches=12), sharded.search_template(template, n_matches=12), "cost")
+    one = search_template(db, template, n_matches=12, prefilter=True)  # the keyframe pre-filter, per shard
+    two = sharded.search_template(template, n_matches=12, prefilter=True)
+    same(one, two, "cost")
+    assert two.attrs["aligned"] == pytest.approx(one.attrs["aligned"], abs=1e-6) and one.attrs["aligned"] < 1
 
 
 def test_cli_scheduler_local_writes_the_same_csv(sample_db, tmp_path, capsys):
     db = MotionDB.ingest(sample_db.documents["path"].tolist(), tmp_path / "db", progress=False)
     assert main(["index", str(db.path), "--quiet"]) == 0
+    assert main(["template", "learn", str(db.path), "--label", "kickLFront1Reps", "--relational-set", "2005"]) == 0
     for command in (["search", str(db.path), "--example", "7", "-K", "4", "--mode", "exact"],
                     ["find", str(db.path), "kick_left"],
+                    ["template", "search", str(db.path), "kickLFront1Reps", "-K", "5", "--prefilter"],
                     ["knn", str(db.path), "--frame", "7:30", "-k", "6", "--quiet"]):  # fmt: skip
         one, many = tmp_path / "one.csv", tmp_path / "many.csv"
         assert main([*command, "--csv", str(one)]) == 0

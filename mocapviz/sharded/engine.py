@@ -289,14 +289,19 @@ class ShardedDB:
         return table
 
     def search_template(self, template, n_matches: int = 10, delta: float | None = None,
-                        max_cost: float | None = None) -> pd.DataFrame:  # fmt: skip
+                        max_cost: float | None = None, prefilter: bool = False) -> pd.DataFrame:  # fmt: skip
         """:func:`mocapviz.relational.templates.search_template` over every shard: instances by cost, then by their
-        last frame in the database, as on one process."""
+        last frame in the database, as on one process (``prefilter``: each shard aligns only where the template's
+        keyframes occur in its own inverted indexes; attrs ``aligned``: the share of all frames aligned)."""
         n_matches = count(n_matches, "n_matches")
-        options = {"n_matches": n_matches, "max_cost": max_cost, **({} if delta is None else {"delta": delta})}
+        options = {"n_matches": n_matches, "max_cost": max_cost, "prefilter": bool(prefilter),
+                   **({} if delta is None else {"delta": delta})}  # fmt: skip
         t0 = time.perf_counter()
-        tables = self._fan("search_template", template, **options)
-        return self._merged(tables, ["cost", "_last"], n_matches, t0)
+        packs = self._fan("search_template", template, **options)
+        table = self._merged(packs, ["cost", "_last"], n_matches, t0)
+        table.attrs["aligned"] = sum(p["attrs"]["aligned_frames"] for p in packs) / max(1, self.db.n_frames)
+        table.attrs.pop("aligned_frames", None)
+        return table
 
     # ------------------------------------------------------------------ the merge
     def _merged(self, packs: list, order: list[str], n_matches: int | None, t0: float) -> pd.DataFrame:

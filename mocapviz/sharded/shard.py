@@ -156,10 +156,14 @@ class Shard:
                                 indexes=self.indexes(relational_set), values=values, **options))  # fmt: skip
 
     def search_template(self, template, **options) -> dict:
-        """:func:`~mocapviz.relational.templates.search_template` on the shard (the template's relational set)."""
+        """:func:`~mocapviz.relational.templates.search_template` on the shard (the template's relational set; the
+        pre-filter on the shard's own inverted indexes); attrs ``aligned_frames``: the frames the DTW pass aligned."""
         from ..features import RELATIONAL_SETS, feature_names
         from ..relational.templates import search_template
 
         relational_set = next((s for s in RELATIONAL_SETS if feature_names(s) == list(template.features)), None)
         values = self.values(relational_set) if relational_set else None
-        return self.packed(search_template(self.view, template, values=values, **options))
+        indexes = self.indexes(relational_set) if relational_set and options.get("prefilter") else None
+        table = search_template(self.view, template, values=values, indexes=indexes, **options)
+        table.attrs["aligned_frames"] = round(table.attrs["aligned"] * self.view.n_frames)
+        return self.packed(table)
