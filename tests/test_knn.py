@@ -164,6 +164,26 @@ def test_valid_mask_never_returns_excluded_frames(db, features, queries, ranked)
         np.testing.assert_array_equal(view.query(queries, 16)[1], index.query(queries, 16)[1])
 
 
+def test_a_large_copy_is_a_memory_mapped_file_with_the_same_answers(tree, features, queries, ranked, monkeypatch,
+                                                                    tmp_path):
+    """Above SPILL_BYTES the kd-tree's float64 copy lives in an unlinked temporary file of the cache folder, mapped
+    (file-backed pages, not anonymous memory): the same neighbours, all frames or a valid subset; nothing left."""
+    from mocapviz.similarity import knn
+
+    monkeypatch.setattr(knn, "SPILL_BYTES", 0)
+    monkeypatch.setattr(knn, "_COPY_ROWS", 1000)  # several blocks
+    monkeypatch.setenv("MOCAPVIZ_HOME", str(tmp_path))
+    spilled = KnnIndex(features)
+    assert isinstance(spilled._structure[0].data.base, np.memmap)  # the tree searches the mapped file, no copy
+    for k in (1, 16):
+        np.testing.assert_array_equal(spilled.query(queries, k)[1], tree.query(queries, k)[1])
+    valid = np.arange(len(features)) % 3 != 0
+    d, i = KnnIndex(features, valid=valid).query(queries, 16)
+    assert not (i % 3 == 0).any()
+    assert_same_neighbours(features, queries, d, i, *reference(ranked, 16, None, valid=valid))
+    assert list(tmp_path.iterdir()) == []  # unlinked at once
+
+
 def test_nbytes_and_build_time(tree, brute, features):
     n = len(features)
     assert tree.n_frames == tree.n_indexed == n and tree.dim == 15

@@ -25,6 +25,7 @@ Conventions shared by all functions:
 from __future__ import annotations
 
 import heapq
+import tempfile
 import time
 
 import numba
@@ -44,6 +45,8 @@ _NODE_BYTES = 72  # sizeof(ckdtreenode) in scipy: 9 fields of 8 bytes
 _BRUTE_CHUNK_BYTES = 64 << 20  # distance matrix of one brute-force chunk of queries
 _ORDER_MIN = 64  # queries from which a batch is searched in the tree's leaf order
 _ORDER_EPS = 10.0  # approximation of the 1-NN search that finds a query's place in that order
+SPILL_BYTES = 256 << 20  # a float64 copy for the kd-tree above this size is a memory-mapped temporary file
+_COPY_ROWS = 1 << 20  # rows copied at a time into it
 
 
 # ============================================================================ input checks
@@ -149,6 +152,34 @@ def _check_exclude(exclude, n_queries: int) -> np.ndarray:
 
 
 # ============================================================================ engines
+def _float64_rows(features: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+    """``features[rows]`` (all rows for None) as the C-contiguous float64 (M, d) array scipy's kd-tree searches in.
+
+    Up to :data:`SPILL_BYTES` in memory; above it in an unlinked temporary file of the cache folder
+    (:func:`mocapviz.io.datasets.cache_dir`), memory-mapped and filled a block of rows at a time: file-backed pages
+    that the kernel writes out and drops under memory pressure, not anonymous memory held for the index's life
+    (1.2 GB for F15E at 10M frames; the space is freed with the index). Where no file can be made, in memory.
+    """
+    n = len(features) if rows is None else len(rows)
+    shape = (n, features.shape[1])
+    if n * shape[1] * 8 <= SPILL_BYTES:
+        return np.ascontiguousarray(features if rows is None else features[rows], dtype=np.float64)
+    from ..io.datasets import cache_dir
+
+    try:
+        folder = cache_dir()
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder, prefix="kdtree-") as f:
+            f.truncate(n * shape[1] * 8)
+            out = np.memmap(f, dtype=np.float64, mode="r+", shape=shape)  # the map outlives the closed file
+    except OSError:
+        return np.ascontiguousarray(features if rows is None else features[rows], dtype=np.float64)
+    for a in range(0, n, _COPY_ROWS):
+        b = min(n, a + _COPY_ROWS)
+        out[a:b] = features[a:b] if rows is None else features[rows[a:b]]
+    return out
+
+
 def _build_ckdtree(data: np.ndarray, leafsize: int) -> tuple[cKDTree, np.ndarray]:
     """kd-tree over data (M, d) float64 (§4.1 preprocessing) and the rank (M,) int64 of each point in the tree's
     leaf order. Sliding-midpoint splits (``balanced_tree=False``): on F15E queries are about twice as fast as
@@ -296,8 +327,7 @@ class KnnIndex:
         self.n_indexed = len(self.frames)
         self._every = self.n_indexed == self.n_frames  # positions in the structure are frame numbers
         t0 = time.perf_counter()
-        picked = self._features if self.n_indexed == self.n_frames else self._features[self.frames]
-        data = np.ascontiguousarray(picked, dtype=np.float64)
+        data = _float64_rows(self._features, None if self._every else self.frames)
         self._structure = _ENGINES[engine][0](data, self.leafsize)
         self.build_seconds = time.perf_counter() - t0
         self.nbytes = data.nbytes + self.frames.nbytes
