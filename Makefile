@@ -9,8 +9,10 @@ CHROMIUM := /usr/bin/chromium
 # Debian's Chromium for the dashboard's browser tests (never `playwright install`) and Mesa's EGL / OSMesa for
 # PyVista's offscreen rendering; installed once, as root or through sudo
 SYSTEM_PACKAGES := chromium libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6
+# the Khronos glTF validator (npm) for the glTF export's test (tests/test_export.py), under .cache (not in git)
+GLTF_VALIDATOR := .cache/gltf/node_modules/gltf-validator
 
-.PHONY: install demo test test-fast notebooks-full reproduce bench clean
+.PHONY: install demo test test-fast gltf-validator notebooks-full reproduce bench clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,6 +27,12 @@ $(CHROMIUM):
 	  echo "the browser tests need Debian's packages: apt-get install $(SYSTEM_PACKAGES)" >&2; exit 1; fi; \
 	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(SYSTEM_PACKAGES)
 
+$(GLTF_VALIDATOR):
+	@if command -v npm >/dev/null; then npm install --silent --prefix .cache/gltf gltf-validator; else \
+	  echo "the glTF validator needs node and npm (apt-get install nodejs npm); its test skips without them" >&2; fi
+
+gltf-validator: $(GLTF_VALIDATOR)
+
 # the embedded sample as a MotionDB with its relational indexes and numeric feature sets, then the dashboard on
 # http://127.0.0.1:$(PORT)/ (Ctrl-C stops it)
 demo: install
@@ -33,7 +41,7 @@ demo: install
 	$(BIN)/mocapviz features $(DEMO_DB) --no-cluster --quiet
 	$(BIN)/mocapviz serve $(DEMO_DB) --port $(PORT)
 
-test: install $(CHROMIUM)
+test: install $(CHROMIUM) $(GLTF_VALIDATOR)
 	MOCAPVIZ_REQUIRE_BROWSER=1 $(PY) -m pytest --doctest-modules mocapviz tests notebooks --nbmake
 
 test-fast: install

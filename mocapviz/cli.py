@@ -13,6 +13,8 @@
                        [--stretches [--min-length 0.5]] [--exclude-document] [--csv FILE] [--paths]
     mocapviz template learn DB --label CLASS [--actors A,B,...] [--relational-set 2005|2006] [--out FILE]
     mocapviz template search DB FILE_OR_NAME [-K 10] [--max-cost C] [--csv FILE] [--prefilter]
+    mocapviz export DB (--hits HITS.csv | --doc ID [--frames A:B]) --format bvh|amc|glb [--rig source|canonical]
+                       --out DIR [--search TEXT]
     mocapviz reproduce NAME|all [--full] --out DIR   (NAME: an experiment, e.g. rank_correlations, reconstruction)
     mocapviz serve [DB] [--port 5006] [--address 127.0.0.1 | --address ADDRESS --allow-origin HOST:PORT...] [--show]
                                                                                 (no DB: the embedded sample)
@@ -32,6 +34,9 @@ spellings still work: ``--top`` (query, for ``-K``), ``--feature-set`` (for ``--
 Every command that prints hits (``query``, ``knn``, ``match``, ``search``, ``template search``) prints and, with
 ``--csv FILE``, writes the one hit table of :func:`mocapviz.db.hits.hit_table`: ``start`` and ``end`` within the
 document, half-open, ``start_s`` and ``end_s`` at the document's own rate.
+
+``export`` writes what a search found (``--hits``: the CSV of ``--csv FILE``) or one stretch of a document as files,
+one per hit, named ``<rank>_<name>_<start>-<end>.<format>`` (:mod:`mocapviz.export`, docs/export.md).
 
 Errors print one line (``mocapviz: error: ...``): a value the argument parser refuses (not a number, out of its
 range, an unknown name, a list where one value is allowed) exits with status 2, one the command refuses (checked
@@ -561,6 +566,25 @@ def _template_learn(args) -> None:
         print(f"written to {args.out}")
 
 
+def _export(args) -> None:
+    from .db.database import MotionDB
+    from .export import export_hits, export_stretch
+
+    if args.frames is not None and args.doc is None:
+        raise ParameterError("--frames A:B cuts the document of --doc ID; the stretches of --hits are their rows' "
+                             "start:end")  # fmt: skip
+    db = MotionDB.open(args.db)
+    if args.doc is not None:
+        doc = int(db.document(args.doc)["doc_id"])  # an unknown id: an error naming the valid ones
+        a, b = frame_span(args.frames, int(db.document(doc)["n_frames"]), f"document {doc}", "--frames", least=1)
+        paths = export_stretch(db, doc, args.out, a, b, args.format, args.rig, args.search)
+    else:
+        paths = export_hits(db, args.hits, args.out, args.format, args.rig, args.search)
+    for path in paths:
+        print(path)
+    print(f"{len(paths)} file(s) written to {args.out}")
+
+
 def _template_search(args) -> None:
     from .db.database import MotionDB
     from .relational.templates import MotionTemplate, load_template, search_template, shortest_instance
@@ -863,6 +887,24 @@ def build_parser() -> argparse.ArgumentParser:
                     "template, and may miss a hit whose keyframes disagree")  # fmt: skip
     _search_scheduler(ts)
     ts.set_defaults(func=_template_search)
+
+    ex = sub.add_parser("export", help="write the stretches a search found (--hits, its --csv file) or one stretch "
+                        "of a document (--doc) as motion files: BVH, AMC or glTF binary, one per hit")  # fmt: skip
+    ex.add_argument("db")
+    what = ex.add_mutually_exclusive_group(required=True)
+    what.add_argument("--hits", metavar="HITS.csv", help="the hit table a search wrote with --csv FILE (columns rank, "
+                      "doc_id, start, end: frames within the document, half-open)")  # fmt: skip
+    _option(what, "--doc", check=_count(least=0), metavar="ID", help="one document (a doc id)")
+    _option(ex, "--frames", check=parse_span, metavar="A:B", help="with --doc: frames A:B of it (B excluded; "
+            "default: all)")  # fmt: skip
+    ex.add_argument("--format", required=True, choices=["bvh", "amc", "glb"], help="bvh (BVH), amc (AMC with its "
+                    "ASF; ASF/AMC sources only) or glb (glTF binary)")  # fmt: skip
+    ex.add_argument("--rig", choices=["source", "canonical"], help="source: the source file's frames on its own rig; "
+                    "canonical: the 24 canonical joints posed to the database's frames (default: canonical for glb, "
+                    "source otherwise)")  # fmt: skip
+    ex.add_argument("--out", required=True, help="output folder (created if missing)")
+    ex.add_argument("--search", help="what found the hits, written into every file (default: the hits file's name)")
+    ex.set_defaults(func=_export)
 
     rp = sub.add_parser("reproduce", help="re-run the papers' experiments on the shared data; write CSV tables and "
                         "PNG/HTML figures")  # fmt: skip

@@ -74,6 +74,12 @@ class MotionDBError(MocapvizError, ValueError):
     """A MotionDB on disk is missing, of another format version, or inconsistent."""
 
 
+class SourceFileError(MocapvizError, ValueError):
+    """A document's source file, needed to export it on its own rig (``mocapviz.export``), is gone or is not the file
+    that was ingested (its sha256 differs from the documents table's); the message names the file and the way out
+    (export on the canonical rig, from the database's own frames)."""
+
+
 class DescriptionError(ParameterError):
     """A scene description (``docs/descriptions.md``) that cannot be read: a syntax error, an unknown body part,
     state word or name, a bad time. The message starts with the line and column.

@@ -7,6 +7,7 @@ one_of, some_of    a name (or several) from a fixed set: numeric sets, relationa
 finite_positions   joint positions without NaN or inf, the first bad frame and joint named.
 renamed            a decorator accepting a parameter's old name (see the glossary) with a FutureWarning.
 frame_span         a [first, last) span of frames inside a clip of n frames, at least ``least`` of them.
+integer_columns    integer columns of a table (a hit table read from CSV), the missing column or first bad row named.
 
 Checks of text (command-line values; the command's ``type=`` functions call them):
 
@@ -230,6 +231,49 @@ def frame_span(frames, n: int, what: str, name: str = "frames", least: int = 2) 
         raise ParameterError(f"a query needs at least {least} frames; {name} {_span_text(first, last)} of {what} "
                              f"hold {b - a}")
     return int(a), int(b)
+
+
+def integer_columns(table, names, what: str, hint: str = "") -> dict:
+    """The columns ``names`` of ``table`` as int64 arrays, or a ParameterError naming ``what`` (the table), the
+    missing columns or the first row (1-based) whose value is not a whole number, and ``hint`` (what to pass).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The table (a hit table read from a CSV file).
+    names : sequence of str
+        The columns needed.
+    what : str
+        The table, for the message ("--hits hits.csv").
+    hint : str
+        What to pass instead, appended to the message.
+
+    Returns
+    -------
+    dict
+        Column name -> np.ndarray [shape=(rows,)], int64.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> integer_columns(pd.DataFrame({"doc_id": [3], "start": [10.0]}), ["doc_id", "start"], "hits")["start"]
+    array([10])
+    """
+    missing = [n for n in names if n not in table.columns]
+    if missing:
+        raise ParameterError(f"{what} has no column {', '.join(missing)} (it has {', '.join(map(str, table.columns))})"
+                             f"{'; ' + hint if hint else ''}")
+    out = {}
+    for name in names:
+        values = np.asarray(table[name].to_numpy(), dtype=object)
+        ok = np.array([isinstance(v, (int, float, np.number)) and not isinstance(v, bool) and np.isfinite(v)
+                       and float(v) == int(v) for v in values], dtype=bool)  # fmt: skip
+        if not ok.all():
+            row = int(np.argmin(ok))
+            raise ParameterError(f"{what}, row {row + 1}: {name} must be a whole number, got {values[row]!r}"
+                                 f"{'; ' + hint if hint else ''}")
+        out[name] = values.astype(np.float64).astype(np.int64)
+    return out
 
 
 def _span_text(first, last) -> str:

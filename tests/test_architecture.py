@@ -20,6 +20,7 @@ LAYERS = [
     ("motion", ["mocapviz.motion"]),
     ("io", ["mocapviz.io"]),
     ("db", ["mocapviz.db"]),
+    ("export", ["mocapviz.export"]),
     ("features", ["mocapviz.features"]),
     ("match", ["mocapviz.match"]),
     ("relational", ["mocapviz.relational"]),

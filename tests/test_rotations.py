@@ -189,3 +189,26 @@ def test_forward_kinematics_matches_scipy_random_chain(rng):
 def test_forward_kinematics_rejects_bad_parent_order():
     with pytest.raises(ValueError):
         rotations.forward_kinematics(np.array([1, -1]), np.zeros((1, 2, 3)), ["", ""], np.zeros((1, 2, 3)))
+
+
+@pytest.mark.parametrize("order", ORDERS)
+def test_to_euler_inverts_from_euler_also_at_gimbal_lock(order):
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=(2000, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    locked = rotations.from_euler(order, [[10, 90, 30], [10, -90, 30], [-170, 90, 5], [0, 89.9999999, 7]])
+    for x in (q, locked):
+        angles = rotations.to_euler(order, x)
+        assert np.abs(angles[:, 1]).max() <= 90.0
+        assert rotations.angle(x, rotations.from_euler(order, angles)).max() < 1e-6
+    # the same angles as scipy's extrinsic convention away from the lock (order = axes in the order applied)
+    np.testing.assert_allclose(rotations.to_euler(order, q[:50]), _scipy(q[:50]).as_euler(order.lower(), degrees=True),
+                               atol=1e-6)
+
+
+def test_from_matrix_inverts_the_rotation_matrix():
+    rng = np.random.default_rng(4)
+    q = rng.normal(size=(500, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    m = np.stack([rotations.rotate(q, np.eye(3)[k]) for k in range(3)], axis=-1)  # columns: the turned axes
+    assert rotations.angle(q, rotations.from_matrix(m)).max() < 1e-6

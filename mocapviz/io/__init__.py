@@ -4,6 +4,9 @@ load          path -> Motion (ASF/AMC, BVH), dispatching on the file extension.
 find_asf      the ASF skeleton of an AMC file, by the CMU and HDM05 folder conventions.
 read_asf, read_amc, read_bvh   the format readers (``asfamc``, ``bvh`` modules).
 
+The writers, for :mod:`mocapviz.export`: ``bvh_writer`` (a posed rig, an AMC on its ASF rig, a stretch of a BVH
+file), ``amc_writer`` (a stretch of an AMC file), ``gltf_writer`` (a posed rig as glTF binary).
+
 The readers (and numba, which they compile with) are imported when first used: opening a MotionDB, which imports
 this package through ingest, reads no motion file.
 """

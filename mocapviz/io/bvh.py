@@ -13,6 +13,8 @@ Conventions:
   millimetres, otherwise centimetres; pass ``scale`` (centimetres per file unit) to override.
 - Up axis: y; with ``up="auto"`` (default) a file whose figure stands along z (head above hips on z) is
   turned to y up, keeping it right-handed; ``up="z"`` forces the conversion, ``up="y"`` prevents it.
+- Comments: lines inside HIERARCHY whose first word starts with ``#`` are skipped (an export's note of its source,
+  :mod:`mocapviz.io.bvh_writer`).
 - Text: keywords (``HIERARCHY``, ``ROOT``, ``JOINT``, ``End Site``, ``OFFSET``, ``CHANNELS``, ``MOTION``,
   ``Frames:``, ``Frame Time:``) and channel names in any case; words separated by any ASCII white space (space,
   tab, vertical tab, form feed, CR); lines end with LF or CR LF. UTF-8 (with or without a byte-order mark), else
@@ -120,7 +122,7 @@ def _parse_hierarchy(lines: list[str], path) -> tuple[_Hierarchy, int]:
     for i in range(first + 1, len(lines)):
         tok = words(lines[i])
         ln = i + 1
-        if not tok:
+        if not tok or tok[0].startswith("#"):  # a blank or a comment line (mocapviz exports name their source so)
             continue
         key = tok[0].upper() if tok[0].isascii() else tok[0]  # ("motıon".upper() is "MOTION")
         if key in ("ROOT", "JOINT"):

@@ -6,6 +6,8 @@ Rotations act on column vectors: ``rotate(q, v)`` is ``R(q) @ v``.
 Public functions
 ----------------
 from_euler             Euler angles (any axis order) -> quaternions.
+to_euler               quaternions -> Euler angles (any axis order of three axes), the inverse of from_euler.
+from_matrix            rotation matrices -> quaternions.
 multiply               Hamilton product of two quaternion arrays (broadcasting).
 rotate                 Rotate vectors by quaternions (broadcasting).
 angle                  Rotation angle between two quaternion arrays (radians).
@@ -60,6 +62,95 @@ def from_euler(order: str, angles: np.ndarray, degrees: bool = True) -> np.ndarr
         qk[..., 1 + axis] = s[..., k]
         q = multiply(qk, q)
     return q
+
+
+def to_euler(order: str, q: np.ndarray, degrees: bool = True) -> np.ndarray:
+    """Euler angles of rotations, the inverse of :func:`from_euler`.
+
+    Parameters
+    ----------
+    order : str
+        Three different axes in the order the rotations are applied (as :func:`from_euler`), e.g. ``"XYZ"``:
+        ``R = Rz @ Ry @ Rx``; any case.
+    q : np.ndarray [shape=(..., 4)]
+        Unit quaternions ``(w, x, y, z)``.
+    degrees : bool
+        Angles in degrees (default) or radians.
+
+    Returns
+    -------
+    np.ndarray [shape=(..., 3)], float64
+        One column per letter of ``order``; the middle angle within ±90 degrees. At gimbal lock (middle angle
+        ±90 degrees) the last rotation is 0 and the first takes the whole turn about the shared axis.
+
+    Examples
+    --------
+    >>> to_euler("YXZ", from_euler("YXZ", [10, -20, 30])).round(6)
+    array([ 10., -20.,  30.])
+    """
+    axes = [_AXES.index(a) for a in order.lower()]
+    if sorted(axes) != [0, 1, 2]:
+        raise ParameterError(f"to_euler: order must name x, y and z once each, got {order!r}")
+    m = _matrix(np.asarray(q, dtype=np.float64))
+    k, j, i = axes  # R = R_i R_j R_k: k is applied first
+    e = 1.0 if (i, j, k) in ((0, 1, 2), (1, 2, 0), (2, 0, 1)) else -1.0
+    cos_middle = np.hypot(m[..., i, i], m[..., i, j])
+    middle = np.arctan2(e * m[..., i, k], cos_middle)
+    locked = cos_middle < 1e-7
+    # at gimbal lock R = R_i(outer) R_j(middle): R_i(outer) = R R_j(-middle), read off its own plane (p, r)
+    turn = m @ _matrix(from_euler("xyz"[j], -middle[..., None], degrees=False))
+    p, r = (i + 1) % 3, (i + 2) % 3
+    outer = np.where(locked, np.arctan2(turn[..., r, p], turn[..., p, p]), np.arctan2(-e * m[..., j, k], m[..., k, k]))
+    inner = np.where(locked, 0.0, np.arctan2(-e * m[..., i, j], m[..., i, i]))
+    out = np.stack([inner, middle, outer], axis=-1)
+    return np.degrees(out) if degrees else out
+
+
+def _matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices [shape=(..., 3, 3)] of unit quaternions (normalised first)."""
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
+    ], axis=-2)  # fmt: skip
+
+
+def from_matrix(m: np.ndarray) -> np.ndarray:
+    """Quaternions of rotation matrices.
+
+    Parameters
+    ----------
+    m : np.ndarray [shape=(..., 3, 3)]
+        Proper rotation matrices (orthonormal, determinant 1).
+
+    Returns
+    -------
+    np.ndarray [shape=(..., 4)], float64
+        Unit quaternions ``(w, x, y, z)`` with ``w >= 0``.
+
+    Examples
+    --------
+    >>> from_matrix(np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])).round(3)  # 90 degrees about z
+    array([0.707, 0.   , 0.   , 0.707])
+    """
+    m = np.asarray(m, dtype=np.float64)
+    # the largest of 4w², 4x², 4y², 4z² gives the best-conditioned formula (Shepperd's method)
+    d = np.stack([m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2], m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]], axis=-1)
+    big = np.argmax(d, axis=-1)[..., None]
+    c = np.stack([
+        np.stack([1 + d[..., 0], m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]], -1),
+        np.stack([m[..., 2, 1] - m[..., 1, 2], 1 + 2 * d[..., 1] - d[..., 0], m[..., 0, 1] + m[..., 1, 0],
+                  m[..., 0, 2] + m[..., 2, 0]], -1),
+        np.stack([m[..., 0, 2] - m[..., 2, 0], m[..., 0, 1] + m[..., 1, 0], 1 + 2 * d[..., 2] - d[..., 0],
+                  m[..., 1, 2] + m[..., 2, 1]], -1),
+        np.stack([m[..., 1, 0] - m[..., 0, 1], m[..., 0, 2] + m[..., 2, 0], m[..., 1, 2] + m[..., 2, 1],
+                  1 + 2 * d[..., 3] - d[..., 0]], -1),
+    ], axis=-2)  # fmt: skip
+    q = np.take_along_axis(c, big[..., None], axis=-2)[..., 0, :]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0, -q, q)
 
 
 def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -1,0 +1,255 @@
+"""One stretch of one document as files: its source cut on its own rig, or the database's frames on the canonical rig.
+
+stretch_files     (doc_id, start, end) -> {file name: bytes}: the export of one hit, in memory.
+export_stretch    the same written into a folder (each file atomically); returns the paths.
+source_frames     a stretch at the database's rate -> the same seconds in frames of its source file.
+
+What each combination writes (docs/export.md):
+
+========= ============ =================================================================================================
+format    rig          file(s)
+========= ============ =================================================================================================
+bvh       source       BVH source: its header and exactly its frame lines; AMC source: a BVH on the ASF rig
+amc       source       the AMC's header and frame blocks (renumbered from 1), beside a copy of its ASF
+glb       source       the source file's joints posed to the source's positions (glTF binary)
+bvh, glb  canonical    the 24 canonical joints posed to the database's positions (within 0.01 cm)
+========= ============ =================================================================================================
+"""
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+
+from .. import store
+from .._version import __version__
+from ..errors import ParameterError, SourceFileError
+from ..validation import frame_span, one_of
+
+FORMATS = ("bvh", "amc", "glb")
+RIGS = ("source", "canonical")
+
+
+def default_rig(format: str) -> str:
+    """The rig a format is exported on when none is asked for: ``canonical`` for glTF (24 named joints any viewer
+    shows alike), ``source`` for BVH and AMC (the captured file itself)."""
+    return "canonical" if format == "glb" else "source"
+
+
+def source_frames(row, start: int, end: int) -> tuple[int, int]:
+    """Frames ``start:end`` of a document at the database's rate as frames of its source file (the same seconds).
+
+    A database resampled at ingest (``fps`` other than ``source_fps``) holds frame ``k`` at ``k / fps`` seconds; the
+    source frame at that time is ``k * source_fps / fps``. The stretch becomes source frames ``round(start * r)`` to
+    ``round((end - 1) * r) + 1`` (``r = source_fps / fps``, half-open): from the first frame's time to the last's.
+
+    Parameters
+    ----------
+    row : pandas.Series
+        The document's row of ``db.documents`` (``fps``, ``source_fps``).
+    start, end : int
+        Frames at the database's rate, half-open.
+
+    Returns
+    -------
+    (int, int)
+        Source frames, half-open.
+
+    Examples
+    --------
+    >>> source_frames({"fps": 30.0, "source_fps": 120.0}, 10, 20)
+    (40, 77)
+    """
+    r = float(row["source_fps"]) / float(row["fps"])
+    if r == 1.0:
+        return int(start), int(end)
+    return round(start * r), round((end - 1) * r) + 1
+
+
+def _checked_source(row) -> Path:
+    """The document's source file, or a SourceFileError when it is gone or is not the file that was ingested."""
+    from ..db.ingest import file_checksum
+
+    path = Path(row["path"])
+    doc = f"document {int(row['doc_id'])} ({row['name']})"
+    way_out = "export it with --rig canonical (rig='canonical': from the database's own frames) or restore the file"
+    if not path.is_file():
+        raise SourceFileError(f"{path}: the source file of {doc} is gone; {way_out}")
+    digest = file_checksum(path)
+    if digest != row["sha256"]:
+        raise SourceFileError(f"{path}: the source file of {doc} has changed since it was ingested (sha256 "
+                              f"{digest[:12]}..., the database has {str(row['sha256'])[:12]}...); {way_out}")
+    return path
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", str(name)).strip("_") or "document"
+
+
+def _plain(value):
+    """A JSON value of a table cell (numpy scalars as Python numbers, NaN as None)."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value if isinstance(value, (int, float, str, bool, type(None))) else str(value)
+
+
+def stretch_files(db, doc_id: int, start: int | None = None, end: int | None = None, format: str = "bvh",
+                  rig: str | None = None, rank: int = 1, search: str | None = None, scores: dict | None = None,
+                  digits: int = 3) -> dict[str, bytes]:
+    """The files of one exported stretch, in memory.
+
+    Parameters
+    ----------
+    db : MotionDB
+        The database holding the document.
+    doc_id : int
+        The document.
+    start, end : int, optional
+        Frames within the document at the database's rate, half-open (default: all).
+    format : {"bvh", "amc", "glb"}
+        BVH, AMC (with its ASF; an ASF/AMC source only) or glTF binary.
+    rig : {"source", "canonical"}, optional
+        The source file's own rig, or the 24 canonical joints; default :func:`default_rig`.
+    rank : int
+        The hit's rank: the file names start with it (``001_...``).
+    search : str, optional
+        What found the stretch (a query, a description, a hits file), written into the files.
+    scores : dict, optional
+        The search's own columns of the hit (``cost``, ``score``, ...), written into the files.
+    digits : int
+        Digits of the rank in the file names (at least; enough for ``rank``).
+
+    Returns
+    -------
+    dict
+        File name -> bytes: ``<rank>_<name>_<start>-<end>.<format>`` (and the ``.asf`` of an AMC). Each file names
+        its source document, frames, rig and search: a ``# mocapviz export: {JSON}`` comment line (BVH, AMC), the
+        same JSON object as ``asset.extras`` and scene ``extras`` (glTF).
+
+    Raises
+    ------
+    ParameterError
+        An unknown document, format or rig, frames outside the document, AMC asked of a BVH source or of the canonical
+        rig.
+    SourceFileError
+        ``rig="source"`` and the source file is gone or changed since it was ingested.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> files = stretch_files(MotionDB.sample(), 7, 0, 60, format="amc", search="an example")
+    >>> sorted(files)
+    ['001_HDM_dg_kickLFront1Reps_017_120_0-60.amc', '001_HDM_dg_kickLFront1Reps_017_120_0-60.asf']
+    """
+    one_of(format, "export format", FORMATS)
+    rig = default_rig(format) if rig is None else one_of(rig, "rig", RIGS)
+    row = db.document(int(doc_id))
+    start, end = frame_span((start, end), int(row["n_frames"]), f"document {int(doc_id)}", least=1)
+    if format == "amc" and (rig == "canonical" or row["format"] != "amc"):
+        raise ParameterError(f"format 'amc' copies the frames of an ASF/AMC source on its own rig; document "
+                             f"{int(doc_id)} is {row['format']!r}{' on the canonical rig' if rig == 'canonical' else ''}: "
+                             "export it as 'bvh' or 'glb'")  # fmt: skip
+    a, b = source_frames(row, start, end)
+    meta = {"exported_by": f"mocapviz {__version__}", "database": str(db.path), "doc_id": int(doc_id),
+            "name": str(row["name"]), "source": str(row["path"]), "sha256": str(row["sha256"]),
+            "frames": [start, end], "fps": float(row["fps"]), "source_frames": [a, b],
+            "source_fps": float(row["source_fps"]), "format": format, "rig": rig, "rank": int(rank),
+            "search": search, "scores": {k: _plain(v) for k, v in (scores or {}).items()}}  # fmt: skip
+    stem = f"{int(rank):0{digits}d}_{_safe(row['name'])}_{start}-{end}"
+    notes = [f"mocapviz export: {json.dumps(meta)}"]
+    if rig == "canonical":
+        return {f"{stem}.{format}": _canonical(db, int(doc_id), start, end, format, notes, meta)}
+    return _source(_checked_source(row), stem, a, b, format, notes, meta)
+
+
+def _rest(motion) -> np.ndarray:
+    """Rest offsets of a rig: the bones of the clip's first frame (the root's: zero), cm."""
+    return motion.positions[0] - motion.positions[0, np.maximum(motion.parents, 0)]
+
+
+def _posed(motion, a: int, b: int, format: str, notes: list, meta: dict) -> bytes:
+    """Frames a:b of ``motion`` on its own joints (rest pose: its first frame) as BVH or glTF."""
+    from ..io.bvh_writer import pose_bvh
+    from ..io.gltf_writer import pose_glb
+    from ..motion.rig import fit_pose
+
+    pose = fit_pose(motion.positions[a:b], motion.parents, _rest(motion))
+    if format == "bvh":
+        return pose_bvh(motion.joint_names, motion.parents, pose, motion.fps, notes)
+    return pose_glb(motion.joint_names, motion.parents, pose, motion.fps, meta)
+
+
+def _canonical(db, doc_id: int, start: int, end: int, format: str, notes: list, meta: dict) -> bytes:
+    return _posed(db.motion(doc_id), start, end, format, notes, meta)
+
+
+def _source(path: Path, stem: str, a: int, b: int, format: str, notes: list, meta: dict) -> dict[str, bytes]:
+    from ..io import find_asf, load, read_asf
+    from ..io.amc_writer import cut_amc
+    from ..io.bvh_writer import asf_bvh, cut_bvh
+    from ..io.text import read_bytes
+
+    amc = path.suffix.lower() == ".amc"
+    if format == "amc":
+        asf = find_asf(path)
+        notes = notes + [f"frames renumbered from 1: frame 1 here is frame {a + 1} of {path.name}"]
+        return {f"{stem}.amc": cut_amc(read_bytes(path), a, b, notes, path), f"{stem}.asf": read_bytes(asf)}
+    if format == "bvh" and amc:
+        return {f"{stem}.bvh": asf_bvh(load(path)[a:b], read_asf(find_asf(path)), notes)}
+    if format == "bvh":
+        return {f"{stem}.bvh": cut_bvh(read_bytes(path), a, b, notes, path)}
+    return {f"{stem}.glb": _posed(load(path), a, b, format, notes, meta)}
+
+
+def export_stretch(db, doc_id: int, out_dir, start: int | None = None, end: int | None = None, format: str = "bvh",
+                   rig: str | None = None, search: str | None = None) -> list[Path]:
+    """Frames ``start:end`` of document ``doc_id`` written into ``out_dir`` (:func:`stretch_files`).
+
+    Parameters
+    ----------
+    db : MotionDB
+        The database.
+    doc_id : int
+        The document.
+    out_dir : str or os.PathLike
+        The folder (created if missing); each file is written to a temporary file there and renamed.
+    start, end : int, optional
+        Frames at the database's rate, half-open (default: the whole document).
+    format : {"bvh", "amc", "glb"}
+        See :func:`stretch_files`.
+    rig : {"source", "canonical"}, optional
+        See :func:`stretch_files`.
+    search : str, optional
+        What found the stretch, written into the files.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from mocapviz import MotionDB, load
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     [bvh] = export_stretch(MotionDB.sample(), 7, folder, 10, 70, rig="canonical")
+    ...     bvh.name, load(bvh).n_frames
+    ('001_HDM_dg_kickLFront1Reps_017_120_10-70.bvh', 60)
+    """
+    files = stretch_files(db, doc_id, start, end, format, rig, search=search)
+    return write_files(files, out_dir)
+
+
+def write_files(files: dict[str, bytes], out_dir) -> list[Path]:
+    """``files`` (name -> bytes) written into ``out_dir`` (created if missing), each atomically; their paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, data in files.items():
+        store.atomic_write(out / name, data)
+        paths.append(out / name)
+    return paths

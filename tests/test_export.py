@@ -1,0 +1,403 @@
+"""mocapviz.export (issue 27): every export read back equals what it was cut from.
+
+Canonical rig: positions read back (mocapviz.io.load for BVH; pygltflib and forward kinematics for glTF) equal the
+database's within 0.01 cm. Source rig: a BVH source's frame lines byte for byte, an AMC source's frame blocks line for
+line (numbers renumbered from 1), an AMC as BVH on its ASF rig with the AMC's positions. Every file names its source.
+On the embedded sample and on real clips of every archive (HDM05 and CMU ASF/AMC, Bandai Namco BVH), one at a
+resampled rate.
+"""
+from __future__ import annotations
+
+import io
+import json
+import os
+import re
+import shutil
+import subprocess
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mocapviz import MotionDB
+from mocapviz.cli import main
+from mocapviz.db.hits import hit_table
+from mocapviz.errors import ParameterError, SourceFileError
+from mocapviz.export import export_hits, export_stretch, hits_zip, read_hits, source_frames, stretch_files
+from mocapviz.io import load
+from mocapviz.motion import rotations
+from mocapviz.motion.skeleton import CANONICAL_JOINTS
+
+TOLERANCE_CM = 0.01
+VALIDATOR = Path(__file__).resolve().parents[1] / ".cache" / "gltf" / "node_modules" / "gltf-validator"
+
+
+# ------------------------------------------------------------------------------------------------ reading back
+def _metadata(text: bytes) -> dict:
+    found = re.search(rb"^# mocapviz export: (\{.*\})\r?$", text, re.MULTILINE)
+    assert found, "no '# mocapviz export: {...}' line"
+    return json.loads(found.group(1))
+
+
+def _frame_lines(raw: bytes) -> list[bytes]:
+    """The frame lines of a BVH file (after 'Frame Time:'), line ends stripped."""
+    lines = raw.split(b"\n")
+    at = next(i for i, line in enumerate(lines) if line.strip().lower().startswith(b"frame time"))
+    return [line.rstrip(b"\r") for line in lines[at + 1:] if line.strip()]
+
+
+def _amc_blocks(raw: bytes) -> tuple[list[int], list[list[bytes]]]:
+    """Frame numbers and each frame's bone lines of an AMC file."""
+    numbers, blocks = [], []
+    for line in raw.split(b"\n"):
+        s = line.strip()
+        if not s or s.startswith((b"#", b":")):
+            continue
+        if s.isdigit():
+            numbers.append(int(s))
+            blocks.append([])
+        else:
+            blocks[-1].append(line.rstrip(b"\r"))
+    return numbers, blocks
+
+
+def _glb_positions(data: bytes) -> tuple[dict, np.ndarray, tuple]:
+    """(asset extras, positions [T, J, 3] in cm, node names) of a .glb: its animation sampled at its key times and
+    the node tree run forward (T * R of every node, parents first)."""
+    import pygltflib
+
+    gltf = pygltflib.GLTF2.load_from_bytes(data)
+    blob = gltf.binary_blob()
+
+    def read(k):
+        acc = gltf.accessors[k]
+        view = gltf.bufferViews[acc.bufferView]
+        width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[acc.type]
+        return np.frombuffer(blob, "<f4", acc.count * width, view.byteOffset + (acc.byteOffset or 0)).reshape(acc.count, width)
+
+    n = len(gltf.nodes)
+    anim = gltf.animations[0]
+    n_frames = gltf.accessors[anim.samplers[0].input].count
+    translation = np.tile(np.array([nd.translation or [0, 0, 0] for nd in gltf.nodes], float), (n_frames, 1, 1))
+    rotation = np.tile([0.0, 0.0, 0.0, 1.0], (n_frames, n, 1))
+    for ch in anim.channels:
+        values = read(anim.samplers[ch.sampler].output).astype(float)
+        (translation if ch.target.path == "translation" else rotation)[:, ch.target.node] = values
+    parent = {c: j for j, nd in enumerate(gltf.nodes) for c in nd.children or []}
+    world_q = np.zeros((n_frames, n, 4))
+    pos = np.zeros((n_frames, n, 3))
+    order = list(gltf.scenes[0].nodes)
+    for j in order:  # parents first
+        q = rotation[:, j][:, [3, 0, 1, 2]]
+        if j in parent:
+            p = parent[j]
+            pos[:, j] = pos[:, p] + rotations.rotate(world_q[:, p], translation[:, j])
+            world_q[:, j] = rotations.multiply(world_q[:, p], q)
+        else:
+            pos[:, j], world_q[:, j] = translation[:, j], q
+        order += gltf.nodes[j].children or []
+    return gltf.asset.extras, pos * 100.0, tuple(nd.name for nd in gltf.nodes)
+
+
+def _validate(data: bytes, tmp_path: Path) -> dict:
+    """The Khronos glTF validator's report of ``data`` (skips when node or the validator is not installed)."""
+    if shutil.which("node") is None:
+        pytest.skip("the glTF validator needs node (apt-get install nodejs)")
+    if not VALIDATOR.is_dir():
+        pytest.skip(f"the glTF validator is not installed: `make gltf-validator` (npm install --prefix "
+                    f"{VALIDATOR.parents[1]} gltf-validator)")
+    f = tmp_path / "check.glb"
+    f.write_bytes(data)
+    script = ("const v = require(process.argv[1]); v.validateBytes(new Uint8Array(require('fs').readFileSync("
+              "process.argv[2]))).then(r => console.log(JSON.stringify(r.issues)))")
+    out = subprocess.run(["node", "-e", script, str(VALIDATOR), str(f)], capture_output=True, text=True, timeout=120,
+                         check=True)
+    return json.loads(out.stdout)
+
+
+# ------------------------------------------------------------------------------------------------ round trips
+def _by_name(motion, names) -> np.ndarray:
+    return motion.positions[:, [motion.joint_names.index(n) for n in names]]
+
+
+def check_canonical(db, doc, start, end, tmp_path) -> float:
+    """Canonical BVH and glTF of one stretch read back against the database; the largest error, cm."""
+    want = db.positions[db.frames(doc)][start:end]
+    [bvh] = export_stretch(db, doc, tmp_path / "bvh", start, end, "bvh", "canonical", search="a test")
+    got = load(bvh, up="y").canonical({c: c for c in CANONICAL_JOINTS})  # (y up as written: "auto" would turn a
+    # clip that lies on the floor throughout, such as HDM05 lieDownFloor, as if its file were z up)
+    assert got.fps == db.document(doc)["fps"] and got.n_frames == end - start
+    err_bvh = np.abs(got.positions - want).max()
+    meta = _metadata(bvh.read_bytes())
+    assert (meta["doc_id"], meta["frames"], meta["rig"], meta["search"]) == (doc, [start, end], "canonical", "a test")
+    [glb] = export_stretch(db, doc, tmp_path / "glb", start, end, "glb", search="a test")
+    extras, pos, names = _glb_positions(glb.read_bytes())
+    assert names == CANONICAL_JOINTS and extras["doc_id"] == doc and extras["frames"] == [start, end]
+    err_glb = np.abs(pos - want).max()
+    assert err_bvh < TOLERANCE_CM and err_glb < TOLERANCE_CM, (err_bvh, err_glb)
+    return max(err_bvh, err_glb)
+
+
+def check_amc_source(db, doc, start, end, tmp_path) -> float:
+    """AMC of a stretch: the source's frame blocks, renumbered; its ASF a copy; as BVH on the ASF rig, the AMC's
+    positions. The largest position error, cm."""
+    row = db.document(doc)
+    a, b = source_frames(row, start, end)
+    src = Path(row["path"])
+    source = load(src)[a:b]
+    amc, asf = export_stretch(db, doc, tmp_path / "amc", start, end, "amc")
+    numbers, blocks = _amc_blocks(amc.read_bytes())
+    assert numbers == list(range(1, b - a + 1))
+    assert blocks == _amc_blocks(src.read_bytes())[1][a:b]
+    from mocapviz.io import find_asf
+
+    assert asf.read_bytes() == find_asf(src).read_bytes()
+    meta = _metadata(amc.read_bytes())
+    assert (meta["source"], meta["source_frames"], meta["sha256"]) == (str(src), [a, b], row["sha256"])
+    back = load(amc)
+    assert np.array_equal(back.positions, source.positions)
+    [bvh] = export_stretch(db, doc, tmp_path / "asfbvh", start, end, "bvh")
+    rig = load(bvh, up="y")
+    tips = []  # an ASF bone's tip is its first child's BVH joint, or its End Site
+    for j, name in enumerate(source.joint_names):
+        kids = np.flatnonzero(source.parents == j)
+        tips.append(name if j == 0 else source.joint_names[kids[0]] if kids.size else f"{name}_end")
+    err = np.abs(_by_name(rig, tips) - source.positions).max()
+    assert err < TOLERANCE_CM, err
+    return float(err)
+
+
+def check_bvh_source(db, doc, start, end, tmp_path) -> float:
+    """BVH of a BVH source's stretch: header and frame lines byte for byte; read back equal to the source's frames."""
+    row = db.document(doc)
+    a, b = source_frames(row, start, end)
+    src = Path(row["path"]).read_bytes()
+    [bvh] = export_stretch(db, doc, tmp_path / "src", start, end, "bvh")
+    raw = bvh.read_bytes()
+    assert _frame_lines(raw) == _frame_lines(src)[a:b]
+    head, src_head = raw.split(b"MOTION")[0], src.split(b"MOTION")[0]
+    assert re.sub(rb"(?m)^# mocapviz export: .*\n", b"", head) == src_head
+    assert re.search(rb"(?m)^Frames:\s*(\d+)", raw).group(1) == str(b - a).encode()
+    assert _metadata(raw)["source_frames"] == [a, b]
+    err = np.abs(load(bvh).positions - load(row["path"])[a:b].positions).max()
+    assert err == 0.0
+    return float(err)
+
+
+def test_sample_every_document_round_trips(tmp_path):
+    db = MotionDB.sample()
+    worst = {"canonical": 0.0, "amc": 0.0}
+    for doc in db.documents["doc_id"]:
+        n = int(db.document(doc)["n_frames"])
+        start, end = n // 5, n - n // 7
+        worst["canonical"] = max(worst["canonical"], check_canonical(db, doc, start, end, tmp_path / str(doc)))
+        worst["amc"] = max(worst["amc"], check_amc_source(db, doc, start, end, tmp_path / str(doc)))
+    print("sample, largest errors (cm):", worst)
+
+
+def test_source_rig_glb_reproduces_the_source_positions(tmp_path):
+    db = MotionDB.sample()
+    row = db.document(0)
+    files = stretch_files(db, 0, 10, 50, "glb", "source")
+    [(_, data)] = files.items()
+    _, pos, names = _glb_positions(data)
+    source = load(row["path"])[10:50]
+    assert names == source.joint_names
+    assert np.abs(pos - source.positions).max() < TOLERANCE_CM
+
+
+@pytest.fixture(scope="module")
+def archive_dbs(tmp_path_factory, hdm05_dir, cmu_dir, bandai1_files):
+    """Small databases of real clips: three HDM05 clips (one lying on the floor) at their 120 Hz and at 30 Hz, two
+    CMU trials, two Bandai Namco BVH files."""
+    root = tmp_path_factory.mktemp("export")
+    hdm = sorted((hdm05_dir / "amc").glob("*.amc"))[:2] + sorted((hdm05_dir / "amc").glob("*lieDownFloor*.amc"))[:1]
+    cmu = sorted((cmu_dir / "amc").rglob("*.amc"))[:2]
+    return {
+        "hdm05": MotionDB.ingest(hdm, root / "hdm05", progress=False),
+        "hdm05@30": MotionDB.ingest(hdm, root / "hdm05-30", fps=30, progress=False),
+        "cmu": MotionDB.ingest(cmu, root / "cmu", progress=False),
+        "bandai": MotionDB.ingest(bandai1_files[:2], root / "bandai", progress=False),
+    }
+
+
+@pytest.mark.parametrize("archive", ["hdm05", "hdm05@30", "cmu", "bandai"])
+def test_real_clips_round_trip(archive_dbs, archive, tmp_path):
+    db = archive_dbs[archive]
+    errors = []
+    for doc in db.documents["doc_id"]:
+        n = int(db.document(doc)["n_frames"])
+        start, end = n // 4, n - n // 6
+        errors.append(check_canonical(db, doc, start, end, tmp_path / str(doc)))
+        source = check_bvh_source if archive == "bandai" else check_amc_source
+        errors.append(source(db, doc, start, end, tmp_path / str(doc)))
+    print(f"{archive}: largest error {max(errors):.2e} cm")
+
+
+def test_resampled_database_cuts_the_source_at_the_same_seconds(archive_dbs, tmp_path):
+    """A 30 Hz database of 120 Hz files: the source AMC exported for frames start:end holds the source frames of the
+    same seconds, so every 4th of its frames is the database's frame."""
+    db = archive_dbs["hdm05@30"]
+    doc = int(db.documents["doc_id"].iloc[0])
+    row = db.document(doc)
+    assert (row["fps"], row["source_fps"]) == (30.0, 120.0)
+    amc, _ = export_stretch(db, doc, tmp_path, 5, 25, "amc")
+    back = load(amc).canonical()
+    assert back.n_frames == (25 - 1 - 5) * 4 + 1
+    assert np.abs(back.positions[::4] - db.positions[db.frames(doc)][5:25]).max() < TOLERANCE_CM
+
+
+def test_glb_passes_the_khronos_validator(tmp_path):
+    db = MotionDB.sample()
+    for rig in ("canonical", "source"):
+        [(_, data)] = stretch_files(db, 7, 0, 60, "glb", rig).items()
+        report = _validate(data, tmp_path)
+        assert report["numErrors"] == 0 and report["numWarnings"] == 0, report["messages"]
+
+
+def test_document_without_rotations_exports_on_the_canonical_rig(tmp_path):
+    db = MotionDB.sample()
+    m = db.motion(7)
+    bare = MotionDB.create(tmp_path / "db").append_motions(
+        [type(m)(positions=np.array(m.positions), fps=m.fps, joint_names=m.joint_names, parents=m.parents,
+                 labels={"label": "bare"})])
+    assert bare.motion(0).quaternions is None
+    check_canonical(bare, 0, 0, 60, tmp_path)
+
+
+def _forward(pose, parents) -> np.ndarray:
+    """Positions [T, J, 3] of a fitted Pose: P[j] = P[p] + R(Q[p]) t[j], Q[j] = Q[p] q[j]."""
+    world = np.zeros(pose.rotations.shape)
+    pos = np.zeros(pose.translations.shape)
+    for j, p in enumerate(parents):
+        if p < 0:
+            world[:, j], pos[:, j] = pose.rotations[:, j], pose.translations[:, j]
+        else:
+            world[:, j] = rotations.multiply(world[:, p], pose.rotations[:, j])
+            pos[:, j] = pos[:, p] + rotations.rotate(world[:, p], pose.translations[:, j])
+    return pos
+
+
+def test_fit_pose_moves_only_the_joints_no_rotation_reproduces():
+    """A root with two rigid hips and a spine bending against them, a spine whose length varies: the hips and the
+    neck need no position channels, the spine (against its siblings) and the head (length) do; all exact."""
+    from mocapviz.motion.rig import fit_pose
+
+    rng = np.random.default_rng(5)
+    n = 50
+    parents = np.array([-1, 0, 0, 0, 3, 4])  # root, lhip, rhip, spine, neck, head
+    turn = rotations.from_euler("ZXY", rng.normal(scale=40, size=(n, 3)))
+    bend = rotations.from_euler("X", np.linspace(0, 60, n)[:, None])
+    pos = np.zeros((n, 6, 3))
+    pos[:, 0] = rng.normal(scale=50, size=(n, 3))
+    pos[:, 1] = pos[:, 0] + rotations.rotate(turn, [10.0, -5, 0])
+    pos[:, 2] = pos[:, 0] + rotations.rotate(turn, [-10.0, -5, 0])
+    spine = rotations.multiply(turn, bend)
+    pos[:, 3] = pos[:, 0] + rotations.rotate(spine, [0.0, 20, 0])
+    pos[:, 4] = pos[:, 3] + rotations.rotate(spine, [0.0, 30, 2])
+    pos[:, 5] = pos[:, 4] + rotations.rotate(spine, [0.0, 1, 0]) * np.linspace(10, 12, n)[:, None]
+    pose = fit_pose(pos, parents, pos[0] - pos[0, np.maximum(parents, 0)])
+    assert pose.moving.tolist() == [True, False, False, True, False, True]
+    assert np.abs(_forward(pose, parents) - pos).max() < 1e-9
+
+
+# ------------------------------------------------------------------------------------------------ hits, zip, CLI
+def test_hits_export_files_sort_by_rank_and_the_zip_holds_the_same_bytes(tmp_path):
+    db = MotionDB.sample()
+    hits = hit_table(db, [22, 11, 7], [30, 0, 5], [90, 60, 100], cost=[0.1, 0.2, 0.3])
+    paths = export_hits(db, hits, tmp_path, format="bvh", rig="canonical", search="squats")
+    assert [p.name[:4] for p in paths] == ["001_", "002_", "003_"] and sorted(paths) == paths
+    meta = _metadata(paths[1].read_bytes())
+    assert (meta["doc_id"], meta["frames"], meta["rank"], meta["scores"]) == (11, [0, 60], 2, {"cost": 0.2})
+    before = set(os.listdir(tmp_path))
+    archive = zipfile.ZipFile(io.BytesIO(hits_zip(db, hits, format="bvh", rig="canonical", search="squats")))
+    assert archive.namelist() == [p.name for p in paths]
+    assert all(archive.read(p.name) == p.read_bytes() for p in paths)
+    assert set(os.listdir(tmp_path)) == before
+
+
+@pytest.mark.parametrize("table, message", [
+    (pd.DataFrame({"doc_id": [7], "start": [0]}), "no column end"),
+    (pd.DataFrame({"doc_id": [7], "start": [0.5], "end": [10]}), "row 1: start must be a whole number"),
+    (pd.DataFrame({"doc_id": [999], "start": [0], "end": [10]}), "no document 999"),
+    (pd.DataFrame({"doc_id": [7, 7], "start": [0, 100], "end": [10, 500]}), "hit 2: frames 100:500"),
+    (pd.DataFrame({"doc_id": [], "start": [], "end": []}), "no rows"),
+])  # fmt: skip
+def test_bad_hit_tables_are_refused_naming_what_to_pass(table, message):
+    with pytest.raises(ParameterError, match=message):
+        read_hits(MotionDB.sample(), table)
+
+
+def test_bad_requests_are_parameter_errors():
+    db = MotionDB.sample()
+    with pytest.raises(ParameterError, match="unknown export format"):
+        stretch_files(db, 7, format="fbx")
+    with pytest.raises(ParameterError, match="copies the frames of an ASF/AMC source"):
+        stretch_files(db, 7, format="amc", rig="canonical")
+    with pytest.raises(ParameterError, match="frames 0:500 are outside document 7"):
+        stretch_files(db, 7, 0, 500)
+
+
+def test_a_gone_or_changed_source_is_a_typed_error(tmp_path):
+    src = Path(MotionDB.sample().document(7)["path"])  # hdm05-cut/amc/HDM_dg_....amc, its skeleton in hdm05-cut/asf
+    (tmp_path / "amc").mkdir()
+    shutil.copytree(src.parent.parent / "asf", tmp_path / "asf")
+    copy = Path(shutil.copy(src, tmp_path / "amc" / src.name))
+    db = MotionDB.ingest([copy], tmp_path / "db", progress=False)
+    assert stretch_files(db, 0, format="amc")
+    copy.write_bytes(copy.read_bytes() + b"\n")
+    with pytest.raises(SourceFileError, match="has changed since it was ingested"):
+        stretch_files(db, 0, format="amc")
+    copy.unlink()
+    with pytest.raises(SourceFileError, match="is gone; export it with --rig canonical"):
+        stretch_files(db, 0, format="bvh")
+    assert stretch_files(db, 0, format="bvh", rig="canonical")  # the database's own frames need no source
+
+
+def test_cli_exports_a_hits_csv_and_refuses_bad_options(tmp_path, capsys):
+    db = MotionDB.sample()
+    csv = tmp_path / "hits.csv"
+    hit_table(db, [3, 0], [10, 0], [70, 120], cost=[1.5, 2.0]).to_csv(csv, index=False)
+    assert main(["export", str(db.path), "--hits", str(csv), "--format", "glb", "--out", str(tmp_path / "out")]) == 0
+    names = sorted(p.name for p in (tmp_path / "out").iterdir())
+    assert names == sorted(stretch_files(db, 3, 10, 70, "glb", rank=1)) + sorted(stretch_files(db, 0, 0, 120, "glb",
+                                                                                                   rank=2))
+    extras, _, _ = _glb_positions((tmp_path / "out" / names[0]).read_bytes())
+    assert extras["search"] == "hits of hits.csv" and extras["scores"] == {"cost": 1.5}
+    assert main(["export", str(db.path), "--doc", "7", "--frames", "0:500", "--format", "bvh", "--out",
+                 str(tmp_path)]) == 1
+    assert "--frames 0:500 are outside document 7" in capsys.readouterr().err
+    assert main(["export", str(db.path), "--hits", str(csv), "--frames", "0:5", "--format", "bvh", "--out",
+                 str(tmp_path)]) == 1
+    bad = tmp_path / "bad.csv"
+    bad.write_text("doc_id,first\n3,0\n")
+    assert main(["export", str(db.path), "--hits", str(bad), "--format", "bvh", "--out", str(tmp_path)]) == 1
+    assert "has no column start, end" in capsys.readouterr().err
+
+
+def test_bvh_reader_skips_comment_lines_in_the_hierarchy(tmp_path):
+    from mocapviz.io.bvh_writer import bvh_bytes
+
+    f = tmp_path / "c.bvh"
+    f.write_bytes(bvh_bytes(["hips", "knee"], [-1, 0], [[0, 0, 0], [0, -40, 0]],
+                            [["Xposition", "Yposition", "Zposition"], ["Xrotation"]], [[0, 90, 0, 90]], 30,
+                            comments=["first", "# second"]))
+    m = load(f, up="y")
+    assert m.joint_names == ("hips", "knee", "knee_end")
+    assert np.allclose(m.positions[0, 1], [0, 50, 0])
+
+
+def test_cut_bvh_keeps_the_lines_and_line_ends_of_a_crlf_file(tmp_path):
+    from mocapviz.io.bvh_writer import bvh_bytes, cut_bvh
+
+    values = np.arange(12.0).reshape(4, 3) * [1, 10, 100]
+    raw = bvh_bytes(["hips"], [-1], [[0, 0, 0]], [["Xposition", "Yposition", "Zrotation"]], values, 60)
+    raw = raw.replace(b"\n", b"\r\n")
+    f = tmp_path / "cut.bvh"
+    f.write_bytes(cut_bvh(raw, 1, 3, ["a note"]))
+    cut = f.read_bytes()
+    assert _frame_lines(cut) == _frame_lines(raw)[1:3] and b"\n" not in cut.replace(b"\r\n", b"")
+    assert _metadata(b"# mocapviz export: {}\r\n") == {} and b"# a note\r\n" in cut
+    np.testing.assert_allclose(load(f, up="y").positions[:, 0, :2], values[1:3, :2])
