@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import holoviews as hv
 import numpy as np
+import pandas as pd
 import panel as pn
 
 from ...features import NUMERIC_SETS, feature_groups, numeric_columns
 from ...features.segmentation import segment
 from ...viz.timeline import numeric_curves, relational_timeline
+from ..downloads import HitDownload
 from ..player import SkeletonPlayer
 from ..state import half_open, inclusive
 from ..widgets import results_table
@@ -54,6 +56,9 @@ class DatabasePage(pn.viewable.Viewer):
         self.span_start.on_click(lambda e: self._set_span(self.player.frames()[0], None))
         self.span_end.on_click(lambda e: self._set_span(None, self.player.frames()[0]))
         self.span.param.watch(self._on_span, "value_throttled")
+        self.download = HitDownload(backend, self._clip, lambda: "the Database page's player (the query span)",
+                                    "mv-clip-download", noun="clip")  # fmt: skip
+        selection.param.watch(lambda e: self.download.refresh(), ["doc", "span"])
         self.numeric_set = pn.widgets.Select(label="numeric feature set", options=list(NUMERIC_SETS[:3]) + [
             s for s in NUMERIC_SETS[3:] if not s.startswith("Fp")], value="F15E", width=160)
         self.numeric_set.param.watch(lambda e: self._draw_curves(), "value")
@@ -70,7 +75,8 @@ class DatabasePage(pn.viewable.Viewer):
     def __panel__(self):
         filters = pn.Row(self.label_filter, self.actor_filter, self.length_filter)
         left = pn.Column("### Documents", filters, self.count, self.table, sizing_mode="stretch_width")
-        right = pn.Column("### Player", self.player, self.span, pn.Row(self.span_start, self.span_end))
+        right = pn.Column("### Player", self.player, self.span, pn.Row(self.span_start, self.span_end),
+                          self.download.panel())
         return pn.Column(pn.Row(left, right, sizing_mode="stretch_width"), "### Relational features", self.timeline_info,
                          self.timeline,
                          "### Numeric features", self.numeric_set, self.curves, sizing_mode="stretch_width")
@@ -111,6 +117,11 @@ class DatabasePage(pn.viewable.Viewer):
                          fps=self.doc_fps)
         self._draw_timeline()
         self._draw_curves()
+
+    def _clip(self) -> pd.DataFrame:
+        """The player's clip, its query span, as a one-row hit table (for the download under the player)."""
+        start, end = self.selection.span
+        return pd.DataFrame({"rank": [1], "doc_id": [self.selection.doc], "start": [start], "end": [end]})
 
     def _follow(self, *events) -> None:
         """Show the clip and span chosen on another page."""

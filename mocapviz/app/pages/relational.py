@@ -21,6 +21,7 @@ from ...db.hits import database_frames
 from ...features import feature_groups, relational_features
 from ...relational.query import query_segmentation
 from ...viz.query import precision_recall, precision_recall_plot
+from ..downloads import table_download
 from ..player import SkeletonPlayer
 from ..progress import Task
 from ..state import half_open, inclusive
@@ -65,6 +66,7 @@ class RelationalPage(pn.viewable.Viewer):
         self.count = pn.pane.Markdown("", css_classes=["mv-hit-count"])
         self.quality = pn.pane.Markdown("", css_classes=["mv-hit-quality"])
         self.table = results_table(pd.DataFrame(columns=list(HIT_TITLES)), "mv-hits", HIT_TITLES, selectable=True)
+        self.download = table_download(backend, self.table, self._found_by, "mv-hits-download")
         self.curve = pn.pane.HoloViews(None, visible=False, css_classes=["mv-precision-recall"])
         self.player = SkeletonPlayer(size=(640, 360))
         self.player_caption = pn.pane.Markdown("", css_classes=["mv-hit-caption"])
@@ -79,7 +81,8 @@ class RelationalPage(pn.viewable.Viewer):
                           "**Hits** (§5: exact, fuzzy, adaptive fuzzy, m-mismatch)", self.mode, self.mismatches,
                           notes(self.mismatches), self.run, self.message, self.task)
         player = pn.Column("### Query beside hit", self.player, self.player_caption, css_classes=["mv-query-player"])
-        results = pn.Column("### Hits", self.count, self.quality, self.table, self.curve, sizing_mode="stretch_width")
+        results = pn.Column("### Hits", self.count, self.quality, self.table, self.download.panel(), self.curve,
+                            sizing_mode="stretch_width")
         return pn.Column(pn.Row(query, player), results, sizing_mode="stretch_width")
 
     def _watch(self) -> None:
@@ -212,6 +215,13 @@ class RelationalPage(pn.viewable.Viewer):
             self.table.param.trigger("value")
 
     # ------------------------------------------------------------------ results
+    def _found_by(self) -> str:
+        """The query of the hits shown, in words (written into exported files)."""
+        q = self.shown_query or {}
+        start, end = q.get("span", (0, 0))
+        return (f"relational query by example ({q.get('mode')}, {RELATIONAL_SET} set): document {q.get('doc')} "
+                f"frames {start}:{end}, features {', '.join(q.get('features', []))}")
+
     def _show_hits(self, q: dict, hits: pd.DataFrame) -> None:
         self.hits, self.shown_query = hits, q
         self.table.param.update(selection=[], value=hit_columns(hits, HIT_TITLES, HIT_DECIMALS))

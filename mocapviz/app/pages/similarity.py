@@ -30,6 +30,7 @@ from ...similarity.search import MODES as SEARCH_MODES
 from ...validation import count
 from ...viz.matching import similarity_layout
 from ...viz.skeleton import neighbour_poses, png_bytes
+from ..downloads import table_download
 from ..player import SkeletonPlayer
 from ..progress import Task
 from ..widgets import BoundedIntInput, action_button, hit_columns, hit_titles, notes, results_table
@@ -227,6 +228,8 @@ class SimilarityPage(pn.viewable.Viewer):
         self.search_table = results_table(pd.DataFrame(columns=list(SEARCH_TITLES)), "mv-search-table",
                                           SEARCH_TITLES, page_size=10, selectable=True)  # fmt: skip
         self.search_table.param.watch(self._on_search_select, "selection")
+        self.search_download = table_download(self.backend, self.search_table, lambda: self._found_by("search"),
+                                              "mv-search-download")  # fmt: skip
         self.results = None
         self.search_playing = pn.pane.Markdown("Click a result to play it beside the query, aligned by its DTW "
                                                "warping path.", margin=(0, 10), css_classes=["mv-search-playing"])
@@ -253,6 +256,8 @@ class SimilarityPage(pn.viewable.Viewer):
         self.match_table = results_table(pd.DataFrame(columns=list(MATCH_TITLES)), "mv-match-table", MATCH_TITLES,
                                          page_size=10, selectable=True)
         self.match_table.param.watch(self._on_match_select, "selection")
+        self.match_download = table_download(self.backend, self.match_table, lambda: self._found_by("match"),
+                                             "mv-match-download")  # fmt: skip
         self.matches = None
         self.playing = pn.pane.Markdown("Click a match to play it beside the query, aligned by its warping path.",
                                         margin=(0, 10), css_classes=["mv-match-playing"])
@@ -272,7 +277,7 @@ class SimilarityPage(pn.viewable.Viewer):
                            pn.pane.Markdown(SEARCH_LEGEND, margin=(0, 10)),
                            pn.Row(self.search_kind, self.search_mode, self.search_k, self.search_button),
                            notes(self.search_k), _scoped(self.search_task, "mv-search-task"), self.search_count,
-                           self.search_table,
+                           self.search_table, self.search_download.panel(),
                            self.search_playing, self.search_player_box, sizing_mode="stretch_width")
         knn = pn.Column("### Nearest neighbours of the frame (Krüger et al. 2010 §3.3, Fig. 1)",
                         pn.Row(self.knn_k, self.knn_button), notes(self.knn_k), _scoped(self.knn_task, "mv-knn-task"),
@@ -281,7 +286,7 @@ class SimilarityPage(pn.viewable.Viewer):
         match = pn.Column("### Motion matching of the span (lazy neighbourhood graph, §4.1)",
                           pn.Row(self.match_k, self.match_count_k, self.match_button),
                           notes(self.match_k, self.match_count_k), _scoped(self.match_task, "mv-match-task"),
-                          self.match_count, self.match_table,
+                          self.match_count, self.match_table, self.match_download.panel(),
                           self.playing, self.player_box, sizing_mode="stretch_width")
         matrix = pn.Column("### Similarity matrix of the span against the best matches' documents (Fig. 3)",
                            pn.pane.Markdown(MATRIX_LEGEND, margin=(0, 10)), pn.Row(self.matrix_k, self.matrix_button),
@@ -300,6 +305,12 @@ class SimilarityPage(pn.viewable.Viewer):
                              f"span {_frames(start, end)} ({end - start} frames, "
                              f"{start / fps:.2f}–{end / fps:.2f} s). "
                              "Choose the document, frame and span on the Database page.")
+
+    def _found_by(self, which: str) -> str:
+        """The search of the hits shown in a table ("search" or "match"), in words (written into exported files)."""
+        doc, (start, end) = getattr(self, f"{which}_query", None) or (None, (0, 0))
+        how = ("similarity search (DTW)" if which == "search" else "motion matching (lazy neighbourhood graph)")
+        return f"{how} on {self.numeric_set.value}: document {doc} frames {start}:{end}"
 
     # ------------------------------------------------------------------ DTW search
     def _search_key(self) -> tuple:

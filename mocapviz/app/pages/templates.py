@@ -22,6 +22,7 @@ from ...match import dtw
 from ...relational.templates import DELTA, DONT_CARE, MotionTemplate, learn_class, template_distance
 from ...validation import count, number, one_of
 from ...viz.templates import template_image
+from ..downloads import table_download
 from ..player import SkeletonPlayer
 from ..progress import Task
 from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, hit_titles, notes, results_table
@@ -235,6 +236,7 @@ class TemplatesPage(pn.viewable.Viewer):
         self.label.param.watch(self._on_class, "value")
         self.view.param.watch(lambda e: self._draw(), "value")
         self.table.param.watch(self._on_select, "selection")
+        self.download = table_download(backend, self.table, self._found_by, "mv-templates-download")
         self._on_class()
 
     def __panel__(self):
@@ -251,7 +253,15 @@ class TemplatesPage(pn.viewable.Viewer):
         playing = pn.Column(self.playing, self.player_box)
         task = pn.Column(self.task, css_classes=["mv-templates-task"], margin=0, sizing_mode="stretch_width")
         return pn.Column(intro, inputs, notes(self.delta, self.n_matches), task, self.summary, self.count, self.table,
-                         pn.Row(template, playing), sizing_mode="stretch_width")
+                         self.download.panel(), pn.Row(template, playing), sizing_mode="stretch_width")
+
+    def _found_by(self) -> str:
+        """The template of the hits shown, in words (written into exported files)."""
+        t = self.template
+        if t is None:
+            return "motion template search"
+        return (f"motion template {t.label!r} ({t.n_examples} examples, delta {self.delta_used:g}) searched by "
+                "subsequence DTW")
 
     def _on_class(self, event=None) -> None:
         """Offer the actors of the chosen class only (every choice then has an example to learn from)."""

@@ -1,0 +1,111 @@
+"""Downloads of what the dashboard shows: the hits of a result table and the clip under the player, as motion files
+(BVH or glTF binary, on the canonical skeleton or the source file's own rig; :mod:`mocapviz.export`).
+
+Under every result table (Relational query, Similarity, Motion templates, Describe) a :class:`HitDownload` gives
+the selected hit as one file, or every hit of the table (none selected) as one zip archive; under the player it gives
+the clip's query span. The file is made when the button is clicked, in memory, from the server's database and (for
+the source rig) the ingested source file.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Callable
+
+import pandas as pd
+import panel as pn
+
+from ..errors import MocapvizError
+
+FORMATS = {"BVH": "bvh", "glTF (.glb)": "glb"}
+RIGS = {"canonical skeleton": "canonical", "source rig": "source"}
+
+
+class _Download(pn.widgets.FileDownload):
+    """A FileDownload whose callback may give None: the export failed (its reason is shown beside the button) and
+    nothing is sent."""
+
+    def _sync_data(self, fileobj):
+        if fileobj is not None:
+            super()._sync_data(fileobj)
+
+
+def table_hits(table: pn.widgets.Tabulator) -> pd.DataFrame:
+    """The hits a result table offers for download: its selected rows, or all its rows when none is selected
+    (``doc_id``, ``start``, ``end``, ``rank`` and the columns it shows)."""
+    value = table.value
+    if value is None or value.empty or "doc_id" not in value:
+        return pd.DataFrame(columns=["doc_id", "start", "end"])
+    return value.iloc[list(table.selection)] if table.selection else value
+
+
+class HitDownload:
+    """A format and rig choice and a download button for the hits ``hits()`` returns (a hit table: ``doc_id``,
+    ``start``, ``end`` within the document, half-open; ``rank`` and the search's columns if it has them).
+
+    Parameters
+    ----------
+    backend : mocapviz.app.backend.Backend
+        The database the hits are in.
+    hits : callable
+        () -> pandas.DataFrame, asked when the button is clicked (and by :meth:`refresh`, for the label).
+    search : callable
+        () -> str: what found them, written into every file.
+    css_class : str
+        The button's class (for the browser tests).
+    noun : str
+        What one row is, for the button's label ("hit", "clip").
+    """
+
+    def __init__(self, backend, hits: Callable[[], pd.DataFrame], search: Callable[[], str], css_class: str,
+                 noun: str = "hit"):  # fmt: skip
+        self.backend, self.hits, self.search, self.noun = backend, hits, search, noun
+        self.format = pn.widgets.Select(name="file format", options=FORMATS, value="bvh", width=120)
+        self.rig = pn.widgets.Select(name="skeleton", options=RIGS, value="canonical", width=160)
+        self.button = _Download(callback=self._file, filename="hits.zip", auto=True, width=220, align="end",
+                                button_type="default", css_classes=[css_class])
+        self.note = pn.pane.Markdown("", visible=False, margin=(0, 10), css_classes=[f"{css_class}-note"])
+        self.format.param.watch(lambda e: self.refresh(), "value")
+        self.refresh()
+
+    def panel(self) -> pn.Column:
+        """The choices, the button and the note of a failed export."""
+        return pn.Column(pn.Row(self.format, self.rig, self.button), self.note, margin=0)
+
+    def refresh(self) -> None:
+        """The button's label and file name for the hits as they are now (disabled when there are none)."""
+        n = len(self.hits())
+        ext = self.format.value
+        self.button.disabled = n == 0
+        self.button.label = (f"Download this {self.noun} (.{ext})" if n == 1 else
+                             f"Download {n} {self.noun}s (.zip)" if n else f"No {self.noun} to download")
+        self.button.filename = f"{self.noun}.{ext}" if n == 1 else f"{self.noun}s.zip"
+
+    def _file(self) -> io.BytesIO | None:
+        from ..export import hits_zip, stretch_files
+
+        hits = self.hits()
+        fmt, rig = self.format.value, self.rig.value
+        try:
+            if len(hits) == 1:
+                row = hits.iloc[0]
+                files = stretch_files(self.backend.db, int(row["doc_id"]), int(row["start"]), int(row["end"]), fmt,
+                                      rig, rank=int(row.get("rank", 1)), search=self.search())  # fmt: skip
+                (name, data), = files.items()
+                self.button.filename = name
+            else:
+                data = hits_zip(self.backend.db, hits, fmt, rig, self.search())
+                self.button.filename = f"{self.noun}s.zip"
+        except MocapvizError as exc:  # e.g. the source file is gone: said under the button, nothing downloaded
+            self.note.param.update(object=f"Not exported: {exc}", visible=True)
+            return None
+        self.note.param.update(object="", visible=False)
+        return io.BytesIO(data)
+
+
+def table_download(backend, table: pn.widgets.Tabulator, search: Callable[[], str], css_class: str) -> HitDownload:
+    """A :class:`HitDownload` of a result table's hits (:func:`table_hits`), its label following the table's rows
+    and selection."""
+    download = HitDownload(backend, lambda: table_hits(table), search, css_class)
+    table.param.watch(lambda e: download.refresh(), ["value", "selection"])
+    return download
