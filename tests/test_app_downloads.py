@@ -69,7 +69,7 @@ def test_a_tables_selected_hit_or_all_its_hits(backend, sample_db, kicks, tmp_pa
     assert (meta["doc_id"], meta["frames"], meta["search"]) == (int(hit["doc_id"]), [hit["start"], hit["end"]],
                                                                "kicks")  # fmt: skip
 
-    table.value = table.value.iloc[:0]
+    table.param.update(selection=[], value=table.value.iloc[:0])  # both at once, as the pages do
     assert download.button.disabled and download.button.label == "No hit to download"
 
 

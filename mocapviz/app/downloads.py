@@ -60,12 +60,12 @@ class HitDownload:
     def __init__(self, backend, hits: Callable[[], pd.DataFrame], search: Callable[[], str], css_class: str,
                  noun: str = "hit"):  # fmt: skip
         self.backend, self.hits, self.search, self.noun = backend, hits, search, noun
-        self.format = pn.widgets.Select(name="file format", options=FORMATS, value="bvh", width=120)
-        self.rig = pn.widgets.Select(name="skeleton", options=RIGS, value="canonical", width=160)
+        self.format = pn.widgets.Select(label="file format", options=FORMATS, value="bvh", width=120)
+        self.rig = pn.widgets.Select(label="skeleton", options=RIGS, value="canonical", width=160)
         self.button = _Download(callback=self._file, filename="hits.zip", auto=True, width=220, align="end",
-                                button_type="default", css_classes=[css_class])
+                                css_classes=[css_class])
         self.note = pn.pane.Markdown("", visible=False, margin=(0, 10), css_classes=[f"{css_class}-note"])
-        self.format.param.watch(lambda e: self.refresh(), "value")
+        self.format.param.watch(lambda *events: self.refresh(), "value")
         self.refresh()
 
     def panel(self) -> pn.Column:
@@ -107,5 +107,5 @@ def table_download(backend, table: pn.widgets.Tabulator, search: Callable[[], st
     """A :class:`HitDownload` of a result table's hits (:func:`table_hits`), its label following the table's rows
     and selection."""
     download = HitDownload(backend, lambda: table_hits(table), search, css_class)
-    table.param.watch(lambda e: download.refresh(), ["value", "selection"])
+    table.param.watch(lambda *events: download.refresh(), ["value", "selection"])  # one call per batch of changes
     return download

@@ -58,7 +58,7 @@ class DatabasePage(pn.viewable.Viewer):
         self.span.param.watch(self._on_span, "value_throttled")
         self.download = HitDownload(backend, self._clip, lambda: "the Database page's player (the query span)",
                                     "mv-clip-download", noun="clip")  # fmt: skip
-        selection.param.watch(lambda e: self.download.refresh(), ["doc", "span"])
+        selection.param.watch(lambda *events: self.download.refresh(), ["doc", "span"])
         self.numeric_set = pn.widgets.Select(label="numeric feature set", options=list(NUMERIC_SETS[:3]) + [
             s for s in NUMERIC_SETS[3:] if not s.startswith("Fp")], value="F15E", width=160)
         self.numeric_set.param.watch(lambda e: self._draw_curves(), "value")

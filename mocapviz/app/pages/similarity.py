@@ -212,7 +212,7 @@ class SimilarityPage(pn.viewable.Viewer):
         self._build_knn()
         self._build_match()
         self._build_matrix()
-        selection.param.watch(lambda e: self.activate(), ["doc", "frame", "span"])
+        selection.param.watch(lambda *events: self.activate(), ["doc", "frame", "span"])
         self.activate()
 
     def _build_search(self) -> None:
