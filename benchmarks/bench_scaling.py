@@ -490,7 +490,8 @@ def _group_sharded(db, plan, quick, out):
     out["sharded_peak_rss_MB"] = cluster_mem.mb
 
     # each shard's own work and the sizes that travel: the same calls on Shard objects in this process
-    from mocapviz.relational.scene import _prepare
+    from mocapviz.relational.query import relational_example
+    from mocapviz.relational.scene import read_description
     from mocapviz.similarity.search import example_features
 
     parts = split_documents(db, 2)
@@ -498,14 +499,16 @@ def _group_sharded(db, plan, quick, out):
     feats_all = features
     q_stretch = [example_features(db, feats_all, e[0], e[1], "F15E") for e in stretches]
     q_clip = [example_features(db, feats_all, d, None, "F15E") for d in clips]
-    parsed = [_prepare(db, t, None, None) for t in DESCRIPTIONS]
+    parsed = [read_description(db, t) for t in DESCRIPTIONS]
+    rel_values = [relational_example(e, "2005") for e in rel]  # what ShardedDB.query_by_example sends a shard
     q_lng = [np.asarray(feats_all[db.documents.set_index("doc_id").loc[d, "start"] + a:
                                   db.documents.set_index("doc_id").loc[d, "start"] + b], dtype=np.float32)
              for d, (a, b) in lng]
     shard_calls = lambda s: {
-        "relational exact": (rel, lambda e: s.query_by_example(e, lower, "2005", mode="exact")),
-        "relational fuzzy": (rel, lambda e: s.query_by_example(e, lower, "2005", mode="fuzzy")),
-        "relational mismatch": (rel, lambda e: s.query_by_example(e, lower, "2005", mode="mismatch", mismatches=1)),
+        "relational exact": (rel_values, lambda e: s.query_by_example(e, lower, "2005", mode="exact")),
+        "relational fuzzy": (rel_values, lambda e: s.query_by_example(e, lower, "2005", mode="fuzzy")),
+        "relational mismatch": (rel_values, lambda e: s.query_by_example(e, lower, "2005", mode="mismatch",
+                                                                         mismatches=1)),
         **{f"scene: {t}": ([p] * 3, lambda p: s.find(p[0].text, p[0].relational_set, n_matches=None,
                                                       template_cost=p[1]))
            for t, p in zip(DESCRIPTIONS, parsed)},
