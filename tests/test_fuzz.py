@@ -148,11 +148,11 @@ MUTATIONS = (flip_bytes, delete_lines, duplicate_lines, replace_number, change_c
              damage_encoding)
 
 
-def mutate(data: bytes, rng) -> tuple[bytes, list[str]]:
-    """``data`` damaged by one to three random mutations (one in two cases one), and what was done."""
+def mutate(data: bytes, rng, mutations=MUTATIONS) -> tuple[bytes, list[str]]:
+    """``data`` damaged by one to three random ``mutations`` (one in two cases one), and what was done."""
     done = []
     for _ in range(1 if rng.random() < 0.5 else int(rng.integers(2, 4))):
-        fn = MUTATIONS[int(rng.integers(0, len(MUTATIONS)))]
+        fn = mutations[int(rng.integers(0, len(mutations)))]
         data, what = fn(data, rng)
         done.append(f"{fn.__name__}: {what}")
     return data, done

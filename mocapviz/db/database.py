@@ -427,7 +427,7 @@ class MotionDB:
         Parameters
         ----------
         paths : str, os.PathLike or list of them
-            Files, folders (searched recursively for .amc / .bvh) or glob patterns.
+            Files, folders (searched recursively for .amc / .bvh / .c3d) or glob patterns.
         out : str or os.PathLike
             The database directory.
         fps : float, optional
@@ -437,7 +437,8 @@ class MotionDB:
             {path or file name: {column: value}}. Default: the label tables found beside the data
             (``labels.tsv``, Bandai Namco ``.json``), see :func:`mocapviz.io.labels.labels_for`.
         mapping : dict, optional
-            Canonical joint -> joint name for rigs the automatic rules cannot map.
+            Canonical joint -> joint name for rigs the automatic rules cannot map; for C3D marker files, marker
+            of the marker set -> the files' marker name (:func:`mocapviz.motion.markers.marker_joints`).
         skip_bad : bool
             Skip files that fail to read (with a warning) instead of stopping.
         threads : int, optional

@@ -15,6 +15,8 @@ reconstruction        Krüger et al. 2010, §5.2, Tables 3-4: full-body motion f
                       models of the kNN poses, after Chai & Hodgins 2005) with priors from different databases.
 rank_correlations     Krüger et al. 2010, Fig. 2 / §3.3: Spearman rank-correlation matrices between feature sets and
                       distance measures, pose-based (sample and large database) and segment-based (DTW).
+marker_comparison     issue 27: joints estimated from a C3D take's markers against the AMC of the same take
+                      (relational 2005 agreement, F15E distance, DTW rank of the AMC).
 retrieval_quality     every search method of the product (brute / exact / fast DTW, the lazy neighbourhood graph,
                       relational query by example, hybrid) on a labelled database: mAP leave-one-out and
                       leave-actor-out, P@1, P@10, per-class AP, P/R curves, recall of DTW's top 10, ms per query.
@@ -26,11 +28,12 @@ The papers' own figures, named by paper: :func:`mocapviz.experiments.relational.
 """
 from .correlation import paper_claims, pose_correlations, rank_correlations, segment_correlations
 from .marker_reconstruction import reconstruction
+from .markers import marker_comparison
 from .matching import alignment, lng_accuracy, numerical_search, similarity_matrices, summarize_accuracy
 from .numeric import base_pose_experiment, knn_timings
 from .relational import index_statistics, query_statistics, relational_query
 from .retrieval import retrieval_quality
 
-__all__ = ["alignment", "base_pose_experiment", "index_statistics", "knn_timings", "lng_accuracy", "numerical_search",
-           "paper_claims", "pose_correlations", "query_statistics", "rank_correlations", "reconstruction",
+__all__ = ["alignment", "base_pose_experiment", "index_statistics", "knn_timings", "lng_accuracy", "marker_comparison",
+           "numerical_search", "paper_claims", "pose_correlations", "query_statistics", "rank_correlations", "reconstruction",
            "relational_query", "retrieval_quality", "segment_correlations", "similarity_matrices", "summarize_accuracy"]

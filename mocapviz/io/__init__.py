@@ -1,14 +1,14 @@
 """Readers: one entry point, :func:`load`, for every supported motion file.
 
-load          path -> Motion (ASF/AMC, BVH), dispatching on the file extension.
+load          path -> Motion (ASF/AMC, BVH, C3D markers), dispatching on the file extension.
 find_asf      the ASF skeleton of an AMC file, by the CMU and HDM05 folder conventions.
-read_asf, read_amc, read_bvh   the format readers (``asfamc``, ``bvh`` modules).
+read_asf, read_amc, read_bvh, read_c3d   the format readers (``asfamc``, ``bvh``, ``c3d`` modules).
 
 The writers, for :mod:`mocapviz.export`: ``bvh_writer`` (a posed rig, an AMC on its ASF rig, a stretch of a BVH
 file), ``amc_writer`` (a stretch of an AMC file), ``gltf_writer`` (a posed rig as glTF binary).
 
-The readers (and numba, which they compile with) are imported when first used: opening a MotionDB, which imports
-this package through ingest, reads no motion file.
+The readers (and numba, which they compile with; ezc3d, which reads C3D) are imported when first used: opening a
+MotionDB, which imports this package through ingest, reads no motion file.
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from ..errors import MocapFormatError
 from ..motion import Motion
 
 _getattr, _readers = lazy_exports(__name__, {"AsfSkeleton": ".asfamc", "read_amc": ".asfamc", "read_asf": ".asfamc",
-                                             "read_bvh": ".bvh"})  # fmt: skip
+                                             "read_bvh": ".bvh", "read_c3d": ".c3d"})  # fmt: skip
 __getattr__ = _getattr
 
 
@@ -29,7 +29,7 @@ def __dir__():
     return sorted({*globals(), *_readers()})
 
 
-FORMATS = (".amc", ".bvh")
+FORMATS = (".amc", ".bvh", ".c3d")
 
 
 @functools.lru_cache(maxsize=4096)
@@ -95,22 +95,25 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
     Parameters
     ----------
     path : str or os.PathLike
-        An ``.amc`` (with its ASF skeleton) or ``.bvh`` file.
+        An ``.amc`` (with its ASF skeleton), ``.bvh`` or ``.c3d`` file.
     asf : str or os.PathLike, optional
         The ASF skeleton of an AMC file; default :func:`find_asf`.
     fps : float, optional
         AMC: the capture rate in frames per second (default 120, as CMU and HDM05). BVH: ignored (the file
         states it).
     up : {"auto", "y", "z"}
-        BVH only: the file's up axis (:func:`mocapviz.io.bvh.read_bvh`); the Motion is always y up.
+        BVH and C3D: the file's up axis (:func:`mocapviz.io.bvh.read_bvh`, :func:`mocapviz.io.c3d.read_c3d`); the
+        Motion is always y up.
     scale : float, optional
         BVH only: centimetres per file unit; default guessed from the figure's height.
 
     Returns
     -------
     Motion
-        Source joints J, positions [shape=(T, J, 3)] float32 in cm, y up, local quaternions [shape=(T, J, 4)].
-        ``Motion.canonical()`` maps it to the 24 canonical joints.
+        Source joints J, positions [shape=(T, J, 3)] float32 in cm, y up, local quaternions [shape=(T, J, 4)]
+        (C3D: the markers as joints without a skeleton or rotations, NaN in gaps).
+        ``Motion.canonical()`` maps it to the 24 canonical joints (C3D: joint-centre estimates,
+        :mod:`mocapviz.motion.markers`).
 
     Raises
     ------
@@ -152,7 +155,11 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
         from .bvh import read_bvh
 
         return read_bvh(path, up=up, scale=scale)
+    if ext == ".c3d":
+        from .c3d import read_c3d
+
+        return read_c3d(path, up=up)
     raise MocapFormatError(path, f"unsupported file type {ext or '(none)'!r}; supported: {', '.join(FORMATS)}")
 
 
-__all__ = ["FORMATS", "AsfSkeleton", "find_asf", "load", "read_amc", "read_asf", "read_bvh"]
+__all__ = ["FORMATS", "AsfSkeleton", "find_asf", "load", "read_amc", "read_asf", "read_bvh", "read_c3d"]

@@ -2,6 +2,7 @@
 
 motion.py    :class:`Motion` (positions in cm, y up, local quaternions, frame rate, labels), ``FPS_RANGE``.
 skeleton.py  the 24 canonical joints, the structural mapping of any humanoid rig onto them, body frames.
+markers.py   the 24 canonical joints estimated from marker trajectories (C3D: CMU/HDM05 set, Plug-in Gait), gaps.
 rotations.py quaternion and Euler-angle arithmetic.
 
 See ``docs/architecture.md``.

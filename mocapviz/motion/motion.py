@@ -50,10 +50,11 @@ class Motion:
     fps : float
         Frames per second.
     joint_names : tuple of str [length J]
-        Joint names: the source skeleton's (ASF bone tips, BVH joints and end sites) or, after
-        :meth:`canonical`, the 24 canonical joints of ``mocapviz.motion.skeleton.CANONICAL_JOINTS``.
+        Joint names: the source skeleton's (ASF bone tips, BVH joints and end sites), a C3D file's marker names
+        or, after :meth:`canonical`, the 24 canonical joints of ``mocapviz.motion.skeleton.CANONICAL_JOINTS``.
     parents : np.ndarray [shape=(J,)], int64
-        Parent joint index, -1 for the root; parents come before their children.
+        Parent joint index, -1 for the root; parents come before their children. A marker clip has no skeleton:
+        all -1, no quaternions, NaN positions in its gaps (``mocapviz.motion.markers``).
     quaternions : np.ndarray [shape=(T, J, 4)], float32, or None
         Local joint rotations ``(w, x, y, z)`` relative to the parent, where the source has them.
     source : str or None
@@ -157,7 +158,9 @@ class Motion:
         ----------
         mapping : dict, optional
             Canonical name -> this motion's joint name, overriding the automatic rules
-            (:func:`mocapviz.motion.skeleton.guess_mapping`).
+            (:func:`mocapviz.motion.skeleton.guess_mapping`). A marker clip (a C3D file's: markers without a
+            skeleton) is turned into joints by :func:`mocapviz.motion.markers.marker_joints`; for it, ``mapping``
+            is marker of the marker set -> this clip's marker name (``{"LFWT": "L_FWT"}``).
 
         Returns
         -------

@@ -598,9 +598,11 @@ def to_canonical(motion: Motion, mapping: dict[str, str] | None = None) -> Motio
     Parameters
     ----------
     motion : Motion
-        Any reader's Motion (or an already canonical one, returned as is when ``mapping`` is None).
+        Any reader's Motion (or an already canonical one, returned as is when ``mapping`` is None). A marker
+        Motion (a C3D file's) goes to :func:`mocapviz.motion.markers.marker_joints`, the joint-centre estimates.
     mapping : dict, optional
-        Canonical joint -> joint of ``motion``, overriding the automatic rules of :func:`guess_mapping`.
+        Canonical joint -> joint of ``motion``, overriding the automatic rules of :func:`guess_mapping`; for a
+        marker Motion: marker of the marker set -> the clip's marker name (``aliases`` of ``marker_joints``).
 
     Returns
     -------
@@ -618,6 +620,10 @@ def to_canonical(motion: Motion, mapping: dict[str, str] | None = None) -> Motio
     """
     if motion.joint_names == CANONICAL_JOINTS and not mapping:
         return motion
+    from .markers import is_marker_motion, marker_joints
+
+    if is_marker_motion(motion):
+        return marker_joints(motion, aliases=mapping)
     mapping = dict(mapping or {})
     unknown = {c: j for c, j in mapping.items() if c not in CANONICAL_JOINTS or j not in motion.joint_names}
     if unknown:

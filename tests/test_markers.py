@@ -1,0 +1,164 @@
+"""Markers -> canonical joints (mocapviz.motion.markers) and the measurement against the AMC of the same take
+(mocapviz.experiments.markers).
+
+The formula tests use hand-made geometry (synthetic points, said so in each test): the Harrington et al. 2007
+regression and the chord rule are checked against values worked out by hand and against rigid motions of the
+markers. Everything else runs on the real C3D files of the ``c3d-markers`` archive and the CMU AMC of take 135_02.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from mocapviz import MotionDB, load
+from mocapviz.errors import ParameterError, SkeletonMappingError
+from mocapviz.experiments.markers import frame_lag, marker_comparison, marker_pairs
+from mocapviz.motion.markers import chord, fill_gaps, harrington_hips, marker_joints
+from mocapviz.motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS, to_canonical
+
+J = CANONICAL_JOINTS.index
+
+
+# ------------------------------------------------------------------------------ formulas on hand-made geometry
+def test_harrington_by_hand_and_under_rigid_motion():
+    """Synthetic pelvis: ASIS 24 cm apart, PSIS 8 cm apart 16 cm behind, facing +z. By hand (mm): PW = 240,
+    PD = 160, x = -0.24 * 160 - 9.9 = -48.3, y = -0.30 * 240 - 10.9 = -82.9, z = 0.33 * 240 + 7.3 = 86.5."""
+    pts = np.array([[12, 0, 0], [-12, 0, 0], [4, 0, -16], [-4, 0, -16]], dtype=float)[:, None]  # (4, T=1, 3)
+    left, right = harrington_hips(*pts)
+    np.testing.assert_allclose(left[0], [8.65, -8.29, -4.83], atol=1e-9)
+    np.testing.assert_allclose(right[0], [-8.65, -8.29, -4.83], atol=1e-9)
+    turn = Rotation.from_euler("xyz", [20, -70, 35], degrees=True).as_matrix()
+    moved = pts @ turn.T + [100.0, 50.0, -30.0]
+    l2, r2 = harrington_hips(*moved)
+    np.testing.assert_allclose(l2, left @ turn.T + [100.0, 50.0, -30.0], atol=1e-9)
+    np.testing.assert_allclose(r2, right @ turn.T + [100.0, 50.0, -30.0], atol=1e-9)
+
+
+def test_chord_puts_the_centre_medially_at_a_right_angle():
+    """Synthetic bent leg: hip above, lateral knee marker, wand on the lateral thigh; the centre is ``offset`` from
+    the marker, on the side away from the wand, and sees hip and marker at 90 degrees."""
+    hip, knee_marker, wand = np.array([[3.0, 45, 10]]), np.array([[9.0, 2, 4]]), np.array([[14.0, 25, 6]])
+    centre = chord(hip, wand, knee_marker, 6.0)
+    assert np.linalg.norm(centre - knee_marker) == pytest.approx(6.0)
+    assert np.dot((knee_marker - centre)[0], (hip - centre)[0]) == pytest.approx(0.0, abs=1e-9)
+    normal = np.cross(hip - knee_marker, wand - knee_marker)[0]
+    assert np.dot(centre[0] - knee_marker[0], normal) == pytest.approx(0.0, abs=1e-9)  # in the plane
+    assert centre[0, 0] < knee_marker[0, 0]  # medial: the wand is lateral (+x)
+
+
+def test_fill_gaps_fills_short_gaps_only():
+    """Synthetic straight-line marker at 100 fps: gaps of 20 frames inside and at the start are filled (linear
+    inside: exact for a straight line; held at the start), a 40-frame gap is not (0.25 s = 25 frames)."""
+    t = np.arange(200.0)
+    p = np.stack([t, 2 * t, -t], axis=1)[:, None].repeat(2, axis=1)
+    gappy = p.copy()
+    gappy[50:70, 0] = np.nan
+    gappy[:20, 1] = np.nan
+    gappy[100:140, 1] = np.nan
+    out = fill_gaps(gappy, 100.0)
+    np.testing.assert_allclose(out[:, 0], p[:, 0], atol=1e-4)
+    np.testing.assert_allclose(out[:20, 1], np.repeat(p[20:21, 1], 20, axis=0))
+    assert np.isnan(out[100:140, 1]).all() and not np.isnan(out[140:, 1]).any()
+
+
+# ------------------------------------------------------------------------------ real files
+@pytest.fixture(scope="module")
+def take(c3d_dir):
+    return load(c3d_dir / "cmu_07_01.c3d")
+
+
+def test_canonical_of_a_c3d_is_the_24_joints_and_canonical_again_is_itself(take):
+    c = take.canonical()
+    assert c.joint_names == CANONICAL_JOINTS and (c.parents == CANONICAL_PARENTS).all()
+    assert c.positions.shape == (take.n_frames, 24, 3) and np.isfinite(c.positions).all()
+    assert to_canonical(c) is c and c.fps == take.fps and c.source == take.source
+
+
+def test_bones_keep_their_length(c3d_dir):
+    """Real CMU and HDM05 takes (walks, jumps, karate, breakdance): bones are rigid, so the estimated thigh, shank,
+    upper arm and forearm lengths vary by less than 8 % (coefficient of variation) over each take."""
+    bones = [("lhip", "lknee"), ("rknee", "rankle"), ("lshoulder", "lelbow"), ("relbow", "rwrist")]
+    for name in ("cmu_135_02.c3d", "cmu_85_12.c3d", "cmu_16_07.c3d", "HDM_mm_01-02_03_120.c3d"):
+        p = load(c3d_dir / name).canonical().positions
+        for a, b in bones:
+            length = np.linalg.norm(p[:, J(a)] - p[:, J(b)], axis=1)
+            assert length.std() / length.mean() < 0.08, (name, a, b, length.mean(), length.std())
+
+
+def test_plug_in_gait_file_after_its_first_gap(c3d_dir):
+    """btk_PiG_Motion-FlatFoot-Full (Vicon Plug-in Gait, 100 fps): LFHD is missing for its first 30 frames (0.3 s,
+    longer than the 0.25 s filled); the error says so, and the clip from frame 30 maps with plausible bones."""
+    m = load(c3d_dir / "btk_PiG_Motion-FlatFoot-Full.c3d")
+    with pytest.raises(SkeletonMappingError, match=r"LFHD \(frames 0 to 29"):
+        m.canonical()
+    p = m[30:].canonical().positions
+    thigh = np.linalg.norm(p[:, J("lhip")] - p[:, J("lknee")], axis=1)
+    assert 30 < thigh.mean() < 55 and thigh.std() / thigh.mean() < 0.08
+    assert (p[:, J("head")] - p[:, J("root")])[:, 1].min() > 30  # walking upright
+
+
+def test_missing_markers_named_with_a_template_and_aliases_fix_it(take):
+    names = tuple("LWT1" if n == "LFWT" else n for n in take.joint_names)
+    renamed = replace(take, joint_names=names)
+    with pytest.raises(SkeletonMappingError) as exc:
+        renamed.canonical()
+    line = next(t for t in exc.value.template.splitlines() if '"LFWT"' in t)
+    assert exc.value.missing == ["LFWT"] and '"LFWT": "?"' in line and "LWT1" in line
+    assert '"RFWT": "RFWT"' in exc.value.template and "mapping=" in str(exc.value)
+    np.testing.assert_array_equal(renamed.canonical({"LFWT": "LWT1"}).positions, take.canonical().positions)
+    with pytest.raises(ParameterError, match="NOPE"):
+        marker_joints(take, aliases={"LFWT": "NOPE"})
+
+
+def test_long_gap_refused_naming_marker_and_frames(take):
+    p = take.positions.copy()
+    p[100:160, take.joint_names.index("LKNE")] = np.nan  # 0.5 s of a real take blanked out
+    with pytest.raises(SkeletonMappingError, match=r"LKNE \(frames 100 to 159, 60 frames\)"):
+        replace(take, positions=p).canonical()
+    assert np.isfinite(marker_joints(replace(take, positions=p), max_gap_s=1.0).positions).all()
+
+
+def test_ingest_a_folder_of_c3d_files(c3d_dir, tmp_path):
+    """The nine CMU and HDM05 files carry the whole 41-marker set and no gap the filling cannot close (manifest:
+    gaps 0 or 2.4 %): they become documents with their frame counts; the three gait-lab files (head markers
+    absent, a too-long gap, an older marker set) are skipped with a warning under skip_bad."""
+    with pytest.warns(UserWarning):
+        db = MotionDB.ingest(c3d_dir, tmp_path / "db", skip_bad=True, progress=False)
+    docs = db.documents.set_index("name")
+    assert sorted(docs.index) == sorted(p.stem for p in c3d_dir.glob("*.c3d") if not p.name.startswith("btk_"))
+    assert docs.loc["cmu_135_02", "n_frames"] == 5202 and docs.loc["HDM_bd_01-02_01_120", "n_frames"] == 2900
+    assert (docs["format"] == "c3d").all()
+
+
+def test_frame_lag_finds_a_known_shift(c3d_dir, cmu_dir):
+    a = load(c3d_dir / "cmu_135_02.c3d").canonical()
+    b = load(cmu_dir / "amc/martialwalk/135_02.amc").canonical()
+    assert frame_lag(a, b) == 0  # the same 5202 frames from frame 1 (both files)
+    assert frame_lag(a[37:], b) == -37 and frame_lag(a, b[37:]) == 37
+
+
+def test_only_135_02_has_an_amc(c3d_dir, cmu_dir):
+    pairs = marker_pairs(c3d_dir, cmu_dir)
+    assert pairs["take"].tolist() == ["135_02"]
+
+
+def test_c3d_joints_agree_with_the_amc_of_the_same_take(c3d_dir, cmu_dir):
+    """CMU 135_02 from its markers and from the skeleton CMU fitted to them: the 31 relational features agree on
+    at least 95 % of the frames on average, F15E (hands, feet, head in the body frame) within 8 cm, and the DTW
+    search over the 32 AMC takes ranks the same take's AMC first."""
+    row = marker_comparison(c3d_dir, cmu_dir).iloc[0]
+    print(row.to_dict())
+    assert row["take"] == "135_02" and row["lag"] == 0 and row["frames"] == 5202
+    assert row["agreement"] >= 0.95
+    assert row["f15e_cm"] < 8.0
+    assert row["rank_of_amc"] == 1 and row["searched"] == 32
+
+
+def test_bad_max_gap_refused(take):
+    for bad in (-0.1, float("nan"), "long"):
+        with pytest.raises(ParameterError, match="max_gap_s"):
+            marker_joints(take, max_gap_s=bad)
