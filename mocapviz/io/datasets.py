@@ -204,7 +204,7 @@ def names() -> list[str]:
     Examples
     --------
     >>> names()
-    ['hdm05-cut', 'cmu-asfamc', 'bandai-namco-1', 'bandai-namco-2']
+    ['hdm05-cut', 'cmu-asfamc', 'bandai-namco-1', 'bandai-namco-2', 'c3d-markers']
     """
     return list(ARCHIVES)
 
