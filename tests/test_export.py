@@ -28,7 +28,7 @@ from mocapviz.errors import ParameterError, SourceFileError
 from mocapviz.export import export_hits, export_stretch, hits_zip, read_hits, source_frames, stretch_files
 from mocapviz.io import load
 from mocapviz.motion import rotations
-from mocapviz.motion.skeleton import CANONICAL_JOINTS
+from mocapviz.motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
 
 TOLERANCE_CM = 0.01
 VALIDATOR = Path(__file__).resolve().parents[1] / ".cache" / "gltf" / "node_modules" / "gltf-validator"
@@ -126,8 +126,7 @@ def check_canonical(db, doc, start, end, tmp_path) -> float:
     """Canonical BVH and glTF of one stretch read back against the database; the largest error, cm."""
     want = db.positions[db.frames(doc)][start:end]
     [bvh] = export_stretch(db, doc, tmp_path / "bvh", start, end, "bvh", "canonical", search="a test")
-    got = load(bvh, up="y").canonical({c: c for c in CANONICAL_JOINTS})  # (y up as written: "auto" would turn a
-    # clip that lies on the floor throughout, such as HDM05 lieDownFloor, as if its file were z up)
+    got = load(bvh).canonical({c: c for c in CANONICAL_JOINTS})  # up="auto": the rest pose says y up
     assert got.fps == db.document(doc)["fps"] and got.n_frames == end - start
     err_bvh = np.abs(got.positions - want).max()
     meta = _metadata(bvh.read_bytes())
@@ -159,7 +158,7 @@ def check_amc_source(db, doc, start, end, tmp_path) -> float:
     back = load(amc)
     assert np.array_equal(back.positions, source.positions)
     [bvh] = export_stretch(db, doc, tmp_path / "asfbvh", start, end, "bvh")
-    rig = load(bvh, up="y")
+    rig = load(bvh)
     tips = []  # an ASF bone's tip is its first child's BVH joint, or its End Site
     for j, name in enumerate(source.joint_names):
         kids = np.flatnonzero(source.parents == j)
@@ -234,6 +233,104 @@ def test_real_clips_round_trip(archive_dbs, archive, tmp_path):
         source = check_bvh_source if archive == "bandai" else check_amc_source
         errors.append(source(db, doc, start, end, tmp_path / str(doc)))
     print(f"{archive}: largest error {max(errors):.2e} cm")
+
+
+def _lying_stretch(db) -> tuple[int, int, int]:
+    """(doc, start, end): the HDM05 lieDownFloor document's last frames, all on the floor (head - root more
+    sideways than up), at least a second of them."""
+    [doc] = db.documents.loc[db.documents["name"].str.contains("lieDownFloor"), "doc_id"]
+    p = db.positions[db.frames(doc)]
+    d = p[:, CANONICAL_JOINTS.index("head")] - p[:, CANONICAL_JOINTS.index("root")]
+    lying = d[:, 1] < 0.5 * np.linalg.norm(d[:, [0, 2]], axis=1)
+    start, end = int(np.flatnonzero(~lying)[-1]) + 1, len(p)
+    assert end - start >= db.document(doc)["fps"]
+    return int(doc), start, end
+
+
+def test_canonical_rest_pose_is_upright_and_one_layout_for_every_archive(archive_dbs, tmp_path):
+    """Every canonical BVH starts from the same upright T-pose (y up, facing +z, left on +x), its bones as long as
+    the document's: legs down, feet forward, spine up, arms out; every stretch of a document gets the same rig."""
+    from mocapviz.io.bvh import _hierarchy
+
+    for archive, db in archive_dbs.items():
+        for doc in db.documents["doc_id"]:
+            n = int(db.document(doc)["n_frames"])
+            files = [stretch_files(db, doc, a, b, "bvh", "canonical")
+                     for a, b in ((0, n // 2), (n // 3, n))]  # fmt: skip
+            heads = [data.split(b"MOTION")[0].decode() for [data] in (list(f.values()) for f in files)]
+            first, second = (_hierarchy(re.sub(r"(?m)^# .*\n", "", h)) for h in heads)
+            assert np.array_equal(first.offsets, second.offsets)  # (a joint with position channels: OFFSET 0 0 0)
+            off = dict(zip(first.names, first.offsets))
+            p = db.positions[db.frames(doc)]
+            length = {c: np.median(np.linalg.norm(p[:, j] - p[:, CANONICAL_PARENTS[j]], axis=-1))
+                      for j, c in enumerate(CANONICAL_JOINTS) if j}  # fmt: skip
+            for joint, axis, sign in (("knee", 1, -1), ("ankle", 1, -1), ("toes", 2, 1), ("shoulder", 0, 1),
+                                      ("elbow", 0, 1), ("wrist", 0, 1), ("fingers", 0, 1)):
+                for side, flip in (("l", 1), ("r", -1)):
+                    want = np.zeros(3)
+                    want[axis] = (flip if axis == 0 else 1) * sign * length[side + joint]
+                    if off[side + joint].any():  # (not where the joint has position channels)
+                        np.testing.assert_allclose(off[side + joint], want, atol=1e-5, err_msg=(archive, side + joint))
+            for joint in ("chest", "neck", "headtop"):
+                if off[joint].any():
+                    np.testing.assert_allclose(off[joint], [0, length[joint], 0], atol=1e-5, err_msg=(archive, joint))
+            for pair in ("hip", "clavicle"):  # across the body (x), below their parent; a zero bone: zero
+                left, right = off["l" + pair], off["r" + pair]
+                assert left[0] >= 0 >= right[0] and left[1] == right[1] <= 0 and left[2] == right[2] == 0, (archive, pair)
+                for side in "lr":
+                    if off[side + pair].any() or length[side + pair] < 1e-4:
+                        assert np.linalg.norm(off[side + pair]) == pytest.approx(length[side + pair], abs=1e-4)
+
+
+def test_a_figure_lying_on_the_floor_throughout_reads_back_with_up_auto(archive_dbs, tmp_path):
+    """A canonical export of a stretch lying on the floor, its mean head - root vector along +z (the motion
+    alone would take it for a figure standing in a z-up file): read with up="auto" it equals the database, as the
+    rest pose is y up. The same file with every axis turned to z up (offsets, positions and rotations) is turned
+    back, although its motion's head - root vector points along -y."""
+    db = archive_dbs["hdm05"]
+    doc, start, end = _lying_stretch(db)
+    p = db.positions[db.frames(doc)][start:end]
+    d = (p[:, CANONICAL_JOINTS.index("head")] - p[:, 0]).mean(0)
+    assert d[2] > abs(d[0]) and d[2] > abs(d[1])  # what made up="auto" turn such a clip before
+    check_canonical(db, doc, start, end, tmp_path)  # (reads the BVH with the default up="auto")
+    [bvh] = export_stretch(db, doc, tmp_path / "zup", start, end, "bvh", "canonical")
+    z_up = tmp_path / "z_up.bvh"
+    z_up.write_text(_turned_to_z_up(bvh.read_text()))
+    as_is = load(z_up, up="y").canonical({c: c for c in CANONICAL_JOINTS})  # the file's own axes: M p
+    assert np.abs(as_is.positions - np.stack([p[..., 0], -p[..., 2], p[..., 1]], -1)).max() < TOLERANCE_CM
+    d = (as_is.positions[:, CANONICAL_JOINTS.index("head")] - as_is.positions[:, 0]).mean(0)
+    assert -d[1] > abs(d[0]) and -d[1] > abs(d[2])  # the motion alone would leave it as it is
+    got = load(z_up).canonical({c: c for c in CANONICAL_JOINTS})
+    assert np.abs(got.positions - p).max() < TOLERANCE_CM
+
+
+def _turned_to_z_up(text: str) -> str:
+    """A canonical export (channels ``[X/Y/Zposition] Zrotation Xrotation Yrotation``) in z-up axes: every vector
+    turned by M = +90 degrees about x, (x, y, z) -> (x, -z, y), every rotation R to M R M^T: Rz(a) Rx(b) Ry(c) ->
+    Ry(-a) Rx(b) Rz(c), so forward kinematics of the new file is M times that of the old."""
+    head, motion = text.split("MOTION\n")
+    turn = lambda v: [v[0], -v[2], v[1]]
+    kinds = []
+    lines = []
+    for line in head.splitlines():
+        w = line.split()
+        if w and w[0] == "OFFSET":
+            line = line[: line.index("OFFSET")] + "OFFSET " + " ".join(f"{x:.6f}" for x in turn([float(x) for x in w[1:]]))
+        elif w and w[0] == "CHANNELS":
+            assert w[-3:] == ["Zrotation", "Xrotation", "Yrotation"]
+            kinds += ["position"] * (len(w) == 8) + ["rotation"]
+            line = line.replace("Zrotation Xrotation Yrotation", "Yrotation Xrotation Zrotation")
+        lines.append(line)
+    frames = motion.splitlines()
+    out = []
+    for frame in frames[2:]:
+        v = [float(x) for x in frame.split()]
+        k = 0
+        for kind in kinds:
+            v[k : k + 3] = turn(v[k : k + 3]) if kind == "position" else [-v[k], v[k + 1], v[k + 2]]
+            k += 3
+        out.append(" ".join(f"{x:.6f}" for x in v))
+    return "\n".join(lines + ["MOTION"] + frames[:2] + out) + "\n"
 
 
 def test_resampled_database_cuts_the_source_at_the_same_seconds(archive_dbs, tmp_path):

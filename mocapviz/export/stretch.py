@@ -12,7 +12,7 @@ format    rig          file(s)
 bvh       source       BVH source: its header and exactly its frame lines; AMC source: a BVH on the ASF rig
 amc       source       the AMC's header and frame blocks (renumbered from 1), beside a copy of its ASF
 glb       source       the source file's joints posed to the source's positions (glTF binary)
-bvh, glb  canonical    the 24 canonical joints posed to the database's positions (within 0.01 cm)
+bvh, glb  canonical    the 24 canonical joints (upright T-pose at rest) posed to the database's positions (0.01 cm)
 ========= ============ =================================================================================================
 """
 from __future__ import annotations
@@ -166,25 +166,24 @@ def stretch_files(db, doc_id: int, start: int | None = None, end: int | None = N
     return _source(_checked_source(row), stem, a, b, format, notes, meta)
 
 
-def _rest(motion) -> np.ndarray:
-    """Rest offsets of a rig: the bones of the clip's first frame (the root's: zero), cm."""
-    return motion.positions[0] - motion.positions[0, np.maximum(motion.parents, 0)]
-
-
-def _posed(motion, a: int, b: int, format: str, notes: list, meta: dict) -> bytes:
-    """Frames a:b of ``motion`` on its own joints (rest pose: its first frame) as BVH or glTF."""
+def _posed(motion, a: int, b: int, rest: np.ndarray, format: str, notes: list, meta: dict) -> bytes:
+    """Frames a:b of ``motion`` on its own joints with rest offsets ``rest`` (J, 3), cm, as BVH or glTF."""
     from ..io.bvh_writer import pose_bvh
     from ..io.gltf_writer import pose_glb
     from ..motion.rig import fit_pose
 
-    pose = fit_pose(motion.positions[a:b], motion.parents, _rest(motion))
+    pose = fit_pose(motion.positions[a:b], motion.parents, rest)
     if format == "bvh":
         return pose_bvh(motion.joint_names, motion.parents, pose, motion.fps, notes)
     return pose_glb(motion.joint_names, motion.parents, pose, motion.fps, meta)
 
 
 def _canonical(db, doc_id: int, start: int, end: int, format: str, notes: list, meta: dict) -> bytes:
-    return _posed(db.motion(doc_id), start, end, format, notes, meta)
+    """The canonical rig in its standard rest pose, bone lengths of the whole document (one rig for every stretch)."""
+    from ..motion.rig import canonical_rest
+
+    motion = db.motion(doc_id)
+    return _posed(motion, start, end, canonical_rest(motion.positions), format, notes, meta)
 
 
 def _source(path: Path, stem: str, a: int, b: int, format: str, notes: list, meta: dict) -> dict[str, bytes]:
@@ -202,7 +201,9 @@ def _source(path: Path, stem: str, a: int, b: int, format: str, notes: list, met
         return {f"{stem}.bvh": asf_bvh(load(path)[a:b], read_asf(find_asf(path)), notes)}
     if format == "bvh":
         return {f"{stem}.bvh": cut_bvh(read_bytes(path), a, b, notes, path)}
-    return {f"{stem}.glb": _posed(load(path), a, b, format, notes, meta)}
+    motion = load(path)
+    rest = motion.positions[0] - motion.positions[0, np.maximum(motion.parents, 0)]  # the source's first frame
+    return {f"{stem}.glb": _posed(motion, a, b, rest, format, notes, meta)}
 
 
 def export_stretch(db, doc_id: int, out_dir, start: int | None = None, end: int | None = None, format: str = "bvh",

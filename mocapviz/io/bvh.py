@@ -12,7 +12,10 @@ Conventions:
 - Units: a figure between 0.5 and 3 units tall is taken to be in metres, between 500 and 3000 in
   millimetres, otherwise centimetres; pass ``scale`` (centimetres per file unit) to override.
 - Up axis: y; with ``up="auto"`` (default) a file whose figure stands along z (head above hips on z) is
-  turned to y up, keeping it right-handed; ``up="z"`` forces the conversion, ``up="y"`` prevents it.
+  turned to y up, keeping it right-handed; ``up="z"`` forces the conversion, ``up="y"`` prevents it. "auto" looks
+  at the rest pose (the OFFSETs chained, every rotation zero) when its head is clearly above its root along y or z
+  (that component at least twice each other's), else at the motion (the mean head - root vector), so that a figure
+  lying on the floor throughout a y-up file is not taken for one standing in a z-up file.
 - Comments: lines inside HIERARCHY whose first word starts with ``#`` are skipped (an export's note of its source,
   :mod:`mocapviz.io.bvh_writer`).
 - Text: keywords (``HIERARCHY``, ``ROOT``, ``JOINT``, ``End Site``, ``OFFSET``, ``CHANNELS``, ``MOTION``,
@@ -348,20 +351,37 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
         source=path,
         euler=euler_out,
     )
-    if up == "z" or (up == "auto" and _stands_on_z(motion)):
+    if up == "z" or (up == "auto" and _stands_on_z(motion, h.offsets)):
         motion = _z_up_to_y_up(motion)
     return motion
 
 
-def _stands_on_z(motion: Motion) -> bool:
-    """True if the figure's head is above its hips along z rather than y (needs a rig the name rules map)."""
+def _stands_on_z(motion: Motion, offsets: np.ndarray) -> bool:
+    """True if the figure's head is above its hips along z rather than y (needs a rig the name rules map).
+
+    Decided by the rest pose (``offsets`` [shape=(J, 3)], the OFFSETs, chained from the root) when its head - root
+    vector points clearly along +y or +z (that component at least twice the size of each other one); otherwise by
+    the motion's mean head - root vector (z up when its z component is the largest in size and positive).
+    """
     from ..motion.skeleton import name_mapping
 
     mapping = name_mapping(motion.joint_names)
     if "head" not in mapping or "root" not in mapping:
         return False
-    names = motion.joint_names
-    d = (motion.positions[:, names.index(mapping["head"])] - motion.positions[:, names.index(mapping["root"])]).mean(0)
+    head, root = motion.joint_names.index(mapping["head"]), motion.joint_names.index(mapping["root"])
+
+    def at_rest(j: int) -> np.ndarray:  # a joint's position at rest: the offsets up its chain, summed
+        total = np.zeros(3)
+        while j >= 0:
+            total += offsets[j]
+            j = motion.parents[j]
+        return total
+
+    rest = at_rest(head) - at_rest(root)
+    for axis in (1, 2):
+        if rest[axis] > 0 and rest[axis] >= 2 * np.delete(np.abs(rest), axis).max():
+            return axis == 2
+    d = (motion.positions[:, head] - motion.positions[:, root]).mean(0)
     return d[2] > abs(d[1]) and d[2] > abs(d[0])
 
 

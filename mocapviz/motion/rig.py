@@ -15,6 +15,9 @@ Posed by local rotations, joint ``j`` lies at ``P[parent] + R(Q[parent]) @ t[j]`
   hips) gets a translation of its own in every frame: ``t[j]`` is then the offset the frame needs, exactly.
 
 The root always translates. A joint without children keeps its parent's rotation (local identity).
+
+:func:`canonical_rest` gives the canonical rig its rest offsets: an upright T-pose facing +z, y up, each bone as long
+as it is in the document.
 """
 from __future__ import annotations
 
@@ -23,12 +26,80 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ParameterError
 from . import rotations
+from .skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
 
 TOLERANCE_CM = 0.001
 """How far a child may be from where the fitted rotation puts it before it gets a translation of its own, cm. Misses
 add up along a chain: the canonical tree is at most 8 bones deep, so 8 x 0.001 cm stays within the 0.01 cm an export
 promises."""
+
+
+_UP, _DOWN, _LEFT, _RIGHT, _FORWARD = (0, 1, 0), (0, -1, 0), (1, 0, 0), (-1, 0, 0), (0, 0, 1)
+STANDARD_DIRECTIONS = {
+    "root": (0, 0, 0), "lhip": _LEFT, "rhip": _RIGHT,
+    "lknee": _DOWN, "lankle": _DOWN, "ltoes": _FORWARD, "rknee": _DOWN, "rankle": _DOWN, "rtoes": _FORWARD,
+    "belly": _UP, "chest": _UP, "neck": _UP, "head": _UP, "headtop": _UP,
+    "lclavicle": _LEFT, "lshoulder": _LEFT, "lelbow": _LEFT, "lwrist": _LEFT, "lfingers": _LEFT,
+    "rclavicle": _RIGHT, "rshoulder": _RIGHT, "relbow": _RIGHT, "rwrist": _RIGHT, "rfingers": _RIGHT,
+}  # fmt: skip
+"""Direction of each canonical joint's rest offset from its parent: a T-pose facing +z, y up, the figure's left on
++x (the hips and clavicles: sideways, and lowered below their parent by :func:`canonical_rest`)."""
+
+
+def canonical_rest(positions: np.ndarray) -> np.ndarray:
+    """Rest offsets of the canonical rig for a clip: an upright T-pose with the clip's bone lengths.
+
+    Every bone has its median length over the frames of ``positions`` and points along
+    :data:`STANDARD_DIRECTIONS`: facing +z, y up, the figure's left on +x; legs straight down, feet (ankle to toes)
+    forward, spine, neck and head up, arms out sideways, horizontally. The hips lie on one line across the body (x),
+    below the root by the root's distance from that line (medians over the frames of the hips' distances along that
+    line and of the root's from it), so that the root and its hips keep the shape they have in the clip and one
+    rotation poses both; the clavicles likewise below the neck. A bone of length zero (the canonical clavicles of
+    HDM05 and CMU start where the neck is) has offset zero.
+
+    Parameters
+    ----------
+    positions : np.ndarray [shape=(T, 24, 3)]
+        Positions of the canonical joints (:data:`~mocapviz.motion.skeleton.CANONICAL_JOINTS`), cm, y up; the
+        frames whose bone lengths count (an export uses the whole document, so every stretch of it gets one rig).
+
+    Returns
+    -------
+    np.ndarray [shape=(24, 3)], float64
+        Each joint's offset from its parent at rest, cm (the root's: zero).
+
+    Raises
+    ------
+    ParameterError
+        ``positions`` is not (T, 24, 3) with T >= 1.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> rest = canonical_rest(MotionDB.sample().motion(7).positions)
+    >>> knee, neck = CANONICAL_JOINTS.index("lknee"), CANONICAL_JOINTS.index("neck")
+    >>> bool(rest[knee, 1] < 0 and rest[neck, 1] > 0), bool(np.abs(rest[knee, [0, 2]]).max() == 0)
+    (True, True)
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    if p.ndim != 3 or p.shape[1:] != (len(CANONICAL_JOINTS), 3) or not len(p):
+        raise ParameterError(f"positions must be (T, {len(CANONICAL_JOINTS)}, 3) canonical joints with T >= 1, got "
+                             f"shape {p.shape}")
+    bones = p - p[:, np.maximum(CANONICAL_PARENTS, 0)]
+    lengths = np.median(np.linalg.norm(bones, axis=-1), axis=0)
+    offsets = lengths[:, None] * np.array([STANDARD_DIRECTIONS[j] for j in CANONICAL_JOINTS], dtype=np.float64)
+    for pair in ("hip", "clavicle"):  # two children of one joint, across the body: keep their triangle
+        left, right = CANONICAL_JOINTS.index("l" + pair), CANONICAL_JOINTS.index("r" + pair)
+        across = bones[:, left] - bones[:, right]
+        across /= np.maximum(np.linalg.norm(across, axis=-1, keepdims=True), 1e-12)
+        sideways = np.einsum("tjk,tk->tj", bones[:, [left, right]], across)  # (T, 2): along the line across
+        below = np.linalg.norm(bones[:, left] - sideways[:, :1] * across, axis=-1)  # the parent's distance from it
+        offsets[[left, right]] = 0.0
+        offsets[[left, right], 0] = np.median(sideways, axis=0)
+        offsets[[left, right], 1] = -np.median(below)
+    return offsets + 0.0  # (no -0.0 in a written OFFSET)
 
 
 @dataclass(frozen=True)
