@@ -86,3 +86,26 @@ def test_bad_choices_say_why(page, sample_dashboard, sample_db, screenshot):
     page.locator(MESSAGE).get_by_text("Document 0 has no actor label").wait_for()
     assert not page.locator(ERROR).is_visible()
     assert_no_exception_names(page)
+
+
+def test_real_markers_of_a_c3d_clip_against_the_same_takes_amc(c3d_dir, cmu_dir, tmp_path):
+    """The page's real-marker reconstruction (no browser): a database of the CMU takes and the C3D file of 135_02 at
+    30 Hz; the C3D clip's own marker joints rebuilt, the AMC of the same take found by name, left out of the prior
+    and used as the truth: the error is the experiment's (mocapviz.experiments.markers, measured at 120 Hz then
+    resampled) within 0.5 cm; a clip read from an AMC is refused for real markers with the reason."""
+    from mocapviz import MotionDB
+    from mocapviz.app.backend import Backend
+    from mocapviz.app.pages.reconstruction import check_settings, run_reconstruction, same_take
+    from mocapviz.experiments.markers import marker_reconstruction
+
+    db = MotionDB.ingest([cmu_dir, c3d_dir / "cmu_135_02.c3d"], tmp_path / "db", fps=30, progress=False)
+    docs = db.documents.set_index("name")
+    c3d, amc = int(docs.at["cmu_135_02", "doc_id"]), int(docs.at["135_02", "doc_id"])
+    assert same_take(db, c3d) == amc and same_take(db, amc) is None
+    assert "C3D file" in check_settings(db, amc, "clip", 256, 0.1, "real")
+    assert check_settings(db, c3d, "clip", 256, 0.1, "real") is None
+    result = run_reconstruction(Backend(db), c3d, "clip", "F15E", 256, 0.1, "real")
+    assert result["truth_doc"] == amc and "135_02" not in result["left_out"] and str(amc) in result["left_out"]
+    assert result["prior_frames"] == db.n_frames - docs.at["cmu_135_02", "n_frames"] - docs.at["135_02", "n_frames"]
+    expected = marker_reconstruction(c3d_dir, cmu_dir).set_index("markers").loc["real (C3D marker clusters)"]
+    assert abs(result["errors"]["mean_cm"] - expected["mean_cm"]) < 0.5

@@ -7,6 +7,11 @@ errors can be recomputed), and every frame is rebuilt from the k nearest poses o
 out (Table 3's "HDM" column) or, when the database names actors, every clip of the test clip's actor ("HDM-actor").
 The original and the reconstruction play side by side; the per-joint and per-frame errors are plotted and the mean
 and worst-frame errors (cm per joint, as in Table 3) are shown as text. Results are cached per database and settings.
+
+A clip read from a C3D file can also be rebuilt from REAL markers: its six marker joints as estimated from the
+recorded marker clusters (:mod:`mocapviz.motion.markers`), no noise added; the truth is the same take read from its
+skeleton file when the database holds it (CMU ``cmu_135_02.c3d`` and ``135_02.amc``: aligned in time and on the floor,
+:func:`mocapviz.experiments.markers.real_marker_clip`), else the clip's own 24 marker-derived joints.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ import panel as pn
 
 from ...errors import ParameterError
 from ...experiments.marker_reconstruction import frame_actors, marker_clip
+from ...experiments.markers import aligned_takes, real_marker_clip
 from ...features import NUMERIC_SETS
 from ...motion.skeleton import CANONICAL_JOINTS
 from ...similarity.reconstruction import DEFAULT_K, MARKERS, PosePrior, reconstruct, reconstruction_errors
@@ -30,6 +36,7 @@ from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, notes
 SEED = 0  # the markers' noise comes from np.random.default_rng([SEED, doc_id]), as in the experiment
 DEFAULT_NOISE_CM = 0.1  # §5.2: +-1 mm
 PRIORS = {"without the test clip": "clip", "without the test clip's actor": "actor"}
+MARKER_SOURCES = {"simulated: the clip's joints ± noise": "simulated", "real: the clip's C3D marker clusters": "real"}
 
 
 # ============================================================================ computations (no widgets)
@@ -67,10 +74,34 @@ def prior_mask(db, doc: int, kind: str) -> tuple[np.ndarray, str]:
     return frame_actors(db) != actor, f"actor {actor}'s clips"
 
 
-def check_settings(db, doc: int, kind: str, k: int, noise_cm: float) -> str | None:
+def same_take(db, doc: int) -> int | None:
+    """The document of the same take as C3D document ``doc`` read from a skeleton file (AMC, BVH): the one whose
+    name ends the C3D's name after an underscore (``cmu_135_02`` -> ``135_02``), or None."""
+    docs = db.documents
+    name = str(db.document(doc)["name"])
+    others = docs[(docs["format"] != "c3d") & docs["name"].map(lambda n: name.endswith("_" + str(n)))]
+    return int(others["doc_id"].iloc[0]) if len(others) else None
+
+
+def real_marker_data(db, doc: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int | None]:
+    """Reconstruction test data from the real markers of C3D document ``doc``: (truth (T, 24, 3), markers (T, 6, 3),
+    headings (T,), the truth's document or None). The truth is :func:`same_take`'s document aligned to it
+    (:func:`~mocapviz.experiments.markers.real_marker_clip`), else the clip's own 24 joints."""
+    pair = same_take(db, doc)
+    own = db.motion(doc)
+    if pair is None:
+        return (*real_marker_clip(own, own)[:3], None)
+    markers_take, skeleton_take, _ = aligned_takes(own, db.motion(pair))
+    return (*real_marker_clip(markers_take, skeleton_take)[:3], pair)
+
+
+def check_settings(db, doc: int, kind: str, k: int, noise_cm: float, source: str = "simulated") -> str | None:
     """A one-line reason why these settings cannot be reconstructed, or None when they can."""
     if db.fps is None:
         return "The database mixes frame rates; the markers must be at the prior's one rate: resample it first."
+    if source == "real" and db.document(doc)["format"] != "c3d":
+        return ("Real markers need a clip read from a C3D file (`mocapviz ingest` of .c3d files); this one was read "
+                f"from a .{db.document(doc)['format']} file: choose simulated markers or a C3D clip.")
     try:
         valid, left_out = prior_mask(db, doc, kind)
     except ValueError as exc:
@@ -96,23 +127,38 @@ def prior_for(backend, doc: int, kind: str) -> tuple[PosePrior, str]:
     return backend.cached(key, lambda: full.restrict(valid)), left_out
 
 
-def run_reconstruction(backend, doc: int, kind: str, numeric_set: str, k: int, noise_cm: float) -> dict:
-    """Reconstruct a clip from its six synthetic markers, cached per database and settings.
+def run_reconstruction(backend, doc: int, kind: str, numeric_set: str, k: int, noise_cm: float,
+                       source: str = "simulated") -> dict:
+    """Reconstruct a clip from six markers, cached per database and settings: ``source`` "simulated" (its joints
+    with uniform noise of ± ``noise_cm``) or "real" (a C3D clip's marker joints, :func:`real_marker_data`; the
+    same take's document left out of the prior too).
 
     Returns
     -------
     dict: ``truth``, ``estimate`` (T, 24, 3) cm; ``errors`` (:func:`mocapviz.similarity.reconstruction.reconstruction_errors`);
-    ``prior_frames`` (int), ``left_out`` (str), ``seconds`` (the first computation's wall time).
+    ``prior_frames`` (int), ``left_out`` (str), ``truth_doc`` (the truth's document), ``seconds`` (the first
+    computation's wall time).
     """
     def compute() -> dict:
         t0 = time.perf_counter()
         prior, left_out = prior_for(backend, doc, kind)
-        truth, markers, headings = marker_clip(backend.db, doc, noise_cm, SEED)
+        truth_doc = doc
+        if source == "real":
+            truth, markers, headings, pair = real_marker_data(backend.db, doc)
+            if pair is not None:  # the same take read from its skeleton file: out of the prior as well
+                truth_doc = pair
+                valid = prior.valid.copy()
+                valid[backend.db.frames(pair)] = False
+                prior, left_out = prior.restrict(valid), f"{left_out} and the same take's document {pair}"
+        else:
+            truth, markers, headings = marker_clip(backend.db, doc, noise_cm, SEED)
         estimate = reconstruct(markers, headings, prior, numeric_set=numeric_set, k=k)
         return {"truth": truth, "estimate": estimate, "errors": reconstruction_errors(truth, estimate),
-                "prior_frames": prior.n_valid, "left_out": left_out, "seconds": time.perf_counter() - t0}
+                "prior_frames": prior.n_valid, "left_out": left_out, "truth_doc": truth_doc,
+                "seconds": time.perf_counter() - t0}
 
-    return backend.cached(("reconstruction", doc, kind, numeric_set, int(k), float(noise_cm)), compute)
+    noise = 0.0 if source == "real" else float(noise_cm)
+    return backend.cached(("reconstruction", doc, kind, numeric_set, int(k), noise, source), compute)
 
 
 def error_tables(errors: dict, variant: str, fps: float) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -144,6 +190,8 @@ class ReconstructionPage(pn.viewable.Viewer):
                                  width=220, css_classes=["mv-recon-k"])
         self.noise = BoundedFloatInput("marker noise ± cm", DEFAULT_NOISE_CM, 0.0, None, step=0.05, width=170,
                                        css_classes=["mv-recon-noise"])
+        self.source = pn.widgets.RadioButtonGroup(options=MARKER_SOURCES, value="simulated", align="end",
+                                                  css_classes=["mv-recon-source"])
         self.run_button = action_button("Reconstruct", "mv-recon-run", self._run, width=140)
         self.message = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-recon-message"])
         self.task = Task()
@@ -166,7 +214,7 @@ class ReconstructionPage(pn.viewable.Viewer):
             f"### Reconstruction from six markers (Krüger et al. 2010 §5.2)\nEvery frame of the test clip is rebuilt "
             f"from its markers ({', '.join(MARKERS)}), with uniform noise, by a local linear model of its k nearest "
             "poses in the prior.", margin=(0, 10))
-        options = pn.Row(self.prior, self.numeric_set, self.k, self.noise, self.run_button)
+        options = pn.Row(self.prior, self.numeric_set, self.k, self.noise, self.source, self.run_button)
         return pn.Column(intro, self.clip, options, notes(self.k, self.noise), self.message, self.task, self.summary,
                          self.results, sizing_mode="stretch_width", css_classes=["mv-recon-page"])
 
@@ -185,25 +233,29 @@ class ReconstructionPage(pn.viewable.Viewer):
         self.k.set_bounds(1, max(1, int(valid.sum())))
 
     def _settings(self) -> tuple:
-        return int(self.clip.value), self.prior.value, self.numeric_set.value, self.k.value, self.noise.value
+        return (int(self.clip.value), self.prior.value, self.numeric_set.value, self.k.value, self.noise.value,
+                self.source.value)
 
     async def _run(self, event=None) -> None:
-        doc, kind, numeric_set, k, noise = self._settings()
-        problem = check_settings(self.backend.db, doc, kind, k, noise)
+        doc, kind, numeric_set, k, noise, source = self._settings()
+        problem = check_settings(self.backend.db, doc, kind, k, noise, source)
         self.message.object, self.message.visible = problem or "", problem is not None
         if problem:
             return
         result = await self.task.run("Reconstructing", run_reconstruction, self.backend, doc, kind, numeric_set, k,
-                                     noise, busy=self.run_button)
+                                     noise, source, busy=self.run_button)
         if result is not None:
-            self._show(result, doc, numeric_set, k, noise)
+            self._show(result, doc, numeric_set, k, noise, source)
 
-    def _show(self, result: dict, doc: int, numeric_set: str, k: int, noise: float) -> None:
+    def _show(self, result: dict, doc: int, numeric_set: str, k: int, noise: float, source: str = "simulated"):
         name, fps = str(self.backend.db.document(doc)["name"]), self.backend.fps_of(doc)
         err = result["errors"]
+        truth_name = str(self.backend.db.document(result["truth_doc"])["name"])
+        markers = (f"real markers (its C3D marker clusters), against {truth_name}" if source == "real" else
+                   f"noise ± {noise:g} cm")
         self.summary.object = (
             f"**{name}** · {len(result['truth'])} frames · prior: {result['prior_frames']:,} frames without "
-            f"{result['left_out']} · {numeric_set} · k = {k:,} · noise ± {noise:g} cm · "
+            f"{result['left_out']} · {numeric_set} · k = {k:,} · {markers} · "
             f"computed in {result['seconds']:.1f} s")
         self.error_text.object = (f"**mean error {err['mean_cm']:.2f} cm** per joint · worst frame "
                                   f"{err['max_cm']:.2f} cm · bone length error {err['bone_cm']:.2f} cm")
