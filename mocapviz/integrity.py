@@ -5,7 +5,7 @@ check   path -> one row per stored file: what it is, whether it reads back exact
 Every stored file carries a fingerprint written with it: the frame arrays and documents table their size and
 sha256 in the manifest, a relational index the sha256 of its arrays in its header, a numeric feature set its data
 file's size and sha256 in its header, an Fp set the sha256 of the PCA model it used, a motion template the sha256
-of its values in its header. Opening a database checks the sizes (and the documents table's sha256); :func:`check`
+of its values in its header, a C3D document's stored markers the sha256 of their arrays in their header. Opening a database checks the sizes (and the documents table's sha256); :func:`check`
 reads everything and checks every sha256.
 """
 
@@ -66,7 +66,19 @@ def check(path) -> pd.DataFrame:
         rows.append(_row(features / "pca.npz", path, "PCA model", lambda: numeric_mod.PCAModel.load(features / "pca.npz")))
     for f in sorted((path / TEMPLATES).glob("*.npz")):
         rows.append(_row(f, path, f"motion template {f.stem}", lambda f=f: MotionTemplate.load(f)))
+    by_sha = dict(zip(db.documents["sha256"], db.documents["doc_id"]))
+    for f in sorted((path / "markers").glob("*.npz")):
+        doc = by_sha.get(f.stem)
+        rows.append(_row(f, path, f"markers of document {doc}", lambda doc=doc, f=f: _markers(db, doc, f)))
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def _markers(db: MotionDB, doc, f: Path) -> None:
+    from .db.markers import load_markers
+
+    if doc is None:
+        raise MotionDBError(f"{f}: markers of no document of the database (left from a file no longer in it)")
+    load_markers(db, doc)
 
 
 def _current_index(index, db: MotionDB, f: Path) -> None:

@@ -9,6 +9,7 @@ markers. Everything else runs on the real C3D files of the ``c3d-markers`` archi
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -195,3 +196,43 @@ def test_bad_max_gap_refused(take):
     for bad in (-0.1, float("nan"), "long"):
         with pytest.raises(ParameterError, match="max_gap_s"):
             marker_joints(take, max_gap_s=bad)
+
+
+def test_raw_markers_are_kept_beside_the_joints(c3d_dir, cmu_dir, tmp_path):
+    """Ingest stores each C3D document's markers with the database (mocapviz.db.markers): read back they are the
+    file's (labels, rate, positions, the same gaps as NaN) even after the file is gone; a document read from an AMC
+    has none (said so); a damaged markers file is refused, never returned."""
+    import shutil
+
+    from mocapviz.db.markers import has_markers, load_markers, markers_path
+    from mocapviz.errors import MotionDBError
+    from mocapviz.io.c3d import read_c3d
+
+    files = [shutil.copy(c3d_dir / name, tmp_path) for name in ("cmu_07_01.c3d", "cmu_01_01.c3d")]
+    db = MotionDB.ingest([*files, cmu_dir / "amc/martialwalk/135_02.amc"], tmp_path / "db", progress=False)
+    originals = {f: read_c3d(f) for f in files}
+    for f in files:
+        Path(f).unlink()  # nothing lost: the markers come from the database now
+    docs = db.documents.set_index("name")
+    for f, original in originals.items():
+        doc = int(docs.at[Path(f).stem, "doc_id"])
+        got = load_markers(db, doc)
+        assert got.joint_names == original.joint_names and got.fps == original.fps
+        np.testing.assert_array_equal(got.positions, original.positions)  # NaN where the file has gaps
+        assert got.labels["first_frame"] == original.labels["first_frame"]
+    assert np.isnan(originals[files[1]].positions).any()  # cmu_01_01 has gaps (2.4 %, manifest): they survived
+    amc = int(docs.at["135_02", "doc_id"])
+    assert not has_markers(db, amc)
+    with pytest.raises(MotionDBError, match="no markers stored for document .* only documents read from C3D"):
+        load_markers(db, amc)
+    doc = int(docs.at["cmu_07_01", "doc_id"])
+    from mocapviz.integrity import check
+
+    assert check(db.path).query("what.str.startswith('markers')")["ok"].tolist() == [True, True]
+    raw = bytearray(markers_path(db, doc).read_bytes())
+    raw[len(raw) // 2] ^= 0xFF
+    markers_path(db, doc).write_bytes(bytes(raw))
+    with pytest.raises(MotionDBError, match="cmu_07_01"):
+        load_markers(db, doc)
+    report = check(db.path).set_index("what")  # `mocapviz check DB` names the damaged file
+    assert not report.loc[f"markers of document {doc}", "ok"]

@@ -543,7 +543,13 @@ class MotionDB:
             positions, quaternions, metas = read_new(files, set(current.documents["sha256"]), options)
             if positions:
                 _commit(current.path, current.manifest, positions, quaternions, metas)
-        return MotionDB.open(self.path)
+        db = MotionDB.open(self.path)
+        if any(m.get("format") == "c3d" for m in metas):  # the raw markers beside the joints (mocapviz.db.markers)
+            from .markers import store_markers
+
+            new = {m["sha256"] for m in metas}
+            store_markers(db, db.documents.loc[db.documents["sha256"].isin(new), "doc_id"])
+        return db
 
     def append_motions(self, motions, metas=None) -> MotionDB:
         """Add clips held in memory (derived data: mirrored, resampled or edited copies of documents).

@@ -1,0 +1,125 @@
+"""The raw marker trajectories of documents read from C3D files, kept with the MotionDB beside their joints.
+
+A C3D document's joints are estimates (:mod:`mocapviz.motion.markers`); the markers they were made from are stored
+too, so that nothing the file held is lost when the file is gone: one ``.npz`` per document under ``DB/markers/``,
+named by the file's checksum (the document's ``sha256``), at the file's own rate, written atomically with a format
+header and a checksum of its arrays (:mod:`mocapviz.store`). Gaps are stored as a mask, not as NaN (no non-finite
+value is stored), and come back as NaN.
+
+store_markers   read the C3D documents' files once more and store their markers (ingest does it for new ones).
+load_markers    a document's markers as a marker Motion (NaN in gaps), checked against its checksum.
+has_markers     whether a document's markers are stored.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .. import store
+from ..errors import MotionDBError
+from ..motion import Motion
+
+__all__ = ["has_markers", "load_markers", "markers_path", "store_markers"]
+
+FORMAT, VERSION = "mocapviz-markers", 1
+
+
+def markers_path(db, doc_id: int) -> Path:
+    """Where document ``doc_id``'s markers are stored: ``DB/markers/<sha256 of its file>.npz``."""
+    return Path(db.path) / "markers" / f"{db.document(doc_id)['sha256']}.npz"
+
+
+def has_markers(db, doc_id: int) -> bool:
+    """Whether document ``doc_id``'s markers are stored (C3D documents, once :func:`store_markers` ran)."""
+    return markers_path(db, doc_id).is_file()
+
+
+def store_markers(db, doc_ids=None) -> list[Path]:
+    """Store the markers of C3D documents whose markers are not stored yet, read again from their files.
+
+    Parameters
+    ----------
+    db : MotionDB
+    doc_ids : sequence of int, optional
+        The documents to consider (default all); documents not read from a ``.c3d`` file are skipped.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
+
+    Raises
+    ------
+    MotionDBError
+        A C3D document whose file is gone or is not the file that was ingested (its checksum differs).
+    """
+    from ..io.c3d import read_c3d
+    from .ingest import file_checksum
+
+    docs = db.documents if doc_ids is None else db.documents[db.documents["doc_id"].isin(list(doc_ids))]
+    written = []
+    for row in docs[docs["format"] == "c3d"].itertuples():
+        target = markers_path(db, row.doc_id)
+        if target.is_file():
+            continue
+        path = Path(row.path)
+        if not path.is_file() or file_checksum(path) != row.sha256:
+            raise MotionDBError(f"{path}: the C3D file of document {row.doc_id} ({row.name}) is gone or changed since "
+                                "it was ingested; its markers cannot be stored")  # fmt: skip
+        motion = read_c3d(path)
+        present = np.isfinite(motion.positions).all(axis=2)
+        arrays = {"positions": np.where(present[..., None], motion.positions, 0.0).astype(np.float32),
+                  "present": present}  # fmt: skip
+        header = {**store.stamp(FORMAT, VERSION), "doc_name": row.name, "source": str(path), "fps": motion.fps,
+                  "markers": list(motion.joint_names), "labels": motion.labels,
+                  "sha256": store.digest(arrays)}  # fmt: skip
+        target.parent.mkdir(exist_ok=True)
+        with store.locked(target.parent), store.atomic_file(target) as tmp, open(tmp, "wb") as fh:
+            np.savez(fh, header=np.array(json.dumps(header)), **arrays)
+        written.append(target)
+    return written
+
+
+def load_markers(db, doc_id: int) -> Motion:
+    """Document ``doc_id``'s stored markers.
+
+    Parameters
+    ----------
+    db : MotionDB
+    doc_id : int
+
+    Returns
+    -------
+    Motion
+        The marker Motion as :func:`mocapviz.io.c3d.read_c3d` read it: positions [shape=(T, M, 3)] float32 in cm,
+        y up, NaN in gaps, at the file's own rate; ``joint_names`` the marker labels; ``source`` the file.
+
+    Raises
+    ------
+    MotionDBError
+        No markers stored for the document (not a C3D document), or the file is damaged (format, checksum).
+    """
+    path = markers_path(db, doc_id)
+    what = f"document {doc_id} ({db.document(doc_id)['name']})"
+    if not path.is_file():
+        raise MotionDBError(f"{db.path}: no markers stored for {what}: only documents read from C3D files have "
+                            "them (stored at ingest, or by mocapviz.db.markers.store_markers)")  # fmt: skip
+    import zipfile
+
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            header = json.loads(str(z["header"]))
+            arrays = {"positions": z["positions"], "present": z["present"]}
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
+        raise MotionDBError(f"{path}: the markers of {what} cannot be read ({exc})") from None
+    store.check_format(header, FORMAT, VERSION, path)
+    if store.digest(arrays) != header.get("sha256"):
+        raise MotionDBError(f"{path}: the markers of {what} are damaged (checksum mismatch)")
+    positions = np.where(arrays["present"][..., None], arrays["positions"], np.nan).astype(np.float32)
+    n = positions.shape[1]
+    return Motion(positions=positions, fps=float(header["fps"]), joint_names=tuple(header["markers"]),
+                  parents=np.full(n, -1, dtype=np.int64), source=header["source"],
+                  labels=header.get("labels", {}))  # fmt: skip
