@@ -236,3 +236,19 @@ def test_raw_markers_are_kept_beside_the_joints(c3d_dir, cmu_dir, tmp_path):
         load_markers(db, doc)
     report = check(db.path).set_index("what")  # `mocapviz check DB` names the damaged file
     assert not report.loc[f"markers of document {doc}", "ok"]
+
+
+def test_a_c3d_document_exports_on_the_canonical_rig_and_says_why_not_as_source_bvh(c3d_dir, tmp_path):
+    """Hits in C3D documents export as the canonical skeleton (read back within 0.01 cm) and as glTF on the source
+    (the markers as points); BVH on the source is refused with what to pass instead."""
+    from mocapviz.errors import ParameterError
+    from mocapviz.export import stretch_files
+
+    db = MotionDB.ingest([c3d_dir / "cmu_07_01.c3d"], tmp_path / "db", progress=False)
+    (name, data), = stretch_files(db, 0, 10, 70, "bvh", "canonical").items()
+    (tmp_path / name).write_bytes(data)
+    back = load(tmp_path / name).canonical({c: c for c in CANONICAL_JOINTS}).positions
+    assert np.abs(back - db.positions[db.frames(0)][10:70]).max() < 0.01
+    assert list(stretch_files(db, 0, 10, 70, "glb", "source")) == ["001_cmu_07_01_10-70.glb"]
+    with pytest.raises(ParameterError, match="C3D file: markers, no rig.*rig='canonical'"):
+        stretch_files(db, 0, 10, 70, "bvh", "source")

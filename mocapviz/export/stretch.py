@@ -153,6 +153,10 @@ def stretch_files(db, doc_id: int, start: int | None = None, end: int | None = N
         raise ParameterError(f"format 'amc' copies the frames of an ASF/AMC source on its own rig; document "
                              f"{int(doc_id)} is {row['format']!r}{' on the canonical rig' if rig == 'canonical' else ''}: "
                              "export it as 'bvh' or 'glb'")  # fmt: skip
+    if format == "bvh" and rig == "source" and row["format"] == "c3d":
+        raise ParameterError(f"document {int(doc_id)} was read from a C3D file: markers, no rig to write as BVH; "
+                             "export it on the canonical rig (rig='canonical', --rig canonical) or as 'glb' on its "
+                             "source (its markers as points)")  # fmt: skip
     a, b = source_frames(row, start, end)
     meta = {"exported_by": f"mocapviz {__version__}", "database": str(db.path), "doc_id": int(doc_id),
             "name": str(row["name"]), "source": str(row["path"]), "sha256": str(row["sha256"]),
