@@ -17,7 +17,7 @@ from browser_helpers import open_dashboard, open_tab
 from mocapviz.app.backend import Backend
 from mocapviz.app.downloads import HitDownload, table_download
 from mocapviz.app.widgets import HIT_TITLES, hit_columns, results_table
-from mocapviz.export import hits_zip, stretch_files
+from mocapviz.export import hit_files, hits_zip, stretch_files
 from mocapviz.io import load
 from mocapviz.motion.skeleton import CANONICAL_JOINTS
 from mocapviz.relational import index
@@ -55,9 +55,9 @@ def test_a_tables_selected_hit_or_all_its_hits(backend, sample_db, kicks, tmp_pa
     hit = kicks.iloc[1]
     assert download.button.label == "Download this hit (.bvh)"
     data = download._file().getvalue()
-    (name, expected), = stretch_files(sample_db, int(hit["doc_id"]), int(hit["start"]), int(hit["end"]), "bvh",
-                                      "canonical", rank=2, search="kicks").items()  # fmt: skip
+    (name, expected), = hit_files(sample_db, table.value.iloc[[1]], "bvh", "canonical", "kicks").items()
     assert data == expected and download.button.filename == name and name.startswith("002_")
+    assert b'"score": ' in data  # the search's own columns, as in the zip's files
     want = sample_db.positions[sample_db.frames(int(hit["doc_id"]))][hit["start"]:hit["end"]]
     assert np.abs(_read_back(data, ".bvh", tmp_path) - want).max() < 0.01  # the database's frames, cm
 

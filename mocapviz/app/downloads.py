@@ -82,24 +82,18 @@ class HitDownload:
         self.button.filename = f"{self.noun}.{ext}" if n == 1 else f"{self.noun}s.zip"
 
     def _file(self) -> io.BytesIO | None:
-        from ..export import hits_zip, stretch_files
+        from ..export import hit_files, zipped
 
-        hits = self.hits()
-        fmt, rig = self.format.value, self.rig.value
         try:
-            if len(hits) == 1:
-                row = hits.iloc[0]
-                files = stretch_files(self.backend.db, int(row["doc_id"]), int(row["start"]), int(row["end"]), fmt,
-                                      rig, rank=int(row.get("rank", 1)), search=self.search())  # fmt: skip
-                (name, data), = files.items()
-                self.button.filename = name
-            else:
-                data = hits_zip(self.backend.db, hits, fmt, rig, self.search())
-                self.button.filename = f"{self.noun}s.zip"
+            files = hit_files(self.backend.db, self.hits(), self.format.value, self.rig.value, self.search())
         except MocapvizError as exc:  # e.g. the source file is gone: said under the button, nothing downloaded
             self.note.param.update(object=f"Not exported: {exc}", visible=True)
             return None
         self.note.param.update(object="", visible=False)
+        if len(files) == 1:  # one hit (BVH or glTF: one file), as the export names it
+            (self.button.filename, data), = files.items()
+        else:
+            data, self.button.filename = zipped(files), f"{self.noun}s.zip"
         return io.BytesIO(data)
 
 

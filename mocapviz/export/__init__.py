@@ -7,8 +7,8 @@ hits.py      every row of a hit table: into a folder (``export_hits``) or one zi
 The writers of the formats live in :mod:`mocapviz.io` (``bvh_writer``, ``amc_writer``, ``gltf_writer``), the rotations
 that pose the canonical rig in :mod:`mocapviz.motion.rig`.
 """
-from .hits import export_hits, hit_files, hits_zip, read_hits
+from .hits import export_hits, hit_files, hits_zip, read_hits, zipped
 from .stretch import FORMATS, RIGS, export_stretch, source_frames, stretch_files
 
 __all__ = ["FORMATS", "RIGS", "export_hits", "export_stretch", "hit_files", "hits_zip", "read_hits", "source_frames",
-           "stretch_files"]
+           "stretch_files", "zipped"]

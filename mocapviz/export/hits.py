@@ -4,6 +4,7 @@ read_hits     a hit table (DataFrame, or the CSV a search's ``--csv`` wrote) che
 hit_files     {file name: bytes} of every hit, names sorted by rank.
 export_hits   those files written into a folder; returns the paths.
 hits_zip      those files as the bytes of one zip archive (for a download button; nothing written to disk).
+zipped        {file name: bytes} as the bytes of one zip archive.
 """
 from __future__ import annotations
 
@@ -169,8 +170,28 @@ def hits_zip(db, hits, format: str = "bvh", rig: str | None = None, search: str 
     >>> zipfile.ZipFile(io.BytesIO(data)).namelist()
     ['001_HDM_dg_kickLFront1Reps_017_120_0-60.amc', '001_HDM_dg_kickLFront1Reps_017_120_0-60.asf']
     """
+    return zipped(hit_files(db, hits, format, rig, search))
+
+
+def zipped(files: dict[str, bytes]) -> bytes:
+    """Files as one zip archive (deflated), in memory, members in the order given.
+
+    Parameters
+    ----------
+    files : dict
+        File name -> bytes (e.g. :func:`hit_files`).
+
+    Returns
+    -------
+    bytes
+
+    Examples
+    --------
+    >>> zipfile.ZipFile(io.BytesIO(zipped({"a.bvh": b"1", "b.bvh": b"2"}))).namelist()
+    ['a.bvh', 'b.bvh']
+    """
     out = io.BytesIO()
     with zipfile.ZipFile(out, "w", compression=zipfile.ZIP_DEFLATED) as archive:
-        for name, data in hit_files(db, hits, format, rig, search).items():
+        for name, data in files.items():
             archive.writestr(name, data)
     return out.getvalue()

@@ -161,23 +161,28 @@ def _float64_rows(features: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
     (1.2 GB for F15E at 10M frames; the space is freed with the index). Where no file can be made, in memory.
     """
     n = len(features) if rows is None else len(rows)
-    shape = (n, features.shape[1])
-    if n * shape[1] * 8 <= SPILL_BYTES:
+    out = _mapped_float64((n, features.shape[1])) if n * features.shape[1] * 8 > SPILL_BYTES else None
+    if out is None:
         return np.ascontiguousarray(features if rows is None else features[rows], dtype=np.float64)
+    for a in range(0, n, _COPY_ROWS):
+        b = min(n, a + _COPY_ROWS)
+        out[a:b] = features[a:b] if rows is None else features[rows[a:b]]
+    return out
+
+
+def _mapped_float64(shape: tuple) -> np.ndarray | None:
+    """A writable float64 array of ``shape`` in an unlinked temporary file of the cache folder, memory-mapped; None
+    where no such file can be made."""
     from ..io.datasets import cache_dir
 
     try:
         folder = cache_dir()
         folder.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=folder, prefix="kdtree-") as f:
-            f.truncate(n * shape[1] * 8)
-            out = np.memmap(f, dtype=np.float64, mode="r+", shape=shape)  # the map outlives the closed file
+            f.truncate(int(np.prod(shape)) * 8)
+            return np.memmap(f, dtype=np.float64, mode="r+", shape=shape)  # the map outlives the closed file
     except OSError:
-        return np.ascontiguousarray(features if rows is None else features[rows], dtype=np.float64)
-    for a in range(0, n, _COPY_ROWS):
-        b = min(n, a + _COPY_ROWS)
-        out[a:b] = features[a:b] if rows is None else features[rows[a:b]]
-    return out
+        return None
 
 
 def _build_ckdtree(data: np.ndarray, leafsize: int) -> tuple[cKDTree, np.ndarray]:
