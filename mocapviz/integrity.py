@@ -6,7 +6,9 @@ Every stored file carries a fingerprint written with it: the frame arrays and do
 sha256 in the manifest, a relational index the sha256 of its arrays in its header, a numeric feature set its data
 file's size and sha256 in its header, an Fp set the sha256 of the PCA model it used, a motion template the sha256
 of its values in its header, a C3D document's stored markers the sha256 of their arrays in their header. Opening a database checks the sizes (and the documents table's sha256); :func:`check`
-reads everything and checks every sha256.
+reads everything and checks every sha256 (and records the per-block xxh3 of frame arrays written before they were
+kept, :meth:`MotionDB.add_block_checksums`); between checks, every block of a frame array or numeric feature set is
+verified by its xxh3 when first read in a process (:mod:`mocapviz.checked_map`).
 """
 
 from __future__ import annotations
@@ -49,7 +51,7 @@ def check(path) -> pd.DataFrame:
     path = Path(path)
     rows = []
     try:
-        db = MotionDB.open(path, verify=True)
+        db = MotionDB.open(path, verify=True).add_block_checksums()
     except MocapvizError as exc:
         return pd.DataFrame([{"file": "manifest.json", "what": "MotionDB", "ok": False, "detail": str(exc)}],
                             columns=COLUMNS)  # fmt: skip

@@ -12,7 +12,7 @@ locked         an advisory lock (``fcntl.flock`` on ``<folder>/.lock``): exclusi
 stamp          the header fields every stored format carries (format, version, written_by).
 check_format   the one format / version check of a stored header.
 load_or_build  a derived artefact from disk when it is current, else built (and, by the builder, stored).
-fingerprint    size and sha256 of a stored file, kept in its manifest or header.
+fingerprint    size, sha256 and per-block xxh3 of a stored file, kept in its manifest or header.
 verify         a stored file against its fingerprint: the size always (fast), the sha256 on request.
 digest         sha256 of named arrays (names, dtypes, shapes and bytes), for files that are read whole.
 
@@ -289,7 +289,8 @@ def load_or_build(load: Callable[[], T], build: Callable[[], T]) -> T:
 
 
 def fingerprint(path: str | os.PathLike) -> dict:
-    """``{"size": bytes, "sha256": hex}`` of a file (read in blocks: any size).
+    """``{"size", "sha256", "block", "xxh3"}`` of a file, read once in blocks (any size): its sha256 for a full check
+    (``mocapviz check``) and the xxh3 of each block for the check on first read (:mod:`mocapviz.checked_map`).
 
     Parameters
     ----------
@@ -299,11 +300,30 @@ def fingerprint(path: str | os.PathLike) -> dict:
     Returns
     -------
     dict
-        ``size`` (int, bytes) and ``sha256`` (str, 64 hex digits).
+        ``size`` (int, bytes), ``sha256`` (str, 64 hex digits), ``block`` (int, bytes per block) and ``xxh3`` (list
+        of str, 16 hex digits per block).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     f = Path(folder) / "a.bin"
+    ...     _ = f.write_bytes(b"abc")
+    ...     fp = fingerprint(f)
+    >>> fp["size"], fp["sha256"][:12], len(fp["xxh3"])
+    (3, 'ba7816bf8f01', 1)
     """
+    import xxhash
+
+    from .checked_map import BLOCK_BYTES
+
+    sha, blocks = hashlib.sha256(), []
     with open(path, "rb") as fh:
-        digest = hashlib.file_digest(fh, "sha256").hexdigest()
-    return {"size": os.path.getsize(path), "sha256": digest}
+        while chunk := fh.read(BLOCK_BYTES):
+            sha.update(chunk)
+            blocks.append(xxhash.xxh3_64_hexdigest(chunk))
+    return {"size": os.path.getsize(path), "sha256": sha.hexdigest(), "block": BLOCK_BYTES, "xxh3": blocks}
 
 
 def digest(arrays: dict) -> str:

@@ -243,7 +243,8 @@ def test_damaged_derived_files_are_named_never_answered(derived):
     raw = bytearray(data.read_bytes())
     raw[-5] ^= 0x40
     data.write_bytes(bytes(raw))
-    load_numeric(derived, "F15E")  # same size: the fast path cannot tell
+    with pytest.raises(MotionDBError, match=r"numeric-F15E.npy: bytes 0–[\d,]+ \(block 1 of 1\) differ .* damaged"):
+        load_numeric(derived, "F15E")  # same size: the per-block xxh3 of the first read tells
     with pytest.raises(MotionDBError, match=r"numeric-F15E.npy: its sha256 differs"):
         load_numeric(derived, "F15E", full_check=True)
     (derived.path / "features" / "numeric-Fp8.json").write_text("null")  # an empty header: AttributeError before

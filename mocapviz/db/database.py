@@ -10,9 +10,15 @@ Layout of a MotionDB directory (format version 1)::
 Every write produces the files of a new generation G under their final names and then replaces
 ``manifest.json`` atomically (:mod:`mocapviz.store`); readers only follow the manifest. A write that fails or is
 killed therefore leaves the previous generation, and the database, exactly as they were. A new database is built
-beside its folder and renamed into place complete, so a killed first ingest leaves nothing to clean up.
+beside its folder and renamed into place complete, so a killed first ingest leaves nothing to clean up. A commit
+deletes only the files of generations older than the previous one, so a reader that read the previous manifest
+still finds its files; one that has opened them keeps reading its memory maps after they are deleted; and one that
+finds a file gone (two commits since it read the manifest) reads the new manifest and opens that generation.
 
-The manifest records each file's size and sha256: opening checks the sizes and the documents table's sha256,
+The manifest is checked against one schema (``_MANIFEST``: every key, its type, file names plain names inside the
+folder). It records each file's size, sha256 and the xxh3 of each 16 MiB block: opening checks the sizes and the
+documents table's sha256, each block of a frame array is verified by its xxh3 when first read in the process
+(:mod:`mocapviz.checked_map`: opening stays instant, a search reads and checks only the blocks it touches), and
 ``MotionDB.open(path, verify=True)`` (``mocapviz check DB``) every sha256, so a damaged file is a MotionDBError
 naming it, never an answer. One writer at a time: the writer lock (``.lock``) is held for a whole append (what
 is held is read, the files are read, the documents committed), so a second writer waits and then skips what the
@@ -27,12 +33,14 @@ import contextlib
 import dataclasses
 import hashlib
 import json
+import re
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from .. import store
+from ..checked_map import open_checked
 from ..errors import MotionDBError, ParameterError, UnknownKeyError
 from ..motion import Motion
 from ..motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
@@ -47,6 +55,9 @@ FORMAT = "mocapviz.MotionDB"
 VERSION = 1
 _ARRAYS = {"positions": 3, "quaternions": 4}
 _RESTORE = "restore it from a backup or ingest the files again into a new database"
+_OPEN_ATTEMPTS = 5  # manifests read again when a writer deleted the files of the one read (two commits meanwhile)
+_KEEP_GENERATIONS = 2  # a commit deletes the files of older generations: a reader that read the previous manifest
+#                        still finds its files, and one that has mapped them keeps reading them after deletion
 
 
 class MotionDB:
@@ -139,24 +150,41 @@ class MotionDB:
         (24, (5543, 24, 3))
         """
         path = Path(path)
-        manifest = _read_manifest(path)
+        for attempt in range(_OPEN_ATTEMPTS):
+            manifest = _read_manifest(path)
+            try:
+                return cls._open_generation(path, manifest, verify)
+            except _Gone:  # a file of this generation deleted meanwhile: a writer committed twice since the read
+                if attempt == _OPEN_ATTEMPTS - 1 or _read_manifest(path)["generation"] == manifest["generation"]:
+                    raise
+        raise AssertionError("unreachable")  # pragma: no cover
+
+    @classmethod
+    def _open_generation(cls, path: Path, manifest: dict, verify: bool) -> MotionDB:
         n = manifest["n_frames"]
-        fingerprints = manifest.get("checksums") or {}
+        fingerprints = manifest["checksums"]
         arrays = {}
         for name, width in _ARRAYS.items():
             f = path / manifest["arrays"][name]
+            _exists(f)
             store.verify(f, fingerprints.get(f.name), full=verify, rebuild=_RESTORE)
             try:
-                arr = np.load(f, mmap_mode="r") if n else np.zeros((0, len(CANONICAL_JOINTS), width), np.float32)
+                arr = (open_checked(f, fingerprints.get(f.name), _RESTORE) if n
+                       else np.zeros((0, len(CANONICAL_JOINTS), width), np.float32))
+            except FileNotFoundError:
+                raise _Gone(f"{f}: deleted while opening") from None
             except (OSError, ValueError) as exc:
                 raise MotionDBError(f"{f}: cannot read ({exc})") from None
             if arr.shape != (n, len(CANONICAL_JOINTS), width) or arr.dtype != np.float32:
                 raise MotionDBError(f"{f}: shape {arr.shape} {arr.dtype}, the manifest says ({n}, 24, {width}) float32")
             arrays[name] = arr
         table = path / manifest["documents"]
+        _exists(table)
         store.verify(table, fingerprints.get(table.name), full=True, rebuild=_RESTORE)
         try:
             documents = pd.read_parquet(table)
+        except FileNotFoundError:
+            raise _Gone(f"{table}: deleted while opening") from None
         except (OSError, ValueError) as exc:
             raise MotionDBError(f"{table}: cannot read ({exc})") from None
         _check_documents(documents, table, n)
@@ -380,9 +408,38 @@ class MotionDB:
         out = folder.parent / "sample.mdb"
         if not (out / "manifest.json").exists():
             cls.ingest(folder, out, progress=False)
-        return cls.open(out)
+        return cls.open(out).add_block_checksums()  # (a sample built by an older mocapviz)
 
     # ------------------------------------------------------------------ writing
+    def add_block_checksums(self) -> MotionDB:
+        """Record the per-block xxh3 of the frame arrays in a manifest written before they were kept, after
+        checking each file against its recorded sha256 (``mocapviz check DB`` does this). From then on every block
+        is verified when first read (:mod:`mocapviz.checked_map`).
+
+        Returns
+        -------
+        MotionDB
+            The database reopened (this one, when nothing was missing).
+
+        Raises
+        ------
+        MotionDBError
+            A file differs from its recorded sha256 (nothing is written), or another writer holds the database.
+        """
+        if all("xxh3" in c for c in self.manifest["checksums"].values()):
+            return self
+        with _locked(self.path):
+            manifest = _read_manifest(self.path)
+            for name, recorded in manifest["checksums"].items():
+                if "xxh3" not in recorded:
+                    now = store.fingerprint(self.path / name)
+                    if (now["size"], now["sha256"]) != (recorded.get("size"), recorded.get("sha256")):
+                        raise MotionDBError(f"{self.path / name}: its sha256 differs from the one recorded when it "
+                                            f"was written: the file is damaged; {_RESTORE}")  # fmt: skip
+                    manifest["checksums"][name] = now
+            atomic_write(self.path / "manifest.json", json.dumps(manifest, indent=2).encode())
+        return MotionDB.open(self.path)
+
     @classmethod
     def create(cls, path) -> MotionDB:
         """An empty MotionDB at ``path`` (which must not exist or be an empty directory).
@@ -400,12 +457,17 @@ class MotionDB:
         Raises
         ------
         MotionDBError
-            ``path`` exists and is not an empty directory.
+            ``path`` exists and is not an empty directory (a lock file and temporary files left by a killed ingest
+            do not count).
         """
         path = Path(path)
-        if path.exists() and (not path.is_dir() or any(path.iterdir())):
+        leftovers = [f for f in path.iterdir() if f.name == store.LOCK_FILE or f.name.endswith(".tmp")] \
+            if path.is_dir() else []  # (of a killed ingest that was removing the database it created)
+        if path.exists() and (not path.is_dir() or len(leftovers) < len(list(path.iterdir()))):
             raise MotionDBError(f"{path}: exists and is not an empty directory")
         with contextlib.suppress(OSError):
+            for f in leftovers:
+                f.unlink()
             path.rmdir()  # (an empty folder the user made: replaced by the new database below)
         # built beside the target and renamed into place complete: a killed create leaves no half database, and
         # when another process created it first, that one is kept
@@ -614,6 +676,18 @@ def _locked(path: Path):
     return store.locked(path)
 
 
+class _Gone(MotionDBError):
+    """A file the manifest names is not there (deleted by a writer after the manifest was read, or lost)."""
+
+
+def _exists(f: Path) -> None:
+    if not f.is_file():
+        raise _Gone(f"{f}: missing; {_RESTORE}")
+
+
+_GENERATION = re.compile(r"(?:positions|quaternions|documents)\.g(?P<generation>\d+)\.(?:npy|parquet)")
+
+
 class _Vanished(MotionDBError):
     """The database was removed while this writer waited for its lock (a concurrent fresh ingest failed)."""
 
@@ -658,7 +732,42 @@ def _read_manifest(path: Path) -> dict:
         manifest = json.loads(f.read_text())
     except (OSError, ValueError) as exc:
         raise MotionDBError(f"{f}: unreadable ({exc})") from None
-    return check_format(manifest, FORMAT, VERSION, f)
+    return _check_manifest(check_format(manifest, FORMAT, VERSION, f), f)
+
+
+_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]*")  # a plain file name inside the database folder
+_COUNT, _TEXT = ("a whole number >= 0", lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0), \
+    ("a string", lambda v: isinstance(v, str))
+_FILE = ("a plain file name inside the database folder", lambda v: isinstance(v, str) and bool(_NAME.fullmatch(v)))
+_MANIFEST = {  # key: (what it must be, check); every key required but "checksums" (manifests before fingerprints)
+    "format": _TEXT, "version": _COUNT, "written_by": _TEXT, "generation": _COUNT, "n_frames": _COUNT,
+    "joint_names": ("the 24 canonical joint names", lambda v: v == list(CANONICAL_JOINTS)),
+    "arrays": ("{\"positions\": FILE, \"quaternions\": FILE}",
+               lambda v: isinstance(v, dict) and sorted(v) == sorted(_ARRAYS) and all(map(_FILE[1], v.values()))),
+    "documents": _FILE,
+    "checksums": ("{FILE: {\"size\": BYTES, \"sha256\": HEX, ...}}",
+                  lambda v: isinstance(v, dict) and all(_FILE[1](k) and isinstance(c, dict) and _COUNT[1](c.get("size"))
+                                                        and isinstance(c.get("sha256"), str) for k, c in v.items())),
+}  # fmt: skip
+
+
+def _check_manifest(manifest: dict, f: Path) -> dict:
+    """The one check of a manifest's schema (:data:`_MANIFEST`): MotionDBError naming the key and what it must be
+    for anything missing, mistyped or unknown; file names must be plain names inside the database folder."""
+    unknown = sorted(set(manifest) - set(_MANIFEST))
+    if unknown:
+        raise MotionDBError(f"{f}: damaged manifest: unknown key {unknown[0]!r} (a manifest holds "
+                            f"{', '.join(_MANIFEST)}); {_RESTORE}")  # fmt: skip
+    for key, (what, ok) in _MANIFEST.items():
+        if key not in manifest:
+            if key == "checksums":
+                continue
+            raise MotionDBError(f"{f}: damaged manifest: no {key!r} (it must be {what}); {_RESTORE}")
+        if not ok(manifest[key]):
+            raise MotionDBError(f"{f}: damaged manifest: {key!r} is {json.dumps(manifest[key])[:80]}, it must be "
+                                f"{what}; {_RESTORE}")  # fmt: skip
+    manifest.setdefault("checksums", {})
+    return manifest
 
 
 def _write_grown(old: Path | None, n_old: int, new: list[np.ndarray], width: int, target: Path) -> None:
@@ -718,10 +827,11 @@ def _commit(path: Path, manifest: dict | None, positions: list, quaternions: lis
         "checksums": {f: store.fingerprint(path / f) for f in [*files.values(), doc_file.name]},
     }
     atomic_write(path / "manifest.json", json.dumps(new_manifest, indent=2).encode())
-    keep = set(files.values()) | {doc_file.name, "manifest.json", ".lock"}
     for f in path.iterdir():
-        if f.name not in keep and (f.name.endswith((".npy", ".parquet", ".tmp"))):
-            f.unlink()
+        older = _GENERATION.fullmatch(f.name)
+        if (older and int(older["generation"]) <= gen - _KEEP_GENERATIONS) or f.name.endswith(".tmp"):
+            with contextlib.suppress(FileNotFoundError):
+                f.unlink()
 
 
 def _remove_if_untouched(path: Path) -> None:

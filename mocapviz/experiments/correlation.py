@@ -144,9 +144,9 @@ _MEASURES = {
     **{name: (lambda ctx, f, name=name: ctx.numeric(name)[f], _euclidean) for name in TABLE1_SETS},
     "Deuler": (lambda ctx, f: ctx.euler(f), deuler_pairwise),
     "Dquat": (lambda ctx, f: ctx.db.quaternions[f], dquat_pairwise),
-    "Dpc1": (lambda ctx, f: window_clouds(ctx.db.positions, 1, f, ctx.lengths), dpc_pairwise),
-    "Dpc11": (lambda ctx, f: window_clouds(ctx.db.positions, 11, f, ctx.lengths), dpc_pairwise),
-    "Dwb": (lambda ctx, f: lee_frames(ctx.db.quaternions, ctx.fps, ctx.lengths, f), dwb_pairwise),
+    "Dpc1": (lambda ctx, f: window_clouds(ctx.db.positions[:], 1, f, ctx.lengths), dpc_pairwise),
+    "Dpc11": (lambda ctx, f: window_clouds(ctx.db.positions[:], 11, f, ctx.lengths), dpc_pairwise),
+    "Dwb": (lambda ctx, f: lee_frames(ctx.db.quaternions[:], ctx.fps, ctx.lengths, f), dwb_pairwise),
 }
 
 

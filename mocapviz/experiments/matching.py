@@ -293,7 +293,7 @@ def similarity_matrices(db, query_doc: int, query_frames: tuple[int, int] | None
         computed[qi[f.ravel() >= 0], f.ravel()[f.ravel() >= 0]] = True
         out[name] = {"distance": dist, "computed": computed,
                      "matches": graph_matches(d, f, local_starts, len(small), n_matches)}  # fmt: skip
-    positions = np.asarray(db.positions)
+    positions = db.positions[:]  # (every block verified, mocapviz.checked_map)
     q_clouds = window_clouds(positions[span.start : span.stop], dpc_window)[a:b]
     clouds = np.concatenate([window_clouds(positions[db.frames(d)], dpc_window) for d in database_docs])
     out[f"Dpc{dpc_window}"] = {

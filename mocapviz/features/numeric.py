@@ -61,6 +61,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checked_map import verified_blocks
 from ..db.batches import map_documents
 from ..db.database import MotionDB
 from ..errors import MotionDBError, ParameterError
@@ -742,8 +743,9 @@ def _own_pca(db: MotionDB, progress: bool, threads: int | None, client=None) -> 
 def load_numeric(db: MotionDB, numeric_set: str, full_check: bool = False) -> np.ndarray:
     """A numeric feature set stored by :func:`store_numeric`, memory-mapped read-only.
 
-    The data file's size is checked against the one recorded in its header; with ``full_check`` its sha256 too
-    (``mocapviz check DB``).
+    The data file's size is checked against the one recorded in its header and its contents against the xxh3 of
+    each block (the first time the file is read in this process, :mod:`mocapviz.checked_map`); with ``full_check``
+    its sha256 too (``mocapviz check DB``).
 
     Parameters
     ----------
@@ -785,6 +787,7 @@ def load_numeric(db: MotionDB, numeric_set: str, full_check: bool = False) -> np
             ) from None
         check_format(header, _HEADER_FORMAT, _HEADER_VERSION, header_path, _STALE_HINT)
         verify(data_path, header.get("data"), full=full_check, rebuild=_STALE_HINT)
+        verified_blocks(data_path, header.get("data"), rebuild=_STALE_HINT)  # (once per process: xxh3, fast)
         stale = None
         if (header.get("generation"), header.get("n_frames")) != (db.manifest["generation"], db.n_frames):
             stale = (

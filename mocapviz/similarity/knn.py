@@ -377,7 +377,8 @@ class KnnIndex:
         ------
         ValueError
             x not of dimension d or not finite (the query row is named), k out of range, radius <= 0, eps < 0,
-            bad threads, ``exclude`` not one [start, stop) range per query.
+            bad threads, ``exclude`` not one [start, stop) range per query or leaving fewer than k indexed frames
+            outside a query's range.
         TypeError
             k not an integer.
 
@@ -397,7 +398,14 @@ class KnnIndex:
         if exclude is None:
             d, i = self._search(queries, k, radius, eps, threads)
         else:
-            d, i = self._search_excluding(queries, k, radius, eps, threads, _check_exclude(exclude, len(queries)))
+            ranges = _check_exclude(exclude, len(queries))
+            left = self.n_indexed - (np.searchsorted(self.frames, ranges[:, 1]) - np.searchsorted(self.frames, ranges[:, 0]))
+            if (left < k).any():
+                q = int(np.argmax(left < k))
+                raise ParameterError(f"exclude: query {q} leaves out frames {ranges[q, 0]}:{ranges[q, 1]}, which leaves "
+                                     f"{left[q]} indexed frames for k = {k}; exclude a shorter range or ask for fewer "
+                                     f"neighbours")  # fmt: skip
+            d, i = self._search_excluding(queries, k, radius, eps, threads, ranges)
         return (d[0], i[0]) if (x.ndim if isinstance(x, np.ndarray) else np.ndim(x)) == 1 else (d, i)
 
     def _search(self, queries: np.ndarray, k: int, radius, eps: float, threads: int):

@@ -265,7 +265,7 @@ class PosePrior:
         self.valid, self.n_valid = valid, int(valid.sum())
         self._shared = {"features": {}, "pca": pca} if _shared is None else _shared
         if "poses" not in self._shared:
-            self._shared["poses"] = body_frame(np.asarray(db.positions)).reshape(n, _POSE_DIMS)
+            self._shared["poses"] = body_frame(db.positions[:]).reshape(n, _POSE_DIMS)
         self._indexes: dict[str, KnnIndex] = {}
 
     @property
