@@ -252,5 +252,5 @@ def test_knn_with_every_frame_excluded_is_an_error_not_rows_of_inf(reference):
         index.query([[1.0], [2.0]], k=2, exclude=[[5, 6], [0, 20]])
     with pytest.raises(ParameterError, match=r"leaves 1 indexed frames for k = 2"):
         index.query([1.0], k=2, exclude=[1, 20])
-    d, i = index.query([1.0], k=2, exclude=[0, 18])  # two left: answered
+    _, i = index.query([1.0], k=2, exclude=[0, 18])  # two left: answered
     assert i.tolist() == [18, 19]
