@@ -2,7 +2,8 @@
 (BVH or glTF binary, on the canonical skeleton or the source file's own rig; :mod:`mocapviz.export`).
 
 Under every result table (Relational query, Similarity, Motion templates, Describe) a :class:`HitDownload` gives
-the selected hit as one file, or every hit of the table (none selected) as one zip archive; under the player it gives
+the selected hit as one file, several selected hits (ctrl- or shift-click in the table or its gallery,
+:mod:`mocapviz.app.gallery`) or every hit of the table (none selected) as one zip archive; under the player it gives
 the clip's query span. The file is made when the button is clicked, in memory, from the server's database and (for
 the source rig) the ingested source file.
 """

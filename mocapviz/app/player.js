@@ -10,44 +10,9 @@
 // of each clip, comma separated) and data-playing, updated on every draw, and data-loads (clips received so far) and
 // data-clips (their number).
 
-const SIDE_COLOURS = { l: "#1f5fa8", r: "#d1452f", c: "#3c3c3c" };
 const SPEEDS = [0.25, 0.5, 1, 2];
 const SYNC_MS = 250;
 const SCRUB_SYNC_MS = 120;
-const FOV = (30 * Math.PI) / 180;
-const HOME = { azimuth: 30, elevation: 18, zoom: 1 };
-
-function arrayBuffer(value) {
-  if (value == null) {
-    return new ArrayBuffer(0);
-  }
-  if (value instanceof ArrayBuffer) {
-    return value;
-  }
-  if (ArrayBuffer.isView(value)) {
-    return value.buffer.slice(value.byteOffset, value.byteOffset + value.byteLength);
-  }
-  if (typeof value === "string") {  // base64, as a fallback
-    const text = atob(value);
-    const out = new Uint8Array(text.length);
-    for (let i = 0; i < text.length; i++) {
-      out[i] = text.charCodeAt(i);
-    }
-    return out.buffer;
-  }
-  throw new Error(`mocapviz player: cannot read clip data of type ${typeof value}`);
-}
-
-function element(tag, className, text) {
-  const el = document.createElement(tag);
-  if (className) {
-    el.className = className;
-  }
-  if (text != null) {
-    el.textContent = text;
-  }
-  return el;
-}
 
 function button(className, text, title) {
   const b = element("button", className, text);
@@ -66,37 +31,6 @@ const ICONS = {
 
 function icon(b, name) {
   b.innerHTML = `<svg width="14" height="14" viewBox="0 0 14 14" fill="currentColor">${ICONS[name]}</svg>`;
-}
-
-// ------------------------------------------------------------------------------------------------------- camera
-function makeCamera(bounds, azimuthDeg, elevationDeg, zoom, width, height, left) {
-  const [lo, hi] = bounds;
-  const target = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2];
-  const radius = Math.max(1, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / 2);
-  const distance = radius / Math.sin(FOV / 2);
-  const a = (azimuthDeg * Math.PI) / 180;
-  const e = (elevationDeg * Math.PI) / 180;
-  const eye = [target[0] + distance * Math.cos(e) * Math.sin(a), target[1] + distance * Math.sin(e),
-               target[2] + distance * Math.cos(e) * Math.cos(a)];
-  const f = [target[0] - eye[0], target[1] - eye[1], target[2] - eye[2]];
-  const fn = Math.hypot(f[0], f[1], f[2]);
-  f[0] /= fn; f[1] /= fn; f[2] /= fn;
-  const r = [-f[2], 0, f[0]];  // f x (0, 1, 0): right-handed, like OpenGL's lookAt
-  const rn = Math.hypot(r[0], r[2]) || 1;
-  r[0] /= rn; r[2] /= rn;
-  const u = [r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2], r[0] * f[1] - r[1] * f[0]];
-  const focal = (zoom * 0.5 * Math.min(width, height)) / Math.tan(FOV / 2);
-  return { eye, f, r, u, focal, cx: left + width / 2, cy: height / 2, near: distance * 0.02 };
-}
-
-// camera coordinates (x right, y up, z depth) of point i of a flat xyz array
-function toCamera(cam, xyz, i, out) {
-  const dx = xyz[i] - cam.eye[0];
-  const dy = xyz[i + 1] - cam.eye[1];
-  const dz = xyz[i + 2] - cam.eye[2];
-  out[0] = dx * cam.r[0] + dy * cam.r[1] + dz * cam.r[2];
-  out[1] = dx * cam.u[0] + dy * cam.u[1] + dz * cam.u[2];
-  out[2] = dx * cam.f[0] + dy * cam.f[1] + dz * cam.f[2];
 }
 
 // ------------------------------------------------------------------------------------------------------- render
@@ -238,27 +172,10 @@ export function render({ model, el }) {
     ctx.lineTo(cam.cx + (cam.focal * b[0]) / b[2], cam.cy - (cam.focal * b[1]) / b[2]);
   }
 
-  // the bones of clip j at its frame, sorted far to near, into `out` as [depth, x0, y0, x1, y1, colour, alpha]
+  // the bones of clip j at its frame into `out` (see poseBones); its joints on screen
   function bones(cam, j, alpha, out) {
-    const xyz = st.clips[j];
-    const base = frameOf(j, st.step) * st.nJoints * 3;
-    const p = [0, 0, 0];
-    const screen = new Array(st.nJoints);
-    for (let k = 0; k < st.nJoints; k++) {
-      toCamera(cam, xyz, base + 3 * k, p);
-      const z = Math.max(p[2], cam.near);
-      screen[k] = [cam.cx + (cam.focal * p[0]) / z, cam.cy - (cam.focal * p[1]) / z, z];
-    }
-    for (let k = 0; k < st.nJoints; k++) {
-      const parent = st.parents[k];
-      if (parent < 0) {
-        continue;
-      }
-      const s = screen[k];
-      const t = screen[parent];
-      out.push([(s[2] + t[2]) / 2, t[0], t[1], s[0], s[1], SIDE_COLOURS[st.sides[k]] || SIDE_COLOURS.c, alpha,
-                Math.max(2, Math.min(6, (cam.focal * 4) / ((s[2] + t[2]) / 2)))]);
-    }
+    const screen = projectPose(cam, st.clips[j], frameOf(j, st.step) * st.nJoints * 3, st.nJoints);
+    poseBones(cam, screen, st.parents, st.sides, alpha, out);
     return screen;
   }
 
@@ -269,27 +186,7 @@ export function render({ model, el }) {
       const alpha = st.overlay && j > 0 ? 0.45 : 1;
       joints.push([bones(cam, j, alpha, segs), alpha]);
     }
-    segs.sort((s, t) => t[0] - s[0]);
-    ctx.lineCap = "round";
-    for (const [, x0, y0, x1, y1, colour, alpha, w] of segs) {
-      ctx.globalAlpha = alpha;
-      ctx.strokeStyle = colour;
-      ctx.lineWidth = w;
-      ctx.beginPath();
-      ctx.moveTo(x0, y0);
-      ctx.lineTo(x1, y1);
-      ctx.stroke();
-    }
-    for (const [screen, alpha] of joints) {
-      ctx.globalAlpha = alpha;
-      ctx.fillStyle = "#222";
-      for (const [x, y] of screen) {
-        ctx.beginPath();
-        ctx.arc(x, y, 2.2, 0, 2 * Math.PI);
-        ctx.fill();
-      }
-    }
-    ctx.globalAlpha = 1;
+    drawPoses(ctx, segs, joints, 2.2);
   }
 
   function draw() {

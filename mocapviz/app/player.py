@@ -1,12 +1,12 @@
 """The dashboard's 3D skeleton player: one or more clips sent to the browser once and animated there.
 
 :class:`SkeletonPlayer` hands the clips' canonical joint positions to a small Panel ``JSComponent``
-(:class:`PlayerView`, code in ``player.js`` beside this module: Canvas 2D, a perspective projection of the bones,
-no library, nothing fetched at run time). The browser plays them at the clip's frame rate (0.25×-2×), scrubs with its
-slider, orbits (drag) and zooms (wheel) the camera over a floor grid, and colours the bones by side. Several clips play
-in step through an alignment: row s of ``alignment`` names the frame of every clip shown at step s (a DTW or LNG warping
-path plays two motions aligned; without one, clips play from their first frames at the same rate, each holding its
-last frame); they are shown side by side or overlaid.
+(:class:`PlayerView`, code in ``player.js`` beside this module, after the ``skeleton.js`` it shares with the gallery:
+Canvas 2D, a perspective projection of the bones, no library, nothing fetched at run time). The browser plays them at
+the clip's frame rate (0.25×-2×), scrubs with its slider, orbits (drag) and zooms (wheel) the camera over a floor grid,
+and colours the bones by side. Several clips play in step through an alignment: row s of ``alignment`` names the frame
+of every clip shown at step s (a DTW or LNG warping path plays two motions aligned; without one, clips play from their
+first frames at the same rate, each holding its last frame); they are shown side by side or overlaid.
 
 Wire format (one message per :meth:`SkeletonPlayer.load`): ``positions`` is the float32 little-endian bytes of every
 clip's (T_i, 24, 3) positions in cm, concatenated (a Bokeh binary buffer on the server's WebSocket: 288 KB for 1,000
@@ -48,6 +48,21 @@ def scene_box(clips, margin_cm: float = 20.0) -> list[list[float]]:
     return [[float(v) for v in lo], [float(v) for v in hi]]
 
 
+def recentred(clip) -> np.ndarray:
+    """``clip`` [shape=(T, J, 3)], cm, as float32, moved along the floor so that its first root position is above the
+    origin (side-by-side views, and the gallery's cells, then frame it alike)."""
+    clip = np.asarray(clip, dtype=np.float32)
+    return clip - np.array([clip[0, 0, 0], 0.0, clip[0, 0, 2]], dtype=np.float32)
+
+
+def component_code(name: str) -> str:
+    """The browser code of a skeleton component: ``skeleton.js`` (the side colours, camera, projection and bone drawing
+    that the player and the gallery share) followed by the component's own file ``name`` (its ``render``), both
+    beside this module: one self-contained ES module, nothing imported or fetched."""
+    here = Path(__file__).parent
+    return "\n".join((here / f).read_text(encoding="utf-8") for f in ("skeleton.js", name))
+
+
 class PlayerView(JSComponent):
     """The browser side of :class:`SkeletonPlayer` (``player.js``); its parameters are the wire format."""
 
@@ -58,7 +73,7 @@ class PlayerView(JSComponent):
     speed = param.Number(default=1.0, doc="playback speed, a multiple of the clips' frame rate")
     view_size = param.List(default=[520, 380], doc="(width, height) of the canvas in px")
 
-    _esm = Path(__file__).with_name("player.js")
+    _esm = component_code("player.js")
 
     _stylesheets: ClassVar[list[str]] = ["""
 .mvp { font: 13px sans-serif; }
@@ -143,8 +158,7 @@ class SkeletonPlayer(pn.viewable.Viewer):
             raise ParameterError("the player's clips hold NaN or infinite positions")
         if not np.isfinite(fps) or fps <= 0:
             raise ParameterError(f"the player's fps must be a positive number; got {fps}")
-        # each clip starts above the origin, so side-by-side viewports share one camera box
-        clips = [c - np.array([c[0, 0, 0], 0.0, c[0, 0, 2]], dtype=np.float32) for c in clips]
+        clips = [recentred(c) for c in clips]  # side-by-side viewports share one camera box
         if alignment is None:
             length = max(len(c) for c in clips)
             alignment = np.column_stack([np.minimum(np.arange(length), len(c) - 1) for c in clips])

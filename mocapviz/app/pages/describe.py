@@ -45,6 +45,7 @@ from ...relational.vocabulary import vocabulary_of, vocabulary_table
 from ...validation import count, one_of
 from ...viz.timeline import relational_timeline
 from ..downloads import table_download
+from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task
 from ..widgets import BoundedIntInput, action_button, hit_columns, hit_titles, notes, results_table
@@ -408,6 +409,7 @@ class DescribePage(pn.viewable.Viewer):
         self.table.param.watch(self._on_select, "selection")
         self.download = table_download(backend, self.table, lambda: f"scene description: {self.description}",
                                        "mv-describe-download")  # fmt: skip
+        self.gallery = HitGallery(backend, self.table, "mv-describe-gallery")
         self._refresh_templates()
         self._check()
 
@@ -418,7 +420,7 @@ class DescribePage(pn.viewable.Viewer):
             pn.Row(self.templates, self.describe), self.templates_note, self.task, width=660)
         words = pn.Tabs(("Named descriptions", self.names), ("Parts and states", self.words), dynamic=False,
                         sizing_mode="stretch_width", css_classes=["mv-describe-words"])
-        results = pn.Column("### Hits", self.count, self.table, self.download.panel(), sizing_mode="stretch_width")
+        results = pn.Column("### Hits", self.count, self.gallery, self.download.panel(), sizing_mode="stretch_width")
         shown = pn.Row(self.timeline, pn.Column(self.caption, self.player_box))
         return pn.Column(pn.Row(editor, pn.Column("### Words", words, sizing_mode="stretch_width"),
                                 sizing_mode="stretch_width"), results, shown, sizing_mode="stretch_width")

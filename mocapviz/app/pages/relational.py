@@ -22,6 +22,7 @@ from ...features import feature_groups, relational_features
 from ...relational.query import query_segmentation
 from ...viz.query import precision_recall, precision_recall_plot
 from ..downloads import table_download
+from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task
 from ..state import half_open, inclusive
@@ -67,6 +68,7 @@ class RelationalPage(pn.viewable.Viewer):
         self.quality = pn.pane.Markdown("", css_classes=["mv-hit-quality"])
         self.table = results_table(pd.DataFrame(columns=list(HIT_TITLES)), "mv-hits", HIT_TITLES, selectable=True)
         self.download = table_download(backend, self.table, self._found_by, "mv-hits-download")
+        self.gallery = HitGallery(backend, self.table, "mv-hits-gallery")
         self.curve = pn.pane.HoloViews(None, visible=False, css_classes=["mv-precision-recall"])
         self.player = SkeletonPlayer(size=(640, 360))
         self.player_caption = pn.pane.Markdown("", css_classes=["mv-hit-caption"])
@@ -81,7 +83,7 @@ class RelationalPage(pn.viewable.Viewer):
                           "**Hits** (§5: exact, fuzzy, adaptive fuzzy, m-mismatch)", self.mode, self.mismatches,
                           notes(self.mismatches), self.run, self.message, self.task)
         player = pn.Column("### Query beside hit", self.player, self.player_caption, css_classes=["mv-query-player"])
-        results = pn.Column("### Hits", self.count, self.quality, self.table, self.download.panel(), self.curve,
+        results = pn.Column("### Hits", self.count, self.quality, self.gallery, self.download.panel(), self.curve,
                             sizing_mode="stretch_width")
         return pn.Column(pn.Row(query, player), results, sizing_mode="stretch_width")
 

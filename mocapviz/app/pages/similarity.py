@@ -31,6 +31,7 @@ from ...validation import count
 from ...viz.matching import similarity_layout
 from ...viz.skeleton import neighbour_poses, png_bytes
 from ..downloads import table_download
+from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task
 from ..widgets import BoundedIntInput, action_button, hit_columns, hit_titles, notes, results_table
@@ -230,6 +231,7 @@ class SimilarityPage(pn.viewable.Viewer):
         self.search_table.param.watch(self._on_search_select, "selection")
         self.search_download = table_download(self.backend, self.search_table, lambda: self._found_by("search"),
                                               "mv-search-download")  # fmt: skip
+        self.search_gallery = HitGallery(self.backend, self.search_table, "mv-search-gallery")
         self.results = None
         self.search_playing = pn.pane.Markdown("Click a result to play it beside the query, aligned by its DTW "
                                                "warping path.", margin=(0, 10), css_classes=["mv-search-playing"])
@@ -258,6 +260,7 @@ class SimilarityPage(pn.viewable.Viewer):
         self.match_table.param.watch(self._on_match_select, "selection")
         self.match_download = table_download(self.backend, self.match_table, lambda: self._found_by("match"),
                                              "mv-match-download")  # fmt: skip
+        self.match_gallery = HitGallery(self.backend, self.match_table, "mv-match-gallery")
         self.matches = None
         self.playing = pn.pane.Markdown("Click a match to play it beside the query, aligned by its warping path.",
                                         margin=(0, 10), css_classes=["mv-match-playing"])
@@ -277,7 +280,7 @@ class SimilarityPage(pn.viewable.Viewer):
                            pn.pane.Markdown(SEARCH_LEGEND, margin=(0, 10)),
                            pn.Row(self.search_kind, self.search_mode, self.search_k, self.search_button),
                            notes(self.search_k), _scoped(self.search_task, "mv-search-task"), self.search_count,
-                           self.search_table, self.search_download.panel(),
+                           self.search_gallery, self.search_download.panel(),
                            self.search_playing, self.search_player_box, sizing_mode="stretch_width")
         knn = pn.Column("### Nearest neighbours of the frame (Krüger et al. 2010 §3.3, Fig. 1)",
                         pn.Row(self.knn_k, self.knn_button), notes(self.knn_k), _scoped(self.knn_task, "mv-knn-task"),
@@ -286,7 +289,7 @@ class SimilarityPage(pn.viewable.Viewer):
         match = pn.Column("### Motion matching of the span (lazy neighbourhood graph, §4.1)",
                           pn.Row(self.match_k, self.match_count_k, self.match_button),
                           notes(self.match_k, self.match_count_k), _scoped(self.match_task, "mv-match-task"),
-                          self.match_count, self.match_table, self.match_download.panel(),
+                          self.match_count, self.match_gallery, self.match_download.panel(),
                           self.playing, self.player_box, sizing_mode="stretch_width")
         matrix = pn.Column("### Similarity matrix of the span against the best matches' documents (Fig. 3)",
                            pn.pane.Markdown(MATRIX_LEGEND, margin=(0, 10)), pn.Row(self.matrix_k, self.matrix_button),

@@ -23,6 +23,7 @@ from ...relational.templates import DELTA, DONT_CARE, MotionTemplate, learn_clas
 from ...validation import count, number, one_of
 from ...viz.templates import template_image
 from ..downloads import table_download
+from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task
 from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, hit_titles, notes, results_table
@@ -237,6 +238,7 @@ class TemplatesPage(pn.viewable.Viewer):
         self.view.param.watch(lambda e: self._draw(), "value")
         self.table.param.watch(self._on_select, "selection")
         self.download = table_download(backend, self.table, self._found_by, "mv-templates-download")
+        self.gallery = HitGallery(backend, self.table, "mv-templates-gallery")
         self._on_class()
 
     def __panel__(self):
@@ -252,8 +254,8 @@ class TemplatesPage(pn.viewable.Viewer):
         template = pn.Column(self.view, self.image, self.legend)
         playing = pn.Column(self.playing, self.player_box)
         task = pn.Column(self.task, css_classes=["mv-templates-task"], margin=0, sizing_mode="stretch_width")
-        return pn.Column(intro, inputs, notes(self.delta, self.n_matches), task, self.summary, self.count, self.table,
-                         self.download.panel(), pn.Row(template, playing), sizing_mode="stretch_width")
+        return pn.Column(intro, inputs, notes(self.delta, self.n_matches), task, self.summary, self.count,
+                         self.gallery, self.download.panel(), pn.Row(template, playing), sizing_mode="stretch_width")
 
     def _found_by(self) -> str:
         """The template of the hits shown, in words (written into exported files)."""
