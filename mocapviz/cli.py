@@ -925,9 +925,10 @@ def build_parser() -> argparse.ArgumentParser:
     sv.add_argument("--address", default="127.0.0.1",
                     help="interface to listen on (default 127.0.0.1: this machine only; anything else exposes the "
                     "database to the network, needs --allow-origin and prints a warning)")
-    sv.add_argument("--allow-origin", action="append", metavar="HOST:PORT", help="with an --address other than "
-                    "loopback: an address browsers open the dashboard at, e.g. myhost.example.org:5006 (repeatable; "
-                    "only pages from these may use its WebSocket, never '*')")
+    sv.add_argument("--allow-origin", action="append", metavar="HOST:PORT", help="an address browsers open the "
+                    "dashboard at besides 127.0.0.1, localhost, [::1] and --address at --port, e.g. "
+                    "myhost.example.org:5006 (repeatable; needed with an --address other than loopback; never '*'). "
+                    "Any other Host header, or WebSocket Origin (a WebSocket needs one), gets a 403")
     sv.add_argument("--show", action="store_true", help="open the dashboard in a web browser")
     _search_scheduler(sv)
     sv.set_defaults(func=_serve)

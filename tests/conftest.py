@@ -125,8 +125,9 @@ def sample_db(tmp_path_factory):
     return MotionDB.ingest([datasets.sample()], tmp_path_factory.mktemp("sample") / "db", progress=False)
 
 
-def _serve(db_path: Path, log_dir: Path):
-    """Start ``mocapviz serve DB --port P`` in a subprocess; wait until it answers; return (url, process, log)."""
+def _serve(db_path: Path, log_dir: Path, options=()):
+    """Start ``mocapviz serve DB --port P [OPTIONS]`` in a subprocess (``{port}`` in an option stands for P); wait
+    until it answers; return (url, process, log)."""
     import subprocess
     import sys
     import time
@@ -134,7 +135,8 @@ def _serve(db_path: Path, log_dir: Path):
 
     port = free_port()
     log = log_dir / f"serve-{port}.log"
-    proc = subprocess.Popen([sys.executable, "-m", "mocapviz.cli", "serve", str(db_path), "--port", str(port)],
+    proc = subprocess.Popen([sys.executable, "-m", "mocapviz.cli", "serve", str(db_path), "--port", str(port),
+                             *(option.format(port=port) for option in options)],
                             stdout=log.open("w"), stderr=subprocess.STDOUT, cwd=REPO)
     url = f"http://127.0.0.1:{port}/"
     deadline = time.monotonic() + 180
@@ -153,15 +155,16 @@ def _serve(db_path: Path, log_dir: Path):
 
 @pytest.fixture(scope="session")
 def serve_dashboard(tmp_path_factory):
-    """``serve_dashboard(db_path) -> url``: the dashboard of a MotionDB served by ``mocapviz serve`` in a subprocess
-    (one per database for the whole session, stopped at the end)."""
+    """``serve_dashboard(db_path, *options) -> url``: the dashboard of a MotionDB served by ``mocapviz serve`` in a
+    subprocess, with more ``serve`` arguments in ``options`` (``{port}`` standing for its port), one per database
+    and options for the whole session, stopped at the end."""
     servers: dict = {}
     log_dir = tmp_path_factory.mktemp("serve")
 
-    def get(db_path) -> str:
-        key = str(db_path)
+    def get(db_path, *options) -> str:
+        key = (str(db_path), options)
         if key not in servers:
-            servers[key] = _serve(Path(db_path), log_dir)
+            servers[key] = _serve(Path(db_path), log_dir, options)
         return servers[key][0]
 
     get.log_of = lambda url: next(log for u, _, log in servers.values() if u == url)  # the server's output file

@@ -106,18 +106,19 @@ def test_serve_refuses_a_missing_database(tmp_path, capsys):
 
 def test_serving_beyond_localhost_needs_listed_origins_and_warns(sample_db, monkeypatch):
     """On 0.0.0.0 the server refuses to start without allow_origin (at once, before building a dashboard); with it,
-    it warns and hands Bokeh exactly the loopback and listed origins, never "*"."""
+    it warns and hands Bokeh exactly the loopback and listed origins, never "*" ([::1], which Bokeh cannot parse, is
+    checked by the server's own refusal alone: tests/test_app_hostcheck.py)."""
     from mocapviz import app
     from mocapviz.errors import ParameterError
 
     port = free_port()
     with pytest.raises(ParameterError, match="--allow-origin HOST:PORT"):
-        app.serve(sample_db.path, port=port, address="0.0.0.0", threaded=True)
+        app.serve(sample_db.path, port=port, address="0.0.0.0", start=False)
     handed = {}
     real = app.pn.serve
     monkeypatch.setattr(app.pn, "serve", lambda *args, **options: handed.update(options) or real(*args, **options))
     with pytest.warns(UserWarning, match="anyone who can reach"):
-        server = app.serve(sample_db.path, port=port, address="0.0.0.0", threaded=True,
+        server = app.serve(sample_db.path, port=port, address="0.0.0.0", start=False,
                            allow_origin=[f"lab.example.org:{port}"])
     server.stop()
     assert handed["websocket_origin"] == [f"127.0.0.1:{port}", f"localhost:{port}", f"lab.example.org:{port}"]

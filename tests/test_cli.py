@@ -518,18 +518,22 @@ def test_values_in_range_are_applied_exactly(demo_db, capsys):
 @pytest.mark.parametrize(
     "address, allow, expected",
     [
-        ("127.0.0.1", None, ["127.0.0.1:5006", "localhost:5006"]),
-        ("localhost", ["lab.example.org:8080"], ["127.0.0.1:5006", "localhost:5006", "lab.example.org:8080"]),
-        ("::1", (), ["127.0.0.1:5006", "localhost:5006"]),
-        ("0.0.0.0", ["myhost.example.org:5006"], ["127.0.0.1:5006", "localhost:5006", "myhost.example.org:5006"]),
-        ("192.168.1.5", ["192.168.1.5:5006", "lab"], ["127.0.0.1:5006", "localhost:5006", "192.168.1.5:5006", "lab"]),
-        ("fe80::1", ["[fe80::1]:5006"], ["127.0.0.1:5006", "localhost:5006", "[fe80::1]:5006"]),
+        ("127.0.0.1", None, []),
+        ("localhost", ["lab.example.org:8080"], ["lab.example.org:8080"]),
+        ("::1", (), []),
+        ("127.0.0.2", None, ["127.0.0.2:5006"]),
+        ("0.0.0.0", ["myhost.example.org:5006"], ["myhost.example.org:5006"]),
+        ("::", ["myhost.example.org:5006"], ["myhost.example.org:5006"]),
+        ("192.168.1.5", ["192.168.1.5:5006", "lab"], ["192.168.1.5:5006", "lab"]),
+        ("192.168.1.5", ["lab"], ["192.168.1.5:5006", "lab"]),
+        ("fe80::1", ["[fe80::1]:5006"], ["[fe80::1]:5006"]),
+        ("fe80::1", ["lab"], ["[fe80::1]:5006", "lab"]),
     ],
 )
-def test_websocket_origins_are_loopback_and_the_listed_ones(address, allow, expected):
+def test_websocket_origins_are_loopback_the_bound_address_and_the_listed_ones(address, allow, expected):
     from mocapviz.app import websocket_origins
 
-    assert websocket_origins(address, 5006, allow) == expected
+    assert websocket_origins(address, 5006, allow) == ["127.0.0.1:5006", "localhost:5006", "[::1]:5006", *expected]
 
 
 @pytest.mark.parametrize(

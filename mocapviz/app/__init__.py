@@ -16,8 +16,9 @@ pages/         one module per page: database (documents, player, timelines, curv
 
 :func:`dashboard` builds one session's page; :func:`warm_up` runs a small one of each slow first action so that the
 first click answers at once; :func:`serve` runs the server (bound to 127.0.0.1 unless told otherwise);
-:func:`websocket_origins` decides which web pages may open its WebSocket (on any address other than loopback: only
-the origins listed, never ``*``).
+:func:`websocket_origins` lists the addresses it answers to (loopback names, the bound address, on any address other
+than loopback the ones listed too, never ``*``), and :func:`refusal` refuses any request whose ``Host``, and any
+WebSocket whose ``Origin``, is not one of them.
 """
 
 from __future__ import annotations
@@ -28,9 +29,12 @@ import re
 import time
 import warnings
 from pathlib import Path
+from urllib.parse import urlsplit
 
 import panel as pn
 from bokeh.util.warnings import BokehUserWarning
+from tornado.routing import Matcher, Rule
+from tornado.web import RequestHandler
 
 from ..errors import MocapvizError, ParameterError
 from ..validation import parse_port
@@ -181,8 +185,12 @@ _ORIGIN_HINT = ("give HOST:PORT as the browser's address bar shows it (e.g. --al
                 "without scheme, path or wildcard")
 
 
+_ANY_ADDRESS = ("0.0.0.0", "::")  # --address values that bind every interface: no address of their own to allow
+
+
 def websocket_origins(address: str, port: int, allow_origin=()) -> list[str]:
-    """The origins (``host:port``, as browsers send them) whose pages may open the dashboard's WebSocket.
+    """The addresses (``host:port``, as browsers send them) the dashboard answers to: every request's ``Host`` header
+    and every WebSocket's ``Origin`` must be one of them (:func:`refusal`).
 
     Parameters
     ----------
@@ -191,20 +199,27 @@ def websocket_origins(address: str, port: int, allow_origin=()) -> list[str]:
     port : int
         Its port.
     allow_origin : sequence of str
-        ``HOST:PORT`` (or ``HOST``: any port) of the addresses users open the dashboard at from other machines
-        (``mocapviz serve --allow-origin``, repeatable). Required when ``address`` is not loopback: the dashboard is
-        then reachable from the network, and without a list any web page a user opens could drive it.
+        ``HOST:PORT`` (or ``HOST``: the address without a port, as behind a proxy on port 80 or 443) of the addresses
+        users open the dashboard at other than this machine's loopback names (``mocapviz serve --allow-origin``,
+        repeatable). Required when ``address`` is not loopback: the dashboard is then reachable from the network,
+        and without a list any web page a user opens could drive it.
 
     Returns
     -------
     list of str
-        ``127.0.0.1:PORT`` and ``localhost:PORT``, ``address:PORT`` for a concrete address, then ``allow_origin``.
+        ``127.0.0.1:PORT``, ``localhost:PORT`` and ``[::1]:PORT``, ``address:PORT`` for an address other than
+        ``0.0.0.0`` and ``::``, then ``allow_origin``.
 
     Raises
     ------
     ParameterError
         ``address`` is not loopback and ``allow_origin`` is empty; an origin is ``*``, holds a wildcard, a scheme or
         a path, or a port outside 1..65535.
+
+    Examples
+    --------
+    >>> websocket_origins("127.0.0.2", 5006, ["lab.example.org:5006"])
+    ['127.0.0.1:5006', 'localhost:5006', '[::1]:5006', '127.0.0.2:5006', 'lab.example.org:5006']
     """
     allow_origin = list(allow_origin or ())
     if not is_loopback(address) and not allow_origin:
@@ -218,23 +233,99 @@ def websocket_origins(address: str, port: int, allow_origin=()) -> list[str]:
             raise ParameterError(f"--allow-origin {origin!r}: {_ORIGIN_HINT}")
         if found["port"] is not None:
             parse_port(found["port"], f"the port of --allow-origin {origin}")
-    own = [] if address in ("0.0.0.0", "::") or is_loopback(address) else [f"[{address}]" if ":" in address
-                                                                             else address]  # fmt: skip
-    origins = [f"{host}:{port}" for host in (LOCAL, "localhost", *own)]
+    hosts = [LOCAL, "localhost", "[::1]"]
+    if address not in _ANY_ADDRESS:
+        hosts.append(f"[{address}]" if ":" in address else address)
+    origins = list(dict.fromkeys(f"{host}:{port}" for host in hosts))
     return origins + [o for o in allow_origin if o not in origins]
 
 
-def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, threaded: bool = False,
+_NOT_OURS = "is not an address of this dashboard (mocapviz serve --allow-origin adds one)"
+
+
+def refusal(headers, allowed) -> str | None:
+    """Why the dashboard's server refuses a request, judged by its headers; None when it answers it.
+
+    The ``Host`` header must be one of ``allowed``: a page of any other name reaching the port (a DNS rebinding
+    name that resolves to 127.0.0.1, say) gets no page, script or session token. A WebSocket handshake (``Upgrade:
+    websocket``) must also carry an ``Origin`` (browsers always send one) whose ``host:port`` is one of ``allowed``,
+    even when it equals ``Host``: tornado accepts that case, and one without ``Origin``, before Bokeh's own list is
+    consulted. Names are compared without regard to case.
+
+    Parameters
+    ----------
+    headers : mapping of str to str
+        The request's headers: tornado's ``HTTPHeaders``, or a dict spelling the names ``Host``, ``Upgrade``,
+        ``Origin``.
+    allowed : collection of str
+        ``host:port`` names, as :func:`websocket_origins` returns them.
+
+    Returns
+    -------
+    str or None
+        One line naming the refused header and value, or None.
+
+    Examples
+    --------
+    >>> allowed = websocket_origins("127.0.0.1", 5006)
+    >>> refusal({"Host": "localhost:5006"}, allowed) is None
+    True
+    >>> refusal({"Host": "evil.example.com:5006"}, allowed)
+    "Host 'evil.example.com:5006' is not an address of this dashboard (mocapviz serve --allow-origin adds one)"
+    >>> refusal({"Host": "localhost:5006", "Upgrade": "websocket", "Origin": "http://a.example"}, allowed)
+    "WebSocket Origin 'http://a.example' is not an address of this dashboard (mocapviz serve --allow-origin adds one)"
+    """
+    allowed = {name.lower() for name in allowed}
+    host = headers.get("Host", "")
+    if host.lower() not in allowed:
+        return f"Host {host!r} {_NOT_OURS}"
+    if headers.get("Upgrade", "").lower() == "websocket":
+        origin = headers.get("Origin")
+        if origin is None:
+            return "a WebSocket handshake without an Origin header is refused"
+        if urlsplit(origin).netloc.lower() not in allowed:
+            return f"WebSocket Origin {origin!r} {_NOT_OURS}"
+    return None
+
+
+class _Refused(Matcher):
+    """Matches the requests :func:`refusal` refuses, handing its reason to :class:`_Refuse`."""
+
+    def __init__(self, allowed):
+        self.allowed = allowed
+
+    def match(self, request):
+        reason = refusal(request.headers, self.allowed)
+        return None if reason is None else {"target_kwargs": {"reason": reason}}
+
+
+class _Refuse(RequestHandler):
+    """403 and the reason as plain text, whatever the method and path."""
+
+    def initialize(self, reason: str) -> None:
+        self.reason = reason
+
+    def prepare(self) -> None:
+        LOG.warning("refused %s %s: %s", self.request.method, self.request.path, self.reason)
+        self.set_status(403)
+        self.set_header("Content-Type", "text/plain; charset=utf-8")
+        self.finish(f"{self.reason}\n")
+
+
+def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, start: bool = True,
           allow_origin=(), scheduler=None):
     """Serve the dashboard of the MotionDB at ``db_path`` on http://address:port/ until interrupted.
 
     The database is opened (and checked), one dashboard built and :func:`warm_up` run before the server starts, so
     a bad path fails at once, the first page comes quickly and the first search, kNN, matching and relational query
-    answer in about a second. Any address other than loopback (127.0.0.1, localhost, ::1) exposes the
-    database to the network: ``allow_origin`` must then list the origins (``HOST:PORT``) users open it at (see
-    :func:`websocket_origins`), and a warning says who can reach it. With ``scheduler`` (a Dask scheduler's address,
-    or "local") every session's searches run sharded on that cluster (:class:`mocapviz.sharded.ShardedDB`, one for
-    the server), with the same answers.
+    answer in about a second. The server answers only requests whose ``Host`` is one of :func:`websocket_origins`
+    (this machine's loopback names at ``port``, ``address``, ``allow_origin``), and opens a WebSocket only for a page
+    of one of them (:func:`refusal`); anything else gets a 403. Any address other than loopback (127.0.0.1,
+    localhost, ::1) exposes the database to the network: ``allow_origin`` must then list the addresses (``HOST:PORT``)
+    users open it at, and a warning says who can reach it. With ``scheduler`` (a Dask scheduler's address, or
+    "local") every session's searches run sharded on that cluster (:class:`mocapviz.sharded.ShardedDB`, one for the
+    server), with the same answers. With ``start=False`` the server is returned bound to its port but not started;
+    called in a running event loop (Jupyter), it starts the server on that loop and returns it.
 
     Raises
     ------
@@ -258,9 +349,20 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, t
                       f"{db_path} (pages of {', '.join(origins)} may use it)", UserWarning, stacklevel=2)
     pn.extension("tabulator", notifications=False)
     path = Path(db_path)
-    return pn.serve({"/": lambda: dashboard(path, scheduler)}, port=port, address=address, show=show,
-                    threaded=threaded,
-                    websocket_origin=origins, title=f"{TITLE} · {path.name}")
+    # Bokeh's own origin list, consulted after ours, cannot parse a bracketed IPv6 name (ours holds them); Panel's
+    # URL-syncing location component, which the dashboard does not use, fails on one (a 500 for Host [::1]:PORT)
+    server = pn.serve({"/": lambda: dashboard(path, scheduler)}, port=port, address=address, show=show, start=False,
+                      websocket_origin=[o for o in origins if not o.startswith("[")], location=False,
+                      title=f"{TITLE} · {path.name}")
+    # The refusal is the first rule of the tornado application's router (where tornado's Application.add_handlers
+    # puts rules of its own), ahead of every page, static file and WebSocket route of Bokeh and Panel. Bokeh's Server
+    # keeps that application as _tornado, as Panel reads it; nothing outside this server changes.
+    server._tornado.default_router.rules.insert(0, Rule(_Refused(origins), _Refuse))
+    if start:
+        server.start()
+        if not server.io_loop.asyncio_loop.is_running():  # in a running loop (Jupyter) the server runs on that one
+            server.io_loop.start()
+    return server
 
 
-__all__ = ["Backend", "Selection", "dashboard", "is_loopback", "serve", "warm_up", "websocket_origins"]
+__all__ = ["Backend", "Selection", "dashboard", "is_loopback", "refusal", "serve", "warm_up", "websocket_origins"]
