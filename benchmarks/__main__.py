@@ -15,7 +15,8 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-NAMES = ("io", "dask", "relational", "knn", "match", "search", "templates", "scaling", "startup", "descriptions")
+NAMES = ("io", "dask", "relational", "knn", "match", "search", "templates", "scaling", "startup", "descriptions",
+         "integrity")
 
 
 class _Tee(io.TextIOBase):
@@ -51,6 +52,7 @@ def main(argv=None) -> int:
     from . import (
         bench_dask,
         bench_descriptions,
+        bench_integrity,
         bench_io,
         bench_knn,
         bench_match,
@@ -69,7 +71,7 @@ def main(argv=None) -> int:
            for name, mod in (("dask", bench_dask), ("relational", bench_relational), ("knn", bench_knn),
                              ("match", bench_match), ("search", bench_search), ("templates", bench_templates),
                              ("scaling", bench_scaling), ("startup", bench_startup),
-                             ("descriptions", bench_descriptions))},
+                             ("descriptions", bench_descriptions), ("integrity", bench_integrity))},
     }  # fmt: skip
     status = 0
     for name in args.only or NAMES:

@@ -33,6 +33,7 @@ SECTIONS = (
     ("scaling", "Cost growth at 1M / 4M / 10M frames: every query path, one process and sharded (bench_scaling)"),
     ("startup", "Start-up: import, --help and one search from a fresh process (bench_startup)"),
     ("descriptions", "Scene descriptions: index vs frame-wise scan (bench_descriptions)"),
+    ("integrity", "Checked reads: xxh3 of every block on first read vs sha256 (bench_integrity)"),
 )
 NOT_RUN = "not run: "  # how the line of a section with no figures begins
 
