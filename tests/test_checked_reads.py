@@ -248,9 +248,9 @@ def test_knn_with_every_frame_excluded_is_an_error_not_rows_of_inf(reference):
     from mocapviz.similarity.knn import KnnIndex
 
     index = KnnIndex(np.arange(20.0)[:, None])
-    with pytest.raises(ParameterError, match=r"query 1 leaves out frames 0:20, which leaves 0 indexed frames for k = 2"):
+    with pytest.raises(ParameterError, match=r"query 1 leaves out frames 0:20, every indexed frame"):
         index.query([[1.0], [2.0]], k=2, exclude=[[5, 6], [0, 20]])
-    with pytest.raises(ParameterError, match=r"leaves 1 indexed frames for k = 2"):
-        index.query([1.0], k=2, exclude=[1, 20])
-    _, i = index.query([1.0], k=2, exclude=[0, 18])  # two left: answered
+    d, i = index.query([1.0], k=2, exclude=[1, 20])  # one left: it, then padding (as with a radius)
+    assert i.tolist() == [0, -1] and d[1] == np.inf
+    _, i = index.query([1.0], k=2, exclude=[0, 18])
     assert i.tolist() == [18, 19]

@@ -366,7 +366,7 @@ class KnnIndex:
         exclude : np.ndarray [shape=(q, 2) or (2,)], int, optional
             Per query, a [start, stop) range of frames it must not return (e.g. the query's own document, so that
             its neighbouring frames do not fill the list). Searched as k + (frames of the range) neighbours and
-            filtered, so the result is the k nearest outside the range.
+            filtered, so the result is the k nearest outside the range (padded with -1 / inf where fewer are left).
 
         Returns
         -------
@@ -377,8 +377,8 @@ class KnnIndex:
         ------
         ValueError
             x not of dimension d or not finite (the query row is named), k out of range, radius <= 0, eps < 0,
-            bad threads, ``exclude`` not one [start, stop) range per query or leaving fewer than k indexed frames
-            outside a query's range.
+            bad threads, ``exclude`` not one [start, stop) range per query or leaving no indexed frame outside a
+            query's range (fewer than k: the rest padded with -1 / inf).
         TypeError
             k not an integer.
 
@@ -400,11 +400,10 @@ class KnnIndex:
         else:
             ranges = _check_exclude(exclude, len(queries))
             left = self.n_indexed - (np.searchsorted(self.frames, ranges[:, 1]) - np.searchsorted(self.frames, ranges[:, 0]))
-            if (left < k).any():
-                q = int(np.argmax(left < k))
-                raise ParameterError(f"exclude: query {q} leaves out frames {ranges[q, 0]}:{ranges[q, 1]}, which leaves "
-                                     f"{left[q]} indexed frames for k = {k}; exclude a shorter range or ask for fewer "
-                                     f"neighbours")  # fmt: skip
+            if (left < 1).any():  # (fewer than k left: the rest padded, as with a radius)
+                q = int(np.argmax(left < 1))
+                raise ParameterError(f"exclude: query {q} leaves out frames {ranges[q, 0]}:{ranges[q, 1]}, every "
+                                     f"indexed frame; exclude a shorter range")  # fmt: skip
             d, i = self._search_excluding(queries, k, radius, eps, threads, ranges)
         return (d[0], i[0]) if (x.ndim if isinstance(x, np.ndarray) else np.ndim(x)) == 1 else (d, i)
 
