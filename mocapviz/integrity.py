@@ -63,7 +63,7 @@ def check(path) -> pd.DataFrame:
     for f in sorted(features.glob("numeric-*.json")):
         name = f.stem.removeprefix("numeric-")
         rows.append(_row(f.with_suffix(".npy"), path, f"numeric set {name}",
-                         lambda name=name: numeric_mod.load_numeric(db, name, full_check=True)))  # fmt: skip
+                         lambda name=name: _numeric(db, name)))  # fmt: skip
     if (features / "pca.npz").exists():
         rows.append(_row(features / "pca.npz", path, "PCA model", lambda: numeric_mod.PCAModel.load(features / "pca.npz")))
     for f in sorted((path / TEMPLATES).glob("*.npz")):
@@ -73,6 +73,13 @@ def check(path) -> pd.DataFrame:
         doc = by_sha.get(f.stem)
         rows.append(_row(f, path, f"markers of document {doc}", lambda doc=doc, f=f: _markers(db, doc, f)))
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def _numeric(db: MotionDB, name: str) -> None:
+    from .features import numeric as numeric_mod
+
+    numeric_mod.load_numeric(db, name, full_check=True)
+    numeric_mod.add_block_checksums(db, name)  # (a set stored before block hashes were kept)
 
 
 def _markers(db: MotionDB, doc, f: Path) -> None:

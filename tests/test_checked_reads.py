@@ -144,6 +144,26 @@ def test_check_adds_block_hashes_to_an_older_manifest_after_verifying_its_sha256
     assert isinstance(MotionDB.open(folder).positions, CheckedMap)
 
 
+def test_check_adds_block_hashes_to_an_older_numeric_set(reference, tmp_path):
+    from mocapviz.features import load_numeric, store_numeric
+
+    folder = _copy(reference, tmp_path / "db")
+    db = MotionDB.open(folder)
+    store_numeric(db, ["F15E"], progress=False)
+    header_file, data = folder / "features" / "numeric-F15E.json", folder / "features" / "numeric-F15E.npy"
+    header = json.loads(header_file.read_text())
+    header["data"] = {k: header["data"][k] for k in ("size", "sha256")}  # as written before block hashes were kept
+    header_file.write_text(json.dumps(header))
+    assert main(["check", str(folder)]) == 0
+    assert json.loads(header_file.read_text())["data"] == fingerprint(data)
+    values = np.load(data, mmap_mode="r+")
+    values[7] += 1.0
+    values.flush()
+    del values
+    with pytest.raises(MotionDBError, match=r"numeric-F15E.npy: bytes .* differ"):
+        load_numeric(db, "F15E")
+
+
 # ------------------------------------------------------------------------------------------------ manifest schema
 _BAD_MANIFESTS = {
     "no arrays": (lambda m: m.pop("arrays"), r"no 'arrays'"),

@@ -803,6 +803,43 @@ def load_numeric(db: MotionDB, numeric_set: str, full_check: bool = False) -> np
     return data
 
 
+def add_block_checksums(db: MotionDB, numeric_set: str) -> bool:
+    """Record the per-block xxh3 of a stored numeric set written before they were kept, after checking its data file
+    against the sha256 of its header (``mocapviz check DB`` does this); from then on its blocks are verified when
+    first read (:func:`load_numeric`).
+
+    Parameters
+    ----------
+    db : MotionDB
+        The database the set is stored with.
+    numeric_set : str
+        One of :data:`NUMERIC_SETS`, stored.
+
+    Returns
+    -------
+    bool
+        Whether the header was rewritten (False: it had them already).
+
+    Raises
+    ------
+    mocapviz.MotionDBError
+        The set is not stored or its data differ from its recorded sha256 (nothing written).
+    """
+    data_path, header_path = _paths(db, numeric_set)
+    load_numeric(db, numeric_set)  # stored, current and readable
+    with locked(header_path.parent):
+        header = json.loads(header_path.read_text())
+        if "xxh3" in header["data"]:
+            return False
+        now = fingerprint(data_path)
+        if (now["size"], now["sha256"]) != (header["data"].get("size"), header["data"].get("sha256")):
+            raise MotionDBError(f"{data_path}: its sha256 differs from the one recorded when it was written: the file "
+                                f"is damaged; {_STALE_HINT}")  # fmt: skip
+        header["data"] = now
+        atomic_write(header_path, json.dumps(header, indent=1).encode())
+    return True
+
+
 def numeric_of(db: MotionDB, numeric_set: str, pca: PCAModel | None = None, progress: bool = False) -> np.ndarray:
     """A MotionDB's numeric feature set: the stored one when it is current, else computed now (nothing written).
 
