@@ -9,7 +9,9 @@
 3. ``MotionDB.ingest`` of all the shared archives with ``threads=1`` and ``threads=2`` (reader threads).
 4. The large reproducers of ``../shared/reliability/big.tar.xz`` (1M-frame BVH and AMC, 20,000-joint rigs, a
    10,000-bone ASF chain): ``mocapviz.io.load`` of each in a fresh process, wall and CPU time and peak RSS
-   against the arrays returned (``python -m benchmarks.bench_io --large`` runs only this part).
+   against the arrays returned (``python -m benchmarks.bench_io --large`` runs only this part). The 1M-frame AMC
+   holds frame numbers only, which its skeleton refuses: it is loaded on that skeleton without DOFs
+   (:func:`without_dofs`).
 
 Each reader figure is the median wall time of ``repeats`` runs (frames/s = frames / median time), measured in
 one process and over a pool of 2 worker processes (``concurrent.futures.ProcessPoolExecutor``, one task per
@@ -677,6 +679,24 @@ def measure_load(path: Path, warm: Path) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+def without_dofs(amc: Path, out: Path) -> Path:
+    """A copy of ``amc`` in the folder ``out`` beside its ASF (same stem) without DOFs: no ``dof`` or ``limits`` lines,
+    the root's ``order`` empty. Returns the copy.
+
+    M2 of big.tar.xz is 1M frame numbers without bone lines: on its own skeleton that is no motion, refused at the
+    first frame; on this skeleton every frame is complete, and the load does what M2's did before that refusal (the
+    scan of 1M frame numbers, forward kinematics of 1M x 31 joints at rest).
+    """
+    out.mkdir(parents=True, exist_ok=True)
+    copy = out / amc.name
+    copy.write_bytes(amc.read_bytes())
+    lines = amc.with_suffix(".asf").read_text(encoding="latin-1").split("\n")
+    kept = ["   order" if s.split()[:1] == ["order"] else s for s in lines
+            if s.split()[:1] not in (["dof"], ["limits"]) and not s.lstrip().startswith("(")]
+    copy.with_suffix(".asf").write_text("\n".join(kept), encoding="latin-1")
+    return copy
+
+
 def bench_large() -> tuple[list[dict], list[str]]:
     """One row per member of big.tar.xz (unpacked with the tarfile ``data`` filter into a temporary folder)."""
     if not BIG_ARCHIVE.is_file():
@@ -690,6 +710,9 @@ def bench_large() -> tuple[list[dict], list[str]]:
                         "Frame Time: 0.01\n0\n")  # fmt: skip
         for name in LARGE_FILES:
             path = Path(tmp) / name
+            if name.startswith("M2_"):
+                path = without_dofs(path, Path(tmp) / "no-dofs")
+                name += " (ASF without DOFs)"
             log(f"large reproducer {name}")
             r = measure_load(path, warm)
             r.update(name=name, size=path.stat().st_size)

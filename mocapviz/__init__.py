@@ -19,13 +19,20 @@ Examples
 from ._lazy import lazy_exports
 from ._moved import install as _install_moved
 from ._version import __version__
-from .errors import MocapFormatError, MocapvizError, MotionDBError, ParameterError, SkeletonMappingError
+from .errors import (
+    MocapFormatError,
+    MocapFormatWarning,
+    MocapvizError,
+    MotionDBError,
+    ParameterError,
+    SkeletonMappingError,
+)
 
 _install_moved()
 __getattr__, _exported = lazy_exports(__name__, {"MotionDB": ".db.database", "load": ".io", "Motion": ".motion",
                                                  "datasets": ".io.datasets"})  # fmt: skip
-__all__ = ["MocapFormatError", "MocapvizError", "Motion", "MotionDB", "MotionDBError", "ParameterError",
-           "SkeletonMappingError", "__version__", "load"]  # fmt: skip
+__all__ = ["MocapFormatError", "MocapFormatWarning", "MocapvizError", "Motion", "MotionDB", "MotionDBError",
+           "ParameterError", "SkeletonMappingError", "__version__", "load"]  # fmt: skip
 
 
 def __dir__():

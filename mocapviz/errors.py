@@ -57,13 +57,34 @@ class MocapFormatError(MocapvizError, ValueError):
     """
 
     def __init__(self, path: str | os.PathLike | None, reason: str, line: int | None = None):
-        self.path = None if path is None else os.fspath(path)
-        self.line = line
-        self.reason = reason
-        where = self.path or "<input>"
-        if line is not None:
-            where = f"{where}, line {line}"
-        super().__init__(f"{where}: {reason}")
+        self.path, self.line, self.reason = _located(self, path, reason, line)
+
+
+class MocapFormatWarning(UserWarning):
+    """A motion file was read with a part of it left out, legitimately (an AMC cut off inside its last frame loses
+    that frame); the message names the file, the line and what was left out. Issued by
+    :func:`mocapviz.io.checks.format_warning`; ``mocapviz ingest`` prints it.
+
+    Parameters and attributes are those of :class:`MocapFormatError`.
+
+    Examples
+    --------
+    >>> str(MocapFormatWarning("golf_01.amc", "last frame 445 is incomplete; dropped it", line=14233))
+    'golf_01.amc, line 14233: last frame 445 is incomplete; dropped it'
+    """
+
+    def __init__(self, path: str | os.PathLike | None, reason: str, line: int | None = None):
+        self.path, self.line, self.reason = _located(self, path, reason, line)
+
+
+def _located(exc: BaseException, path, reason: str, line: int | None) -> tuple[str | None, int | None, str]:
+    """Give ``exc`` the message ``"<path>, line <line>: <reason>"``; return (path as a str or None, line, reason)."""
+    path = None if path is None else os.fspath(path)
+    where = path or "<input>"
+    if line is not None:
+        where = f"{where}, line {line}"
+    Exception.__init__(exc, f"{where}: {reason}")
+    return path, line, reason
 
 
 class SkeletonMappingError(MocapvizError, ValueError):

@@ -157,6 +157,19 @@ def test_skip_bad_and_label_table_from_the_command_line(sample_dir, tmp_path, ca
     assert docs["mood"].tolist() == ["calm"]
 
 
+def test_ingest_prints_the_format_warnings_of_each_file(sample_dir, tmp_path, capsys):
+    """A file read with a frame left out is named, with the line, in one warning line (reader threads)."""
+    from test_database import cut_in_last_frame
+
+    src = shutil.copytree(sample_dir / "cmu-asfamc", tmp_path / "cmu")
+    cut = next((src / "amc").rglob("131_01.amc"))
+    line = cut_in_last_frame(cut)
+    assert main(["ingest", str(src), "--out", str(tmp_path / "db"), "--no-cluster", "--jobs", "2", "--quiet"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"mocapviz: warning: {cut.resolve()}, line {line}: last frame "), err
+    assert err[0].endswith("is incomplete (no line for bone 'lfemur': the file ends inside it); dropped it")
+
+
 def test_operating_system_errors_are_one_line(sample_dir, tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(cli, "dask_client", lambda *a, **k: pytest.fail("a cluster started on an error path"))
     blocker = tmp_path / "file"

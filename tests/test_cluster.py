@@ -18,7 +18,7 @@ cloudpickle = pytest.importorskip("cloudpickle")
 from mocapviz import MotionDB, parallel
 from mocapviz.cli import main
 from mocapviz.db.batches import document_batches
-from mocapviz.errors import MocapFormatError
+from mocapviz.errors import MocapFormatError, MocapFormatWarning
 from mocapviz.features import load_numeric, relational_features, store_numeric
 from mocapviz.relational.index import build
 
@@ -182,6 +182,25 @@ def test_a_bad_file_fails_as_in_serial_and_skip_bad_skips_it(files, client, tmp_
     with pytest.warns(UserWarning, match="broken.bvh"):
         db = MotionDB.ingest([files[0], bad, files[1]], out, progress=False, scheduler=client, skip_bad=True)
     assert db.documents["name"].tolist() == [files[0].stem, files[1].stem]
+
+
+def test_format_warnings_of_the_workers_are_issued_here(files, client, tmp_path):
+    """A file read on a worker process with a frame left out gives its MocapFormatWarning here, naming it and the
+    line (a warning on a worker would only reach the worker's log)."""
+    import shutil
+
+    from test_database import cut_in_last_frame
+
+    (tmp_path / "amc").mkdir()
+    shutil.copytree(files[0].parent.parent / "asf", tmp_path / "asf")
+    cut = Path(shutil.copy(files[0], tmp_path / "amc"))
+    line = cut_in_last_frame(cut)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        db = MotionDB.ingest([files[1], cut, files[2]], tmp_path / "db", progress=False, scheduler=client)
+    named = [w.message for w in seen if issubclass(w.category, MocapFormatWarning)]
+    assert [(Path(w.path), w.line) for w in named] == [(cut.resolve(), line)], [str(w) for w in named]
+    assert "last frame" in named[0].reason and len(db) == 3
 
 
 def test_cli_ingest_on_a_scheduler_by_address(files, serial_db, client, tmp_path, capsys):

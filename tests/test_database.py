@@ -9,6 +9,7 @@ import subprocess
 import sys
 import textwrap
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -16,8 +17,8 @@ import pandas as pd
 import pytest
 
 import mocapviz
-from mocapviz import MocapFormatError, MotionDB, MotionDBError
-from mocapviz.io import datasets
+from mocapviz import MocapFormatError, MocapFormatWarning, MotionDB, MotionDBError
+from mocapviz.io import datasets, load
 from mocapviz.motion.skeleton import CANONICAL_JOINTS
 
 REPO = Path(__file__).resolve().parent.parent
@@ -300,6 +301,34 @@ def test_skip_bad_also_skips_an_amc_without_its_skeleton(sample_dir, tmp_path):
     with pytest.warns(UserWarning, match="orphan.amc"):
         db = MotionDB.ingest([src, lone], tmp_path / "db", skip_bad=True, progress=False)
     assert len(db) == 2 and Path(orphan).name not in set(db.documents["path"].map(lambda p: Path(p).name))
+
+
+def cut_in_last_frame(amc: Path) -> int:
+    """Cut ``amc`` (in place) inside its last frame, before its ``lfemur`` line (as CMU golf_01.amc ends); return the
+    1-based line of that frame's number."""
+    data = amc.read_bytes()
+    data = data[: data.rfind(b"\nlfemur") + 1]
+    amc.write_bytes(data)
+    return max(i for i, s in enumerate(data.split(b"\n"), start=1) if s.strip().isdigit())
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_ingest_names_the_format_warnings_of_each_file(sample_dir, tmp_path, threads):
+    """A file read with a part left out (an AMC cut inside its last frame) gives one MocapFormatWarning naming it and
+    the line, issued by the ingest (collected where the file was read: this thread or a reader thread), and its
+    document lacks that frame; the other file gives none."""
+    src = shutil.copytree(sample_dir / "cmu-asfamc", tmp_path / "cmu")
+    cut = next((src / "amc").rglob("131_01.amc"))
+    whole = load(cut).n_frames
+    line = cut_in_last_frame(cut)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        db = MotionDB.ingest(src, tmp_path / "db", threads=threads, progress=False)
+    (w,) = [w.message for w in seen if issubclass(w.category, MocapFormatWarning)]
+    assert Path(w.path) == cut.resolve() and w.line == line and str(w).startswith(f"{w.path}, line {line}: ")
+    assert w.reason == f"last frame {whole} is incomplete (no line for bone 'lfemur': the file ends inside it); dropped it"
+    docs = db.documents.set_index("name")
+    assert docs.loc["131_01", "n_frames"] == whole - 1 and len(docs) == 2
 
 
 def test_open_refuses_a_manifest_that_is_not_an_object(tmp_path):

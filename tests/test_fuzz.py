@@ -5,8 +5,15 @@ Mutations (one to three per case): bit flips, line deletions and duplications, n
 NaN, infinite, negative or malformed ones, keyword case changes, truncation, white-space changes and encoding
 damage (byte-order marks, UTF-16, invalid UTF-8, NUL and Latin-1 bytes). ASF/AMC cases damage the AMC or its ASF.
 
+The "garbage" class (one damage per case) makes ASF/AMC pairs that a lax reader loads as something wrong: a bone's
+lines deleted from every AMC frame (the root or another), a frame emptied (or every one), every ASF direction
+zeroed, NaN / inf / overflow in an ASF ``limits``, ``id`` or ``direction``, an AMC that is just ``0``, an AMC cut
+inside its only frame. Each must be refused with a typed error, or (an AMC cut inside its last frame) load with a
+MocapFormatWarning; one that loads silently counts as silent garbage.
+
 The fast tier runs a few hundred cases per format, the slow tier (``-m slow``) thousands; each test prints its
-counts. Outside pytest: ``python tests/test_fuzz.py --format bvh --cases 2000 --seed 1`` prints the same counts.
+counts. Outside pytest: ``python tests/test_fuzz.py --format bvh --cases 2000 --seed 1`` prints the same counts
+(``--format amc`` the random ASF/AMC mutations, ``--format garbage`` the garbage class).
 """
 
 from __future__ import annotations
@@ -25,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocapviz.errors import MocapvizError
+from mocapviz.errors import MocapFormatWarning, MocapvizError
 from mocapviz.io import find_asf, load
 from mocapviz.io.checks import DISTANCE_LIMIT_CM
 from mocapviz.motion import FPS_RANGE
@@ -148,6 +155,68 @@ MUTATIONS = (flip_bytes, delete_lines, duplicate_lines, replace_number, change_c
              damage_encoding)
 
 
+# ------------------------------------------------------------------------------- garbage: ASF/AMC that must not load
+_FRAME = re.compile(rb"(?m)^[ \t]*\d+[ \t\r]*$")
+_BONE = re.compile(rb"(?m)^[ \t]*([A-Za-z][^ \t\r\n]*)[^\n]*(?:\n|$)")
+_PLAIN_NUMBER = re.compile(rb"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+_NON_FINITE = [b"nan", b"NaN", b"-nan", b"inf", b"-inf", b"Infinity", b"1e400", b"-1e400", b"1e999"]
+
+
+def _frames(amc: bytes) -> list[int]:
+    """Byte offsets of the frame-number lines of an AMC (after its header)."""
+    return [m.start() for m in _FRAME.finditer(amc)]
+
+
+def drop_bone(amc: bytes, asf: bytes, rng) -> tuple[bytes, bytes, str]:
+    names = sorted({m.group(1) for m in _BONE.finditer(amc, _frames(amc)[0])} - {b"root"})
+    name = b"root" if rng.random() < 0.25 else names[int(rng.integers(0, len(names)))]
+    kept = _BONE.sub(lambda m: b"" if m.group(1) == name else m.group(), amc)
+    return kept, asf, f"AMC: bone {name.decode()} deleted from every frame"
+
+
+def empty_frames(amc: bytes, asf: bytes, rng) -> tuple[bytes, bytes, str]:
+    starts = _frames(amc) + [len(amc)]
+    if rng.random() < 0.2:
+        return amc[: starts[0]] + _BONE.sub(b"", amc[starts[0] :]), asf, "AMC: every bone line deleted"
+    k = int(rng.integers(0, len(starts) - 1))
+    number_end = amc.index(b"\n", starts[k]) + 1 if b"\n" in amc[starts[k] : starts[k + 1]] else starts[k + 1]
+    return (amc[:number_end] + amc[starts[k + 1] :], asf,
+            f"AMC: frame {k + 1} of {len(starts) - 1} emptied")  # fmt: skip
+
+
+def zero_directions(amc: bytes, asf: bytes, rng) -> tuple[bytes, bytes, str]:
+    return amc, re.sub(rb"(?m)^([ \t]*direction)[^\n]*", rb"\1 0 0 0", asf), "ASF: every direction 0 0 0"
+
+
+def non_finite_asf(amc: bytes, asf: bytes, rng) -> tuple[bytes, bytes, str]:
+    key = [b"limits", b"id", b"direction"][int(rng.integers(0, 3))]
+    lines = list(re.finditer(rb"(?m)^[ \t]*(?:limits\b|\()[^\n]*" if key == b"limits" else
+                             rb"(?m)^[ \t]*" + key + rb"\b[^\n]*", asf))  # (limits: a pair a line)
+    line = lines[int(rng.integers(0, len(lines)))]
+    numbers = list(_PLAIN_NUMBER.finditer(asf, line.start(), line.end()))
+    m = numbers[int(rng.integers(0, len(numbers)))]
+    odd = [v for v in _NON_FINITE if key != b"limits" or v not in (b"inf", b"-inf")]  # (the ASF's "no limit")
+    new = odd[int(rng.integers(0, len(odd)))]
+    return amc, asf[: m.start()] + new + asf[m.end() :], (f"ASF: {key.decode()} {m.group()!r} -> {new!r} at line "
+                                                          f"{_line_at(asf, m.start())}")
+
+
+def just_zero(amc: bytes, asf: bytes, rng) -> tuple[bytes, bytes, str]:
+    new = [b"0", b"0\n", b"1\r\n", b"1\n\n"][int(rng.integers(0, 4))]
+    return new, asf, f"AMC: the file is {new!r}"
+
+
+def cut_only_frame(amc: bytes, asf: bytes, rng) -> tuple[bytes, bytes, str]:
+    starts = _frames(amc) + [len(amc)]
+    frame = amc[: starts[1]]  # the header and the first frame
+    last_line = frame.rstrip(b"\r\n").rfind(b"\n") + 1
+    at = int(rng.integers(frame.index(b"\n", starts[0]) + 1, last_line + 1))
+    return amc[:at], asf, f"AMC: only frame 1 kept, cut at byte {at} (its last bone line at {last_line})"
+
+
+GARBAGE = (drop_bone, empty_frames, zero_directions, non_finite_asf, just_zero, cut_only_frame)
+
+
 def mutate(data: bytes, rng, mutations=MUTATIONS) -> tuple[bytes, list[str]]:
     """``data`` damaged by one to three random ``mutations`` (one in two cases one), and what was done."""
     done = []
@@ -162,13 +231,16 @@ def mutate(data: bytes, rng, mutations=MUTATIONS) -> tuple[bytes, list[str]]:
 @dataclass
 class Counts:
     """What the fuzzer saw. ``crashes``, ``unnamed``, ``non_finite``, ``hangs``, ``over_memory``, ``numpy_warnings``
-    list the failing cases (case id, mutations, what happened)."""
+    and ``silent`` (a garbage case loaded without a MocapFormatWarning) list the failing cases (case id, mutations,
+    what happened)."""
 
     fmt: str
     cases: int = 0
     typed: int = 0
     typed_with_line: int = 0
     loaded: int = 0
+    warned: int = 0
+    silent: list = field(default_factory=list)
     crashes: list = field(default_factory=list)
     unnamed: list = field(default_factory=list)
     non_finite: list = field(default_factory=list)
@@ -180,14 +252,16 @@ class Counts:
 
     @property
     def failures(self) -> list:
-        return self.crashes + self.unnamed + self.non_finite + self.hangs + self.over_memory + self.numpy_warnings
+        return (self.crashes + self.unnamed + self.non_finite + self.hangs + self.over_memory + self.numpy_warnings
+                + self.silent)
 
     def summary(self) -> str:
-        return (f"fuzz {self.fmt}: {self.cases} cases: {self.typed} typed errors ({self.typed_with_line} naming a line), "
-                f"{self.loaded} finite loads; crashes {len(self.crashes)}, errors not naming the file "
-                f"{len(self.unnamed)}, non-finite or absurd accepted {len(self.non_finite)}, hangs {len(self.hangs)}, "
-                f"over the memory bound {len(self.over_memory)}, numpy warnings {len(self.numpy_warnings)}; "
-                f"slowest case {self.max_cpu_s:.2f} CPU-s, largest peak {self.max_peak_mb:.1f} MB")
+        return (f"fuzz {self.fmt}: {self.cases} cases: {self.typed} typed errors ({self.typed_with_line} naming a "
+                f"line), {self.loaded} finite loads ({self.warned} with a MocapFormatWarning); crashes "
+                f"{len(self.crashes)}, errors not naming the file {len(self.unnamed)}, non-finite or absurd accepted "
+                f"{len(self.non_finite)}, silent garbage {len(self.silent)}, hangs {len(self.hangs)}, over the memory "
+                f"bound {len(self.over_memory)}, numpy warnings {len(self.numpy_warnings)}; slowest case "
+                f"{self.max_cpu_s:.2f} CPU-s, largest peak {self.max_peak_mb:.1f} MB")
 
 
 class _Hang(BaseException):
@@ -215,7 +289,8 @@ def _check_motion(m) -> str | None:
 
 
 def run_case(case: int, fmt: str, sources: list, seed: int, tmp: Path, counts: Counts) -> None:
-    """Damage one source (an ``.bvh`` path or an ``(.amc, .asf)`` pair) and load it; record the outcome."""
+    """Damage one source (an ``.bvh`` path or an ``(.amc, .asf)`` pair; ``fmt`` "garbage": with one of
+    :data:`GARBAGE`) and load it; record the outcome."""
     rng = np.random.default_rng([seed, case])
     src = sources[int(rng.integers(0, len(sources)))]
     if fmt == "bvh":
@@ -226,7 +301,10 @@ def run_case(case: int, fmt: str, sources: list, seed: int, tmp: Path, counts: C
     else:
         amc, asf = src
         amc_data, asf_data = amc.read_bytes(), asf.read_bytes()
-        if rng.random() < 0.5:
+        if fmt == "garbage":
+            amc_data, asf_data, what = GARBAGE[int(rng.integers(0, len(GARBAGE)))](amc_data, asf_data, rng)
+            done = [what]
+        elif rng.random() < 0.5:
             amc_data, done = mutate(amc_data, rng)
             done = ["AMC " + d for d in done]
         else:
@@ -263,10 +341,14 @@ def run_case(case: int, fmt: str, sources: list, seed: int, tmp: Path, counts: C
             else:
                 returned = sum(a.nbytes for a in (m.positions, m.quaternions, m.euler) if a is not None)
                 problem = _check_motion(m)
+                warned = any(issubclass(w.category, MocapFormatWarning) for w in seen)
                 if problem:
                     counts.non_finite.append(f"{what}: loaded with {problem}")
+                elif fmt == "garbage" and not warned:
+                    counts.silent.append(f"{what}: loaded {m.n_frames} frames without a MocapFormatWarning")
                 else:
                     counts.loaded += 1
+                    counts.warned += warned
                 del m
         numpy_warnings = [w for w in seen if issubclass(w.category, RuntimeWarning)]
         if numpy_warnings:
@@ -321,7 +403,11 @@ def _report(counts: Counts) -> None:
     for f in counts.failures[:20]:
         print("  FAIL", f)
     assert not counts.failures, f"{len(counts.failures)} failing cases, e.g. {counts.failures[:3]}"
-    assert counts.typed > counts.cases // 4 and counts.loaded > counts.cases // 20, counts.summary()
+    if counts.fmt == "garbage":  # refused naming the line, or (an AMC cut inside its last frame) loaded with a warning
+        assert counts.typed + counts.warned == counts.cases and counts.typed > counts.cases * 3 // 4, counts.summary()
+        assert counts.typed_with_line == counts.typed, counts.summary()
+    else:
+        assert counts.typed > counts.cases // 4 and counts.loaded > counts.cases // 20, counts.summary()
 
 
 # ------------------------------------------------------------------------------------------------------ tests
@@ -342,6 +428,20 @@ def test_fuzz_asf_amc(hdm05_dir, cmu_dir, tmp_path):
     _report(fuzz("asf/amc", amc_sources(hdm05_dir, cmu_dir), FAST_CASES, 20261125, tmp_path))
 
 
+def test_garbage_mutations_damage_and_are_reproducible(hdm05_dir, cmu_dir):
+    """Each garbage mutation changes a real ASF/AMC pair, and a seed gives the same damage again."""
+    for amc, asf in amc_sources(hdm05_dir, cmu_dir, 1):
+        pair = amc.read_bytes(), asf.read_bytes()
+        for fn in GARBAGE:
+            for i in range(5):
+                assert fn(*pair, np.random.default_rng([7, i]))[:2] != pair, fn.__name__
+                assert fn(*pair, np.random.default_rng(i)) == fn(*pair, np.random.default_rng(i)), fn.__name__
+
+
+def test_fuzz_garbage(hdm05_dir, cmu_dir, tmp_path):
+    _report(fuzz("garbage", amc_sources(hdm05_dir, cmu_dir), FAST_CASES, 20261125, tmp_path))
+
+
 @pytest.mark.slow
 def test_fuzz_bvh_slow(bandai1_files, tmp_path):
     _report(fuzz("bvh", bvh_sources(bandai1_files, 12), SLOW_CASES, 1, tmp_path))
@@ -352,12 +452,17 @@ def test_fuzz_asf_amc_slow(hdm05_dir, cmu_dir, tmp_path):
     _report(fuzz("asf/amc", amc_sources(hdm05_dir, cmu_dir, 8), SLOW_CASES // 2, 1, tmp_path))
 
 
+@pytest.mark.slow
+def test_fuzz_garbage_slow(hdm05_dir, cmu_dir, tmp_path):
+    _report(fuzz("garbage", amc_sources(hdm05_dir, cmu_dir, 8), SLOW_CASES // 2, 1, tmp_path))
+
+
 if __name__ == "__main__":
     import os
     import tempfile
 
     parser = argparse.ArgumentParser(description="Fuzz the readers; print the counts.")
-    parser.add_argument("--format", choices=("bvh", "amc"), required=True)
+    parser.add_argument("--format", choices=("bvh", "amc", "garbage"), required=True)
     parser.add_argument("--cases", type=int, default=FAST_CASES)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--files", type=int, default=6, help="source files (the smallest ones)")
@@ -371,7 +476,7 @@ if __name__ == "__main__":
             result = fuzz("bvh", bvh_sources(files, args.files), args.cases, args.seed, Path(tmp))
         else:
             srcs = amc_sources(Path(datasets.fetch("hdm05-cut")), Path(datasets.fetch("cmu-asfamc")), args.files)
-            result = fuzz("asf/amc", srcs, args.cases, args.seed, Path(tmp))
+            result = fuzz("asf/amc" if args.format == "amc" else "garbage", srcs, args.cases, args.seed, Path(tmp))
     print(result.summary())
     for f in result.failures:
         print("  FAIL", f)

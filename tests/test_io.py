@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from mocapviz.errors import MocapFormatError
+from mocapviz.errors import MocapFormatError, MocapFormatWarning
 from mocapviz.io import find_asf, load, read_asf
 from mocapviz.io.text import scan
 
@@ -122,7 +122,8 @@ def test_cmu_every_trial_loads(cmu_dir):
         if len(complete) < len(frames):
             # golf_01.amc ends inside its last frame: that frame is dropped with a warning
             assert len(complete) == len(frames) - 1 and set(frames[-1][1]) < bones, row.file
-            with pytest.warns(UserWarning, match=r"frame \d+ is incomplete"):
+            with pytest.warns(MocapFormatWarning, match=rf"{row.file.split('/')[-1]}, line \d+: last frame \d+ is "
+                                                        "incomplete"):
                 motion = load(path)
         else:
             motion = load(path)
@@ -532,6 +533,78 @@ def test_amc_bone_line_missing_from_one_frame(amc_copy, tmp_path):
     assert "rhumerus" in err.reason and "12" in err.reason
 
 
+@pytest.mark.parametrize("bone", ["root", "lfemur", "rtoes"])
+def test_amc_bone_missing_from_every_frame(amc_copy, tmp_path, bone):
+    """A bone with DOFs (or the root) deleted from every frame is refused at the first frame, not read as its rest
+    pose (found by the mutation fuzzer: 70 such files loaded)."""
+    lines, asf = amc_copy
+    kept = [s for s in lines if s.split()[:1] != [bone]]
+    err = _raises(_write(tmp_path / "no_bone.amc", kept), _frame_line(kept, 1) + 1, asf=asf)
+    assert err.reason == f"no frame has a line for bone {bone!r} (the skeleton gives it values)"
+
+
+def test_amc_bone_without_dofs_may_be_left_out(amc_copy, tmp_path):
+    """A bone without DOFs has no values: real files never write it, and a file writing it in some frames only
+    reads as the file without it."""
+    lines, asf = amc_copy
+    skeleton = read_asf(asf)
+    no_dof = [n for n, d in zip(skeleton.bone_names, skeleton.dofs) if not d]
+    assert "lhipjoint" in no_dof and not any(s.split()[:1] == ["lhipjoint"] for s in lines)
+    some = list(lines)
+    some.insert(_frame_line(some, 3) + 1, "lhipjoint\r")
+    original = load(_write(tmp_path / "a.amc", lines), asf=asf)
+    np.testing.assert_array_equal(load(_write(tmp_path / "b.amc", some), asf=asf).positions, original.positions)
+
+
+def test_amc_empty_frames_and_no_bone_lines(amc_copy, tmp_path):
+    """A frame without bone lines inside the file, a file of frame numbers only, and the one-byte file ``0`` are
+    refused at the frame's line (they loaded as rest poses)."""
+    lines, asf = amc_copy
+    k = _frame_line(lines, 9)
+    empty = lines[: k + 1] + lines[_frame_line(lines, 10) :]
+    err = _raises(_write(tmp_path / "empty.amc", empty), k + 1, asf=asf)
+    assert err.reason == "frame 9 has no bone lines"
+    numbers = [s for s in lines if _is_frame_number(s) or s.startswith((":", "#"))]
+    _raises(_write(tmp_path / "numbers.amc", numbers), _frame_line(numbers, 1) + 1, asf=asf)
+    for text in ("0", "0\n", "1\r\n"):
+        err = _raises(_write(tmp_path / "zero.amc", [text]), 1, asf=asf)
+        assert "has no bone lines" in err.reason
+
+
+def test_amc_cut_inside_its_only_frame(amc_copy, tmp_path):
+    """A file of one frame cut before its last bone line is refused (it loaded with the rest at the rest pose)."""
+    lines, asf = amc_copy
+    one = lines[: _frame_line(lines, 2)]
+    bones = [i for i in range(_frame_line(one, 1) + 1, len(one)) if one[i].strip()]
+    load(_write(tmp_path / "one.amc", one), asf=asf)  # whole, it reads
+    for cut in (bones[0], bones[len(bones) // 2], bones[-1]):
+        err = _raises(_write(tmp_path / "cut.amc", one[:cut]), _frame_line(one, 1) + 1, asf=asf)
+        if cut == bones[0]:
+            assert err.reason == "frame 1 has no bone lines"
+        else:  # one of the bones cut off named
+            named = re.fullmatch(r"frame 1, the only one, has no line for bone '(\w+)' \(the file ends inside it\?\)",
+                                 err.reason)
+            assert named and named[1] in {one[i].split()[0] for i in bones if i >= cut}, err.reason
+
+
+def test_amc_cut_inside_its_last_frame_loses_it_with_a_warning(amc_copy, tmp_path):
+    """A file that ends inside its last frame (or right after its frame number) reads without it, with a
+    MocapFormatWarning naming the file, the frame and its line."""
+    lines, asf = amc_copy
+    last = max(int(s) for s in lines if _is_frame_number(s))
+    whole = load(_write(tmp_path / "whole.amc", lines), asf=asf)
+    k = _frame_line(lines, last)
+    for cut in (k + 1, _bone_line(lines, last, "lhumerus")):
+        path = _write(tmp_path / "cut.amc", lines[:cut])
+        with pytest.warns(MocapFormatWarning) as seen:
+            motion = load(path, asf=asf)
+        (w,) = seen
+        assert w.message.path == str(path) and w.message.line == k + 1, str(w.message)
+        assert f"last frame {last} is incomplete" in str(w.message) and str(path) in str(w.message)
+        assert motion.n_frames == whole.n_frames - 1 == last - 1
+        np.testing.assert_array_equal(motion.positions, whole.positions[:-1])
+
+
 def _asf_error(lines: list[str], tmp_path, amc_lines) -> tuple[Path, Path]:
     """A corrupted ASF and an intact AMC beside it."""
     return _write(tmp_path / "bad.asf", lines), _write(tmp_path / "clip.amc", amc_lines)
@@ -594,11 +667,18 @@ def bvh_copy(bandai1_dir):
 
 
 def test_bvh_fewer_frames_than_header(bvh_copy, tmp_path):
+    """Named at the file's last line, which exists (it named line N + 1 of an N-line file), with or without a final
+    line end, and with no frame at all."""
     lines, data = bvh_copy
     n = int(lines[data - 2].split()[1])
-    kept = lines[: data + n - 5]
-    err = _raises(_write(tmp_path / "short.bvh", kept + [""]), data + n - 5 + 1)
-    assert str(n) in err.reason and str(n - 5) in err.reason
+    kept = lines[: data + n - 5]  # lines 1 to data + n - 5
+    for ending in ([""], []):
+        path = _write(tmp_path / "short.bvh", kept + ending)
+        assert len(path.read_bytes().splitlines()) == data + n - 5
+        err = _raises(path, data + n - 5)
+        assert err.reason == f"header says {n} frames, the file has {n - 5}: it ends at line {data + n - 5}"
+    err = _raises(_write(tmp_path / "none.bvh", lines[:data]), data)
+    assert err.reason == f"header says {n} frames, the file has 0: it ends at line {data}"
 
 
 def test_bvh_more_frames_than_header(bvh_copy, tmp_path):
@@ -951,6 +1031,69 @@ def test_asf_amc_values_beyond_the_limits(amc_copy, tmp_path):
 
     with pytest.raises(ParameterError, match="0.5 frames per second"):
         load(_write(tmp_path / "clip.amc", amc_lines), asf=asf, fps=0.5)
+
+
+def _asf_lines_of(asf_lines: list[str], keyword: str) -> list[int]:
+    """0-based indices of the ASF lines starting with ``keyword``."""
+    return [i for i, s in enumerate(asf_lines) if s.split()[:1] == [keyword]]
+
+
+def test_asf_directions_must_be_unit_vectors(amc_copy, tmp_path):
+    """Every direction 0 0 0 (all joints at one point), one zero direction, and one of length 2 or 0.5 are refused
+    naming the bone and line; a direction off unit length by 0.1 % is normalised (reads as the original)."""
+    amc_lines, asf = amc_copy
+    asf_lines = _lines(asf)
+    directions = _asf_lines_of(asf_lines, "direction")
+    zeroed = [("  direction 0 0 0" if i in directions else s) for i, s in enumerate(asf_lines)]
+    bad, amc = _asf_error(zeroed, tmp_path, amc_lines)
+    first = asf_lines[directions[0] - 1].split()[1]  # (the 'name' line comes before the direction in these files)
+    err = _raises_asf(amc, bad, directions[0] + 1)
+    assert err.reason.startswith(f"bone {first!r}: direction 0 0 0 has length 0, not 1 ± 0.05"), err.reason
+    k = directions[5]
+    values = np.array(asf_lines[k].split()[1:4], dtype=float)
+    for factor, fails in ((0.0, True), (2.0, True), (0.5, True), (1.001, False)):
+        edited = list(asf_lines)
+        edited[k] = "  direction " + " ".join(f"{v:.9g}" for v in values * factor)
+        bad, amc = _asf_error(edited, tmp_path, amc_lines)
+        if fails:
+            assert f"has length {np.linalg.norm(values) * factor:.6g}" in _raises_asf(amc, bad, k + 1).reason
+        else:
+            np.testing.assert_allclose(load(amc, asf=bad).positions, load(amc, asf=asf).positions, atol=1e-3)
+
+
+@pytest.mark.parametrize("keyword, text, shown", [
+    ("limits", "limits (nan 20.0)", "'nan' is not a number"),
+    ("limits", "limits (-1e400 20.0)", "-1e400 is out of range (not finite)"),
+    ("limits", "limits (-160.0 1e39)", "1e39 is beyond ±100000 degrees"),
+    ("limits", "limits (-160.0)", "got 1 values"),
+    ("limits", "limits (20.0 -160.0)", "the min is above the max"),
+    ("(", "  (-70.0 inf0)", "'inf0' is not a number"),
+    ("id", "id nan", "expected 1 numbers"),
+    ("id", "id 1e400", "not finite"),
+    ("direction", "direction 0.5 NaN 0", "expected 3 numbers"),
+    ("direction", "direction 0 1e400 0", "not finite"),
+])  # fmt: skip
+def test_asf_limits_ids_and_directions_must_be_finite(amc_copy, tmp_path, keyword, text, shown):
+    """NaN, inf and overflowing numbers in ``limits`` (and its continuation lines), ``id`` and ``direction`` are
+    refused naming the line (they were not read, and 49 fuzzed files loaded)."""
+    amc_lines, asf = amc_copy
+    asf_lines = _lines(asf)
+    k = next(i for i in range(_asf_block(asf_lines, "lfemur"), len(asf_lines))
+             if asf_lines[i].split()[:1] == [keyword] or keyword == "(" and asf_lines[i].lstrip().startswith("("))
+    asf_lines[k] = text
+    bad, amc = _asf_error(asf_lines, tmp_path, amc_lines)
+    assert shown in _raises_asf(amc, bad, k + 1).reason
+
+
+def test_asf_limits_may_be_unbounded(amc_copy, tmp_path):
+    """``limits (-inf inf)`` is the ASF's "no limit" (the Acclaim specification): read, the motion unchanged."""
+    amc_lines, asf = amc_copy
+    asf_lines = _lines(asf)
+    limits = _asf_lines_of(asf_lines, "limits")
+    for i in limits:
+        asf_lines[i] = "    limits (-inf inf)"
+    good, amc = _asf_error(asf_lines, tmp_path, amc_lines)
+    np.testing.assert_array_equal(load(amc, asf=good).positions, load(amc, asf=asf).positions)
 
 
 def test_forward_kinematics_in_blocks_equals_one_pass(bvh_copy, bandai1_dir, monkeypatch):

@@ -530,6 +530,11 @@ class MotionDB:
         MotionDBError
             ``out`` exists but is not a MotionDB, or its frame rate differs from ``fps``.
 
+        Warns
+        -----
+        MocapFormatWarning
+            A file read with a part left out (an AMC cut off inside its last frame), naming the file and the line.
+
         Examples
         --------
         >>> import tempfile

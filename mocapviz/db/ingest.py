@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from .. import errors as errors_module
-from ..errors import LabelTableError, MocapFormatError, MocapvizError
+from ..errors import LabelTableError, MocapFormatError, MocapFormatWarning, MocapvizError
 from ..io import FORMATS, find_asf, load
 from ..io.labels import MAIN_LABEL_COLUMNS, labels_for, read_labels_tsv
 from ..motion import Motion
@@ -206,18 +206,23 @@ class ReadJob:
     load_options: dict
 
 
-def _read_task(job: ReadJob) -> tuple[np.ndarray, np.ndarray | None, dict] | _ReadFailure:
+def _read_task(job: ReadJob) -> tuple[np.ndarray, np.ndarray | None, dict, list[tuple]] | _ReadFailure:
     """Reading one file (on a thread of this process or a Dask worker).
 
     Returns (positions [shape=(T, 24, 3)] cm, quaternions [shape=(T, 24, 4)] or None, meta) of
-    :func:`read_document`, or a :class:`_ReadFailure` for a file that fails to read, so that the caller decides
-    (raise it, or skip it with ``skip_bad``).
+    :func:`read_document` and the file's format warnings (``(path, reason, line)`` of each
+    :class:`~mocapviz.errors.MocapFormatWarning`, for the caller to issue, naming the file), or a
+    :class:`_ReadFailure` for a file that fails to read, so that the caller decides (raise it, or skip it with
+    ``skip_bad``).
     """
+    from ..io.checks import collect_format_warnings  # here, not at import: opening a MotionDB loads no reader
+
     try:
-        motion, meta = read_document(job.path, job.fps, job.labels, job.mapping, job.sha256, **job.load_options)
+        with collect_format_warnings() as notes:
+            motion, meta = read_document(job.path, job.fps, job.labels, job.mapping, job.sha256, **job.load_options)
     except MocapvizError as exc:  # a malformed file, an unmappable rig, a bad label file beside the data, ...
         return _ReadFailure.of(exc)
-    return motion.positions, motion.quaternions, meta
+    return motion.positions, motion.quaternions, meta, notes
 
 
 def _read_chunk(chunk: list[ReadJob]) -> list:
@@ -328,6 +333,12 @@ def read_new(files: list[Path], known: set, options: IngestOptions) -> tuple[lis
     ------
     MocapFormatError, SkeletonMappingError, ...
         The first file (in input order) that fails to read, unless ``options.skip_bad`` (then a warning).
+
+    Warns
+    -----
+    MocapFormatWarning
+        Each file read with a part left out (an AMC cut off inside its last frame), in input order, naming the file
+        and line (read on threads or Dask workers, the warnings of each file are collected there and issued here).
     """
     table = _labels_table(options.labels)
     load_options = options.load_options
@@ -361,6 +372,8 @@ def read_new(files: list[Path], known: set, options: IngestOptions) -> tuple[lis
                         raise res.error()
                     warnings.warn(f"skipped {res.message}", stacklevel=3)
                     continue
+                for note in res[3]:
+                    warnings.warn(MocapFormatWarning(*note), stacklevel=3)
                 positions.append(res[0])
                 quaternions.append(res[1])
                 metas.append(res[2])

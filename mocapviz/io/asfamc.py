@@ -14,21 +14,23 @@ Conventions (Acclaim ASF/AMC specification, as read by the CMU and HDM05 tools):
   order, ``position`` is added to the translation, and ``orientation`` is the root's C.
 - ``:units length u``: lengths and root translations are in units of 1/u inch; centimetres = value * 2.54 / u.
   ``:units angle deg|rad`` (an AMC ``:RADIANS`` header overrides it).
-- A bone with DOFs that has no line in any frame of the AMC keeps its rest pose; a bone line missing from
-  only some frames is an error, except in the last frame, which is dropped with a warning (a file cut off
-  inside its last frame, as CMU ``golf_01.amc``).
+- Every frame of the AMC has a line for the root and for every bone with DOFs (a bone without DOFs may have
+  none). A file cut off inside its last frame (CMU ``golf_01.amc``) is read without that frame, with a
+  :class:`~mocapviz.errors.MocapFormatWarning`; a line missing from any other frame, a frame without bone lines,
+  a bone with DOFs that no frame has, or a file whose only frame is incomplete is refused
+  (:func:`mocapviz.io.checks.complete_frames`).
 - Text: keywords (``:units``, ``:bonedata``, ``begin``, ``dof``, ``:RADIANS``, ...), DOF and axis-order names in
   any case; bone names as written (case-sensitive); words separated by any ASCII white space; lines end with LF
   or CR LF; bytes read as Latin-1 (so ASF and AMC bone names match byte for byte), a UTF-8 BOM skipped.
-- Values: plain decimal numbers (no ``nan``, ``inf``); ``:units length`` 0.001 to 1000; bone lengths from 0 to
-  1e7 cm; angles within ±1e5 degrees; root translations and positions within ±1e7 cm
-  (:mod:`mocapviz.io.checks`).
+- Values: plain decimal numbers (no ``nan``, ``inf``; ``limits`` may say ``inf`` / ``-inf``, the ASF's no limit);
+  ``:units length`` 0.001 to 1000; bone lengths from 0 to 1e7 cm; bone directions unit vectors (length 1 ± 0.05,
+  normalised); ``id`` a finite number; angles and ``limits`` within ±1e5 degrees; root translations and positions
+  within ±1e7 cm (:mod:`mocapviz.io.checks`).
 """
 from __future__ import annotations
 
 import functools
 import os
-import warnings
 from collections import Counter
 from dataclasses import dataclass
 
@@ -37,7 +39,16 @@ import numpy as np
 
 from ..errors import MocapFormatError, ParameterError
 from ..motion import Motion, fps_problem, rotations
-from .checks import ANGLE_LIMIT_DEG, DISTANCE_LIMIT_CM, checked_forward_kinematics, describe, first_outside
+from .checks import (
+    ANGLE_LIMIT_DEG,
+    DISTANCE_LIMIT_CM,
+    check_limits,
+    checked_forward_kinematics,
+    complete_frames,
+    describe,
+    first_outside,
+    unit_directions,
+)
 from .text import name_hash, number, read_bytes, scan, words
 
 _ROT_DOFS = ("rx", "ry", "rz")
@@ -220,8 +231,11 @@ def _parse_asf(path, lines: list[str]) -> AsfSkeleton:
                 if len(tok) != 2:
                     raise MocapFormatError(path, "bone name must be one word", ln)
                 bone["name"] = tok[1]
+            elif k == "id":
+                _floats(tok[1:], 1, path, ln, "id")
             elif k == "direction":
                 bone["direction"] = _floats(tok[1:], 3, path, ln, "direction")
+                bone["direction_line"] = ln
             elif k == "length":
                 bone["length"] = _floats(tok[1:], 1, path, ln, "length")[0]
                 if bone["length"] < 0:
@@ -240,6 +254,8 @@ def _parse_asf(path, lines: list[str]) -> AsfSkeleton:
                         path, f"unsupported DOF {' '.join(bad or dof)!r} (rotational rx, ry, rz only)", ln
                     )
                 bone["dof"] = dof
+            elif k == "limits" or key.startswith("("):  # a limits line, or its continuation (one pair a line)
+                check_limits(tok[1:] if k == "limits" else tok, path, ln, *_angle_limit(degrees))
         elif section == "hierarchy":
             if k in ("begin", "end"):
                 continue
@@ -284,12 +300,8 @@ def _parse_asf(path, lines: list[str]) -> AsfSkeleton:
                                      f"±{DISTANCE_LIMIT_CM:g} cm", root.get("position_line"))
     root_position = np.array(root["position"]) * cm
     lengths = lengths * cm
-    # unit directions; scaled by their largest component first, so that 1e300 does not overflow the norm
-    direction = np.array([b["direction"] for b in bones], dtype=np.float64).reshape(-1, 3)
-    big = np.abs(direction).max(axis=1, keepdims=True)
-    direction = np.divide(direction, big, out=np.zeros_like(direction), where=big > 0)
-    norm = np.linalg.norm(direction, axis=1, keepdims=True)
-    direction = np.divide(direction, norm, out=np.zeros_like(direction), where=norm > 0)
+    direction = unit_directions([b["direction"] for b in bones], [b["name"] for b in bones],
+                                [b["direction_line"] for b in bones], path)
     offsets = direction * lengths[:, None]
     axis_q = np.stack([rotations.from_euler(b["order"], b["axis"], degrees) for b in bones])
     return AsfSkeleton(
@@ -452,36 +464,19 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
             lineno(line),
         )
     sc.data = sc.data[:0]  # the file's bytes are not needed any more (only for naming a token)
-    present = line_of >= 0
-    incomplete = (present != present.any(axis=0)).any(axis=1)
-    if n_frames > 1 and incomplete[-1] and not incomplete[:-1].any():
-        # the file ends inside its last frame (CMU golf_01.amc): keep the complete frames
-        warnings.warn(
-            f"{path}: last frame {frame_numbers[-1]:.0f} is incomplete (truncated file?); dropped it", stacklevel=2
-        )
-        n_frames -= 1
-        markers, frame_numbers, present, line_of = markers[:-1], frame_numbers[:-1], present[:-1], line_of[:-1]
-    partly = present.any(axis=0) & ~present.all(axis=0)
-    if partly.any():
-        b = int(np.argmax(partly))
-        f = int(np.argmax(~present[:, b]))
-        raise MocapFormatError(
-            path, f"frame {frame_numbers[f]:.0f} has no line for bone {names[b]!r} (truncated file?)", lineno(markers[f])
-        )
+    n_frames = complete_frames(line_of >= 0, counts > 0, names, path, lambda f: f"{frame_numbers[f]:.0f}",
+                               lambda f: lineno(markers[f]))
+    markers, line_of = markers[:n_frames], line_of[:n_frames]
 
-    layout = _channel_layout(skeleton)
-    use = present[0, layout.bone] if n_frames else np.zeros(layout.bone.shape, dtype=bool)
-    del present
-    bone, column = layout.bone[use], layout.column[use]
-    slot, trans = layout.euler_slot[use], layout.translation[use]
+    layout = _channel_layout(skeleton)  # (every channel's bone has a line in every frame kept)
+    bone, column, slot, trans = layout.bone, layout.column, layout.euler_slot, layout.translation
     rot = slot >= 0
     # per channel: the largest value accepted (angles in the file's unit; translations in file units)
     limit = np.where(rot, ANGLE_LIMIT_DEG if degrees else np.radians(ANGLE_LIMIT_DEG),
                      DISTANCE_LIMIT_CM / skeleton.cm_per_unit)
     n_bones = len(skeleton.bone_names)
-    # the file's rotation channels as they are (bones without lines: 0), in degrees, for Motion.euler
-    channels = np.zeros((n_frames, int(np.count_nonzero(layout.euler_slot >= 0))), dtype=np.float32)
-    channel_column = (np.cumsum(layout.euler_slot >= 0) - 1)[use][rot]
+    # the file's rotation channels as they are, in degrees, for Motion.euler
+    channels = np.empty((n_frames, int(np.count_nonzero(rot))), dtype=np.float32)
 
     def block(a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
         at = sc.first_value[line_of[a:b][:, bone]] + column  # (b-a, channels used): where each value is
@@ -496,7 +491,7 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
                                    lineno(line))
         euler = np.zeros((b - a, (n_bones + 1) * 3))  # each joint's angles in its own axis order
         euler[:, slot[rot]] = vals[:, rot]
-        channels[a:b, channel_column] = vals[:, rot] if degrees else np.degrees(vals[:, rot])
+        channels[a:b] = vals[:, rot] if degrees else np.degrees(vals[:, rot])
         t_local = np.empty((b - a, n_bones + 1, 3))
         t_local[:, 1:] = skeleton.offsets
         translation = np.zeros((b - a, 3))

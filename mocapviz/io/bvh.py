@@ -295,10 +295,13 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
         raise MocapFormatError(
             path, f"frame line has {sc.n_values[k]} values, the hierarchy has {n_channels} channels", sc.first_line + int(k)
         )
-    if data.size != n_frames:
-        # the first frame line beyond the header's count, or where the first missing frame should be
-        where = sc.first_line + (int(data[n_frames]) if data.size > n_frames else int(data[-1]) + 1 if data.size else 0)
-        raise MocapFormatError(path, f"header says {n_frames} frames, the file has {data.size}", where)
+    if data.size > n_frames:  # named at the first frame line beyond the header's count
+        raise MocapFormatError(path, f"header says {n_frames} frames, the file has {data.size}",
+                               sc.first_line + int(data[n_frames]))
+    if data.size < n_frames:  # named at the file's last line (a file of N lines has no line N + 1)
+        last = raw.count(b"\n") + (not raw.endswith(b"\n"))
+        raise MocapFormatError(path, f"header says {n_frames} frames, the file has {data.size}: it ends at line "
+                                     f"{last}", last)
     if data.size and data[-1] - data[0] + 1 != data.size:
         gap = int(data[np.argmax(np.diff(data) > 1)] + 1)
         raise MocapFormatError(path, "blank line inside the frame data", sc.first_line + gap)
