@@ -416,7 +416,7 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
     sc = scan(raw, path, first_line, start=start)
     del raw
     degrees = skeleton.degrees if header_degrees is None else header_degrees
-    lineno = lambda i: sc.first_line + int(i)
+    lineno = lambda i: first_line + int(i)
 
     blank_or_name = (sc.name_start >= 0) | (sc.n_values == 0)
     odd = ~blank_or_name & (sc.n_values > 1)
@@ -438,13 +438,15 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
         )
     n_frames = markers.size
 
-    # line_of[f, b]: the line of bone b in frame f (-1: none), in one pass over the lines
+    # line_of[f, b]: the line of bone b in frame f, counted from the frame's number (-1: none), in one pass over the
+    # lines; in the smallest integer type that holds the longest frame (1 byte a bone for real skeletons)
     names = ("root",) + skeleton.bone_names
     n_joints = len(names)
     counts = np.array([len(skeleton.root_order)] + [len(d) for d in skeleton.dofs], dtype=np.int64)
     known = _channel_layout(skeleton).name_hashes
     by_hash = np.argsort(known)
-    line_of = np.full((n_frames, n_joints), -1, dtype=np.int32 if sc.n_lines < 2**31 else np.int64)
+    longest = int(np.diff(markers, append=sc.n_lines).max())
+    line_of = np.full((n_frames, n_joints), -1, dtype=next(t for t in _OFFSET_TYPES if longest <= np.iinfo(t).max))
     error = np.zeros(2, dtype=np.int64)
     _bone_lines_kernel(sc.name_start, sc.name_hash, sc.n_values, known[by_hash], by_hash, counts, line_of, error)
     code, line = int(error[0]), int(error[1])
@@ -463,7 +465,8 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
             path, f"bone {names[b]!r} has {sc.n_values[line]} values, the skeleton gives it {counts[b]} ({dof})",
             lineno(line),
         )
-    sc.data = sc.data[:0]  # the file's bytes are not needed any more (only for naming a token)
+    values, first_value = sc.values, sc.first_value
+    del sc  # the file's bytes and the rest of the line layout are not needed any more
     n_frames = complete_frames(line_of >= 0, counts > 0, names, path, lambda f: f"{frame_numbers[f]:.0f}",
                                lambda f: lineno(markers[f]))
     markers, line_of = markers[:n_frames], line_of[:n_frames]
@@ -479,12 +482,12 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
     channels = np.empty((n_frames, int(np.count_nonzero(rot))), dtype=np.float32)
 
     def block(a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
-        at = sc.first_value[line_of[a:b][:, bone]] + column  # (b-a, channels used): where each value is
-        vals = sc.values[at]
+        at = first_value[markers[a:b, None] + line_of[a:b][:, bone]] + column  # (b-a, channels): where each value is
+        vals = values[at]
         bad = first_outside(vals, limit)
         if bad is not None:
             t, c = bad
-            line = int(np.searchsorted(sc.first_value, at[t, c], side="right") - 1)
+            line = int(np.searchsorted(first_value, at[t, c], side="right") - 1)
             what = f"{'rotation' if rot[c] else 'translation'} of bone {names[bone[c]]!r}"
             unit = ("degrees" if degrees else "radians") if rot[c] else f"file units ({DISTANCE_LIMIT_CM:g} cm)"
             raise MocapFormatError(path, f"{what}: {describe(vals[t, c])} is beyond ±{limit[c]:g} {unit}",
@@ -526,16 +529,20 @@ def read_amc(path, skeleton: AsfSkeleton, fps: float = 120.0) -> Motion:
 
 
 _BEFORE_FIRST_FRAME, _UNKNOWN_BONE, _WRONG_COUNT, _TWICE = 1, 2, 3, 4
+_OFFSET_TYPES = (np.int8, np.int16, np.int32, np.int64)  # for line_of: lines from a frame's number to its bone lines
 
 
 @numba.njit(cache=True, nogil=True)
 def _bone_lines_kernel(name_start, name_hash, n_values, sorted_hashes, bone_of_sorted, counts, line_of, error):  # pragma: no cover
-    # every line that starts with a name is a bone line of the frame of the last frame number before it
+    # every line that starts with a name is a bone line of the frame of the last frame number before it; line_of
+    # keeps how many lines after that frame number it is
     frame = -1
+    start = 0
     for i in range(name_start.shape[0]):
         if name_start[i] < 0:
             if n_values[i] > 0:
                 frame += 1  # (lines of more than one number were refused before)
+                start = i
             continue
         if frame < 0:
             error[0], error[1] = _BEFORE_FIRST_FRAME, i
@@ -551,7 +558,7 @@ def _bone_lines_kernel(name_start, name_hash, n_values, sorted_hashes, bone_of_s
         if line_of[frame, b] >= 0:
             error[0], error[1] = _TWICE, i
             return
-        line_of[frame, b] = i
+        line_of[frame, b] = i - start
 
 
 @dataclass(frozen=True)

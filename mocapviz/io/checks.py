@@ -48,7 +48,7 @@ DISTANCE_LIMIT_CM = 1e7
 DIRECTION_TOLERANCE = 0.05
 _UNBOUNDED = {"inf": np.inf, "-inf": -np.inf}  # the ASF specification's words for no limit
 _collected: contextvars.ContextVar[list | None] = contextvars.ContextVar("mocapviz_format_warnings", default=None)
-_BLOCK = 1 << 18  # joint-frames per forward-kinematics block: about 40 MB of temporaries
+_BLOCK = 1 << 16  # joint-frames per forward-kinematics block: about 12 MB of temporaries
 
 
 def check_frame_rate(fps: float, path, line: int | None, what: str) -> float:

@@ -260,6 +260,23 @@ def _scan_kernel(buf, offset, pow10, values, first_value, n_values, name_start, 
     return nv, line + 1
 
 
+@numba.njit(cache=True, nogil=True)
+def _line_starts(buf, offset, lines):  # pragma: no cover - numba
+    # the byte offset of each of ``lines`` (ascending; 0 is the line that starts at ``offset``), in one walk that
+    # stops at the last of them (no table of every line's start: 8 bytes a line)
+    out = np.empty(lines.shape[0], dtype=np.int64)
+    line = 0
+    i = offset
+    for k in range(lines.shape[0]):
+        while line < lines[k]:
+            while buf[i] != 10:
+                i += 1
+            i += 1
+            line += 1
+        out[k] = i
+    return out
+
+
 @dataclass
 class Scan:
     """Numbers and per-line layout of a block of text (what :func:`scan` returns); the fields are its attributes.
@@ -363,9 +380,9 @@ def scan(data: bytes, path, first_line: int = 1, start: int = 0) -> Scan:
     slow = np.flatnonzero(np.isnan(values[:nv]))
     if slow.size:
         lines = np.searchsorted(first_value[:nl], slow, side="right") - 1
-        line_starts = np.concatenate([[start], np.flatnonzero(buf[start:] == 10) + start + 1, [buf.shape[0] + 1]])
-        for k, line in zip(slow, lines):
-            tokens = bytes(buf[line_starts[line] : line_starts[line + 1] - 1]).split()
+        for k, line, at in zip(slow, lines, _line_starts(buf, start, lines)):
+            end = data.find(b"\n", at)
+            tokens = data[at : len(data) if end < 0 else end].split()
             values[k] = float(tokens[k - first_value[line] + (name_start[line] >= 0)])
     result = Scan(
         data=buf,

@@ -10,6 +10,7 @@ from ..errors import ParameterError, UnknownKeyError
 FPS_RANGE = (1.0, 10_000.0)
 """Frame rates (frames per second) mocapviz reads from files and resamples to: a clip outside them is a broken
 header (``Frame Time: 1e308``), not a capture."""
+_RESAMPLE_BLOCK = 1 << 16  # joint-frames per block of Motion.resample: about 25 MB of float64 temporaries
 
 
 def fps_problem(fps: float) -> str | None:
@@ -192,7 +193,8 @@ class Motion:
         Returns
         -------
         Motion
-            floor((T - 1) / self.fps x fps) + 1 frames: every frame time up to the time of the last frame.
+            floor((T - 1) / self.fps x fps) + 1 frames: every frame time up to the time of the last frame. Computed
+            a block of frames at a time into its float32 arrays: peak memory is the arrays returned plus a few MB.
 
         Raises
         ------
@@ -210,21 +212,32 @@ class Motion:
         if fps == self.fps:
             return self
         n_out = int(np.floor((self.n_frames - 1) * fps / self.fps + 1e-9)) + 1
-        x = np.arange(n_out) * (self.fps / fps)
+        pos = np.empty((n_out, self.n_joints, 3), dtype=np.float32)
+        quat = None if self.quaternions is None else np.empty((n_out, self.n_joints, 4), dtype=np.float32)
+        euler = None if self.euler is None else np.empty((n_out, self.euler.shape[1]), dtype=np.float32)
+        # a block of output frames at a time: the float64 temporaries (slerp's) stay a few MB whatever the length
+        step = max(1, _RESAMPLE_BLOCK // max(1, self.n_joints))
+        for a in range(0, n_out, step):
+            self._resample_block(np.arange(a, min(n_out, a + step)) * (self.fps / fps), pos, quat, euler, a)
+        return replace(self, positions=pos, quaternions=quat, euler=euler, fps=fps)
+
+    def _resample_block(self, x: np.ndarray, pos: np.ndarray, quat: np.ndarray | None, euler: np.ndarray | None,
+                        at: int) -> None:
+        """Frames at times ``x`` (in source frames) written to ``pos``, ``quat``, ``euler`` from row ``at`` on."""
         i0 = np.minimum(np.floor(x + 1e-9).astype(np.int64), self.n_frames - 1)
         i1 = np.minimum(i0 + 1, self.n_frames - 1)
         w = np.clip(x - i0, 0.0, 1.0)
-        pos = self.positions[i0] + (self.positions[i1] - self.positions[i0]) * w[:, None, None].astype(np.float32)
-        quat = None
-        if self.quaternions is not None:
+        out = slice(at, at + x.shape[0])
+        p0 = self.positions[i0]
+        pos[out] = p0 + (self.positions[i1] - p0) * w[:, None, None].astype(np.float32)
+        if quat is not None:
             from . import rotations  # numba: loaded by the first resampling, not by every import of Motion
 
-            quat = rotations.slerp(self.quaternions[i0], self.quaternions[i1], w[:, None]).astype(np.float32)
-        euler = None
-        if self.euler is not None:
-            step = np.remainder(self.euler[i1] - self.euler[i0] + 180.0, 360.0) - 180.0
-            euler = self.euler[i0] + step * w[:, None].astype(np.float32)
-        return replace(self, positions=pos, quaternions=quat, euler=euler, fps=fps)
+            quat[out] = rotations.slerp(self.quaternions[i0], self.quaternions[i1], w[:, None])
+        if euler is not None:
+            e0 = self.euler[i0]
+            turn = np.remainder(self.euler[i1] - e0 + 180.0, 360.0) - 180.0
+            euler[out] = e0 + turn * w[:, None].astype(np.float32)
 
     def __getitem__(self, frames) -> Motion:
         """Frames ``frames`` (a slice or an index array) of this clip as a new Motion."""

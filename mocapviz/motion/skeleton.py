@@ -651,13 +651,12 @@ def to_canonical(motion: Motion, mapping: dict[str, str] | None = None) -> Motio
         else:
             rot_joint = [found[c] for c in CANONICAL_JOINTS]
         idx = np.array([names.index(r) if r in names and not r.endswith("_end") else -1 for r in rot_joint])
-        quat = np.zeros((motion.n_frames, len(CANONICAL_JOINTS), 4), dtype=np.float32)
-        quat[..., 0] = 1.0
-        has = idx >= 0
-        quat[:, has] = motion.quaternions[:, idx[has]]
+        # taken straight into the result (fancy indexing would copy the selected joints first), identity where none
+        quat = np.take(motion.quaternions, np.maximum(idx, 0), axis=1)
+        quat[:, idx < 0] = np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32)
     return replace(
         motion,
-        positions=motion.positions[:, index],
+        positions=np.take(motion.positions, index, axis=1),
         joint_names=CANONICAL_JOINTS,
         parents=CANONICAL_PARENTS,
         quaternions=quat,
