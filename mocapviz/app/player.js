@@ -1,7 +1,7 @@
 // The dashboard's skeleton player, run in the browser (a Panel JSComponent: see player.py).
 //
 // The clips arrive once (model.positions: float32 (sum T_i, J, 3) cm, y up; model.alignment: int32 (S, n_clips)
-// frame per step; model.meta: lengths, titles, fps, parents, sides, bounds) and are animated here with
+// frame per step; model.meta: lengths, titles, fps, parents, sides, side_colours, bounds) and are animated here with
 // requestAnimationFrame on a Canvas 2D: a perspective projection of the bones (line segments), coloured by side, over
 // a floor grid. Drag orbits the camera, the wheel zooms, a double click resets the view. The shown step goes back to
 // Python (model.step) when paused or scrubbed, and at most every SYNC_MS during playback.
@@ -10,7 +10,6 @@
 // of each clip, comma separated) and data-playing, updated on every draw, and data-loads (clips received so far) and
 // data-clips (their number).
 
-const SIDE_COLOURS = { l: "#1f5fa8", r: "#d1452f", c: "#3c3c3c" };
 const SPEEDS = [0.25, 0.5, 1, 2];
 const SYNC_MS = 250;
 const SCRUB_SYNC_MS = 120;
@@ -133,7 +132,8 @@ export function render({ model, el }) {
 
   const ctx = canvas.getContext("2d");
   const st = {
-    clips: [], lengths: [], titles: [], parents: [], sides: [], bounds: [[-100, 0, -100], [100, 200, 100]],
+    clips: [], lengths: [], titles: [], parents: [], sides: [], sideColours: { c: "#3c3c3c" },
+    bounds: [[-100, 0, -100], [100, 200, 100]],
     fps: 30, nJoints: 0, align: new Int32Array(0), nSteps: 0, step: 0, pos: 0, playing: false,
     overlay: false, azimuth: HOME.azimuth, elevation: HOME.elevation, zoom: HOME.zoom,
     drawn: 0, loads: 0, lastTime: null, lastSync: 0, sent: null, scrubTimer: null, frameRequest: null, removed: false,
@@ -169,6 +169,7 @@ export function render({ model, el }) {
     st.titles = meta.titles || [];
     st.parents = meta.parents || [];
     st.sides = meta.sides || [];
+    st.sideColours = meta.side_colours || { c: "#3c3c3c" };  // mocapviz.viz.palette.SIDES
     st.bounds = meta.bounds || st.bounds;
     st.fps = meta.fps || 30;
     st.align = new Int32Array(arrayBuffer(model.alignment));
@@ -256,7 +257,7 @@ export function render({ model, el }) {
       }
       const s = screen[k];
       const t = screen[parent];
-      out.push([(s[2] + t[2]) / 2, t[0], t[1], s[0], s[1], SIDE_COLOURS[st.sides[k]] || SIDE_COLOURS.c, alpha,
+      out.push([(s[2] + t[2]) / 2, t[0], t[1], s[0], s[1], st.sideColours[st.sides[k]] || st.sideColours.c, alpha,
                 Math.max(2, Math.min(6, (cam.focal * 4) / ((s[2] + t[2]) / 2)))]);
     }
     return screen;
@@ -333,8 +334,9 @@ export function render({ model, el }) {
     canvas.dataset.drawn = String(st.drawn);
     canvas.dataset.step = String(st.step);
     canvas.dataset.playing = st.playing ? "1" : "0";
-    const seconds = st.nSteps / st.fps;
-    captionText.textContent = `step ${st.step + 1} of ${st.nSteps} · ${seconds.toFixed(2)} s at 1×`;
+    const speed = model.speed || 1;  // the playing time at the lit speed (the Python caption says the same)
+    const seconds = st.nSteps / st.fps / speed;
+    captionText.textContent = `step ${st.step + 1} of ${st.nSteps} · ${seconds.toFixed(2)} s at ${speed}×`;
     slider.value = String(st.step);
   }
 
@@ -490,6 +492,7 @@ export function render({ model, el }) {
   });
   model.on("speed", () => {
     showSpeed();
+    requestDraw();  // the caption's playing time follows the speed
   });
   model.on("view_size", () => {
     resize();
