@@ -6,9 +6,10 @@
     mocapviz query DB --example FILE|DOC_ID [--frames A:B] --features NAMES [--mode M] [--mismatch M [--mismatch-at I,J]]
                       [--relational-set 2005|2006] [-K 20] [--csv FILE]
     mocapviz features DB [--numeric-sets F15E,F30E,...] [--pca FILE|DB] [--scheduler ADDRESS | --no-cluster]
-    mocapviz knn DB --frame DOC:FRAME [--numeric-set F15E] [-k 16] [--radius R] [--eps E] [--exclude-document] [--csv FILE]
+    mocapviz knn DB --frame DOC:FRAME [--numeric-set F15E] [-k 16] [--radius R] [--eps E] [--exclude-document]
+                    [--per-document] [--csv FILE]
     mocapviz match DB --example FILE|DOC_ID [--frames A:B] [--numeric-set F15E] [-K 10] [-k 256] [--radius R] [--eps E]
-                                                                        [--method lng|dtw] [--paths] [--csv FILE]
+                      [--method lng|dtw] [--min-length 0.5] [--paths] [--csv FILE]
     mocapviz search DB --example FILE|DOC_ID [--frames A:B] [--numeric-set F15E] [-K 10] [--mode fast|exact|brute]
                        [--stretches [--min-length 0.5]] [--exclude-document] [--csv FILE] [--paths]
     mocapviz template learn DB --label CLASS [--actors A,B,...] [--relational-set 2005|2006] [--out FILE]
@@ -62,7 +63,17 @@ from .errors import MocapvizError, ParameterError
 from .features import NUMERIC_SETS
 from .motion import FPS_RANGE
 from .parallel import LOCAL, dask_client, optional_client  # light: dask itself is imported by dask_client
-from .validation import frame_span, parse_count, parse_integers, parse_names, parse_number, parse_port, parse_span
+from .validation import (
+    MIN_LENGTH,
+    MIN_LENGTH_RANGE,
+    frame_span,
+    parse_count,
+    parse_integers,
+    parse_names,
+    parse_number,
+    parse_port,
+    parse_span,
+)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -431,8 +442,10 @@ def _knn(args) -> None:
             dist, idx = sharded.knn(features[span.start + frame], args.k, args.numeric_set, args.radius, args.eps, own)
             dist, idx, how = dist[0], idx[0], repr(sharded)
         ms = 1000 * (time.perf_counter() - t0)
-    hits = describe_frames(db, idx, dist)
-    print(f"{len(hits)} neighbours of document {doc} frame {frame} by {args.numeric_set} in {ms:.2f} ms ({how})")
+    hits = describe_frames(db, idx, dist, per_document=args.per_document)
+    found = int((idx >= 0).sum())
+    each = f"; one row per document: the nearest in each of {len(hits)}" if args.per_document else ""
+    print(f"{found} neighbours of document {doc} frame {frame} by {args.numeric_set} in {ms:.2f} ms ({how}){each}")
     cols = [c for c in ("rank", "doc_id", "name", "start", "start_s", "distance", "label") if c in hits]
     with pd.option_context("display.width", 160, "display.max_rows", args.k + 5):
         print(hits[cols].round(3).to_string(index=False))
@@ -459,16 +472,18 @@ def _match(args) -> None:
         if sharded is None:
             table = match_motion(db, example, args.frames, name, args.method, args.n_matches, k, args.radius, eps,
                                  exclude_document=isinstance(example, int), paths=args.paths, features=X,
-                                 option="--frames")  # fmt: skip
+                                 option="--frames", min_length=args.min_length)  # fmt: skip
         else:
             table = sharded.match_motion(example, args.frames, name, args.method, args.n_matches,
                                          None if args.method == "dtw" else k, args.radius, eps,
-                                         exclude_document=isinstance(example, int), paths=args.paths)  # fmt: skip
+                                         exclude_document=isinstance(example, int), paths=args.paths,
+                                         min_length=args.min_length)  # fmt: skip
     what = "subsequence DTW" if args.method == "dtw" else f"lazy neighbourhood graph, k={k}" + (
         f", r={args.radius:g}" if args.radius else "")  # fmt: skip
     own = isinstance(example, int)
-    print(f"{len(table)} matches of a {table.attrs['query_frames']}-frame query by {name} ({what}) in "
-          f"{table.attrs['ms']:.1f} ms" + (" (the query's own document excluded)" if own else ""))  # fmt: skip
+    print(f"{len(table)} matches of a {table.attrs['query_frames']}-frame query by {name} ({what}), each at least "
+          f"{args.min_length:g} × the query long, in {table.attrs['ms']:.1f} ms"
+          + (" (the query's own document excluded)" if own else ""))  # fmt: skip
     _print_ranked(table, args.n_matches, "the lazy neighbourhood graph needs a neighbour of every query frame along a whole "
                   "path: try a larger -k such as 1024, --method dtw, or `mocapviz search DB --stretches`"
                   if args.method == "lng" else "no document long enough outside the query's own")  # fmt: skip
@@ -513,7 +528,7 @@ def _search(args) -> None:
         else:
             search = SimilaritySearch(db, args.numeric_set)
         if args.stretches:
-            min_length = 0.5 if args.min_length is None else args.min_length
+            min_length = MIN_LENGTH if args.min_length is None else args.min_length
             table = search.stretches(example, frames=frames, min_length=min_length, **options)
         else:
             table = search.clips(example, frames=frames, **options)
@@ -806,6 +821,8 @@ def build_parser() -> argparse.ArgumentParser:
     _option(kn, "--eps", check=_number(low=0), default=0.0, help="approximate search: k-th distance within (1+eps), "
             "eps >= 0")
     kn.add_argument("--exclude-document", action="store_true", help="leave out the frame's own document")
+    kn.add_argument("--per-document", action="store_true", help="one row per document: the nearest of the k "
+                    "neighbours in each (consecutive frames of one take otherwise fill the top rows)")
     kn.add_argument("--quiet", action="store_true", help="no progress bar")
     kn.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
     _search_scheduler(kn)
@@ -827,6 +844,8 @@ def build_parser() -> argparse.ArgumentParser:
     _option(mt, "--eps", check=_number(low=0), help="--method lng: approximate kNN, k-th distance within (1+eps), "
             "eps >= 0 (default 0)")
     mt.add_argument("--method", choices=["lng", "dtw"], default="lng", help="lng (default) or subsequence DTW")
+    _option(mt, "--min-length", check=MIN_LENGTH_RANGE.parse, default=MIN_LENGTH, help="the shortest match as a "
+            "share of the query's frames, in (0, 1] (default 0.5, as search --stretches)")
     mt.add_argument("--paths", action="store_true", help="also print each match's alignment (query frame:document "
                     "frame pairs)")  # fmt: skip
     mt.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
@@ -847,7 +866,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "every cell")  # fmt: skip
     se.add_argument("--stretches", action="store_true", help="the K best non-overlapping stretches inside documents "
                     "(subsequence DTW) instead of whole clips")  # fmt: skip
-    _option(se, "--min-length", check=_number(low=0, high=1, low_open=True), help="with --stretches: the shortest "
+    _option(se, "--min-length", check=MIN_LENGTH_RANGE.parse, help="with --stretches: the shortest "
             "match as a share of the query's frames, in (0, 1] (default 0.5)")  # fmt: skip
     se.add_argument("--exclude-document", action="store_true", help="leave out the example's own document")
     se.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")

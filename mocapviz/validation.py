@@ -3,11 +3,16 @@ that names the value and says what to pass (the one place such checks are writte
 
 count              an integer within a range (k neighbours, K matches, budgets).
 number             a finite number within an interval (thresholds, tolerances).
+Interval           such an interval as a value: the one statement of what a parameter accepts, checked by the
+                   library (``Interval.check``) and bounding the dashboard's box of that parameter.
 one_of, some_of    a name (or several) from a fixed set: numeric sets, relational sets, engines, ...
 finite_positions   joint positions without NaN or inf, the first bad frame and joint named.
 renamed            a decorator accepting a parameter's old name (see the glossary) with a FutureWarning.
 frame_span         a [first, last) span of frames inside a clip of n frames, at least ``least`` of them.
 integer_columns    integer columns of a table (a hit table read from CSV), the missing column or first bad row named.
+
+MIN_LENGTH_RANGE   the shortest match of a search as a share of the query's frames, (0, 1] (default MIN_LENGTH,
+                   0.5): every search by subsequence alignment and its command-line option take it.
 
 Checks of text (command-line values; the command's ``type=`` functions call them):
 
@@ -20,8 +25,10 @@ parse_span         ``A:B`` frame numbers (either may be left out), A < B.
 from __future__ import annotations
 
 import functools
+import math
 import warnings
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -411,6 +418,52 @@ def number(value, name: str, low: float | None = None, high: float | None = None
     if not inside:
         raise ParameterError(f"{name} must be a number {interval}; got {value!r}")
     return x
+
+
+@dataclass(frozen=True)
+class Interval:
+    """The numbers a parameter accepts, from ``low`` to ``high`` (closed ends unless ``low_open`` / ``high_open``;
+    None: unbounded): the one statement of a range, checked by the library (:meth:`check`, that is :func:`number`)
+    and bounding the dashboard's box of the same parameter (:meth:`closed`), so the box never takes what the run
+    refuses.
+
+    Examples
+    --------
+    >>> delta = Interval(0.0, 0.5, low_open=True, high_open=True)
+    >>> delta.check(0.1, "delta"), delta.closed(0.01)
+    (0.1, (0.01, 0.49))
+    >>> delta.check(0, "delta")
+    Traceback (most recent call last):
+    ...
+    mocapviz.errors.ParameterError: delta must be a number in (0, 0.5); got 0
+    """
+
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+
+    def check(self, value, name: str) -> float:
+        """``value`` as a float inside the interval, or a ParameterError naming ``name`` and the interval."""
+        return number(value, name, self.low, self.high, self.low_open, self.high_open)
+
+    def parse(self, text: str, name: str) -> float:
+        """The number written in ``text`` inside the interval (:func:`parse_number`): a command-line value."""
+        return parse_number(text, name, self.low, self.high, self.low_open, self.high_open)
+
+    def closed(self, step: float) -> tuple[float | None, float | None]:
+        """The closed range of a box stepping by ``step`` inside the interval: an open end moves in by one step
+        (δ in (0, 0.5) stepping by 0.01: 0.01..0.49), rounded to the step's decimals."""
+        places = max(0, -math.floor(math.log10(step))) + 1
+
+        def end(value, inward, is_open):
+            return None if value is None else round(value + inward * step, places) if is_open else value
+
+        return end(self.low, 1, self.low_open), end(self.high, -1, self.high_open)
+
+
+MIN_LENGTH = 0.5  # the shortest match of a search, a share of the query's frames: half as long as the query
+MIN_LENGTH_RANGE = Interval(0.0, 1.0, low_open=True)
 
 
 def parse_number(text: str, name: str, low: float | None = None, high: float | None = None, low_open: bool = False,

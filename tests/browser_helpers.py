@@ -109,3 +109,25 @@ def record_first_answer(action: str, seconds: float) -> None:
     data.setdefault("first_answer_s", {})[action] = round(float(seconds), 3)
     data["units"]["first_answer_s"] = "s from the click to the result shown, first of its kind after the server started"
     out.write_text(json.dumps(data, indent=1, sort_keys=True))
+
+
+def run_in_thread(coroutine):
+    """Run a coroutine (a page's button handler, driven without a browser) on a fresh event loop in a thread of its
+    own, and return its result: the browser tests' Playwright holds this thread's loop, so asyncio.run here fails."""
+    import asyncio
+    import threading
+
+    out = {}
+
+    def main():
+        try:
+            out["result"] = asyncio.run(coroutine)
+        except BaseException as exc:  # noqa: BLE001 - raised again in the calling thread
+            out["error"] = exc
+
+    thread = threading.Thread(target=main)
+    thread.start()
+    thread.join()
+    if "error" in out:
+        raise out["error"]
+    return out["result"]

@@ -5,14 +5,17 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 from browser_helpers import ARTIFACTS, open_dashboard, record_timing
 from playwright.sync_api import expect
 
+from mocapviz.app import player as player_mod
 from mocapviz.app.player import SPEEDS, PlayerView, SkeletonPlayer, decode, joint_sides
 from mocapviz.motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
+from mocapviz.viz.palette import SIDES
 
 
 @pytest.fixture(scope="module")
@@ -45,11 +48,17 @@ def test_the_browser_gets_the_clips_exactly(clips):
     np.testing.assert_array_equal(alignment[:, 0], np.minimum(np.arange(p.n_steps), len(clips[0]) - 1))
 
 
-def test_sides_follow_the_joint_names():
+def test_sides_follow_the_joint_names_in_the_palettes_colours(clips):
     sides = dict(zip(CANONICAL_JOINTS, joint_sides()))
     assert sides["lhip"] == sides["lwrist"] == "l" and sides["rknee"] == sides["rclavicle"] == "r"
     assert sides["root"] == sides["belly"] == sides["headtop"] == "c"
     assert joint_sides(["lefty", "ltoe", "rtoe", "look"]) == ["c", "l", "r", "c"]
+    p = SkeletonPlayer(size=(200, 100))
+    p.load(clips[:1], fps=120)
+    # the browser colours bones by the palette's sides, the one definition the skeleton pictures use too
+    assert p.view.meta["sides"] == joint_sides() and p.view.meta["side_colours"] == SIDES
+    script = (Path(player_mod.__file__).parent / "player.js").read_text()
+    assert SIDES["r"] not in script and "meta.side_colours" in script  # no second definition in the script
 
 
 def test_unaligned_clips_hold_their_last_frame(clips):
@@ -84,6 +93,7 @@ def test_speed_goes_both_ways(clips):
     assert p.speed == p.view.speed == 1.0
     p.view.speed = 2.0  # a click in the browser
     assert p.speed == 2.0
+    assert p.caption().endswith(f" · {len(clips[0]) / 120 / 2:.2f} s at 2×")  # the time it plays in at 2×
     p.speed = 0.25
     assert p.view.speed == 0.25 and set(SPEEDS) == {0.25, 0.5, 1.0, 2.0}
 
@@ -191,10 +201,12 @@ def test_playback_runs_in_the_browser(sample_db, sample_dashboard, page, screens
     to = n // 2
     scrub = page.evaluate(_SCRUB, [player.element_handle(), to])
     assert scrub["step"] == str(to) and scrub["frames"] == str(to) and scrub["drawn"] == scrub["before"]["drawn"] + 1
-    assert scrub["caption"].startswith(f"step {to + 1} of {n} ")
+    assert scrub["caption"].startswith(f"step {to + 1} of {n} ") and scrub["caption"].endswith(f"{n / fps:.2f} s at 1×")
     # ... and Python hears of it: "span starts here" takes the player's frame
     page.get_by_role("button", name="span starts here").click()
     expect(page.locator(".mv-span")).to_contain_text(f"{to}")
+    player.locator("button", has_text="2×").click()  # the caption says how long the clip plays at the lit speed
+    expect(player.locator(".mv-player-caption")).to_contain_text(f"step {to + 1} of {n} · {n / fps / 2:.2f} s at 2×")
     screenshot("scrubbed")
 
     # the camera: drag orbits, the wheel zooms; both redraw in the browser

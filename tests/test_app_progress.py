@@ -1,5 +1,5 @@
 """Task (mocapviz.app.progress): a page's long computation in a worker thread, its errors as one line without an
-exception type."""
+exception type, no old result left under them; the bounded number boxes of mocapviz.app.widgets."""
 
 from __future__ import annotations
 
@@ -7,10 +7,14 @@ import asyncio
 import logging
 import threading
 
+import holoviews as hv
+import pandas as pd
 import panel as pn
 
 from mocapviz.app.progress import Task
+from mocapviz.app.widgets import BoundedFloatInput, BoundedIntInput, results_table
 from mocapviz.errors import ParameterError
+from mocapviz.validation import Interval
 
 
 def _run(coroutine):
@@ -77,3 +81,71 @@ def test_the_red_line_goes_away_when_the_next_run_succeeds():
     assert task.error.visible
     assert _run(task.run("Searching", lambda: 2))[0] == 2
     assert not task.error.visible and task.status.object.startswith("Searching: done in")
+
+
+def test_a_failed_run_leaves_no_old_result_under_its_error():
+    """The panes of the previous result passed as ``stale`` are emptied when a run fails (a user's error or an
+    unexpected one), kept when it succeeds."""
+    def shown():
+        table = results_table(pd.DataFrame({"rank": [1, 2]}), "t")
+        return (table, pn.pane.Markdown("**2 hits**"), pn.pane.HoloViews(hv.Curve([1, 2])),
+                pn.Column("player", visible=True))
+
+    task = Task()
+    kept = shown()
+    assert _run(task.run("Searching", lambda: 1, stale=kept))[0] == 1
+    assert len(kept[0].value) == 2 and kept[1].object and kept[2].object is not None and kept[3].visible
+    for error in (ParameterError("k must be between 1 and 4,257"), ZeroDivisionError()):
+        def fail(error=error):
+            raise error
+
+        table, count, plot, box = shown()
+        assert _run(task.run("Searching", fail, stale=(table, count, plot, box)))[0] is None
+        assert task.error.visible
+        assert table.value.empty and list(table.value.columns) == ["rank"]  # its columns stay
+        assert count.object == "" and plot.object is None and not box.visible
+
+
+def test_a_box_bounded_by_an_interval_never_takes_what_the_check_refuses():
+    """``BoundedFloatInput.within``: δ in (0, 0.5) stepping by 0.01 is the box 0.01–0.49; 0, 0.5 and -1 typed are
+    moved inside, each with a note; every value the box keeps passes the library's check."""
+    delta = Interval(0.0, 0.5, low_open=True, high_open=True)
+    box = BoundedFloatInput.within("δ", 0.1, delta, 0.01)
+    assert (box.start, box.end, box.name) == (0.01, 0.49, "δ (0.01–0.49)")
+    for typed, kept in ((0.0, 0.01), (0.5, 0.49), (-1.0, 0.01), (0.3, 0.3)):
+        box.value = typed
+        assert box.value == kept and delta.check(box.value, "delta") == kept
+        assert box.note.visible == (typed != kept)
+    assert box.note.object == ""
+    box.value = 0.0
+    assert box.note.object == "**δ** must be 0.01–0.49: 0 was set to 0.01."
+    box.value = float("nan")  # a cleared box
+    assert box.value == 0.01 and "was empty" in box.note.object
+
+
+def test_an_optional_box_is_none_when_empty_and_bounded_when_typed():
+    """The templates page's max cost: empty means none (not NaN, not the previous value); 5 becomes 1 and -1
+    becomes 0, with a note, so the box shows the value that runs."""
+    box = BoundedFloatInput.within("max cost", None, Interval(0.0, 1.0), 0.01, optional=True)
+    assert box.value is None and box.name == "max cost (0–1, empty: none)"
+    box.value = 0.5
+    for typed, kept in ((5.0, 1.0), (-1.0, 0.0)):
+        box.value = typed
+        assert box.value == kept and box.note.visible
+    box.value = float("nan")  # cleared in the browser
+    assert box.value is None and not box.note.visible
+
+
+def test_new_bounds_note_only_a_value_the_user_entered():
+    """A value the page set (the default, or one passed to set_bounds) moves silently into new bounds; one the user
+    typed moves with a note saying so."""
+    m = BoundedIntInput("m", 1, 0, 1)
+    m.set_bounds(0, 0)
+    assert m.value == 0 and not m.note.visible  # the default, moved before any input: no note
+    m.set_bounds(0, 4)
+    m.value = 3  # typed
+    m.set_bounds(0, 2)
+    assert m.value == 2 and m.note.object == "**m** must now be 0–2: 3 was set to 2."
+    m.set_bounds(0, 1, 1)  # the page sets a value: the user's is gone
+    m.set_bounds(0, 0)
+    assert m.value == 0 and not m.note.visible

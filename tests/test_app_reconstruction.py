@@ -1,14 +1,23 @@
-"""Browser tests of the dashboard's Reconstruction page (Krüger et al. 2010 §5.2) on the embedded sample."""
+"""The dashboard's Reconstruction page (Krüger et al. 2010 §5.2) on the embedded sample: in the browser, and its
+bounds without one."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from browser_helpers import assert_no_exception_names, open_dashboard, open_tab, record_timing, timed
 from playwright.sync_api import expect
 
-from mocapviz.app.pages.reconstruction import DEFAULT_NOISE_CM, SEED, default_k
+from mocapviz.app.pages.reconstruction import DEFAULT_NOISE_CM, SEED, check_settings, default_k
+from mocapviz.errors import ParameterError
 from mocapviz.motion.skeleton import heading
-from mocapviz.similarity.reconstruction import PosePrior, reconstruct, reconstruction_errors, synthetic_markers
+from mocapviz.similarity.reconstruction import (
+    NOISE_RANGE_CM,
+    PosePrior,
+    reconstruct,
+    reconstruction_errors,
+    synthetic_markers,
+)
 
 TEST_DOC = 3  # HDM_dg_elbowToKnee1RepsLelbowStart_017_120: 100 frames of actor dg
 ERROR = ".mv-recon-error p"
@@ -77,8 +86,12 @@ def test_bad_choices_say_why(page, sample_dashboard, sample_db, screenshot):
     noise = page.locator(".mv-recon-noise input")
     noise.fill("-1")
     noise.press("Enter")
-    page.locator(".mv-input-note", has_text="marker noise ± cm must be ≥ 0: -1 was set to 0.").wait_for()
+    page.locator(".mv-input-note", has_text="marker noise ± cm must be 0–100: -1 was set to 0.").wait_for()
     expect(noise).to_have_value("0")
+    noise.fill("1000000000")  # unbounded, 1e9 cm made the page unresponsive for minutes
+    noise.press("Enter")
+    page.locator(".mv-input-note", has_text="marker noise ± cm must be 0–100: 1,000,000,000 was set to 100.").wait_for()
+    expect(noise).to_have_value("100")
     screenshot("k-too-large")
     clip.select_option(label=_option(sample_db, 0))  # a CMU trial: no actor
     page.locator(".mv-recon-prior select").select_option(label="without the test clip's actor")
@@ -86,6 +99,24 @@ def test_bad_choices_say_why(page, sample_dashboard, sample_db, screenshot):
     page.locator(MESSAGE).get_by_text("Document 0 has no actor label").wait_for()
     assert not page.locator(ERROR).is_visible()
     assert_no_exception_names(page)
+
+
+def test_the_noise_is_bounded_by_the_library_and_the_box_by_the_same_range(sample_db):
+    """The marker noise: at most 100 cm (NOISE_RANGE_CM) in the library, and the page's box ends there too."""
+    from mocapviz.app.backend import Backend
+    from mocapviz.app.pages.reconstruction import ReconstructionPage
+    from mocapviz.app.state import Selection
+
+    truth = np.zeros((3, 24, 3))
+    assert np.abs(synthetic_markers(truth, 100.0, seed=0)).max() <= 100.0
+    for bad in (100.01, 1e9, -0.1, float("inf")):
+        with pytest.raises(ParameterError, match=r"noise_cm must be a number in \[0, 100\]"):
+            synthetic_markers(truth, bad, seed=0)
+        assert "must be a number in [0, 100]" in check_settings(sample_db, TEST_DOC, "clip", 16, bad)
+    page = ReconstructionPage(Backend.open(sample_db.path), Selection())
+    assert (page.noise.start, page.noise.end) == (NOISE_RANGE_CM.low, NOISE_RANGE_CM.high) == (0, 100)
+    page.noise.value = 1e9
+    assert page.noise.value == 100 and check_settings(sample_db, TEST_DOC, "clip", 16, page.noise.value) is None
 
 
 def test_real_markers_of_a_c3d_clip_against_the_same_takes_amc(c3d_dir, cmu_dir, tmp_path):

@@ -1,5 +1,6 @@
 """Browser tests of the dashboard's Relational query page (Müller, Röder & Clausen 2005 §5) in headless Chromium: the
-hits shown are those of :func:`mocapviz.relational.query.query_by_example` for the query chosen through the widgets."""
+hits shown are those of :func:`mocapviz.relational.query.query_by_example` for the query chosen through the widgets;
+its boxes' notes without a browser."""
 
 from __future__ import annotations
 
@@ -153,6 +154,28 @@ def test_no_feature_says_so_and_out_of_range_entries_are_corrected(sample_db, sa
     assert not message.is_visible()
     assert_no_exception_names(page)
     screenshot("corrected")
+
+
+def test_notes_say_what_the_user_changed_only(sample_db):
+    """No note when the page opens (m's default moved into 0–0 silently); a first frame typed after the last (or a
+    last before the first) makes them change places, and the box that was typed says so."""
+    from mocapviz.app.backend import Backend
+    from mocapviz.app.pages.relational import RelationalPage
+    from mocapviz.app.state import Selection
+
+    page = RelationalPage(Backend.open(sample_db.path), Selection())
+    boxes = (page.first, page.last, page.mismatches)
+    assert not any(b.note.visible for b in boxes), [b.note.object for b in boxes]
+    page.doc.value = 10  # sneak2StepsLStart: 215 frames
+    page.last.value = 50
+    page.first.value = 120
+    assert tuple(page.span.value) == (50, 120) and (page.first.value, page.last.value) == (50, 120)
+    assert page.first.note.object == ("**first frame** 120 is after the last frame 50: the two were swapped, the "
+                                      "span is now frames 50–120.")
+    assert page.query()["span"] == (50, 121)
+    page.last.value = 10
+    assert (page.first.value, page.last.value) == (10, 50) and not page.first.note.visible
+    assert "**last frame** 10 is before the first frame 50" in page.last.note.object
 
 
 def test_round_trip_on_hdm05(hdm05_db30, hdm05_dashboard, page, screenshot):

@@ -19,9 +19,18 @@ from browser_helpers import (
     text_of,
     timed,
 )
+from playwright.sync_api import expect
 
+from mocapviz.app.backend import Backend
 from mocapviz.app.pages.retrieval import DEFAULT_METHODS, label_columns, summary_view
-from mocapviz.app.pages.similarity import LNG_K_AT_30HZ, match_alignment, matrix_docs, scaled_k
+from mocapviz.app.pages.similarity import (
+    LNG_K_AT_30HZ,
+    match_alignment,
+    match_span,
+    matrix_docs,
+    nearest_frames,
+    scaled_k,
+)
 from mocapviz.experiments.retrieval import retrieval_quality
 from mocapviz.features import numeric_of
 from mocapviz.match.neighbourhood_graph import lng
@@ -90,12 +99,17 @@ def _set(page, css: str, value: int) -> None:
     box.press("Enter")
 
 
-def _knn_library(db, doc: int, frame: int, k: int) -> pd.DataFrame:
-    """The kNN of a frame by F15E, its own document excluded, as ``mocapviz knn`` computes it."""
+def _knn_frames(db, doc: int, frame: int, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The k nearest database frames of a frame by F15E, its own document excluded: (frames, distances)."""
     X = numeric_of(db, "F15E")
     span = db.frames(doc)
     distances, frames = KnnIndex(X).query(X[span.start + frame], k, exclude=(span.start, span.stop))
-    return describe_frames(db, frames, distances)
+    return frames, distances
+
+
+def _knn_library(db, doc: int, frame: int, k: int) -> pd.DataFrame:
+    """The kNN of a frame by F15E, its own document excluded, as ``mocapviz knn`` computes it."""
+    return describe_frames(db, *_knn_frames(db, doc, frame, k))
 
 
 def _lng_library(db, doc: int, span: tuple[int, int], k: int, n_matches: int = 10) -> pd.DataFrame:
@@ -108,6 +122,19 @@ def _lng_library(db, doc: int, span: tuple[int, int], k: int, n_matches: int = 1
 
 
 # ============================================================================ pure helpers of the page
+def test_knn_one_row_per_document_and_lng_matches_of_half_the_span(sample_db):
+    """The page's kNN, one row per document on request: each document's nearest of the k neighbours, in order; its
+    LNG matches of the whole kick (129 frames): none shorter than 65 frames (before: 1- and 12-frame "matches")."""
+    backend = Backend.open(sample_db.path)
+    full = nearest_frames(backend, "F15E", 7, 40, 256, False)
+    each = nearest_frames(backend, "F15E", 7, 40, 256, False, per_document=True)
+    assert each.attrs["neighbours"] == len(full) == 256 and each["doc_id"].is_unique and len(each) < 20
+    best = full.drop_duplicates("doc_id")  # nearest first: each document's first row is its nearest
+    assert each[["doc_id", "start", "distance"]].values.tolist() == best[["doc_id", "start", "distance"]].values.tolist()
+    found = match_span(backend, "F15E", 7, (0, 129), scaled_k(LNG_K_AT_30HZ, 120.0), 10, True)
+    assert len(found) >= 1 and (found["frames"] >= 65).all() and found.attrs["min_length"] == 0.5
+
+
 def test_match_alignment_counts_the_match_clip_from_its_first_frame():
     path = np.array([[0, 500], [1, 500], [1, 501], [2, 502]])
     np.testing.assert_array_equal(match_alignment(path, 500), [[0, 0], [1, 0], [1, 1], [2, 2]])
@@ -169,6 +196,16 @@ def test_knn_of_the_current_frame_equals_the_library(page, sample_dashboard, sam
     assert not page.locator(".mv-knn-task .mv-error").is_visible()
     assert_no_exception_names(page)
 
+    # one row per document: each document's nearest of the 256, as the library's per_document table
+    page.locator(".mv-knn-per-document input").check()
+    page.locator(".mv-knn-search button").click()
+    page.locator(".mv-knn-count", has_text="one row per document").wait_for()
+    each = describe_frames(sample_db, *_knn_frames(sample_db, doc, frame, 256), per_document=True)
+    assert each["doc_id"].is_unique and len(each) < 256
+    shown = min(len(each), 12)
+    assert _cells(page, ".mv-knn-table", "doc_id", shown) == [str(d) for d in each["doc_id"][:shown]]
+    assert _cells(page, ".mv-knn-table", "start", shown) == [str(f) for f in each["start"][:shown]]
+
 
 def test_lng_matches_equal_the_library_and_play_aligned(page, sample_dashboard, sample_db, screenshot):
     open_dashboard(page, sample_dashboard)
@@ -183,6 +220,9 @@ def test_lng_matches_equal_the_library_and_play_aligned(page, sample_dashboard, 
     expected = _lng_library(sample_db, doc, span, k)
     assert len(expected) > 0
     assert _leading_int(page, ".mv-match-count") == len(expected)
+    shortest = -(-(span[1] - span[0]) // 2)  # the library's rule: at least half the span
+    assert (expected["end"] - expected["start"] + 1 >= shortest).all()
+    assert f"each at least 0.5 × the span long ({shortest} frames)" in text_of(page, ".mv-match-count")
     best = int(sample_db.documents["doc_id"].iloc[expected["doc_id"].iloc[0]])
     assert _cells(page, ".mv-match-table", "doc_id", 1) == [str(best)]
     assert "HDM_mm_kickLFront1Reps" in page.locator(".mv-match-table .tabulator-row").first.inner_text()
@@ -252,6 +292,12 @@ def test_search_of_clips_and_stretches_equals_the_library_and_plays_aligned(page
     _corrected(page, ".mv-search-k", "1000", 100, "K results must be 1–100: 1,000 was set to 100.")
 
 
+_WHOLE_CELL = """c => {
+    const holder = c.closest('.tabulator-tableholder').getBoundingClientRect();
+    return c.scrollWidth <= c.clientWidth + 1 && c.getBoundingClientRect().right <= holder.right + 1;
+}"""
+
+
 def test_retrieval_quality_equals_the_library(page, sample_dashboard, sample_db, sample_server_log, screenshot):
     open_dashboard(page, sample_dashboard)
     open_tab(page, RETRIEVAL_TAB)
@@ -266,6 +312,10 @@ def test_retrieval_quality_equals_the_library(page, sample_dashboard, sample_db,
     for column in ("map_loo", "map_lgo", "p_at_1", "recall_dtw_top10"):
         assert _cells(page, ".mv-retrieval-summary", column, n) == [f"{v:.3f}" for v in expected[column]]
     page.locator(".mv-retrieval-summary .tabulator-col-title", has_text="mAP (leave-actor-out)").wait_for()
+    notes = page.locator(".mv-retrieval-summary .tabulator-cell[tabulator-field='note']")
+    assert notes.count() == n and "graph path" in notes.nth(n - 1).inner_text()  # lng256 says why
+    for i in range(n):  # each note wraps inside its cell, and the cell inside the table: nothing cut off
+        assert notes.nth(i).evaluate(_WHOLE_CELL), notes.nth(i).inner_text()
     for protocol in ("loo", "lgo"):
         page.locator(f".mv-retrieval-bars-{protocol} canvas").first.wait_for(state="visible")
         page.locator(f".mv-retrieval-curves-{protocol} canvas").first.wait_for(state="visible")
@@ -279,6 +329,8 @@ def test_retrieval_quality_equals_the_library(page, sample_dashboard, sample_db,
     error.wait_for(state="visible")
     shown = text_of(page, ".mv-retrieval-task .mv-error")
     assert shown.startswith("Evaluating failed. the label and the leave-group-out column are both"), shown
+    expect(page.locator(".mv-retrieval-summary .tabulator-row")).to_have_count(0)  # no old result under the error
+    expect(page.locator(".mv-retrieval-figures")).to_be_hidden()
     assert_no_exception_names(page)
     # the next evaluation succeeds: the red line goes
     page.locator(".mv-retrieval-group select").select_option("actor")

@@ -7,15 +7,17 @@ import time
 
 import pandas as pd
 import pytest
-from browser_helpers import open_dashboard, open_tab, record_timing, text_of
+from browser_helpers import open_dashboard, open_tab, record_timing, run_in_thread, text_of
 
 from mocapviz.app.backend import Backend
 from mocapviz.app.pages import correlations as corr_page
 from mocapviz.app.pages import statistics as stats_page
+from mocapviz.errors import ParameterError
 from mocapviz.experiments.correlation import (
     available_measures,
     correlation_sample,
     pose_correlations,
+    pose_limits,
     segment_correlations,
 )
 from mocapviz.experiments.numeric import krueger2010_table1
@@ -238,6 +240,41 @@ def test_segment_problem_names_what_is_missing(sample_db):
     assert corr_page.segment_problem(sample_db, 2, 8) == ""
     assert "need several clips per class" in corr_page.segment_problem(sample_db, 3, 8)
     assert "between 2 and 21" in corr_page.segment_problem(sample_db, 2, 22)
+
+
+def test_k_and_queries_are_bounded_by_the_librarys_limits_and_a_failed_run_hides_the_matrix(sample_db,
+                                                                                             monkeypatch):
+    """The k and queries boxes end where pose_correlations' own check does, on the frames of the sample of *clips
+    per class* (measured: the box took k up to 5,542 while the run refused k > 4,257), and follow it; a run that
+    fails hides the previous heat map instead of leaving it under the error."""
+    from mocapviz.app.state import Selection
+
+    backend = Backend.open(sample_db.path)
+    page = corr_page.CorrelationsPage(backend, Selection())
+    for clips in (3, 2):  # 3: no sample (the segment-based part says why): every document's frames
+        page.clips.value = clips
+        limits = pose_limits(sample_db, corr_page.sample_of(sample_db, clips)[0])
+        assert (page.k.start, page.k.end) == limits["k"] and (page.n_queries.start, page.n_queries.end) == limits[
+            "n_queries"]
+    assert page.k.end == int(correlation_sample(sample_db, 2, 2, seed=corr_page.SEED)["n_frames"].sum()) - 1
+    most = page.k.end
+    with pytest.raises(ParameterError, match=rf"k must be between 1 and .*\({most:,}\); got {most + 1}"):
+        corr_page.pose_matrix(backend, ("F15E",), 2, most + 1, 2)
+    assert corr_page.pose_matrix(backend, ("F15E",), 2, most, 2).attrs["k"] == most  # the box's end runs
+    page.k.value = most + 1
+    assert page.k.value == most and page.k.note.visible
+
+    page.measures.value, page.n_queries.value, page.k.value = ["F15E"], 4, 8
+    monkeypatch.setattr(corr_page, "segment_problem", lambda *args: "not in this test")
+    run_in_thread(page._compute())
+    assert page.pose.layout.visible and page.pose.plot.object is not None
+
+    def refused(*args):
+        raise ParameterError("k must be between 1 and 4,257")
+
+    monkeypatch.setattr(corr_page, "pose_matrix", refused)
+    run_in_thread(page._compute())
+    assert page.pose_task.error.visible and not page.pose.layout.visible
 
 
 def test_log_scale_bars_rise_from_the_axis():

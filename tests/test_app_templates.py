@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 import pytest
-from browser_helpers import open_dashboard, open_tab, record_timing, text_of, timed
+from browser_helpers import open_dashboard, open_tab, record_timing, run_in_thread, text_of, timed
 from playwright.sync_api import expect
 
 from mocapviz.app.backend import Backend
@@ -19,7 +19,15 @@ from mocapviz.db.hits import database_frames
 from mocapviz.errors import ParameterError
 from mocapviz.features import relational_features
 from mocapviz.match import dtw
-from mocapviz.relational.templates import DELTA, DONT_CARE, learn_class, search_template, template_distance
+from mocapviz.relational.templates import (
+    DELTA,
+    DELTA_RANGE,
+    DONT_CARE,
+    MAX_COST_RANGE,
+    learn_class,
+    search_template,
+    template_distance,
+)
 
 TAB = "Motion templates"
 KICK, SQUAT = "kickLFront1Reps", "squat1Reps"
@@ -97,6 +105,8 @@ def test_bad_inputs_say_why(backend):
         page_mod.learn_and_search(backend, KICK, (), "2006", DELTA, 5, 1.5)
     with pytest.raises(ParameterError, match="delta"):
         page_mod.learn_and_search(backend, KICK, (), "2006", 0.5, 5, None)
+    with pytest.raises(ParameterError, match=r"delta must be a number in \(0, 0.5\); got 0"):
+        page_mod.learn_and_search(backend, KICK, (), "2006", 0.0, 5, None)  # every entry would be don't care
     with pytest.raises(ParameterError, match="relational set"):
         page_mod.learn_and_search(backend, KICK, (), "2007", DELTA, 5, None)
     with pytest.raises(ParameterError, match="actor in"):
@@ -142,6 +152,31 @@ def test_training_example_and_its_alignment(backend, features, sample_db):
     _, expected = dtw(features["2006"][rows].astype(float), hit, distance=template_distance)
     np.testing.assert_array_equal(path, expected)
     assert tuple(path[0]) == (0, 0) and tuple(path[-1]) == (rows.stop - rows.start - 1, end - start - 1)
+
+
+def test_the_boxes_are_the_librarys_ranges_and_a_failed_run_clears_the_hits(backend, monkeypatch):
+    """δ and the max cost are bounded by the library's own ranges (DELTA_RANGE, MAX_COST_RANGE): δ = 0 (every
+    entry don't care, every stretch a perfect hit) cannot be entered; a max cost of 5 becomes 1, -1 becomes 0 and an
+    emptied box means none, each shown. A run that fails leaves no hits of the previous run on the page."""
+    page = page_mod.TemplatesPage(backend, None)
+    assert (page.delta.start, page.delta.end) == DELTA_RANGE.closed(page_mod.STEP) == (0.01, 0.49)
+    assert (page.max_cost.start, page.max_cost.end) == (MAX_COST_RANGE.low, MAX_COST_RANGE.high) == (0, 1)
+    page.delta.value = 0.0
+    assert page.delta.value == 0.01 and "0 was set to 0.01" in page.delta.note.object
+    for typed, kept in ((5.0, 1.0), (-1.0, 0.0), (float("nan"), None)):
+        page.max_cost.value = typed
+        assert page.max_cost.value == kept and page._inputs()[-1] == kept
+    page.delta.value, page.label.value = DELTA, KICK
+    run_in_thread(page._run())
+    assert len(page.table.value) == 20 and page.summary.object and page.image.object is not None
+
+    def refused(*args):
+        raise ParameterError("K must be between 1 and 100; got 101")
+
+    monkeypatch.setattr(page_mod, "learn_and_search", refused)
+    run_in_thread(page._run())
+    assert page.task.error.visible and page.table.value.empty and page.count.object == ""
+    assert page.summary.object == "" and page.image.object is None and page.hits is None
 
 
 def test_a_database_without_classes_says_so_in_one_line():
@@ -250,3 +285,14 @@ def test_templates_page_shows_the_library_hits_and_plays_one(page, sample_dashbo
     page.locator(".mv-templates-player .mv-player-caption", has_text=f"of {len(path)} ").wait_for()
     assert "training example document 11 " in text_of(page, ".mv-templates-playing")
     screenshot("templates-actor")
+
+    # the boxes show the values that run: a max cost of 5 is 1, δ = 0 is 0.01, an emptied max cost is none
+    _set(page, ".mv-templates-max-cost", 5)
+    page.locator(".mv-input-note", has_text="max cost / frame must be 0–1: 5 was set to 1.").wait_for()
+    expect(page.locator(".mv-templates-max-cost input")).to_have_value("1")
+    _set(page, ".mv-templates-delta", 0)
+    page.locator(".mv-input-note", has_text="δ (quantisation) must be 0.01–0.49: 0 was set to 0.01.").wait_for()
+    _set(page, ".mv-templates-max-cost", "")
+    page.locator(".mv-templates-run button").click()
+    page.locator(".mv-templates-count", has_text=f"of the {SQUAT} template in the whole database (K = 5)").wait_for()
+    page.locator(".mv-templates-summary", has_text="don't care at δ = 0.01").wait_for()

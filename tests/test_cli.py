@@ -193,9 +193,9 @@ def test_match_prints_the_library_matches(sample_db, capsys):
     doc = int(sample_db.select(label="squat1Reps")["doc_id"].iloc[0])
     span = sample_db.frames(doc)
     q = X[span.start + 5 : span.start + 35]
-    assert main(["match", str(sample_db.path), "--example", str(doc), "--frames", "5:35", "-K", "4", "-k", "64"]) == 0
+    assert main(["match", str(sample_db.path), "--example", str(doc), "--frames", "5:35", "-K", "4", "-k", "256"]) == 0
     rows = _table(capsys.readouterr().out)
-    ref = lng(q, KnnIndex(X), k=64, n_matches=4, starts=starts, exclude=[span.start, span.stop])
+    ref = lng(q, KnnIndex(X), k=256, n_matches=4, starts=starts, exclude=[span.start, span.stop])
     assert len(rows) == len(ref) >= 1
     assert [int(r[1]) for r in rows] == ref["doc_id"].tolist()
     assert [int(r[3]) for r in rows] == (ref["start"] - starts[ref["doc_id"]]).tolist()
@@ -210,6 +210,29 @@ def test_match_prints_the_library_matches(sample_db, capsys):
     assert [int(r[4]) for r in rows] == (ref["end"] + 1 - starts[ref["doc_id"]]).tolist()  # end: half-open
     first = ref["path"].iloc[0]
     assert f"0:{first[0, 1] - starts[ref['doc_id'].iloc[0]]} " in text.split("\npath 1")[1]
+
+
+def test_match_keeps_matches_of_at_least_min_length_and_knn_one_row_per_document(sample_db, capsys):
+    """`mocapviz match` gives the graph (and subsequence DTW) the similarity search's shortest match (--min-length,
+    default 0.5 of the query): a whole kick found 1-frame "matches" without it. `mocapviz knn --per-document`
+    prints each document once."""
+    assert main(["features", str(sample_db.path), "--numeric-sets", "F15E", "--quiet"]) == 0
+    capsys.readouterr()
+    shortest = -(-int(sample_db.document(7)["n_frames"]) // 2)  # half the query, rounded up
+    frames = {}
+    for option in (["-k", "1024"], ["-k", "1024", "--min-length", "0.01"], ["--method", "dtw"]):
+        assert main(["match", str(sample_db.path), "--example", "7", "-K", "10", *option]) == 0
+        frames[option[-1]] = [int(r[5]) for r in _table(capsys.readouterr().out)]
+    assert frames["1024"] and min(frames["1024"]) >= shortest
+    assert min(frames["0.01"]) < shortest  # the old answer: short "matches"
+    assert frames["dtw"] and min(frames["dtw"]) >= shortest
+    assert main(["match", str(sample_db.path), "--example", "7", "--min-length", "0"]) == 2
+    assert "--min-length must be a number in (0, 1]" in capsys.readouterr().err
+
+    assert main(["knn", str(sample_db.path), "--frame", "7:10", "-k", "300", "--per-document"]) == 0
+    out = capsys.readouterr().out
+    docs = [int(r[1]) for r in _table(out)]
+    assert len(docs) == len(set(docs)) > 1 and docs[0] == 7 and "one row per document" in out
 
 
 def test_match_errors_are_one_line(sample_dir, sample_db, tmp_path, capsys):

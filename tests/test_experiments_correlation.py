@@ -23,6 +23,7 @@ from mocapviz.experiments.correlation import (
     correlation_sample,
     paper_claims,
     pose_correlations,
+    pose_limits,
     segment_correlations,
 )
 from mocapviz.features.distances import deuler, dpc, dpc_pairwise, dquat, dwb_pairwise, lee_frames, window_clouds
@@ -190,7 +191,8 @@ def test_pose_errors(db, sample):
     with pytest.raises(ValueError, match="'Dcos'"):
         pose_correlations(db, columns=("Dcos",), docs=sample)
     n = int(sample["n_frames"].sum())
-    with pytest.raises(ValueError, match=f"k must be between 1 and {n - 1}"):
+    assert pose_limits(db, sample) == {"k": (1, n - 1), "n_queries": (1, n)}
+    with pytest.raises(ValueError, match=rf"k must be between 1 and the frames .*less the query \({n - 1:,}\)"):
         pose_correlations(db, docs=sample, k=n)
     with pytest.raises(ValueError, match="n_queries"):
         pose_correlations(db, docs=sample, n_queries=n + 1, k=8)

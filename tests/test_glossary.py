@@ -158,14 +158,14 @@ def test_subsequence_dtw_k_is_n_matches(walk):
 def test_lng_k_matches_is_n_matches(walk):
     x, starts = walk
     q, index = x[250:280], KnnIndex(x)
-    new = lng(q, index, k=128, n_matches=3, starts=starts)
+    new = lng(q, index, k=256, n_matches=3, starts=starts)
     with pytest.warns(FutureWarning, match="n_matches="):
-        old = lng(q, index, k=128, k_matches=3, starts=starts)
+        old = lng(q, index, k=256, k_matches=3, starts=starts)
     assert len(new) == 3
     _same(old, new)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the new name: no warning
-        lng(q, index, k=128, n_matches=3, starts=starts)
+        lng(q, index, k=256, n_matches=3, starts=starts)
 
 
 @pytest.mark.parametrize(("old", "new"), [

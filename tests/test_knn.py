@@ -345,3 +345,25 @@ def test_single_queries_are_the_rows_of_the_batch_on_every_path(features, querie
             np.testing.assert_array_equal(index.query(queries[3], k, exclude=own)[1],
                                           index.query(queries[3:4], k, exclude=[own])[1][0])  # fmt: skip
             assert index.valid[index.query(queries[3], k)[1]].all()
+
+
+def test_one_row_per_document_is_each_documents_nearest_neighbour(sample_db):
+    """``per_document=True``: the k nearest frames of a real pose (a kick of the sample, its own document left
+    in) fill their top rows with consecutive frames of a few takes; one row per document keeps each document's
+    nearest, in distance order: the brute-force best row per document of the full answer."""
+    from mocapviz.features import numeric_features
+    from mocapviz.similarity.knn import describe_frames
+
+    x = numeric_features(sample_db, "F15E")
+    query = x[sample_db.frames(7).start + 40]
+    dist, near = KnnIndex(x).query(query, 300)
+    full = describe_frames(sample_db, near, dist)
+    assert full["doc_id"].head(10).nunique() < 10  # consecutive frames of few documents on top
+    each = describe_frames(sample_db, near, dist, per_document=True)
+    assert each["doc_id"].is_unique and each["rank"].tolist() == list(range(1, len(each) + 1))
+    d_all = np.linalg.norm(x.astype(np.float64) - query, axis=1)  # brute force: every frame's distance
+    best = (full.assign(d=d_all[near]).sort_values(["d", "doc_id", "start"]).groupby("doc_id", sort=False).head(1))
+    assert each["doc_id"].tolist() == best["doc_id"].tolist()
+    assert each["start"].tolist() == best["start"].tolist()
+    np.testing.assert_allclose(each["distance"], best["d"], rtol=1e-5)
+    assert set(each["doc_id"]) == set(full["doc_id"])

@@ -168,11 +168,11 @@ def test_lng_equals_subsequence_dtw_where_the_dtw_path_lies_in_the_neighbourhood
     """§4.1: "The paths found by our method are equal to the paths found by subsequence DTW under the condition
     that all frames assigned to each other by subsequence DTW are in the neighbourhood". Checked match by match:
     where the condition holds, same cost (up to the last bit of the summation order) and same path; everywhere,
-    the graph's cost is no lower than DTW's at the same end frame."""
+    the graph's cost is no lower than DTW's at the same end frame. The paper's graph and DTW: any match length."""
     stop = starts[doc + 1]
     q = X[starts[doc] + 5 : starts[doc] + 35]
     d, f = neighbourhoods(q, index, k=2048, exclude=[starts[doc], stop])
-    out = graph_matches(d, f, starts, len(X), n_matches=10)
+    out = graph_matches(d, f, starts, len(X), n_matches=10, min_length=None)
     cost, first = subsequence_costs(q, X, starts)
     assert len(out) == 10
     checked = 0
@@ -264,3 +264,42 @@ def test_bad_input_raises_clear_errors(X, starts, index):
         subsequence_dtw(X[:5000], X, starts)
     with pytest.raises(ParameterError, match="n_matches must be an integer"):
         subsequence_dtw(q, X, starts, n_matches=2.5)
+
+
+def test_matches_are_at_least_min_length_of_the_query_long(sample_db):
+    """The lazy neighbourhood graph and subsequence DTW keep only matches at least ``min_length`` × the query long
+    (default half, the similarity search's rule): on the sample, kick 7 as a whole (129 frames) found 1-frame and
+    12-frame "matches" without it. Subsequence DTW with the rule equals the similarity search's brute-force
+    stretches (another implementation: mocapviz.match.pruned)."""
+    from mocapviz.similarity.search import SimilaritySearch
+
+    X = numeric_features(sample_db, "F15E")
+    starts = sample_db.documents["start"].to_numpy()
+    own = sample_db.frames(7)
+    q = X[own]
+    shortest = int(np.ceil(0.5 * len(q)))
+    assert (len(q), shortest) == (129, 65)
+    index = KnnIndex(X)
+    options = {"k": 1024, "n_matches": 10, "starts": starts, "exclude": (own.start, own.stop), "paths": False}
+    free = lng(q, index, min_length=None, **options)
+    assert (free["end"] - free["start"] + 1).min() < shortest  # what the graph returns without the rule
+    kept = lng(q, index, **options)
+    assert len(kept) >= 1 and (kept["end"] - kept["start"] + 1 >= shortest).all()
+    long_free = free[free["end"] - free["start"] + 1 >= shortest]
+    assert kept["cost"].iloc[0] <= long_free["cost"].min()  # the best long match is not lost
+    longer = lng(q, index, min_length=0.8, **options)
+    assert (longer["end"] - longer["start"] + 1 >= 104).all()
+
+    part = X[own.start : own.start + 60]
+    dtw_kept = subsequence_dtw(part, X, starts, n_matches=8, paths=False)
+    assert (dtw_kept["end"] - dtw_kept["start"] + 1 >= 30).all()
+    ref = SimilaritySearch(sample_db, "F15E").stretches(7, frames=(0, 60), n_matches=8, mode="brute")
+    doc_start = starts[dtw_kept["doc_id"]]
+    assert list(zip(dtw_kept["doc_id"], dtw_kept["start"] - doc_start, dtw_kept["end"] + 1 - doc_start)) == list(
+        zip(ref["doc_id"], ref["start"], ref["end"]))
+    np.testing.assert_allclose(dtw_kept["cost"], ref["cost"], rtol=1e-9)
+    for bad in (0, 1.5, float("nan")):
+        with pytest.raises(ParameterError, match=r"min_length .* must be a number in \(0, 1\]"):
+            lng(q, index, min_length=bad, **options)
+        with pytest.raises(ParameterError, match="min_length"):
+            subsequence_dtw(part, X, starts, min_length=bad)

@@ -110,8 +110,9 @@ def test_a_starting_limit_prunes_only_what_costs_more(search, doc):
 def test_stretches_agree_with_subsequence_dtw_without_length_limit(search):
     """With no minimum length and nothing excluded, the K best stretches are subsequence_dtw's matches."""
     q, _ = search.query_features(37, (3, 33))
-    ref = subsequence_dtw(q, search.features, search.documents["start"].to_numpy(), n_matches=10, paths=True)
-    got = search.stretches(37, frames=(3, 33), n_matches=10, mode="exact", min_length=1 / 30, paths=True)
+    ref = subsequence_dtw(q, search.features, search.documents["start"].to_numpy(), n_matches=10, paths=True,
+                          min_length=None)
+    got = search.stretches(37, frames=(3, 33), n_matches=10, mode="exact", min_length=None, paths=True)
     starts = search.documents.set_index("doc_id")["start"]
     assert (got["start"] + starts[got["doc_id"]].to_numpy()).tolist() == ref["start"].tolist()
     np.testing.assert_allclose(got["cost"], ref["cost"], rtol=1e-12)

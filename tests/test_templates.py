@@ -9,6 +9,7 @@ import pytest
 from mocapviz import ParameterError
 from mocapviz.match import subsequence_dtw
 from mocapviz.relational.templates import (
+    DELTA_RANGE,
     DONT_CARE,
     classify,
     find_instances,
@@ -69,6 +70,22 @@ def test_a_quantised_template_finds_its_class_and_ignores_dont_care_features():
     hits = subsequence_dtw(t.quantised(), db, starts, n_matches=4, distance=quantised_distance, paths=False)
     assert sorted(hits["doc_id"][:3]) == [1, 2, 3] and (hits["cost"][:3] == 0).all()
     assert (hits.loc[hits["doc_id"] == 0, "cost"] > 0).all()
+
+
+def test_delta_zero_is_refused_for_it_would_make_every_entry_dont_care():
+    """At δ = 0 no average is below 0 or above 1: the whole template would be don't care and every stretch of the
+    database a perfect match at cost 0. Refused by the library's range (the dashboard's box takes its bounds)."""
+    t = learn_template([A, B, C], ["f1", "f2"])
+    tiny = t.quantised(1e-9)  # the smallest δ still cares for the entries every example agrees on
+    np.testing.assert_array_equal(tiny, [[0, DONT_CARE], [1, DONT_CARE], [1, 1]])
+    db, starts = np.concatenate([A[::-1], A]), np.array([0, 3])
+    assert find_instances(t, db, starts, n_matches=2, delta=1e-9)["normalised_cost"].max() > 0
+    for delta in (0, 0.0, -0.1, 0.5, float("nan")):
+        with pytest.raises(ParameterError, match=r"delta must be a number in \(0, 0.5\)"):
+            t.quantised(delta)
+        with pytest.raises(ParameterError, match="delta"):
+            find_instances(t, db, starts, delta=delta)
+    assert (DELTA_RANGE.low, DELTA_RANGE.low_open, DELTA_RANGE.high, DELTA_RANGE.high_open) == (0, True, 0.5, True)
 
 
 @pytest.mark.parametrize(("examples", "message"), [

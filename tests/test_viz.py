@@ -178,3 +178,24 @@ def test_accuracy_plot(accuracy):
     assert len(_figures(layout)) == 2
     with pytest.raises(ValueError, match="recall"):
         accuracy_plot(accuracy.drop(columns="recall"))
+
+
+def test_the_correlation_colour_scale_is_fitted_to_the_matrix():
+    """Fig. 2's heat map colours its values from their least to their greatest (a matrix of 0.83..1.0 used to be a
+    sliver of the fixed -1..1 scale: every cell the same red), a sequential map for values of one sign, a diverging
+    one symmetric about 0 for both signs; the printed values are white on the dark cells."""
+    from mocapviz.viz.correlation import correlation_heatmap
+
+    names = ["F15E", "F30E", "Dpc1"]
+    matrix = pd.DataFrame([[1.0, 0.83, 0.9], [0.91, 1.0, 0.87], [0.85, 0.88, 1.0]], index=names, columns=names)
+    for m, expected in ((matrix, (0.83, 1.0)), (matrix - 0.9, (-0.1, 0.1))):
+        fig = hv.render(correlation_heatmap(m), backend="bokeh")
+        (mapper,) = fig.select(LinearColorMapper)
+        assert (mapper.low, mapper.high) == pytest.approx(expected)
+        values = m.to_numpy().ravel()
+        assert mapper.low <= values.min() and values.max() <= mapper.high
+    assert mapper.palette[0] != mapper.palette[-1] and len(set(mapper.palette)) > 2
+    plot = correlation_heatmap(matrix)
+    white = [el for el in plot if isinstance(el, hv.Labels) and el.opts.get("style", "bokeh").kwargs.get(
+        "text_color") == "white"]
+    assert sorted(white[0]["text"]) == ["1.00"] * 3  # the top 40 % of the scale: from 0.83 + 0.6 x 0.17 = 0.932

@@ -54,3 +54,22 @@ def test_plot_holds_the_two_curves():
     assert len([el for el in plot if isinstance(el, hv.Scatter)]) == 2
     assert plot.opts.get().kwargs["title"].endswith(": A")
     hv.render(plot, backend="bokeh")  # renders without error
+
+
+def test_a_one_hit_query_shows_both_markers_at_rank_1_with_whole_rank_ticks():
+    """One relevant document found first: precision and recall are both 1 at rank 1. Their markers used to lie on
+    each other, on an axis ticked at 0.5 and 1.5; now they sit either side of rank 1, the only tick."""
+    curve = precision_recall([0, 1], pd.DataFrame({"doc_id": [0, 1], "label": ["A", "A"]}), query_doc=0)
+    assert curve[["rank", "precision", "recall"]].values.tolist() == [[1, 1.0, 1.0]]
+    plot = precision_recall_plot(curve)
+    markers = {el.label: el for el in plot if isinstance(el, hv.Scatter)}
+    x = {name: float(m.dimension_values("rank")[0]) for name, m in markers.items()}
+    assert x["precision"] < 1 < x["recall"] and x["recall"] - x["precision"] >= 0.1
+    assert all(m.dimension_values("document_rank").tolist() == [1] for m in markers.values())  # hover: the rank
+    styles = [m.opts.get("style").kwargs for m in markers.values()]
+    assert styles[0]["marker"] != styles[1]["marker"] and styles[0]["color"] != styles[1]["color"]
+    fig = hv.render(plot, backend="bokeh")
+    assert list(fig.xaxis[0].ticker.ticks) == [1] and (fig.x_range.start, fig.x_range.end) == (0.5, 1.5)
+    many = precision_recall(list(range(1, 45)), pd.DataFrame({"doc_id": range(45), "label": ["A"] * 45}), 0)
+    ticks = hv.render(precision_recall_plot(many), backend="bokeh").xaxis[0].ticker.ticks
+    assert all(float(t).is_integer() for t in ticks) and len(ticks) <= 20

@@ -80,3 +80,21 @@ def test_bad_input_is_a_clear_error(result):
         pr_curves(result["per_class"])
     with pytest.raises(ParameterError, match="measure"):
         summary_bars(result["summary"], "accuracy")
+
+
+def test_methods_of_equal_precision_stay_apart_with_the_legend_beside_the_plot(tmp_path):
+    """dtw, exact and fast rank alike (exact is dtw's answer): their curves used to lie on each other in one style
+    under the legend. Each method now has its own colour, dash and marker, the markers of later methods smaller
+    (all show on each other), and the legend sits right of the plot."""
+    same = [1.0, 0.9, 0.8, 0.6, 0.5, 0.5, 0.4, 0.3, 0.3, 0.2, 0.1]
+    curves = pd.concat([pd.DataFrame({"method": m, "protocol": "loo", "recall": RECALL_LEVELS, "precision": same})
+                        for m in ("dtw", "exact", "fast")])  # fmt: skip
+    overlay = pr_curves(curves, "loo", width=400)
+    lines = [el.opts.get("style", "bokeh").kwargs for el in overlay if isinstance(el, hv.Curve)]
+    dots = [el.opts.get("style", "bokeh").kwargs for el in overlay if isinstance(el, hv.Scatter)]
+    for key, drawn in (("color", lines), ("line_dash", lines), ("marker", dots), ("size", dots)):
+        assert len({d[key] for d in drawn}) == 3, key
+    assert dots[0]["size"] > dots[1]["size"] > dots[2]["size"]
+    options = overlay.opts.get("plot", "bokeh").kwargs
+    assert options["legend_position"] == "right" and options["width"] > 400
+    _render_both(overlay, tmp_path, "equal")

@@ -1,4 +1,5 @@
-"""Offscreen skeleton drawings (mocapviz.viz.skeleton) of real sample poses, checked on their pixels."""
+"""Offscreen skeleton drawings (mocapviz.viz.skeleton) of real sample poses, checked on their pixels: bones by side
+in the palette's colours (right red, left blue), as the dashboard's player draws them."""
 
 from __future__ import annotations
 
@@ -18,13 +19,13 @@ def clip(sample_db):
 
 
 def _red(image: np.ndarray) -> np.ndarray:
-    """Pixels of the shaded red of COLOURS[1] (#d62728): red well above green and blue."""
+    """Pixels of the shaded red of the right side (SIDES["r"], #d1452f): red well above green and blue."""
     r, g, b = (image[..., i].astype(int) for i in range(3))
     return (r > 90) & (r > 2 * g) & (r > 2 * b)
 
 
 def _blue(image: np.ndarray) -> np.ndarray:
-    """Pixels of the shaded blue of COLOURS[0] (#1f77b4)."""
+    """Pixels of the shaded blue of the left side (SIDES["l"], #1f5fa8)."""
     r, _g, b = (image[..., i].astype(int) for i in range(3))
     return (b > 80) & (b > 2 * r)
 
@@ -36,18 +37,25 @@ def test_scene_bounds_hold_every_joint_and_the_floor(clip):
     assert lo[1] <= 0 <= hi[1]
 
 
-def test_side_by_side_draws_each_pose_in_its_own_half(clip):
+def test_side_by_side_draws_each_pose_in_its_own_half_by_side(clip):
     img = render_skeletons([clip[0], clip[-1]], bounds=scene_bounds(clip), size=(400, 200))
     assert img.shape == (200, 400, 3) and img.dtype == np.uint8
     blue, red = _blue(img), _red(img)
-    assert blue[:, :200].sum() > 50 and blue[:, 200:].sum() == 0
-    assert red[:, 200:].sum() > 50 and red[:, :200].sum() == 0
+    for half in (slice(0, 200), slice(200, 400)):  # each pose: its right side red, its left side blue
+        assert blue[:, half].sum() > 50 and red[:, half].sum() > 50
+    single = render_skeletons([clip[0]], size=(200, 200), colours=["#2ca02c"])  # a colour of its own: no sides
+    assert _red(single).sum() == 0 and _blue(single).sum() == 0
 
 
-def test_overlay_puts_the_query_in_red_over_the_neighbours(clip):
+def test_overlay_puts_the_query_by_side_over_grey_neighbours(clip):
     img = neighbour_poses(clip[30], clip[::10], size=(300, 260))
     assert img.shape == (260, 300, 3)
-    assert _red(img).sum() > 50
+    assert _red(img).sum() > 50 and _blue(img).sum() > 50  # the query: right red, left blue
+    alone = neighbour_poses(clip[30], clip[::10][:0], size=(300, 260))  # without neighbours: the query alone
+    r, g, b = (img[..., i].astype(int) for i in range(3))
+    grey = (abs(r - g) < 12) & (abs(g - b) < 12) & (r < 200) & (r > 60)
+    ra, ga, ba = (alone[..., i].astype(int) for i in range(3))
+    assert grey.sum() > ((abs(ra - ga) < 12) & (abs(ga - ba) < 12) & (ra < 200) & (ra > 60)).sum() + 200
 
 
 def test_bad_poses_are_refused(clip):

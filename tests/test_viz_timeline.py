@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from mocapviz.features import feature_groups, numeric_columns, numeric_features, relational_features
+from mocapviz.viz.palette import PARTS, SIDES
 from mocapviz.viz.timeline import numeric_curves, relational_timeline, runs
 
 
@@ -55,8 +56,9 @@ def test_relational_timeline_draws_every_run_in_seconds(kick):
     # the first feature is the top row; colours follow the groups
     top = rects.dimension_values("feature")[rects.dimension_values("y0") > len(names) - 1.5]
     assert set(top) <= {names[0]}
-    lower = rects.dimension_values("group") == "lower"
-    assert set(rects.dimension_values("colour")[lower]) <= {"#1f77b4"}
+    for group in ("lower", "upper", "mix"):  # the palette's parts of the body, never a side's red or blue
+        shown = set(rects.dimension_values("colour")[rects.dimension_values("group") == group])
+        assert shown == {PARTS[group]} and not shown & set(SIDES.values())
     spans = [layer for layer in plot if isinstance(layer, hv.VSpan)]
     assert len(spans) == 1 and tuple(spans[0].data) == (10 / kick.fps, 41 / kick.fps)
     hv.render(plot, backend="bokeh")
@@ -80,3 +82,16 @@ def test_numeric_curves_one_curve_per_coordinate(kick):
     np.testing.assert_allclose(curves[0].dimension_values(0), np.arange(len(X)) / kick.fps)
     with pytest.raises(ValueError, match="do not match"):
         numeric_curves(X, cols[:3], kick.fps)
+
+
+@pytest.mark.parametrize("numeric_set", ["F15E", "F39E", "F15x5E", "Fp25"])
+def test_numeric_curves_draw_every_coordinate_in_a_style_of_its_own(kick, numeric_set):
+    """F15E's 15 curves used to cycle through 10 colours (two coordinates looked the same): now a colour per
+    joint, a dash per axis (fainter samples of a window), every curve distinct."""
+    cols = numeric_columns(numeric_set)
+    plot = numeric_curves(np.zeros((5, len(cols))), cols, kick.fps)
+    styles = [(c.opts.get("style").kwargs["color"], c.opts.get("style").kwargs["line_dash"],
+               c.opts.get("style").kwargs["alpha"]) for c in plot if isinstance(c, hv.Curve)]
+    assert len(styles) == len(cols) == len(set(styles))
+    if numeric_set == "F15E":
+        assert len({s[0] for s in styles}) == 5 and len({s[1] for s in styles}) == 3  # 5 joints x 3 axes

@@ -53,7 +53,8 @@ export function render({ model, el }) {
     }
     Object.assign(st, {
       nJoints, rates: meta.rates || [], rows: meta.rows || [], labels: meta.labels || [], bounds: meta.bounds || [],
-      parents: meta.parents || [], sides: meta.sides || [], columns: meta.columns || 1,
+      parents: meta.parents || [], sides: meta.sides || [], sideColours: meta.side_colours || { c: "#3c3c3c" },
+      columns: meta.columns || 1,
       cellW: (meta.cell || [150, 150])[0], cellH: (meta.cell || [150, 150])[1], labelH: meta.label_height || 30,
       hover: -1, hoverFrame: -1,
     });
@@ -94,7 +95,7 @@ export function render({ model, el }) {
                            y + PAD);
     const screen = projectPose(cam, st.cells[i], frame * st.nJoints * 3, st.nJoints);
     const segs = [];
-    poseBones(cam, screen, st.parents, st.sides, 1, segs);
+    poseBones(cam, screen, st.parents, st.sides, st.sideColours, 1, segs);
     drawPoses(ctx, segs, [[screen, 1]], 1.5);
     ctx.fillStyle = "#222";
     ctx.textBaseline = "top";

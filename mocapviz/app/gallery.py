@@ -15,7 +15,7 @@ Wire format (one message per page, :func:`gallery_page`): ``positions`` is the f
 cell's (n_i, 24, 3) positions in cm, concatenated (frames of ``db.positions``, each cell moved along the floor so that
 its first root position is above the origin); n_i ≤ :data:`MAX_FRAMES` frames at ≤ :data:`MAX_FPS` Hz, so at most
 11,520 bytes per cell and 276,480 per page of 24 (a Bokeh binary buffer); ``meta`` the cells' lengths, rates, table
-rows, labels and camera boxes, the bone tree and the layout (about 150 bytes of JSON per cell).
+rows, labels and camera boxes, the bone tree, the side colours and the layout (about 150 bytes of JSON per cell).
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ from panel.custom import JSComponent
 
 from ..db.hits import first_frames
 from ..motion.skeleton import CANONICAL_PARENTS
+from ..viz.palette import SIDES
 from .player import component_code, joint_sides, recentred, scene_box
 
 PAGE_SIZE = 24  # cells per page
@@ -112,7 +113,8 @@ def gallery_page(db, hits: pd.DataFrame, page: int, page_size: int = PAGE_SIZE) 
             "labels": [[f"{int(rank)} · {name}", f"{start / rate:.2f}–{end / rate:.2f} s"]
                        for rank, name, (start, end), rate in zip(ranks, names, spans, fps)],
             "bounds": [scene_box([c]) for c in cells], "n_joints": len(CANONICAL_PARENTS),
-            "parents": [int(p) for p in CANONICAL_PARENTS], "sides": joint_sides(), "columns": COLUMNS,
+            "parents": [int(p) for p in CANONICAL_PARENTS], "sides": joint_sides(), "side_colours": SIDES,
+            "columns": COLUMNS,
             "cell": list(CELL), "label_height": LABEL_HEIGHT}  # fmt: skip
     positions = np.concatenate([c.reshape(-1) for c in cells]).astype("<f4").tobytes() if cells else b""
     return positions, meta

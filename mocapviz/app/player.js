@@ -1,7 +1,7 @@
 // The dashboard's skeleton player, run in the browser (a Panel JSComponent: see player.py).
 //
 // The clips arrive once (model.positions: float32 (sum T_i, J, 3) cm, y up; model.alignment: int32 (S, n_clips)
-// frame per step; model.meta: lengths, titles, fps, parents, sides, bounds) and are animated here with
+// frame per step; model.meta: lengths, titles, fps, parents, sides, side_colours, bounds) and are animated here with
 // requestAnimationFrame on a Canvas 2D: a perspective projection of the bones (line segments), coloured by side, over
 // a floor grid. Drag orbits the camera, the wheel zooms, a double click resets the view. The shown step goes back to
 // Python (model.step) when paused or scrubbed, and at most every SYNC_MS during playback.
@@ -67,7 +67,8 @@ export function render({ model, el }) {
 
   const ctx = canvas.getContext("2d");
   const st = {
-    clips: [], lengths: [], titles: [], parents: [], sides: [], bounds: [[-100, 0, -100], [100, 200, 100]],
+    clips: [], lengths: [], titles: [], parents: [], sides: [], sideColours: { c: "#3c3c3c" },
+    bounds: [[-100, 0, -100], [100, 200, 100]],
     fps: 30, nJoints: 0, align: new Int32Array(0), nSteps: 0, step: 0, pos: 0, playing: false,
     overlay: false, azimuth: HOME.azimuth, elevation: HOME.elevation, zoom: HOME.zoom,
     drawn: 0, loads: 0, lastTime: null, lastSync: 0, sent: null, scrubTimer: null, frameRequest: null, removed: false,
@@ -103,6 +104,7 @@ export function render({ model, el }) {
     st.titles = meta.titles || [];
     st.parents = meta.parents || [];
     st.sides = meta.sides || [];
+    st.sideColours = meta.side_colours || { c: "#3c3c3c" };  // mocapviz.viz.palette.SIDES
     st.bounds = meta.bounds || st.bounds;
     st.fps = meta.fps || 30;
     st.align = new Int32Array(arrayBuffer(model.alignment));
@@ -175,7 +177,7 @@ export function render({ model, el }) {
   // the bones of clip j at its frame into `out` (see poseBones); its joints on screen
   function bones(cam, j, alpha, out) {
     const screen = projectPose(cam, st.clips[j], frameOf(j, st.step) * st.nJoints * 3, st.nJoints);
-    poseBones(cam, screen, st.parents, st.sides, alpha, out);
+    poseBones(cam, screen, st.parents, st.sides, st.sideColours, alpha, out);
     return screen;
   }
 
@@ -230,8 +232,9 @@ export function render({ model, el }) {
     canvas.dataset.drawn = String(st.drawn);
     canvas.dataset.step = String(st.step);
     canvas.dataset.playing = st.playing ? "1" : "0";
-    const seconds = st.nSteps / st.fps;
-    captionText.textContent = `step ${st.step + 1} of ${st.nSteps} · ${seconds.toFixed(2)} s at 1×`;
+    const speed = model.speed || 1;  // the playing time at the lit speed (the Python caption says the same)
+    const seconds = st.nSteps / st.fps / speed;
+    captionText.textContent = `step ${st.step + 1} of ${st.nSteps} · ${seconds.toFixed(2)} s at ${speed}×`;
     slider.value = String(st.step);
   }
 
@@ -387,6 +390,7 @@ export function render({ model, el }) {
   });
   model.on("speed", () => {
     showSpeed();
+    requestDraw();  // the caption's playing time follows the speed
   });
   model.on("view_size", () => {
     resize();

@@ -27,17 +27,11 @@ import param
 from panel.custom import JSComponent
 
 from ..errors import ParameterError
-from ..motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
+from ..motion.skeleton import CANONICAL_PARENTS
+from ..viz.palette import SIDE_NAMES, SIDES, joint_sides, legend
 
 SPEEDS = (0.25, 0.5, 1.0, 2.0)
 CONTROLS_HEIGHT = 60  # px under the canvas: the buttons, slider and caption
-
-
-def joint_sides(names=CANONICAL_JOINTS) -> list[str]:
-    """``"l"``, ``"r"`` or ``"c"`` (centre) per joint: a name starting with l/r whose twin (r/l + the rest) exists."""
-    names = list(names)
-    twin = {"l": "r", "r": "l"}
-    return [n[0] if n[:1] in twin and twin[n[0]] + n[1:] in names else "c" for n in names]
 
 
 def scene_box(clips, margin_cm: float = 20.0) -> list[list[float]]:
@@ -117,9 +111,11 @@ class SkeletonPlayer(pn.viewable.Viewer):
                                height=self.size[1] + CONTROLS_HEIGHT, css_classes=["mv-player"])
         self.view.param.watch(self._from_view, ["step", "speed"])
         self.param.watch(self._to_view, ["step", "speed"])
+        self.legend = pn.pane.HTML(legend(SIDES, SIDE_NAMES, "bones"), margin=(0, 4), css_classes=["mv-player-legend"],
+                                   styles={"font-size": "0.85em", "color": "#333"})  # fmt: skip
 
     def __panel__(self):
-        return self.view
+        return pn.Column(self.view, self.legend, margin=0)
 
     @property
     def n_steps(self) -> int:
@@ -171,7 +167,7 @@ class SkeletonPlayer(pn.viewable.Viewer):
         self._clips, self._alignment, self.fps = clips, alignment, float(fps)
         self._titles = list(titles) if titles is not None else [f"clip {j + 1}" for j in range(len(clips))]
         meta = {"lengths": [len(c) for c in clips], "n_joints": n_joints, "titles": [str(t) for t in self._titles],
-                "fps": self.fps, "parents": [int(p) for p in CANONICAL_PARENTS], "sides": joint_sides(),
+                "fps": self.fps, "parents": [int(p) for p in CANONICAL_PARENTS], "sides": joint_sides(), "side_colours": SIDES,
                 "bounds": scene_box(clips)}
         positions = np.concatenate([c.reshape(-1) for c in clips]).astype("<f4").tobytes()
         self.view.param.update(positions=positions, alignment=alignment.astype("<i4").tobytes(), meta=meta, step=0)
@@ -184,8 +180,10 @@ class SkeletonPlayer(pn.viewable.Viewer):
         return [int(f) for f in self._alignment[min(self.step, self.n_steps - 1)]]
 
     def caption(self) -> str:
-        """The caption the browser shows under the view: the step and the clip's duration."""
-        return f"step {self.step + 1} of {self.n_steps} · {self.n_steps / self.fps:.2f} s at 1×"
+        """The caption the browser shows under the view: the step and the clip's playing time at the chosen speed
+        (the speed button lit)."""
+        seconds = self.n_steps / self.fps / self.speed
+        return f"step {self.step + 1} of {self.n_steps} · {seconds:.2f} s at {self.speed:g}×"
 
 
 def decode(view: PlayerView):

@@ -4,7 +4,8 @@
 the line says how long it took, or shows its error as one red message: a user's error
 (:class:`~mocapviz.errors.MocapvizError`: a bad value, a missing document, ...) by its message alone, with one line
 in the server log; any other error as "… failed (an unexpected error); see the server log", the log keeping its
-traceback. No exception type or traceback reaches the page. The red message goes away when the next run starts.
+traceback. No exception type or traceback reaches the page. The red message goes away when the next run starts;
+what showed the previous result (``stale=``) is emptied when a run fails, so no old answer stays under its error.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import time
 import panel as pn
 
 from ..errors import MocapvizError
+from .widgets import clear
 
 LOG = logging.getLogger("mocapviz.app")
 
@@ -23,8 +25,9 @@ LOG = logging.getLogger("mocapviz.app")
 class Task(pn.viewable.Viewer):
     """A status line and progress bar for one page's long computations.
 
-    ``await task.run("Searching", fn, *args, busy=button)`` returns ``fn(*args)``, computed in a worker thread (the
-    ``busy`` widgets disabled meanwhile), or None after showing its error.
+    ``await task.run("Searching", fn, *args, busy=button, stale=(table, plot))`` returns ``fn(*args)``, computed in
+    a worker thread (the ``busy`` widgets disabled meanwhile), or None after showing its error and emptying the
+    ``stale`` panes (:func:`~mocapviz.app.widgets.clear`: what showed the previous result).
     """
 
     def __init__(self, **params):
@@ -40,7 +43,7 @@ class Task(pn.viewable.Viewer):
     def __panel__(self):
         return pn.Column(self.bar, self.status, self.error, sizing_mode="stretch_width", margin=0)
 
-    async def run(self, label: str, fn, *args, busy=()):
+    async def run(self, label: str, fn, *args, busy=(), stale=()):
         busy = [busy] if isinstance(busy, pn.widgets.Widget) else list(busy)
         for w in busy:
             w.disabled = True
@@ -54,12 +57,14 @@ class Task(pn.viewable.Viewer):
             LOG.warning("%s refused: %s", label, exc)
             self.error.param.update(object=f"**{label} failed.** {exc}", visible=True)
             self.status.object = ""
+            clear(*stale)
             return None
         except Exception:
             LOG.exception("%s failed", label)
             self.error.param.update(object=f"**{label} failed** (an unexpected error); see the server log.",
                                     visible=True)
             self.status.object = ""
+            clear(*stale)
             return None
         finally:
             self.bar.param.update(value=0, active=False)

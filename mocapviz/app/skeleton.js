@@ -1,9 +1,8 @@
-// What the dashboard's two skeleton components share, run in the browser: the side colours of the bones, the
-// camera (a perspective projection looking at a scene box), a pose's joints on screen and its bones drawn far to near.
+// What the dashboard's two skeleton components share, run in the browser: the bones coloured by side (the colours
+// sent by the server, mocapviz.viz.palette.SIDES), the camera (a perspective projection looking at a scene box), a pose's joints on screen and its bones drawn far to near.
 // Not a module of its own: player.py's component_code() puts this file before the component's own code (player.js,
 // gallery.js), so both draw a skeleton the same way and nothing is fetched at run time.
 
-const SIDE_COLOURS = { l: "#1f5fa8", r: "#d1452f", c: "#3c3c3c" };
 const FOV = (30 * Math.PI) / 180;
 const HOME = { azimuth: 30, elevation: 18, zoom: 1 };
 
@@ -85,8 +84,9 @@ function projectPose(cam, xyz, base, nJoints) {
   return screen;
 }
 
-// the bones of a projected pose into `out` as [depth, x0, y0, x1, y1, colour, alpha, line width]
-function poseBones(cam, screen, parents, sides, alpha, out) {
+// the bones of a projected pose into `out` as [depth, x0, y0, x1, y1, colour, alpha, line width]; `colours`: side
+// letter -> CSS colour (mocapviz.viz.palette.SIDES)
+function poseBones(cam, screen, parents, sides, colours, alpha, out) {
   for (let k = 0; k < screen.length; k++) {
     const parent = parents[k];
     if (parent < 0) {
@@ -95,7 +95,7 @@ function poseBones(cam, screen, parents, sides, alpha, out) {
     const s = screen[k];
     const t = screen[parent];
     const depth = (s[2] + t[2]) / 2;
-    out.push([depth, t[0], t[1], s[0], s[1], SIDE_COLOURS[sides[k]] || SIDE_COLOURS.c, alpha,
+    out.push([depth, t[0], t[1], s[0], s[1], colours[sides[k]] || colours.c, alpha,
               Math.max(2, Math.min(6, (cam.focal * 4) / depth))]);
   }
 }

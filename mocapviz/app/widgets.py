@@ -29,19 +29,22 @@ def hit_columns(hits: pd.DataFrame, titles: dict, decimals: dict | None = None) 
 class _KeepsBounds:
     """What :class:`BoundedIntInput` and :class:`BoundedFloatInput` share: the server enforces ``start`` / ``end``.
 
-    A value entered outside them becomes the nearest bound, an emptied box gets its last value back, and ``note`` (a
-    Markdown pane, placed by the page next to the box; hidden while empty) says what was changed, naming the range.
-    The label names the range too, and follows :meth:`set_bounds`. So the box always shows the value that runs.
+    A value entered outside them becomes the nearest bound, an emptied box gets its last value back (or, ``optional``,
+    means "none": the value None), and ``note`` (a Markdown pane, placed by the page next to the box; hidden while
+    empty) says what was changed, naming the range. The label names the range too, and follows :meth:`set_bounds`.
+    So the box always shows the value that runs. Bounds come from the library's own checks (a database's frames,
+    a :class:`~mocapviz.validation.Interval`), so the box never takes a value the run refuses.
 
     The bounds are not sent to the browser: Bokeh's spinner, given them, silently keeps its previous value when a
     typed one is out of bounds, while the box goes on showing the typed text until it loses focus.
     """
 
-    def _keep_bounds(self, label: str) -> None:
-        self.base_label = label
+    def _keep_bounds(self, label: str, optional: bool = False) -> None:
+        self.base_label, self.optional = label, optional
         self.note = pn.pane.Markdown("", visible=False, margin=(0, 10), css_classes=["mv-input-note"])
         self._last = self.value
         self._correcting = False
+        self._users = False  # the value was entered in the box (not set by the page): moving it is worth a note
         self.name = self._title()
         self.param.watch(self._check, "value")  # registered first: runs before the page's own watchers
 
@@ -57,10 +60,12 @@ class _KeepsBounds:
         return f"{self._text(self.start)}–{self._text(self.end)}"
 
     def _title(self) -> str:
-        return f"{self.base_label} ({self.range_text()})"
+        return f"{self.base_label} ({self.range_text()}{', empty: none' if self.optional else ''})"
 
     def bounded(self, value):
         """``value`` moved into [start, end]."""
+        if value is None:
+            return value
         if self.start is not None and value < self.start:
             return self.start
         if self.end is not None and value > self.end:
@@ -71,15 +76,21 @@ class _KeepsBounds:
         if self._correcting:
             return
         value = event.new
-        if value is None or (isinstance(value, float) and math.isnan(value)):
+        if isinstance(value, float) and math.isnan(value):
+            value = None
+        if value is None and not self.optional:
             fixed, why = self._last, f"**{self.base_label}** was empty: set back to {self._text(self._last)}."
         else:
             fixed = self.bounded(value)
             why = (f"**{self.base_label}** must be {self.range_text()}: {self._text(value)} was set to "
                    f"{self._text(fixed)}.") if fixed != value else ""
-        if fixed != value:
+        if fixed != event.new:  # NaN (a cleared box) too
             self._set(fixed)
-        self._last = fixed
+        self._last, self._users = fixed, True
+        self.tell(why)
+
+    def tell(self, why: str) -> None:
+        """Show ``why`` (Markdown) under the box, or hide the note when it is empty."""
         self.note.param.update(object=why, visible=bool(why))
 
     def _set(self, value) -> None:
@@ -90,8 +101,9 @@ class _KeepsBounds:
             self._correcting = False
 
     def set_bounds(self, start, end, value=None) -> None:
-        """New bounds (and, optionally, a new value); the value is moved inside them (the note says so when it was
-        the box's own value) and the label follows."""
+        """New bounds (and, optionally, a new value); the value is moved inside them and the label follows. The note
+        says so when the value moved was one entered in the box; a value the page set (its default, or ``value``)
+        moves silently."""
         old = self.value
         self._correcting = True
         try:
@@ -101,10 +113,12 @@ class _KeepsBounds:
             self._last = self.value
         finally:
             self._correcting = False
-        moved = value is None and old is not None and self.value != old
+        moved = value is None and self._users and old is not None and self.value != old
+        if value is not None:
+            self._users = False
         why = f"**{self.base_label}** must now be {self.range_text()}: {self._text(old)} was set to " \
               f"{self._text(self.value)}." if moved else ""
-        self.note.param.update(object=why, visible=bool(why))
+        self.tell(why)
 
 
 class BoundedIntInput(_KeepsBounds, pn.widgets.IntInput):
@@ -119,18 +133,41 @@ class BoundedIntInput(_KeepsBounds, pn.widgets.IntInput):
 
 
 class BoundedFloatInput(_KeepsBounds, pn.widgets.FloatInput):
-    """A FloatInput whose bounds the server enforces (see :class:`_KeepsBounds`)."""
+    """A FloatInput whose bounds the server enforces (see :class:`_KeepsBounds`); ``optional``: an empty box is
+    the value None ("none"), not an error."""
 
     _rename = {**pn.widgets.FloatInput._rename, "start": None, "end": None}
 
-    def __init__(self, label: str, value: float, start: float | None = None, end: float | None = None, **params):
+    def __init__(self, label: str, value: float | None, start: float | None = None, end: float | None = None,
+                 optional: bool = False, **params):
         super().__init__(value=value, start=start, end=end, **params)
-        self._keep_bounds(label)
+        self._keep_bounds(label, optional)
+
+    @classmethod
+    def within(cls, label: str, value: float | None, interval, step: float, **params) -> BoundedFloatInput:
+        """A box stepping by ``step`` whose bounds are the library's :class:`~mocapviz.validation.Interval` of the
+        parameter (an open end one step inside it, :meth:`~mocapviz.validation.Interval.closed`)."""
+        return cls(label, value, *interval.closed(step), step=step, **params)
 
 
 def notes(*inputs) -> pn.Column:
     """The notes of some bounded inputs, one under the other (each hidden while empty)."""
     return pn.Column(*[w.note for w in inputs], margin=0, sizing_mode="stretch_width")
+
+
+def clear(*shown) -> None:
+    """Empty what showed a previous result, so that no old answer stays on the page under the error of a run that
+    failed: a table loses its rows (keeping its columns), a text pane its text, a plot or picture its object, a
+    layout (a player's box, a card) is hidden (the page shows it again with its next result)."""
+    for w in shown:
+        if isinstance(w, pn.widgets.Tabulator):
+            w.param.update(selection=[], value=w.value.iloc[:0])
+        elif isinstance(w, (pn.pane.Markdown, pn.pane.HTML)):
+            w.object = ""
+        elif isinstance(w, (pn.pane.HoloViews, pn.pane.PNG)):
+            w.object = None
+        else:
+            w.visible = False
 
 
 def action_button(label: str, css_class: str, callback, width: int = 120) -> pn.widgets.Button:

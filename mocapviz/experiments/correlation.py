@@ -56,10 +56,12 @@ from ..features.distances import deuler_pairwise, dpc_pairwise, dquat_pairwise, 
 from ..features.numeric import default_pca, numeric_of
 from ..match.time_warping import dtw
 from ..similarity.knn import KnnIndex
+from ..validation import count
 
 __all__ = [
     "CORRELATION_MEASURES", "DISTANCE_MEASURES", "PAPER_FIG2_CLAIMS", "TABLE1_SETS", "available_measures",
-    "correlation_sample", "paper_claims", "pose_correlations", "rank_correlations", "segment_correlations",
+    "correlation_sample", "paper_claims", "pose_correlations", "pose_limits", "rank_correlations",
+    "segment_correlations",
 ]  # fmt: skip
 
 TABLE1_SETS = ("Fp8", "Fp16", "Fp25", "F15E", "F30E", "F39E", "F15x3E", "F15x5E", "F30x3E")  # Table 1's order
@@ -346,6 +348,40 @@ def _nearest(ctx: _Descriptors, measure: str, queries: np.ndarray, frames: np.nd
     return dist, near
 
 
+def pose_limits(db, docs=None) -> dict[str, tuple[int, int]]:
+    """The ranges :func:`pose_correlations` accepts for ``k`` and ``n_queries`` on the frames of ``docs``: k from 1 to
+    the frames less the query, the queries from 1 to the frames (drawn without replacement). The one statement of
+    both limits: the function checks them, the dashboard's boxes take them.
+
+    Parameters
+    ----------
+    db : MotionDB
+    docs : pd.DataFrame (``doc_id`` column) or sequence of int, optional
+        As for :func:`pose_correlations` (default all documents).
+
+    Returns
+    -------
+    dict
+        ``{"k": (1, F - 1), "n_queries": (1, F)}`` for the F frames of ``docs``.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()
+    >>> pose_limits(db, [7])  # document 7: 129 frames
+    {'k': (1, 128), 'n_queries': (1, 129)}
+    """
+    frames = len(_documents(db, docs)[1])
+    return {"k": (1, frames - 1), "n_queries": (1, frames)}
+
+
+def _check_pose_limits(db, docs, k, n_queries) -> None:
+    """A ParameterError naming k or n_queries outside :func:`pose_limits`."""
+    limits = pose_limits(db, docs)
+    count(k, "k", *limits["k"], most_is="the frames of the documents, less the query")
+    count(n_queries, "n_queries", *limits["n_queries"], most_is="the frames of the documents")
+
+
 def pose_correlations(db, rows=CORRELATION_MEASURES, columns=CORRELATION_MEASURES, docs=None, n_queries: int = 1024,
                       k: int = 256, pca=None, seed: int = 0, progress: bool = False) -> pd.DataFrame:  # fmt: skip
     """Pose-based rank correlations of Fig. 2 (Krüger et al. 2010, §3.3 "Pose-based comparisons").
@@ -375,9 +411,10 @@ def pose_correlations(db, rows=CORRELATION_MEASURES, columns=CORRELATION_MEASURE
     docs : pd.DataFrame (``doc_id`` column) or sequence of int, optional
         The documents to search and draw queries from (default all): e.g. :func:`correlation_sample`.
     n_queries : int
-        Random query frames (the paper: 1024), drawn without replacement.
+        Random query frames (the paper: 1024), drawn without replacement; at most the frames of ``docs``
+        (:func:`pose_limits`).
     k : int
-        Neighbours per query (the paper: 256).
+        Neighbours per query (the paper: 256); at most the frames of ``docs`` less one (:func:`pose_limits`).
     pca : PCAModel, optional
         Reference of the Fp sets (the paper: all of HDM05); default :func:`mocapviz.features.numeric.default_pca`.
     seed : int
@@ -402,11 +439,7 @@ def pose_correlations(db, rows=CORRELATION_MEASURES, columns=CORRELATION_MEASURE
     rows, columns = _check_measures(rows, "rows"), _check_measures(columns, "columns")
     table, frames = _documents(db, docs)
     _check_deuler(table, rows + columns)
-    if not 1 <= k < len(frames):
-        raise ParameterError(f"k must be between 1 and {len(frames) - 1} (the frames of the documents, less the query); "
-                         f"got k={k} for {len(frames)} frames")  # fmt: skip
-    if not 1 <= n_queries <= len(frames):
-        raise ParameterError(f"n_queries must be between 1 and the {len(frames)} frames of the documents; got {n_queries}")
+    _check_pose_limits(db, docs, k, n_queries)
     ctx = _Descriptors(db, rows + columns, pca)
     queries = np.sort(np.random.default_rng(seed).choice(frames, n_queries, replace=False))
     seconds = {"neighbours": {}, "distances": {}}

@@ -197,7 +197,7 @@ class _Runner:
         # every end node of the graph is a candidate match; n_matches = k keeps them all (each document's best
         # match comes first in cost order, so ranking documents by it needs no more)
         return lng(s.features[span.start : span.stop], index, k=k, n_matches=k if n_matches is None else n_matches,
-                   starts=self.starts, exclude=(span.start, span.stop), paths=False)  # fmt: skip
+                   starts=self.starts, exclude=(span.start, span.stop), paths=False, min_length=None)  # fmt: skip
 
     def _relational_hits(self, q: int) -> pd.DataFrame | None:
         if q not in self._hits:

@@ -4,7 +4,7 @@ neighbourhoods   the search step: for each query frame, at most k database frame
 graph_matches    graph construction and path search on given neighbourhoods: nodes are the neighbours, edges the
                  DTW steps between them, edge cost the distance of the node entered; one shortest-path pass in
                  topological order, O(k m log k). Returns the top ``n_matches`` non-overlapping matches with their
-                 paths.
+                 paths, each at least ``min_length`` × the query long (default half, as every search).
 lng              both steps: ``lng(query, knn_index, k=..., radius=...)``.
 
 The cost model is subsequence DTW's "basic" step set (:mod:`mocapviz.match.time_warping`): a diagonal step (next query
@@ -24,8 +24,15 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ParameterError
-from ..validation import count, renamed
-from .time_warping import _check_document_starts, _sequence, check_query_length, matches_frame, select_matches
+from ..validation import MIN_LENGTH, count, renamed
+from .time_warping import (
+    _check_document_starts,
+    _sequence,
+    check_query_length,
+    matches_frame,
+    select_matches,
+    shortest_match,
+)
 
 
 def neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: float = 0.0, exclude=None,
@@ -132,7 +139,7 @@ def _graph_path(F, P, C, i, c):  # pragma: no cover - compiled
 
 
 def graph_matches(distances, frames, starts=None, n_frames: int | None = None, n_matches: int = 10,
-                  paths: bool = True) -> pd.DataFrame:  # fmt: skip
+                  paths: bool = True, min_length: float | None = MIN_LENGTH) -> pd.DataFrame:  # fmt: skip
     """Graph construction and path search of §4.1 on given neighbourhoods: the top ``n_matches`` non-overlapping
     matches.
 
@@ -148,6 +155,11 @@ def graph_matches(distances, frames, starts=None, n_frames: int | None = None, n
         Matches wanted.
     paths : bool
         Return each match's path.
+    min_length : float, optional
+        The shortest match, a share in (0, 1] of the query's frames (default 0.5): an end node whose shortest path
+        spans fewer database frames is no candidate, the rule of :func:`mocapviz.match.subsequence_dtw` and of the
+        similarity search's stretches (:func:`mocapviz.match.time_warping.shortest_match`). None: any length
+        (the paper's graph: a path may stay on one database frame for the whole query).
 
     Returns
     -------
@@ -160,12 +172,14 @@ def graph_matches(distances, frames, starts=None, n_frames: int | None = None, n
     if d.ndim != 2 or d.shape != f.shape or len(d) < 2:
         raise ParameterError(f"distances and frames must be (m, k) arrays of the same shape with m >= 2; got {d.shape} "
                          f"and {f.shape}")  # fmt: skip
+    shortest = shortest_match(min_length, len(d))
     n = int(f.max()) + 1 if n_frames is None else int(n_frames)
     doc_starts = _check_document_starts(starts, max(n, 1))
     docs = np.searchsorted(doc_starts, f, side="right") - 1
     F, A, S, P, C, counts = _shortest_paths(f, d, docs)
     last = len(F) - 1
     cols = np.arange(counts[last])
+    cols = cols[F[last, cols] - S[last, cols] + 1 >= shortest]
     chosen = cols[select_matches(S[last, cols], F[last, cols], A[last, cols], count(n_matches, "n_matches"))]
     found = [_graph_path(F, P, C, last, c) if paths else None for c in chosen]
     return matches_frame(doc_starts, S[last, chosen], F[last, chosen], A[last, chosen], found)
@@ -173,7 +187,8 @@ def graph_matches(distances, frames, starts=None, n_frames: int | None = None, n
 
 @renamed(k_matches="n_matches")
 def lng(query, knn_index, k: int = 64, radius: float | None = None, n_matches: int = 10, starts=None,
-        eps: float = 0.0, exclude=None, threads: int | None = None, paths: bool = True) -> pd.DataFrame:  # fmt: skip
+        eps: float = 0.0, exclude=None, threads: int | None = None, paths: bool = True,
+        min_length: float | None = MIN_LENGTH) -> pd.DataFrame:  # fmt: skip
     """Global motion matching with the lazy neighbourhood graph (Krüger et al. 2010 §4.1): the top ``n_matches``
     non-overlapping stretches of the database that align to the query, ranked by global cost, with their
     alignments, in O(k m log n).
@@ -200,6 +215,9 @@ def lng(query, knn_index, k: int = 64, radius: float | None = None, n_matches: i
         kNN threads (default :func:`mocapviz.parallel.default_threads`).
     paths : bool
         Return each match's path.
+    min_length : float, optional
+        The shortest match, a share in (0, 1] of the query's frames (default 0.5: half as long), as for
+        :func:`graph_matches`; None: any length.
 
     Returns
     -------
@@ -231,12 +249,14 @@ def lng(query, knn_index, k: int = 64, radius: float | None = None, n_matches: i
     >>> matches = lng(x[own.start : own.start + 60], KnnIndex(x), k=1024, starts=starts, n_matches=2,
     ...               exclude=(own.start, own.stop))  # 0.5 s of a kick, its own clip left out
     >>> matches["doc_id"].tolist(), matches["cost"].round(1).tolist()  # the cost of subsequence DTW's best match
-    ([18, 18], [2489.7, 3473.5])
+    ([18, 12], [2489.7, 4156.3])
+    >>> (matches["end"] - matches["start"] + 1).tolist()  # each at least half the query (min_length=0.5)
+    [41, 30]
     """
     check_query_length(len(query), _check_document_starts(starts, knn_index.n_frames), knn_index.n_frames)
     t0 = time.perf_counter()
     d, f = neighbourhoods(query, knn_index, k, radius, eps, exclude, threads)
     t1 = time.perf_counter()
-    out = graph_matches(d, f, starts, knn_index.n_frames, n_matches, paths)
+    out = graph_matches(d, f, starts, knn_index.n_frames, n_matches, paths, min_length)
     out.attrs["seconds"] = {"knn": t1 - t0, "graph": time.perf_counter() - t1}
     return out

@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ParameterError
-from ..validation import count, renamed
+from ..validation import MIN_LENGTH, MIN_LENGTH_RANGE, count, renamed
 
 STEP_SETS = {
     "basic": ((1, 1, 1.0), (1, 0, 1.0), (0, 1, 1.0)),
@@ -115,6 +115,32 @@ def check_query_length(m: int, doc_starts: np.ndarray, n: int) -> None:
     if m > longest:
         raise ParameterError(f"the query has {m} frames, more than the longest document ({longest} frames); a match "
                          f"cannot be shorter than the query")  # fmt: skip
+
+
+def shortest_match(min_length: float | None, m: int) -> int:
+    """The fewest database frames a match of an ``m``-frame query may span: ``min_length`` × m rounded up (at least
+    1), the rule of every search that takes ``min_length`` (:func:`subsequence_dtw`, the lazy neighbourhood graph,
+    :meth:`mocapviz.similarity.search.SimilaritySearch.stretches`); None: any length.
+
+    Parameters
+    ----------
+    min_length : float or None
+        A share of the query's frames in (0, 1] (:data:`mocapviz.validation.MIN_LENGTH_RANGE`), or None.
+    m : int
+        The query's frames.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> shortest_match(0.5, 129), shortest_match(None, 129)
+    (65, 1)
+    """
+    if min_length is None:
+        return 1
+    return max(1, int(np.ceil(MIN_LENGTH_RANGE.check(min_length, "min_length (a share of the query's frames)") * m)))
 
 
 # ============================================================================ local costs
@@ -545,7 +571,7 @@ def matches_frame(doc_starts: np.ndarray, starts, ends, costs, paths) -> pd.Data
 
 @renamed(k="n_matches")
 def subsequence_dtw(query, database, starts=None, n_matches: int = 10, distance=None, steps="basic",
-                    paths: bool = True, progress: bool = False) -> pd.DataFrame:  # fmt: skip
+                    paths: bool = True, progress: bool = False, min_length: float | None = MIN_LENGTH) -> pd.DataFrame:
     """The ``n_matches`` best non-overlapping matches of a query in a database by subsequence DTW (Müller 2007
     §4.4): the local minima of the accumulated cost over the last query frame, best first, each discarding the
     candidates that overlap it. The reference that the lazy neighbourhood graph (Krüger et al. 2010 §4.1)
@@ -570,6 +596,11 @@ def subsequence_dtw(query, database, starts=None, n_matches: int = 10, distance=
         Compute each match's path (by DTW of the query against the matched stretch; same cost).
     progress : bool
         A progress bar over blocks of database frames.
+    min_length : float, optional
+        The shortest match, a share in (0, 1] of the query's frames (:func:`shortest_match`; default
+        :data:`mocapviz.validation.MIN_LENGTH`, half as long as the query); None: any length (Müller's subsequence DTW, whose best
+        match may map every query frame to one database frame). An end frame whose best alignment is shorter is
+        no candidate.
 
     Returns
     -------
@@ -600,13 +631,17 @@ def subsequence_dtw(query, database, starts=None, n_matches: int = 10, distance=
     >>> own = db.frames(7)
     >>> matches = subsequence_dtw(x[own.start : own.start + 60], x, starts, n_matches=3)  # 0.5 s of a kick
     >>> matches["doc_id"].tolist(), matches["cost"].round(1).tolist()  # itself first, then the other kick
-    ([7, 18, 18], [0.0, 2489.7, 3412.8])
+    ([7, 18, 14], [0.0, 2489.7, 4091.2])
+    >>> bool((matches["end"] - matches["start"] + 1).min() >= 30)  # none shorter than half the query
+    True
     """
     n_matches = count(n_matches, "n_matches")
     n = len(database)
     doc_starts = _check_document_starts(starts, n)
     check_query_length(len(query), doc_starts, n)
+    shortest = shortest_match(min_length, len(query))
     cost, first = subsequence_costs(query, database, starts, distance, steps, progress)
+    cost[np.arange(n) - first + 1 < shortest] = np.inf
     chosen = best_ends(cost, first, doc_starts, n_matches)
     found = []
     for s, e in zip(first[chosen], chosen):

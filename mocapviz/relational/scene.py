@@ -662,7 +662,7 @@ def describe(template, delta: float = 0.1, progressions: int = 4, longest: int =
     template : MotionTemplate
         Learned on the 2005 or 2006 relational set (:func:`mocapviz.relational.templates.learn_class`).
     delta : float
-        The quantisation threshold δ, 0 <= δ < 0.5.
+        The quantisation threshold δ, 0 < δ < 0.5 (:data:`mocapviz.relational.templates.DELTA_RANGE`).
     progressions : int
         Progressions kept, >= 1.
     longest : int

@@ -72,12 +72,15 @@ from ..errors import MotionDBError, ParameterError, UnknownKeyError
 from ..features import RELATIONAL_SETS, feature_names, relational_features
 from ..match import best_ends, dtw, subsequence_costs
 from ..match.time_warping import _check_document_starts, matches_frame
-from ..validation import count, number
+from ..validation import Interval, count, number
 
 FORMAT = "mocapviz.MotionTemplate"
 VERSION = 1
 DONT_CARE = 0.5  # the value a quantised template holds where a feature does not matter
 DELTA = 0.1  # default quantisation threshold: < δ -> 0, > 1 - δ -> 1, else don't care
+# δ = 0 would leave no entry below 0 or above 1: all "don't care", every stretch a perfect match; δ = 0.5 none
+DELTA_RANGE = Interval(0.0, 0.5, low_open=True, high_open=True)
+MAX_COST_RANGE = Interval(0.0, 1.0)  # a normalised cost: the mean mismatch per template frame
 ITERATIONS = 10
 KEYFRAMES = 4  # template rows used by the pre-filter
 TOLERANCE = 0.2  # a keyframe occurs where at most this share of its cared-for features disagree
@@ -158,7 +161,7 @@ class MotionTemplate:
         Parameters
         ----------
         delta : float
-            The threshold δ, 0 <= δ < 0.5.
+            The threshold δ, 0 < δ < 0.5 (:data:`DELTA_RANGE`; at 0 every entry would be don't care).
         by_group : bool
             Judge by the groups when the template has them (default); False: by the pooled ``values`` always.
 
@@ -176,7 +179,7 @@ class MotionTemplate:
         >>> t.quantised(0.1).tolist(), t.quantised(0.1, by_group=False).tolist()  # pooled 0.075 < δ
         ([[0.5]], [[0.0]])
         """
-        delta = number(delta, "delta", 0.0, 0.5, high_open=True)
+        delta = DELTA_RANGE.check(delta, "delta")
         out = np.full(self.values.shape, DONT_CARE)
         if by_group and self.group_values is not None and len(self.group_values):
             g = np.asarray(self.group_values, dtype=np.float64)
@@ -982,7 +985,7 @@ def search_template(db, template: MotionTemplate, n_matches: int = 10, delta: fl
     n_matches : int
         At most this many non-overlapping instances (K >= 1).
     delta : float
-        The quantisation threshold δ, 0 <= δ < 0.5 (:meth:`MotionTemplate.quantised`).
+        The quantisation threshold δ, 0 < δ < 0.5 (:data:`DELTA_RANGE`, :meth:`MotionTemplate.quantised`).
     max_cost : float, optional
         Keep only instances whose normalised cost (mean mismatch per template frame, in [0, 1]) is at most this.
     prefilter : bool
@@ -1029,8 +1032,9 @@ def search_template(db, template: MotionTemplate, n_matches: int = 10, delta: fl
         raise ParameterError(f"the template's {len(template.features)} features are not those of a relational set "
                              f"({sets}); learn it again with `mocapviz template learn`")
     n_matches = count(n_matches, "n_matches")
+    delta = DELTA_RANGE.check(delta, "delta")
     if max_cost is not None:
-        max_cost = number(max_cost, "max_cost (a mean mismatch per frame)", 0.0, 1.0)
+        max_cost = MAX_COST_RANGE.check(max_cost, "max_cost (a mean mismatch per frame)")
     if values is None:
         values, _ = relational_features(db, relational_set, progress=False)
     starts = db.documents["start"].to_numpy()

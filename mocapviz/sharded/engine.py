@@ -23,8 +23,9 @@ from ..db.database import MotionDB
 from ..db.hits import first_frames, hit_table
 from ..db.shards import split_documents
 from ..errors import ClusterError, MocapvizError, ParameterError
+from ..match.time_warping import shortest_match
 from ..parallel import dask_client
-from ..validation import count
+from ..validation import MIN_LENGTH, count
 from .shard import Shard
 
 __all__ = ["ShardedDB"]
@@ -206,7 +207,8 @@ class ShardedDB:
         return self._merged(tables, ["normalised_cost", "doc_id"], n_matches, t0)
 
     def stretches(self, example, frames=None, n_matches: int = 10, numeric_set: str = "F15E", mode: str = "fast",
-                  min_length: float = 0.5, exclude_document: bool = False, paths: bool = False) -> pd.DataFrame:
+                  min_length: float | None = MIN_LENGTH, exclude_document: bool = False,
+                  paths: bool = False) -> pd.DataFrame:  # fmt: skip
         """:meth:`SimilaritySearch.stretches` over every shard: the K best non-overlapping stretches by DTW cost, then
         by their last frame in the database (exact and brute mode: the single process's answer)."""
         query = self._query(example, frames, numeric_set)
@@ -235,7 +237,8 @@ class ShardedDB:
 
     def match_motion(self, example, frames=None, numeric_set: str = "F15E", method: str = "lng", n_matches: int = 10,
                      k: int | None = None, radius: float | None = None, eps: float = 0.0,
-                     exclude_document: bool = False, paths: bool = False) -> pd.DataFrame:  # fmt: skip
+                     exclude_document: bool = False, paths: bool = False,
+                     min_length: float | None = MIN_LENGTH) -> pd.DataFrame:  # fmt: skip
         """:func:`mocapviz.similarity.motion_matching.match_motion` over the cluster. ``method="lng"``: the k nearest
         neighbours of every query frame come from every shard and are merged (:meth:`knn`), the graph is built
         here; ``"dtw"``: subsequence DTW on every shard, matches merged by cost, then by their last frame."""
@@ -245,13 +248,14 @@ class ShardedDB:
             query = self._query(example, frames, numeric_set)
             n_matches = count(n_matches, "n_matches")
             t0 = time.perf_counter()
-            tables = self._fan("match_dtw", numeric_set, query, n_matches, exclude_document, paths)
+            shortest_match(min_length, len(query.values))  # checked here, once
+            tables = self._fan("match_dtw", numeric_set, query, n_matches, exclude_document, paths, min_length)
             table = self._merged(tables, ["cost", "_last"], n_matches, t0)
             table.attrs.update(method="dtw", query_frames=len(query.values))
             return table
         return match_motion(self.db, example, frames, numeric_set, method, n_matches, DEFAULT_K if k is None else k,
                             radius, eps, exclude_document, paths, features=self.features(numeric_set),
-                            index=_ShardedIndex(self, numeric_set))  # fmt: skip
+                            index=_ShardedIndex(self, numeric_set), min_length=min_length)  # fmt: skip
 
     def query_by_example(self, example, features=None, mode: str = "adaptive", mismatches: int = 1,
                          relational_set: str = "2005", allowed=None) -> pd.DataFrame:  # fmt: skip

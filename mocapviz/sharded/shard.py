@@ -126,14 +126,16 @@ class Shard:
         """:meth:`SimilaritySearch.stretches` on the shard."""
         return self.packed(self.search(numeric_set).stretches(query, **options))
 
-    def match_dtw(self, numeric_set: str, query, n_matches: int, exclude_document: bool, paths: bool) -> dict:
+    def match_dtw(self, numeric_set: str, query, n_matches: int, exclude_document: bool, paths: bool,
+                  min_length: float | None) -> dict:
         """:func:`~mocapviz.similarity.motion_matching.match_motion` by subsequence DTW on the shard (the query's own
         document left out when it is one of the shard's)."""
         from ..similarity.motion_matching import match_motion
 
         own = exclude_document and query.doc_id is not None and query.doc_id in self.doc_ids
         return self.packed(match_motion(self.view, query, numeric_set=numeric_set, method="dtw", n_matches=n_matches,
-                                        exclude_document=own, paths=paths, features=self.numeric(numeric_set)))
+                                        exclude_document=own, paths=paths, features=self.numeric(numeric_set),
+                                        min_length=min_length))
 
     def query_by_example(self, example, features, relational_set: str = "2005", **options) -> dict | None:
         """:func:`~mocapviz.relational.query.query_by_example` on the shard (``example``: a Motion or its

@@ -458,7 +458,7 @@ class KnnIndex:
         return KnnIndex(self._features, self.engine, valid=self.valid & ~drop, leafsize=self.leafsize)
 
 
-def describe_frames(db, frames, distances=None) -> pd.DataFrame:
+def describe_frames(db, frames, distances=None, per_document: bool = False) -> pd.DataFrame:
     """Database frames (e.g. the neighbours of a kNN query) as hits: one-frame stretches of their documents.
 
     Parameters
@@ -469,6 +469,10 @@ def describe_frames(db, frames, distances=None) -> pd.DataFrame:
         entries (missing neighbours of a radius search) are left out.
     distances : np.ndarray [shape=(n,)], optional
         The neighbours' distances (feature units, e.g. cm) to put beside them.
+    per_document : bool
+        One row per document: its first frame in the given order (the nearest, for neighbours nearest first),
+        ranked 1, 2, ... again. A pose's nearest frames are mostly its own take's neighbouring frames; this shows
+        which documents hold it.
 
     Returns
     -------
@@ -491,6 +495,11 @@ def describe_frames(db, frames, distances=None) -> pd.DataFrame:
     >>> print(hits[["rank", "doc_id", "start", "end", "frames", "distance"]].to_string(index=False))
      rank  doc_id  start  end  frames  distance
         1       5     12   13       1       0.5
+    >>> each = describe_frames(db, [d0 + 12, d0 + 13, d0 + 90], [0.5, 0.6, 0.7], per_document=True)
+    >>> print(each[["rank", "doc_id", "start", "distance"]].to_string(index=False))  # document 5 (70 frames) once
+     rank  doc_id  start  distance
+        1       5     12       0.5
+        2       6     20       0.7
     """
     frames = np.asarray(frames, dtype=np.int64).ravel()
     keep = frames >= 0
@@ -498,6 +507,10 @@ def describe_frames(db, frames, distances=None) -> pd.DataFrame:
         raise ParameterError(f"frame {int(frames[keep].max())} is beyond the database's {db.n_frames:,} frames")
     doc_ids, starts, ends = from_database_frames(db, frames[keep], frames[keep] + 1)
     columns = {} if distances is None else {"distance": np.asarray(distances, dtype=np.float64).ravel()[keep]}
+    if per_document:
+        first = np.sort(np.unique(doc_ids, return_index=True)[1])  # each document's first row, in the given order
+        doc_ids, starts, ends = doc_ids[first], starts[first], ends[first]
+        columns = {c: v[first] for c, v in columns.items()}
     return hit_table(db, doc_ids, starts, ends, **columns)
 
 

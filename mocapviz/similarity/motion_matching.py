@@ -16,7 +16,8 @@ from ..db.hits import from_database_frames, hit_table
 from ..errors import ParameterError
 from ..features.numeric import numeric_of
 from ..match import lng, subsequence_dtw
-from ..validation import count, number, one_of
+from ..match.time_warping import shortest_match
+from ..validation import MIN_LENGTH, count, number, one_of
 from .knn import KnnIndex
 from .search import example_features
 
@@ -27,7 +28,7 @@ DEFAULT_K = 256  # neighbours per query frame of the graph
 def match_motion(db, example, frames=None, numeric_set: str = "F15E", method: str = "lng", n_matches: int = 10,
                  k: int = DEFAULT_K, radius: float | None = None, eps: float = 0.0, exclude_document: bool = False,
                  paths: bool = False, features: np.ndarray | None = None, index: KnnIndex | None = None,
-                 option: str = "frames") -> pd.DataFrame:  # fmt: skip
+                 option: str = "frames", min_length: float | None = MIN_LENGTH) -> pd.DataFrame:  # fmt: skip
     """The stretches of a MotionDB most like a query, by the lazy neighbourhood graph or subsequence DTW.
 
     Parameters
@@ -55,18 +56,23 @@ def match_motion(db, example, frames=None, numeric_set: str = "F15E", method: st
         The stored numeric set, if already loaded; ``index`` a :class:`KnnIndex` over it, if already built.
     option : str
         How the caller names ``frames`` in an error.
+    min_length : float, optional
+        The shortest match, a share in (0, 1] of the query's frames (default 0.5: half as long), by either method:
+        the rule of the similarity search's stretches (:func:`mocapviz.match.time_warping.shortest_match`); None:
+        any length (a match may then hold the whole query on one frame).
 
     Returns
     -------
     pandas.DataFrame
         The hit table (``start``, ``end``: the document's frames, half-open) with ``cost`` (accumulated DTW cost,
         feature units) and ``cost_per_frame`` (cost / query frames), [``path``]. ``attrs``: ``method``,
-        ``query_frames``, ``ms``.
+        ``query_frames``, ``ms``, ``min_length``.
 
     Raises
     ------
     ParameterError
-        A bad method, K, k, radius or eps, ``k``/``radius``/``eps`` given with ``method="dtw"``, a bad example.
+        A bad method, K, k, radius, eps or min_length, ``k``/``radius``/``eps`` given with ``method="dtw"``, a bad
+        example.
 
     References
     ----------
@@ -92,17 +98,20 @@ def match_motion(db, example, frames=None, numeric_set: str = "F15E", method: st
                              "(method='dtw') compares every frame: leave them out")
     X = np.asarray(numeric_of(db, numeric_set, progress=False)) if features is None else features
     query, own = example_features(db, X, example, frames, numeric_set, option)
+    shortest_match(min_length, len(query))  # checked before either search starts
     starts = db.documents["start"].to_numpy()
     span = db.frames(own) if own is not None and exclude_document else None
     t0 = time.perf_counter()
     if method == "dtw":
-        found = subsequence_dtw(query, X, starts, n_matches=n_matches + (n_matches if span else 0), paths=paths)
+        found = subsequence_dtw(query, X, starts, n_matches=n_matches + (n_matches if span else 0), paths=paths,
+                                min_length=min_length)
         if span is not None:
             found = found[(found["end"] < span.start) | (found["start"] >= span.stop)].head(n_matches)
     else:
         index = KnnIndex(X) if index is None else index
         found = lng(query, index, k=k, radius=radius, n_matches=n_matches, starts=starts, eps=eps,
-                    exclude=None if span is None else (span.start, span.stop), paths=paths)  # fmt: skip
+                    exclude=None if span is None else (span.start, span.stop), paths=paths,
+                    min_length=min_length)  # fmt: skip
     ms = 1e3 * (time.perf_counter() - t0)
     first = found["start"].to_numpy(np.int64)
     doc_ids, a, b = from_database_frames(db, first, found["end"].to_numpy(np.int64) + 1)
@@ -110,5 +119,5 @@ def match_motion(db, example, frames=None, numeric_set: str = "F15E", method: st
     if paths:
         columns["path"] = [np.asarray(p) - np.array([0, f - s]) for p, f, s in zip(found["path"], first, a)]
     table = hit_table(db, doc_ids, a, b, **columns)
-    table.attrs.update(method=method, query_frames=len(query), ms=ms)
+    table.attrs.update(method=method, query_frames=len(query), ms=ms, min_length=min_length)
     return table

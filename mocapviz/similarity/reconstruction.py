@@ -86,7 +86,7 @@ from ..errors import ParameterError
 from ..features.numeric import NUMERIC_SETS, PCAModel, default_pca, numeric_features, numeric_of
 from ..motion import Motion
 from ..motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS, body_frame
-from ..validation import count
+from ..validation import Interval, count
 from .knn import KnnIndex
 
 __all__ = [
@@ -98,6 +98,7 @@ __all__ = [
     "DEFAULT_VARIANCE",
     "MARKERS",
     "METHODS",
+    "NOISE_RANGE_CM",
     "PosePrior",
     "body_frame_markers",
     "marker_query",
@@ -111,6 +112,9 @@ _MARKER_JOINTS = np.array([CANONICAL_JOINTS.index(j) for j in MARKERS])
 _QUERY_ROWS = np.array([3 * j + a for j in _MARKER_JOINTS[:5] for a in range(3)])  # S: rows of x for the markers
 BONES = tuple((int(p), c) for c, p in enumerate(CANONICAL_PARENTS) if p >= 0)  # 23 (parent, child)
 METHODS = ("llm", "mean", "nn")
+# the synthetic markers' noise, cm: at most 1 m, about half a body's height (a marker farther off no longer says
+# where its joint is; §5.2 uses 1 mm)
+NOISE_RANGE_CM = Interval(0.0, 100.0)
 
 DEFAULT_K = 1024
 DEFAULT_VARIANCE = 0.999
@@ -132,7 +136,8 @@ def synthetic_markers(positions, noise_cm: float = 0.1, seed=None) -> np.ndarray
     positions : np.ndarray [shape=(T, 24, 3)]
         Canonical joints, cm, y up.
     noise_cm : float
-        Each coordinate gets independent uniform noise in [-noise_cm, noise_cm] cm (>= 0; default 0.1 cm = 1 mm).
+        Each coordinate gets independent uniform noise in [-noise_cm, noise_cm] cm (in :data:`NOISE_RANGE_CM`,
+        0..100 cm; default 0.1 cm = 1 mm).
     seed : int or np.random.Generator, optional
         The noise's generator or seed.
 
@@ -144,8 +149,7 @@ def synthetic_markers(positions, noise_cm: float = 0.1, seed=None) -> np.ndarray
     pos = np.asarray(positions)
     if pos.ndim != 3 or pos.shape[1:] != (len(CANONICAL_JOINTS), 3):
         raise ParameterError(f"positions must have shape (T, {len(CANONICAL_JOINTS)}, 3); got {pos.shape}")
-    if not (np.isfinite(noise_cm) and noise_cm >= 0):
-        raise ParameterError(f"noise_cm must be a finite number >= 0; got {noise_cm!r}")
+    noise_cm = NOISE_RANGE_CM.check(noise_cm, "noise_cm")
     rng = np.random.default_rng(seed)
     clean = pos[:, _MARKER_JOINTS].astype(np.float64)
     return clean + rng.uniform(-noise_cm, noise_cm, size=clean.shape)

@@ -47,9 +47,9 @@ from ..features import numeric_features, numeric_of
 from ..features.numeric import NUMERIC_SETS, default_pca
 from ..match.bounds import box_rows, range_of, row_bounds
 from ..match.pruned import search_ranges
-from ..match.time_warping import dtw, select_matches
+from ..match.time_warping import dtw, select_matches, shortest_match
 from ..motion import Motion
-from ..validation import count, frame_span, number, one_of
+from ..validation import MIN_LENGTH, count, frame_span, number, one_of
 
 if TYPE_CHECKING:
     from .knn import KnnIndex
@@ -305,8 +305,9 @@ class SimilaritySearch:
         return np.argsort(costs, kind="stable"), costs
 
     # ------------------------------------------------------------------------ stretches
-    def stretches(self, example, frames=None, n_matches: int = 10, mode: str = "fast", min_length: float = 0.5,
-                  exclude_document: bool = False, paths: bool = False, limit: float | None = None) -> pd.DataFrame:
+    def stretches(self, example, frames=None, n_matches: int = 10, mode: str = "fast",
+                  min_length: float | None = MIN_LENGTH, exclude_document: bool = False, paths: bool = False,
+                  limit: float | None = None) -> pd.DataFrame:  # fmt: skip
         """The K best non-overlapping stretches of the documents by subsequence DTW (raw cost, as
         :func:`mocapviz.match.subsequence_dtw` ranks them), each at least ``min_length`` × the query's frames.
 
@@ -321,7 +322,8 @@ class SimilaritySearch:
         mode : {"fast", "exact", "brute"}
             See the module docstring.
         min_length : float
-            The shortest match, a share in (0, 1] of the query's frames (0.5: half as long).
+            The shortest match, a share in (0, 1] of the query's frames (default 0.5: half as long), the rule of
+            every search (:func:`mocapviz.match.time_warping.shortest_match`); None: any length.
         exclude_document : bool
             Leave out the query's own document.
         paths : bool
@@ -336,14 +338,12 @@ class SimilaritySearch:
         ``attrs`` also holds ``ranges`` (documents or fast mode's windows searched).
         """
         n_matches, mode = count(n_matches, "n_matches"), _mode(mode)
-        if not isinstance(min_length, (int, float, np.floating, np.integer)) or not 0 < min_length <= 1:
-            raise ParameterError(f"min_length must be a share of the query's frames in (0, 1]; got {min_length!r}")
         q, own = self.query_features(example, frames)
         t0 = time.perf_counter()
         rows_idx = self._ranges(own, exclude_document, None)
         lo, hi = self._lo[rows_idx], self._hi[rows_idx]
         m = len(q)
-        shortest = max(1, int(np.ceil(min_length * m)))
+        shortest = shortest_match(min_length, m)
         if not len(lo) or (hi - lo).max() < max(m, shortest):
             longest = int((hi - lo).max()) if len(lo) else 0
             raise ParameterError(f"the query has {m} frames, more than the longest searchable document ({longest} "

@@ -16,6 +16,8 @@ retrieval.py  retrieval quality of the search methods: class_ap_bars (AP per cla
 statistics.py query_time_scatter: query time against hit count (Müller et al. 2005 §6.2, Table 3).
 templates.py  template_image: a motion template as features × time, white 0, black 1, grey don't care (Müller &
               Röder 2006).
+palette.py    the colours, dashes and markers of every figure and of the dashboard's player, defined once: SIDES
+              (right red, left blue), PARTS (lower, upper, mix), OTHERS, SERIES.
 """
 from .correlation import correlation_heatmap
 from .matching import accuracy_plot, accuracy_table, alignment_layout, band_polygon, similarity_layout

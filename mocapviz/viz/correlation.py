@@ -23,9 +23,9 @@ from ..errors import ParameterError
 
 ROWS = "neighbours by"
 COLUMNS = "compared with"
-CMAP = "RdBu_r"  # diverging: blue -1, white 0, red +1
-COLOUR_RANGE = (-1.0, 1.0)  # the whole range of Spearman's rho, the same in every plot so that plots compare
-WHITE_TEXT_FROM = 0.75  # |rho| from which a value is printed in white (the cell is dark)
+DIVERGING = "RdBu_r"  # values of both signs: blue below 0, white 0, red above, symmetric about 0
+SEQUENTIAL = "Blues"  # values of one sign: light at the smallest, dark at the largest
+WHITE_TEXT_FROM = 0.6  # the share of the colour scale from which a cell is dark: its value printed in white
 VALUE_FONT_PT = (6, 14)  # the values' font size grows with the cell between these
 VALUE_CHARS = 5  # "-0.12": the widest value printed
 
@@ -52,6 +52,45 @@ def value_font(cell: int) -> int | None:
     """
     font = min(int((cell - 4) / (VALUE_CHARS * 0.62 * 4 / 3)), VALUE_FONT_PT[1])
     return font if font >= VALUE_FONT_PT[0] else None
+
+
+def colour_scale(values) -> tuple[str, tuple[float, float]]:
+    """The colour map and its range for a heat map of ``values``, fitted to them: values of both signs on a
+    diverging map symmetric about 0 (to the largest |value|), values of one sign on a sequential map from their
+    least to their greatest (a matrix of 0.8..1.0 then spans the whole scale instead of a sliver of -1..1).
+
+    Parameters
+    ----------
+    values : array_like
+        The values (NaN ignored).
+
+    Returns
+    -------
+    (str, (float, float))
+        The colour map's name and (low, high).
+
+    Examples
+    --------
+    >>> colour_scale([0.81, 0.9, 1.0]), colour_scale([-0.2, 0.5])
+    (('Blues', (0.81, 1.0)), ('RdBu_r', (-0.5, 0.5)))
+    """
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    lo, hi = (float(v.min()), float(v.max())) if v.size else (0.0, 1.0)
+    if lo < 0 < hi:
+        most = max(-lo, hi)
+        return DIVERGING, (-most, most)
+    if lo == hi:  # one value: a range around it
+        lo, hi = lo - 0.5, hi + 0.5
+    return SEQUENTIAL, (lo, hi)
+
+
+def _dark(v: np.ndarray, cmap: str, clim: tuple[float, float]) -> np.ndarray:
+    """Cells drawn dark by ``cmap`` over ``clim`` (their values printed in white)."""
+    lo, hi = clim
+    if cmap == DIVERGING:
+        return np.abs(np.nan_to_num(v)) >= WHITE_TEXT_FROM * hi
+    return np.nan_to_num((v - lo) / (hi - lo)) >= WHITE_TEXT_FROM
 
 
 def _names(names: list[str]) -> CustomJSHover:
@@ -81,10 +120,11 @@ def correlation_heatmap(matrix: pd.DataFrame, title: str = "", cell: int = 46) -
 
         - an hv.HeatMap: x = column position 0..C-1, ticks the column names left to right in the matrix's order
           (axis label "compared with"); y = row position 0..R-1, ticks the row names top to bottom in the
-          matrix's order ("neighbours by"); colour = rho on the fixed diverging scale -1 (blue) .. 0 (white) ..
-          +1 (red), the same for every matrix. Bokeh: hover shows the row and column names and rho;
-        - two hv.Labels with the values to 2 decimals, centred in their cells: black, and white where
-          |rho| >= 0.75 (dark cells); left out when the cells are too small to hold them.
+          matrix's order ("neighbours by"); colour = rho on a scale fitted to the matrix (:func:`colour_scale`:
+          light to dark blue from its least to its greatest value, or blue-white-red about 0 when it holds both
+          signs), the colour bar showing that range. Bokeh: hover shows the row and column names and rho;
+        - two hv.Labels with the values to 2 decimals, centred in their cells: black, and white on dark cells;
+          left out when the cells are too small to hold them.
 
     Raises
     ------
@@ -102,13 +142,14 @@ def correlation_heatmap(matrix: pd.DataFrame, title: str = "", cell: int = 46) -
     kdims = [hv.Dimension("x", label=COLUMNS), hv.Dimension("y", label=ROWS)]
     heat = hv.HeatMap((x, y, v), kdims=kdims, vdims=[hv.Dimension("rho", label="ρ")])
     text = np.array(["" if np.isnan(a) else f"{a:.2f}" for a in v], dtype=object)
-    dark = np.abs(np.nan_to_num(v)) >= WHITE_TEXT_FROM  # white text on dark cells
+    cmap, clim = colour_scale(v)
+    dark = _dark(v, cmap, clim)  # white text on dark cells
     font = value_font(cell)
     labels = [hv.Labels((x[on], y[on], text[on]), kdims=kdims, vdims=["text"]).opts(
         text_font_size=f"{font}pt", text_color=ink, backend="bokeh").opts(size=font, color=ink, backend="matplotlib")
         for on, ink in ((~dark, "black"), (dark, "white"))] if font else []  # fmt: skip
     width, height = cell * len(cols) + 170, cell * len(rows) + 120
-    common = {"cmap": CMAP, "clim": COLOUR_RANGE, "colorbar": True, "xticks": list(enumerate(cols)),
+    common = {"cmap": cmap, "clim": clim, "colorbar": True, "xticks": list(enumerate(cols)),
               "yticks": list(enumerate(rows)), "invert_yaxis": True, "xrotation": 45}  # fmt: skip
     heat = heat.opts(
         tools=["hover"], hover_tooltips=[(ROWS, "@{y}{custom}"), (COLUMNS, "@{x}{custom}"), ("ρ", "@{rho}{0.000}")],

@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ParameterError
+from .palette import SERIES
 
 NOT_COMPUTED = "#2b5fd9"  # Fig. 3's blue: cells the graph did not have to compute
 PATH_COLOUR = "red"
@@ -308,7 +309,7 @@ def accuracy_plot(per_query: pd.DataFrame, paper_seconds: dict | None = None, pa
     measure = hv.Dimension("measure", values=list(MEASURES.values()))
     quality = hv.Bars(table, kdims=[setting, measure], vdims=[hv.Dimension("mean", label="mean over queries",
                                                                            range=(0, 1.05)), "queries"])  # fmt: skip
-    quality = quality.opts(tools=["hover"], xrotation=45, multi_level=True, color="measure", cmap="Category10",
+    quality = quality.opts(tools=["hover"], xrotation=45, multi_level=True, color="measure", cmap=list(SERIES),
                            backend="bokeh")  # fmt: skip
     layers = [quality]
     if paper_spearman is not None:
@@ -329,7 +330,7 @@ def accuracy_plot(per_query: pd.DataFrame, paper_seconds: dict | None = None, pa
     method = hv.Dimension("method", values=[*TIMES.values(), PAPER_METHOD])
     times = hv.Bars(times, kdims=[setting, method], vdims=[hv.Dimension("seconds", unit="s")])
     right = times.relabel(label="time").opts(logy=True, ylim=(bottom, None), tools=["hover"], multi_level=True,
-                                             xrotation=45, color="method", cmap="Category10",
+                                             xrotation=45, color="method", cmap=list(SERIES),
                                              title="mean time per query", width=width, height=height,
                                              backend="bokeh")  # fmt: skip
     return hv.Layout([left, right]).cols(1)

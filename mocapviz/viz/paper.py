@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ParameterError
+from .palette import SERIES
 
 __all__ = ["comparison_bars", "curves"]
 
@@ -85,7 +86,7 @@ def comparison_bars(table: pd.DataFrame, category: str, value: str, source: str 
     value_dim = hv.Dimension(value, label=ylabel or value, range=ylim)
     bars = hv.Bars(data, kdims=[category, source], vdims=[value_dim], label=title)
     bars = bars.opts(width=width, height=height, tools=["hover"], xrotation=45, logy=logy, ylim=ylim, title=title,
-                     multi_level=False, color=source, cmap="Category10", show_legend=True, backend="bokeh")  # fmt: skip
+                     multi_level=False, color=source, cmap=list(SERIES), show_legend=True, backend="bokeh")  # fmt: skip
     return bars.opts(fig_size=200, aspect=2.5, xrotation=30, logy=logy, ylim=ylim, title=title, multi_level=False,
                      show_legend=True, legend_position="right", backend="matplotlib")  # fmt: skip
 

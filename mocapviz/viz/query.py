@@ -18,6 +18,10 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ParameterError
+from .palette import MARKERS, SERIES
+
+MARKER_OFFSET = 0.08  # ranks: precision's markers left of their rank, recall's right
+MAX_TICKS = 20  # rank ticks at most
 from ..experiments import evaluation
 
 
@@ -76,16 +80,23 @@ def precision_recall_plot(curve: pd.DataFrame, label: str = "", width: int = 720
     Returns
     -------
     holoviews.Overlay
-        Two step curves with markers (y: fraction 0..1, x: rank of the document).
+        Two step curves with markers (y: fraction 0..1, x: rank of the document): precision's markers (circles)
+        a little left of their rank, recall's (squares) a little right (:data:`MARKER_OFFSET`), so that equal
+        values never hide each other; ticks at whole ranks only (every one up to :data:`MAX_TICKS` documents, then every second, ...).
     """
     y = hv.Dimension("fraction", range=(-0.04, 1.05))  # a line at 0 stays visible above the axis
     layers = []
-    for column, colour in (("precision", "#1f77b4"), ("recall", "#ff7f0e")):
+    for i, (column, offset) in enumerate((("precision", -MARKER_OFFSET), ("recall", MARKER_OFFSET))):
+        colour, marker = SERIES[i], MARKERS[i]
         data = curve[["rank", column, "doc_id", "relevant"]].rename(columns={column: "fraction"})
         layers.append(hv.Curve(data, "rank", [y, "doc_id", "relevant"], label=column)
                       .opts(interpolation="steps-post", color=colour, line_width=2))
-        layers.append(hv.Scatter(data, "rank", [y, "doc_id", "relevant"], label=column)
-                      .opts(color=colour, size=5, tools=["hover"]))
+        shifted = data.assign(document_rank=data["rank"], rank=data["rank"] + offset)
+        layers.append(hv.Scatter(shifted, "rank", [y, "document_rank", "doc_id", "relevant"], label=column)
+                      .opts(color=colour, marker=marker, size=8, tools=["hover"]))
+    n = int(curve["rank"].max()) if len(curve) else 1
+    ticks = list(range(1, n + 1, -(-n // MAX_TICKS)))  # whole ranks only, at most MAX_TICKS of them
     title = f"precision / recall over rank: {label}" if label else "precision / recall over rank"
     return hv.Overlay(layers).opts(width=width, height=height, title=title, legend_position="bottom_right",
-                                   xlabel="rank of document", ylabel="fraction", show_grid=True, toolbar="above")
+                                   xlabel="rank of document", ylabel="fraction", show_grid=True, toolbar="above",
+                                   xlim=(0.5, n + 0.5), xticks=ticks)

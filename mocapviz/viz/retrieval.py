@@ -2,7 +2,9 @@
 
 class_ap_bars        mean average precision per class, one bar per method side by side (leave-one-out or
                      leave-group-out).
-pr_curves            mean interpolated precision at the 11 standard recall levels, one line per method.
+pr_curves            mean interpolated precision at the 11 standard recall levels, one line per method (each its
+                     own colour, dash and marker: methods of equal precision, dtw / exact / fast, lie on each
+                     other), the legend beside the plot.
 summary_bars         one measure of the summary table (mAP, P@1, recall of DTW's top 10, ms per query) per method.
 retrieval_layout     the class bars and the curves of both protocols in one layout.
 
@@ -18,13 +20,14 @@ import holoviews.plotting.mpl  # and the matplotlib one (the PNG files of `mocap
 import pandas as pd
 
 from ..errors import ParameterError
+from .palette import DASHES, MARKERS, MPL_DASHES, MPL_MARKERS, SERIES
 
 __all__ = ["class_ap_bars", "pr_curves", "retrieval_layout", "summary_bars"]
 
 PROTOCOLS = {"loo": "leave-one-out", "lgo": "leave-group-out"}
 MEASURES = {"map_loo": "mAP, leave-one-out", "map_lgo": "mAP, leave-group-out", "p_at_1": "P@1", "p_at_10": "P@10",
             "recall_dtw_top10": "recall of DTW's top 10", "ms_per_query": "ms per query (K = 10)"}  # fmt: skip
-COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22"]
+LEGEND_WIDTH = 120  # pixels beside the P/R plot for its legend
 
 
 def _protocol(protocol: str, table: pd.DataFrame) -> str:
@@ -70,7 +73,7 @@ def class_ap_bars(per_class: pd.DataFrame, protocol: str = "loo", title: str | N
     ap = hv.Dimension("AP", label=f"mean AP ({name})", range=(0, 1.02))
     bars = hv.Bars(data, kdims=["class", "method"], vdims=[ap])
     bars = bars.opts(width=width, height=height, tools=["hover"], xrotation=45, title=title, multi_level=False,
-                     color="method", cmap=COLOURS, show_legend=True, legend_position="right",
+                     color="method", cmap=list(SERIES), show_legend=True, legend_position="right",
                      backend="bokeh")  # fmt: skip
     return bars.opts(fig_size=220, aspect=2.8, xrotation=35, title=title, multi_level=False, show_legend=True,
                      legend_position="right", backend="matplotlib")  # fmt: skip
@@ -94,7 +97,9 @@ def pr_curves(curves: pd.DataFrame, protocol: str = "loo", title: str | None = N
     Returns
     -------
     hv.Overlay
-        An hv.Curve and an hv.Scatter per method (x: recall 0..1, y: precision 0..1).
+        An hv.Curve and an hv.Scatter per method (x: recall 0..1, y: precision 0..1), method i in colour, dash and
+        marker i of :mod:`mocapviz.viz.palette` (the markers shrink from one method to the next, so that those
+        drawn on each other all show); the legend right of the plot (``width`` + :data:`LEGEND_WIDTH` pixels).
     """
     _check(curves, ["method", "protocol", "recall", "precision"], "pr_curves")
     name = _protocol(protocol, curves)
@@ -102,20 +107,23 @@ def pr_curves(curves: pd.DataFrame, protocol: str = "loo", title: str | None = N
     x = hv.Dimension("recall", range=(-0.02, 1.02))
     y = hv.Dimension("precision", label="mean interpolated precision", range=(-0.02, 1.05))
     layers = []
+    methods = list(dict.fromkeys(data["method"]))
     for i, (method, part) in enumerate(data.groupby("method", sort=False)):
-        colour = COLOURS[i % len(COLOURS)]
+        colour, dash, marker = SERIES[i % len(SERIES)], DASHES[i % len(DASHES)], MARKERS[i % len(MARKERS)]
+        size = 6 + 3 * (len(methods) - 1 - i)  # the first drawn largest: a later one on it stays visible inside
         part = part[["recall", "precision"]]
         layers.append(hv.Curve(part, kdims=[x], vdims=[y], label=str(method))
-                      .opts(color=colour, line_width=2, tools=["hover"], backend="bokeh")
-                      .opts(color=colour, linewidth=2, backend="matplotlib"))  # fmt: skip
+                      .opts(color=colour, line_width=2, line_dash=dash, tools=["hover"], backend="bokeh")
+                      .opts(color=colour, linewidth=2, linestyle=MPL_DASHES[dash], backend="matplotlib"))  # fmt: skip
         layers.append(hv.Scatter(part, kdims=[x], vdims=[y], label=str(method))
-                      .opts(color=colour, size=5, backend="bokeh").opts(color=colour, s=20, backend="matplotlib"))
+                      .opts(color=colour, size=size, marker=marker, fill_alpha=0.35, backend="bokeh")
+                      .opts(color=colour, s=4 * size, marker=MPL_MARKERS[marker], backend="matplotlib"))
     if not layers:  # an empty protocol (no leave-group-out): an empty frame with the same axes
         layers = [hv.Curve([], kdims=[x], vdims=[y])]
     title = title or f"precision / recall ({name})"
-    overlay = hv.Overlay(layers).opts(width=width, height=height, title=title, legend_position="bottom_left",
+    overlay = hv.Overlay(layers).opts(width=width + LEGEND_WIDTH, height=height, title=title, legend_position="right",
                                       show_grid=True, backend="bokeh")  # fmt: skip
-    return overlay.opts(fig_size=200, aspect=1.5, title=title, legend_position="bottom_left", show_grid=True,
+    return overlay.opts(fig_size=200, aspect=1.5, title=title, legend_position="right", show_grid=True,
                         backend="matplotlib")
 
 
@@ -158,7 +166,7 @@ def summary_bars(summary: pd.DataFrame, measure: str = "map_loo", title: str | N
     title = title or label
     bars = hv.Bars(data, kdims=["method"], vdims=[value])
     bars = bars.opts(width=width, height=height, tools=["hover"], title=title, logy=logy, color="method",
-                     cmap=COLOURS, xrotation=30, backend="bokeh")  # fmt: skip
+                     cmap=list(SERIES), xrotation=30, backend="bokeh")  # fmt: skip
     return bars.opts(fig_size=160, aspect=1.8, title=title, logy=logy, xrotation=30, backend="matplotlib")
 
 

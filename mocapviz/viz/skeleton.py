@@ -7,6 +7,9 @@ render_skeletons   one image of one or more canonical poses: side by side (each 
 scene_bounds       the box a whole clip (or several) moves in, so a player's camera stays put while it plays.
 neighbour_poses    Fig. 1: the k nearest poses of a query pose, each turned into the body frame (root at the origin,
                    facing +z) and drawn together, the query in front.
+
+Bones are coloured by side as in the dashboard's player (right red, left blue: :data:`mocapviz.viz.palette.SIDES`);
+a pose given a colour of its own is drawn in it (Fig. 1's neighbours: grey).
 png_bytes          an RGB image as PNG bytes (for ``panel.pane.PNG``).
 
 Poses are float (J, 3) arrays in cm, y up, joints in :data:`mocapviz.motion.skeleton.CANONICAL_JOINTS` order. VTK is not
@@ -25,8 +28,9 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..motion.skeleton import CANONICAL_PARENTS, body_frame
+from .palette import OTHERS, SIDES, joint_sides
 
-COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
+BY_SIDE = "sides"  # a pose's colour: each bone in its side's colour (SIDES), the default
 _RENDER_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mocapviz-vtk")
 _PLOTTERS: dict = {}  # (viewports, size) -> pyvista.Plotter, created and used in _RENDER_THREAD only
 
@@ -96,7 +100,8 @@ def render_skeletons(poses, bounds=None, size: tuple[int, int] = (480, 360), ove
     overlay : bool
         All poses in one scene (Fig. 1) instead of one viewport each, side by side.
     colours, opacities : sequence, optional
-        One per pose (default :data:`COLOURS`, opaque).
+        One per pose: a colour, or :data:`BY_SIDE` (default: every bone in its side's colour,
+        :data:`mocapviz.viz.palette.SIDES`); opacities default opaque.
     titles : sequence of str, optional
         One caption per viewport (side by side) or one for the scene (overlay).
     azimuth : float
@@ -108,7 +113,7 @@ def render_skeletons(poses, bounds=None, size: tuple[int, int] = (480, 360), ove
         RGB pixels.
     """
     poses = _check_poses(poses)
-    colours = list(colours or [COLOURS[i % len(COLOURS)] for i in range(len(poses))])
+    colours = list(colours or [BY_SIDE] * len(poses))
     opacities = list(opacities or [1.0] * len(poses))
     bounds = scene_bounds(*poses) if bounds is None else np.asarray(bounds, dtype=np.float64)
     viewports = [list(range(len(poses)))] if overlay else [[i] for i in range(len(poses))]
@@ -117,7 +122,8 @@ def render_skeletons(poses, bounds=None, size: tuple[int, int] = (480, 360), ove
 
 
 def _render(poses, viewports, bounds, size, colours, opacities, titles, azimuth) -> np.ndarray:
-    """Draw in the render thread: per viewport, the poses of each (colour, opacity) merged into one mesh."""
+    """Draw in the render thread: per viewport, the poses of each (colour, opacity) merged into one mesh (by side:
+    one mesh per side)."""
     import pyvista as pv
 
     p = _plotter(len(viewports), size)
@@ -127,9 +133,13 @@ def _render(poses, viewports, bounds, size, colours, opacities, titles, azimuth)
         styles = dict.fromkeys((colours[i], opacities[i]) for i in members)
         for colour, opacity in styles:
             group = [poses[i] for i in members if (colours[i], opacities[i]) == (colour, opacity)]
-            mesh = pv.PolyData(np.concatenate(group), lines=_bones_of(len(group)))
-            p.add_mesh(mesh, color=colour, opacity=opacity, line_width=5, render_lines_as_tubes=True)
-            p.add_points(mesh.points, color=colour, opacity=opacity, point_size=9, render_points_as_spheres=True)
+            sides = SIDES.items() if colour == BY_SIDE else [(None, colour)]
+            thin = opacity < 1  # faint poses (Fig. 1's neighbours) thinner, so the opaque one shows through them
+            for side, ink in sides:
+                mesh = pv.PolyData(np.concatenate(group), lines=_bones_of(len(group), side))
+                p.add_mesh(mesh, color=ink, opacity=opacity, line_width=2 if thin else 5, render_lines_as_tubes=True)
+                p.add_points(mesh.points[_joints_of(len(group), side)], color=ink, opacity=opacity,
+                             point_size=4 if thin else 9, render_points_as_spheres=True)
         _floor(p, bounds)
         if titles is not None and v < len(titles):
             p.add_text(str(titles[v]), font_size=9, position="upper_left", color="black", name=f"title{v}")
@@ -138,12 +148,24 @@ def _render(poses, viewports, bounds, size, colours, opacities, titles, azimuth)
     return np.asarray(p.screenshot(return_img=True))[..., :3].copy()
 
 
-def _bones_of(n_poses: int) -> np.ndarray:
-    """VTK line cells of ``n_poses`` canonical skeletons stacked one after the other in one point array."""
-    child = np.flatnonzero(CANONICAL_PARENTS >= 0)
+def _bones_of(n_poses: int, side: str | None = None) -> np.ndarray:
+    """VTK line cells of ``n_poses`` canonical skeletons stacked one after the other in one point array; ``side``:
+    only the bones whose child joint is on that side ("l", "r", "c"; :func:`mocapviz.viz.palette.joint_sides`)."""
+    child = np.flatnonzero((CANONICAL_PARENTS >= 0) & _on(side))
     one = np.column_stack([np.full(len(child), 2), CANONICAL_PARENTS[child], child])  # cells (2, parent, child)
     shift = (np.arange(n_poses) * len(CANONICAL_PARENTS))[:, None, None] * np.array([0, 1, 1])
     return (one[None] + shift).ravel()
+
+
+def _on(side: str | None) -> np.ndarray:
+    """The canonical joints on ``side`` (None: all), (24,) bool."""
+    sides = np.array(joint_sides())
+    return np.ones(len(sides), dtype=bool) if side is None else sides == side
+
+
+def _joints_of(n_poses: int, side: str | None) -> np.ndarray:
+    """The points of the joints on ``side`` of ``n_poses`` stacked skeletons, (n_poses * 24,) bool."""
+    return np.tile(_on(side), n_poses)
 
 
 def _floor(p, bounds: np.ndarray) -> None:
@@ -185,15 +207,16 @@ def neighbour_poses(query_pose, neighbours, size: tuple[int, int] = (480, 420), 
     Returns
     -------
     np.ndarray [shape=(height, width, 3)], uint8
-        RGB: the neighbours faint grey-blue, the query red, all with the root at the origin facing +z (so only the
+        RGB: the neighbours faint grey (:data:`mocapviz.viz.palette.OTHERS`), the query opaque with its bones by
+        side (right red, left blue, as in the player), all with the root at the origin facing +z (so only the
         posture differs, as in the figure).
     """
     neighbours = np.asarray(neighbours, dtype=np.float64).reshape(-1, len(CANONICAL_PARENTS), 3)
     poses = body_frame(np.concatenate([neighbours, np.asarray(query_pose, dtype=np.float64)[None]]))
     poses[..., 1] -= poses[..., 1].min()  # the root sits at height 0: lift the lowest joint onto the floor
     k = len(neighbours)
-    return render_skeletons(list(poses), size=size, overlay=True, colours=["#4a78b5"] * k + ["#d62728"],
-                            opacities=[max(0.15, min(0.6, 6.0 / max(k, 1)))] * k + [1.0],
+    return render_skeletons(list(poses), size=size, overlay=True, colours=[OTHERS] * k + [BY_SIDE],
+                            opacities=[max(0.1, min(0.35, 4.0 / max(k, 1)))] * k + [1.0],
                             titles=[f"query and its {k} nearest neighbours"], azimuth=azimuth)
 
 

@@ -16,11 +16,11 @@ import holoviews.plotting.mpl  # registers the matplotlib backend (PNG output) a
 import pandas as pd
 
 from ..errors import ParameterError
+from .palette import SERIES
 
 __all__ = ["median_times", "query_time_scatter"]
 
 _COLUMNS = ("mode", "L", "hits", "ms")
-_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728")  # Category10, one per mode
 
 
 def median_times(per_query: pd.DataFrame) -> pd.DataFrame:
@@ -74,7 +74,7 @@ def query_time_scatter(per_query: pd.DataFrame, title: str = "", width: int = 62
     x, y = hv.Dimension("hits", label="hits"), hv.Dimension("ms", label="query time (ms)")
     layers = []
     for i, (mode, part) in enumerate(data.groupby("mode", sort=False)):
-        colour = _COLOURS[i % len(_COLOURS)]
+        colour = SERIES[i % len(SERIES)]
         layers.append(hv.Scatter(part, kdims=[x], vdims=[y, "L"], label=str(mode)).opts(
             color=colour, size=5, alpha=0.5, tools=["hover"], backend="bokeh").opts(
             color=colour, s=12, alpha=0.5, backend="matplotlib"))  # fmt: skip

@@ -1,10 +1,10 @@
 """A clip's features over time: the dashboard's Database page and the query pages.
 
 relational_timeline   Müller, Röder & Clausen 2005 §3-4: one row per boolean feature, its runs of 1 drawn as bars
-                      coloured by feature group (lower / upper / mix), the segment boundaries of the whole feature
+                      coloured by feature group (lower / upper / mix: :data:`mocapviz.viz.palette.PARTS`), the segment boundaries of the whole feature
                       vector (§4, the F-segmentation of :func:`mocapviz.features.segmentation.segment`) as thin lines, an optional highlighted span.
 numeric_curves        Krüger, Tautges, Weber & Zinke 2010 §3.2: the coordinates of a numeric feature set (e.g. F15E,
-                      cm in the body frame) against time.
+                      cm in the body frame) against time, one colour per joint and one dash per axis.
 runs                  (feature, start, stop) runs of 1 of a boolean (T, f) array.
 
 Both builders return HoloViews objects with bokeh options; x is time in seconds.
@@ -19,8 +19,8 @@ import pandas as pd
 
 from ..errors import ParameterError
 from ..features.segmentation import segment
+from .palette import DASHES, PARTS, SERIES, series_style
 
-GROUP_COLOURS = {"lower": "#1f77b4", "upper": "#d62728", "mix": "#2ca02c"}
 LEGEND_ROW = 17  # pixels per legend entry of numeric_curves (9 pt labels, no spacing)
 LEGEND_MARGIN = 80  # pixels of a bokeh figure's height outside its plot area: title, x axis, legend padding
 LEGEND_COLUMNS = 3  # at most; more entries make the figure taller instead
@@ -99,7 +99,7 @@ def relational_timeline(values: np.ndarray, names, fps: float, groups: dict | No
         "group": [group_of.get(names[i], "feature") for i in r["feature"]],
         "from_s": r["start"] / fps, "to_s": r["stop"] / fps,
     })
-    table["colour"] = [GROUP_COLOURS.get(g, "#555555") for g in table["group"]]
+    table["colour"] = [PARTS.get(g, "#555555") for g in table["group"]]
     duration = values.shape[0] / fps
     ticks = [(f - 1 - i, n) for i, n in enumerate(names)]
     rects = hv.Rectangles(table, kdims=["x0", "y0", "x1", "y1"], vdims=["feature", "group", "from_s", "to_s",
@@ -150,8 +150,9 @@ def numeric_curves(values: np.ndarray, columns, fps: float, title: str = "", wid
     if fps <= 0:
         raise ParameterError(f"fps must be positive, got {fps}")
     t = np.arange(values.shape[0]) / fps
-    curves = [hv.Curve((t, values[:, j]), "time (s)", hv.Dimension("value", label="feature value"), label=c)
-              for j, c in enumerate(columns)]
+    curves = [hv.Curve((t, values[:, j]), "time (s)", hv.Dimension("value", label="feature value"), label=c).opts(
+        color=colour, line_dash=dash, alpha=alpha) for j, (c, (colour, dash, alpha)) in
+        enumerate(zip(columns, coordinate_styles(columns)))]  # fmt: skip
     if span is not None:
         curves.append(hv.VSpan(span[0] / fps, (span[1] + 1) / fps).opts(color="orange", alpha=0.2))
     cols, height = legend_layout(len(columns), height)
@@ -162,6 +163,37 @@ def numeric_curves(values: np.ndarray, columns, fps: float, title: str = "", wid
                     "legend_opts": {"label_text_font_size": "9pt", "label_height": 12, "glyph_height": 12,
                                     "spacing": 0, "padding": 4, "margin": 4}},
     }, backend="bokeh")
+
+
+def coordinate_styles(columns) -> list[tuple[str, str, float]]:
+    """(colour, dash, alpha) of each coordinate of a numeric set, all different: a joint's colour, an axis's dash
+    (x solid, y dashed, z dotted), the samples of a window (``lwrist.x@-0.150s``) each fainter than its centre;
+    columns without joint and axis (``pc1``) one after another (:func:`mocapviz.viz.palette.series_style`).
+
+    Parameters
+    ----------
+    columns : list of str
+        :func:`mocapviz.features.numeric_columns`.
+
+    Returns
+    -------
+    list of (str, str, float)
+
+    Examples
+    --------
+    >>> coordinate_styles(["lwrist.x", "lwrist.y", "rwrist.x"])
+    [('#ff7f0e', 'solid', 1.0), ('#ff7f0e', 'dashed', 1.0), ('#2ca02c', 'solid', 1.0)]
+    """
+    names = [str(c).split("@")[0] for c in columns]
+    if not all(n.count(".") == 1 for n in names):
+        return [(*series_style(i), 1.0) for i in range(len(columns))]
+    joints = list(dict.fromkeys(n.split(".")[0] for n in names))
+    axes = list(dict.fromkeys(n.split(".")[1] for n in names))
+    offsets = [str(c).partition("@")[2] for c in columns]
+    others = [o for o in dict.fromkeys(offsets) if o.strip("+-0.s")]  # the samples off the window's centre
+    alpha = {o: 0.3 + 0.45 * i / max(1, len(others) - 1) for i, o in enumerate(others)}
+    return [(SERIES[joints.index(n.split(".")[0]) % len(SERIES)], DASHES[axes.index(n.split(".")[1]) % len(DASHES)],
+             alpha.get(o, 1.0)) for n, o in zip(names, offsets)]  # fmt: skip
 
 
 def legend_layout(entries: int, height: int) -> tuple[int, int]:

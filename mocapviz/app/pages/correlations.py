@@ -14,7 +14,13 @@ from __future__ import annotations
 import pandas as pd
 import panel as pn
 
-from ...experiments.correlation import available_measures, correlation_sample, pose_correlations, segment_correlations
+from ...experiments.correlation import (
+    available_measures,
+    correlation_sample,
+    pose_correlations,
+    pose_limits,
+    segment_correlations,
+)
 from ...viz.correlation import correlation_heatmap
 from ..progress import Task
 from ..widgets import BoundedIntInput, action_button, notes
@@ -22,6 +28,7 @@ from ..widgets import BoundedIntInput, action_button, notes
 SEED = 0
 DEFAULT_MEASURES = ("Fp16", "F15E", "F30E", "F39E", "F15x3E", "Dpc1")  # cheap on a small database: ~5 s in all
 PAPER_CLIPS = 8  # clips per class of the paper's sample (76 clips of 9 HDM05 classes)
+DEFAULT_QUERIES, DEFAULT_K = 128, 64  # fewer than the paper's 1024 and 256: seconds on a small database
 WIDTH = 660  # pixels of each of the two matrices' columns: side by side on a 1400-pixel screen
 CELL = (24, 110)  # pixels of a heat map's cell: as large as the column allows within these
 
@@ -129,15 +136,15 @@ class CorrelationsPage(pn.viewable.Viewer):
         self.measures = pn.widgets.MultiChoice(label="feature sets and distance measures", options=options,
                                                value=[m for m in DEFAULT_MEASURES if m in options], width=520,
                                                css_classes=["mv-measures"])  # fmt: skip
-        self.n_queries = BoundedIntInput("queries", min(128, db.n_frames), 1, db.n_frames, width=130,
-                                         css_classes=["mv-queries"])
-        self.k = BoundedIntInput("k", min(64, db.n_frames - 1), 1, db.n_frames - 1, width=110, css_classes=["mv-k"])
+        # bounds by pose_limits on the sample's frames (_bound_sample)
+        self.n_queries = BoundedIntInput("queries", DEFAULT_QUERIES, 1, None, width=130, css_classes=["mv-queries"])
+        self.k = BoundedIntInput("k", DEFAULT_K, 1, None, width=110, css_classes=["mv-k"])
         self.clips = BoundedIntInput("clips per class", default_clips(db.documents), 2, None, width=130,
                                      css_classes=["mv-clips"])
         self.n_first = BoundedIntInput("first n", PAPER_CLIPS, 2, max(2, len(db) - 1), width=110,
                                        css_classes=["mv-first-n"])
-        self.clips.param.watch(self._bound_first_n, "value")
-        self._bound_first_n()
+        self.clips.param.watch(self._bound_sample, "value")
+        self._bound_sample()
         self.button = action_button("Compute", "mv-compute", self._compute, width=110)
         self.pose_task, self.segment_task = Task(), Task()
         self.pose, self.segment = MatrixView("pose"), MatrixView("segment")
@@ -157,11 +164,15 @@ class CorrelationsPage(pn.viewable.Viewer):
                             width=WIDTH)
         return pn.Column(intro, controls, inputs, pn.FlexBox(pose, segment), sizing_mode="stretch_width")
 
-    def _bound_first_n(self, event=None) -> None:
-        """*first n* from 2 to the sample's clips less the query clip (when the database gives a sample of that many
-        clips per class; otherwise the documents less one, and the page says why the segment-based matrix cannot be
-        computed)."""
+    def _bound_sample(self, event=None) -> None:
+        """The bounds that follow the sample of *clips per class*: queries and k those of the library on the
+        sample's frames (:func:`mocapviz.experiments.correlation.pose_limits`; all documents without a sample);
+        *first n* from 2 to the sample's clips less the query clip (without a sample the documents less one, and the
+        page says why the segment-based matrix cannot be computed)."""
         sample, _ = sample_of(self.backend.db, self.clips.value)
+        limits = pose_limits(self.backend.db, sample)
+        self.n_queries.set_bounds(*limits["n_queries"])
+        self.k.set_bounds(*limits["k"])
         most = len(sample) - 1 if sample is not None else len(self.backend.db) - 1
         self.n_first.set_bounds(2, max(2, most))
 
@@ -180,11 +191,13 @@ class CorrelationsPage(pn.viewable.Viewer):
         measures, n_queries, k, clips, n_first = self.settings()
         if not measures:
             self.pose_task.status.object = "Choose at least one measure."
+            self.pose.hide()
+            self.segment.hide()
             return
         self.button.disabled = True
         try:
             pose = await self.pose_task.run(f"Pose-based, {len(measures)} measures", pose_matrix, self.backend,
-                                            measures, n_queries, k, clips)  # fmt: skip
+                                            measures, n_queries, k, clips, stale=[self.pose.layout])  # fmt: skip
             if pose is not None:
                 self.pose.show(pose, self._pose_caption(pose, sampled=sample_of(self.backend.db, clips)[0] is not None))
             problem = segment_problem(self.backend.db, clips, n_first)
@@ -194,7 +207,8 @@ class CorrelationsPage(pn.viewable.Viewer):
                 self.segment_task.status.object = ""
                 return
             segment = await self.segment_task.run(f"Segment-based, {len(measures)} measures", segment_matrix,
-                                                  self.backend, measures, clips, n_first)  # fmt: skip
+                                                  self.backend, measures, clips, n_first,
+                                                  stale=[self.segment.layout])  # fmt: skip
             if segment is not None:
                 self.segment.show(segment, self._segment_caption(segment),
                                   segment.assign(precision=segment.attrs["precision"]))

@@ -11,6 +11,7 @@ import panel as pn
 
 from ...features import NUMERIC_SETS, feature_groups, numeric_columns
 from ...features.segmentation import segment
+from ...viz.palette import PART_NAMES, PARTS, legend
 from ...viz.timeline import numeric_curves, relational_timeline
 from ..downloads import HitDownload
 from ..player import SkeletonPlayer
@@ -161,7 +162,7 @@ class DatabasePage(pn.viewable.Viewer):
         values, names = self.backend.clip_relational(self.doc)
         a, b = self.selection.span
         self.timeline_info.object = (
-            f"{len(names)} features of the 2005 set (lower blue, upper red, mix green), "
+            f"{len(names)} features of the 2005 set ({legend(PARTS, PART_NAMES, 'feature groups')}), "
             f"{len(segment(values).starts)} segments in the clip, {len(segment(values[a:b]).starts)} "
             f"in the span {a}..{b - 1}")
         self._show(self.timeline, "2005", self._timeline_frame)

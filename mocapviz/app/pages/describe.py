@@ -511,8 +511,10 @@ class DescribePage(pn.viewable.Viewer):
         else:
             self._check(text)
         relational_set, n_matches = self.relational_set.value, self.n_matches.value
-        hits = await self.task.run("Finding", search, self.backend, text, relational_set, n_matches, busy=self.find)
+        hits = await self.task.run("Finding", search, self.backend, text, relational_set, n_matches, busy=self.find,
+                                   stale=(self.count, self.table, self.timeline, self.player_box))
         if hits is None:
+            self.hits = pd.DataFrame()
             return
         self.hits = hits
         self.description = parse_description(text, hits.attrs.get("relational_set", relational_set))

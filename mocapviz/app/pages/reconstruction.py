@@ -27,14 +27,22 @@ from ...experiments.marker_reconstruction import frame_actors, marker_clip
 from ...experiments.markers import aligned_takes, real_marker_clip
 from ...features import NUMERIC_SETS
 from ...motion.skeleton import CANONICAL_JOINTS
-from ...similarity.reconstruction import DEFAULT_K, MARKERS, PosePrior, reconstruct, reconstruction_errors
+from ...similarity.reconstruction import (
+    DEFAULT_K,
+    MARKERS,
+    NOISE_RANGE_CM,
+    PosePrior,
+    reconstruct,
+    reconstruction_errors,
+)
 from ...viz.reconstruction import error_curves, joint_error_bars
 from ..player import SkeletonPlayer
 from ..progress import Task
-from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, notes
+from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, clear, notes
 
 SEED = 0  # the markers' noise comes from np.random.default_rng([SEED, doc_id]), as in the experiment
 DEFAULT_NOISE_CM = 0.1  # §5.2: +-1 mm
+NOISE_STEP_CM = 0.05
 PRIORS = {"without the test clip": "clip", "without the test clip's actor": "actor"}
 MARKER_SOURCES = {"simulated: the clip's joints ± noise": "simulated", "real: the clip's C3D marker clusters": "real"}
 
@@ -113,8 +121,10 @@ def check_settings(db, doc: int, kind: str, k: int, noise_cm: float, source: str
         return "k must be a positive whole number of neighbours."
     if k > n:
         return f"k = {k:,} is larger than the prior ({n:,} frames without {left_out}): choose k ≤ {n:,}."
-    if noise_cm is None or not np.isfinite(noise_cm) or noise_cm < 0:
-        return "The marker noise must be a number ≥ 0 cm."
+    try:
+        NOISE_RANGE_CM.check(noise_cm, "the marker noise (± cm)")
+    except ParameterError as exc:
+        return f"{exc}."
     return None
 
 
@@ -188,8 +198,8 @@ class ReconstructionPage(pn.viewable.Viewer):
                                              value="F15E", width=170, css_classes=["mv-recon-features"])
         self.k = BoundedIntInput("k neighbours per frame", default_k(backend.db.n_frames), 1, backend.db.n_frames,
                                  width=220, css_classes=["mv-recon-k"])
-        self.noise = BoundedFloatInput("marker noise ± cm", DEFAULT_NOISE_CM, 0.0, None, step=0.05, width=170,
-                                       css_classes=["mv-recon-noise"])
+        self.noise = BoundedFloatInput.within("marker noise ± cm", DEFAULT_NOISE_CM, NOISE_RANGE_CM, NOISE_STEP_CM,
+                                              width=190, css_classes=["mv-recon-noise"])
         self.source = pn.widgets.RadioButtonGroup(options=MARKER_SOURCES, value="simulated", align="end",
                                                   css_classes=["mv-recon-source"])
         self.run_button = action_button("Reconstruct", "mv-recon-run", self._run, width=140)
@@ -241,9 +251,10 @@ class ReconstructionPage(pn.viewable.Viewer):
         problem = check_settings(self.backend.db, doc, kind, k, noise, source)
         self.message.object, self.message.visible = problem or "", problem is not None
         if problem:
+            clear(self.summary, self.results)
             return
         result = await self.task.run("Reconstructing", run_reconstruction, self.backend, doc, kind, numeric_set, k,
-                                     noise, source, busy=self.run_button)
+                                     noise, source, busy=self.run_button, stale=(self.summary, self.results))
         if result is not None:
             self._show(result, doc, numeric_set, k, noise, source)
 

@@ -26,7 +26,7 @@ from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task
 from ..state import half_open, inclusive
-from ..widgets import BoundedIntInput, action_button, hit_columns, hit_titles, notes, results_table
+from ..widgets import BoundedIntInput, action_button, clear, hit_columns, hit_titles, notes, results_table
 
 RELATIONAL_SET = "2005"
 # the "kicking" query of Müller et al. 2005 §6.2 (Fig. 9): F_l3, F_l4, F_l7, F_l8
@@ -134,10 +134,18 @@ class RelationalPage(pn.viewable.Viewer):
             self._set_query(self.doc.value, event.new)
 
     def _on_bound(self, event) -> None:
-        """The first or last frame box changed (a value out of the clip was already moved into it by the box)."""
-        span = (self.first.value, self.last.value)
-        if not self._syncing and span != tuple(self.span.value):
-            self._set_query(self.doc.value, span)
+        """The first or last frame box changed (a value out of the clip was already moved into it by the box); a
+        first frame after the last (or a last before the first) makes them change places, and the box says so."""
+        first, last = self.first.value, self.last.value
+        if self._syncing or (first, last) == tuple(self.span.value):
+            return
+        self._set_query(self.doc.value, (first, last))
+        if first > last:
+            box = event.obj
+            other, where = ("last", "after") if box is self.first else ("first", "before")
+            box.tell(f"**{box.base_label}** {event.new:,} is {where} the {other} frame "
+                     f"{(last if box is self.first else first):,}: the two were swapped, the span is now frames "
+                     f"{min(first, last):,}–{max(first, last):,}.")
 
     def _span_changed(self) -> None:
         """Tell the Selection, describe the span and show it in the player."""
@@ -204,9 +212,11 @@ class RelationalPage(pn.viewable.Viewer):
         q = self.query()
         reason = self.problem(q)
         self.message.param.update(object=reason or "", visible=reason is not None)
+        shown = (self.count, self.quality, self.table, self.curve)
         if reason:
+            clear(*shown)
             return
-        hits = await self.task.run("Searching", self.search, q, busy=self.run)
+        hits = await self.task.run("Searching", self.search, q, busy=self.run, stale=shown)
         if hits is not None:
             self._show_hits(q, hits)
             await asyncio.sleep(0)  # let the table and count reach the browser before the plot is built

@@ -26,6 +26,7 @@ SUMMARY_TITLES = {"method": "method", "queries": "queries", "map_loo": "mAP (lea
                   "map_lgo": "mAP (leave-group-out)", "p_at_1": "P@1", "p_at_10": "P@10",
                   "recall_dtw_top10": "recall of DTW top 10", "ms_per_query": "ms / query (K = 10)", "note": "note"}
 NA = "–"
+NOTE_WIDTH = 300  # pixels of the summary's note column (its text wraps)
 
 
 def label_columns(documents: pd.DataFrame, columns) -> list[str]:
@@ -79,9 +80,11 @@ class RetrievalPage(pn.viewable.Viewer):
         self.button = action_button("Evaluate", "mv-retrieval-run", self._evaluate)
         self.task = Task()
         self.count = pn.pane.Markdown("", css_classes=["mv-retrieval-count"], margin=(0, 10))
+        # the note (why a method skipped queries, ...) wraps in a column of its own width instead of being cut off
         self.summary = pn.widgets.Tabulator(pd.DataFrame(columns=list(SUMMARY_TITLES)), titles=dict(SUMMARY_TITLES),
                                             show_index=False, selectable=False,
                                             disabled=True, sizing_mode="stretch_width", layout="fit_data_table",
+                                            widths={"note": NOTE_WIDTH}, formatters={"note": {"type": "textarea"}},
                                             css_classes=["mv-retrieval-summary"],
                                             configuration={"renderVertical": "basic"})  # fmt: skip
         self.figures = pn.Column(sizing_mode="stretch_width", css_classes=["mv-retrieval-figures"])
@@ -125,8 +128,10 @@ class RetrievalPage(pn.viewable.Viewer):
 
     async def _evaluate(self, event=None) -> None:
         settings = self._settings()
-        result = await self.task.run("Evaluating", self._compute, *settings, busy=self.button)
+        result = await self.task.run("Evaluating", self._compute, *settings, busy=self.button,
+                                     stale=(self.count, self.summary, self.figures))
         if result is None:
+            self.result = None
             return
         self.result = result
         summary = result["summary"]
@@ -140,8 +145,9 @@ class RetrievalPage(pn.viewable.Viewer):
         for protocol in ("loo", "lgo"):
             if result["per_class"][f"ap_{protocol}"].notna().any():
                 panes.append(pn.Row(
-                    pn.pane.HoloViews(class_ap_bars(result["per_class"], protocol, width=760, height=340),
+                    pn.pane.HoloViews(class_ap_bars(result["per_class"], protocol, width=720, height=340),
                                       css_classes=[f"mv-retrieval-bars-{protocol}"]),
-                    pn.pane.HoloViews(pr_curves(result["curves"], protocol, width=460, height=340),
+                    pn.pane.HoloViews(pr_curves(result["curves"], protocol, width=420, height=340),
                                       css_classes=[f"mv-retrieval-curves-{protocol}"])))  # fmt: skip
         self.figures[:] = panes
+        self.figures.visible = True

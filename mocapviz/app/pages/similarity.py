@@ -24,11 +24,13 @@ from ...db.hits import database_frames
 from ...errors import ParameterError
 from ...experiments.matching import similarity_matrices
 from ...features import NUMERIC_SETS
+from ...match.time_warping import shortest_match
 from ...similarity.knn import describe_frames
 from ...similarity.motion_matching import match_motion
 from ...similarity.search import MODES as SEARCH_MODES
 from ...validation import count
 from ...viz.matching import similarity_layout
+from ...viz.palette import OTHERS, SIDE_NAMES, SIDES, legend
 from ...viz.skeleton import neighbour_poses, png_bytes
 from ..downloads import table_download
 from ..gallery import HitGallery
@@ -56,7 +58,8 @@ MATCH_DECIMALS = {"start_s": 2, "end_s": 2, "cost": 1, "cost_per_frame": 2}
 
 
 # ============================================================================ computations (worker thread)
-def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own: bool) -> pd.DataFrame:
+def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own: bool,
+                   per_document: bool = False) -> pd.DataFrame:  # fmt: skip
     """The k nearest database frames of one frame (Krüger et al. 2010 §3.3).
 
     Parameters
@@ -66,11 +69,13 @@ def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own
     doc, frame : the query frame, ``frame`` counted within document ``doc``.
     k : int, 1 <= k <= min(MAX_NEIGHBOURS, indexed frames).
     exclude_own : bool, leave out the frames of the query's own document.
+    per_document : bool, one row per document: its nearest of the k neighbours.
 
     Returns
     -------
     pd.DataFrame, :func:`mocapviz.similarity.knn.describe_frames`: the hit table of one-frame hits (start = the
-    frame within its document, end = start + 1) with ``distance``, nearest first.
+    frame within its document, end = start + 1) with ``distance``, nearest first; ``attrs["neighbours"]`` the
+    neighbours found (more than the rows when ``per_document``).
     """
     own = backend.db.frames(doc)  # the one "no such document" error
     if not 0 <= frame < own.stop - own.start:
@@ -79,13 +84,15 @@ def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own
     k = count(k, "k", 1, min(MAX_NEIGHBOURS, index.n_indexed))
     query = backend.numeric(name)[database_frames(backend.db, doc, frame, frame + 1).start]
     distances, frames = index.query(query, k, exclude=(own.start, own.stop) if exclude_own else None)
-    return describe_frames(backend.db, frames, distances)
+    table = describe_frames(backend.db, frames, distances, per_document=per_document)
+    table.attrs["neighbours"] = int((frames >= 0).sum())
+    return table
 
 
 def neighbours_png(backend, doc: int, frame: int, neighbours: pd.DataFrame) -> bytes:
-    """Fig. 1 of Krüger et al. 2010 as PNG bytes: the pose of ``frame`` of document ``doc`` (red) and the poses of
-    the one-frame hits ``neighbours`` (:func:`nearest_frames`) drawn together in the body frame
-    (:func:`mocapviz.viz.skeleton.neighbour_poses`)."""
+    """Fig. 1 of Krüger et al. 2010 as PNG bytes: the pose of ``frame`` of document ``doc`` (bones by side, as the
+    player draws them) and, faint grey, the poses of the one-frame hits ``neighbours`` (:func:`nearest_frames`), drawn
+    together in the body frame (:func:`mocapviz.viz.skeleton.neighbour_poses`)."""
     db = backend.db
     rows = [database_frames(db, d, s, e).start for d, s, e in zip(neighbours["doc_id"], neighbours["start"],
                                                                    neighbours["end"])]  # fmt: skip
@@ -111,7 +118,8 @@ def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, n_ma
     Returns
     -------
     pd.DataFrame, the hit table, best first, with cost, cost_per_frame and path ((L, 2) int64 of (query frame
-    within the span, frame within the match's document)).
+    within the span, frame within the match's document)); each match at least half the span long (the library's
+    ``min_length``, as the DTW search's stretches).
     """
     index = backend.knn(name)
     k = count(k, "k", 1, index.n_indexed)
@@ -241,11 +249,16 @@ class SimilarityPage(pn.viewable.Viewer):
     def _build_knn(self) -> None:
         most = min(MAX_NEIGHBOURS, self.backend.db.n_frames)
         self.knn_k = BoundedIntInput("k neighbours", min(64, most), 1, most, width=150, css_classes=["mv-knn-k"])
+        self.knn_per_document = pn.widgets.Checkbox(label="one row per document", value=False, width=180,
+                                                    align="end", css_classes=["mv-knn-per-document"])
         self.knn_button = action_button("Search", "mv-knn-search", self._search)
         self.knn_task = Task()
         self.knn_count = pn.pane.Markdown("", css_classes=["mv-knn-count"], margin=(0, 10))
         self.knn_table = results_table(pd.DataFrame(columns=list(KNN_TITLES)), "mv-knn-table", KNN_TITLES)
         self.knn_poses = pn.pane.PNG(None, width=480, height=420, css_classes=["mv-knn-poses"])
+        self.knn_legend = pn.pane.HTML(legend(SIDES, SIDE_NAMES, "query's bones") + " · neighbours: "
+                                       f'<span style="color: {OTHERS}">■</span> grey', margin=(0, 10),
+                                       styles={"font-size": "0.85em"}, css_classes=["mv-knn-legend"])
 
     def _build_match(self) -> None:
         n = self.backend.db.n_frames
@@ -283,9 +296,11 @@ class SimilarityPage(pn.viewable.Viewer):
                            self.search_gallery, self.search_download.panel(),
                            self.search_playing, self.search_player_box, sizing_mode="stretch_width")
         knn = pn.Column("### Nearest neighbours of the frame (Krüger et al. 2010 §3.3, Fig. 1)",
-                        pn.Row(self.knn_k, self.knn_button), notes(self.knn_k), _scoped(self.knn_task, "mv-knn-task"),
+                        pn.Row(self.knn_k, self.knn_per_document, self.knn_button), notes(self.knn_k),
+                        _scoped(self.knn_task, "mv-knn-task"),
                         pn.Row(pn.Column(self.knn_count, self.knn_table, sizing_mode="stretch_width"),
-                               self.knn_poses, sizing_mode="stretch_width"), sizing_mode="stretch_width")
+                               pn.Column(self.knn_poses, self.knn_legend), sizing_mode="stretch_width"),
+                        sizing_mode="stretch_width")
         match = pn.Column("### Motion matching of the span (lazy neighbourhood graph, §4.1)",
                           pn.Row(self.match_k, self.match_count_k, self.match_button),
                           notes(self.match_k, self.match_count_k), _scoped(self.match_task, "mv-match-task"),
@@ -325,8 +340,10 @@ class SimilarityPage(pn.viewable.Viewer):
     async def _run_search(self, event=None) -> None:
         key = self._search_key()
         found = await self.search_task.run("Searching", self.backend.cached, ("similarity.search", *key),
-                                           lambda: search_span(self.backend, *key), busy=self.search_button)
+                                           lambda: search_span(self.backend, *key), busy=self.search_button,
+                                           stale=(self.search_count, self.search_table, self.search_player_box))
         if found is None:
+            self.results = None
             return
         name, doc, span, kind, mode, n_matches, own = key
         self.results, self.search_query = found, (doc, span)
@@ -367,18 +384,22 @@ class SimilarityPage(pn.viewable.Viewer):
         """The neighbours table as soon as the kNN is done; the Fig. 1 picture (slower to render) after it."""
         s = self.selection
         name, doc, frame, k, own = self.numeric_set.value, s.doc, s.frame, self.knn_k.value, self.exclude_own.value
-        key = ("similarity.knn", name, doc, frame, k, own)
+        each = self.knn_per_document.value
+        key = ("similarity.knn", name, doc, frame, k, own, each)
+        shown = (self.knn_count, self.knn_table, self.knn_poses)
         table = await self.knn_task.run("Searching", self.backend.cached, key,
-                                        lambda: nearest_frames(self.backend, name, doc, frame, k, own),
-                                        busy=self.knn_button)
+                                        lambda: nearest_frames(self.backend, name, doc, frame, k, own, each),
+                                        busy=self.knn_button, stale=shown)
         if table is None:
             return
         self.knn_table.value = hit_columns(table, KNN_TITLES, KNN_DECIMALS)
-        self.knn_count.object = (f"**{len(table)} neighbours** of document {doc} frame {frame} by {name}"
-                                 + (", its own document excluded" if own else ""))
+        found = table.attrs.get("neighbours", len(table))
+        self.knn_count.object = (f"**{found} neighbours** of document {doc} frame {frame} by {name}"
+                                 + (", its own document excluded" if own else "")
+                                 + (f"; one row per document: the nearest in each of {len(table)}" if each else ""))
         image = await self.knn_task.run("Drawing the neighbours", self.backend.cached, (*key, "png"),
                                         lambda: neighbours_png(self.backend, doc, frame, table),
-                                        busy=self.knn_button)
+                                        busy=self.knn_button, stale=(self.knn_poses,))
         if image is not None:
             self.knn_poses.object = image
 
@@ -395,15 +416,20 @@ class SimilarityPage(pn.viewable.Viewer):
 
     async def _match(self, event=None) -> None:
         key = self._match_key()
-        found = await self.match_task.run("Matching", self._cached_matches, key, busy=self.match_button)
+        found = await self.match_task.run("Matching", self._cached_matches, key, busy=self.match_button,
+                                          stale=(self.match_count, self.match_table, self.player_box))
         if found is None:
+            self.matches = None
             return
         name, doc, span, k, n_matches, own = key
         self.matches, self.match_query = found, (doc, span)
         self.match_table.param.update(selection=[], value=hit_columns(found, MATCH_TITLES, MATCH_DECIMALS))
         self.player_box.visible = False
+        share = found.attrs["min_length"]
         self.match_count.object = (f"**{len(found)} matches** of document {doc} frames {_frames(*span)} by {name} "
-                                   f"(k = {k}, K = {n_matches})" + (", its own document excluded" if own else "")
+                                   f"(k = {k}, K = {n_matches}), each at least {share:g} × the span long "
+                                   f"({shortest_match(share, span[1] - span[0])} frames)"
+                                   + (", its own document excluded" if own else "")
                                    + ("; try a larger k" if found.empty else ""))
 
     def _on_match_select(self, event) -> None:
@@ -429,7 +455,7 @@ class SimilarityPage(pn.viewable.Viewer):
 
     async def _matrix(self, event=None) -> None:
         layout = await self.matrix_task.run("Computing the similarity matrix", self._similarity, self._match_key(),
-                                            self.matrix_k.value, busy=self.matrix_button)
+                                            self.matrix_k.value, busy=self.matrix_button, stale=(self.matrix,))
         if layout is not None:
             self.matrix.object = layout
 

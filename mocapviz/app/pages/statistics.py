@@ -139,10 +139,12 @@ class StatisticsPage(pn.viewable.Viewer):
         self.group.disabled = True
         group = self.group.value
         result = await self.task.run(f"Table 3: random queries on the {group} index",
-                                     lambda: (table3(self.backend, group), query_times(self.backend, group)))
+                                     lambda: (table3(self.backend, group), query_times(self.backend, group)),
+                                     stale=(self.table3,))  # another index's table must not stay under the error
         self.group.disabled = False
         if result is not None:
             self.table3[:] = self._table3_view(*result)
+            self.table3.visible = True
 
     # ------------------------------------------------------------------ views
     @staticmethod

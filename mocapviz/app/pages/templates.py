@@ -19,8 +19,16 @@ import panel as pn
 from ...db.hits import database_frames
 from ...features import relational_features
 from ...match import dtw
-from ...relational.templates import DELTA, DONT_CARE, MotionTemplate, learn_class, template_distance
-from ...validation import count, number, one_of
+from ...relational.templates import (
+    DELTA,
+    DELTA_RANGE,
+    DONT_CARE,
+    MAX_COST_RANGE,
+    MotionTemplate,
+    learn_class,
+    template_distance,
+)
+from ...validation import count, one_of
 from ...viz.templates import template_image
 from ..downloads import table_download
 from ..gallery import HitGallery
@@ -31,7 +39,7 @@ from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, hit_tit
 RELATIONAL_SETS = ["2006", "2005"]  # the 39 features of Müller & Röder 2006 (the paper's), or the 31 of 2005
 MAX_MATCHES = 100
 DEFAULT_MATCHES = 20
-DELTA_MAX = 0.49  # the library takes 0 <= δ < 0.5; the widget steps by 0.01, so its largest value is 0.49
+STEP = 0.01  # of the δ and max cost boxes
 VIEWS = {"quantised": True, "averaged values": False}
 HIT_TITLES = hit_titles("rank", "doc_id", "name", "label", "start", "end", "start_s", "end_s", "normalised_cost")
 IMAGE_WIDTH = 640  # px of the template image; the player (640 px) stands beside it
@@ -102,7 +110,7 @@ def search_template(backend, template: MotionTemplate, delta: float, n_matches: 
     ----------
     backend : Backend
     template : MotionTemplate of a relational set (``meta["relational_set"]``).
-    delta : float, quantisation threshold, 0 <= δ < 0.5.
+    delta : float, quantisation threshold in DELTA_RANGE, 0 < δ < 0.5.
     n_matches : int, K, 1..MAX_MATCHES.
     max_cost : float in [0, 1] or None: keep only hits of at most this normalised cost.
 
@@ -113,7 +121,7 @@ def search_template(backend, template: MotionTemplate, delta: float, n_matches: 
     """
     n_matches = count(n_matches, "K", 1, MAX_MATCHES)
     if max_cost is not None:
-        max_cost = number(max_cost, "the max cost (a mean mismatch per frame)", 0.0, 1.0)
+        max_cost = MAX_COST_RANGE.check(max_cost, "the max cost (a mean mismatch per frame)")
     values = None if backend.sharded is not None else database_features(backend, template.meta.get(
         "relational_set", "2006"))[0]
     return backend.search_template(template, n_matches, delta, max_cost, values)
@@ -214,12 +222,12 @@ class TemplatesPage(pn.viewable.Viewer):
                                              visible="actor" in docs, css_classes=["mv-templates-actors"])
         self.relational_set = pn.widgets.RadioButtonGroup(options=RELATIONAL_SETS, value="2006", width=120,
                                                           align="end", css_classes=["mv-templates-set"])
-        self.delta = BoundedFloatInput("δ (quantisation)", DELTA, 0.0, DELTA_MAX, step=0.01, width=130,
-                                       css_classes=["mv-templates-delta"])
+        self.delta = BoundedFloatInput.within("δ (quantisation)", DELTA, DELTA_RANGE, STEP, width=130,
+                                              css_classes=["mv-templates-delta"])
         self.n_matches = BoundedIntInput("K (results)", DEFAULT_MATCHES, 1, MAX_MATCHES, width=120,
                                          css_classes=["mv-templates-k"])
-        self.max_cost = pn.widgets.FloatInput(label="max cost / frame (empty: none)", value=None, start=0.0, end=1.0,
-                                              step=0.01, width=190, css_classes=["mv-templates-max-cost"])
+        self.max_cost = BoundedFloatInput.within("max cost / frame", None, MAX_COST_RANGE, STEP, optional=True,
+                                                 width=210, css_classes=["mv-templates-max-cost"])
         self.button = action_button("Learn and search", "mv-templates-run", self._run, width=150)
         self.task = Task()
         self.summary = pn.pane.Markdown("", css_classes=["mv-templates-summary"], margin=(0, 10))
@@ -254,8 +262,9 @@ class TemplatesPage(pn.viewable.Viewer):
         template = pn.Column(self.view, self.image, self.legend)
         playing = pn.Column(self.playing, self.player_box)
         task = pn.Column(self.task, css_classes=["mv-templates-task"], margin=0, sizing_mode="stretch_width")
-        return pn.Column(intro, inputs, notes(self.delta, self.n_matches), task, self.summary, self.count,
-                         self.gallery, self.download.panel(), pn.Row(template, playing), sizing_mode="stretch_width")
+        return pn.Column(intro, inputs, notes(self.delta, self.n_matches, self.max_cost), task, self.summary,
+                         self.count, self.gallery, self.download.panel(), pn.Row(template, playing),
+                         sizing_mode="stretch_width")
 
     def _found_by(self) -> str:
         """The template of the hits shown, in words (written into exported files)."""
@@ -278,8 +287,10 @@ class TemplatesPage(pn.viewable.Viewer):
     async def _run(self, event=None) -> None:
         inputs = self._inputs()
         result = await self.task.run("Learning and searching", learn_and_search, self.backend, *inputs,
-                                     busy=self.button)
+                                     busy=self.button, stale=(self.summary, self.count, self.table, self.image,
+                                                              self.legend, self.player_box))  # fmt: skip
         if result is None:
+            self.template, self.hits = None, None
             return
         label, actors, relational_set, delta, n_matches, max_cost = inputs
         self.template, self.hits, self.delta_used = *result, delta
