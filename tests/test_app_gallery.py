@@ -149,10 +149,18 @@ def test_showing_the_gallery_opens_the_page_of_the_selected_hit(sample_db, backe
     assert table.visible and not shown.box.visible
 
 
+def test_cells_are_coloured_by_the_palettes_sides():
+    from mocapviz import MotionDB
+    from mocapviz.viz.palette import SIDES
+
+    hits = hit_table(MotionDB.sample(), [7], [0], [60])
+    assert gallery_page(MotionDB.sample(), hits, 0)[1]["side_colours"] == SIDES
+
+
 def test_the_component_code_shares_the_players_drawing():
     esm = gallery_module.GalleryView._esm
     assert "export function render" in esm and esm.count("function makeCamera") == 1  # skeleton.js, once
-    assert "function projectPose" in esm and "const SIDE_COLOURS" in esm
+    assert "function projectPose" in esm and "function poseBones(cam, screen, parents, sides, colours," in esm
 
 
 # ============================================================================ in the browser
