@@ -3,13 +3,15 @@
 What is measured, per query length (1 s = 30 frames and 3 s = 90 frames at 30 Hz):
 
 (a) Times. The lazy neighbourhood graph ``mocapviz.match.lng(query, KnnIndex(F15E), k, radius=None,
-    n_matches=10, starts=..., exclude=own document)`` end to end (kNN search included), with its two parts from
+    n_matches=10, starts=..., exclude=own document, min_length=None)`` (the paper's graph: matches of any length,
+    as both searches here) end to end (kNN search included), with its two parts from
     ``out.attrs["seconds"]``: the kNN search and the graph (construction + shortest paths + match selection,
     i.e. "LNG excluding kNN", beside the paper's 0.03 s for a 1 s query and 0.08 s for a 3 s query). k = 256
     is the configuration of the targets; k = 64, k = 1024 and eps = 0.1 / 0.5 (approximate kNN, k = 256) are
     printed beside it, and k = 256 without the exclusion of the own document as a timing diagnostic (the query
     then finds itself). Baselines on the first queries of each length: our subsequence DTW
-    ``mocapviz.match.subsequence_dtw(query, F15E, starts, n_matches=10)`` (numba, compiled before timing) and the
+    ``mocapviz.match.subsequence_dtw(query, F15E, starts, n_matches=10, min_length=None)`` (numba, compiled before
+    timing) and the
     dtaidistance library's C subsequence DTW: ``dtaidistance.dtw_ndim.warping_paths_fast(query, F15E64,
     penalty=0, psi=[0, 0, n, n], psi_neg=False, keep_int_repr=True, inner_dist="euclidean")`` — the call its
     ``subsequence_alignment(...).align()`` makes (psi relaxation of both ends of the series), with the local
@@ -201,7 +203,7 @@ def run_lng(searched: dict, queries: list[dict], features, repeats: int) -> dict
                 q = np.asarray(features[query["first"] : query["first"] + query["m"]], dtype=np.float64)
                 own = np.array([query["doc_start"], query["doc_stop"]]) if exclude else None
                 wall, cpu, out = _timed(lambda q=q, own=own, k=k, eps=eps, index=index, starts=starts: lng(
-                    q, index, k=k, radius=None, n_matches=K_MATCHES, starts=starts, eps=eps, exclude=own))
+                    q, index, k=k, radius=None, n_matches=K_MATCHES, starts=starts, eps=eps, exclude=own, min_length=None))
                 r = runs[label][qi]
                 r["wall"].append(wall)
                 r["cpu"].append(cpu)
@@ -223,7 +225,7 @@ def run_baselines(queries: list[dict], features, starts, x64, library) -> list[d
     for query in queries:
         q = np.asarray(features[query["first"] : query["first"] + query["m"]], dtype=np.float64)
         log(f"subsequence DTW, {query['m']}-frame query")
-        wall, cpu, table = _timed(lambda q=q: subsequence_dtw(q, features, starts, n_matches=K_MATCHES))
+        wall, cpu, table = _timed(lambda q=q: subsequence_dtw(q, features, starts, n_matches=K_MATCHES, min_length=None))
         row = {"dtw_s": wall, "dtw_cpu_s": cpu, "dtw_table": table, "lib_s": None, "lib_cpu_s": None, "lib": None}
         if library is not None:
             log(f"dtaidistance, {query['m']}-frame query")
