@@ -968,10 +968,10 @@ def _serve(args) -> None:
     websocket_origins(args.address, args.port, args.allow_origin)  # refused before the sample is ingested
     db = args.db if args.db else sample_database()
     MotionDB.open(db)  # a bad path fails before the server starts
-    print(f"mocapviz: serving {db} on http://{args.address}:{args.port}/ (Ctrl-C stops)", flush=True)
+    print(f"mocapviz: serving {db}: warming up (the first clicks then answer at once) …", flush=True)
     with contextlib.suppress(KeyboardInterrupt):
         serve(db, port=args.port, address=args.address, show=args.show, allow_origin=args.allow_origin,
-              scheduler=args.scheduler)
+              scheduler=args.scheduler, ready=lambda url: print(f"mocapviz: ready: {url} (Ctrl-C stops)", flush=True))
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:

@@ -65,6 +65,20 @@ def open_tab(page, name: str) -> None:
     page.locator(".mv-tabs .bk-tab", has_text=name).click()  # bokeh's tab headers carry no ARIA role
 
 
+def pick_document(page, css: str, doc: int) -> None:
+    """Choose document ``doc`` in the document picker of css class ``css`` (mocapviz.app.documents.DocumentPicker):
+    type its id as the list writes it ("7: ") and click the match that starts with it."""
+    box = page.locator(f"{css} input")
+    box.fill("")
+    box.press_sequentially(f"{doc}: ")
+    page.locator(f"{css} .bk-menu > div", has_text=re.compile(rf"^{doc}: ")).first.click()
+
+
+def picked_document(page, css: str) -> int:
+    """The id of the document a picker shows."""
+    return int(page.locator(f"{css} input").input_value().split(":")[0])
+
+
 def timed(action, wait) -> float:
     """Milliseconds from ``action()`` (a click) until ``wait()`` returns (the result is shown)."""
     t0 = time.perf_counter()

@@ -85,10 +85,10 @@ def test_warm_up_fills_what_the_first_clicks_need(sample_db):
 
     backend = Backend(sample_db)  # not the shared one of Backend.open: its caches start empty
     seconds = app.warm_up(backend)
-    assert set(seconds) == {"search", "knn", "lng", "relational", "row_click", "describe"}
+    assert set(seconds) == {"search", "knn", "lng", "relational", "row_click", "describe", "templates"}
     longest = int(sample_db.documents.loc[sample_db.documents["n_frames"].idxmax(), "doc_id"])
     for key in (("numeric", "F15E"), ("knn", "F15E"), ("search", "F15E"), ("indexes", "2005"),
-                ("relational", longest, "2005")):
+                ("relational", longest, "2005"), ("templates.features", "2006")):
         assert backend.is_cached(key), key
     for kernel in (neighbourhood_graph._shortest_paths, neighbourhood_graph._graph_path, pruned.search_ranges,
                    time_warping._accumulate, time_warping._backtrack, index._adaptive_walk, index._mismatch_walk,
@@ -122,3 +122,33 @@ def test_serving_beyond_localhost_needs_listed_origins_and_warns(sample_db, monk
                            allow_origin=[f"lab.example.org:{port}"])
     server.stop()
     assert handed["websocket_origin"] == [f"127.0.0.1:{port}", f"localhost:{port}", f"lab.example.org:{port}"]
+
+
+def test_ready_is_printed_when_the_port_answers(sample_db):
+    """`mocapviz serve` warms up first and prints "ready: URL" only once the server listens: a connection made as
+    soon as the line is read succeeds at the first try (no retry), and the page and a first query of the warmed-up
+    caches follow (GET / answers the dashboard)."""
+    import queue
+    import socket
+    import subprocess
+    import sys
+    import threading
+    import urllib.request
+
+    port = free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "mocapviz.cli", "serve", str(sample_db.path), "--port", str(port)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
+    lines: queue.Queue = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(line) for line in proc.stdout], daemon=True).start()
+    try:
+        seen = []
+        while not (seen and "ready:" in seen[-1]):
+            seen.append(lines.get(timeout=600))  # the warm-up of the sample takes seconds; a hang fails here
+        with socket.create_connection(("127.0.0.1", port), timeout=5):  # listening already when the line came
+            pass
+        assert "warming up" in seen[0] and f"ready: http://127.0.0.1:{port}/" in seen[-1]
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=120) as answer:
+            assert answer.status == 200 and f"mocapviz · {sample_db.path.name}" in answer.read().decode()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)

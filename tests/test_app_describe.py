@@ -14,6 +14,7 @@ from playwright.sync_api import expect
 
 from mocapviz.app.backend import Backend
 from mocapviz.app.pages import describe as page_mod
+from mocapviz.app.widgets import PAGE_SIZE
 from mocapviz.errors import DescriptionError, ParameterError
 from mocapviz.relational import index
 from mocapviz.relational.description import named_descriptions, parse_description
@@ -212,8 +213,8 @@ def test_names_and_parts_insert_and_a_stored_template_is_described(sample_db, sa
                     indexes=index.load_or_build(sample_db, "2006"))  # fmt: skip
     assert len(expected) > 0
     expect(page.locator(".mv-describe-count")).to_contain_text(f"{len(expected)} hit")
-    expect(page.locator(".mv-describe-hits .tabulator-row")).to_have_count(min(len(expected), 12))
-    assert _rows(page) == list(zip(expected["doc_id"], expected["start"], expected["end"]))[:12]
+    expect(page.locator(".mv-describe-hits .tabulator-row")).to_have_count(min(len(expected), PAGE_SIZE))
+    assert _rows(page) == list(zip(expected["doc_id"], expected["start"], expected["end"]))[:PAGE_SIZE]
     assert_no_exception_names(page)
     screenshot("template-described")
     _type(page, "set 2005;\nkick_left")  # a set the text names moves the buttons

@@ -5,7 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from browser_helpers import assert_no_exception_names, open_dashboard, open_tab, record_timing, timed
+from browser_helpers import (
+    assert_no_exception_names,
+    open_dashboard,
+    open_tab,
+    pick_document,
+    picked_document,
+    record_timing,
+    timed,
+)
 from playwright.sync_api import expect
 
 from mocapviz.app.pages.reconstruction import DEFAULT_NOISE_CM, SEED, check_settings, default_k
@@ -31,12 +39,6 @@ def _open_page(page, url: str) -> None:
     page.locator(".mv-recon-run button").wait_for()
 
 
-def _option(db, doc: int) -> str:
-    """The clip selector's label of ``doc`` (as Backend.doc_options writes it)."""
-    row = db.documents.set_index("doc_id").loc[doc]
-    return f"{doc}: {row['name']} ({row['label']})"
-
-
 def _expected_mean_cm(db, doc: int) -> float:
     """The page's default settings (F15E, default k, 1 mm noise, seed) with the prior without the clip's actor,
     computed with the library."""
@@ -51,7 +53,7 @@ def _expected_mean_cm(db, doc: int) -> float:
 
 def test_reconstruct_a_clip(page, sample_dashboard, sample_db, screenshot):
     _open_page(page, sample_dashboard)
-    page.locator(".mv-recon-clip select").select_option(label=_option(sample_db, TEST_DOC))
+    pick_document(page, ".mv-recon-clip", TEST_DOC)
     page.locator(".mv-recon-prior select").select_option(label="without the test clip's actor")
     screenshot("options")
     ms = timed(lambda: page.locator(".mv-recon-run button").click(),
@@ -72,9 +74,8 @@ def test_reconstruct_a_clip(page, sample_dashboard, sample_db, screenshot):
 
 def test_bad_choices_say_why(page, sample_dashboard, sample_db, screenshot):
     _open_page(page, sample_dashboard)
-    clip = page.locator(".mv-recon-clip select")
-    assert clip.input_value() == _option(sample_db, 0)  # the session's Selection.doc: the first document
-    clip.select_option(label=_option(sample_db, TEST_DOC))
+    assert picked_document(page, ".mv-recon-clip") == 0  # the session's Selection.doc: the first document
+    pick_document(page, ".mv-recon-clip", TEST_DOC)
     frames = sample_db.n_frames - int(sample_db.documents.set_index("doc_id").at[TEST_DOC, "n_frames"])
     expect(page.locator(".mv-recon-k")).to_contain_text(f"k neighbours per frame (1–{frames:,})")  # the prior's size
     k = page.locator(".mv-recon-k input")
@@ -93,7 +94,7 @@ def test_bad_choices_say_why(page, sample_dashboard, sample_db, screenshot):
     page.locator(".mv-input-note", has_text="marker noise ± cm must be 0–100: 1,000,000,000 was set to 100.").wait_for()
     expect(noise).to_have_value("100")
     screenshot("k-too-large")
-    clip.select_option(label=_option(sample_db, 0))  # a CMU trial: no actor
+    pick_document(page, ".mv-recon-clip", 0)  # a CMU trial: no actor
     page.locator(".mv-recon-prior select").select_option(label="without the test clip's actor")
     page.locator(".mv-recon-run button").click()
     page.locator(MESSAGE).get_by_text("Document 0 has no actor label").wait_for()

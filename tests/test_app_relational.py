@@ -1,17 +1,20 @@
 """Browser tests of the dashboard's Relational query page (Müller, Röder & Clausen 2005 §5) in headless Chromium: the
 hits shown are those of :func:`mocapviz.relational.query.query_by_example` for the query chosen through the widgets;
-its boxes' notes without a browser."""
+its boxes' notes without a browser. Then, without a browser, the page's default query: the features a new clip ticks
+and their precision."""
 
 from __future__ import annotations
 
 import re
 import time
 
+import numpy as np
 import pytest
 from browser_helpers import (
     assert_no_exception_names,
     open_dashboard,
     open_tab,
+    pick_document,
     record_first_answer,
     record_timing,
     text_of,
@@ -19,19 +22,24 @@ from browser_helpers import (
 )
 from playwright.sync_api import expect
 
-from mocapviz.app.pages.relational import DEFAULT_FEATURES, MODES
-from mocapviz.features import feature_groups
+from mocapviz.app.backend import Backend
+from mocapviz.app.pages.relational import (
+    DEFAULT_FEATURES,
+    DEFAULT_MISMATCHES,
+    MODES,
+    SUGGESTED,
+    RelationalPage,
+    suggested_features,
+)
+from mocapviz.app.state import Selection
+from mocapviz.app.widgets import PAGE_SIZE
+from mocapviz.features import feature_groups, relational_features
 from mocapviz.relational import index
-from mocapviz.relational.query import query_by_example
+from mocapviz.relational.query import query_by_example, query_segmentation
+from mocapviz.viz.query import precision_recall
 
 COUNT = ".mv-hit-count"
 KNEES = ["rknee_bent", "lknee_bent"]
-
-
-def _option(db, doc: int) -> str:
-    """The clip selector's label of ``doc`` (as Backend.doc_options writes it)."""
-    row = db.documents.set_index("doc_id").loc[doc]
-    return f"{doc}: {row['name']}" + (f" ({row['label']})" if isinstance(row["label"], str) and row["label"] else "")
 
 
 def _open_page(page, url: str) -> None:
@@ -45,7 +53,7 @@ def _set_query(page, db, doc: int, span, features, mode: str, m: int = 1) -> Non
     """Choose the clip, span, ticked features and kind of hit through the page's widgets."""
     row = db.documents.set_index("doc_id").loc[doc]
     fps, info = float(row["fps"]), page.locator(".mv-query-span-info")
-    page.locator(".mv-query-doc select").select_option(label=_option(db, doc))
+    pick_document(page, ".mv-query-doc", doc)
     expect(info).to_contain_text(f"{row['n_frames']} frames · 0.00–")  # the whole new clip, before the span changes
     expect(info).to_contain_text(f"of {row['name']}")
     page.locator(".mv-query-first input").fill(str(span[0]))
@@ -97,7 +105,7 @@ def test_query_shows_the_library_hits_and_plays_one(name, sample_db, sample_dash
     assert shown == len(expected) > 1
     rows = page.locator(".mv-hits .tabulator-row")
     expect(rows.first).to_be_visible()
-    assert rows.count() == min(len(expected), 12)  # one page of the table
+    assert rows.count() == min(len(expected), PAGE_SIZE)  # one page of the table
     assert "Precision" in text_of(page, ".mv-hit-quality")
     screenshot(f"{name}-hits")
     target = expected.iloc[1]
@@ -178,15 +186,61 @@ def test_notes_say_what_the_user_changed_only(sample_db):
     assert "**last frame** 10 is before the first frame 50" in page.last.note.object
 
 
+def _default_query(db, doc: int) -> tuple[list[str], int]:
+    """The features and m the page starts with for the whole clip ``doc``: :func:`suggested_features`, and m = 1
+    unless the query has a single segment (then 0: the page's bound)."""
+    values, names = relational_features(db.motion(doc), "2005", progress=False)
+    features = suggested_features(values, names)
+    segments = max(len(seq.codes) for _, seq in query_segmentation(values, names, features, "2005").values())
+    return features, min(DEFAULT_MISMATCHES, segments - 1)
+
+
 def test_round_trip_on_hdm05(hdm05_db30, hdm05_dashboard, page, screenshot):
-    """Click Run to hits shown over the 287 HDM05 clips at 30 Hz: the default query (first clip, whole, §6.2's kick
-    features, adaptive fuzzy hits)."""
+    """Click Run to hits shown over the 287 HDM05 clips at 30 Hz: the default query (first clip, whole, its
+    suggested features, m-mismatch hits)."""
     _open_page(page, hdm05_dashboard)
     docs = hdm05_db30.documents
     doc, n = int(docs["doc_id"].iloc[0]), int(docs["n_frames"].iloc[0])
     ms = timed(lambda: page.locator(".mv-run button").click(),
                lambda: page.locator(".mv-hits .tabulator-row").first.wait_for(timeout=600_000))
     record_timing("relational_round_trip_ms", ms, "ms")
-    expected = _expected_hits(hdm05_db30, doc, (0, n - 1), list(DEFAULT_FEATURES), "adaptive fuzzy")
+    features, m = _default_query(hdm05_db30, doc)
+    expected = _expected_hits(hdm05_db30, doc, (0, n - 1), features, "mismatch", m)
     assert _shown_count(page) == len(expected)
     screenshot("hdm05")
+
+
+# ============================================================================ the default query, no browser
+def test_a_new_clip_ticks_the_features_that_change_least_often_in_it(sample_db):
+    page = RelationalPage(Backend.open(sample_db.path), Selection(doc=10, span=(0, 215)))
+    values, names = relational_features(sample_db.motion(10), "2005", progress=False)
+    changes = [(int((np.diff(values[:, j].astype(int)) != 0).sum()), j) for j in range(len(names))]
+    fewest = sorted(c for c in changes if c[0] > 0)[:SUGGESTED]  # fewest changes first, then the set's order
+    q = page.query()
+    assert sorted(q["features"]) == sorted(names[j] for _, j in fewest)
+    assert (q["mode"], q["mismatches"]) == ("mismatch", DEFAULT_MISMATCHES)
+    page.first.value = 20  # a narrower span of the same clip keeps the ticks
+    assert page.query()["features"] == q["features"] and page.query()["span"] == (20, 215)
+    page.doc.value = 12  # another clip: its own
+    values, names = relational_features(sample_db.motion(12), "2005", progress=False)
+    assert sorted(page.query()["features"]) == sorted(suggested_features(values, names))
+    assert suggested_features(values[:1].repeat(5, axis=0), names) == list(DEFAULT_FEATURES)  # nothing changes
+
+
+def test_the_default_query_is_more_precise_than_the_kick_features(hdm05_db30):
+    """Every 6th of the 287 HDM05 clips at 30 Hz queried whole: the page's default (suggested features, m-mismatch)
+    retrieves documents with a higher mean precision, as the page's quality line judges them, than §6.2's kick
+    features (adaptive fuzzy) queried on every clip, the page's earlier default."""
+    db = hdm05_db30
+    indexes = index.load_or_build(db, save=False)
+    precision = {"default": [], "kick": []}
+    for doc in db.documents["doc_id"].iloc[::6]:
+        features, m = _default_query(db, int(doc))
+        for name, (feats, mode, mm) in {"default": (features, "mismatch", m),
+                                        "kick": (list(DEFAULT_FEATURES), "adaptive", 1)}.items():  # fmt: skip
+            hits = query_by_example(db, db.motion(int(doc)), feats, mode, mm, indexes=indexes)
+            curve = precision_recall(hits["doc_id"], db.documents, int(doc))
+            precision[name].append(curve["precision"].iloc[-1] if len(curve) else np.nan)
+    mean = {name: np.nanmean(p) for name, p in precision.items()}
+    answered = {name: np.mean(~np.isnan(p)) for name, p in precision.items()}
+    assert mean["default"] > mean["kick"] and answered["default"] >= 0.75

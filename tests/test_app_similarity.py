@@ -25,6 +25,8 @@ from mocapviz.app.backend import Backend
 from mocapviz.app.pages.retrieval import DEFAULT_METHODS, label_columns, summary_view
 from mocapviz.app.pages.similarity import (
     LNG_K_AT_30HZ,
+    LNG_REFERENCE_FRAMES,
+    graph_k,
     match_alignment,
     match_span,
     matrix_docs,
@@ -213,7 +215,7 @@ def test_lng_matches_equal_the_library_and_play_aligned(page, sample_dashboard, 
     open_tab(page, TAB)
     page.locator(".mv-similarity-query", has_text=QUERY_NAME).wait_for()
     doc, _, span = _query(page)
-    k = scaled_k(LNG_K_AT_30HZ, sample_db.fps)
+    k = graph_k(sample_db.n_frames, sample_db.fps)
     assert page.locator(".mv-match-k input").input_value() == str(k)
     _first_click(page, "lng", ".mv-match-run button", page.locator(".mv-match-count", has_text="matches"))
 
@@ -361,3 +363,13 @@ def test_knn_round_trip_on_hdm05(page, hdm05_dashboard, hdm05_db30, screenshot):
     record_timing("knn_round_trip_ms", warm, "ms")
     record_timing("knn_round_trip_cold_ms", cold, "ms")
     screenshot("hdm05-knn")
+
+
+def test_the_graphs_k_grows_with_the_database_beyond_the_papers_size(sample_db):
+    """The papers' k (scaled with the rate) up to LNG_REFERENCE_FRAMES frames at 30 Hz, proportionally more beyond,
+    at most the frames: the sample keeps 1,024, a database 4.47 times the reference (every shared archive) 1,143."""
+    assert graph_k(sample_db.n_frames, sample_db.fps) == scaled_k(LNG_K_AT_30HZ, 120.0) == 1024
+    assert graph_k(LNG_REFERENCE_FRAMES, 30.0) == LNG_K_AT_30HZ
+    assert graph_k(446_551, 30.0) == round(LNG_K_AT_30HZ * 446_551 / LNG_REFERENCE_FRAMES) == 1143
+    assert graph_k(4 * 446_551, 120.0) == round(1024 * 446_551 / LNG_REFERENCE_FRAMES)  # the same at 4 times the rate
+    assert graph_k(100, 30.0) == 100

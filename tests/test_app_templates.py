@@ -4,6 +4,7 @@ on the embedded sample, and the page in headless Chromium: the hits it shows are
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from types import SimpleNamespace
 
@@ -61,6 +62,14 @@ def test_class_options_are_labels_of_two_documents_or_more(sample_db):
     assert "Motorcycle" not in classes  # a CMU trial: one document only
 
 
+def test_the_page_starts_with_the_class_of_most_documents(sample_db):
+    docs = pd.DataFrame({"label": ["b", "b", "a", "a", "c", "c", "c", None]})
+    assert page_mod.default_class(docs) == "c"
+    assert page_mod.default_class(docs.iloc[:4]) == "a"  # a tie: the first in sorted order
+    assert page_mod.default_class(pd.DataFrame({"label": ["a", "b"]})) is None
+    assert page_mod.default_class(sample_db.documents) == page_mod.class_options(sample_db.documents)[0]
+
+
 def test_actors_of_a_class(sample_db):
     assert page_mod.actors_of(sample_db.documents, KICK) == ["dg", "mm"]
     assert page_mod.actors_of(pd.DataFrame({"label": ["a", "a"]}), "a") == []
@@ -113,6 +122,15 @@ def test_bad_inputs_say_why(backend):
         page_mod.learn_and_search(backend, KICK, ("nobody",), "2006", DELTA, 5, None)
 
 
+def test_hits_tied_at_cost_zero_are_said_to_be_in_no_order(backend):
+    hits = pd.DataFrame({"normalised_cost": [0.0, 0.0004, 0.0005, 0.2]})  # shown as 0.000, 0.000, 0.001, 0.200
+    assert "2 of them at cost 0.000" in page_mod.tie_note(hits, 0.1) and "δ = 0.1" in page_mod.tie_note(hits, 0.1)
+    assert page_mod.tie_note(hits.iloc[1:], 0.1) == page_mod.tie_note(hits.iloc[:0], 0.1) == ""  # one or none
+    _, table = page_mod.learn_and_search(backend, KICK, (), "2006", DELTA, 20, None)
+    zero = int((page_mod.hits_view(table)["normalised_cost"] == "0.000").sum())
+    assert (f"{zero} of them at cost 0.000" in page_mod.tie_note(table, DELTA)) == (zero >= 2)
+
+
 def test_hits_view_rounds_as_shown(backend):
     _, table = page_mod.learn_and_search(backend, KICK, (), "2006", DELTA, 20, None)
     shown = page_mod.hits_view(table)
@@ -129,6 +147,10 @@ def test_summary_names_examples_frames_and_dont_care_share(backend):
     line = page_mod.template_summary(template, DELTA)
     assert "2 examples (documents 7, 18; every actor)" in line
     assert f"{len(template.values)} frames × 39 features" in line and f"{share:.1%} don't care" in line
+    many = dataclasses.replace(template, n_examples=16, meta={**template.meta, "doc_ids": list(range(100, 116)),
+                                                               "class_documents": 236})  # fmt: skip
+    line = page_mod.template_summary(many, DELTA)  # a class of a large database: counted, not listed
+    assert "16 of its 236 examples (16 documents; every actor)" in line and "100" not in line
 
 
 def test_image_legend_says_what_the_shades_mean(backend):
@@ -223,12 +245,12 @@ def test_templates_page_shows_the_library_hits_and_plays_one(page, sample_dashbo
     open_tab(page, TAB)
     page.locator(".mv-templates-class select").select_option(KICK)
     assert page.locator(".mv-templates-k input").input_value() == "20"
-    assert page.locator(".mv-templates-delta input").input_value() == f"{DELTA:g}"
+    assert page.locator(".mv-templates-delta input").input_value() == f"{page_mod.DEFAULT_DELTA:g}"
     count = page.locator(".mv-templates-count", has_text="hits")
     ms = timed(page.locator(".mv-templates-run button").click, count.wait_for)
     record_timing("templates_learn_search_ms", ms, "ms")
 
-    template, expected = _library(sample_db, features["2006"], KICK)
+    template, expected = _library(sample_db, features["2006"], KICK, delta=page_mod.DEFAULT_DELTA)
     assert int(re.match(r"\s*(\d+) hits?", text_of(page, ".mv-templates-count")).group(1)) == len(expected) == 20
     _assert_table_shows(page, sample_db, expected)
     page.locator(".mv-templates-table .tabulator-page[data-page='next']").click()
@@ -238,7 +260,7 @@ def test_templates_page_shows_the_library_hits_and_plays_one(page, sample_dashbo
     page.locator(".mv-templates-table .tabulator-cell[tabulator-field='rank']", has_text="1").first.wait_for()
 
     summary = text_of(page, ".mv-templates-summary")
-    share = float((template.quantised(DELTA) == DONT_CARE).mean())
+    share = float((template.quantised(page_mod.DEFAULT_DELTA) == DONT_CARE).mean())
     assert f"{template.n_examples} examples" in summary and f"{len(template.values)} frames" in summary
     assert f"{share:.1%} don't care" in summary
     page.locator(".mv-templates-image canvas").first.wait_for(state="visible")

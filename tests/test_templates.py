@@ -191,3 +191,27 @@ def test_group_values_survive_save_and_load_and_are_checked(tmp_path):
     np.savez(tmp_path / "bad.npz", **arrays)
     with pytest.raises(MotionDBError, match="group values differ"):
         MotionTemplate.load(tmp_path / "bad.npz")
+
+
+def test_learn_class_from_at_most_some_examples_spread_over_the_class(hdm05_db30):
+    """``max_examples``: the class's documents at evenly spread positions, first and last included; the template
+    is the one learned from those documents alone (by actor, as learn_class groups them)."""
+    from mocapviz.features import relational_features
+    from mocapviz.relational.templates import learn_class
+
+    db, label = hdm05_db30, "kickLFront1Reps"
+    values, names = relational_features(db, "2006", progress=False)
+    docs = db.documents[db.documents["label"] == label]
+    n = len(docs)
+    assert n > 5
+    template = learn_class(db, label, values=values, max_examples=5)
+    picked = [int(docs["doc_id"].iloc[round(i * (n - 1) / 4)]) for i in range(5)]
+    assert template.meta["doc_ids"] == picked and template.n_examples == 5 and template.meta["class_documents"] == n
+    rows = docs.set_index("doc_id").loc[picked]
+    alone = learn_template([values[s : s + f] for s, f in zip(rows["start"], rows["n_frames"])], names, label,
+                           groups=rows["actor"].tolist())  # fmt: skip
+    np.testing.assert_array_equal(template.values, alone.values)
+    every = learn_class(db, label, values=values, max_examples=n)  # as many as the class has: all of them
+    assert every.meta["doc_ids"] == docs["doc_id"].tolist() and every.meta["class_documents"] == n
+    with pytest.raises(ParameterError, match="max_examples"):
+        learn_class(db, label, values=values, max_examples=0)

@@ -3,6 +3,8 @@
 backend.py     Backend: one MotionDB and its cached indexes, feature sets, kd-trees and page results (per database,
                shared by sessions).
 state.py       Selection: the session's clip, frame and span, shared by its pages.
+documents.py   the documents as pages list and pick them: each one's archive and performer, the Database page's
+               filters, DocumentPicker (type to find a document by id, name, label, performer or archive).
 progress.py    Task: long computations in a worker thread behind a progress bar; errors as one red line.
 player.py      SkeletonPlayer: clips sent once and animated in the browser (player.js, Canvas 2D), one or more
                side by side or overlaid, aligned playback.
@@ -112,11 +114,13 @@ def warm_up(backend: Backend) -> dict[str, float]:
 
     - Similarity search: DTW search of whole clips and stretches, exact and fast, with warping paths (the F15E
       kd-tree and coarse database of :meth:`Backend.search`); kNN of a frame (:meth:`Backend.knn`) and its Fig. 1
-      picture; lazy neighbourhood graph matching with the page's default k.
+      picture; lazy neighbourhood graph matching with the page's default k (:func:`~.pages.similarity.graph_k`).
     - Relational query: the relational indexes (:meth:`Backend.indexes`, built and saved when missing) and a query by
       example of each kind of hit.
     - Database page: a clip's relational features (its row click draws them).
     - Describe page: a shipped scene description found through the 2005 indexes (the ranking kernel loaded).
+    - Motion templates page: the relational features of every frame in the 2006 set, which every template is
+      learned from and searched in (8 s on every shared archive at 30 Hz, 446,551 frames).
 
     The small queries use a few frames of the longest document; their results are not kept. A step the database
     cannot run (a :class:`~mocapviz.errors.MocapvizError`) is skipped. Returns the seconds of each step (logged at INFO
@@ -124,7 +128,7 @@ def warm_up(backend: Backend) -> dict[str, float]:
     """
     from ..relational.query import query_by_example
     from ..relational.scene import find
-    from .pages import relational, similarity
+    from .pages import relational, similarity, templates
 
     docs = backend.documents
     doc = int(docs.loc[docs["n_frames"].idxmax(), "doc_id"])
@@ -149,7 +153,7 @@ def warm_up(backend: Backend) -> dict[str, float]:
         similarity.neighbours_png(backend, doc, 0, table)
 
     def lng() -> None:
-        k = min(similarity.scaled_k(similarity.LNG_K_AT_30HZ, backend.fps), db.n_frames)
+        k = similarity.graph_k(db.n_frames, backend.fps)
         similarity.match_span(backend, "F15E", doc, span, k, 1, True)
 
     def relational_query() -> None:
@@ -165,6 +169,7 @@ def warm_up(backend: Backend) -> dict[str, float]:
     step("relational", relational_query)
     step("row_click", lambda: backend.clip_relational(doc))
     step("describe", lambda: find(db, "kick_right", n_matches=1, indexes=backend.indexes("2005")))
+    step("templates", lambda: templates.database_features(backend, "2006"))
     LOG.info("warmed up in %.1f s (%s)", sum(seconds.values()),
              ", ".join(f"{name} {s:.1f} s" for name, s in seconds.items()))
     return seconds
@@ -313,10 +318,10 @@ class _Refuse(RequestHandler):
 
 
 def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, start: bool = True,
-          allow_origin=(), scheduler=None):
+          allow_origin=(), scheduler=None, ready=None):
     """Serve the dashboard of the MotionDB at ``db_path`` on http://address:port/ until interrupted.
 
-    The database is opened (and checked), one dashboard built and :func:`warm_up` run before the server starts, so
+    The database is opened (and checked), one dashboard built and :func:`warm_up` run before the server listens, so
     a bad path fails at once, the first page comes quickly and the first search, kNN, matching and relational query
     answer in about a second. The server answers only requests whose ``Host`` is one of :func:`websocket_origins`
     (this machine's loopback names at ``port``, ``address``, ``allow_origin``), and opens a WebSocket only for a page
@@ -324,8 +329,10 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, s
     localhost, ::1) exposes the database to the network: ``allow_origin`` must then list the addresses (``HOST:PORT``)
     users open it at, and a warning says who can reach it. With ``scheduler`` (a Dask scheduler's address, or
     "local") every session's searches run sharded on that cluster (:class:`mocapviz.sharded.ShardedDB`, one for the
-    server), with the same answers. With ``start=False`` the server is returned bound to its port but not started;
-    called in a running event loop (Jupyter), it starts the server on that loop and returns it.
+    server), with the same answers. ``ready(url)`` (e.g. a print) is called from the server's event loop once it is
+    listening and answering requests: what ``mocapviz serve`` reports as "ready". With ``start=False`` the server is
+    returned bound to its port but not started; called in a running event loop (Jupyter), it starts the server on
+    that loop and returns it.
 
     Raises
     ------
@@ -352,14 +359,17 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, s
     # Bokeh's own origin list, consulted after ours, cannot parse a bracketed IPv6 name (ours holds them); Panel's
     # URL-syncing location component, which the dashboard does not use, fails on one (a 500 for Host [::1]:PORT)
     server = pn.serve({"/": lambda: dashboard(path, scheduler)}, port=port, address=address, show=show, start=False,
-                      websocket_origin=[o for o in origins if not o.startswith("[")], location=False,
+                      verbose=False, websocket_origin=[o for o in origins if not o.startswith("[")], location=False,
                       title=f"{TITLE} · {path.name}")
     # The refusal is the first rule of the tornado application's router (where tornado's Application.add_handlers
     # puts rules of its own), ahead of every page, static file and WebSocket route of Bokeh and Panel. Bokeh's Server
     # keeps that application as _tornado, as Panel reads it; nothing outside this server changes.
     server._tornado.default_router.rules.insert(0, Rule(_Refused(origins), _Refuse))
     if start:
-        server.start()
+        server.start()  # its socket is bound and listening since it was made; the loop answers on it
+        if ready is not None:
+            host = f"[{address}]" if ":" in address else address
+            server.io_loop.add_callback(ready, f"http://{host}:{server.port}/")
         if not server.io_loop.asyncio_loop.is_running():  # in a running loop (Jupyter) the server runs on that one
             server.io_loop.start()
     return server

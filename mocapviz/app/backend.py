@@ -18,8 +18,10 @@ from ..errors import MotionDBError
 from ..features import numeric_of, relational_features
 from ..relational import index as index_mod
 from ..similarity.knn import KnnIndex
+from .documents import document_table, picker_options
 
 _BACKENDS: dict = {}
+_BY_MANIFEST: dict = {}  # (path, manifest's (mtime, size), scheduler) -> Backend: a session's open reads no table
 _OPEN_LOCK = threading.Lock()
 
 
@@ -58,18 +60,32 @@ class Backend:
         """The Backend of the MotionDB at ``path`` (one per database path, generation and scheduler, shared); with a
         ``scheduler`` (a Dask scheduler's address, or "local") its searches run sharded on that cluster.
 
+        The database is opened (and checked) once per state of its manifest: a new browser session of an unchanged
+        database gets the shared Backend without reading its documents table again.
+
         Raises
         ------
         MotionDBError
             Not a MotionDB, or an empty one (nothing to show).
         """
+        folder = str(Path(path).resolve())
+        try:
+            manifest = (Path(path) / "manifest.json").stat()
+            seen = (folder, manifest.st_mtime_ns, manifest.st_size, scheduler)
+        except OSError:  # no manifest: MotionDB.open says what is wrong
+            seen = None
+        with _OPEN_LOCK:
+            if seen in _BY_MANIFEST:
+                return _BY_MANIFEST[seen]
         db = MotionDB.open(path)
         if len(db) == 0:
             raise MotionDBError(f"{path}: the database holds no documents; ingest some first (`mocapviz ingest`)")
-        key = (str(Path(path).resolve()), db.manifest.get("generation"), scheduler)
+        key = (folder, db.manifest.get("generation"), scheduler)
         with _OPEN_LOCK:
             if key not in _BACKENDS:
                 _BACKENDS[key] = cls(db, scheduler)
+            if seen is not None:
+                _BY_MANIFEST[seen] = _BACKENDS[key]
             return _BACKENDS[key]
 
     def cached(self, key, compute):
@@ -162,12 +178,15 @@ class Backend:
             self.db, methods, label_column=label_column, group_column=group_column, n_queries=n_queries, seed=seed,
             indexes=self.indexes() if relational_methods else None, progress=False))
 
+    def document_table(self) -> pd.DataFrame:
+        """The documents as the dashboard lists them, with their archive and performer
+        (:func:`mocapviz.app.documents.document_table`), built once per database."""
+        return self.cached(("document table",), lambda: document_table(self.documents))
+
     def doc_options(self) -> dict:
-        """{"<id>: <name> (<label>)": doc_id} for a document selector, in document order."""
-        docs = self.documents
-        labels = docs["label"].fillna("") if "label" in docs else pd.Series("", index=docs.index)
-        return {f"{d}: {n}" + (f" ({lab})" if lab else ""): int(d)
-                for d, n, lab in zip(docs["doc_id"], docs["name"], labels)}
+        """{"<id>: <name> · <label> · <performer> · <archive>": doc_id} for a document picker, in document order
+        (:func:`mocapviz.app.documents.picker_options`), built once per database."""
+        return self.cached(("document options",), lambda: picker_options(self.document_table()))
 
 
 def sample_database() -> Path:

@@ -8,6 +8,7 @@ import math
 import pandas as pd
 import panel as pn
 
+PAGE_SIZE = 25  # rows of a result table's page (the rest stay on the server until their page is shown)
 # The titles of the hit table's columns (mocapviz.db.hits.hit_table), the same on every page: each page shows the
 # columns it wants, in this order, under these titles (``hit_columns``).
 HIT_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "label": "label", "start": "start frame",
@@ -177,16 +178,18 @@ def action_button(label: str, css_class: str, callback, width: int = 120) -> pn.
     return button
 
 
-def results_table(value: pd.DataFrame, css_class: str, titles: dict | None = None, page_size: int = 12,
+def results_table(value: pd.DataFrame, css_class: str, titles: dict | None = None, page_size: int = PAGE_SIZE,
                   selectable: bool = False, tooltips: bool = False, **params) -> pn.widgets.Tabulator:
-    """A read-only, paginated table of ``value`` (a DataFrame; its columns renamed for display by ``titles``), one
-    row selectable when ``selectable`` (watch its ``selection``); ``tooltips``: a cell's text shows in full on hover
-    (for a table whose columns are narrowed to fit, ``layout="fit_columns"``).
+    """A read-only table of ``value`` (a DataFrame; its columns renamed for display by ``titles``) paged on the
+    server, one row selectable when ``selectable`` (watch its ``selection``: row numbers of ``value``, whatever the
+    page); ``tooltips``: a cell's text shows in full on hover (for a table whose columns are narrowed to fit,
+    ``layout="fit_columns"``).
 
-    Rows are drawn plainly rather than by Tabulator's virtual renderer: a page holds a dozen rows, and the virtual
-    renderer sometimes drew none after new data arrived while the page around it was laid out again (seen in the
-    browser tests; the rows appeared only on a resize)."""
-    return pn.widgets.Tabulator(value, titles=titles or {}, pagination="local", page_size=page_size,
+    Only the shown page's ``page_size`` rows are sent to the browser (Tabulator's remote pagination), so a result of
+    any size shows at once: 11,000 hits cost what 25 do. Rows are drawn plainly rather than by Tabulator's virtual
+    renderer: the virtual renderer sometimes drew none after new data arrived while the page around it was laid out
+    again (seen in the browser tests; the rows appeared only on a resize)."""
+    return pn.widgets.Tabulator(value, titles=titles or {}, pagination="remote", page_size=page_size,
                                 selectable=1 if selectable else False, show_index=False, disabled=True,
                                 sizing_mode="stretch_width", css_classes=[css_class],
                                 configuration={"renderVertical": "basic",

@@ -1,11 +1,11 @@
-"""Database page: the documents table (filter by label, actor, length), the 3D skeleton player of the chosen clip with
-the query span, and beneath it the clip's relational feature timelines (Müller et al. 2005 §3-4) and numeric feature
-curves (Krüger et al. 2010 §3.2)."""
+"""Database page: the document browser (filter by label, performer, archive, text and length; paged on the server, so
+a database of thousands of documents sends one page), the 3D skeleton player of the chosen clip with the query span,
+and beneath it the clip's relational feature timelines (Müller et al. 2005 §3-4) and numeric feature curves (Krüger
+et al. 2010 §3.2)."""
 
 from __future__ import annotations
 
 import holoviews as hv
-import numpy as np
 import pandas as pd
 import panel as pn
 
@@ -13,14 +13,16 @@ from ...features import NUMERIC_SETS, feature_groups, numeric_columns
 from ...features.segmentation import segment
 from ...viz.palette import PART_NAMES, PARTS, legend
 from ...viz.timeline import numeric_curves, relational_timeline
+from ..documents import filter_documents
 from ..downloads import HitDownload
 from ..player import SkeletonPlayer
 from ..state import half_open, inclusive
 from ..widgets import results_table
 
-TABLE_COLUMNS = ("doc_id", "name", "label", "actor", "seconds", "n_frames", "fps")
 TABLE_TITLES = {"doc_id": "id", "n_frames": "frames"}
-NARROW_COLUMNS = {"doc_id": 64, "label": 180, "actor": 72, "seconds": 96, "n_frames": 88, "fps": 64}  # pixels
+NARROW_COLUMNS = {"doc_id": 56, "label": 150, "performer": 92, "archive": 112, "seconds": 80, "n_frames": 72,
+                  "fps": 48}  # pixels
+PAGE_ROWS = 12  # documents per page of the table (beside the player)
 
 
 class DatabasePage(pn.viewable.Viewer):
@@ -30,23 +32,26 @@ class DatabasePage(pn.viewable.Viewer):
         super().__init__()
         self.backend, self.selection = backend, selection
         self._loading = False
-        docs = backend.documents.copy()
-        docs["seconds"] = (docs["n_frames"] / docs["fps"]).round(2)
-        self.table_data = docs[[c for c in TABLE_COLUMNS if c in docs]]
-        labels = sorted(docs["label"].dropna().unique()) if "label" in docs else []
-        actors = sorted(docs["actor"].dropna().unique()) if "actor" in docs else []
-        self.label_filter = pn.widgets.MultiChoice(label="label", options=labels, width=260)
-        self.actor_filter = pn.widgets.MultiChoice(label="actor", options=actors, width=160)
+        self.table_data = docs = backend.document_table()
+        self.label_filter = pn.widgets.MultiChoice(label="label", options=_choices(docs["label"]), width=260,
+                                                   css_classes=["mv-filter-label"])
+        self.performer_filter = pn.widgets.MultiChoice(label="performer", options=_choices(docs["performer"]),
+                                                       width=160, css_classes=["mv-filter-performer"])
+        self.archive_filter = pn.widgets.MultiChoice(label="archive", options=_choices(docs["archive"]), width=200,
+                                                     css_classes=["mv-filter-archive"])
+        self.text_filter = pn.widgets.TextInput(label="name, label, performer or archive contains", width=260,
+                                                placeholder="e.g. kick, 135, bandai", css_classes=["mv-filter-text"])
         longest = float(docs["seconds"].max())
         self.length_filter = pn.widgets.RangeSlider(label="length (s)", start=0.0, end=max(longest, 0.1),
                                                     value=(0.0, max(longest, 0.1)), step=0.1, width=220)
         # the columns share the table's width (the player takes the rest of a 1400-pixel screen): long names end in
         # "…" and show in full on hover, rather than the last columns being cut off
-        self.table = results_table(self.table_data, "mv-documents", TABLE_TITLES, selectable=True,
+        self.table = results_table(docs, "mv-documents", TABLE_TITLES, page_size=PAGE_ROWS, selectable=True,
                                    layout="fit_columns", widths=NARROW_COLUMNS, tooltips=True)
         self.count = pn.pane.Markdown("", css_classes=["mv-doc-count"])
-        for w in (self.label_filter, self.actor_filter, self.length_filter):
+        for w in (self.label_filter, self.performer_filter, self.archive_filter, self.length_filter):
             w.param.watch(self._filter, "value")
+        self.text_filter.param.watch(self._filter, "value_input")  # as the user types
         self.table.param.watch(self._on_select, "selection")
         self.player = SkeletonPlayer()
         self.player.param.watch(self._on_step, "step")
@@ -69,12 +74,16 @@ class DatabasePage(pn.viewable.Viewer):
         self.curves = pn.pane.HoloViews(None, sizing_mode="stretch_width", linked_axes=False,
                                         css_classes=["mv-curves"])
         self._pipes: dict = {}  # plot -> (key, Pipe): the plots are DynamicMaps, updated in place by new clips
+        self._plots_wait = True  # the first clip's plots are drawn once the page is shown (pn.state.onload): the
+        # page, its table and player come first (its GET answered in 0.8 s instead of 1.2 s on the sample)
         self._filter()
         self.show_document(selection.doc)
+        pn.state.onload(self._first_plots)
         selection.param.watch(self._follow, ["doc", "span"])
 
     def __panel__(self):
-        filters = pn.Row(self.label_filter, self.actor_filter, self.length_filter)
+        filters = pn.Column(pn.Row(self.label_filter, self.performer_filter, self.archive_filter),
+                            pn.Row(self.text_filter, self.length_filter), margin=0)
         left = pn.Column("### Documents", filters, self.count, self.table, sizing_mode="stretch_width")
         right = pn.Column("### Player", self.player, self.span, pn.Row(self.span_start, self.span_end),
                           self.download.panel())
@@ -85,15 +94,10 @@ class DatabasePage(pn.viewable.Viewer):
     # ------------------------------------------------------------------ table
     def _filter(self, event=None) -> None:
         t = self.table_data
-        keep = np.ones(len(t), dtype=bool)
-        if self.label_filter.value:
-            keep &= t["label"].isin(self.label_filter.value).to_numpy()
-        if self.actor_filter.value:
-            keep &= t["actor"].isin(self.actor_filter.value).to_numpy()
-        lo, hi = self.length_filter.value
-        keep &= ((t["seconds"] >= lo - 1e-9) & (t["seconds"] <= hi + 1e-9)).to_numpy()
-        self.table.value = t[keep].reset_index(drop=True)
-        self.count.object = f"{int(keep.sum())} of {len(t)} documents"
+        shown = filter_documents(t, self.label_filter.value, self.performer_filter.value, self.archive_filter.value,
+                                 self.text_filter.value_input or "", self.length_filter.value)
+        self.table.value = shown
+        self.count.object = f"{len(shown)} of {len(t)} documents"
 
     def _on_select(self, event) -> None:
         if event.new:
@@ -170,10 +174,18 @@ class DatabasePage(pn.viewable.Viewer):
     def _draw_curves(self) -> None:
         self._show(self.curves, self.numeric_set.value, self._curves_frame)
 
+    def _first_plots(self) -> None:
+        self._plots_wait = False
+        self._draw_timeline()
+        self._draw_curves()
+
     def _show(self, pane, key: str, frame) -> None:
         """Show the current clip and span in ``pane``: a new DynamicMap of ``frame`` the first time (and when
         ``key``, the feature set, changes), else new data for the one shown. Bokeh then updates the plot's data in
-        place instead of building a new figure: a row click answers about twice as fast."""
+        place instead of building a new figure: a row click answers about twice as fast. Nothing before the page
+        has loaded (:meth:`_first_plots` draws them then)."""
+        if self._plots_wait:
+            return
         data = (self.doc, self.doc_fps, self._partial_span())
         shown = self._pipes.get(id(pane))
         if shown is not None and shown[0] == key:
@@ -206,3 +218,8 @@ def _framewise(plot: hv.Overlay, span, fps: float) -> hv.Overlay:
 
 def _stretch_width(plot, element) -> None:
     plot.state.sizing_mode = "stretch_width"
+
+
+def _choices(column: pd.Series) -> list[str]:
+    """The distinct non-empty values of a document table's column, sorted: a filter's options."""
+    return sorted(v for v in column.unique() if v)

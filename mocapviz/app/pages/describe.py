@@ -41,6 +41,7 @@ from ...relational.description import (
     parse_description,
     template_names,
 )
+from ...relational.templates import DELTA
 from ...relational.vocabulary import vocabulary_of, vocabulary_table
 from ...validation import count, one_of
 from ...viz.timeline import relational_timeline
@@ -49,7 +50,7 @@ from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task
 from ..widgets import BoundedIntInput, action_button, hit_columns, hit_titles, notes, results_table
-from .templates import DELTA, database_features
+from .templates import database_features
 
 RELATIONAL_SETS = ["2005", "2006"]
 DEFAULT_MATCHES = 20

@@ -36,6 +36,7 @@ from ...similarity.reconstruction import (
     reconstruction_errors,
 )
 from ...viz.reconstruction import error_curves, joint_error_bars
+from ..documents import DocumentPicker
 from ..player import SkeletonPlayer
 from ..progress import Task
 from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, clear, notes
@@ -190,8 +191,7 @@ class ReconstructionPage(pn.viewable.Viewer):
         self.backend, self.selection = backend, selection
         docs = backend.documents
         has_actors = "actor" in docs and docs["actor"].notna().any()
-        self.clip = pn.widgets.Select(label="test clip", options=backend.doc_options(), value=selection.doc,
-                                      width=560, css_classes=["mv-recon-clip"])
+        self.clip = DocumentPicker(backend, "test clip", selection.doc, width=560, css_classes=["mv-recon-clip"])
         self.prior = pn.widgets.Select(label="prior: the database …", width=230, css_classes=["mv-recon-prior"],
                                        options={n: v for n, v in PRIORS.items() if v == "clip" or has_actors})
         self.numeric_set = pn.widgets.Select(label="numeric set (kNN search)", options=list(NUMERIC_SETS),
