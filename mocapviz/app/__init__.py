@@ -4,6 +4,8 @@ backend.py     Backend: one MotionDB and its cached indexes, feature sets, kd-tr
                shared by sessions).
 state.py       Selection: the session's clip, frame and span, shared by its pages.
 progress.py    Task: long computations in a worker thread behind a progress bar; errors as one red line.
+jobs.py        JobQueue, JobTask: whole-database computations as jobs, one at a time per server, queued, with progress
+               and Cancel, stopped when their session closes.
 player.py      SkeletonPlayer: clips sent once and animated in the browser (player.js, Canvas 2D), one or more
                side by side or overlaid, aligned playback.
 pages/         one module per page: database (documents, player, timelines, curves), relational (query by
@@ -22,11 +24,13 @@ the origins listed, never ``*``).
 
 from __future__ import annotations
 
+import asyncio
 import ipaddress
 import logging
 import re
 import time
 import warnings
+import weakref
 from pathlib import Path
 
 import panel as pn
@@ -35,6 +39,7 @@ from bokeh.util.warnings import BokehUserWarning
 from ..errors import MocapvizError, ParameterError
 from ..validation import parse_port
 from .backend import Backend
+from .jobs import on_session_closed, release_memory
 from .state import Selection
 
 LOG = logging.getLogger("mocapviz.app")
@@ -65,7 +70,9 @@ def _pages():
 def dashboard(db_path, scheduler=None) -> pn.viewable.Viewable:
     """One session's dashboard over the MotionDB at ``db_path``: a header and one tab per page.
 
-    Pages are built when their tab is first opened (the first page at once), so the first page shows quickly.
+    Pages are built when their tab is first opened (the first page at once), so the first page shows quickly. When
+    the browser session closes, its jobs are cancelled (:mod:`mocapviz.app.jobs`) and the memory of its pages
+    returned (:func:`session_closed`).
     """
     backend = Backend.open(db_path, scheduler)
     selection = Selection(doc=int(backend.documents["doc_id"].iloc[0]))
@@ -91,11 +98,44 @@ def dashboard(db_path, scheduler=None) -> pn.viewable.Viewable:
 
     tabs.param.watch(show, "active")
     show()
+    if pn.state.curdoc is not None:  # a browser session (not the dashboard built before the server starts)
+        _SESSIONS["open"] += 1
+        LOG.info("session opened (%d open)", _SESSIONS["open"])
+        on_session_closed(session_closed)
     db = backend.db
     header = pn.pane.Markdown(
         f"## mocapviz · {db.path.name}\n{len(db)} documents · {db.n_frames:,} frames · "
         + (f"{db.fps:g} fps" if db.fps else "mixed frame rates"), css_classes=["mv-header"], margin=(0, 10))
-    return pn.Column(header, tabs, sizing_mode="stretch_width")
+    layout = pn.Column(header, tabs, sizing_mode="stretch_width")
+    _DASHBOARDS.add(layout)
+    return layout
+
+
+# a session without a browser connected (gone away, or not yet connected: a busy server may take seconds between
+# serving the page and its WebSocket) is dropped after CLOSED_SESSION_LIFETIME_MS (Bokeh's 15 s: shorter, a slow
+# connection would find its session gone and be built again), looked for every CLOSED_SESSION_CHECK_MS (Bokeh:
+# 17 s), so that the jobs and memory of a closed session go within about 17 s, not 32
+CLOSED_SESSION_LIFETIME_MS = 15_000
+CLOSED_SESSION_CHECK_MS = 2000
+_SESSIONS = {"open": 0}  # browser sessions of this server now (for the log)
+_DASHBOARDS: weakref.WeakSet = weakref.WeakSet()  # the dashboards still in memory: a closed session's must go
+RELEASE_AFTER_S = 2.0  # seconds after a session closed when its memory is given back (Bokeh has dropped it by then)
+
+
+def session_closed() -> None:
+    """A browser session closed: log it, and a little later (its document dropped by Bokeh and Panel) collect its
+    pages and give their memory back to the system (:func:`mocapviz.app.jobs.release_memory`)."""
+    _SESSIONS["open"] -= 1
+    LOG.info("session closed (%d open)", _SESSIONS["open"])
+    try:
+        asyncio.get_running_loop().call_later(RELEASE_AFTER_S, _release)
+    except RuntimeError:  # not on the server's event loop
+        _release()
+
+
+def _release() -> None:
+    release_memory()
+    LOG.info("memory released: %d dashboard(s) in memory, %d session(s) open", len(_DASHBOARDS), _SESSIONS["open"])
 
 
 WARM_SPAN = 12  # frames of the small queries of the warm-up
@@ -166,6 +206,17 @@ def warm_up(backend: Backend) -> dict[str, float]:
     return seconds
 
 
+def log_to_stderr() -> None:
+    """The server's log on stderr from INFO up (sessions opened and closed, jobs started, finished and cancelled,
+    the warm-up's times), one ``mocapviz: <message>`` line each; once per process."""
+    if not LOG.handlers:
+        handler = logging.StreamHandler()
+        handler.setFormatter(logging.Formatter("mocapviz: %(message)s"))
+        LOG.addHandler(handler)
+        LOG.setLevel(logging.INFO)
+        LOG.propagate = False
+
+
 def is_loopback(address: str) -> bool:
     """True for ``localhost`` and loopback IP addresses (127.0.0.0/8, ::1): reachable from this machine only."""
     if address == "localhost":
@@ -230,8 +281,10 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, t
 
     The database is opened (and checked), one dashboard built and :func:`warm_up` run before the server starts, so
     a bad path fails at once, the first page comes quickly and the first search, kNN, matching and relational query
-    answer in about a second. Any address other than loopback (127.0.0.1, localhost, ::1) exposes the
-    database to the network: ``allow_origin`` must then list the origins (``HOST:PORT``) users open it at (see
+    answer in about a second. A session whose browser went away is dropped within :data:`CLOSED_SESSION_LIFETIME_MS`
+    + :data:`CLOSED_SESSION_CHECK_MS`, its jobs cancelled and its memory returned; sessions, jobs and the warm-up
+    are logged on stderr (:func:`log_to_stderr`). Any address other than loopback (127.0.0.1, localhost, ::1)
+    exposes the database to the network: ``allow_origin`` must then list the origins (``HOST:PORT``) users open it at (see
     :func:`websocket_origins`), and a warning says who can reach it. With ``scheduler`` (a Dask scheduler's address,
     or "local") every session's searches run sharded on that cluster (:class:`mocapviz.sharded.ShardedDB`, one for
     the server), with the same answers.
@@ -244,6 +297,7 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, t
         Not loopback and no ``allow_origin``, or a malformed origin (:func:`websocket_origins`).
     """
     origins = websocket_origins(address, port, allow_origin)
+    log_to_stderr()
     dashboard(db_path, scheduler)  # once before listening: the first visitor then finds numba kernels, the EGL
     # context,
     # HoloViews' option trees and the first clip's features ready
@@ -260,7 +314,9 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, t
     path = Path(db_path)
     return pn.serve({"/": lambda: dashboard(path, scheduler)}, port=port, address=address, show=show,
                     threaded=threaded,
-                    websocket_origin=origins, title=f"{TITLE} · {path.name}")
+                    websocket_origin=origins, title=f"{TITLE} · {path.name}",
+                    check_unused_sessions_milliseconds=CLOSED_SESSION_CHECK_MS,
+                    unused_session_lifetime_milliseconds=CLOSED_SESSION_LIFETIME_MS)
 
 
 __all__ = ["Backend", "Selection", "dashboard", "is_loopback", "serve", "warm_up", "websocket_origins"]
