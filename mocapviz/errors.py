@@ -12,6 +12,13 @@ class MocapvizError(Exception):
     """The base of every error mocapviz raises on purpose (bad input, a bad file, a bad database)."""
 
 
+class Cancelled(BaseException):
+    """A computation stopped between two of its steps because its caller asked it to (a dashboard job cancelled, or
+    its browser session closed): raised by :func:`mocapviz.parallel.checkpoint` inside
+    :func:`mocapviz.parallel.watching`. Not an error of the input, and like :class:`asyncio.CancelledError` not an
+    :class:`Exception`, so that the handlers that skip a bad file or note a failed method let it through."""
+
+
 class ParameterError(MocapvizError, ValueError):
     """A bad argument: a value outside its range, an unknown name, an array of the wrong shape or with non-finite
     values. The message names the parameter, the value given and what to pass instead."""

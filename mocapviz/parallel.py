@@ -6,6 +6,9 @@ map_ordered       ``fn(item)`` of every item, on threads or as Dask tasks, yield
 dask_client       a ``scheduler`` argument ("local", an address, a Client) as a ``dask.distributed.Client``.
 optional_client   :func:`dask_client`, or None when ``scheduler`` is None (work in this process).
 local_workers     the cores this process may run on (the local cluster's worker processes).
+watching          within it, long work reports its progress and stops when asked (cooperative cancellation).
+checkpoint        the check between two steps: raises :class:`~mocapviz.errors.Cancelled` when asked to stop.
+progress_bar      a tqdm progress bar whose every step is a :func:`checkpoint` and reports to :func:`watching`.
 
 Both back ends follow one rule. Work runs on ``threads`` threads of this process (numpy and numba release the
 GIL; ``threads=1`` runs each item in the calling thread when its result is asked for), or as tasks of a
@@ -15,6 +18,13 @@ of the input. Results come in item order, not in order of completion, so the fir
 raises its exception. When the consumer stops early (the generator closed, or an exception) the items not
 started are cancelled; threads finish the item they are on, Dask tasks are cancelled. Callers that may stop
 early wrap the generator in ``contextlib.closing``.
+
+Cooperative cancellation and progress: code run inside ``with watching(cancel, report):`` (in the same thread)
+stops between two steps once ``cancel`` is set: every item :func:`map_ordered` yields, and every step of a
+:func:`progress_bar` (the batches of :func:`mocapviz.db.batches.map_documents`, the queries, measures and feature
+sets of the experiments), is a :func:`checkpoint`, which raises :class:`~mocapviz.errors.Cancelled`. The same steps
+call ``report(fraction, label)``: nested bars make one fraction (a step of the outer bar split by the inner one).
+Outside :func:`watching` a checkpoint costs one context-variable lookup and does nothing.
 
 A Dask task must be small and importable on the workers: ``fn`` is a module-level function (or a
 ``functools.partial`` of one) and an item holds paths and ranges, never arrays. Per-document work on a MotionDB
@@ -44,6 +54,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import contextvars
 import itertools
 import logging
 import os
@@ -51,11 +62,12 @@ import uuid
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 
-from .errors import ParameterError
+from .errors import Cancelled, ParameterError
 from .validation import count
 
-__all__ = ["AHEAD_PER_THREAD", "LOCAL", "MAX_DEFAULT_THREADS", "dask_client", "default_threads", "local_workers",
-           "map_ordered", "n_threads", "optional_client", "parallelism"]  # fmt: skip
+__all__ = ["AHEAD_PER_THREAD", "LOCAL", "MAX_DEFAULT_THREADS", "checkpoint", "dask_client", "default_threads",
+           "local_workers", "map_ordered", "n_threads", "optional_client", "parallelism", "progress_bar",
+           "watching"]  # fmt: skip
 
 MAX_DEFAULT_THREADS = 8  # more threads than this rarely pay: the batches are memory-bound
 AHEAD_PER_THREAD = 2  # items started beyond the one waited for, per thread (or Dask worker thread)
@@ -241,7 +253,9 @@ def map_ordered(fn: Callable, items: Iterable, threads: int | None = None, clien
         yield from _ordered(items, ahead, lambda item: client.submit(fn, item, key=f"{name}-{uuid.uuid4().hex}"),
                             _dask_result, lambda pending: _dask_cancel(client, pending))  # fmt: skip
     elif workers == 1:
-        yield from map(fn, items)
+        for item in items:
+            checkpoint()
+            yield fn(item)
     else:
         with ThreadPoolExecutor(workers, thread_name_prefix=name) as pool:
             yield from _ordered(items, ahead, lambda item: pool.submit(fn, item), lambda future: future.result(),
@@ -255,6 +269,7 @@ def _ordered(items: Iterable, ahead: int, submit: Callable, result: Callable, ca
     items = iter(items)
     try:
         while True:
+            checkpoint()
             pending.extend(submit(item) for item in itertools.islice(items, ahead + 1 - len(pending)))
             if not pending:
                 return
@@ -277,3 +292,148 @@ def _dask_cancel(client, pending) -> None:
     if client.status == "running":
         with contextlib.suppress(RuntimeError, OSError):
             client.cancel(list(pending))
+
+
+# ------------------------------------------------------------------------------- cancellation and progress
+class _Watch:
+    """The ``cancel`` and ``report`` of one :func:`watching` block, and its open progress bars, outermost first."""
+
+    def __init__(self, cancel, report, outer: _Watch | None):
+        own = cancel.is_set if hasattr(cancel, "is_set") else (cancel or (lambda: False))
+        self.cancelled = own if outer is None else (lambda: own() or outer.cancelled())
+        self.report = report
+        self.bars: list = []
+
+    def fraction(self) -> float:
+        """Done of the outermost bar, each of its steps split by the bars inside it (unknown totals count 0)."""
+        inner = 0.0
+        for bar in reversed(self.bars):
+            inner = min(1.0, (bar.n + inner) / bar.total) if bar.total else 0.0
+        return inner
+
+    def step(self) -> None:
+        if self.cancelled():
+            raise Cancelled("cancelled")
+        if self.report is not None:
+            label = " › ".join(f"{b.desc} {b.n:,}/{b.total:,}" if b.total else b.desc for b in self.bars if b.desc)
+            self.report(self.fraction(), label)
+
+
+_WATCH: contextvars.ContextVar = contextvars.ContextVar("mocapviz_watch", default=None)
+
+
+@contextlib.contextmanager
+def watching(cancel=None, report: Callable[[float, str], None] | None = None) -> Iterator[None]:
+    """Within the block (in this thread), long work stops between two steps when ``cancel`` is set and reports its
+    progress. A block inside another stops when either is cancelled; its steps are reported to its own ``report``.
+
+    Parameters
+    ----------
+    cancel : threading.Event or callable, optional
+        Set (or returning True) when the work is to stop: the next :func:`checkpoint` raises
+        :class:`~mocapviz.errors.Cancelled`.
+    report : callable, optional
+        ``report(fraction, label)`` at every step of a :func:`progress_bar`: the fraction done in [0, 1] over the
+        bars open now (a step of an outer bar is split by the bars inside it) and their descriptions and counts,
+        e.g. ``"Table 2 1/3 › relational features 120/3,395"``.
+
+    Examples
+    --------
+    >>> import threading
+    >>> from mocapviz.errors import Cancelled
+    >>> stop, seen = threading.Event(), []
+    >>> try:
+    ...     with watching(stop, lambda fraction, label: seen.append(round(fraction, 2))):
+    ...         for i in progress_bar(range(4), desc="steps", disable=True):
+    ...             if i == 2:
+    ...                 stop.set()
+    ... except Cancelled:
+    ...     print("stopped after", seen)
+    stopped after [0.0, 0.25, 0.5]
+    """
+    token = _WATCH.set(_Watch(cancel, report, _WATCH.get()))
+    try:
+        yield
+    finally:
+        _WATCH.reset(token)
+
+
+def checkpoint() -> None:
+    """Between two steps of long work: raise :class:`~mocapviz.errors.Cancelled` when the :func:`watching` block
+    around it was asked to stop (nothing outside one).
+
+    Raises
+    ------
+    mocapviz.errors.Cancelled
+    """
+    watch = _WATCH.get()
+    if watch is not None and watch.cancelled():
+        raise Cancelled("cancelled")
+
+
+class progress_bar:  # lower case, as tqdm: used as a function
+    """``tqdm(iterable, total=, desc=, unit=, disable=)`` whose every step (an item taken, an :meth:`update`) is a
+    :func:`checkpoint` and is reported to the :func:`watching` block around it, shown or not (``disable``).
+
+    Parameters
+    ----------
+    iterable : iterable, optional
+        The steps (its length the total when it has one).
+    total : int, optional
+        Steps in all, for :meth:`update`.
+    desc, unit : str
+        As tqdm's.
+    disable : bool
+        No bar on the terminal (the steps still report and check).
+
+    Examples
+    --------
+    >>> with progress_bar(total=3, desc="batches", disable=True) as bar:
+    ...     bar.update(2)
+    ...     print(bar.n, bar.total)
+    2 3
+    """
+
+    def __init__(self, iterable=None, total: int | None = None, desc: str = "", unit: str = "it",
+                 disable: bool = False, **options):  # fmt: skip
+        from tqdm.auto import tqdm  # here, not at import: a command without progress bars does not load it
+
+        if total is None and hasattr(iterable, "__len__"):
+            total = len(iterable)
+        self.iterable, self.total, self.desc, self.n = iterable, total, desc, 0
+        self._watch = _WATCH.get()
+        checkpoint()
+        self._tqdm = tqdm(iterable, total=total, desc=desc, unit=unit, disable=disable, **options)
+        if self._watch is not None:
+            self._watch.bars.append(self)
+            self._watch.step()
+
+    def __iter__(self):
+        try:
+            for item in self._tqdm:
+                yield item
+                self.n += 1
+                self._step()
+        finally:
+            self.close()
+
+    def update(self, n: int = 1) -> None:
+        """``n`` more steps done."""
+        self._tqdm.update(n)
+        self.n += n
+        self._step()
+
+    def _step(self) -> None:
+        if self._watch is not None:
+            self._watch.step()
+
+    def close(self) -> None:
+        self._tqdm.close()
+        if self._watch is not None and self in self._watch.bars:
+            self._watch.bars.remove(self)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -109,12 +109,21 @@ def record_timing(name: str, value: float, unit: str) -> None:
     out.write_text(json.dumps(data, indent=1, sort_keys=True))
 
 
+def record_figures(name: str, values: dict, unit: str) -> None:
+    """Add a group of measured figures (``{key: number}``) to timings.json under ``name``, ``units[name]`` their
+    unit: e.g. the p95 seconds of each kind of answer."""
+    out, data = _timings()
+    data[name] = {key: round(float(v), 3) for key, v in values.items()}
+    data["units"][name] = unit
+    out.write_text(json.dumps(data, indent=1, sort_keys=True))
+
+
 _FIRST_ANSWERS: set[str] = set()  # the actions measured in this test session (one server per database and session)
 
 
 def record_first_answer(action: str, seconds: float) -> None:
     """Record the seconds from a click to its result under ``first_answer_s[action]`` in timings.json ("knn",
-    "search", "lng", "relational", "row_click"), for the first such click of the test session only: the first after
+    "search", "lng", "relational", "row_click", "open", "template", "describe"), for the first such click of the test session only: the first after
     the session's `mocapviz serve` started, which its warm-up must have made fast. Later calls are ignored."""
     if action in _FIRST_ANSWERS:
         return

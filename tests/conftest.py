@@ -168,6 +168,7 @@ def serve_dashboard(tmp_path_factory):
         return servers[key][0]
 
     get.log_of = lambda url: next(log for u, _, log in servers.values() if u == url)  # the server's output file
+    get.pid_of = lambda url: next(proc.pid for u, proc, _ in servers.values() if u == url)  # its process
     yield get
     for _, proc, _ in servers.values():
         proc.terminate()
@@ -196,19 +197,25 @@ def hdm05_dashboard(hdm05_db30, serve_dashboard) -> str:
 
 
 @pytest.fixture(scope="session")
-def browser():
-    """Headless Debian Chromium driven by Playwright. Without /usr/bin/chromium the browser tests are skipped, unless
+def chromium() -> Path:
+    """Debian's Chromium (/usr/bin/chromium). Without it the browser tests are skipped, unless
     MOCAPVIZ_REQUIRE_BROWSER=1 (set by `make test`), when they fail."""
     if not CHROMIUM.exists():
         message = f"{CHROMIUM} not found: `apt-get install chromium` (make test does)"
         if os.environ.get("MOCAPVIZ_REQUIRE_BROWSER") == "1":
             pytest.fail(message)
         pytest.skip(message)
+    return CHROMIUM
+
+
+@pytest.fixture(scope="session")
+def browser(chromium):
+    """Headless Debian Chromium driven by Playwright (skipped without it: :func:`chromium`)."""
     from playwright.sync_api import expect, sync_playwright
 
     expect.set_options(timeout=30_000)  # a loaded 2-core machine renders slowly; round trips are measured, not bounded
     with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        b = p.chromium.launch(executable_path=str(chromium), args=CHROMIUM_ARGS)
         yield b
         b.close()
 

@@ -6,6 +6,8 @@ state.py       Selection: the session's clip, frame and span, shared by its page
 documents.py   the documents as pages list and pick them: each one's archive and performer, the Database page's
                filters, DocumentPicker (type to find a document by id, name, label, performer or archive).
 progress.py    Task: long computations in a worker thread behind a progress bar; errors as one red line.
+jobs.py        JobQueue, JobTask: whole-database computations as jobs, one at a time per server, queued, with progress
+               and Cancel, stopped when their session closes.
 player.py      SkeletonPlayer: clips sent once and animated in the browser (player.js, Canvas 2D), one or more
                side by side or overlaid, aligned playback.
 pages/         one module per page: database (documents, player, timelines, curves), relational (query by
@@ -25,11 +27,13 @@ WebSocket whose ``Origin``, is not one of them.
 
 from __future__ import annotations
 
+import asyncio
 import ipaddress
 import logging
 import re
 import time
 import warnings
+import weakref
 from pathlib import Path
 from urllib.parse import urlsplit
 
@@ -41,6 +45,7 @@ from tornado.web import RequestHandler
 from ..errors import MocapvizError, ParameterError
 from ..validation import parse_port
 from .backend import Backend
+from .jobs import on_session_closed, release_memory
 from .state import Selection
 
 LOG = logging.getLogger("mocapviz.app")
@@ -71,7 +76,9 @@ def _pages():
 def dashboard(db_path, scheduler=None) -> pn.viewable.Viewable:
     """One session's dashboard over the MotionDB at ``db_path``: a header and one tab per page.
 
-    Pages are built when their tab is first opened (the first page at once), so the first page shows quickly.
+    Pages are built when their tab is first opened (the first page at once), so the first page shows quickly. When
+    the browser session closes, its jobs are cancelled (:mod:`mocapviz.app.jobs`) and the memory of its pages
+    returned (:func:`session_closed`).
     """
     backend = Backend.open(db_path, scheduler)
     selection = Selection(doc=int(backend.documents["doc_id"].iloc[0]))
@@ -97,11 +104,44 @@ def dashboard(db_path, scheduler=None) -> pn.viewable.Viewable:
 
     tabs.param.watch(show, "active")
     show()
+    if pn.state.curdoc is not None:  # a browser session (not the dashboard built before the server starts)
+        _SESSIONS["open"] += 1
+        LOG.info("session opened (%d open)", _SESSIONS["open"])
+        on_session_closed(session_closed)
     db = backend.db
     header = pn.pane.Markdown(
         f"## mocapviz · {db.path.name}\n{len(db)} documents · {db.n_frames:,} frames · "
         + (f"{db.fps:g} fps" if db.fps else "mixed frame rates"), css_classes=["mv-header"], margin=(0, 10))
-    return pn.Column(header, tabs, sizing_mode="stretch_width")
+    layout = pn.Column(header, tabs, sizing_mode="stretch_width")
+    _DASHBOARDS.add(layout)
+    return layout
+
+
+# a session without a browser connected (gone away, or not yet connected: a busy server may take seconds between
+# serving the page and its WebSocket) is dropped after CLOSED_SESSION_LIFETIME_MS (Bokeh's 15 s: shorter, a slow
+# connection would find its session gone and be built again), looked for every CLOSED_SESSION_CHECK_MS (Bokeh:
+# 17 s), so that the jobs and memory of a closed session go within about 17 s, not 32
+CLOSED_SESSION_LIFETIME_MS = 15_000
+CLOSED_SESSION_CHECK_MS = 2000
+_SESSIONS = {"open": 0}  # browser sessions of this server now (for the log)
+_DASHBOARDS: weakref.WeakSet = weakref.WeakSet()  # the dashboards still in memory: a closed session's must go
+RELEASE_AFTER_S = 2.0  # seconds after a session closed when its memory is given back (Bokeh has dropped it by then)
+
+
+def session_closed() -> None:
+    """A browser session closed: log it, and a little later (its document dropped by Bokeh and Panel) collect its
+    pages and give their memory back to the system (:func:`mocapviz.app.jobs.release_memory`)."""
+    _SESSIONS["open"] -= 1
+    LOG.info("session closed (%d open)", _SESSIONS["open"])
+    try:
+        asyncio.get_running_loop().call_later(RELEASE_AFTER_S, _release)
+    except RuntimeError:  # not on the server's event loop
+        _release()
+
+
+def _release() -> None:
+    release_memory()
+    LOG.info("memory released: %d dashboard(s) in memory, %d session(s) open", len(_DASHBOARDS), _SESSIONS["open"])
 
 
 WARM_SPAN = 12  # frames of the small queries of the warm-up
@@ -173,6 +213,17 @@ def warm_up(backend: Backend) -> dict[str, float]:
     LOG.info("warmed up in %.1f s (%s)", sum(seconds.values()),
              ", ".join(f"{name} {s:.1f} s" for name, s in seconds.items()))
     return seconds
+
+
+def log_to_stderr() -> None:
+    """The server's log on stderr from INFO up (sessions opened and closed, jobs started, finished and cancelled,
+    the warm-up's times), one ``mocapviz: <message>`` line each; once per process."""
+    if not LOG.handlers:
+        handler = logging.StreamHandler()
+        handler.setFormatter(logging.Formatter("mocapviz: %(message)s"))
+        LOG.addHandler(handler)
+        LOG.setLevel(logging.INFO)
+        LOG.propagate = False
 
 
 def is_loopback(address: str) -> bool:
@@ -323,7 +374,9 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, s
 
     The database is opened (and checked), one dashboard built and :func:`warm_up` run before the server listens, so
     a bad path fails at once, the first page comes quickly and the first search, kNN, matching and relational query
-    answer in about a second. The server answers only requests whose ``Host`` is one of :func:`websocket_origins`
+    answer in about a second. A session whose browser went away is dropped within
+    :data:`CLOSED_SESSION_LIFETIME_MS` + :data:`CLOSED_SESSION_CHECK_MS`, its jobs cancelled and its memory returned;
+    sessions, jobs and the warm-up are logged on stderr (:func:`log_to_stderr`). The server answers only requests whose ``Host`` is one of :func:`websocket_origins`
     (this machine's loopback names at ``port``, ``address``, ``allow_origin``), and opens a WebSocket only for a page
     of one of them (:func:`refusal`); anything else gets a 403. Any address other than loopback (127.0.0.1,
     localhost, ::1) exposes the database to the network: ``allow_origin`` must then list the addresses (``HOST:PORT``)
@@ -342,6 +395,7 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, s
         Not loopback and no ``allow_origin``, or a malformed origin (:func:`websocket_origins`).
     """
     origins = websocket_origins(address, port, allow_origin)
+    log_to_stderr()
     dashboard(db_path, scheduler)  # once before listening: the first visitor then finds numba kernels, the EGL
     # context,
     # HoloViews' option trees and the first clip's features ready
@@ -360,7 +414,8 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, s
     # URL-syncing location component, which the dashboard does not use, fails on one (a 500 for Host [::1]:PORT)
     server = pn.serve({"/": lambda: dashboard(path, scheduler)}, port=port, address=address, show=show, start=False,
                       verbose=False, websocket_origin=[o for o in origins if not o.startswith("[")], location=False,
-                      title=f"{TITLE} · {path.name}")
+                      title=f"{TITLE} · {path.name}", check_unused_sessions_milliseconds=CLOSED_SESSION_CHECK_MS,
+                      unused_session_lifetime_milliseconds=CLOSED_SESSION_LIFETIME_MS)
     # The refusal is the first rule of the tornado application's router (where tornado's Application.add_handlers
     # puts rules of its own), ahead of every page, static file and WebSocket route of Bokeh and Panel. Bokeh's Server
     # keeps that application as _tornado, as Panel reads it; nothing outside this server changes.

@@ -2,12 +2,17 @@
 
 A :class:`Backend` is shared by every browser session showing the same database (``Backend.open`` keeps one per
 database path and generation, so an ingest that adds documents gives a fresh one). Its results are computed once,
-under a lock per result, and kept: a second session, or the same page opened again, gets them at once.
+under a lock per result, and kept: a second session, or the same page opened again, gets them at once. The derived
+data of the whole database (:data:`DERIVED`: indexes, feature sets, kd-trees, the jobs' tables) stay for the life of
+the server, one copy for all sessions; the answers to single queries (a search, a kNN, a template's hits, ...) are
+kept :data:`ANSWERS_KEPT` per kind, the least recently used forgotten first, so the server's memory does not grow
+with every query ever asked.
 """
 
 from __future__ import annotations
 
 import threading
+from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +28,20 @@ from .documents import document_table, picker_options
 _BACKENDS: dict = {}
 _BY_MANIFEST: dict = {}  # (path, manifest's (mtime, size), scheduler) -> Backend: a session's open reads no table
 _OPEN_LOCK = threading.Lock()
+# kinds of results (a key's first element) computed over the whole database: kept while the server runs
+DERIVED = frozenset({"indexes", "relational", "numeric", "knn", "search", "templates.features", "statistics",
+                     "correlations", "retrieval"})  # fmt: skip
+ANSWERS_KEPT = {"recon-prior": 4, "reconstruction": 16}  # answers kept of these kinds (each holds kd-trees, clips)
+DEFAULT_ANSWERS_KEPT = 256  # answers kept of any other kind (hit tables, neighbours, images: small)
+
+
+def answers_kept(key) -> int | None:
+    """How many results of ``key``'s kind the Backend keeps (None: all, derived data of the whole database); the
+    whole-database pose prior ``("recon-prior",)`` is derived data, its restrictions to one prior are answers."""
+    kind = key[0] if isinstance(key, tuple) and key else key
+    if kind in DERIVED or key == ("recon-prior",):
+        return None
+    return ANSWERS_KEPT.get(kind, DEFAULT_ANSWERS_KEPT)
 
 
 class Backend:
@@ -49,6 +68,7 @@ class Backend:
         self.fps = db.typical_fps
         self._results: dict = {}
         self._locks: dict = {}
+        self._recent: dict = {}  # kind -> OrderedDict of its answers' keys, least recently used first
         self._guard = threading.Lock()
 
     def fps_of(self, doc_id: int) -> float:
@@ -89,15 +109,37 @@ class Backend:
             return _BACKENDS[key]
 
     def cached(self, key, compute):
-        """``compute()``'s result, computed once per ``key`` (a hashable) and kept; concurrent callers wait."""
+        """``compute()``'s result, computed once per ``key`` (a hashable) and kept (answers: the
+        :func:`answers_kept` most recent of their kind); concurrent callers wait."""
         with self._guard:
             if key in self._results:
+                self._used(key)
                 return self._results[key]
             lock = self._locks.setdefault(key, threading.Lock())
         with lock:
-            if key not in self._results:
-                self._results[key] = compute()
-            return self._results[key]
+            with self._guard:
+                if key in self._results:  # computed by the caller this one waited for
+                    self._used(key)
+                    return self._results[key]
+            result = compute()
+            with self._guard:
+                self._results[key] = result
+                self._used(key)
+            return result
+
+    def _used(self, key) -> None:
+        """An answer just used becomes the most recent of its kind; the least recent beyond the bound go (under the
+        guard)."""
+        most = answers_kept(key)
+        if most is None:
+            return
+        recent = self._recent.setdefault(key[0] if isinstance(key, tuple) else key, OrderedDict())
+        recent[key] = None
+        recent.move_to_end(key)
+        while len(recent) > most:
+            old, _ = recent.popitem(last=False)
+            self._results.pop(old, None)
+            self._locks.pop(old, None)
 
     def is_cached(self, key) -> bool:
         return key in self._results

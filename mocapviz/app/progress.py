@@ -6,13 +6,16 @@ the line says how long it took, or shows its error as one red message: a user's 
 in the server log; any other error as "… failed (an unexpected error); see the server log", the log keeping its
 traceback. No exception type or traceback reaches the page. The red message goes away when the next run starts;
 what showed the previous result (``stale=``) is emptied when a run fails, so no old answer stays under its error.
+:func:`in_thread` runs the computing part of any other callback (a row click) off the event loop.
 """
 
 from __future__ import annotations
 
 import asyncio
+import ctypes
 import logging
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import panel as pn
 
@@ -20,6 +23,11 @@ from ..errors import MocapvizError
 from .widgets import clear
 
 LOG = logging.getLogger("mocapviz.app")
+# threads answering the pages' queries, all sessions together: more than the event loop's default executor (cores
+# + 4), so that a quick search is not queued behind several sessions' long ones (a template's search of every
+# frame), which it then shares the cores with instead; bounded, as each running query holds its temporary arrays
+QUERY_THREADS = 16
+_QUERIES = ThreadPoolExecutor(QUERY_THREADS, thread_name_prefix="mocapviz-query")
 
 
 class Task(pn.viewable.Viewer):
@@ -52,7 +60,7 @@ class Task(pn.viewable.Viewer):
         self.bar.param.update(value=-1, active=True)
         t0 = time.perf_counter()
         try:
-            result = await asyncio.get_running_loop().run_in_executor(None, fn, *args)
+            result = await self._call(fn, *args)
         except MocapvizError as exc:  # the user's input: its message says what to change
             LOG.warning("%s refused: %s", label, exc)
             self.error.param.update(object=f"**{label} failed.** {exc}", visible=True)
@@ -73,3 +81,30 @@ class Task(pn.viewable.Viewer):
         self.seconds = time.perf_counter() - t0
         self.status.object = f"{label}: done in {self.seconds:.2f} s"
         return result
+
+    async def _call(self, fn, *args):
+        return await in_thread(_then_trim, fn, *args)
+
+
+def trim_free_memory() -> None:
+    """Give the C heap's free pages back to the system (glibc's ``malloc_trim``; nothing elsewhere): the temporary
+    arrays of a search, once freed, then leave the server's resident memory instead of staying as free heap."""
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc
+        pass
+
+
+def _then_trim(fn, *args):
+    try:
+        return fn(*args)
+    finally:
+        trim_free_memory()
+
+
+async def in_thread(fn, *args):
+    """``fn(*args)`` computed in one of the :data:`QUERY_THREADS` threads answering queries: the server's event loop,
+    which every session's page updates go through, stays free meanwhile. For a page's query and the computing part of
+    its other callbacks (a clip's features, an alignment); the widgets are then updated on the event loop, after the
+    ``await``."""
+    return await asyncio.get_running_loop().run_in_executor(_QUERIES, fn, *args)

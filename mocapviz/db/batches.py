@@ -22,7 +22,7 @@ import pandas as pd
 
 from ..errors import MotionDBError
 from ..motion.skeleton import CANONICAL_JOINTS
-from ..parallel import map_ordered
+from ..parallel import map_ordered, progress_bar
 from ..validation import finite_positions
 from .database import MotionDB
 
@@ -142,7 +142,9 @@ def map_documents(db: MotionDB, work: Callable, max_frames: int, joints=None, th
     The database is cut into batches of whole documents, contiguous in its frames
     (:func:`mocapviz.db.batches.document_batches`); each batch is read (:func:`mocapviz.db.batches.read_batch`),
     checked for non-finite positions, and given to ``work`` -- on threads here, or as Dask tasks whose workers read
-    the batch from their own memory map of the database (``client``). A progress bar counts the documents done.
+    the batch from their own memory map of the database (``client``). A progress bar counts the documents done
+    (:func:`mocapviz.parallel.progress_bar`: inside :func:`mocapviz.parallel.watching` each batch reports its
+    progress and may stop the work).
 
     Parameters
     ----------
@@ -182,6 +184,8 @@ def map_documents(db: MotionDB, work: Callable, max_frames: int, joints=None, th
         database, the document, its file and the frame within it.
     mocapviz.MotionDBError
         (Dask) the database changed while the tasks ran.
+    mocapviz.errors.Cancelled
+        Inside :func:`mocapviz.parallel.watching`, asked to stop: between two batches.
 
     Examples
     --------
@@ -201,9 +205,8 @@ def map_documents(db: MotionDB, work: Callable, max_frames: int, joints=None, th
     else:
         path, generation = str(Path(db.path).resolve()), db.manifest["generation"]
         fn, items = _remote_batch, [(path, generation, first, last, joints, work) for first, last in batches]
-    from tqdm.auto import tqdm  # here, not at import: a command that computes no features does not load it
-
-    bar = tqdm(total=len(docs), desc=desc, unit="doc", disable=not progress or len(docs) <= PROGRESS_MIN_DOCUMENTS)
+    bar = progress_bar(total=len(docs), desc=desc, unit="doc",
+                       disable=not progress or len(docs) <= PROGRESS_MIN_DOCUMENTS)
     with bar, contextlib.closing(map_ordered(fn, items, threads, client, name)) as results:
         for (first, last), (frames, result) in zip(batches, results):
             bar.update(last - first)

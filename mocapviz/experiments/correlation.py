@@ -48,13 +48,13 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.distance import cdist
 from scipy.stats import rankdata
-from tqdm.auto import tqdm
 
 from ..db.ingest import read_document
 from ..errors import ParameterError
 from ..features.distances import deuler_pairwise, dpc_pairwise, dquat_pairwise, dwb_pairwise, lee_frames, window_clouds
 from ..features.numeric import default_pca, numeric_of
 from ..match.time_warping import dtw
+from ..parallel import progress_bar
 from ..similarity.knn import KnnIndex
 from ..validation import count
 
@@ -444,14 +444,15 @@ def pose_correlations(db, rows=CORRELATION_MEASURES, columns=CORRELATION_MEASURE
     queries = np.sort(np.random.default_rng(seed).choice(frames, n_queries, replace=False))
     seconds = {"neighbours": {}, "distances": {}}
     neighbours, own = {}, {}
-    for row in tqdm(rows, desc="nearest frames", unit="measure", disable=not progress):
+    for row in progress_bar(rows, desc="nearest frames", unit="measure", disable=not progress):
         t0 = time.perf_counter()
         own_d, neighbours[row] = _nearest(ctx, row, queries, frames, k)
         own[row] = (own_d, _centred_ranks(own_d))
         seconds["neighbours"][row] = time.perf_counter() - t0
     rho = np.zeros((len(rows), len(columns)))
     step = _query_block(len(rows) * k, len(frames))
-    for c, col in enumerate(tqdm(columns, desc="distances of the neighbours", unit="measure", disable=not progress)):
+    columns_bar = progress_bar(columns, desc="distances of the neighbours", unit="measure", disable=not progress)
+    for c, col in enumerate(columns_bar):
         t0 = time.perf_counter()
         others = [row for row in rows if row != col]  # the column's own row keeps the distances of its search
         per_query = {row: np.empty(n_queries) for row in rows}
@@ -536,14 +537,14 @@ def segment_correlations(db, docs, measures=CORRELATION_MEASURES, n_first: int =
     bounds = np.concatenate([[0], np.cumsum(table["n_frames"].to_numpy(np.int64))])
     clip_frames = [np.arange(a, b) for a, b in itertools.pairwise(bounds)]  # in the sample's frame numbers
     dists, seconds = {}, []
-    for m in tqdm(measures, desc="DTW of all pairs of clips", unit="measure", disable=not progress):
+    for m in progress_bar(measures, desc="DTW of all pairs of clips", unit="measure", disable=not progress):
         t0 = time.perf_counter()
         desc = ctx(m, frames)
         local = ctx.pairwise(m, desc, desc)  # (F, F): every frame of the sample against every other
         del desc
         t1 = time.perf_counter()
         d = np.zeros((n, n))
-        for i in range(n):
+        for i in progress_bar(range(n), desc=f"DTW of {m}", unit="clip", disable=True):
             for j in range(i + 1, n):
                 d[i, j] = d[j, i] = _dtw_on(local, clip_frames[i], clip_frames[j])
         del local

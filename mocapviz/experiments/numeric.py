@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ..features.numeric import NUMERIC_SETS, default_pca, numeric_of
+from ..parallel import progress_bar
 from ..similarity.knn import KnnIndex, base_poses, base_poses_quadratic
 from ..validation import renamed, some_of
 
@@ -100,7 +101,7 @@ def knn_timings(db, numeric_sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 100
     if pca is None and any(s.startswith("Fp") for s in numeric_sets):
         pca = default_pca(db)
     rows = []
-    for s in numeric_sets:
+    for s in progress_bar(numeric_sets, desc="k-NN timings", unit="set", disable=True):
         t0 = time.perf_counter()
         x = np.ascontiguousarray(numeric_of(db, s, pca))
         t_features = time.perf_counter() - t0
@@ -108,7 +109,7 @@ def knn_timings(db, numeric_sets=_PAPER_SETS, ks=(16, 256), n_queries: int = 100
         index = KnnIndex(x)
         build = time.perf_counter() - t0
         queries = x[frames]
-        for k in ks:
+        for k in progress_bar(ks, desc=s, unit="k", disable=True):
             index.query(queries[:10], k, threads=threads)  # warm-up
             runs = []
             for _ in range(repeats):

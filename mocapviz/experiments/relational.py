@@ -18,6 +18,7 @@ import pandas as pd
 
 from ..errors import ParameterError
 from ..features import feature_names, relational_features
+from ..parallel import progress_bar
 from ..relational import index as index_mod
 from . import evaluation
 
@@ -127,7 +128,8 @@ def index_statistics(db, relational_set: str = "2005", values: np.ndarray | None
     t_read = float("nan") if t_read is None else float(t_read)
     t_features = float("nan") if t_features is None else float(t_features)
     rows = []
-    for group, (members, group_values) in index_mod.feature_group_values(values, relational_set).items():
+    groups = index_mod.feature_group_values(values, relational_set).items()
+    for group, (members, group_values) in progress_bar(groups, desc="group indexes", unit="index", disable=True):
         t0 = time.perf_counter()
         idx = index_mod.InvertedIndex.from_features(group_values, doc_starts, members)
         t_index = time.perf_counter() - t0
@@ -355,18 +357,17 @@ def query_statistics(index, n_queries: int = 10_000, lengths=(5, 10, 20), modes=
     """
     rng = np.random.default_rng(seed)
     rows = []
-    for mode in modes:
+    for mode, length in progress_bar([(m, n) for m in modes for n in lengths], desc="random queries", disable=True):
         run = index.exact if mode == "exact" else index.adaptive_fuzzy
-        for length in lengths:
-            queries = random_queries(index, n_queries, length, mode, fuzzy_size, rng, alternatives)
-            for k, q in queries:
-                t0 = time.perf_counter()
-                hits = run(q)
-                ms = (time.perf_counter() - t0) * 1e3
-                h = int(hits.shape[0])
-                if h == 0:
-                    raise AssertionError(f"{mode} query of {length} segments taken at segment {k} found no hit")  # a bug
-                rows.append((mode, length, k, q, h, ms, _hit_group(h)))
+        queries = random_queries(index, n_queries, length, mode, fuzzy_size, rng, alternatives)
+        for k, q in progress_bar(queries, desc=f"{mode}, L = {length}", unit="query", disable=True):
+            t0 = time.perf_counter()
+            hits = run(q)
+            ms = (time.perf_counter() - t0) * 1e3
+            h = int(hits.shape[0])
+            if h == 0:
+                raise AssertionError(f"{mode} query of {length} segments taken at segment {k} found no hit")  # a bug
+            rows.append((mode, length, k, q, h, ms, _hit_group(h)))
     raw = pd.DataFrame(rows, columns=["mode", "L", "k", "query", "hits", "ms", "group"])
     if per_query:
         return raw

@@ -42,9 +42,9 @@ import time
 
 import numpy as np
 import pandas as pd
-from tqdm.auto import tqdm
 
 from ..errors import ParameterError
+from ..parallel import progress_bar
 from ..similarity.search import CLIP_BUDGET
 from . import evaluation
 
@@ -363,7 +363,7 @@ def retrieval_quality(db, methods=None, label_column: str = "label", group_colum
 
     rows = []
     sums = {}  # (method, protocol) -> [sum of interpolated precision, queries]
-    for q in tqdm(chosen, desc="retrieval quality", unit="query", disable=not progress):
+    for q in progress_bar(chosen, desc="retrieval quality", unit="query", disable=not progress):
         q = int(q)
         group = None if groups is None or pd.isna(groups.get(q)) else groups.get(q)
         if group is not None and not len(runner.candidates(group)):

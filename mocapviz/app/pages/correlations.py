@@ -5,8 +5,10 @@ Both use the correlation sample (:func:`mocapviz.experiments.correlation.correla
 with at least ``clips per class`` clips, that many clips of each; the paper: 8 per class). Pose-based
 (:func:`pose_correlations`, Fig. 2) draws random query frames from the sample's clips, or from every document when
 the database has no such sample; segment-based (:func:`segment_correlations`, DTW between all pairs of clips) needs
-the sample, and the page says so when the database cannot give one. Computed in the background with a fixed seed
-(:data:`SEED`), so the same settings always give the same matrices, and cached per database and settings.
+the sample, and the page says so when the database cannot give one. Computed when *Compute* is pressed (opening the
+tab computes nothing; matrices already computed for the database and settings, by any session, show at once), as
+jobs of the server's queue (:mod:`mocapviz.app.jobs`: progress, Cancel), with a fixed seed (:data:`SEED`), so the
+same settings always give the same matrices, and cached per database and settings.
 """
 
 from __future__ import annotations
@@ -22,13 +24,15 @@ from ...experiments.correlation import (
     segment_correlations,
 )
 from ...viz.correlation import correlation_heatmap
-from ..progress import Task
+from ..jobs import JobTask
 from ..widgets import BoundedIntInput, action_button, notes
 
 SEED = 0
 DEFAULT_MEASURES = ("Fp16", "F15E", "F30E", "F39E", "F15x3E", "Dpc1")  # cheap on a small database: ~5 s in all
 PAPER_CLIPS = 8  # clips per class of the paper's sample (76 clips of 9 HDM05 classes)
 DEFAULT_QUERIES, DEFAULT_K = 128, 64  # fewer than the paper's 1024 and 256: seconds on a small database
+QUICK_CLIPS = 3  # clips per class offered first: DTW of all pairs of 33 clips, not 88 (~15 s on 3,395 documents)
+PAPER_SETTINGS = {"n_queries": 1024, "k": 256, "clips": PAPER_CLIPS, "n_first": PAPER_CLIPS}  # Fig. 2 of the paper
 WIDTH = 660  # pixels of each of the two matrices' columns: side by side on a 1400-pixel screen
 CELL = (24, 110)  # pixels of a heat map's cell: as large as the column allows within these
 
@@ -51,6 +55,11 @@ def sample_of(db, clips: int) -> tuple[pd.DataFrame | None, str]:
         return None, str(exc)
 
 
+def pose_key(measures: tuple, n_queries: int, k: int, clips: int) -> tuple:
+    """The Backend cache key of :func:`pose_matrix`."""
+    return ("correlations", "pose", measures, n_queries, k, clips, SEED)
+
+
 def pose_matrix(backend, measures: tuple, n_queries: int, k: int, clips: int) -> pd.DataFrame:
     """Fig. 2 on the open database: rows = columns = ``measures``; query frames from the correlation sample's clips
     (all documents without one). Cached per settings."""
@@ -58,7 +67,12 @@ def pose_matrix(backend, measures: tuple, n_queries: int, k: int, clips: int) ->
         sample, _ = sample_of(backend.db, clips)
         return pose_correlations(backend.db, rows=measures, columns=measures, docs=sample, n_queries=n_queries, k=k,
                                  seed=SEED)  # fmt: skip
-    return backend.cached(("correlations", "pose", measures, n_queries, k, clips, SEED), compute)
+    return backend.cached(pose_key(measures, n_queries, k, clips), compute)
+
+
+def segment_key(measures: tuple, clips: int, n_first: int) -> tuple:
+    """The Backend cache key of :func:`segment_matrix`."""
+    return ("correlations", "segment", measures, clips, n_first, SEED)
 
 
 def segment_matrix(backend, measures: tuple, clips: int, n_first: int) -> pd.DataFrame:
@@ -66,7 +80,7 @@ def segment_matrix(backend, measures: tuple, clips: int, n_first: int) -> pd.Dat
     settings."""
     def compute():
         return segment_correlations(backend.db, sample_of(backend.db, clips)[0], measures=measures, n_first=n_first)
-    return backend.cached(("correlations", "segment", measures, clips, n_first, SEED), compute)
+    return backend.cached(segment_key(measures, clips, n_first), compute)
 
 
 def segment_problem(db, clips: int, n_first: int) -> str:
@@ -139,17 +153,20 @@ class CorrelationsPage(pn.viewable.Viewer):
         # bounds by pose_limits on the sample's frames (_bound_sample)
         self.n_queries = BoundedIntInput("queries", DEFAULT_QUERIES, 1, None, width=130, css_classes=["mv-queries"])
         self.k = BoundedIntInput("k", DEFAULT_K, 1, None, width=110, css_classes=["mv-k"])
-        self.clips = BoundedIntInput("clips per class", default_clips(db.documents), 2, None, width=130,
-                                     css_classes=["mv-clips"])
+        self.clips = BoundedIntInput("clips per class", min(QUICK_CLIPS, default_clips(db.documents)), 2, None,
+                                     width=130, css_classes=["mv-clips"])
         self.n_first = BoundedIntInput("first n", PAPER_CLIPS, 2, max(2, len(db) - 1), width=110,
                                        css_classes=["mv-first-n"])
         self.clips.param.watch(self._bound_sample, "value")
         self._bound_sample()
         self.button = action_button("Compute", "mv-compute", self._compute, width=110)
-        self.pose_task, self.segment_task = Task(), Task()
+        self.paper = pn.widgets.Button(name="the paper's settings", width=160, align="end",
+                                       css_classes=["mv-paper-settings"])  # fmt: skip
+        self.paper.on_click(lambda event: self.paper_settings())
+        self.pose_task, self.segment_task = JobTask(), JobTask()
+        self.pose_task.status.object = "Choose the settings and press **Compute**."
         self.pose, self.segment = MatrixView("pose"), MatrixView("segment")
         self.segment_note = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-segment-problem"])
-        self.started = False
 
     def __panel__(self):
         intro = pn.pane.Markdown(
@@ -157,7 +174,7 @@ class CorrelationsPage(pn.viewable.Viewer):
             "Fig. 2): the neighbours are chosen by the **row** measure and their distances compared with those of "
             "the **column** measure, so the matrix is not symmetric. The paper: 1024 queries, k = 256, 8 clips of "
             "each of 9 classes, the first 8 of each ranking.", sizing_mode="stretch_width")
-        controls = pn.Row(self.measures, self.n_queries, self.k, self.clips, self.n_first, self.button)
+        controls = pn.Row(self.measures, self.n_queries, self.k, self.clips, self.n_first, self.paper, self.button)
         inputs = notes(self.n_queries, self.k, self.clips, self.n_first)
         pose = pn.Column("### Pose-based (Fig. 2)", self.pose_task, self.pose, width=WIDTH)
         segment = pn.Column("### Segment-based (DTW of clips)", self.segment_task, self.segment_note, self.segment,
@@ -176,11 +193,26 @@ class CorrelationsPage(pn.viewable.Viewer):
         most = len(sample) - 1 if sample is not None else len(self.backend.db) - 1
         self.n_first.set_bounds(2, max(2, most))
 
+    def paper_settings(self) -> None:
+        """The paper's 1024 queries, k = 256, 8 clips per class and the first 8 clips (as far as the database allows:
+        each box keeps to its bounds and says so); Compute then runs Fig. 2 at the paper's size (minutes on a large
+        database)."""
+        self.clips.value = min(PAPER_SETTINGS["clips"], default_clips(self.backend.db.documents))
+        for name in ("n_queries", "k", "n_first"):
+            getattr(self, name).value = PAPER_SETTINGS[name]
+
     def activate(self) -> None:
-        """Compute with the default settings the first time the tab is shown."""
-        if not self.started:
-            self.started = True
-            pn.state.execute(self._compute)
+        """Show the matrices of the chosen settings if they were computed already (by any session); compute
+        nothing."""
+        measures, n_queries, k, clips, n_first = self.settings()
+        if not measures or self.pose_task.running or self.segment_task.running:
+            return
+        if self.backend.is_cached(pose_key(measures, n_queries, k, clips)) and not self.pose.layout.visible:
+            self._show_pose(pose_matrix(self.backend, measures, n_queries, k, clips), clips)
+            self.pose_task.status.object = ""
+        if (self.backend.is_cached(segment_key(measures, clips, n_first)) and not self.segment.layout.visible
+                and not segment_problem(self.backend.db, clips, n_first)):
+            self._show_segment(segment_matrix(self.backend, measures, clips, n_first))
 
     def settings(self) -> tuple[tuple, int, int, int, int]:
         """(measures in Fig. 2's order, queries, k, clips per class, first n) as chosen."""
@@ -199,7 +231,9 @@ class CorrelationsPage(pn.viewable.Viewer):
             pose = await self.pose_task.run(f"Pose-based, {len(measures)} measures", pose_matrix, self.backend,
                                             measures, n_queries, k, clips, stale=[self.pose.layout])  # fmt: skip
             if pose is not None:
-                self.pose.show(pose, self._pose_caption(pose, sampled=sample_of(self.backend.db, clips)[0] is not None))
+                self._show_pose(pose, clips)
+            if self.pose_task.stopped:
+                return
             problem = segment_problem(self.backend.db, clips, n_first)
             self.segment_note.object, self.segment_note.visible = problem, bool(problem)
             if problem:
@@ -210,10 +244,15 @@ class CorrelationsPage(pn.viewable.Viewer):
                                                   self.backend, measures, clips, n_first,
                                                   stale=[self.segment.layout])  # fmt: skip
             if segment is not None:
-                self.segment.show(segment, self._segment_caption(segment),
-                                  segment.assign(precision=segment.attrs["precision"]))
+                self._show_segment(segment)
         finally:
             self.button.disabled = False
+
+    def _show_pose(self, pose: pd.DataFrame, clips: int) -> None:
+        self.pose.show(pose, self._pose_caption(pose, sampled=sample_of(self.backend.db, clips)[0] is not None))
+
+    def _show_segment(self, segment: pd.DataFrame) -> None:
+        self.segment.show(segment, self._segment_caption(segment), segment.assign(precision=segment.attrs["precision"]))
 
     @staticmethod
     def _pose_caption(matrix: pd.DataFrame, sampled: bool) -> str:

@@ -16,6 +16,7 @@ from ...viz.timeline import numeric_curves, relational_timeline
 from ..documents import filter_documents
 from ..downloads import HitDownload
 from ..player import SkeletonPlayer
+from ..progress import in_thread
 from ..state import half_open, inclusive
 from ..widgets import results_table
 
@@ -67,14 +68,15 @@ class DatabasePage(pn.viewable.Viewer):
         selection.param.watch(lambda *events: self.download.refresh(), ["doc", "span"])
         self.numeric_set = pn.widgets.Select(label="numeric feature set", options=list(NUMERIC_SETS[:3]) + [
             s for s in NUMERIC_SETS[3:] if not s.startswith("Fp")], value="F15E", width=160)
-        self.numeric_set.param.watch(lambda e: self._draw_curves(), "value")
+        self.numeric_set.param.watch(self._on_numeric_set, "value")
         self.timeline = pn.pane.HoloViews(None, sizing_mode="stretch_width", linked_axes=False,
                                           css_classes=["mv-timeline"])
         self.timeline_info = pn.pane.Markdown("", css_classes=["mv-timeline-info"], margin=(0, 10))
         self.curves = pn.pane.HoloViews(None, sizing_mode="stretch_width", linked_axes=False,
                                         css_classes=["mv-curves"])
         self._pipes: dict = {}  # plot -> (key, Pipe): the plots are DynamicMaps, updated in place by new clips
-        self._plots_wait = True  # the first clip's plots are drawn once the page is shown (pn.state.onload): the
+        self._wanted = None  # the document last asked for (a click, another page): an older one is not shown
+        self._loaded = False  # the plots are drawn once the browser has the page (pn.state.onload): the
         # page, its table and player come first (its GET answered in 0.8 s instead of 1.2 s on the sample)
         self._filter()
         self.show_document(selection.doc)
@@ -99,11 +101,29 @@ class DatabasePage(pn.viewable.Viewer):
         self.table.value = shown
         self.count.object = f"{len(shown)} of {len(t)} documents"
 
-    def _on_select(self, event) -> None:
+    async def _on_select(self, event) -> None:
         if event.new:
-            self.show_document(int(self.table.value["doc_id"].iloc[event.new[0]]))
+            await self.open_document(int(self.table.value["doc_id"].iloc[event.new[0]]))
 
     # ------------------------------------------------------------------ clip
+    async def open_document(self, doc: int, span=None) -> None:
+        """:meth:`show_document` once the clip's relational features and the numeric set are ready, computed off
+        the event loop; when another document was asked for meanwhile, that one is shown instead."""
+        self._wanted = doc
+        await in_thread(self._prepare, doc, self.numeric_set.value)
+        if self._wanted == doc:
+            self.show_document(doc, span)
+
+    def _prepare(self, doc: int, numeric_set: str) -> None:
+        """Compute what the plots of ``doc`` read (cached by the Backend): in a worker thread."""
+        self.backend.clip_relational(doc)
+        self.backend.numeric(numeric_set)
+
+    async def _on_numeric_set(self, event) -> None:
+        await in_thread(self.backend.numeric, event.new)
+        if self.numeric_set.value == event.new:
+            self._draw_curves()
+
     def show_document(self, doc: int, span=None) -> None:
         """Load document ``doc`` into the player and the plots; ``span`` (start, end, half-open), default the whole
         clip, becomes the session's span (the slider shows its first and last frames)."""
@@ -120,6 +140,16 @@ class DatabasePage(pn.viewable.Viewer):
             self._loading = False
         self.player.load([self.backend.db.positions[self.backend.db.frames(doc)]], titles=[str(row["name"])],
                          fps=self.doc_fps)
+        if self._loaded:
+            self._draw_timeline()
+            self._draw_curves()
+        else:
+            self._count_segments()
+
+    def _first_plots(self) -> None:
+        """Draw the clip's plots once the browser has the page: building them (HoloViews to Bokeh, about a second)
+        then no longer delays the page reaching the browser, nor every other session waiting meanwhile."""
+        self._loaded = True
         self._draw_timeline()
         self._draw_curves()
 
@@ -128,13 +158,13 @@ class DatabasePage(pn.viewable.Viewer):
         start, end = self.selection.span
         return pd.DataFrame({"rank": [1], "doc_id": [self.selection.doc], "start": [start], "end": [end]})
 
-    def _follow(self, *events) -> None:
+    async def _follow(self, *events) -> None:
         """Show the clip and span chosen on another page."""
         doc, span = self.selection.doc, tuple(self.selection.span)
         if self._loading:
             return
         if doc != self.doc:
-            self.show_document(doc, span)
+            await self.open_document(doc, span)
         elif span != half_open(self.span.value):
             self.span.value = inclusive(span)
             self._draw_timeline()
@@ -163,28 +193,27 @@ class DatabasePage(pn.viewable.Viewer):
         return None if (a, b) == (0, self.n_frames) else (a, b)
 
     def _draw_timeline(self) -> None:
+        self._count_segments()
+        self._show(self.timeline, "2005", self._timeline_frame)
+
+    def _count_segments(self) -> None:
+        """The line above the timeline: the clip's features and its segments, in the clip and in the span."""
         values, names = self.backend.clip_relational(self.doc)
         a, b = self.selection.span
         self.timeline_info.object = (
             f"{len(names)} features of the 2005 set ({legend(PARTS, PART_NAMES, 'feature groups')}), "
             f"{len(segment(values).starts)} segments in the clip, {len(segment(values[a:b]).starts)} "
             f"in the span {a}..{b - 1}")
-        self._show(self.timeline, "2005", self._timeline_frame)
 
     def _draw_curves(self) -> None:
         self._show(self.curves, self.numeric_set.value, self._curves_frame)
-
-    def _first_plots(self) -> None:
-        self._plots_wait = False
-        self._draw_timeline()
-        self._draw_curves()
 
     def _show(self, pane, key: str, frame) -> None:
         """Show the current clip and span in ``pane``: a new DynamicMap of ``frame`` the first time (and when
         ``key``, the feature set, changes), else new data for the one shown. Bokeh then updates the plot's data in
         place instead of building a new figure: a row click answers about twice as fast. Nothing before the page
         has loaded (:meth:`_first_plots` draws them then)."""
-        if self._plots_wait:
+        if not self._loaded:
             return
         data = (self.doc, self.doc_fps, self._partial_span())
         shown = self._pipes.get(id(pane))

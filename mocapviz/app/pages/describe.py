@@ -48,7 +48,7 @@ from ...viz.timeline import relational_timeline
 from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
-from ..progress import Task
+from ..progress import Task, in_thread
 from ..widgets import BoundedIntInput, action_button, hit_columns, hit_titles, notes, results_table
 from .templates import database_features
 
@@ -532,11 +532,12 @@ class DescribePage(pn.viewable.Viewer):
         await asyncio.sleep(0)
         self.table.param.trigger("value")  # the rows once more, in the page's final layout (as the Relational page)
 
-    def _on_select(self, event) -> None:
+    async def _on_select(self, event) -> None:
         if not event.new or self.hits.empty:
             return
         hit = self.hits.iloc[int(event.new[0])]
         doc, start, end = int(hit["doc_id"]), int(hit["start"]), int(hit["end"])
+        await in_thread(self.backend.clip_relational, doc, self.description.relational_set)  # what the timeline reads
         db = self.backend.db
         self.player.load([db.positions[database_frames(db, doc, start, end)]], titles=[f"hit {int(hit['rank'])}"],
                          fps=self.backend.fps_of(doc))

@@ -1,11 +1,12 @@
 """Retrieval quality page: how well each search method of the product finds the documents of the query's class on
 the open database (:func:`mocapviz.experiments.retrieval_quality`).
 
-Labelled documents are the queries (a seeded sample of :data:`DEFAULT_QUERIES` by default, so the page answers in
-seconds on the demo database); each method ranks the other documents, judged by :mod:`mocapviz.experiments.evaluation`. The
+Labelled documents are the queries (a seeded sample of :func:`default_queries` by default: 24 on the demo database,
+fewer on a large one, so that the page answers in seconds to tens of seconds; 0 evaluates them all); each method ranks the other documents, judged by :mod:`mocapviz.experiments.evaluation`. The
 summary table (mAP leave-one-out and leave-group-out, P@1, P@10, recall of brute-force DTW's top 10, ms per query),
-the AP per class and method and the precision/recall curves appear behind the Evaluate button, computed in a worker
-thread and cached per database and settings (:meth:`Backend.retrieval`).
+the AP per class and method and the precision/recall curves appear behind the Evaluate button, computed as a job of
+the server's queue (:mod:`mocapviz.app.jobs`: progress per query, Cancel) and cached per database and settings
+(:meth:`Backend.retrieval`).
 """
 
 from __future__ import annotations
@@ -16,17 +17,26 @@ import panel as pn
 from ...errors import ParameterError
 from ...experiments.retrieval import METHOD_LABELS, METHODS
 from ...viz.retrieval import class_ap_bars, pr_curves
-from ..progress import Task
+from ..jobs import JobTask
 from ..widgets import BoundedIntInput, action_button, notes
 
 DEFAULT_METHODS = ["dtw", "exact", "fast", "lng256"]  # the relational ones build the indexes on first use
-DEFAULT_QUERIES = 24
+DEFAULT_QUERIES = 24  # queries offered first on a database of up to SMALL_DATABASE documents ...
+SMALL_DATABASE = 300  # ... fewer on a larger one: each query's rankings (brute-force DTW, ...) grow with it
+MIN_QUERIES = 4
 NO_GROUP = "(none)"
 SUMMARY_TITLES = {"method": "method", "queries": "queries", "map_loo": "mAP (leave-one-out)",
                   "map_lgo": "mAP (leave-group-out)", "p_at_1": "P@1", "p_at_10": "P@10",
                   "recall_dtw_top10": "recall of DTW top 10", "ms_per_query": "ms / query (K = 10)", "note": "note"}
 NA = "–"
 NOTE_WIDTH = 300  # pixels of the summary's note column (its text wraps)
+
+
+def default_queries(n_documents: int) -> int:
+    """The queries offered first: :data:`DEFAULT_QUERIES` on up to :data:`SMALL_DATABASE` documents, proportionally
+    fewer on more (at least :data:`MIN_QUERIES`): about the same evaluation time on any database (3,395
+    documents: 4 queries, under a minute with the default methods, most of it their first search)."""
+    return max(MIN_QUERIES, min(DEFAULT_QUERIES, DEFAULT_QUERIES * SMALL_DATABASE // max(n_documents, 1)))
 
 
 def label_columns(documents: pd.DataFrame, columns) -> list[str]:
@@ -74,11 +84,11 @@ class RetrievalPage(pn.viewable.Viewer):
                                        value="actor" if "actor" in groups else NO_GROUP, width=160,
                                        css_classes=["mv-retrieval-group"])  # fmt: skip
         labelled = int(docs[self.label.value].notna().sum()) if self.label.value in docs else len(docs)
-        self.n_queries = BoundedIntInput("queries, 0 = all", min(DEFAULT_QUERIES, labelled), 0, labelled, width=150,
-                                         css_classes=["mv-retrieval-n"])
+        self.n_queries = BoundedIntInput("queries, 0 = all", min(default_queries(len(docs)), labelled), 0, labelled,
+                                         width=150, css_classes=["mv-retrieval-n"])
         self.label.param.watch(self._bound_queries, "value")
         self.button = action_button("Evaluate", "mv-retrieval-run", self._evaluate)
-        self.task = Task()
+        self.task = JobTask()
         self.count = pn.pane.Markdown("", css_classes=["mv-retrieval-count"], margin=(0, 10))
         # the note (why a method skipped queries, ...) wraps in a column of its own width instead of being cut off
         self.summary = pn.widgets.Tabulator(pd.DataFrame(columns=list(SUMMARY_TITLES)), titles=dict(SUMMARY_TITLES),

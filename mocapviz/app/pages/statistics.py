@@ -7,8 +7,10 @@
 - Krüger, Tautges, Weber & Zinke 2010, Table 1 (§3.3): exact k-NN query times per feature set
   (:func:`mocapviz.experiments.numeric.knn_timings`), with the paper's HDM05 and CMU times.
 
-Computed in the background the first time the tab is shown, with small settings (:data:`QUERIES`,
-:data:`KNN_QUERIES`), and cached per database (:meth:`Backend.cached`); each table appears as soon as it is ready.
+Computed when *Compute* is pressed (opening the tab computes nothing; tables already computed for the database, by
+any session, show at once), as jobs of the server's queue (:mod:`mocapviz.app.jobs`: progress, Cancel), with quick
+settings (:data:`SIZES`: :data:`QUERIES` random queries, :data:`KNN_QUERIES` k-NN queries) or the papers' sizes, and
+cached per database and settings (:meth:`Backend.cached`); each table appears as soon as it is ready.
 """
 
 from __future__ import annotations
@@ -20,7 +22,8 @@ from ...experiments.numeric import knn_timings, krueger2010_table1
 from ...experiments.relational import index_statistics, mueller2005_table2, mueller2005_table3, query_statistics
 from ...viz.paper import comparison_bars, curves
 from ...viz.statistics import query_time_scatter
-from ..progress import Task
+from ..jobs import JobTask
+from ..widgets import action_button
 
 OURS = "this database"
 NA = "–"  # a missing value in a table
@@ -29,7 +32,11 @@ SEED = 0
 QUERIES = 200  # random queries per (mode, L) cell of Table 3 (the paper: 10,000)
 TABLE3_LENGTHS = (5, 10, 20)  # the paper's query lengths |Q| in segments
 SCATTER_LENGTHS = (1, 2, 3, 5, 10, 20)  # short queries too: on a small index the long ones all have a single hit
-KNN_QUERIES = 200  # k-NN queries per feature set of Table 1 (batched, one thread)
+SCATTER_POINTS = 5000  # queries drawn in the scatter at most (a seeded sample of them at the papers' sizes)
+KNN_QUERIES = 20  # k-NN queries per feature set of Table 1 (batched, one thread)
+KNN_REPEATS = 1  # timed runs of each batch of Table 1 (the median is shown)
+SIZES = {"quick": (QUERIES, KNN_QUERIES, KNN_REPEATS),  # (Table 3 queries, Table 1 queries, Table 1 repeats)
+         "the papers' sizes (minutes)": (10_000, 1000, 3)}  # fmt: skip
 TABLE2_SHOWN = ["source", "index", "minutes", "f", "lists", "frames", "segments", "MB", "bytes/segment", "t_read",
                 "t_features", "t_index", "t_total"]  # fmt: skip
 TABLE3_RENAMED = {"mean_hits": "µh", "std_hits": "σh", "mean_ms": "µt (ms)",
@@ -59,26 +66,28 @@ def table2(backend) -> pd.DataFrame:
     return pd.concat([ours.assign(source=OURS), mueller2005_table2().assign(source="paper")], ignore_index=True)
 
 
-def table3(backend, group: str) -> pd.DataFrame:
+def table3(backend, group: str, queries: int = QUERIES) -> pd.DataFrame:
     """Table 3 on the open database's ``group`` index: one row per (mode, L, hits group) with our statistics of
-    :data:`QUERIES` random queries per (mode, L) and the paper's µh, σh, µt (I_u^180) beside them."""
-    ours = backend.cached(("statistics", "table3", group, QUERIES), lambda: query_statistics(
-        backend.indexes()[group], n_queries=QUERIES, lengths=TABLE3_LENGTHS, seed=SEED))  # fmt: skip
+    ``queries`` random queries per (mode, L) and the paper's µh, σh, µt (I_u^180) beside them."""
+    ours = backend.cached(("statistics", "table3", group, queries), lambda: query_statistics(
+        backend.indexes()[group], n_queries=queries, lengths=TABLE3_LENGTHS, seed=SEED))  # fmt: skip
     paper = mueller2005_table3()[["mode", "L", "hits", *TABLE3_PAPER]].rename(columns=TABLE3_PAPER)
     return ours.merge(paper, on=["mode", "L", "hits"], how="left").rename(columns=TABLE3_RENAMED)
 
 
-def query_times(backend, group: str) -> pd.DataFrame:
+def query_times(backend, group: str, queries: int = QUERIES) -> pd.DataFrame:
     """Every random query of :data:`SCATTER_LENGTHS` on the ``group`` index: mode, L, k, query, hits, ms, group."""
-    return backend.cached(("statistics", "query_times", group, QUERIES), lambda: query_statistics(
-        backend.indexes()[group], n_queries=QUERIES, lengths=SCATTER_LENGTHS, seed=SEED, per_query=True))  # fmt: skip
+    return backend.cached(("statistics", "query_times", group, queries), lambda: query_statistics(
+        backend.indexes()[group], n_queries=queries, lengths=SCATTER_LENGTHS, seed=SEED, per_query=True))  # fmt: skip
 
 
-def table1(backend) -> pd.DataFrame:
-    """Table 1 in long form: our mean ms per k-NN query per (set, k) (``database`` = :data:`OURS`) and the paper's
-    HDM05 and CMU rows; columns database, frames, set, d, k, mean_ms."""
-    ours = backend.cached(("statistics", "table1", KNN_QUERIES), lambda: knn_timings(
-        backend.db, n_queries=min(KNN_QUERIES, backend.db.n_frames), threads=1, seed=SEED, database=OURS))  # fmt: skip
+def table1(backend, queries: int = KNN_QUERIES, repeats: int = KNN_REPEATS) -> pd.DataFrame:
+    """Table 1 in long form: our mean ms per k-NN query per (set, k) (``database`` = :data:`OURS`; ``queries``
+    random frames, the median of ``repeats`` timed runs) and the paper's HDM05 and CMU rows; columns database,
+    frames, set, d, k, mean_ms."""
+    ours = backend.cached(("statistics", "table1", queries, repeats), lambda: knn_timings(
+        backend.db, n_queries=min(queries, backend.db.n_frames), threads=1, seed=SEED, database=OURS,
+        repeats=repeats))  # fmt: skip
     paper = krueger2010_table1().merge(ours[["set", "d"]].drop_duplicates(), on="set", how="left")
     return pd.concat([ours, paper.assign(database=paper["database"] + " (paper)")], ignore_index=True)
 
@@ -100,51 +109,83 @@ class StatisticsPage(pn.viewable.Viewer):
     def __init__(self, backend, selection):
         super().__init__()
         self.backend, self.selection = backend, selection
-        self.task = Task()
-        self.started = False
+        self.task = JobTask()
+        self.size = pn.widgets.RadioButtonGroup(options=list(SIZES), value="quick", css_classes=["mv-statistics-size"])
+        self.button = action_button("Compute", "mv-statistics-run", self._compute, width=110)
         self.group = pn.widgets.Select(label="index of Table 3", options=["upper", "lower", "mix"], value="upper",
-                                       width=160, disabled=True, css_classes=["mv-table3-group"])  # fmt: skip
+                                       width=160, css_classes=["mv-table3-group"])  # fmt: skip
         self.group.param.watch(lambda e: pn.state.execute(self._queries), "value")
         self.table2 = pn.Column(sizing_mode="stretch_width")
         self.table3 = pn.Column(sizing_mode="stretch_width")
         self.table1 = pn.Column(sizing_mode="stretch_width")
+        self.computed = False  # Compute was pressed: another index of Table 3 is then computed when chosen
 
     def __panel__(self):
         db = self.backend.db
+        quick, paper = SIZES["quick"], SIZES[list(SIZES)[1]]
         intro = pn.pane.Markdown(
             f"The indexes of **{db.path.name}** ({db.n_frames:,} frames, {len(db)} documents) beside the papers' "
             f"tables: Müller, Röder & Clausen 2005 Tables 2 and 3 (relational indexes, 120 Hz), Krüger et al. 2010 "
-            f"Table 1 (kd-tree k-NN search, 30 Hz). Small settings: {QUERIES} random queries per row of Table 3 "
-            f"(the paper: 10,000), {KNN_QUERIES} k-NN queries per feature set.", sizing_mode="stretch_width")
-        return pn.Column(intro, self.task, "### Müller 2005, Table 2: feature computation and index construction",
-                         self.table2, "### Müller 2005, Table 3: random queries", self.group, self.table3,
+            f"Table 1 (kd-tree k-NN search, 30 Hz). *Quick*: {quick[0]} random queries per row of Table 3, "
+            f"{quick[1]} k-NN queries per feature set; *the papers' sizes*: {paper[0]:,} and {paper[1]:,}, "
+            f"{paper[2]} timed runs.", sizing_mode="stretch_width")
+        return pn.Column(intro, pn.Row(self.size, self.button), self.task,
+                         "### Müller 2005, Table 2: feature computation and index construction", self.table2,
+                         "### Müller 2005, Table 3: random queries", self.group, self.table3,
                          "### Krüger 2010, Table 1: k-NN query times", self.table1, sizing_mode="stretch_width")
 
     def activate(self) -> None:
-        """Start the computation the first time the tab is shown."""
-        if not self.started:
-            self.started = True
-            pn.state.execute(self._compute)
+        """Show the tables already computed for this database and size (by any session); compute nothing."""
+        _, knn_queries, repeats = SIZES[self.size.value]
+        if self.backend.is_cached(("statistics", "table2")) and not len(self.table2):
+            self.table2[:] = self._table2_view(table2(self.backend))
+        if not len(self.table3):
+            self._cached_table3()
+        if self.backend.is_cached(("statistics", "table1", knn_queries, repeats)) and not len(self.table1):
+            self.table1[:] = self._table1_view(table1(self.backend, knn_queries, repeats), knn_queries)
 
-    async def _compute(self) -> None:
-        both = await self.task.run("Table 2: relational features and indexes", table2, self.backend)
-        if both is not None:
-            self.table2[:] = self._table2_view(both)
-        await self._queries()
-        long = await self.task.run("Table 1: k-NN query times", table1, self.backend)
-        if long is not None:
-            self.table1[:] = self._table1_view(long)
+    def _cached_table3(self) -> bool:
+        """Show Table 3 of the chosen index and size if it was computed already; False when it was not."""
+        group, (queries, _, _) = self.group.value, SIZES[self.size.value]
+        if not all(self.backend.is_cached(("statistics", name, group, queries)) for name in ("table3", "query_times")):
+            return False
+        self.table3[:] = self._table3_view(table3(self.backend, group, queries),
+                                           query_times(self.backend, group, queries))
+        return True
 
-    async def _queries(self) -> None:
+    async def _compute(self, event=None) -> None:
+        """The three tables, one job each (queued behind other sessions' jobs); Cancel stops the rest too."""
+        self.computed = True
+        _, knn_queries, repeats = SIZES[self.size.value]
+        self.button.disabled = True
+        try:
+            both = await self.task.run("Table 2: relational features and indexes", table2, self.backend)
+            if both is not None:
+                self.table2[:] = self._table2_view(both)
+            if self.task.stopped or not await self._queries():
+                return
+            long = await self.task.run("Table 1: k-NN query times", table1, self.backend, knn_queries, repeats)
+            if long is not None:
+                self.table1[:] = self._table1_view(long, knn_queries)
+        finally:
+            self.button.disabled = False
+
+    async def _queries(self) -> bool:
+        """Table 3 on the chosen index: at once when computed already, as a job once Compute was pressed (not while
+        another of the page's jobs runs); False when that job was cancelled."""
+        if self._cached_table3() or not self.computed or self.task.running:
+            return True
+        group, (queries, _, _) = self.group.value, SIZES[self.size.value]
         self.group.disabled = True
-        group = self.group.value
         result = await self.task.run(f"Table 3: random queries on the {group} index",
-                                     lambda: (table3(self.backend, group), query_times(self.backend, group)),
+                                     lambda: (table3(self.backend, group, queries),
+                                              query_times(self.backend, group, queries)),
                                      stale=(self.table3,))  # another index's table must not stay under the error
         self.group.disabled = False
         if result is not None:
             self.table3[:] = self._table3_view(*result)
             self.table3.visible = True
+        return not self.task.stopped
 
     # ------------------------------------------------------------------ views
     @staticmethod
@@ -165,21 +206,23 @@ class StatisticsPage(pn.viewable.Viewer):
         long["series"] = long["source"] + ", " + long["mode"] + ", " + long["hits"] + " hits"
         mean = curves(long, "L", "mean_ms", "series", title="mean query time per hit group",
                       xlabel="query length L (segments)", ylabel="ms", logy=True, width=620, height=340)
-        scatter = query_time_scatter(per_query, title=f"query time against hits ({len(per_query):,} random "
-                                                      f"queries, L = {', '.join(map(str, SCATTER_LENGTHS))})")
+        drawn = per_query.sample(n=min(len(per_query), SCATTER_POINTS), random_state=SEED).sort_index()
+        scatter = query_time_scatter(drawn, title=f"query time against hits ({len(drawn):,} of {len(per_query):,} "
+                                                  f"random queries, L = {', '.join(map(str, SCATTER_LENGTHS))})")
+        queries = int(table.groupby(["mode", "L"])["queries"].sum().iloc[0])
         note = pn.pane.Markdown(f"Fuzzy queries are adaptive, 64 alternatives per set (§6.2). µh, σh: mean and "
-                                f"standard deviation of the hit count; µt: mean time per query. {QUERIES} queries "
+                                f"standard deviation of the hit count; µt: mean time per query. {queries:,} queries "
                                 f"per (mode, L); the paper's 10,000 on I_u^180.")
         return [_table(table, "mv-table3"), note,
                 pn.Row(pn.pane.HoloViews(mean, css_classes=["mv-table3-curves"]),
                        pn.pane.HoloViews(scatter, css_classes=["mv-query-times"]))]
 
-    def _table1_view(self, long: pd.DataFrame) -> list:
+    def _table1_view(self, long: pd.DataFrame, queries: int) -> list:
         bars = [comparison_bars(long[long["k"] == k], "set", "mean_ms", source="database", logy=True, width=640,
                                 height=320, ylabel="ms per query", title=f"k = {k}").opts(**LEGEND_OUTSIDE)
                 for k in sorted(set(long["k"]))]
         note = pn.pane.Markdown(
-            f"Mean milliseconds per exact k-NN query (scipy cKDTree, one thread; {KNN_QUERIES} queries) on this "
+            f"Mean milliseconds per exact k-NN query (scipy cKDTree, one thread; {queries:,} queries) on this "
             f"database's {self.backend.db.n_frames:,} frames; the paper (ANN library, 2010): HDM05 380,813 and CMU "
             f"1,038,388 frames at 30 Hz.", css_classes=["mv-table1-note"])
         return [_table(table1_wide(long), "mv-table1"), note,

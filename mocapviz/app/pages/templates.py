@@ -32,7 +32,7 @@ from ...viz.templates import template_image
 from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
-from ..progress import Task
+from ..progress import Task, in_thread
 from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, hit_titles, notes, results_table
 
 RELATIONAL_SETS = ["2006", "2005"]  # the 39 features of Müller & Röder 2006 (the paper's), or the 31 of 2005
@@ -350,14 +350,14 @@ class TemplatesPage(pn.viewable.Viewer):
             self.image.object = image.opts(fontsize={"title": 10, "yticks": 7})
             self.legend.object = image_legend(self.template, self.delta_used, quantised)
 
-    def _on_select(self, event) -> None:
+    async def _on_select(self, event) -> None:
         if not event.new or self.hits is None:
             return
         hit = self.hits.iloc[event.new[0]]
         doc = int(hit["doc_id"])
         example = training_example(self.template, doc)
         start, end = int(hit["start"]), int(hit["end"])
-        path = example_alignment(self.backend, self.template, example, doc, start, end)
+        path = await in_thread(example_alignment, self.backend, self.template, example, doc, start, end)
         positions = self.backend.db.positions
         clips = [positions[self.backend.db.frames(example)],
                  positions[database_frames(self.backend.db, doc, start, end)]]
