@@ -125,6 +125,23 @@ def sample_db(tmp_path_factory):
     return MotionDB.ingest([datasets.sample()], tmp_path_factory.mktemp("sample") / "db", progress=False)
 
 
+@pytest.fixture(scope="module")
+def backend(sample_db):
+    """The dashboard's shared back end of the sample database (:class:`mocapviz.app.backend.Backend`)."""
+    from mocapviz.app.backend import Backend
+
+    return Backend.open(sample_db.path)
+
+
+@pytest.fixture(scope="module")
+def kicks(sample_db):
+    """The sample's hits of the shipped description ``kick_left`` (a real hit table, through the 2005 indexes)."""
+    from mocapviz.relational import index
+    from mocapviz.relational.scene import find
+
+    return find(sample_db, "kick_left", indexes=index.load_or_build(sample_db, "2005"))
+
+
 def _serve(db_path: Path, log_dir: Path, options=()):
     """Start ``mocapviz serve DB --port P [OPTIONS]`` in a subprocess (``{port}`` in an option stands for P); wait
     until it answers; return (url, process, log)."""

@@ -12,7 +12,6 @@ import pytest
 from browser_helpers import EXCEPTION_NAME, assert_no_exception_names, open_dashboard, open_tab, record_timing, timed
 from playwright.sync_api import expect
 
-from mocapviz.app.backend import Backend
 from mocapviz.app.pages import describe as page_mod
 from mocapviz.app.widgets import PAGE_SIZE
 from mocapviz.errors import DescriptionError, ParameterError
@@ -35,11 +34,6 @@ TWO = """define w: rhand: below_neck above_neck below_neck and rhand: slow fast 
 define t: rhand: below_neck above_neck below_neck and relbow: bent straight bent;
 w | t"""
 TEMPLATE = "describe-test-kick"  # stored with the sample by test_describe_a_stored_template
-
-
-@pytest.fixture(scope="module")
-def backend(sample_db):
-    return Backend.open(sample_db.path)
 
 
 # ============================================================================ helpers, no browser

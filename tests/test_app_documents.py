@@ -20,7 +20,6 @@ from playwright.sync_api import expect
 
 import mocapviz.app.pages.relational as relational_module
 from mocapviz import MotionDB
-from mocapviz.app.backend import Backend
 from mocapviz.app.documents import (
     MAX_COMPLETIONS,
     NO_PERFORMER,
@@ -34,11 +33,6 @@ from mocapviz.app.pages.relational import RelationalPage
 from mocapviz.app.state import Selection
 from mocapviz.app.widgets import PAGE_SIZE
 from mocapviz.db.hits import hit_table
-
-
-@pytest.fixture(scope="module")
-def backend(sample_db):
-    return Backend.open(sample_db.path)
 
 
 def _finish(coroutine) -> None:

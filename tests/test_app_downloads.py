@@ -11,7 +11,6 @@ import re
 import zipfile
 
 import numpy as np
-import pytest
 from browser_helpers import open_dashboard, open_tab
 
 from mocapviz.app.backend import Backend
@@ -20,20 +19,8 @@ from mocapviz.app.widgets import HIT_TITLES, hit_columns, results_table
 from mocapviz.export import hit_files, hits_zip, stretch_files
 from mocapviz.io import load
 from mocapviz.motion.skeleton import CANONICAL_JOINTS
-from mocapviz.relational import index
-from mocapviz.relational.scene import find
 
 KICK = "kick_left"
-
-
-@pytest.fixture(scope="module")
-def backend(sample_db):
-    return Backend.open(sample_db.path)
-
-
-@pytest.fixture(scope="module")
-def kicks(sample_db):
-    return find(sample_db, KICK, indexes=index.load_or_build(sample_db, "2005"))
 
 
 def _read_back(data: bytes, suffix: str, tmp_path) -> np.ndarray:

@@ -14,27 +14,14 @@ from browser_helpers import open_dashboard, open_tab, record_timing
 from playwright.sync_api import expect
 
 import mocapviz.app.gallery as gallery_module
-from mocapviz.app.backend import Backend
 from mocapviz.app.downloads import table_download, table_hits
 from mocapviz.app.gallery import CELL, COLUMNS, LABEL_HEIGHT, MAX_FPS, MAX_FRAMES, PAGE_SIZE, HitGallery, gallery_page
 from mocapviz.app.widgets import HIT_TITLES, hit_columns, results_table
 from mocapviz.db.hits import hit_table
 from mocapviz.motion.skeleton import CANONICAL_PARENTS
-from mocapviz.relational import index
-from mocapviz.relational.scene import find
 
 KICK = "kick_left"
 CELL_BYTES = MAX_FRAMES * 24 * 3 * 4  # the most a cell sends: 11,520 bytes
-
-
-@pytest.fixture(scope="module")
-def backend(sample_db):
-    return Backend.open(sample_db.path)
-
-
-@pytest.fixture(scope="module")
-def kicks(sample_db):
-    return find(sample_db, KICK, indexes=index.load_or_build(sample_db, "2005"))
 
 
 def _cells(positions: bytes, meta: dict) -> list[np.ndarray]:

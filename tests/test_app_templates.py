@@ -14,7 +14,6 @@ import pytest
 from browser_helpers import open_dashboard, open_tab, record_timing, run_in_thread, text_of, timed
 from playwright.sync_api import expect
 
-from mocapviz.app.backend import Backend
 from mocapviz.app.pages import templates as page_mod
 from mocapviz.db.hits import database_frames
 from mocapviz.errors import ParameterError
@@ -38,11 +37,6 @@ KICK, SQUAT = "kickLFront1Reps", "squat1Reps"
 def features(sample_db):
     """The sample's relational features of both sets: {set: (N, f) bool}."""
     return {s: relational_features(sample_db, s, progress=False)[0] for s in ("2006", "2005")}
-
-
-@pytest.fixture(scope="module")
-def backend(sample_db):
-    return Backend.open(sample_db.path)
 
 
 def _library(db, values, label, actors=None, relational_set="2006", delta=DELTA, k=20, max_cost=None):
