@@ -150,7 +150,7 @@ def open_checked(path: str | os.PathLike, expected: dict | None, rebuild: str = 
     ...     np.save(f, np.arange(12.0).reshape(4, 3))
     ...     arr = open_checked(f, fingerprint(f))
     ...     print(type(arr).__name__, type(arr[1:3]).__name__, arr[1:3].sum())
-    CheckedMap ndarray 27.0
+    CheckedMap ndarray 33.0
     """
     st = os.stat(path)
     arr = np.load(path, mmap_mode="r", allow_pickle=False)

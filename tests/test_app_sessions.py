@@ -27,6 +27,7 @@ from conftest import CHROMIUM_ARGS
 from mocapviz import MotionDB
 from mocapviz.app.backend import Backend
 from mocapviz.app.pages import describe, relational
+from mocapviz.app.state import Selection
 
 pytestmark = pytest.mark.slow  # minutes on a loaded 2-core machine: 8 browser sessions and their server
 
@@ -53,8 +54,9 @@ def _queries(db) -> list[Query]:
     for i, doc in enumerate(DOCS):
         row = db.document(doc)
         n, k = int(row["n_frames"]), 1 + i % 4
-        hits = backend.query_by_example(db.motion(doc)[0:n], list(relational.DEFAULT_FEATURES), "adaptive", 1,
-                                        relational.RELATIONAL_SET)  # fmt: skip
+        page = relational.RelationalPage(backend, Selection())  # the page's own default query of the whole clip
+        page._set_query(doc, (0, n - 1))
+        hits = page.search(page.query())
         found = describe.search(backend, describe.EXAMPLE, "2005", k)
         out.append(Query(doc, str(row["name"]), n, len(hits), str(row["label"]), k, len(found)))
     return out
