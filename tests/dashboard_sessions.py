@@ -22,13 +22,12 @@ TIMEOUT_MS = 600_000  # a loaded 2-core machine serving 8 sessions answers slowl
 
 @dataclass
 class Query:
-    """What one session asks: its document (name, frames), the relational query's expected hit count, the class of
-    its motion template, the Describe page's K and its expected hit count."""
+    """What one session asks: its document (name, frames), the class of its motion template, the Describe page's K
+    and its expected hit count."""
 
     doc_id: int
     name: str
     n_frames: int
-    relational_hits: int
     template_label: str
     k: int
     describe_hits: int

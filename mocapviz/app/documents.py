@@ -32,9 +32,9 @@ def archive_of(path: str) -> str:
 
     Examples
     --------
-    >>> archive_of("/data/mocapviz/cmu-asfamc/cmu-asfamc/amc/martialwalk/135_02.amc")
+    >>> archive_of("shared/cmu-asfamc/amc/martialwalk/135_02.amc")
     'cmu-asfamc'
-    >>> archive_of("/home/me/takes/walk_01.bvh")
+    >>> archive_of("takes/walk_01.bvh")
     'takes'
     """
     parts = PurePath(str(path)).parts[:-1]
