@@ -157,6 +157,29 @@ def test_bounded_rows_is_plain_subsequence_dtw_when_unbounded_and_stops_pile_ups
     assert find_instances(slow, A, None, min_frames=1, max_rows=2).empty  # 12 rows on 3 frames: not
 
 
+@pytest.mark.parametrize("n_features", [1, 63, 64, 65, 130])
+def test_bounded_costs_count_mismatches_over_any_number_of_feature_words(n_features):
+    """The packed 64-bit words of the row-bounded DTW give the masked mean of :func:`quantised_distance` at any
+    width (one word, exactly one, one and a bit, three), rows caring for nothing included, and threads split the
+    documents without changing a cost: the unbounded costs equal the basic step set's (the paths' starts may differ
+    between equal-cost paths)."""
+    from mocapviz.match import subsequence_costs
+    from mocapviz.relational.templates import _bounded_costs
+
+    rng = np.random.default_rng(n_features)
+    q = np.where(rng.random((7, n_features)) < 0.3, DONT_CARE, rng.random((7, n_features)) < 0.5).astype(float)
+    q[3] = DONT_CARE  # a row that cares for no feature costs 0 everywhere
+    x = rng.random((300, n_features)) < 0.5
+    starts = np.r_[0, np.sort(rng.choice(np.arange(1, 300), 40, replace=False))]
+    want, _ = subsequence_costs(q, x, starts, distance=quantised_distance)
+    got, first = _bounded_costs(q, x, starts, len(q))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    doc = np.searchsorted(starts, np.arange(len(x)), side="right") - 1
+    ok = np.isfinite(want)
+    assert (doc[first[ok]] == doc[ok]).all() and (first[ok] <= np.arange(len(x))[ok]).all()
+    assert (first[~ok] == -1).all()
+
+
 def test_a_feature_one_group_does_otherwise_is_dont_care_when_learned_by_group():
     """Four 'actors' of two examples each: seven examples never raise feature 2 while feature 1 rises, one of actor
     d raises it in the middle. Pooled, feature 2's middle is 1/8 < δ = 0.2: cared for (0). By group, actor d's mean

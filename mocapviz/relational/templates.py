@@ -72,6 +72,7 @@ from ..errors import MotionDBError, ParameterError, UnknownKeyError
 from ..features import RELATIONAL_SETS, feature_names, relational_features
 from ..match import best_ends, dtw, subsequence_costs
 from ..match.time_warping import _check_document_starts, matches_frame
+from ..parallel import default_threads, map_ordered
 from ..validation import Interval, count, number
 
 FORMAT = "mocapviz.MotionTemplate"
@@ -624,50 +625,90 @@ def _costs(template, q, x, starts, min_frames, max_rows=None) -> tuple[np.ndarra
 
 def _bounded_costs(q, x, starts, max_rows: int) -> tuple[np.ndarray, np.ndarray]:
     """(cost, first) per end frame of subsequence DTW with the basic steps (every aligned cell pays its
-    :func:`quantised_distance`) whose path takes at most ``max_rows`` template rows on any one database frame;
-    streamed over blocks of frames, never across a document start."""
+    :func:`quantised_distance`) whose path takes at most ``max_rows`` template rows on any one database frame.
+
+    The frames' features and the template rows are packed into 64-bit words (:func:`_bit_rows`), so a cell's
+    cost is a count of set bits; runs of whole documents go to threads (:func:`mocapviz.parallel.map_ordered`)."""
     x = np.asarray(x)
     n, m = len(x), len(q)
-    doc = np.searchsorted(_check_document_starts(starts, n), np.arange(n), side="right") - 1
-    prev, prev_first, prev_doc = np.full(m, np.inf), np.full(m, -1, dtype=np.int64), np.full(1, -1, dtype=np.int64)
+    doc_starts = _check_document_starts(starts, n)
+    frames = _bit_rows(x != 0)
+    values, care = _bit_rows(q == 1.0), _bit_rows(q != DONT_CARE)
+    cared = (q != DONT_CARE).sum(axis=1).astype(np.float64)
     cost, first = np.empty(n), np.empty(n, dtype=np.int64)
-    block = max(1, (1 << 21) // m)
-    for a in range(0, n, block):
-        z = min(n, a + block)
-        local = np.ascontiguousarray(quantised_distance(q, x[a:z]).T)
-        _bounded_block(local, doc[a:z], a, max_rows, prev, prev_first, prev_doc, cost[a:z], first[a:z])
+    bounds = np.r_[doc_starts, n]
+    # about 4 runs per thread, each of whole documents, cut near equal shares of the frames
+    cuts = np.unique(bounds[np.searchsorted(bounds, np.linspace(0, n, 4 * default_threads() + 1), side="left")])
+    runs = [(int(a), int(z)) for a, z in zip(cuts[:-1], cuts[1:])]
+    for _ in map_ordered(lambda run: _bounded_run(frames, values, care, cared, doc_starts, run[0], run[1], max_rows,
+                                                  cost, first), runs, name="mocapviz-template"):  # fmt: skip
+        pass
     first[~np.isfinite(cost)] = -1
     return cost, first
 
 
-@numba.njit(cache=True)
-def _bounded_block(local, doc, offset, max_rows, prev, prev_first, prev_doc, cost, first):  # pragma: no cover
-    """One block of :func:`_bounded_costs`. local (b, m): costs of the block's frames (database frame offset + jb)
-    against the template rows; prev / prev_first / prev_doc: the accumulated costs, path starts and document of the
-    frame before the block, updated in place. A cell (i, j) is reached by a run of a <= max_rows rows
-    i - a + 1 .. i on frame j, entered from frame j - 1 at row i - a (diagonally) or at row i - a + 1 (that row
-    held), or started at row 0; each cell of the run pays its cost."""
-    b, m = local.shape
+def _bit_rows(flags: np.ndarray) -> np.ndarray:
+    """(r, f) bool as (r, w) uint64, bit c of word c // 64 = column c (w = ceil(f / 64), at least 1)."""
+    r, f = flags.shape
+    width = max(1, -(-f // 64))
+    packed = np.packbits(flags, axis=1, bitorder="little")
+    words = np.zeros((r, 8 * width), dtype=np.uint8)
+    words[:, : packed.shape[1]] = packed
+    return words.view("<u8").astype(np.uint64)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _set_bits(v):  # pragma: no cover
+    """The number of set bits of a uint64 (the SWAR count)."""
+    v = v - ((v >> np.uint64(1)) & np.uint64(0x5555555555555555))
+    v = (v & np.uint64(0x3333333333333333)) + ((v >> np.uint64(2)) & np.uint64(0x3333333333333333))
+    v = (v + (v >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
+    return (v * np.uint64(0x0101010101010101)) >> np.uint64(56)
+
+
+@numba.njit(cache=True, nogil=True)
+def _bounded_run(frames, values, care, cared, doc_starts, a, z, max_rows, cost, first):  # pragma: no cover
+    """Frames a..z-1 (whole documents) of :func:`_bounded_costs`, written into ``cost`` / ``first``. A frame's cost
+    against template row i is its mismatches on the row's cared-for features (``care``; ``values`` the 1 entries)
+    over their number ``cared[i]`` (0 when it cares for none). A cell (i, j) is reached by a run of r <=
+    max_rows rows i - r + 1 .. i on frame j, entered from frame j - 1 at row i - r (diagonally) or at row i - r + 1
+    (that row held), or started at row 0; each cell of the run pays its cost."""
+    m, w = values.shape
+    local, enter, enter_first = np.empty(m), np.empty(m), np.empty(m, dtype=np.int64)
+    prev, prev_first = np.empty(m), np.empty(m, dtype=np.int64)
     acc, start = np.empty(m), np.empty(m, dtype=np.int64)
-    for jb in range(b):
-        same = prev_doc[0] == doc[jb]
+    d = np.searchsorted(doc_starts, a, side="right")  # the next document start after frame a
+    for j in range(a, z):
+        same = j > a
+        if d < len(doc_starts) and doc_starts[d] == j:
+            same = False
+            d += 1
+        for i in range(m):
+            bad = 0
+            for k in range(w):
+                bad += _set_bits((frames[j, k] ^ values[i, k]) & care[i, k])
+            local[i] = bad / cared[i] if cared[i] > 0 else 0.0
+        # the cheapest way into row r0 of frame j before its run: a start (row 0) or from frame j - 1 at row r0
+        # (held) or r0 - 1 (diagonal), the held row winning ties
+        enter[0], enter_first[0] = 0.0, j
+        for r0 in range(1, m):
+            enter[r0], enter_first[r0] = np.inf, -1
+            if same:
+                if prev[r0 - 1] < prev[r0]:
+                    enter[r0], enter_first[r0] = prev[r0 - 1], prev_first[r0 - 1]
+                else:
+                    enter[r0], enter_first[r0] = prev[r0], prev_first[r0]
         for i in range(m):
             best, src, run = np.inf, -1, 0.0
-            for a in range(1, min(max_rows, i + 1) + 1):
-                r0 = i - a + 1
-                run += local[jb, r0]
-                if r0 == 0 and run < best:
-                    best, src = run, offset + jb
-                if same:
-                    if prev[r0] + run < best:
-                        best, src = prev[r0] + run, prev_first[r0]
-                    if r0 > 0 and prev[r0 - 1] + run < best:
-                        best, src = prev[r0 - 1] + run, prev_first[r0 - 1]
+            for r in range(1, min(max_rows, i + 1) + 1):
+                r0 = i - r + 1
+                run += local[r0]
+                if enter[r0] + run < best:
+                    best, src = enter[r0] + run, enter_first[r0]
             acc[i], start[i] = best, src
-        cost[jb], first[jb] = acc[m - 1], start[m - 1]
+        cost[j], first[j] = acc[m - 1], start[m - 1]
         prev[:] = acc
         prev_first[:] = start
-        prev_doc[0] = doc[jb]
 
 
 def document_costs(template: MotionTemplate, values: np.ndarray, starts, delta: float = DELTA,
