@@ -55,6 +55,7 @@ default and both switchable off:
 
 from __future__ import annotations
 
+import itertools
 import json
 import re
 import time
@@ -630,7 +631,7 @@ def _bounded_costs(q, x, starts, max_rows: int) -> tuple[np.ndarray, np.ndarray]
     The frames' features and the template rows are packed into 64-bit words (:func:`_bit_rows`), so a cell's
     cost is a count of set bits; runs of whole documents go to threads (:func:`mocapviz.parallel.map_ordered`)."""
     x = np.asarray(x)
-    n, m = len(x), len(q)
+    n = len(x)
     doc_starts = _check_document_starts(starts, n)
     frames = _bit_rows(x != 0)
     values, care = _bit_rows(q == 1.0), _bit_rows(q != DONT_CARE)
@@ -639,7 +640,7 @@ def _bounded_costs(q, x, starts, max_rows: int) -> tuple[np.ndarray, np.ndarray]
     bounds = np.r_[doc_starts, n]
     # about 4 runs per thread, each of whole documents, cut near equal shares of the frames
     cuts = np.unique(bounds[np.searchsorted(bounds, np.linspace(0, n, 4 * default_threads() + 1), side="left")])
-    runs = [(int(a), int(z)) for a, z in zip(cuts[:-1], cuts[1:])]
+    runs = [(int(a), int(z)) for a, z in itertools.pairwise(cuts)]
     for _ in map_ordered(lambda run: _bounded_run(frames, values, care, cared, doc_starts, run[0], run[1], max_rows,
                                                   cost, first), runs, name="mocapviz-template"):  # fmt: skip
         pass
