@@ -10,6 +10,24 @@ from pathlib import Path
 ARTIFACTS = Path(__file__).resolve().parent.parent / "build" / "test-artifacts" / "dashboard"
 
 
+def in_own_loop(coroutine):
+    """Run a coroutine on a fresh event loop in its own thread (the browser tests' Playwright holds this thread's
+    loop); return (result, the loop's thread)."""
+    import asyncio
+    import threading
+
+    out = {}
+
+    def main():
+        out["thread"] = threading.current_thread()
+        out["result"] = asyncio.run(coroutine)
+
+    thread = threading.Thread(target=main)
+    thread.start()
+    thread.join()
+    return out["result"], out["thread"]
+
+
 def free_port() -> int:
     """A TCP port of 127.0.0.1 that nothing listens on now."""
     import socket

@@ -3,33 +3,18 @@ exception type, no old result left under them; the bounded number boxes of mocap
 
 from __future__ import annotations
 
-import asyncio
 import logging
 import threading
 
 import holoviews as hv
 import pandas as pd
 import panel as pn
+from browser_helpers import in_own_loop
 
 from mocapviz.app.progress import Task
 from mocapviz.app.widgets import BoundedFloatInput, BoundedIntInput, results_table
 from mocapviz.errors import ParameterError
 from mocapviz.validation import Interval
-
-
-def _run(coroutine):
-    """Run a coroutine on a fresh event loop in its own thread (the browser tests' Playwright holds this thread's
-    loop); return (result, the loop's thread)."""
-    out = {}
-
-    def main():
-        out["thread"] = threading.current_thread()
-        out["result"] = asyncio.run(coroutine)
-
-    thread = threading.Thread(target=main)
-    thread.start()
-    thread.join()
-    return out["result"], out["thread"]
 
 
 def test_result_comes_from_a_worker_thread_and_the_button_is_freed():
@@ -40,7 +25,7 @@ def test_result_comes_from_a_worker_thread_and_the_button_is_freed():
         seen["thread"], seen["disabled"] = threading.current_thread(), button.disabled
         return 2 * x
 
-    result, loop_thread = _run(task.run("Doubling", work, 21, busy=button))
+    result, loop_thread = in_own_loop(task.run("Doubling", work, 21, busy=button))
     assert result == 42
     assert seen["thread"] is not loop_thread and seen["disabled"] is True
     assert button.disabled is False and task.bar.active is False
@@ -54,7 +39,7 @@ def test_a_users_error_is_its_message_alone_and_one_log_line(caplog):
         raise ParameterError("k = 9 is larger than the prior (5 frames)")
 
     with caplog.at_level(logging.WARNING, logger="mocapviz.app"):
-        assert _run(task.run("Reconstructing", fail, busy=[button]))[0] is None
+        assert in_own_loop(task.run("Reconstructing", fail, busy=[button]))[0] is None
     assert task.error.visible and button.disabled is False
     assert task.error.object == "**Reconstructing failed.** k = 9 is larger than the prior (5 frames)"
     assert [(r.levelname, r.getMessage(), r.exc_info) for r in caplog.records] == [
@@ -68,7 +53,7 @@ def test_an_unexpected_error_is_generic_on_the_page_with_its_traceback_in_the_lo
         raise ZeroDivisionError("division by zero")
 
     with caplog.at_level(logging.WARNING, logger="mocapviz.app"):
-        assert _run(task.run("Searching", fail))[0] is None
+        assert in_own_loop(task.run("Searching", fail))[0] is None
     assert task.error.object == "**Searching failed** (an unexpected error); see the server log."
     assert "ZeroDivisionError" not in task.error.object and "division" not in task.error.object
     (record,) = caplog.records
@@ -77,9 +62,9 @@ def test_an_unexpected_error_is_generic_on_the_page_with_its_traceback_in_the_lo
 
 def test_the_red_line_goes_away_when_the_next_run_succeeds():
     task = Task()
-    assert _run(task.run("Searching", lambda: 1 / 0))[0] is None
+    assert in_own_loop(task.run("Searching", lambda: 1 / 0))[0] is None
     assert task.error.visible
-    assert _run(task.run("Searching", lambda: 2))[0] == 2
+    assert in_own_loop(task.run("Searching", lambda: 2))[0] == 2
     assert not task.error.visible and task.status.object.startswith("Searching: done in")
 
 
@@ -93,14 +78,14 @@ def test_a_failed_run_leaves_no_old_result_under_its_error():
 
     task = Task()
     kept = shown()
-    assert _run(task.run("Searching", lambda: 1, stale=kept))[0] == 1
+    assert in_own_loop(task.run("Searching", lambda: 1, stale=kept))[0] == 1
     assert len(kept[0].value) == 2 and kept[1].object and kept[2].object is not None and kept[3].visible
     for error in (ParameterError("k must be between 1 and 4,257"), ZeroDivisionError()):
         def fail(error=error):
             raise error
 
         table, count, plot, box = shown()
-        assert _run(task.run("Searching", fail, stale=(table, count, plot, box)))[0] is None
+        assert in_own_loop(task.run("Searching", fail, stale=(table, count, plot, box)))[0] is None
         assert task.error.visible
         assert table.value.empty and list(table.value.columns) == ["rank"]  # its columns stay
         assert count.object == "" and plot.object is None and not box.visible

@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 from browser_helpers import (
     assert_no_exception_names,
+    in_own_loop,
     open_dashboard,
     open_tab,
     record_first_answer,
@@ -114,13 +115,14 @@ def _knn_library(db, doc: int, frame: int, k: int) -> pd.DataFrame:
     return describe_frames(db, *_knn_frames(db, doc, frame, k))
 
 
-def _lng_library(db, doc: int, span: tuple[int, int], k: int, n_matches: int = 10) -> pd.DataFrame:
-    """LNG matches of a span (start, end: half-open) of a document by F15E, its own document excluded, as
-    ``mocapviz match`` computes them."""
+def _lng_library(db, doc: int, span: tuple[int, int], k: int, n_matches: int = 10,
+                 exclude_own: bool = True) -> pd.DataFrame:  # fmt: skip
+    """LNG matches of a span (start, end: half-open) of a document by F15E, its own document excluded (unless
+    ``exclude_own`` is False), as ``mocapviz match`` computes them."""
     X = numeric_of(db, "F15E")
     rows = db.frames(doc)
     return lng(X[rows.start + span[0] : rows.start + span[1]], KnnIndex(X), k=k, n_matches=n_matches,
-               starts=db.documents["start"].to_numpy(), exclude=(rows.start, rows.stop))
+               starts=db.documents["start"].to_numpy(), exclude=(rows.start, rows.stop) if exclude_own else None)
 
 
 # ============================================================================ pure helpers of the page
@@ -135,6 +137,31 @@ def test_knn_one_row_per_document_and_lng_matches_of_half_the_span(sample_db):
     assert each[["doc_id", "start", "distance"]].values.tolist() == best[["doc_id", "start", "distance"]].values.tolist()
     found = match_span(backend, "F15E", 7, (0, 129), scaled_k(LNG_K_AT_30HZ, 120.0), 10, True)
     assert len(found) >= 1 and (found["frames"] >= 65).all() and found.attrs["min_length"] == 0.5
+
+
+def test_the_page_matches_the_first_seconds_of_a_long_span_and_says_so(sample_db):
+    """The graph matches a span's first LNG_MAX_SECONDS (the sample's 131_01: 994 frames at 120 Hz, 8.3 s; its
+    first 480 frames): the page's matches are the library's of those frames, and its count names them and why."""
+    from mocapviz.app.pages.similarity import LNG_MAX_SECONDS, SimilarityPage
+    from mocapviz.app.state import Selection
+
+    backend = Backend.open(sample_db.path)
+    doc = int(sample_db.documents.loc[sample_db.documents["name"] == "131_01", "doc_id"].iloc[0])
+    n, fps = int(sample_db.document(doc)["n_frames"]), backend.fps_of(doc)
+    cut = round(LNG_MAX_SECONDS * fps)
+    assert n > cut
+    page = SimilarityPage(backend, Selection(doc=doc, span=(0, n)))
+    page.match_k.value, page.exclude_own.value = 256, False  # no other take of the sample moves like this CMU one
+    in_own_loop(page._match())
+    expected = _lng_library(sample_db, doc, (0, cut), 256, exclude_own=False)
+    assert page.matches is not None and len(page.matches) == len(expected) > 0
+    first = [sample_db.frames(d).start + a for d, a in zip(page.matches["doc_id"], page.matches["start"])]
+    assert first == expected["start"].tolist()  # the library's: frames of the database
+    text = page.match_count.object
+    assert f"of document {doc} frames 0:{cut} by F15E (the span's first {LNG_MAX_SECONDS:g} s:" in text
+    page.selection.span = (0, cut)  # a span within the limit is matched whole, without the note
+    in_own_loop(page._match())
+    assert "the span's first" not in page.match_count.object
 
 
 def test_match_alignment_counts_the_match_clip_from_its_first_frame():

@@ -160,7 +160,9 @@ def warm_up(backend: Backend) -> dict[str, float]:
     - Database page: a clip's relational features (its row click draws them).
     - Describe page: a shipped scene description found through the 2005 indexes (the ranking kernel loaded).
     - Motion templates page: the relational features of every frame in the 2006 set, which every template is
-      learned from and searched in (8 s on every shared archive at 30 Hz, 446,551 frames).
+      learned from and searched in (8 s on every shared archive at 30 Hz, 446,551 frames), and the page's first
+      answer: the template of its default class learned and searched with the page's defaults (the search kernel
+      loaded, the answer kept).
 
     The small queries use a few frames of the longest document; their results are not kept. A step the database
     cannot run (a :class:`~mocapviz.errors.MocapvizError`) is skipped. Returns the seconds of each step (logged at INFO
@@ -168,7 +170,7 @@ def warm_up(backend: Backend) -> dict[str, float]:
     """
     from ..relational.query import query_by_example
     from ..relational.scene import find
-    from .pages import relational, similarity, templates
+    from .pages import relational, similarity
 
     docs = backend.documents
     doc = int(docs.loc[docs["n_frames"].idxmax(), "doc_id"])
@@ -209,10 +211,22 @@ def warm_up(backend: Backend) -> dict[str, float]:
     step("relational", relational_query)
     step("row_click", lambda: backend.clip_relational(doc))
     step("describe", lambda: find(db, "kick_right", n_matches=1, indexes=backend.indexes("2005")))
-    step("templates", lambda: templates.database_features(backend, "2006"))
+    step("templates", lambda: _first_template(backend))
     LOG.info("warmed up in %.1f s (%s)", sum(seconds.values()),
              ", ".join(f"{name} {s:.1f} s" for name, s in seconds.items()))
     return seconds
+
+
+def _first_template(backend: Backend) -> None:
+    """The Motion templates page's first answer (its default class, every actor, its defaults), kept in
+    ``backend``'s caches; only the 2006 features of every frame when no class has two documents."""
+    from .pages import templates
+
+    templates.database_features(backend, "2006")
+    label = templates.default_class(backend.documents)
+    if label is not None:
+        templates.learn_and_search(backend, label, (), "2006", templates.DEFAULT_DELTA, templates.DEFAULT_MATCHES,
+                                   None)  # fmt: skip
 
 
 def log_to_stderr() -> None:

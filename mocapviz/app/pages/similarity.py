@@ -44,6 +44,11 @@ MAX_MATCHES = 100
 MAX_MATRIX_CELLS = 600_000  # query frames x small-database frames of the Fig. 3 matrices
 LNG_K_AT_30HZ = 256  # neighbours per query frame of §4.2's experiments (scaled with the frame rate and the size)
 LNG_REFERENCE_FRAMES = 100_000  # frames at 30 Hz up to which LNG_K_AT_30HZ finds matches (graph_k)
+# the graph matches at most the span's first this many seconds (graph_span): its k-NN of every query frame is most of
+# its time, and on every shared archive at 30 Hz (k = 1,143) the first 10 s of 30 long takes took 0.43 s median,
+# 2.2 s p95 and 4.9 s at most (CMU takes, alone in their part of the feature space, cost 16 ms a frame); their
+# first 4 s: 0.12 s median, 0.65 s p95, 1.0 s at most (benchmarks/bench_dashboard.py, REPORT section 12)
+LNG_MAX_SECONDS = 4.0
 MATRIX_K_AT_30HZ = 32  # neighbours per query frame on Fig. 3's small database (similarity_matrices' default)
 MATRIX_DOCS = 3  # documents of the best matches forming the small database of Fig. 3
 SEARCH_KINDS = {"whole clips": "clips", "stretches": "stretches"}
@@ -184,6 +189,19 @@ def graph_k(n_frames: int, fps: float) -> int:
     """
     at_30hz = n_frames * 30.0 / fps
     return min(int(n_frames), round(scaled_k(LNG_K_AT_30HZ, fps) * max(1.0, at_30hz / LNG_REFERENCE_FRAMES)))
+
+
+def graph_span(span, fps: float) -> tuple[int, int]:
+    """The part of a span (start, end; frames, half-open) that the page's lazy neighbourhood graph matches: its first
+    :data:`LNG_MAX_SECONDS` seconds at ``fps`` (all of a shorter span).
+
+    Examples
+    --------
+    >>> graph_span((30, 1000), 30.0), graph_span((30, 100), 30.0), graph_span((0, 1000), 120.0)
+    ((30, 150), (30, 100), (0, 480))
+    """
+    start, end = int(span[0]), int(span[1])
+    return start, min(end, start + round(LNG_MAX_SECONDS * fps))
 
 
 def match_alignment(path: np.ndarray, match_start: int) -> np.ndarray:
@@ -427,17 +445,18 @@ class SimilarityPage(pn.viewable.Viewer):
 
     # ------------------------------------------------------------------ LNG
     def _match_key(self) -> tuple:
-        """(numeric set, document, span, k, K, exclude own) of the matching the widgets ask for."""
+        """(numeric set, document, span, k, K, exclude own) of the matching the widgets ask for: the span's first
+        :data:`LNG_MAX_SECONDS` (:func:`graph_span`)."""
         s = self.selection
-        return (self.numeric_set.value, s.doc, tuple(s.span), self.match_k.value, self.match_count_k.value,
-                self.exclude_own.value)
+        return (self.numeric_set.value, s.doc, graph_span(s.span, self.backend.fps_of(s.doc)), self.match_k.value,
+                self.match_count_k.value, self.exclude_own.value)
 
     def _cached_matches(self, key: tuple) -> pd.DataFrame:
         """The matches of ``key`` (see :meth:`_match_key`), computed once per database."""
         return self.backend.cached(("similarity.lng", *key), lambda: match_span(self.backend, *key))
 
     async def _match(self, event=None) -> None:
-        key = self._match_key()
+        key, asked = self._match_key(), tuple(self.selection.span)
         found = await self.match_task.run("Matching", self._cached_matches, key, busy=self.match_button,
                                           stale=(self.match_count, self.match_table, self.player_box))
         if found is None:
@@ -448,8 +467,11 @@ class SimilarityPage(pn.viewable.Viewer):
         self.match_table.param.update(selection=[], value=hit_columns(found, MATCH_TITLES, MATCH_DECIMALS))
         self.player_box.visible = False
         share = found.attrs["min_length"]
+        cut = asked != span
         self.match_count.object = (f"**{len(found)} matches** of document {doc} frames {_frames(*span)} by {name} "
-                                   f"(k = {k}, K = {n_matches}), each at least {share:g} × the span long "
+                                   + (f"(the span's first {LNG_MAX_SECONDS:g} s: the graph looks up the k nearest "
+                                      "frames of every query frame) " if cut else "")
+                                   + f"(k = {k}, K = {n_matches}), each at least {share:g} × the span long "
                                    f"({shortest_match(share, span[1] - span[0])} frames)"
                                    + (", its own document excluded" if own else "")
                                    + ("; try a larger k" if found.empty else ""))
