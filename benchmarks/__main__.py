@@ -16,7 +16,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 NAMES = ("io", "dask", "relational", "knn", "match", "search", "templates", "scaling", "startup", "descriptions",
-         "integrity")
+         "integrity", "dashboard")
 
 
 class _Tee(io.TextIOBase):
@@ -50,6 +50,7 @@ def main(argv=None) -> int:
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
 
     from . import (
+        bench_dashboard,
         bench_dask,
         bench_descriptions,
         bench_integrity,
@@ -71,7 +72,8 @@ def main(argv=None) -> int:
            for name, mod in (("dask", bench_dask), ("relational", bench_relational), ("knn", bench_knn),
                              ("match", bench_match), ("search", bench_search), ("templates", bench_templates),
                              ("scaling", bench_scaling), ("startup", bench_startup),
-                             ("descriptions", bench_descriptions), ("integrity", bench_integrity))},
+                             ("descriptions", bench_descriptions), ("integrity", bench_integrity),
+                             ("dashboard", bench_dashboard))},
     }  # fmt: skip
     status = 0
     for name in args.only or NAMES:

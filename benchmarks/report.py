@@ -34,6 +34,7 @@ SECTIONS = (
     ("startup", "Start-up: import, --help and one search from a fresh process (bench_startup)"),
     ("descriptions", "Scene descriptions: index vs frame-wise scan (bench_descriptions)"),
     ("integrity", "Checked reads: xxh3 of every block on first read vs sha256 (bench_integrity)"),
+    ("dashboard", "The dashboard's answers on every shared archive at 30 Hz (bench_dashboard)"),
 )
 NOT_RUN = "not run: "  # how the line of a section with no figures begins
 
