@@ -80,6 +80,39 @@ def suggested_features(values: np.ndarray, names: list[str], most: int = SUGGEST
     return picked or list(DEFAULT_FEATURES)
 
 
+def span_features(backend, doc: int, first: int, last: int) -> tuple[np.ndarray, list[str]]:
+    """The relational features (:data:`RELATIONAL_SET`) of frames ``first``..``last`` (inclusive, as the page's span
+    slider shows them) of document ``doc``, computed on that stretch of the clip and cached by the Backend: what
+    :func:`suggested_features` and the query's segments are read from.
+
+    Parameters
+    ----------
+    backend : Backend
+    doc : int
+        Document id.
+    first, last : int
+        Frames of the document, inclusive (at least two frames: the velocity features need two).
+
+    Returns
+    -------
+    values : np.ndarray [shape=(last - first + 1, f)], bool
+    names : list of str
+        The f feature names.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.app.backend import Backend
+    >>> values, names = span_features(Backend(MotionDB.sample()), 10, 0, 214)
+    >>> values.shape == (215, len(names)), values.dtype
+    (True, dtype('bool'))
+    """
+    doc, first, last = int(doc), int(first), int(last)
+    db = backend.db
+    return backend.cached(("relational span", RELATIONAL_SET, doc, first, last),
+                          lambda: relational_features(db.motion(doc)[first:last + 1], RELATIONAL_SET, progress=False))
+
+
 class RelationalPage(pn.viewable.Viewer):
     """Pose a query by example and browse its hits; the query clip and span follow the session's Selection."""
 
@@ -220,13 +253,8 @@ class RelationalPage(pn.viewable.Viewer):
         return max(len(seq.codes) for _, seq in groups.values())
 
     def _span_features(self) -> tuple[np.ndarray, list[str]]:
-        """The relational features of the query span (at least two frames), (T, f) bool and the f names, cached per
-        database."""
-        doc, (first, last) = int(self.doc.value), tuple(int(v) for v in self.span.value)
-        db = self.backend.db
-        return self.backend.cached(("relational span", RELATIONAL_SET, doc, first, last),
-                                   lambda: relational_features(db.motion(doc)[first:last + 1], RELATIONAL_SET,
-                                                               progress=False))
+        """The relational features of the query span (:func:`span_features`)."""
+        return span_features(self.backend, self.doc.value, *self.span.value)
 
     def _bound_mismatches(self) -> None:
         """m from 0 to the query's segments less one (more would be capped to that by the library)."""
