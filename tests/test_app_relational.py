@@ -227,6 +227,27 @@ def test_a_new_clip_ticks_the_features_that_change_least_often_in_it(sample_db):
     assert suggested_features(values[:1].repeat(5, axis=0), names) == list(DEFAULT_FEATURES)  # nothing changes
 
 
+def test_a_new_clip_gets_the_default_m_again_and_the_pages_first_query(sample_db):
+    """A page opened on a one-frame span (m bounded to 0), then given another clip: m is back at its default and
+    the query is the page's first query of that clip (:func:`first_query`), with its hits; the same clip again
+    keeps what the user set."""
+    from mocapviz.app.pages.relational import first_query, search
+
+    backend = Backend.open(sample_db.path)
+    page = RelationalPage(backend, Selection(doc=0, span=(0, 1)))
+    assert page.mismatches.value == 0 and page.query_segments() == 1
+    page.doc.value = 3  # before: m stayed 0, and the query found fewer hits
+    q, first = page.query(), first_query(backend, 3)
+    assert {**q, "features": sorted(q["features"])} == {**first, "features": sorted(first["features"])}
+    assert page.mismatches.value == DEFAULT_MISMATCHES
+    assert len(page.search(q)) == len(search(backend, first)) > len(search(backend, {**first, "mismatches": 0}))
+    features, m = _default_query(sample_db, 3)  # the reference from the clip's own features
+    assert sorted(page.query()["features"]) == sorted(features) and page.mismatches.value == m
+    page.mismatches.value = 0
+    page.first.value = 5  # the same clip, a narrower span: the user's m stays
+    assert page.mismatches.value == 0
+
+
 def test_the_default_query_is_more_precise_than_the_kick_features(hdm05_db30):
     """Every 6th of the 287 HDM05 clips at 30 Hz queried whole: the page's default (suggested features, m-mismatch)
     retrieves documents with a higher mean precision, as the page's quality line judges them, than §6.2's kick

@@ -46,18 +46,6 @@ def served(sample_db, serve_dashboard, tmp_path_factory):
     return url, serve_dashboard.pid_of(url), serve_dashboard.log_of(url), MotionDB.open(copy)
 
 
-def _relational_hits(backend, doc: int, n: int) -> int:
-    """The hits of the Relational query page's default query of the whole clip ``doc`` (``n`` frames, more than
-    one): the features it ticks for a new clip, its default kind of hit and m, asked of the Backend as its Run does.
-    The session opens the page on this clip, so m is the default (the page bounds it by the query's segments less
-    one, to which the library caps it anyway)."""
-    features = relational.suggested_features(*relational.span_features(backend, doc, 0, n - 1))
-    mode = relational.MODES[relational.DEFAULT_MODE]
-    hits = backend.query_by_example(backend.db.motion(doc)[0:n], features, mode, relational.DEFAULT_MISMATCHES,
-                                    relational.RELATIONAL_SET)  # fmt: skip
-    return len(hits)
-
-
 def _queries(db) -> list[Query]:
     """One query per session, with the hit counts the library gives for it."""
     backend = Backend(db)
@@ -66,7 +54,8 @@ def _queries(db) -> list[Query]:
         row = db.document(doc)
         n, k = int(row["n_frames"]), 1 + i % 4
         found = describe.search(backend, describe.EXAMPLE, "2005", k)
-        out.append(Query(doc, str(row["name"]), n, _relational_hits(backend, doc, n), str(row["label"]), k, len(found)))
+        hits = relational.search(backend, relational.first_query(backend, doc))  # what the page's Run shows
+        out.append(Query(doc, str(row["name"]), n, len(hits), str(row["label"]), k, len(found)))
     return out
 
 

@@ -113,6 +113,50 @@ def span_features(backend, doc: int, first: int, last: int) -> tuple[np.ndarray,
                           lambda: relational_features(db.motion(doc)[first:last + 1], RELATIONAL_SET, progress=False))
 
 
+def search(backend, q: dict) -> pd.DataFrame:
+    """The ranked hits of the query ``q`` of the page (:meth:`RelationalPage.query`, :func:`first_query`):
+    :func:`mocapviz.relational.query.query_by_example` of its span over the Backend's indexes, cached per database.
+
+    Parameters
+    ----------
+    backend : Backend
+    q : dict
+        doc (document id), span ((start, end) frames of the document, half-open), features (names of
+        :data:`RELATIONAL_SET`), mode (a value of :data:`MODES`), mismatches (m, for the mismatch mode).
+
+    Returns
+    -------
+    pd.DataFrame, the hit table, best first (start, end: frames of the document, half-open), with ``score``.
+    """
+    key = ("relational query", RELATIONAL_SET, q["doc"], tuple(q["span"]), tuple(sorted(q["features"])), q["mode"],
+           q["mismatches"] if q["mode"] == "mismatch" else 0)
+    start, end = q["span"]
+    return backend.cached(key, lambda: backend.query_by_example(backend.db.motion(q["doc"])[start:end], q["features"],
+                                                                q["mode"], q["mismatches"], RELATIONAL_SET))
+
+
+def first_query(backend, doc: int) -> dict:
+    """The query the page poses when clip ``doc`` is chosen: the whole clip, its :func:`suggested_features`
+    (:data:`DEFAULT_FEATURES` for a clip of one frame), :data:`DEFAULT_MODE` with m = :data:`DEFAULT_MISMATCHES`.
+
+    Returns
+    -------
+    dict, as :meth:`RelationalPage.query` (span half-open).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.app.backend import Backend
+    >>> q = first_query(Backend(MotionDB.sample()), 7)
+    >>> q["span"], q["mode"], q["mismatches"], len(q["features"]) <= SUGGESTED
+    ((0, 129), 'mismatch', 1, True)
+    """
+    n = int(backend.db.document(doc)["n_frames"])
+    features = suggested_features(*span_features(backend, doc, 0, n - 1)) if n > 1 else list(DEFAULT_FEATURES)
+    return {"doc": int(doc), "span": (0, n), "features": features, "mode": MODES[DEFAULT_MODE],
+            "mismatches": DEFAULT_MISMATCHES}
+
+
 class RelationalPage(pn.viewable.Viewer):
     """Pose a query by example and browse its hits; the query clip and span follow the session's Selection."""
 
@@ -196,11 +240,12 @@ class RelationalPage(pn.viewable.Viewer):
             self.span.param.update(start=0, end=max(n - 1, 1), value=(first, last))
             self.first.set_bounds(0, n - 1, first)
             self.last.set_bounds(0, n - 1, last)
-            if doc != self._ticked_for:  # a new clip: tick the features that suit its span
+            if doc != self._ticked_for:  # a new clip: tick the features that suit its span, m back to its default
                 self._ticked_for = doc
                 chosen = suggested_features(*self._span_features()) if last > first else DEFAULT_FEATURES
                 for w in self.features.values():
                     w.value = [name for name in w.options if name in chosen]
+                self.mismatches.set_bounds(0, self.query_segments() - 1, DEFAULT_MISMATCHES)
         finally:
             self._syncing = False
         self._span_changed()
@@ -279,13 +324,8 @@ class RelationalPage(pn.viewable.Viewer):
         return None
 
     def search(self, q: dict) -> pd.DataFrame:
-        """The ranked hits of ``q`` (:func:`mocapviz.relational.query.query_by_example`), cached per database."""
-        key = ("relational query", RELATIONAL_SET, q["doc"], q["span"], tuple(sorted(q["features"])), q["mode"],
-               q["mismatches"] if q["mode"] == "mismatch" else 0)
-        start, end = q["span"]
-        db = self.backend.db
-        return self.backend.cached(key, lambda: self.backend.query_by_example(
-            db.motion(q["doc"])[start:end], q["features"], q["mode"], q["mismatches"], RELATIONAL_SET))
+        """The ranked hits of ``q`` (:func:`search`)."""
+        return search(self.backend, q)
 
     async def _on_run(self, event=None) -> None:
         q = self.query()

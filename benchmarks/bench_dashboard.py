@@ -1,0 +1,160 @@
+"""The dashboard's answers on every shared archive (issue 28 scope 1: every query answers in <= 1 s after start-up):
+the computations behind each page's answer, run as the pages run them (their module functions, their defaults), in
+one process after the server's warm-up (:func:`mocapviz.app.warm_up`), on the database of every shared archive at
+30 Hz (``DATABASE``: 3,395 documents, 446,551 frames). No browser: what a page adds (drawing the table's first page,
+the player) is measured by the browser tests (``build/test-artifacts/dashboard/timings.json``).
+
+Each kind of answer is asked for ``QUERIES`` different clips (classes for templates, shipped descriptions for the
+Describe page), each once (no answer cached before), seeded; median, 95th percentile and maximum reported against the
+1 s target, with a baseline in the same run where the page now does less than it did:
+
+- **search**: whole clips, exact DTW (the page's default), the whole clip as the span;
+- **kNN**: the 256 nearest frames of the clip's first frame, its own document excluded;
+- **LNG**: the lazy neighbourhood graph with the page's k (:func:`~mocapviz.app.pages.similarity.graph_k`) on the
+  span's first ``LNG_MAX_SECONDS`` (:func:`~mocapviz.app.pages.similarity.graph_span`) of takes of at least 10 s;
+  baseline: their first 10 s (the graph's k-NN of every query frame is most of its time);
+- **relational**: the page's query by example on the whole clip (its suggested features, mode and mismatches);
+- **template**: learn the class's template from at most 16 of its documents and search it (the page's δ and K);
+  baseline: the same template searched by the plain subsequence DTW of Müller & Röder 2006 (every frame aligned,
+  no bound on the template rows per frame: ``find_instances(..., max_rows=0)``, the library's DTW kernel over the
+  full distance matrix);
+- **describe**: each shipped scene description found through the 2005 indexes (the page's K).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .common import (
+    REPO,
+    BenchDB,
+    CpuMonitor,
+    benchmark_db,
+    describe_db,
+    header,
+    log,
+    machine_info,
+    markdown,
+    write_results_csv,
+)
+from .common import fmt as _f
+
+DATABASE = BenchDB("dashboard-30hz", fps=30.0, min_frames=0)  # the shared archives alone: no derived copies
+QUERIES = 20  # clips (or classes) per kind of answer; 5 with --quick
+LONG_S = 10.0  # the LNG queries are takes of at least this many seconds; the baseline matches their first LONG_S
+TARGET_S = 1.0
+SEED = 0
+
+
+def _seconds(fn, *args) -> float:
+    t0 = time.perf_counter()
+    fn(*args)
+    return time.perf_counter() - t0
+
+
+def _row(kind: str, what: str, times: list[float], note: str = "") -> dict:
+    t = np.asarray(times, dtype=np.float64)
+    return {"kind": kind, "what": what, "queries": len(t), "median_s": float(np.median(t)),
+            "p95_s": float(np.percentile(t, 95)), "max_s": float(t.max()), "note": note}  # fmt: skip
+
+
+def _answers(backend, n_queries: int) -> list[dict]:
+    """Every kind of answer, timed: the rows of the report's table."""
+    from mocapviz.app.pages import describe, relational, similarity, templates
+    from mocapviz.relational.description import named_descriptions
+    from mocapviz.relational.templates import find_instances
+
+    db, rng = backend.db, np.random.default_rng(SEED)
+    docs = backend.documents
+    picked = docs.iloc[np.sort(rng.choice(len(docs), n_queries, replace=False))]
+    clips = [(int(d), int(n)) for d, n in zip(picked["doc_id"], picked["n_frames"])]
+    rows = []
+    log("search, kNN, relational")
+    rows.append(_row("search", "whole clips, exact DTW, the whole clip", [
+        _seconds(similarity.search_span, backend, "F15E", d, (0, n), "clips", "exact", 10, True) for d, n in clips]))
+    rows.append(_row("kNN", "256 nearest frames of the clip's first frame", [
+        _seconds(similarity.nearest_frames, backend, "F15E", d, 0, 256, True) for d, _ in clips]))
+    rows.append(_row("relational", "query by example of the whole clip (the page's suggested features)", [
+        _seconds(lambda d=d: relational.search(backend, relational.first_query(backend, d))) for d, _ in clips]))
+
+    log("LNG")
+    k = similarity.graph_k(db.n_frames, backend.fps)
+    long = docs[docs["n_frames"] >= LONG_S * docs["fps"]]
+    long = long.iloc[np.sort(rng.choice(len(long), min(n_queries, len(long)), replace=False))]
+    spans = [(int(d), int(n), float(f)) for d, n, f in zip(long["doc_id"], long["n_frames"], long["fps"])]
+    rows.append(_row("LNG", f"the span's first {similarity.LNG_MAX_SECONDS:g} s of takes of >= {LONG_S:g} s, k = {k:,}",
+                     [_seconds(similarity.match_span, backend, "F15E", d, similarity.graph_span((0, n), f), k, 10, True)
+                      for d, n, f in spans]))  # fmt: skip
+    rows.append(_row("LNG", f"baseline: their first {LONG_S:g} s", [
+        _seconds(similarity.match_span, backend, "F15E", d, (0, round(LONG_S * f)), k, 10, True)
+        for d, _, f in spans]))
+
+    log("templates")
+    classes = templates.class_options(docs)
+    classes = [classes[i] for i in np.sort(rng.choice(len(classes), min(n_queries, len(classes)), replace=False))]
+    values, _ = templates.database_features(backend, "2006")
+    starts = docs["start"].to_numpy()
+    ours, plain, rows_of = [], [], []
+    for label in classes:
+        t0 = time.perf_counter()
+        template, _ = templates.learn_and_search(backend, label, (), "2006", templates.DEFAULT_DELTA,
+                                                 templates.DEFAULT_MATCHES, None)  # fmt: skip
+        ours.append(time.perf_counter() - t0)
+        rows_of.append(len(template.values))
+        plain.append(_seconds(lambda t=template: find_instances(t, values, starts, templates.DEFAULT_MATCHES,
+                                                                templates.DEFAULT_DELTA, max_rows=0)))  # fmt: skip
+    size = f"{min(rows_of)}–{max(rows_of)} template rows"
+    rows.append(_row("template", f"learn (<= {templates.MAX_EXAMPLES} examples) and search, {size}", ours))
+    rows.append(_row("template", "baseline: search alone by plain subsequence DTW (full distance matrix)", plain))
+
+    log("descriptions")
+    rows.append(_row("describe", "each shipped description, K = 20", [
+        _seconds(describe.search, backend, name, "2005", describe.DEFAULT_MATCHES) for name in sorted(named_descriptions("2005"))]))
+    return rows
+
+
+def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> int:
+    """``repeats`` is not used: every query is asked once (a second time would be answered from the cache)."""
+    os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
+    from mocapviz.app import warm_up
+    from mocapviz.app.backend import Backend
+
+    t_start = time.perf_counter()
+    monitor, info = CpuMonitor(), machine_info()
+    db, record = benchmark_db(DATABASE, quick)
+    notes = describe_db(db, record)
+    backend = Backend(db)
+    log("warm-up (as `mocapviz serve` before it listens)")
+    t0 = time.perf_counter()
+    warmed = warm_up(backend)
+    t_warm = time.perf_counter() - t0
+    rows = _answers(backend, 5 if quick else QUERIES)
+    info["others"] = monitor.report()
+    table = pd.DataFrame(rows)
+    notes += [f"start-up: `warm_up` {t_warm:.1f} s (" + ", ".join(f"{k} {v:.1f}" for k, v in warmed.items())
+              + " s; the relational indexes and numeric features built and stored the first time)",
+              (f"each kind: {QUERIES if not quick else 5} queries (seed {SEED}), each asked once, after the "
+               f"warm-up; target: every answer <= {TARGET_S:g} s")]  # fmt: skip
+    print(header("### The dashboard's answers on every shared archive at 30 Hz (bench_dashboard)", info,
+                 ("numpy", "numba"), notes))  # fmt: skip
+    print()
+    print(markdown("| answer | what | queries | median s | p95 s | max s | <= 1 s |", "|---|---|---:|---:|---:|---:|---|",
+                   [[r["kind"], r["what"], str(r["queries"]), _f(r["median_s"]), _f(r["p95_s"]), _f(r["max_s"]),
+                     "—" if r["what"].startswith("baseline") else ("yes" if r["max_s"] <= TARGET_S else
+                                                                    f"p95 {'yes' if r['p95_s'] <= TARGET_S else 'NO'}, max NO")]
+                    for r in rows]))  # fmt: skip
+    print()
+    csv = (out_dir or REPO / "benchmarks" / "results") / f"dashboard{'-quick' if quick else ''}.csv"
+    write_results_csv(csv, {"answers": table}, info)
+    print(f"CSV: benchmarks/results/{csv.name}; total benchmark time {time.perf_counter() - t_start:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(quick="--quick" in sys.argv))
