@@ -178,6 +178,15 @@ def test_bounded_costs_count_mismatches_over_any_number_of_feature_words(n_featu
     ok = np.isfinite(want)
     assert (doc[first[ok]] == doc[ok]).all() and (first[ok] <= np.arange(len(x))[ok]).all()
     assert (first[~ok] == -1).all()
+    # documents shorter than `least` frames are left out (inf, -1), the others' costs unchanged
+    least = 8
+    skipped, skipped_first = _bounded_costs(q, x, starts, 3, least)
+    all_docs, all_first = _bounded_costs(q, x, starts, 3)
+    short = np.diff(np.r_[starts, len(x)])[doc] < least
+    assert short.any() and (~short).any()
+    assert np.isinf(skipped[short]).all() and (skipped_first[short] == -1).all()
+    np.testing.assert_array_equal(skipped[~short], all_docs[~short])
+    np.testing.assert_array_equal(skipped_first[~short], all_first[~short])
 
 
 def test_a_feature_one_group_does_otherwise_is_dont_care_when_learned_by_group():

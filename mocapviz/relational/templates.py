@@ -619,30 +619,35 @@ def _costs(template, q, x, starts, min_frames, max_rows=None) -> tuple[np.ndarra
     if rows == 0 or rows >= len(q):
         cost, first = subsequence_costs(q, x, starts, distance=quantised_distance)
     else:
-        cost, first = _bounded_costs(q, x, starts, rows)
+        cost, first = _bounded_costs(q, x, starts, rows, least)
     cost[np.arange(len(cost)) - first + 1 < least] = np.inf
     return cost, first
 
 
-def _bounded_costs(q, x, starts, max_rows: int) -> tuple[np.ndarray, np.ndarray]:
+def _bounded_costs(q, x, starts, max_rows: int, least: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """(cost, first) per end frame of subsequence DTW with the basic steps (every aligned cell pays its
-    :func:`quantised_distance`) whose path takes at most ``max_rows`` template rows on any one database frame.
+    :func:`quantised_distance`) whose path takes at most ``max_rows`` template rows on any one database frame; inf
+    (and -1) throughout a document of fewer than ``least`` frames, where no alignment spanning ``least`` frames ends.
 
     The frames' features and the template rows are packed into 64-bit words (:func:`_bit_rows`), so a cell's
-    cost is a count of set bits; runs of whole documents go to threads (:func:`mocapviz.parallel.map_ordered`)."""
+    cost is a count of set bits; the documents of at least ``least`` frames are aligned, in groups of about equal
+    frames on threads (:func:`mocapviz.parallel.map_ordered`)."""
     x = np.asarray(x)
     n = len(x)
-    doc_starts = _check_document_starts(starts, n)
+    bounds = np.r_[_check_document_starts(starts, n), n]
+    docs = np.column_stack([bounds[:-1], bounds[1:]])
+    docs = docs[docs[:, 1] - docs[:, 0] >= least]
     frames = _bit_rows(x != 0)
     values, care = _bit_rows(q == 1.0), _bit_rows(q != DONT_CARE)
     cared = (q != DONT_CARE).sum(axis=1).astype(np.float64)
-    cost, first = np.empty(n), np.empty(n, dtype=np.int64)
-    bounds = np.r_[doc_starts, n]
-    # about 4 runs per thread, each of whole documents, cut near equal shares of the frames
-    cuts = np.unique(bounds[np.searchsorted(bounds, np.linspace(0, n, 4 * default_threads() + 1), side="left")])
-    runs = [(int(a), int(z)) for a, z in itertools.pairwise(cuts)]
-    for _ in map_ordered(lambda run: _bounded_run(frames, values, care, cared, doc_starts, run[0], run[1], max_rows,
-                                                  cost, first), runs, name="mocapviz-template"):  # fmt: skip
+    cost, first = np.full(n, np.inf), np.full(n, -1, dtype=np.int64)
+    # about 4 groups per thread, cut near equal shares of the aligned frames
+    done = np.cumsum(docs[:, 1] - docs[:, 0])
+    cuts = np.unique(np.searchsorted(done, np.linspace(0, done[-1] if len(done) else 0, 4 * default_threads() + 1)[1:],
+                                     side="left") + 1)  # fmt: skip
+    groups = [docs[a:z] for a, z in itertools.pairwise(np.r_[0, np.minimum(cuts, len(docs))]) if z > a]
+    for _ in map_ordered(lambda group: _bounded_run(frames, values, care, cared, group, max_rows, cost, first), groups,
+                         name="mocapviz-template"):  # fmt: skip
         pass
     first[~np.isfinite(cost)] = -1
     return cost, first
@@ -668,48 +673,54 @@ def _set_bits(v):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def _bounded_run(frames, values, care, cared, doc_starts, a, z, max_rows, cost, first):  # pragma: no cover
-    """Frames a..z-1 (whole documents) of :func:`_bounded_costs`, written into ``cost`` / ``first``. A frame's cost
-    against template row i is its mismatches on the row's cared-for features (``care``; ``values`` the 1 entries)
-    over their number ``cared[i]`` (0 when it cares for none). A cell (i, j) is reached by a run of r <=
-    max_rows rows i - r + 1 .. i on frame j, entered from frame j - 1 at row i - r (diagonally) or at row i - r + 1
-    (that row held), or started at row 0; each cell of the run pays its cost."""
-    m, w = values.shape
+def _bounded_run(frames, values, care, cared, docs, max_rows, cost, first):  # pragma: no cover
+    """The documents ``docs`` ((r, 2) [start, stop) frames) of :func:`_bounded_costs`, written into ``cost`` /
+    ``first``. A frame's cost against template row i is its mismatches on the row's cared-for features (``care``;
+    ``values`` the 1 entries) over their number ``cared[i]`` (0 when it cares for none). A cell (i, j) is reached by
+    a run of r <= max_rows rows i - r + 1 .. i on frame j, entered from frame j - 1 at row i - r (diagonally) or at
+    row i - r + 1 (that row held), or started at row 0; each cell of the run pays its cost."""
+    m = values.shape[0]
     local, enter, enter_first = np.empty(m), np.empty(m), np.empty(m, dtype=np.int64)
     prev, prev_first = np.empty(m), np.empty(m, dtype=np.int64)
     acc, start = np.empty(m), np.empty(m, dtype=np.int64)
-    d = np.searchsorted(doc_starts, a, side="right")  # the next document start after frame a
-    for j in range(a, z):
-        same = j > a
-        if d < len(doc_starts) and doc_starts[d] == j:
-            same = False
-            d += 1
-        for i in range(m):
-            bad = 0
-            for k in range(w):
-                bad += _set_bits((frames[j, k] ^ values[i, k]) & care[i, k])
-            local[i] = bad / cared[i] if cared[i] > 0 else 0.0
-        # the cheapest way into row r0 of frame j before its run: a start (row 0) or from frame j - 1 at row r0
-        # (held) or r0 - 1 (diagonal), the held row winning ties
-        enter[0], enter_first[0] = 0.0, j
-        for r0 in range(1, m):
-            enter[r0], enter_first[r0] = np.inf, -1
-            if same:
-                if prev[r0 - 1] < prev[r0]:
-                    enter[r0], enter_first[r0] = prev[r0 - 1], prev_first[r0 - 1]
-                else:
-                    enter[r0], enter_first[r0] = prev[r0], prev_first[r0]
-        for i in range(m):
-            best, src, run = np.inf, -1, 0.0
-            for r in range(1, min(max_rows, i + 1) + 1):
-                r0 = i - r + 1
-                run += local[r0]
-                if enter[r0] + run < best:
-                    best, src = enter[r0] + run, enter_first[r0]
-            acc[i], start[i] = best, src
-        cost[j], first[j] = acc[m - 1], start[m - 1]
-        prev[:] = acc
-        prev_first[:] = start
+    for d in range(len(docs)):
+        for j in range(docs[d, 0], docs[d, 1]):
+            _bounded_frame(frames, values, care, cared, j, j > docs[d, 0], max_rows, local, enter, enter_first,
+                           prev, prev_first, acc, start)
+            cost[j], first[j] = acc[m - 1], start[m - 1]
+            prev[:] = acc
+            prev_first[:] = start
+
+
+@numba.njit(cache=True, nogil=True)
+def _bounded_frame(frames, values, care, cared, j, same, max_rows, local, enter, enter_first, prev, prev_first, acc,
+                   start):  # pragma: no cover  # fmt: skip
+    """Frame j of :func:`_bounded_run`: ``acc`` / ``start`` (the cost and path start of every template row ending
+    on frame j) from ``prev`` / ``prev_first`` (frame j - 1's, used when ``same``: j is not its document's first)."""
+    m, w = values.shape
+    for i in range(m):
+        bad = 0
+        for k in range(w):
+            bad += _set_bits((frames[j, k] ^ values[i, k]) & care[i, k])
+        local[i] = bad / cared[i] if cared[i] > 0 else 0.0
+    # the cheapest way into row r0 of frame j before its run: a start (row 0) or from frame j - 1 at row r0
+    # (held) or r0 - 1 (diagonal), the held row winning ties
+    enter[0], enter_first[0] = 0.0, j
+    for r0 in range(1, m):
+        enter[r0], enter_first[r0] = np.inf, -1
+        if same:
+            if prev[r0 - 1] < prev[r0]:
+                enter[r0], enter_first[r0] = prev[r0 - 1], prev_first[r0 - 1]
+            else:
+                enter[r0], enter_first[r0] = prev[r0], prev_first[r0]
+    for i in range(m):
+        best, src, run = np.inf, -1, 0.0
+        for r in range(1, min(max_rows, i + 1) + 1):
+            r0 = i - r + 1
+            run += local[r0]
+            if enter[r0] + run < best:
+                best, src = enter[r0] + run, enter_first[r0]
+        acc[i], start[i] = best, src
 
 
 def document_costs(template: MotionTemplate, values: np.ndarray, starts, delta: float = DELTA,
