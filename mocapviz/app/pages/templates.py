@@ -12,6 +12,8 @@ training example of the template, the two aligned by DTW of their relational fea
 
 from __future__ import annotations
 
+import asyncio
+
 import numpy as np
 import pandas as pd
 import panel as pn
@@ -331,10 +333,9 @@ class TemplatesPage(pn.viewable.Viewer):
         if result is None:
             self.template, self.hits = None, None
             return
-        label, actors, relational_set, delta, n_matches, max_cost = inputs
+        label, _, _, delta, n_matches, max_cost = inputs
         self.template, self.hits, self.delta_used = *result, delta
         self.summary.object = template_summary(self.template, delta)
-        self._draw()
         self.table.param.update(selection=[], value=hits_view(self.hits))
         self.player_box.visible, self.playing.object = False, PLAY_HINT
         n = len(self.hits)
@@ -342,6 +343,8 @@ class TemplatesPage(pn.viewable.Viewer):
                              f"(K = {n_matches}" + (f", cost / frame ≤ {max_cost:g}" if max_cost is not None else "")
                              + ")" + ("; try a larger max cost" if self.hits.empty else "")
                              + tie_note(self.hits, delta))  # fmt: skip
+        await asyncio.sleep(0)  # let the hits and their count reach the browser before the template is drawn
+        self._draw()
 
     def _draw(self) -> None:
         if self.template is not None:
