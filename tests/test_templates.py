@@ -157,6 +157,19 @@ def test_bounded_rows_is_plain_subsequence_dtw_when_unbounded_and_stops_pile_ups
     assert find_instances(slow, A, None, min_frames=1, max_rows=2).empty  # 12 rows on 3 frames: not
 
 
+@pytest.mark.parametrize("n_features", [1, 39, 64, 65, 130])
+def test_bit_rows_set_bit_c_of_word_c_over_64_block_by_block(n_features):
+    """Packed rows against a bit-by-bit reference, with blocks that do not divide the rows, bool or numbers."""
+    from mocapviz.relational.templates import _bit_rows
+
+    x = np.random.default_rng(n_features).random((1000, n_features)) < 0.5
+    want = np.zeros((1000, -(-n_features // 64)), dtype=np.uint64)
+    for c in range(n_features):
+        want[:, c // 64] |= x[:, c].astype(np.uint64) << np.uint64(c % 64)
+    np.testing.assert_array_equal(_bit_rows(x, block=97), want)
+    np.testing.assert_array_equal(_bit_rows(x.astype(np.float32)), want)
+
+
 @pytest.mark.parametrize("n_features", [1, 63, 64, 65, 130])
 def test_bounded_costs_count_mismatches_over_any_number_of_feature_words(n_features):
     """The packed 64-bit words of the row-bounded DTW give the masked mean of :func:`quantised_distance` at any

@@ -637,7 +637,7 @@ def _bounded_costs(q, x, starts, max_rows: int, least: int = 1) -> tuple[np.ndar
     bounds = np.r_[_check_document_starts(starts, n), n]
     docs = np.column_stack([bounds[:-1], bounds[1:]])
     docs = docs[docs[:, 1] - docs[:, 0] >= least]
-    frames = _bit_rows(x != 0)
+    frames = _bit_rows(x)
     values, care = _bit_rows(q == 1.0), _bit_rows(q != DONT_CARE)
     cared = (q != DONT_CARE).sum(axis=1).astype(np.float64)
     cost, first = np.full(n, np.inf), np.full(n, -1, dtype=np.int64)
@@ -653,14 +653,18 @@ def _bounded_costs(q, x, starts, max_rows: int, least: int = 1) -> tuple[np.ndar
     return cost, first
 
 
-def _bit_rows(flags: np.ndarray) -> np.ndarray:
-    """(r, f) bool as (r, w) uint64, bit c of word c // 64 = column c (w = ceil(f / 64), at least 1)."""
+def _bit_rows(flags: np.ndarray, block: int = 1 << 20) -> np.ndarray:
+    """(r, f) flags (bool, or numbers: nonzero is set) as (r, w) uint64, bit c of word c // 64 = column c (w =
+    ceil(f / 64), at least 1); packed ``block`` rows at a time, so that no temporary copy of all the rows is made."""
     r, f = flags.shape
     width = max(1, -(-f // 64))
-    packed = np.packbits(flags, axis=1, bitorder="little")
-    words = np.zeros((r, 8 * width), dtype=np.uint8)
-    words[:, : packed.shape[1]] = packed
-    return words.view("<u8").astype(np.uint64)
+    words = np.zeros((r, width), dtype="<u8")
+    as_bytes = words.view(np.uint8).reshape(r, 8 * width)
+    for a in range(0, r, block):
+        part = flags[a : a + block]
+        packed = np.packbits(part if part.dtype == bool else part != 0, axis=1, bitorder="little")
+        as_bytes[a : a + block, : packed.shape[1]] = packed
+    return words.astype(np.uint64, copy=False)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
