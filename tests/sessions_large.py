@@ -6,7 +6,8 @@ Serves DB with ``mocapviz serve`` in a subprocess (its warm-up included; the scr
 documents of the document browser's first page with the answers the library gives for it (as
 tests/test_app_sessions.py does on the sample), and prints the seconds of every kind of answer (first session alone;
 p50 / p95 of the simultaneous ones), the errors, the server's RSS, and the CPU seconds the server and the whole
-machine (the browsers included) used while the simultaneous sessions ran. Writes them as JSON to
+machine (the browsers included) used while the simultaneous sessions ran, and the answers the server kept for the
+next sessions once they closed (from its log). Writes them as JSON to
 build/test-artifacts/dashboard/sessions-large.json. Needs Debian's Chromium (``/usr/bin/chromium``).
 """
 
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import subprocess
 import sys
 import time
@@ -97,12 +99,14 @@ def main(argv=None) -> int:
     finally:
         proc.terminate()
         proc.wait(timeout=30)
+    kept = re.findall(r"(\d+) answers kept for the next sessions \(([\d.]+) MB\)", log.read_text())
     out = {"database": str(args.db), "sessions": args.sessions, "serve_ready_s": round(started, 1),
            "alone_s": {k: round(alone.seconds[k][0], 3) for k in KINDS},
            "p50_s": {k: round(many.percentile(k, 50), 3) for k in KINDS},
            "p95_s": {k: round(many.percentile(k, 95), 3) for k in KINDS},
            "errors": alone.errors + many.errors, "server_rss_mb": {k: round(v) for k, v in rss.items()},
-           "simultaneous_cpu": {k: round(v, 1) for k, v in cpu.items()}}  # fmt: skip
+           "simultaneous_cpu": {k: round(v, 1) for k, v in cpu.items()},
+           "answers_kept_after_close": {"answers": int(kept[-1][0]), "mb": float(kept[-1][1])} if kept else None}  # fmt: skip
     (ARTIFACTS / "sessions-large.json").write_text(json.dumps(out, indent=1))
     print(json.dumps(out, indent=1))
     return 1 if out["errors"] else 0

@@ -44,7 +44,7 @@ from tornado.web import RequestHandler
 
 from ..errors import MocapvizError, ParameterError
 from ..validation import parse_port
-from .backend import Backend
+from .backend import Backend, answers_in_memory
 from .jobs import on_session_closed, release_memory
 from .state import Selection
 
@@ -141,7 +141,9 @@ def session_closed() -> None:
 
 def _release() -> None:
     release_memory()
-    LOG.info("memory released: %d dashboard(s) in memory, %d session(s) open", len(_DASHBOARDS), _SESSIONS["open"])
+    answers, size = answers_in_memory()
+    LOG.info("memory released: %d dashboard(s) in memory, %d session(s) open; %d answers kept for the next "
+             "sessions (%.1f MB)", len(_DASHBOARDS), _SESSIONS["open"], answers, size / 1e6)
 
 
 WARM_SPAN = 12  # frames of the small queries of the warm-up

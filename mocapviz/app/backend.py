@@ -11,6 +11,7 @@ with every query ever asked.
 
 from __future__ import annotations
 
+import sys
 import threading
 from collections import OrderedDict
 from pathlib import Path
@@ -33,6 +34,28 @@ DERIVED = frozenset({"indexes", "relational", "numeric", "knn", "search", "templ
                      "correlations", "retrieval"})  # fmt: skip
 ANSWERS_KEPT = {"recon-prior": 4, "reconstruction": 16}  # answers kept of these kinds (each holds kd-trees, clips)
 DEFAULT_ANSWERS_KEPT = 256  # answers kept of any other kind (hit tables, neighbours, images: small)
+
+
+def _size(value, depth: int = 1) -> int:
+    """Bytes of an answer: numpy arrays and pandas tables by their buffers, ``depth`` levels into tuples, lists and
+    dicts, anything else by ``sys.getsizeof``."""
+    if isinstance(value, np.ndarray):
+        return int(value.nbytes)
+    if isinstance(value, pd.DataFrame):
+        return int(value.memory_usage(deep=True).sum())
+    if isinstance(value, pd.Series):
+        return int(value.memory_usage(deep=True))
+    if depth and isinstance(value, (tuple, list, dict)):
+        return sum(_size(v, depth - 1) for v in (value.values() if isinstance(value, dict) else value))
+    return sys.getsizeof(value)
+
+
+def answers_in_memory() -> tuple[int, int]:
+    """(answers, bytes) kept by every Backend of this process (:meth:`Backend.kept_answers`)."""
+    with _OPEN_LOCK:
+        backends = list(_BACKENDS.values())
+    counts = [b.kept_answers() for b in backends]
+    return sum(n for n, _ in counts), sum(size for _, size in counts)
 
 
 def answers_kept(key) -> int | None:
@@ -143,6 +166,24 @@ class Backend:
 
     def is_cached(self, key) -> bool:
         return key in self._results
+
+    def kept_answers(self) -> tuple[int, int]:
+        """(answers, bytes) of the single-query answers kept for the next session (:func:`answers_kept` of their
+        kinds; the whole-database data of :data:`DERIVED` left out): arrays and tables counted by their buffers,
+        one level into tuples, lists and dicts, anything else by ``sys.getsizeof``.
+
+        Examples
+        --------
+        >>> from mocapviz import MotionDB
+        >>> b = Backend(MotionDB.sample())
+        >>> _ = b.cached(("answer", 1), lambda: np.zeros(1000))
+        >>> _ = b.cached(("numeric", "x"), lambda: np.zeros(5000))  # derived data: not an answer
+        >>> b.kept_answers()
+        (1, 8000)
+        """
+        with self._guard:
+            answers = [value for key, value in self._results.items() if answers_kept(key) is not None]
+        return len(answers), sum(_size(v) for v in answers)
 
     # ------------------------------------------------------------------ derived data
     def indexes(self, relational_set: str = "2005") -> dict:
