@@ -78,6 +78,9 @@ def main(argv=None) -> int:
     parser.add_argument("db", type=Path)
     parser.add_argument("--sessions", type=int, default=8)
     parser.add_argument("--port", type=int, default=5099)
+    parser.add_argument("--rounds", type=int, default=1,
+                        help="rounds of the simultaneous sessions (the same queries): the server's RSS after each "
+                             "round closed shows whether closed sessions' memory is reused")
     args = parser.parse_args(argv)
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     log = ARTIFACTS / "sessions-large-server.log"
@@ -96,6 +99,11 @@ def main(argv=None) -> int:
                "machine_cpu_s": cpu_seconds() - machine0}
         time.sleep(25)  # the server drops closed sessions about 17 s after their browsers went
         rss["closed"] = rss_mb(proc.pid)
+        for i in range(2, args.rounds + 1):
+            again = run_sessions(chromium, CHROMIUM_ARGS, url, qs)
+            many.errors.extend(again.errors)
+            time.sleep(25)
+            rss[f"closed_after_round_{i}"] = rss_mb(proc.pid)
     finally:
         proc.terminate()
         proc.wait(timeout=30)
