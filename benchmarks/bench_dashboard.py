@@ -138,7 +138,7 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     info["others"] = monitor.report()
     table = pd.DataFrame(rows)
     notes += [f"start-up: `warm_up` {t_warm:.1f} s (" + ", ".join(f"{k} {v:.1f}" for k, v in warmed.items())
-              + " s; the relational indexes and numeric features built and stored the first time)",
+              + " s; on a new database it also builds and stores the relational indexes)",
               (f"each kind: {QUERIES if not quick else 5} queries (seed {SEED}), each asked once, after the "
                f"warm-up; target: every answer <= {TARGET_S:g} s")]  # fmt: skip
     print(header("### The dashboard's answers on every shared archive at 30 Hz (bench_dashboard)", info,

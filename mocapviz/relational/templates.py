@@ -55,7 +55,6 @@ default and both switchable off:
 
 from __future__ import annotations
 
-import itertools
 import json
 import re
 import time
@@ -641,14 +640,12 @@ def _bounded_costs(q, x, starts, max_rows: int, least: int = 1) -> tuple[np.ndar
     values, care = _bit_rows(q == 1.0), _bit_rows(q != DONT_CARE)
     cared = (q != DONT_CARE).sum(axis=1).astype(np.float64)
     cost, first = np.full(n, np.inf), np.full(n, -1, dtype=np.int64)
-    # about 4 groups per thread, cut near equal shares of the aligned frames
+    # about 4 groups per thread, cut after the documents where equal shares of the aligned frames end
     done = np.cumsum(docs[:, 1] - docs[:, 0])
-    cuts = np.unique(np.searchsorted(done, np.linspace(0, done[-1] if len(done) else 0, 4 * default_threads() + 1)[1:],
-                                     side="left") + 1)  # fmt: skip
-    groups = [docs[a:z] for a, z in itertools.pairwise(np.r_[0, np.minimum(cuts, len(docs))]) if z > a]
-    for _ in map_ordered(lambda group: _bounded_run(frames, values, care, cared, group, max_rows, cost, first), groups,
-                         name="mocapviz-template"):  # fmt: skip
-        pass
+    shares = np.linspace(0, done[-1] if len(done) else 0, 4 * default_threads() + 1)[1:-1]
+    groups = [g for g in np.split(docs, np.unique(np.searchsorted(done, shares) + 1)) if len(g)]
+    list(map_ordered(lambda group: _bounded_run(frames, values, care, cared, group, max_rows, cost, first), groups,
+                     name="mocapviz-template"))  # fmt: skip
     first[~np.isfinite(cost)] = -1
     return cost, first
 

@@ -45,9 +45,9 @@ MAX_MATRIX_CELLS = 600_000  # query frames x small-database frames of the Fig. 3
 LNG_K_AT_30HZ = 256  # neighbours per query frame of §4.2's experiments (scaled with the frame rate and the size)
 LNG_REFERENCE_FRAMES = 100_000  # frames at 30 Hz up to which LNG_K_AT_30HZ finds matches (graph_k)
 # the graph matches at most the span's first this many seconds (graph_span): its k-NN of every query frame is most of
-# its time, and on every shared archive at 30 Hz (k = 1,143) the first 10 s of 30 long takes took 0.43 s median,
-# 2.2 s p95 and 4.9 s at most (CMU takes, alone in their part of the feature space, cost 16 ms a frame); their
-# first 4 s: 0.12 s median, 0.65 s p95, 1.0 s at most (benchmarks/bench_dashboard.py, REPORT section 12)
+# its time (some CMU takes, alone in their part of the feature space, cost 16 ms a frame). On every shared archive at
+# 30 Hz (k = 1,143), 20 takes of at least 10 s: their first 10 s took 0.32 s median, 1.85 s p95, 1.91 s at most;
+# their first 4 s 0.16, 0.73 and 0.77 s (benchmarks/bench_dashboard.py, REPORT section 12)
 LNG_MAX_SECONDS = 4.0
 MATRIX_K_AT_30HZ = 32  # neighbours per query frame on Fig. 3's small database (similarity_matrices' default)
 MATRIX_DOCS = 3  # documents of the best matches forming the small database of Fig. 3
