@@ -16,7 +16,8 @@ ARCHITECTURE = PACKAGE.parent / "docs" / "architecture.md"
 # lowest first; a module belongs to the first entry that is it or one of its parents
 LAYERS = [
     ("base", ["mocapviz._lazy", "mocapviz._moved", "mocapviz._version", "mocapviz.errors", "mocapviz.validation",
-              "mocapviz.parallel", "mocapviz.store", "mocapviz.checked_map"]),
+              "mocapviz.parallel", "mocapviz.store", "mocapviz.checked_map",
+              "mocapviz.heap"]),
     ("motion", ["mocapviz.motion"]),
     ("io", ["mocapviz.io"]),
     ("db", ["mocapviz.db"]),

@@ -23,8 +23,9 @@ from concurrent.futures import Future, InvalidStateError, ThreadPoolExecutor
 import panel as pn
 
 from ..errors import Cancelled
+from ..heap import trim_free_memory
 from ..parallel import watching
-from .progress import Task, trim_free_memory
+from .progress import Task
 
 LOG = logging.getLogger("mocapviz.app")
 JOB_SLOTS = 1  # whole-database jobs running at once per server: each may use every core and much memory

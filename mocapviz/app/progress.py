@@ -12,7 +12,6 @@ what showed the previous result (``stale=``) is emptied when a run fails, so no 
 from __future__ import annotations
 
 import asyncio
-import ctypes
 import logging
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -20,6 +19,7 @@ from concurrent.futures import ThreadPoolExecutor
 import panel as pn
 
 from ..errors import MocapvizError
+from ..heap import trim_free_memory
 from .widgets import clear
 
 LOG = logging.getLogger("mocapviz.app")
@@ -84,15 +84,6 @@ class Task(pn.viewable.Viewer):
 
     async def _call(self, fn, *args):
         return await in_thread(_then_trim, fn, *args)
-
-
-def trim_free_memory() -> None:
-    """Give the C heap's free pages back to the system (glibc's ``malloc_trim``; nothing elsewhere): the temporary
-    arrays of a search, once freed, then leave the server's resident memory instead of staying as free heap."""
-    try:
-        ctypes.CDLL("libc.so.6").malloc_trim(0)
-    except (OSError, AttributeError):  # not glibc
-        pass
 
 
 def _then_trim(fn, *args):

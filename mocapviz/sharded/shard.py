@@ -7,6 +7,10 @@ Every search method runs one library function on the shard and returns its hit t
 doc ids, in-document frames and the search's own columns as numpy arrays, as on the whole database; names, seconds
 and labels are added once, by :class:`mocapviz.sharded.engine.ShardedDB` when it merges them): a DataFrame costs
 milliseconds to pickle, its arrays microseconds.
+
+A shard lets its worker process keep the memory its queries free (:func:`mocapviz.heap.keep_freed_memory`): Dask's
+nanny pins glibc's thresholds low, which made every query map and fault in its temporary arrays afresh (a relational
+scene query took twice its CPU time).
 """
 from __future__ import annotations
 
@@ -15,6 +19,7 @@ import numpy as np
 from ..db.database import MotionDB
 from ..db.shards import shard_view
 from ..errors import MotionDBError
+from ..heap import keep_freed_memory
 
 __all__ = ["Shard"]
 
@@ -49,6 +54,7 @@ class Shard:
         self.offset = self.view.shard_frames[0]
         self.doc_ids = np.asarray(doc_ids, dtype=np.int64)
         self._numeric, self._searches, self._values, self._indexes = {}, {}, {}, {}
+        keep_freed_memory()
 
     # ------------------------------------------------------------------ derived data, made once
     def numeric(self, numeric_set: str) -> np.ndarray:
