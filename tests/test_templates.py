@@ -202,6 +202,62 @@ def test_bounded_costs_count_mismatches_over_any_number_of_feature_words(n_featu
     np.testing.assert_array_equal(skipped_first[~short], all_first[~short])
 
 
+def _exact_bounded(q, x, starts, max_rows):
+    """The row-bounded DTW of :func:`_bounded_costs` in exact arithmetic (fractions), cell by cell as its docstring
+    states it: a cell (i, j) ends a run of r <= max_rows rows on frame j, entered from frame j - 1 at row i - r
+    (diagonal) or i - r + 1 (held; it wins ties), or started at row 0; of equal costs the shortest run wins."""
+    from fractions import Fraction
+
+    care = q != DONT_CARE
+    cost, first = [None] * len(x), np.full(len(x), -1)
+    for a, b in zip(starts, [*starts[1:], len(x)]):
+        prev = None
+        for j in range(a, b):
+            local = [Fraction(int(((x[j] != (q[i] == 1)) & care[i]).sum()), int(care[i].sum())) if care[i].any()
+                     else Fraction(0) for i in range(len(q))]  # fmt: skip
+            enter = [(Fraction(0), j)] + [None] * (len(q) - 1)
+            for r0 in range(1, len(q)):
+                if prev is not None:
+                    diagonal, held = prev[r0 - 1], prev[r0]
+                    better = diagonal is not None and (held is None or diagonal[0] < held[0])
+                    enter[r0] = diagonal if better else held
+            acc = []
+            for i in range(len(q)):
+                best, run = None, Fraction(0)
+                for r0 in range(i, max(-1, i - max_rows), -1):
+                    run += local[r0]
+                    if enter[r0] is not None and (best is None or enter[r0][0] + run < best[0]):
+                        best = (enter[r0][0] + run, enter[r0][1])
+                acc.append(best)
+            prev = acc
+            cost[j] = acc[-1]
+            first[j] = -1 if acc[-1] is None else acc[-1][1]
+    return np.array([np.inf if c is None else float(c[0]) for c in cost]), first
+
+
+def test_row_bounded_costs_and_path_starts_equal_exact_arithmetic_on_real_frames():
+    """The O(m) sliding-window kernel against the cell-by-cell recursion in fractions, on the relational features of
+    two real clips of the sample (HDM05 at 120 Hz) and a template learned from the sample's hops: equal costs and the
+    same path start at every frame, ties included (the frames' features repeat, so equal-cost paths abound; the
+    previous kernel, summing each run anew in floating point, picked another start at 32 of these 180 frames)."""
+    from mocapviz import MotionDB
+    from mocapviz.features import relational_features
+    from mocapviz.relational.templates import _bounded_costs, learn_class, steepest_rows
+
+    db = MotionDB.sample()
+    values, _ = relational_features(db, "2006", progress=False)
+    template = learn_class(db, "hopBothLegs1hops", relational_set="2006", values=values)
+    q = template.quantised(0.1)
+    docs = db.documents.set_index("doc_id")
+    pieces = [values[docs.loc[d, "start"] : docs.loc[d, "start"] + 90] for d in (template.meta["doc_ids"][0], 0)]
+    x, starts = np.concatenate(pieces), np.array([0, len(pieces[0])])
+    for max_rows in (steepest_rows(template), 5):
+        want, want_first = _exact_bounded(q, x, starts, max_rows)
+        got, first = _bounded_costs(q, x, starts, max_rows)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(first, want_first)
+
+
 def test_a_feature_one_group_does_otherwise_is_dont_care_when_learned_by_group():
     """Four 'actors' of two examples each: seven examples never raise feature 2 while feature 1 rises, one of actor
     d raises it in the middle. Pooled, feature 2's middle is 1/8 < δ = 0.2: cared for (0). By group, actor d's mean

@@ -78,6 +78,7 @@ from ..validation import Interval, count, number
 FORMAT = "mocapviz.MotionTemplate"
 VERSION = 1
 DONT_CARE = 0.5  # the value a quantised template holds where a feature does not matter
+TIE = 1e-9  # row-bounded alignment: costs this close are equal (sums of mismatch shares in another order)
 DELTA = 0.1  # default quantisation threshold: < δ -> 0, > 1 - δ -> 1, else don't care
 # δ = 0 would leave no entry below 0 or above 1: all "don't care", every stretch a perfect match; δ = 0.5 none
 DELTA_RANGE = Interval(0.0, 0.5, low_open=True, high_open=True)
@@ -681,47 +682,62 @@ def _bounded_run(frames, values, care, cared, docs, max_rows, cost, first):  # p
     a run of r <= max_rows rows i - r + 1 .. i on frame j, entered from frame j - 1 at row i - r (diagonally) or at
     row i - r + 1 (that row held), or started at row 0; each cell of the run pays its cost."""
     m = values.shape[0]
-    local, enter, enter_first = np.empty(m), np.empty(m), np.empty(m, dtype=np.int64)
+    local, total, entry, enter_first = np.empty(m), np.empty(m + 1), np.empty(m), np.empty(m, dtype=np.int64)
+    window = np.empty(m, dtype=np.int64)
     prev, prev_first = np.empty(m), np.empty(m, dtype=np.int64)
     acc, start = np.empty(m), np.empty(m, dtype=np.int64)
     for d in range(len(docs)):
         for j in range(docs[d, 0], docs[d, 1]):
-            _bounded_frame(frames, values, care, cared, j, j > docs[d, 0], max_rows, local, enter, enter_first,
-                           prev, prev_first, acc, start)
+            _bounded_frame(frames, values, care, cared, j, j > docs[d, 0], max_rows, local, total, entry, enter_first,
+                           window, prev, prev_first, acc, start)  # fmt: skip
             cost[j], first[j] = acc[m - 1], start[m - 1]
             prev[:] = acc
             prev_first[:] = start
 
 
 @numba.njit(cache=True, nogil=True)
-def _bounded_frame(frames, values, care, cared, j, same, max_rows, local, enter, enter_first, prev, prev_first, acc,
-                   start):  # pragma: no cover  # fmt: skip
+def _bounded_frame(frames, values, care, cared, j, same, max_rows, local, total, entry, enter_first, window, prev,
+                   prev_first, acc, start):  # pragma: no cover  # fmt: skip
     """Frame j of :func:`_bounded_run`: ``acc`` / ``start`` (the cost and path start of every template row ending
-    on frame j) from ``prev`` / ``prev_first`` (frame j - 1's, used when ``same``: j is not its document's first)."""
+    on frame j) from ``prev`` / ``prev_first`` (frame j - 1's, used when ``same``: j is not its document's first).
+
+    A run of rows r0 .. i on frame j costs ``total[i + 1] - total[r0]`` (``total``: the running sum of the frame's
+    local costs), so the best run into row i is ``total[i + 1]`` plus the least ``entry[r0] = enter[r0] -
+    total[r0]`` over the last ``max_rows`` rows r0: a sliding-window minimum (``window``: the rows whose entry may
+    still be least, increasing in entry), O(m) per frame whatever ``max_rows``. Sums taken in another order differ in
+    their last bits, so costs within :data:`TIE` of each other are ties: the held row wins them, and of the runs the
+    latest row (the shortest run), as if the costs were exact."""
     m, w = values.shape
+    total[0] = 0.0
     for i in range(m):
         bad = 0
         for k in range(w):
             bad += _set_bits((frames[j, k] ^ values[i, k]) & care[i, k])
         local[i] = bad / cared[i] if cared[i] > 0 else 0.0
+        total[i + 1] = total[i] + local[i]
     # the cheapest way into row r0 of frame j before its run: a start (row 0) or from frame j - 1 at row r0
     # (held) or r0 - 1 (diagonal), the held row winning ties
-    enter[0], enter_first[0] = 0.0, j
+    entry[0], enter_first[0] = 0.0, j
     for r0 in range(1, m):
-        enter[r0], enter_first[r0] = np.inf, -1
+        entry[r0], enter_first[r0] = np.inf, -1
         if same:
-            if prev[r0 - 1] < prev[r0]:
-                enter[r0], enter_first[r0] = prev[r0 - 1], prev_first[r0 - 1]
+            if prev[r0 - 1] < prev[r0] - TIE:
+                entry[r0], enter_first[r0] = prev[r0 - 1] - total[r0], prev_first[r0 - 1]
             else:
-                enter[r0], enter_first[r0] = prev[r0], prev_first[r0]
+                entry[r0], enter_first[r0] = prev[r0] - total[r0], prev_first[r0]
+    head, tail = 0, 0  # window[head:tail]
     for i in range(m):
-        best, src, run = np.inf, -1, 0.0
-        for r in range(1, min(max_rows, i + 1) + 1):
-            r0 = i - r + 1
-            run += local[r0]
-            if enter[r0] + run < best:
-                best, src = enter[r0] + run, enter_first[r0]
-        acc[i], start[i] = best, src
+        while tail > head and entry[window[tail - 1]] >= entry[i] - TIE:
+            tail -= 1
+        window[tail] = i
+        tail += 1
+        if window[head] <= i - max_rows:
+            head += 1
+        r0 = window[head]
+        if entry[r0] < np.inf:
+            acc[i], start[i] = total[i + 1] + entry[r0], enter_first[r0]
+        else:
+            acc[i], start[i] = np.inf, -1
 
 
 def document_costs(template: MotionTemplate, values: np.ndarray, starts, delta: float = DELTA,
