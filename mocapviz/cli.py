@@ -999,6 +999,10 @@ def run() -> None:
     """The ``mocapviz`` command (the console script, ``python -m mocapviz.cli``): :func:`main` on this process's
     command line, then exit with its status.
 
+    ``mocapviz serve`` first restarts itself with Python's objects on glibc's heap
+    (:func:`mocapviz.heap.restart_with_trimmable_heap`; not where the C library is another, nor when ``PYTHONMALLOC``
+    is set): its pages' objects, freed when a browser session closes, then leave the server's memory.
+
     The exit leaves out the interpreter's teardown, which frees a thousand modules (pandas, numba, LLVM) one by one:
     0.1 to 0.25 s, a fifth of a search, that a finished command does not need. What a normal exit does for the
     command is done first: the output flushed, the atexit handlers run. With a thread still running, or output that
@@ -1008,6 +1012,10 @@ def run() -> None:
     import os
     import threading
 
+    if sys.argv[1:2] == ["serve"]:  # a long-running server: what its closed sessions free goes back to the system
+        from .heap import restart_with_trimmable_heap
+
+        restart_with_trimmable_heap()
     status = main()
     if threading.active_count() > 1:  # a thread's work would be cut short
         sys.exit(status)

@@ -9,18 +9,29 @@ starts (``MALLOC_TRIM_THRESHOLD_=65536``, ``distributed.nanny.pre-spawn-environ`
 mapped afresh and its pages faulted in on every query. A shard's relational scene query at 10M frames took 35 ms
 of CPU in such a worker against 16 ms in a plain process (``benchmarks/REPORT.md`` section 8).
 
-=================== ==========================================================================================
-trim_free_memory    give the heap's free pages back to the system now (a server after a job or a closed session)
-keep_freed_memory   let this process reuse freed memory for the next queries (a shard resident on a worker)
-=================== ==========================================================================================
+Python's own objects (those up to 512 bytes: most of a page's widgets, models and dicts) come from CPython's
+allocator, pymalloc, in 1 MB arenas that return to the system only when every object in them is gone. A closed
+browser session frees some 15 MB of such objects, spread over arenas that long-lived objects (imports, caches) share:
+the arenas stay, and ``malloc_trim`` cannot reach them. With ``PYTHONMALLOC=malloc`` those objects come from glibc's
+heap like any other, and trimming returns each free page of it.
 
-Both do nothing where the C library is not glibc.
+=========================== ==================================================================================
+trim_free_memory            give the heap's free pages back to the system now (a server after a job or a closed
+                            session)
+keep_freed_memory           let this process reuse freed memory for the next queries (a shard resident on a
+                            worker)
+restart_with_trimmable_heap run this program again with Python's objects on glibc's heap (``mocapviz serve``)
+=========================== ==================================================================================
+
+They do nothing where the C library is not glibc.
 """
 from __future__ import annotations
 
 import ctypes
+import os
+import sys
 
-__all__ = ["keep_freed_memory", "trim_free_memory"]
+__all__ = ["keep_freed_memory", "restart_with_trimmable_heap", "trim_free_memory"]
 
 M_TRIM_THRESHOLD = -1  # mallopt parameters (glibc's malloc.h)
 M_MMAP_THRESHOLD = -3
@@ -76,3 +87,18 @@ def keep_freed_memory(mmap_bytes: int = MMAP_BYTES, trim_bytes: int = TRIM_BYTES
         return False
     return bool(libc.mallopt(M_MMAP_THRESHOLD, int(mmap_bytes))) and bool(libc.mallopt(M_TRIM_THRESHOLD,
                                                                                            int(trim_bytes)))
+
+
+def restart_with_trimmable_heap() -> None:
+    """Replace this process (``os.execv``, same command line and environment) by one whose Python objects come from
+    glibc's heap (``PYTHONMALLOC=malloc``), so that :func:`trim_free_memory` gives back what a long-running server
+    frees, small objects included; pymalloc keeps an arena while any object in it lives. Does nothing (returns)
+    where the C library is not glibc, or when ``PYTHONMALLOC`` is set already (the restarted process, or a user's
+    choice: ``PYTHONMALLOC=pymalloc`` keeps CPython's allocator). Call it first thing in a program's main: anything
+    done before it is done twice, and it never returns when it restarts.
+    """
+    if _libc() is None or "PYTHONMALLOC" in os.environ:
+        return
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.execve(sys.executable, [sys.executable, *sys.orig_argv[1:]], {**os.environ, "PYTHONMALLOC": "malloc"})
