@@ -150,7 +150,7 @@ def reference(q, x_kept, starts_kept, kept_docs: pd.DataFrame, query: dict) -> t
     own = query["kind"] == "in database"
     n_matches = 2 * K if own else K
     t0 = time.perf_counter()
-    table = subsequence_dtw(q, x_kept, starts_kept, n_matches=n_matches, paths=False)
+    table = subsequence_dtw(q, x_kept, starts_kept, n_matches=n_matches, paths=False, min_length=None)
     seconds = time.perf_counter() - t0
 
     def outside(table):
@@ -163,7 +163,7 @@ def reference(q, x_kept, starts_kept, kept_docs: pd.DataFrame, query: dict) -> t
     out = outside(table)
     if own and len(out) < K and len(table) == n_matches:  # the own document took more than K of them: re-run,
         more = n_matches + query["doc_frames"]  # untimed
-        out = outside(subsequence_dtw(q, x_kept, starts_kept, n_matches=more, paths=False))
+        out = outside(subsequence_dtw(q, x_kept, starts_kept, n_matches=more, paths=False, min_length=None))
     return seconds, out
 
 
