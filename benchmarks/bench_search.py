@@ -144,7 +144,8 @@ def compare(exact: pd.DataFrame, ref: pd.DataFrame) -> str:
 
 def reference(q, x_kept, starts_kept, kept_docs: pd.DataFrame, query: dict) -> tuple[float, pd.DataFrame]:
     """Seconds of ``subsequence_dtw`` over the kept frames and its top K outside the query's document, as a
-    table of doc_id, start, end (document frames), cost."""
+    table of doc_id, start, end (document frames, half-open as the stretches' hit table; subsequence DTW's end is
+    its last frame), cost."""
     from mocapviz.match import subsequence_dtw
 
     own = query["kind"] == "in database"
@@ -157,7 +158,7 @@ def reference(q, x_kept, starts_kept, kept_docs: pd.DataFrame, query: dict) -> t
         row = table["doc_id"].to_numpy()
         out = pd.DataFrame({"doc_id": kept_docs["doc_id"].to_numpy()[row],
                             "start": table["start"].to_numpy() - starts_kept[row],
-                            "end": table["end"].to_numpy() - starts_kept[row], "cost": table["cost"].to_numpy()})
+                            "end": table["end"].to_numpy() + 1 - starts_kept[row], "cost": table["cost"].to_numpy()})
         return out[out["doc_id"] != query["doc_id"]].head(K).reset_index(drop=True)  # fmt: skip
 
     out = outside(table)
