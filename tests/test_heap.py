@@ -1,5 +1,5 @@
 """The C heap's settings (mocapviz.heap), measured in real processes: started as Dask's nanny starts its workers
-(MALLOC_TRIM_THRESHOLD_=65536 in the environment), page faults of repeated 4 MB temporary arrays; restarted with
+(MALLOC_TRIM_THRESHOLD_=65536 in the environment), page faults of repeated 1 MB temporary arrays; restarted with
 Python's objects on glibc's heap (``mocapviz serve``), the resident memory small objects leave when freed."""
 import json
 import os
@@ -17,10 +17,10 @@ import json, resource, sys
 import numpy as np
 from mocapviz.heap import keep_freed_memory
 kept = keep_freed_memory() if sys.argv[1] == "keep" else None
-np.ones(1 << 19).sum()  # the first allocation of the size may fault in either case
+np.ones(1 << 17).sum()  # the first allocation of the size may fault in either case
 before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
 for _ in range(50):
-    np.ones(1 << 19).sum()  # 4 MB allocated, touched, freed
+    np.ones(1 << 17).sum()  # 1 MB allocated, touched, freed (under 2 MB: no huge page can back its mapping)
 print(json.dumps({"faults": resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before, "kept": kept}))
 """
 
@@ -34,7 +34,7 @@ def probe(mode: str) -> dict:
 def test_a_worker_like_process_faults_in_every_temporary_array_until_it_keeps_freed_memory():
     pinned, kept = probe("pinned"), probe("keep")
     assert kept["kept"] is True
-    assert pinned["faults"] >= 50 * 100  # each array mapped afresh and its pages faulted in again
+    assert pinned["faults"] >= 50 * 100  # each array mapped afresh and its 256 pages faulted in again
     assert kept["faults"] < pinned["faults"] / 20
 
 
