@@ -127,13 +127,18 @@ def test_serving_beyond_localhost_needs_listed_origins_and_warns(sample_db, monk
 def test_ready_is_printed_when_the_port_answers(sample_db):
     """`mocapviz serve` warms up first and prints "ready: URL" only once the server listens: a connection made as
     soon as the line is read succeeds at the first try (no retry), and the page and a first query of the warmed-up
-    caches follow (GET / answers the dashboard)."""
+    caches follow (GET / answers the dashboard). On glibc the server runs with Python's objects on glibc's heap
+    (``PYTHONMALLOC=malloc``): ``mocapviz serve`` restarted itself in the same process."""
+    import os
     import queue
     import socket
     import subprocess
     import sys
     import threading
     import urllib.request
+    from pathlib import Path
+
+    from mocapviz.heap import _libc
 
     port = free_port()
     proc = subprocess.Popen([sys.executable, "-m", "mocapviz.cli", "serve", str(sample_db.path), "--port", str(port)],
@@ -146,6 +151,9 @@ def test_ready_is_printed_when_the_port_answers(sample_db):
             seen.append(lines.get(timeout=600))  # the warm-up of the sample takes seconds; a hang fails here
         with socket.create_connection(("127.0.0.1", port), timeout=5):  # listening already when the line came
             pass
+        environ = Path(f"/proc/{proc.pid}/environ").read_text().split("\0")  # the same pid after the restart
+        if _libc() is not None and "PYTHONMALLOC" not in os.environ:  # serve restarted on glibc's heap
+            assert "PYTHONMALLOC=malloc" in environ
         assert "warming up" in seen[0] and f"ready: http://127.0.0.1:{port}/" in seen[-1]
         with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=120) as answer:
             assert answer.status == 200 and f"mocapviz · {sample_db.path.name}" in answer.read().decode()

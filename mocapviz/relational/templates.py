@@ -682,22 +682,22 @@ def _bounded_run(frames, values, care, cared, docs, max_rows, cost, first):  # p
     a run of r <= max_rows rows i - r + 1 .. i on frame j, entered from frame j - 1 at row i - r (diagonally) or at
     row i - r + 1 (that row held), or started at row 0; each cell of the run pays its cost."""
     m = values.shape[0]
-    local, total, entry, enter_first = np.empty(m), np.empty(m + 1), np.empty(m), np.empty(m, dtype=np.int64)
+    total, entry, enter_first = np.empty(m + 1), np.empty(m), np.empty(m, dtype=np.int64)
     window = np.empty(m, dtype=np.int64)
     prev, prev_first = np.empty(m), np.empty(m, dtype=np.int64)
     acc, start = np.empty(m), np.empty(m, dtype=np.int64)
     for d in range(len(docs)):
         for j in range(docs[d, 0], docs[d, 1]):
-            _bounded_frame(frames, values, care, cared, j, j > docs[d, 0], max_rows, local, total, entry, enter_first,
-                           window, prev, prev_first, acc, start)  # fmt: skip
+            _bounded_frame(frames, values, care, cared, j, j > docs[d, 0], max_rows, total, entry, enter_first, window,
+                           prev, prev_first, acc, start)  # fmt: skip
             cost[j], first[j] = acc[m - 1], start[m - 1]
             prev[:] = acc
             prev_first[:] = start
 
 
 @numba.njit(cache=True, nogil=True)
-def _bounded_frame(frames, values, care, cared, j, same, max_rows, local, total, entry, enter_first, window, prev,
-                   prev_first, acc, start):  # pragma: no cover  # fmt: skip
+def _bounded_frame(frames, values, care, cared, j, same, max_rows, total, entry, enter_first, window, prev, prev_first,
+                   acc, start):  # pragma: no cover  # fmt: skip
     """Frame j of :func:`_bounded_run`: ``acc`` / ``start`` (the cost and path start of every template row ending
     on frame j) from ``prev`` / ``prev_first`` (frame j - 1's, used when ``same``: j is not its document's first).
 
@@ -713,8 +713,7 @@ def _bounded_frame(frames, values, care, cared, j, same, max_rows, local, total,
         bad = 0
         for k in range(w):
             bad += _set_bits((frames[j, k] ^ values[i, k]) & care[i, k])
-        local[i] = bad / cared[i] if cared[i] > 0 else 0.0
-        total[i + 1] = total[i] + local[i]
+        total[i + 1] = total[i] + (bad / cared[i] if cared[i] > 0 else 0.0)
     # the cheapest way into row r0 of frame j before its run: a start (row 0) or from frame j - 1 at row r0
     # (held) or r0 - 1 (diagonal), the held row winning ties
     entry[0], enter_first[0] = 0.0, j

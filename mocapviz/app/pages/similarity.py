@@ -46,8 +46,8 @@ LNG_K_AT_30HZ = 256  # neighbours per query frame of §4.2's experiments (scaled
 LNG_REFERENCE_FRAMES = 100_000  # frames at 30 Hz up to which LNG_K_AT_30HZ finds matches (graph_k)
 # the graph matches at most the span's first this many seconds (graph_span): its k-NN of every query frame is most of
 # its time (some CMU takes, alone in their part of the feature space, cost 16 ms a frame). On every shared archive at
-# 30 Hz (k = 1,143), 20 takes of at least 10 s: their first 10 s took 0.32 s median, 1.85 s p95, 1.91 s at most;
-# their first 4 s 0.16, 0.73 and 0.77 s (benchmarks/bench_dashboard.py, REPORT section 12)
+# 30 Hz (k = 1,143), 20 takes of at least 10 s: their first 10 s took 0.29 s median, 1.63 s p95, 1.72 s at most;
+# their first 4 s 0.13, 0.60 and 0.63 s (benchmarks/bench_dashboard.py, REPORT section 12 of 2026-11-27)
 LNG_MAX_SECONDS = 4.0
 MATRIX_K_AT_30HZ = 32  # neighbours per query frame on Fig. 3's small database (similarity_matrices' default)
 MATRIX_DOCS = 3  # documents of the best matches forming the small database of Fig. 3
