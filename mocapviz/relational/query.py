@@ -304,8 +304,9 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
                                score=joined["score"] + joined["score_b"],
                                n_segments=joined["n_segments"] + joined["n_segments_b"])  # fmt: skip
         hits = joined[[c for c in hits.columns]]
-    hits = hits.assign(doc_id=docs["doc_id"].to_numpy()[hits["doc_row"].to_numpy(np.int64)])
-    hits = hits.sort_values(["score", "doc_id", "start"], kind="stable")
-    return hit_table(db, hits["doc_id"], hits["start"], hits["end"],
-                     **{c: hits[c].to_numpy() for c in ("first_segment", "last_segment", "n_segments", "score")})
+    cols = {c: hits[c].to_numpy() for c in ("start", "end", "first_segment", "last_segment", "n_segments", "score")}
+    doc_id = docs["doc_id"].to_numpy()[hits["doc_row"].to_numpy(np.int64)]
+    rows = np.lexsort((cols["start"], doc_id, cols["score"]))  # by score, then doc id and start
+    cols = {c: v[rows] for c, v in cols.items()}
+    return hit_table(db, doc_id[rows], cols.pop("start"), cols.pop("end"), **cols)
 

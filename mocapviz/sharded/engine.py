@@ -315,14 +315,17 @@ class ShardedDB:
         packs = [p for p in packs if p is not None]
         if not packs:
             return hit_table(self.db, [], [], [])
-        data = {c: np.concatenate([p["columns"][c] for p in packs]) for c in packs[0]["columns"]}
+        data = {c: np.concatenate([p["columns"][c] for p in packs]).astype(  # int32 on the wire, as they were
+                    np.result_type(*(p["dtypes"][c] for p in packs)), copy=False) for c in packs[0]["columns"]}
         first = first_frames(self.db, data["doc_id"])
         keys = {"_first": first + data["start"], "_last": first + data["end"] - 1}
         rows = np.lexsort([keys[c] if c in keys else data[c] for c in order][::-1])[:n_matches]
         picked = {c: v[rows] for c, v in data.items()}
         merged = hit_table(self.db, picked.pop("doc_id"), picked.pop("start"), picked.pop("end"), **picked)
-        if set(merged.columns) == set(packs[0]["order"]):
-            merged = merged[packs[0]["order"]]  # the shards' column order (a path after the labels)
+        # the shards' column order (a path after the labels), their one label column standing for all of them
+        order = [c for name in packs[0]["order"] for c in (self.db.label_columns if name == "label" else [name])]
+        if list(merged.columns) != order and set(merged.columns) == set(order):
+            merged = merged[order]
         merged.attrs.update({k: v for k, v in packs[0]["attrs"].items() if isinstance(v, (str, int, float))})
         merged.attrs.update(shards=len(self.shards), ms=1e3 * (time.perf_counter() - t0))
         return merged

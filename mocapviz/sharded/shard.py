@@ -50,7 +50,7 @@ class Shard:
         parent = MotionDB.open(path)
         if parent.manifest.get("generation") != generation:
             raise MotionDBError(f"{path} changed since the sharded search opened it; open it again")
-        self.parent, self.view = parent, shard_view(parent, doc_ids)
+        self.parent, self.view = parent, shard_view(parent, doc_ids, labels=False)
         self.offset = self.view.shard_frames[0]
         self.doc_ids = np.asarray(doc_ids, dtype=np.int64)
         self._numeric, self._searches, self._values, self._indexes = {}, {}, {}, {}
@@ -119,9 +119,15 @@ class Shard:
 
     def packed(self, table) -> dict:
         """A hit table as it travels to the coordinator: ``columns`` (doc_id, start, end and the search's own
-        columns, numpy arrays), ``order`` (the table's column order) and ``attrs``."""
+        columns, numpy arrays; integers that fit in 32 bits sent as int32), ``dtypes`` (each column's own dtype,
+        restored on arrival), ``order`` (the table's column order) and ``attrs``.
+
+        The reply's bytes cost the cluster's round trip about 4 ms per MB (on loopback): a relational query's
+        7,000 hits per shard at 10M frames are 0.4 MB with 64-bit integers, 0.2 MB with 32-bit ones."""
         derived = {"rank", "name", "frames", "start_s", "end_s", *self.view.label_columns}
-        return {"columns": {c: table[c].to_numpy() for c in table.columns if c not in derived},
+        columns = {c: table[c].to_numpy() for c in table.columns if c not in derived}
+        return {"columns": {c: _narrow(v) for c, v in columns.items()},
+                "dtypes": {c: v.dtype for c, v in columns.items()},
                 "order": list(table.columns), "attrs": dict(table.attrs)}  # fmt: skip
 
     def clips(self, numeric_set: str, query, **options) -> dict:
@@ -175,3 +181,11 @@ class Shard:
         table = search_template(self.view, template, values=values, indexes=indexes, **options)
         table.attrs["aligned_frames"] = round(table.attrs["aligned"] * self.view.n_frames)
         return self.packed(table)
+
+
+def _narrow(values: np.ndarray) -> np.ndarray:
+    """``values`` as int32 when they are 64-bit integers that fit in it, else as they are."""
+    small = np.iinfo(np.int32)
+    if values.dtype == np.int64 and (not values.size or small.min <= values.min() and values.max() <= small.max):
+        return values.astype(np.int32)
+    return values
