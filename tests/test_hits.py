@@ -172,3 +172,23 @@ def test_dashboard_tables_are_the_library_table(mixed):
         found = search_span(backend, "F15E", doc, span, "stretches", "exact", 3, False)
         check_convention(db, found)
         assert (found["doc_id"].iloc[0], found["start"].iloc[0], found["end"].iloc[0]) == (doc, *span)
+
+
+@pytest.mark.parametrize("dropped", [None, 1])
+def test_rows_found_with_consecutive_and_with_gapped_doc_ids(mixed, dropped):
+    """Consecutive doc ids (every database, every shard) find a document's row by offset, others by search: the
+    same names, frame rates and first frames either way, and an id the database lacks is named."""
+    from mocapviz.db.hits import first_frames
+
+    docs = mixed.documents
+    kept = docs if dropped is None else docs[docs["doc_id"] != dropped].reset_index(drop=True)
+    db = MotionDB(mixed.path, mixed.manifest, kept, {"positions": mixed.positions, "quaternions": mixed.quaternions})
+    ids = kept["doc_id"].to_numpy()[::-1]
+    table = hit_table(db, ids, np.zeros(len(ids), int), np.ones(len(ids), int))
+    by_id = kept.set_index("doc_id")
+    assert table["name"].tolist() == by_id.loc[ids, "name"].tolist()
+    assert np.allclose(table["end_s"], 1 / by_id.loc[ids, "fps"].to_numpy())
+    assert first_frames(db, ids).tolist() == by_id.loc[ids, "start"].tolist()
+    for missing in [int(docs["doc_id"].max()) + 1, -1] + ([] if dropped is None else [dropped]):
+        with pytest.raises(ParameterError, match=f"hit 2: no document {missing} in"):
+            hit_table(db, [int(ids[0]), missing], [0, 0], [1, 1])
