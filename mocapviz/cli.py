@@ -573,8 +573,11 @@ def _template_learn(args) -> None:
           f"{n} example{'s' * (n != 1)}, {len(template.values)} frames x {len(template.features)} features of the "
           f"{args.relational_set} set, {dont_care:.0%} don't care (δ = {DELTA}), {template.iterations} iterations, "
           f"{seconds:.1f} s")  # fmt: skip
-    print(f"its examples' own best matches cost up to {template.meta['threshold']:.3f} per frame (`--max-cost "
-          f"{template.meta['threshold']:.3f}` keeps the instances as good as those)")
+    meta = template.meta
+    print(f"its examples' own best matches cost up to {meta['example_threshold']:.3f} per frame; its learned threshold "
+          f"is {meta['threshold']:.3f} (`--max-cost {meta['threshold']:.3f}`: the cost that best separates them from "
+          f"the {meta['negatives']} clips of other labels, the nearest of which costs "
+          + ("-" if meta["nearest_negative"] is None else f"{meta['nearest_negative']:.3f}") + ")")
     print(f"stored in {stored} (search it: `mocapviz template search {db.path} {stored.stem}`)")
     if args.out:
         template.save(args.out)
@@ -631,8 +634,7 @@ def _template_search(args) -> None:
           f"{table.attrs['ms']:.1f} ms")  # fmt: skip
     own = template.meta.get("threshold")
     if args.max_cost is not None:
-        empty = "try a larger --max-cost" + ("" if own is None else f"; the examples' own best matches cost up to "
-                                             f"{own:.3f}")  # fmt: skip
+        empty = "try a larger --max-cost" + ("" if own is None else f"; the template's learned threshold is {own:.3f}")
     else:
         empty = f"no document holds the template's shortest instance, {shortest_instance(template)} frames"
     _print_ranked(table, args.n_matches, empty)
@@ -789,8 +791,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="the set whose words the description uses (default: the one its 'set' statement or its "
                     "templates name, else 2005)")  # fmt: skip
     _option(fd, "--template-cost", check=_number(low=0, high=1), help="template:NAME atoms: instances of normalised "
-            "cost at most this, in [0, 1] (default: each template's learned threshold, the worst cost of its own "
-            "examples)")  # fmt: skip
+            "cost at most this, in [0, 1] (default: each template's learned threshold, the cost that best separates its "
+            "examples from the other classes' clips)")  # fmt: skip
     fd.add_argument("--explain", action="store_true", help="print the description as read, the hits of each part "
                     "and where each hit's parts matched")  # fmt: skip
     fd.add_argument("--list", action="store_true", help="list the shipped named descriptions and exit")

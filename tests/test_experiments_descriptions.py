@@ -184,14 +184,18 @@ def test_sides_on_bandai(bandai1_dir, tmp_path):
 
 
 def test_composite_quality_on_hdm05(hdm05_db30):
-    """Templates learned without the stream's actor: "A then B" finds its pairs (measured at cost 0.1: F1 0.91 over
-    30 pairs in 15 streams); the reversed query's hits are counted (they come from template matches in the filler
-    clips, not from the truth, which has none)."""
-    res = composite_quality(hdm05_db30, template_cost=0.1)
+    """Templates learned without the stream's actor: "A then B" finds its pairs and "B then A" nothing (issue 25's
+    targets: F1 >= 0.85, no reversed hit). Measured at each template's learned threshold: F1 0.87 (23 of 30 pairs,
+    precision 1.00), 0 reversed hits; with the examples' worst cost as the threshold and matches reaching back into
+    the motion before them 0.85 and 2. At one cost for every template, 0.1, more pairs are found and the reversed
+    query finds template matches in the filler clips (counted, not asserted)."""
+    res = composite_quality(hdm05_db30)
     s = res["summary"].iloc[0]
-    assert s["events"] == 30 and s["f1"] >= 0.9, s.to_dict()
+    assert s["events"] == 30 and s["f1"] >= 0.85 and s["reversed_hits"] == 0, s.to_dict()
     assert res["per_stream"]["reversed_hits"].sum() == s["reversed_hits"]
     assert set(res["hits"]["query"]) <= {"forward", "reversed"}
+    wide = composite_quality(hdm05_db30, template_cost=0.1)["summary"].iloc[0]
+    assert wide["f1"] >= 0.9 and wide["tp"] >= s["tp"], wide.to_dict()
 
 
 # ================================================================================================ the CMU takes

@@ -258,6 +258,73 @@ def test_row_bounded_costs_and_path_starts_equal_exact_arithmetic_on_real_frames
         np.testing.assert_array_equal(first, want_first)
 
 
+def test_a_match_starts_at_the_latest_frame_its_cost_allows_in_exact_arithmetic_on_real_frames():
+    """Matches begin where the template begins, not in the rest pose before it: on two real clips of the sample (a
+    hop of the template's own and a clip of another class), every match found keeps its cost, an alignment of the
+    whole template from its start to its end costs exactly that (the fractions' recursion on those frames alone),
+    and from one frame later it costs more or spans fewer frames than the shortest instance. The start never moves
+    earlier than subsequence DTW's, and on these frames it moves later for some match (the test would pass
+    vacuously otherwise)."""
+    from mocapviz import MotionDB
+    from mocapviz.features import relational_features
+    from mocapviz.relational.templates import _costs, find_instances, learn_class, shortest_instance, steepest_rows
+
+    db = MotionDB.sample()
+    values, _ = relational_features(db, "2006", progress=False)
+    template = learn_class(db, "hopBothLegs1hops", relational_set="2006", values=values)
+    q, least, rows = template.quantised(0.1), shortest_instance(template), steepest_rows(template)
+    docs = db.documents.set_index("doc_id")
+    pieces = [values[docs.loc[d, "start"] : docs.loc[d, "start"] + 150] for d in (template.meta["doc_ids"][1], 3)]
+    x, starts = np.concatenate(pieces), np.array([0, len(pieces[0])])
+    hits = find_instances(template, x, starts, n_matches=6)
+    _, free_first = _costs(template, q, x, starts, None)
+    assert len(hits) >= 3
+
+    def exact(a, e):  # least cost of a whole alignment in frames a..e ending at e, inf below the shortest instance
+        cost, first = _exact_bounded(q, x[a : e + 1], np.array([0]), rows)
+        return cost[-1] if e - (a + first[-1]) + 1 >= least else np.inf
+
+    moved = 0
+    for start, end, cost in hits[["start", "end", "cost"]].itertuples(index=False):
+        assert free_first[end] <= start <= end - least + 1
+        assert exact(start, end) == pytest.approx(cost, abs=1e-9)
+        if start < end - least + 1:
+            assert exact(start + 1, end) > cost + 1e-9
+        moved += start > free_first[end]
+    assert moved >= 1
+
+
+def test_learned_threshold_is_the_best_f1_cut_between_the_class_and_the_other_clips(hdm05_db30):
+    """learn_class's threshold on real clips (HDM05 at 30 Hz, the kick template of four actors): against a brute
+    force over every cut at an example's cost, the F1 of "cost <= threshold" (examples judged as unseen, the four
+    actors' clips of the other classes as impostors) is the best any cut reaches, and the threshold lies halfway
+    between that cut and the nearest impostor above it. Measured: 0.042 where the examples' worst cost is 0.074."""
+    from mocapviz.features import relational_features
+    from mocapviz.relational.templates import document_costs, learn_class
+
+    db = hdm05_db30
+    values, _ = relational_features(db, "2006", progress=False)
+    actors = ["bd", "bk", "dg", "mm"]
+    t = learn_class(db, "kickLFront1Reps", actors, "2006", values)
+    docs = db.documents
+    others = ((docs["label"] != "kickLFront1Reps") & docs["actor"].isin(actors)).to_numpy()
+    neg = document_costs(t, values, docs["start"].to_numpy())[others]
+    neg = neg[np.isfinite(neg)]  # clips shorter than the shortest instance hold no match
+    pos = np.asarray(t.meta["unseen_costs"])
+    assert t.meta["negatives"] == len(neg) > 200 and t.meta["nearest_negative"] == pytest.approx(neg.min())
+
+    def f1(cut):
+        tp, fp = (pos <= cut).sum(), (neg <= cut).sum()
+        return 2 * tp / (2 * tp + fp + (len(pos) - tp))
+
+    best = max(f1(c) for c in pos)
+    cut = min(c for c in pos if f1(c) == best)
+    threshold = t.meta["threshold"]
+    assert f1(threshold) == pytest.approx(best)
+    assert threshold == pytest.approx((cut + neg[neg > cut].min()) / 2)
+    assert threshold < t.meta["example_threshold"] == pytest.approx(max(t.meta["unseen_costs"] + t.meta["example_costs"]))
+
+
 def test_a_feature_one_group_does_otherwise_is_dont_care_when_learned_by_group():
     """Four 'actors' of two examples each: seven examples never raise feature 2 while feature 1 rises, one of actor
     d raises it in the middle. Pooled, feature 2's middle is 1/8 < δ = 0.2: cared for (0). By group, actor d's mean

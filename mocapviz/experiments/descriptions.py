@@ -631,9 +631,9 @@ def _streams_db(motions: list, metas: list, folder, name: str):
         yield streams, dict(zip(streams.documents["name"], streams.documents["doc_id"]))
 
 
-def composite_quality(db, pairs=PAIRS, within: float = 2.0, template_cost: float = 0.15, relational_set: str = "2006",
-                      repeats: int = 2, actors=None, blend_s: float = 0.1, seed: int = 0, folder=None,
-                      progress: bool = False) -> dict:  # fmt: skip
+def composite_quality(db, pairs=PAIRS, within: float = 2.0, template_cost: float | None = None,
+                      relational_set: str = "2006", repeats: int = 2, actors=None, blend_s: float = 0.1, seed: int = 0,
+                      folder=None, progress: bool = False) -> dict:  # fmt: skip
     """``template:A then template:B within T s`` on composite streams (:func:`composite_streams`), with templates
     learned from the *other* actors, against the known truth; and the reversed query, which should find nothing.
 
@@ -645,8 +645,9 @@ def composite_quality(db, pairs=PAIRS, within: float = 2.0, template_cost: float
         The (A, B) classes.
     within : float
         T in seconds, used by the query and the truth.
-    template_cost : float
-        The template atoms' largest normalised cost (:func:`mocapviz.relational.scene.find`).
+    template_cost : float, optional
+        The template atoms' largest normalised cost (:func:`mocapviz.relational.scene.find`); default each template's
+        learned threshold (``meta["threshold"]``, :func:`mocapviz.relational.templates.separating_threshold`).
     relational_set : {"2005", "2006"}
         The templates' features.
     repeats, actors, blend_s, seed
@@ -728,7 +729,7 @@ def composite_quality(db, pairs=PAIRS, within: float = 2.0, template_cost: float
                           "reversed_hits": frame["reversed_hits"].sum()})  # fmt: skip
 
     per_pair = per_stream.groupby(["first", "second"], sort=False).apply(summed, include_groups=False).reset_index()
-    summary = summed(per_stream).to_frame().T.assign(within_s=within, template_cost=template_cost,
+    summary = summed(per_stream).to_frame().T.assign(within_s=within, template_cost="learned" if template_cost is None else template_cost,
                                                       blend_s=metas[0]["blend_s"])  # fmt: skip
     return {"per_stream": per_stream, "per_pair": per_pair, "summary": summary, "parts": parts,
             "hits": pd.concat(all_hits, ignore_index=True)}

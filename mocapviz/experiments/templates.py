@@ -8,8 +8,8 @@ clips of the *other* groups (:func:`mocapviz.relational.templates.learn_class`) 
   figure, reported beside the other): every clip is ranked by its best match's normalised cost (mean mismatch
   per template frame, :func:`mocapviz.relational.templates.document_costs`), judged by :mod:`mocapviz.experiments.evaluation` with the
   class as the label sought (no clip is the query): AP and R-precision of the ranking, and precision and recall of
-  the clips holding a match of normalised cost at most the template's threshold (the worst cost of its own
-  examples, or ``max_cost``): the hits a user gets without choosing a threshold;
+  the clips holding a match of normalised cost at most the template's learned threshold
+  (:func:`mocapviz.relational.templates.separating_threshold`, or ``max_cost``): the hits a user gets without choosing a threshold;
 - used to classify: every clip of the held-out group goes to the class of the nearest template learned without
   its group (:func:`mocapviz.relational.templates.classify`).
 
@@ -49,7 +49,7 @@ def template_quality(db, relational_set: str = "2006", group: str = "actor", del
         The quantisation threshold of the templates.
     max_cost : float, optional
         The normalised cost in [0, 1] up to which a clip's best match counts as a hit (precision and recall);
-        default each template's own ``meta["threshold"]``, the worst cost of its examples.
+        default each template's learned ``meta["threshold"]`` (:func:`mocapviz.relational.templates.separating_threshold`).
     progress : bool
         A progress bar over the templates.
     by_group : bool

@@ -306,7 +306,7 @@ def _template_hits(ctx: _Context, atom: TemplateAtom) -> _Hits:
 
     template = ctx.templates[atom.name]
     cost = ctx.template_cost
-    if cost is None:  # the template's own: the worst cost of its examples
+    if cost is None:  # the template's learned threshold (separating_threshold)
         cost = min(1.0, float(template.meta.get("threshold", TEMPLATE_COST)))
     found = search_template(ctx.db, template, n_matches=TEMPLATE_MATCHES, max_cost=cost, values=ctx.values)
     offset = ctx.doc_start[np.searchsorted(ctx.db.documents["doc_id"].to_numpy(), found["doc_id"].to_numpy())]
@@ -548,7 +548,7 @@ def find(db, description, n_matches: int | None = None, relational_set: str | No
         The set whose words the text uses (default: its templates' set, else "2005").
     template_cost : float, optional
         A template atom's instances: normalised cost at most this (0..1; default: each template's learned
-        threshold ``meta["threshold"]``, the worst cost of its own examples, else 0.15).
+        threshold ``meta["threshold"]``, :func:`~mocapviz.relational.templates.separating_threshold`, else 0.15).
     overlapping : bool
         Keep hits that overlap a better one in the same document (default: the best of them only).
     indexes : dict, optional

@@ -48,9 +48,14 @@ default and both switchable off:
   :func:`shortest_instance` applied frame by frame); every aligned cell still pays its cost, so an unbounded
   ``max_rows=0`` is the earlier matching exactly. A database frame may still hold one template row as long as it
   likes (slow instances).
-- The learned threshold (``meta["threshold"]``) of a template learned by group also counts each group's examples
-  judged by the other groups only (``meta["unseen_costs"]``): their own costs under a template that cares about
-  what every group keeps are optimistic for an unseen actor.
+- The examples' worst cost (``meta["example_threshold"]``) of a template learned by group also counts each group's
+  examples judged by the other groups only (``meta["unseen_costs"]``): their own costs under a template that cares
+  about what every group keeps are optimistic for an unseen actor.
+- *A threshold that separates.* The worst example is one outlier: a kick template's reached 0.052-0.074 while the
+  other classes' clips of the same actors began at 0.033 (jogs, throws, deposits), and an unseen actor's kicks cost
+  at most 0.016-0.051. :func:`learn_class` sets ``meta["threshold"]`` from the labelled database it learns from
+  (:func:`separating_threshold`): the example cost with the best F1 against the other classes' clips of the same
+  actors, raised halfway to the nearest such clip above it.
 """
 
 from __future__ import annotations
@@ -327,8 +332,9 @@ def learn_template(examples, features: list[str], label: str = "", iterations: i
     MotionTemplate
         ``values`` [shape=(K, f)] with K the medoid example's frames; ``meta`` holds ``example_frames`` (each
         example's length), ``example_costs`` (each example's best normalised match cost, :func:`document_costs`)
-        and ``threshold``, the highest of those: the cost up to which a match is as good as the examples' own (a
-        default threshold for hits).
+        and ``threshold`` = ``example_threshold``, the highest of those: the cost up to which a match is as good as
+        the examples' own (with groups, judged as unseen: ``unseen_costs``). :func:`learn_class` replaces
+        ``threshold`` by one that also keeps the other classes out (:func:`separating_threshold`).
 
     References
     ----------
@@ -373,7 +379,7 @@ def learn_template(examples, features: list[str], label: str = "", iterations: i
         template.meta["groups"] = names
     starts = np.cumsum([0] + [len(x) for x in xs[:-1]])
     own = document_costs(template, np.concatenate(xs), starts)
-    template.meta |= {"example_costs": own.tolist(), "threshold": float(own.max())}
+    template.meta |= {"example_costs": own.tolist(), "threshold": float(own.max()), "example_threshold": float(own.max())}
     if groups is not None and len(template.meta["groups"]) > 1:
         # judged by the other groups' consistency only, as an unseen group would be: the examples' own costs
         # under a template that cares about everything all groups keep are optimistic
@@ -384,7 +390,8 @@ def learn_template(examples, features: list[str], label: str = "", iterations: i
             mine = np.flatnonzero(np.asarray(groups) == name)
             unseen[mine] = document_costs(others, np.concatenate([xs[i] for i in mine]),
                                           np.cumsum([0] + [len(xs[i]) for i in mine[:-1]]))  # fmt: skip
-        template.meta |= {"unseen_costs": unseen.tolist(), "threshold": float(max(own.max(), unseen.max()))}
+        worst = float(max(own.max(), unseen.max()))
+        template.meta |= {"unseen_costs": unseen.tolist(), "threshold": worst, "example_threshold": worst}
     return template
 
 
@@ -491,13 +498,15 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
             return pd.DataFrame(columns=["doc_id", "start", "end", "cost", "normalised_cost"])
         frames = np.concatenate([np.arange(a, b) for a, b in ranges])
         parts = np.r_[0, np.cumsum(ranges[:, 1] - ranges[:, 0])[:-1]]
-    cost, first = _costs(template, q, x[frames], parts, min_frames, max_rows)
+    xs = x[frames]
+    cost, first = _costs(template, q, xs, parts, min_frames, max_rows)
     ends = best_ends(cost, first, parts, n_matches)
-    hits = matches_frame(doc_starts, frames[first[ends]], frames[ends], cost[ends], [None] * len(ends))
+    if max_cost is not None:
+        ends = ends[cost[ends] / len(q) <= max_cost]
+    begin = _tight_starts(q, xs, first[ends], ends, cost[ends], *_limits(template, q, min_frames, max_rows)[::-1])
+    hits = matches_frame(doc_starts, frames[begin], frames[ends], cost[ends], [None] * len(ends))
     hits = hits.drop(columns="path")
     hits["normalised_cost"] = hits["cost"] / len(q)
-    if max_cost is not None:
-        hits = hits[hits["normalised_cost"] <= max_cost].reset_index(drop=True)
     return hits
 
 
@@ -614,14 +623,63 @@ def _costs(template, q, x, starts, min_frames, max_rows=None) -> tuple[np.ndarra
     alignment spans fewer than ``min_frames`` frames (None: :func:`shortest_instance`), at most ``max_rows``
     template rows on one frame (None: :func:`steepest_rows`; 0 or at least the template's rows: unbounded, the
     basic step set of :func:`mocapviz.match.subsequence_costs`)."""
-    least = shortest_instance(template) if min_frames is None else count(min_frames, "min_frames")
-    rows = steepest_rows(template, min_frames=least) if max_rows is None else count(max_rows, "max_rows", least=0)
-    if rows == 0 or rows >= len(q):
+    least, rows = _limits(template, q, min_frames, max_rows)
+    if rows >= len(q):
         cost, first = subsequence_costs(q, x, starts, distance=quantised_distance)
     else:
         cost, first = _bounded_costs(q, x, starts, rows, least)
     cost[np.arange(len(cost)) - first + 1 < least] = np.inf
     return cost, first
+
+
+def _limits(template, q, min_frames, max_rows) -> tuple[int, int]:
+    """(the fewest frames a match spans, the most template rows one frame takes: ``len(q)`` when unbounded)."""
+    least = shortest_instance(template) if min_frames is None else count(min_frames, "min_frames")
+    rows = steepest_rows(template, min_frames=least) if max_rows is None else count(max_rows, "max_rows", least=0)
+    return least, len(q) if rows == 0 else min(rows, len(q))
+
+
+def _tight_starts(q, x, first, ends, costs, max_rows: int, least: int) -> np.ndarray:
+    """The latest start of each match: of the alignments of the whole template ending at frame ``ends[h]`` and
+    costing no more than ``costs[h]`` (within :data:`TIE`) over at least ``least`` frames, the one that starts last.
+
+    Subsequence DTW leaves a match's start free: frames before an instance that cost nothing against the template's
+    first rows (a rest pose held before a kick) join it at no cost, and the alignment keeps them (of equal costs it
+    keeps the longer path, which the minimum length needs). A match then reaches back into the motion before it,
+    and "A then B" misses an A that its B overlaps. Aligned backwards from each end (the template's rows and the
+    frames reversed, the path fixed to start at the end frame), the latest start is the first frame back where the
+    alignment's cost reaches the match's own; the costs are unchanged, only the starts move later (never earlier).
+
+    Parameters
+    ----------
+    q : np.ndarray [shape=(m, f)]
+        The quantised template.
+    x : np.ndarray [shape=(n, f)], bool
+        The frames aligned.
+    first, ends : np.ndarray [shape=(h,)], int
+        The matches' first and last frames of ``x`` (inclusive), none overlapping another.
+    costs : np.ndarray [shape=(h,)], float
+        Their costs (sums of per-frame mismatch shares).
+    max_rows, least : int
+        As :func:`_bounded_costs` (``max_rows >= m``: unbounded).
+
+    Returns
+    -------
+    np.ndarray [shape=(h,)], int64
+        The latest first frames, each in ``first[h] .. ends[h] - least + 1``.
+    """
+    first, ends = np.asarray(first, dtype=np.int64), np.asarray(ends, dtype=np.int64)
+    if not len(ends):
+        return first
+    lengths = ends - first + 1
+    bounds = np.r_[0, np.cumsum(lengths)]
+    # every match's frames, its last frame first (the matches do not overlap: at most n rows)
+    back = np.repeat(ends, lengths) - (np.arange(bounds[-1]) - np.repeat(bounds[:-1], lengths))
+    r = q[::-1]
+    steps = _latest_run_starts(_bit_rows(x[back]), _bit_rows(r == 1.0), _bit_rows(r != DONT_CARE),
+                               (r != DONT_CARE).sum(axis=1).astype(np.float64), bounds,
+                               np.asarray(costs, dtype=np.float64), min(max_rows, len(q)), least)  # fmt: skip
+    return ends - steps
 
 
 def _bounded_costs(q, x, starts, max_rows: int, least: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -688,18 +746,20 @@ def _bounded_run(frames, values, care, cared, docs, max_rows, cost, first):  # p
     acc, start = np.empty(m), np.empty(m, dtype=np.int64)
     for d in range(len(docs)):
         for j in range(docs[d, 0], docs[d, 1]):
-            _bounded_frame(frames, values, care, cared, j, j > docs[d, 0], max_rows, total, entry, enter_first, window,
-                           prev, prev_first, acc, start)  # fmt: skip
+            _bounded_frame(frames, values, care, cared, j, j > docs[d, 0], True, max_rows, total, entry, enter_first,
+                           window, prev, prev_first, acc, start)  # fmt: skip
             cost[j], first[j] = acc[m - 1], start[m - 1]
             prev[:] = acc
             prev_first[:] = start
 
 
 @numba.njit(cache=True, nogil=True)
-def _bounded_frame(frames, values, care, cared, j, same, max_rows, total, entry, enter_first, window, prev, prev_first,
-                   acc, start):  # pragma: no cover  # fmt: skip
+def _bounded_frame(frames, values, care, cared, j, same, fresh, max_rows, total, entry, enter_first, window, prev,
+                   prev_first, acc, start):  # pragma: no cover  # fmt: skip
     """Frame j of :func:`_bounded_run`: ``acc`` / ``start`` (the cost and path start of every template row ending
-    on frame j) from ``prev`` / ``prev_first`` (frame j - 1's, used when ``same``: j is not its document's first).
+    on frame j) from ``prev`` / ``prev_first`` (frame j - 1's, used when ``same``: j is not its document's first);
+    a path may begin (at row 0) on frame j when ``fresh`` (always in a search; on the first frame only when the
+    start is fixed, :func:`_latest_run_starts`).
 
     A run of rows r0 .. i on frame j costs ``total[i + 1] - total[r0]`` (``total``: the running sum of the frame's
     local costs), so the best run into row i is ``total[i + 1]`` plus the least ``entry[r0] = enter[r0] -
@@ -716,7 +776,7 @@ def _bounded_frame(frames, values, care, cared, j, same, max_rows, total, entry,
         total[i + 1] = total[i] + (bad / cared[i] if cared[i] > 0 else 0.0)
     # the cheapest way into row r0 of frame j before its run: a start (row 0) or from frame j - 1 at row r0
     # (held) or r0 - 1 (diagonal), the held row winning ties
-    entry[0], enter_first[0] = 0.0, j
+    entry[0], enter_first[0] = (0.0, j) if fresh else (np.inf, -1)
     for r0 in range(1, m):
         entry[r0], enter_first[r0] = np.inf, -1
         if same:
@@ -737,6 +797,32 @@ def _bounded_frame(frames, values, care, cared, j, same, max_rows, total, entry,
             acc[i], start[i] = total[i + 1] + entry[r0], enter_first[r0]
         else:
             acc[i], start[i] = np.inf, -1
+
+
+@numba.njit(cache=True, nogil=True)
+def _latest_run_starts(frames, values, care, cared, bounds, costs, max_rows, least):  # pragma: no cover
+    """For each match h (rows ``bounds[h]:bounds[h + 1]`` of ``frames``: its frames from the last back to the
+    first; ``values`` / ``care`` / ``cared``: the template's rows reversed), the fewest frames back from the end,
+    less one, at which an alignment fixed to begin on the end frame covers the whole template at no more than
+    ``costs[h]`` (+ :data:`TIE`) over at least ``least`` frames (:func:`_tight_starts`)."""
+    m = values.shape[0]
+    total, entry, enter_first = np.empty(m + 1), np.empty(m), np.empty(m, dtype=np.int64)
+    window = np.empty(m, dtype=np.int64)
+    prev, prev_first = np.empty(m), np.empty(m, dtype=np.int64)
+    acc, start = np.empty(m), np.empty(m, dtype=np.int64)
+    steps = np.empty(len(costs), dtype=np.int64)
+    for h in range(len(costs)):
+        a, b = bounds[h], bounds[h + 1]
+        steps[h] = b - a - 1  # the match as found, when no later start costs as little
+        for j in range(a, b):
+            _bounded_frame(frames, values, care, cared, j, j > a, j == a, max_rows, total, entry, enter_first, window,
+                           prev, prev_first, acc, start)  # fmt: skip
+            if j - a + 1 >= least and acc[m - 1] <= costs[h] + TIE:
+                steps[h] = j - a
+                break
+            prev[:] = acc
+            prev_first[:] = start
+    return steps
 
 
 def document_costs(template: MotionTemplate, values: np.ndarray, starts, delta: float = DELTA,
@@ -862,8 +948,11 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     MotionTemplate
         ``meta`` holds the relational set, the example doc ids, the class's documents (``class_documents``, more
         than the examples with ``max_examples``), the actors, the database path and its
-        ``generation`` (``db.manifest["generation"]``: the state of the database it was learned from), and
-        ``groups`` when learned by group.
+        ``generation`` (``db.manifest["generation"]``: the state of the database it was learned from),
+        ``groups`` when learned by group, and the learned ``threshold`` (:func:`separating_threshold` of the
+        examples' costs, judged as unseen when learned by group, and the best costs of the documents of other
+        labels, of ``actors`` when given: ``negatives`` of them, the least ``nearest_negative``; the examples'
+        worst cost stays ``example_threshold``).
 
     References
     ----------
@@ -903,11 +992,64 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     if by_group and group in docs.columns and chosen[group].notna().all():
         groups = chosen[group].astype(str).tolist()
     template = learn_template(examples, names, str(label), iterations, groups=groups)
+    others = docs["label"].notna().to_numpy() & (docs["label"].astype("string") != str(label)).to_numpy(bool)
+    if actors is not None:
+        others &= docs[group].astype("string").isin([str(a) for a in actors]).to_numpy(bool)
+    negatives = document_costs(template, values, docs["start"].to_numpy())[others] if others.any() else np.empty(0)
+    negatives = negatives[np.isfinite(negatives)]
+    positives = template.meta.get("unseen_costs", template.meta["example_costs"])
+    template.meta |= {"threshold": separating_threshold(positives, negatives), "negatives": len(negatives),
+                      "nearest_negative": float(negatives.min()) if len(negatives) else None}  # fmt: skip
     template.meta |= {"relational_set": str(relational_set), "doc_ids": chosen["doc_id"].astype(int).tolist(),
                       "class_documents": of_class,
                      "database": str(db.path), "generation": db.manifest["generation"],
                      "actors": None if actors is None else [str(a) for a in actors]}
     return template
+
+
+def separating_threshold(positives, negatives) -> float:
+    """The normalised cost up to which a template's matches count as its class: learned from the class's examples
+    and the other classes' documents.
+
+    Of the positive costs, the one at which "cost <= it" has the best F1 (true matches: the positives up to it;
+    false: the negatives up to it; the least such cost when several tie), raised halfway to the least negative
+    above it (none above: kept). Without negatives this is the highest positive cost, the examples' worst.
+
+    Parameters
+    ----------
+    positives : array_like [shape=(p,)], float
+        Each example's best normalised match cost (judged as an unseen example would be: ``meta["unseen_costs"]``).
+    negatives : array_like [shape=(n,)], float
+        The best normalised cost in each document of another class (:func:`document_costs`), finite.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ParameterError
+        No positive cost.
+
+    Examples
+    --------
+    >>> separating_threshold([0.01, 0.02, 0.06], [0.03, 0.04, 0.05])  # 0.06: one more example, three impostors
+    0.025
+    >>> round(separating_threshold([0.01, 0.05], [0.1, 0.2]), 6)  # apart: halfway between the classes
+    0.075
+    >>> separating_threshold([0.01, 0.05], [])
+    0.05
+    """
+    pos = np.sort(np.asarray(positives, dtype=np.float64).reshape(-1))
+    neg = np.sort(np.asarray(negatives, dtype=np.float64).reshape(-1))
+    if not len(pos):
+        raise ParameterError("no example cost: a threshold needs the class's examples")
+    tp = np.searchsorted(pos, pos, side="right")
+    fp = np.searchsorted(neg, pos, side="right")
+    f1 = 2 * tp / (2 * tp + fp + (len(pos) - tp))
+    best = pos[int(np.argmax(f1))]
+    above = neg[neg > best]
+    return float((best + above[0]) / 2) if len(above) else float(best)
 
 
 def template_path(db, name: str) -> Path:
@@ -1101,9 +1243,9 @@ def search_template(db, template: MotionTemplate, n_matches: int = 10, delta: fl
     >>> hits = search_template(db, t, n_matches=3)
     >>> print(hits[["rank", "doc_id", "label", "start", "end", "normalised_cost"]].round(3).to_string(index=False))
      rank  doc_id           label  start  end  normalised_cost
-        1       7 kickLFront1Reps      0  125            0.000
-        2      12 throwBasketball      0   74            0.142
-        3      18 kickLFront1Reps     28  130            0.148
+        1       7 kickLFront1Reps      3  125            0.000
+        2      12 throwBasketball      9   74            0.142
+        3      18 kickLFront1Reps     31  130            0.148
     """
     relational_set = next((s for s in RELATIONAL_SETS if feature_names(s) == template.features), None)
     if relational_set is None:
