@@ -6,10 +6,12 @@ which part found nothing, and a stored template's description fills the editor."
 from __future__ import annotations
 
 import re
+import time
 
 import numpy as np
 import pytest
 from browser_helpers import EXCEPTION_NAME, assert_no_exception_names, open_dashboard, open_tab, record_timing, timed
+from playwright.sync_api import Error as PlaywrightError
 from playwright.sync_api import expect
 
 from mocapviz.app.pages import describe as page_mod
@@ -117,11 +119,21 @@ def _type(page, text: str) -> None:
     editor.press_sequentially(text, delay=2)
 
 
-def _rows(page) -> list[tuple[int, int, int]]:
-    """(document, start, end) of the hit table's rows on its shown page."""
+def _rows(page, want: list, timeout: float = 10.0) -> list[tuple[int, int, int]]:
+    """(document, start, end) of the hit table's rows on its shown page, read again until they are ``want`` or
+    ``timeout`` seconds have passed (Tabulator renders its rows anew when the table's data is set: a loaded CI
+    machine once read none between two renderings)."""
     rows = page.locator(".mv-describe-hits .tabulator-row")
-    return [tuple(int(rows.nth(i).locator(f'.tabulator-cell[tabulator-field="{c}"]').inner_text())
-                  for c in ("doc_id", "start", "end")) for i in range(rows.count())]
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            got = [tuple(int(rows.nth(i).locator(f'.tabulator-cell[tabulator-field="{c}"]').inner_text(timeout=1000))
+                         for c in ("doc_id", "start", "end")) for i in range(rows.count())]
+        except PlaywrightError:  # a row went away while it was read
+            got = None
+        if got == want or time.monotonic() > deadline:
+            return got
+        page.wait_for_timeout(100)
 
 
 def test_typo_fix_find_play_and_empty(sample_db, sample_dashboard, page, screenshot):
@@ -151,7 +163,8 @@ def test_typo_fix_find_play_and_empty(sample_db, sample_dashboard, page, screens
     record_timing("describe_find_ms", ms, "ms")
     expected = find(sample_db, KICK, n_matches=4, indexes=index.load(sample_db, "2005"))
     expect(page.locator(".mv-describe-hits .tabulator-row")).to_have_count(len(expected))
-    assert _rows(page) == list(zip(expected["doc_id"], expected["start"], expected["end"]))
+    want = list(zip(expected["doc_id"], expected["start"], expected["end"]))
+    assert _rows(page, want) == want
     parts = page.locator(".mv-describe-hits .tabulator-row").first.locator('.tabulator-cell[tabulator-field="parts"]')
     assert parts.inner_text().strip() == expected["parts"].iloc[0]
     screenshot("hits")
@@ -208,7 +221,8 @@ def test_names_and_parts_insert_and_a_stored_template_is_described(sample_db, sa
     assert len(expected) > 0
     expect(page.locator(".mv-describe-count")).to_contain_text(f"{len(expected)} hit")
     expect(page.locator(".mv-describe-hits .tabulator-row")).to_have_count(min(len(expected), PAGE_SIZE))
-    assert _rows(page) == list(zip(expected["doc_id"], expected["start"], expected["end"]))[:PAGE_SIZE]
+    want = list(zip(expected["doc_id"], expected["start"], expected["end"]))[:PAGE_SIZE]
+    assert _rows(page, want) == want
     assert_no_exception_names(page)
     screenshot("template-described")
     _type(page, "set 2005;\nkick_left")  # a set the text names moves the buttons
