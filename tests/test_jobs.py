@@ -3,12 +3,14 @@ the experiments' steps) and the dashboard's job queue (mocapviz.app.jobs), on re
 
 from __future__ import annotations
 
+import asyncio
+import gc
 import threading
 import time
 
 import pytest
 
-from mocapviz.app.jobs import JobQueue
+from mocapviz.app.jobs import JobQueue, JobTask
 from mocapviz.db.batches import map_documents
 from mocapviz.errors import Cancelled
 from mocapviz.experiments.numeric import knn_timings
@@ -135,6 +137,43 @@ def test_progress_of_a_job_is_its_steps():
     stop.set()
     job.future.result(timeout=30)
     assert job.fraction == 1.0 and job.step == "steps 50/50"
+
+
+class _Held:
+    """A reference cycle (freed only by a collection) noting the thread its finalizer runs in."""
+
+    def __init__(self, threads: list):
+        self.threads, self.me = threads, self
+
+    def __del__(self):
+        self.threads.append(threading.current_thread().name)
+
+
+def test_a_job_is_collected_on_the_event_loop_after_its_page_has_the_outcome():
+    """What a dashboard job leaves in reference cycles is collected by the event loop's thread once the page has the
+    job's outcome, never in the job's thread (a collection there runs finalizers beside the event loop: pages lost
+    updates); automatic collections are off meanwhile, so only the job's own release collects."""
+    threads: list = []
+
+    def work():
+        _Held(threads)  # garbage the moment it is made, in the job's thread
+        return 7
+
+    async def page():
+        task = JobTask(JobQueue())
+        result = await task.run("Evaluating", work)
+        after_run = list(threads)
+        await asyncio.sleep(0)  # the release is the event loop's next callback
+        return result, after_run
+
+    gc.collect()
+    gc.disable()
+    try:
+        result, after_run = asyncio.run(page())
+    finally:
+        gc.enable()
+    assert result == 7 and after_run == []
+    assert threads == [threading.current_thread().name]
 
 
 def test_the_backend_keeps_derived_data_and_a_bounded_number_of_answers(sample_db, monkeypatch):

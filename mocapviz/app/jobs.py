@@ -5,9 +5,13 @@ time per server, the others queued, each with its progress, a Cancel button, and
 server's event loop and apart from the threads that answer the pages' queries, so a long job never delays another
 session's search. A job runs inside :func:`mocapviz.parallel.watching`: every step of the library's batch loops
 (:func:`mocapviz.parallel.progress_bar`, :func:`mocapviz.parallel.map_ordered`) reports the fraction done and checks
-its cancel event, so Cancel (or the end of its browser session) stops it between two steps, and what it computed so
-far is freed (:func:`release_memory`). :class:`JobTask` is a page's :class:`~mocapviz.app.progress.Task` run as such
-a job: a bar of the fraction done, the step, the place in the queue while waiting, and Cancel.
+its cancel event, so Cancel (or the end of its browser session) stops it between two steps. :class:`JobTask` is a
+page's :class:`~mocapviz.app.progress.Task` run as such a job: a bar of the fraction done, the step, the place in the
+queue while waiting, and Cancel; once the page has the job's outcome, what the job computed is freed
+(:func:`release_memory`) on the server's event loop, never in the job's thread: a full collection there runs the
+finalizers of other sessions' objects beside the event loop, and pages lost updates (the retrieval page's error or
+its "done" never reached the browser: 2 of 81 evaluate / refused / evaluate rounds on one served sample with the
+collection in the job's thread, 0 of 100 without it).
 """
 
 from __future__ import annotations
@@ -34,7 +38,8 @@ POLL_S = 0.25  # seconds between two looks of a page at its job's progress
 
 def release_memory() -> None:
     """Collect garbage, then give the C heap's free pages back to the system (glibc's ``malloc_trim``; nothing
-    elsewhere), so that the memory of a finished, cancelled or closed computation leaves the server's RSS."""
+    elsewhere), so that the memory of a finished, cancelled or closed computation leaves the server's RSS. Called on
+    the server's event loop (the finalizers the collection runs belong to every session's objects)."""
     gc.collect()
     trim_free_memory()
 
@@ -119,7 +124,6 @@ class JobQueue:
             raise
         finally:
             job.fn = None  # the arguments it held (a page, a backend) are not kept by the finished job
-            release_memory()
             LOG.info("job %s after %.1f s: %s", outcome, time.perf_counter() - job.started, job.name)
 
 
@@ -195,6 +199,7 @@ class JobTask(Task):
         finally:
             self.job = None
             self.cancel_button.visible = False
+            asyncio.get_running_loop().call_soon(release_memory)  # on the event loop, the page's updates made
 
     async def _call(self, fn, *args):
         job = self.job = self.queue.submit(functools.partial(fn, *args), self._label)
