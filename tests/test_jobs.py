@@ -4,12 +4,12 @@ the experiments' steps) and the dashboard's job queue (mocapviz.app.jobs), on re
 from __future__ import annotations
 
 import asyncio
-import gc
 import threading
 import time
 
 import pytest
 
+from mocapviz.app import jobs
 from mocapviz.app.jobs import JobQueue, JobTask
 from mocapviz.db.batches import map_documents
 from mocapviz.errors import Cancelled
@@ -139,41 +139,24 @@ def test_progress_of_a_job_is_its_steps():
     assert job.fraction == 1.0 and job.step == "steps 50/50"
 
 
-class _Held:
-    """A reference cycle (freed only by a collection) noting the thread its finalizer runs in."""
-
-    def __init__(self, threads: list):
-        self.threads, self.me = threads, self
-
-    def __del__(self):
-        self.threads.append(threading.current_thread().name)
-
-
-def test_a_job_is_collected_on_the_event_loop_after_its_page_has_the_outcome():
-    """What a dashboard job leaves in reference cycles is collected by the event loop's thread once the page has the
-    job's outcome, never in the job's thread (a collection there runs finalizers beside the event loop: pages lost
-    updates); automatic collections are off meanwhile, so only the job's own release collects."""
-    threads: list = []
-
-    def work():
-        _Held(threads)  # garbage the moment it is made, in the job's thread
-        return 7
+def test_a_job_releases_its_memory_on_the_event_loop_after_its_page_has_the_outcome(monkeypatch):
+    """What a dashboard job computed is released (collected, heap trimmed) by the event loop's thread once the page
+    has the job's outcome, never in the job's thread: a collection there runs finalizers beside the event loop, and
+    pages lost updates. The page runs on an event loop of its own thread, as the server's does."""
+    calls, delivered, out = [], [], []
+    monkeypatch.setattr(jobs, "release_memory", lambda: calls.append((threading.current_thread().name, bool(delivered))))
 
     async def page():
-        task = JobTask(JobQueue())
-        result = await task.run("Evaluating", work)
-        after_run = list(threads)
+        result = await JobTask(JobQueue()).run("Evaluating", lambda: 7)
+        delivered.append(result)
         await asyncio.sleep(0)  # the release is the event loop's next callback
-        return result, after_run
+        return result
 
-    gc.collect()
-    gc.disable()
-    try:
-        result, after_run = asyncio.run(page())
-    finally:
-        gc.enable()
-    assert result == 7 and after_run == []
-    assert threads == [threading.current_thread().name]
+    loop = threading.Thread(target=lambda: out.append(asyncio.run(page())), name="event-loop")
+    loop.start()
+    loop.join(30)
+    assert out == [7]
+    assert calls == [("event-loop", True)]
 
 
 def test_the_backend_keeps_derived_data_and_a_bounded_number_of_answers(sample_db, monkeypatch):
