@@ -11,7 +11,7 @@ queue while waiting, and Cancel; once the page has the job's outcome, what the j
 (:func:`release_memory`) on the server's event loop, never in the job's thread: a full collection there runs the
 finalizers of other sessions' objects beside the event loop, and pages lost updates (the retrieval page's error or
 its "done" never reached the browser: 2 of 81 evaluate / refused / evaluate rounds on one served sample with the
-collection in the job's thread, 0 of 100 without it).
+collection in the job's thread, 0 of 100 without it; ``python scripts/stress_job_updates.py``).
 """
 
 from __future__ import annotations
@@ -199,7 +199,7 @@ class JobTask(Task):
         finally:
             self.job = None
             self.cancel_button.visible = False
-            asyncio.get_running_loop().call_soon(release_memory)  # on the event loop, the page's updates made
+            asyncio.get_running_loop().call_soon(release_memory)  # after the page's updates, never in the job's thread
 
     async def _call(self, fn, *args):
         job = self.job = self.queue.submit(functools.partial(fn, *args), self._label)
