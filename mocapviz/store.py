@@ -161,7 +161,12 @@ def atomic_folder(target: str | os.PathLike, replace: bool = True) -> Iterator[P
                 return
             old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
             os.replace(target, old / "previous")
-        os.replace(tmp, target)
+        try:
+            os.replace(tmp, target)
+        except OSError:  # another process's folder took the name between the check and the rename
+            if replace or not target.exists():
+                raise
+            return
         _fsync_folder(target.parent)
     finally:
         for leftover in (tmp, old):

@@ -6,6 +6,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -141,3 +142,22 @@ def test_two_processes_writing_derived_data_at_once(sample_dir, tmp_path):
     for folder in (db.path / "index", db.path / "features"):
         assert _leftovers(folder) == []
     assert os.listdir(db.path / "index")
+
+
+def test_a_folder_another_process_renamed_into_place_first_is_kept(tmp_path, monkeypatch):
+    """Two fresh ingests create one database: the other's folder takes the name between this one's check and its
+    rename (made to happen here by the rename itself); with ``replace=False`` theirs is kept, ours discarded, no
+    error (a concurrent-ingest test once saw ENOTEMPTY from the rename)."""
+    target, rename = tmp_path / "db", os.replace
+
+    def racing(src, dst):
+        if Path(dst) == target and not target.exists():
+            target.mkdir()
+            (target / "theirs").write_text("1")
+        return rename(src, dst)
+
+    monkeypatch.setattr(os, "replace", racing)
+    with atomic_folder(target, replace=False) as tmp:
+        (tmp / "mine").write_text("2")
+    assert [f.name for f in target.iterdir()] == ["theirs"]
+    assert not list(tmp_path.glob(".db.*"))
