@@ -78,6 +78,22 @@ def c3d_dir() -> Path:
 
 
 @pytest.fixture(scope="session")
+def round3(tmp_path_factory) -> Path:
+    """The reproducers of ``../shared/reliability/round3.tar.xz`` (damaged C3D files, hostile descriptions, export
+    tables, fake schedulers), unpacked once: the folder holding ``README.md``, ``c3d/``, ``descriptions/``,
+    ``export/``, ``scheduler/``. Skips, with the reason, without ``../shared`` beside the checkout."""
+    import tarfile
+
+    archive = REPO.parent / "shared" / "reliability" / "round3.tar.xz"
+    if not archive.is_file():
+        pytest.skip(f"needs the reproducers {archive} (../shared/reliability beside the checkout)")
+    out = tmp_path_factory.mktemp("round3")
+    with tarfile.open(archive) as tar:
+        tar.extractall(out, filter="data")
+    return out / "round3"
+
+
+@pytest.fixture(scope="session")
 def hdm05_labels(hdm05_dir):
     """``labels.tsv`` of HDM05 (file, actor, class, take, frames, fps, split)."""
     import pandas as pd
