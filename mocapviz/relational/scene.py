@@ -140,7 +140,9 @@ def _index_runs(ctx: _Context, p: Progression) -> tuple[np.ndarray, np.ndarray]:
 
 def _scan_runs(ctx: _Context, p: Progression) -> tuple[np.ndarray, np.ndarray]:
     """The same as :func:`_index_runs`, by walking the runs of the feature's frame-wise values in every document."""
-    column = ctx.values[:, vocabulary_of(ctx.relational_set).features.index(p.feature)]
+    from ..features import feature_names
+
+    column = ctx.values[:, feature_names(ctx.relational_set).index(p.feature)]  # column order, not the groups'
     n = len(p.values)
     found_s, found_e = [], []
     for a, b in zip(ctx.doc_start, ctx.doc_end):
@@ -169,7 +171,9 @@ def _frames_in_state(ctx: _Context, feature: str, value: int, lo: np.ndarray, hi
             ones = np.concatenate([[0], np.cumsum(bit * index.lengths)])
             ctx.cache[key] = (index.starts, bit, ones)
         else:
-            column = ctx.values[:, vocabulary_of(ctx.relational_set).features.index(feature)]
+            from ..features import feature_names
+
+            column = ctx.values[:, feature_names(ctx.relational_set).index(feature)]  # column order, not the groups'
             ctx.cache[key] = np.concatenate([[0], np.cumsum(column, dtype=np.int64)])
     got = ctx.cache[key]
     if isinstance(got, tuple):
