@@ -16,12 +16,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from mocapviz import MotionDB
 from mocapviz.cli import main
 from mocapviz.db.shards import shard_view, split_documents
 from mocapviz.errors import ClusterError, ParameterError
-from mocapviz.features import numeric_of, relational_features
+from mocapviz.features import feature_names, numeric_of, relational_features
 from mocapviz.relational.index import build
 from mocapviz.relational.query import query_by_example
 from mocapviz.relational.scene import find
@@ -124,6 +126,45 @@ def test_relational_queries_are_exactly_the_single_process_answer(hdm05, sharded
         assert one.attrs["counts"] == many.attrs["counts"] and one.attrs["empty_reason"] == many.attrs["empty_reason"]
     with pytest.raises(ParameterError, match="longer than every document"):
         sharded.query_by_example(replace(db.motion(0), fps=1.0), ["lknee_bent"])  # the clip played 30x slower
+
+
+def test_an_example_longer_than_a_shards_documents_still_finds_their_hits(hdm05, sharded):
+    """Issue 38's reproducer: document 100 (6.7 s) is longer than every document of the last shard, whose documents
+    still hold adaptive hits (shorter than the query); the shard used to answer nothing, exit 0."""
+    db, indexes = hdm05
+    features = ["rknee_bent", "lknee_bent"]
+    one = query_by_example(db, db.motion(100), features, indexes=indexes)
+    last = set(split_documents(db, 3)[-1].tolist())
+    assert last & set(one["doc_id"]), "the reproducer's hits must reach the last shard"
+    same(one, sharded.query_by_example(db.motion(100), features), "score", "first_segment", "last_segment",
+         "n_segments")  # fmt: skip
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_random_relational_queries_are_exactly_the_single_process_table(hdm05, sharded, data):
+    """Any example (document, span), features and mode: the sharded table equals the single-process one, column for
+    column (segments numbered in the whole database), or both refuse the query alike."""
+    db, indexes = hdm05
+    docs = db.documents
+    row = data.draw(st.integers(0, len(docs) - 1), label="document row")
+    n = int(docs["n_frames"].iloc[row])
+    start = data.draw(st.integers(0, n - 2), label="start")
+    stop = data.draw(st.integers(start + 2, n), label="stop")
+    example = db.motion(int(docs["doc_id"].iloc[row]))[start:stop]
+    features = data.draw(st.lists(st.sampled_from(feature_names("2005")), min_size=1, max_size=3, unique=True),
+                         label="features")  # fmt: skip
+    mode = data.draw(st.sampled_from(["adaptive", "exact", "fuzzy", "mismatch"]), label="mode")
+    try:
+        one = query_by_example(db, example, features, mode=mode, indexes=indexes)
+    except ParameterError as refused:
+        with pytest.raises(ParameterError) as also:
+            sharded.query_by_example(example, features, mode=mode)
+        assert str(also.value) == str(refused)
+        return
+    many = sharded.query_by_example(example, features, mode=mode)
+    assert list(one.columns) == list(many.columns)
+    assert one.reset_index(drop=True).equals(many.reset_index(drop=True)), (one.head(), many.head())
 
 
 def test_template_search_is_exactly_the_single_process_answer(hdm05, sharded):

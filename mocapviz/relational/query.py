@@ -8,6 +8,8 @@ groups are joined when they overlap in the same document. Hits are ranked by the
 §6.2: the sum over query segments of the difference between query and hit segment durations.
 
 query_by_example   Motion (or its RelationalExample) + feature names -> DataFrame of ranked hits.
+example_hits       the same hits, the arguments taken as checked (a shard's part of a sharded query).
+check_example_query those checks, once, where the whole database is known.
 relational_example a Motion's frame-wise values of a relational set: what a query needs of its example (a few kB,
                    what a sharded query sends to its shards instead of the clip).
 query_segmentation the query sequence per feature group: the example's segmentation on the selected features.
@@ -261,21 +263,69 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     >>> hits["label"].tolist()  # two aspects: only the kicks
     ['kickLFront1Reps', 'kickLFront1Reps']
     """
+    check_example_query(db, example, features, mode, mismatches, relational_set)
+    return example_hits(db, example, features, mode, mismatches, relational_set, indexes, allowed)
+
+
+def check_example_query(db, example, features, mode: str, mismatches: int, relational_set: str) -> None:
+    """Refuse what :func:`query_by_example` cannot answer in ``db`` (checked once, where the whole database is known).
+
+    Parameters
+    ----------
+    db, example, features, mode, mismatches, relational_set
+        As :func:`query_by_example`.
+
+    Raises
+    ------
+    ParameterError
+        An unknown mode or feature, ``mismatches`` below 0, an example longer than every document of ``db``.
+    """
     if mode not in MODES:
         raise ParameterError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
     if mode == "mismatch" and not (isinstance(mismatches, (int, np.integer)) and mismatches >= 0):
         raise ParameterError(f"mismatches must be an integer >= 0 (query segments that may disagree), "
                              f"got {mismatches!r}")
     _check_features(features, relational_set)
-    indexes = index_mod.load(db, relational_set) if indexes is None else indexes
-    docs = db.documents
     too_long = longer_than_every_document(db, example)
     if too_long:
         raise ParameterError(too_long)
+
+
+def example_hits(db, example, features, mode: str, mismatches: int, relational_set: str, indexes: dict | None = None,
+                 allowed=None) -> pd.DataFrame:
+    """:func:`query_by_example`'s hits, its arguments taken as already checked: for a part of a database (a shard,
+    :mod:`mocapviz.sharded`), where a document shorter than the example may still hold a hit (adaptive segments
+    need not last as long as the query's), so the whole database's length check must not be repeated per part.
+
+    Parameters
+    ----------
+    db, example, features, mode, mismatches, relational_set, indexes, allowed
+        As :func:`query_by_example`, checked by it.
+
+    Returns
+    -------
+    pandas.DataFrame
+        :func:`query_by_example`'s table; attrs ``group_segments``: the segments of the first group queried in
+        ``db``'s index (the numbering of ``first_segment`` / ``last_segment``, so that a shard's can be offset).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.relational.index import build
+    >>> db = MotionDB.sample()
+    >>> indexes = build(db, save=False, progress=False)
+    >>> hits = example_hits(db, db.motion(7), ["lfoot_raised"], "adaptive", 1, "2005", indexes)
+    >>> hits["doc_id"].tolist()[:3], hits.attrs["group_segments"] == indexes["lower"].n_segments
+    ([7, 11, 18], True)
+    """
+    indexes = index_mod.load(db, relational_set) if indexes is None else indexes
+    docs = db.documents
     values, names, _, _ = relational_example(example, relational_set)
     doc_fps = docs["fps"].to_numpy(np.float64)  # per document: a database may mix frame rates
     tables = []
-    for group, (picked, seq) in query_segmentation(values, names, features, relational_set).items():
+    segmentation = query_segmentation(values, names, features, relational_set)
+    first_group = next(iter(segmentation))
+    for group, (picked, seq) in segmentation.items():
         idx = indexes[group]
         bounds, q_len = _group_hits(idx, seq, picked, mode, mismatches, allowed)
         first, stop = bounds[:, 0], bounds[:, -1]
@@ -308,5 +358,7 @@ def query_by_example(db, example, features=None, mode: str = "adaptive", mismatc
     doc_id = docs["doc_id"].to_numpy()[hits["doc_row"].to_numpy(np.int64)]
     rows = np.lexsort((cols["start"], doc_id, cols["score"]))  # by score, then doc id and start
     cols = {c: v[rows] for c, v in cols.items()}
-    return hit_table(db, doc_id[rows], cols.pop("start"), cols.pop("end"), **cols)
+    table = hit_table(db, doc_id[rows], cols.pop("start"), cols.pop("end"), **cols)
+    table.attrs["group_segments"] = indexes[first_group].n_segments
+    return table
 

@@ -22,7 +22,7 @@ import pandas as pd
 from ..db.database import MotionDB
 from ..db.hits import first_frames, hit_table
 from ..db.shards import split_documents
-from ..errors import ClusterError, MocapvizError, ParameterError
+from ..errors import ClusterError, MocapvizError
 from ..match.time_warping import shortest_match
 from ..parallel import dask_client
 from ..validation import MIN_LENGTH, count
@@ -260,17 +260,22 @@ class ShardedDB:
     def query_by_example(self, example, features=None, mode: str = "adaptive", mismatches: int = 1,
                          relational_set: str = "2005", allowed=None) -> pd.DataFrame:  # fmt: skip
         """:func:`mocapviz.relational.query.query_by_example` over every shard (each with its own inverted indexes):
-        the hits ranked by score, then doc id and start, as on one process."""
-        from ..relational.query import longer_than_every_document, relational_example
+        the hits ranked by score, then doc id and start, and the segments numbered in the whole database, as on one
+        process."""
+        from ..relational.query import check_example_query, relational_example
 
-        too_long = longer_than_every_document(self.db, example)
-        if too_long:
-            raise ParameterError(too_long)
+        check_example_query(self.db, example, features, mode, mismatches, relational_set)
         t0 = time.perf_counter()
         example = relational_example(example, relational_set)  # once, here; the shards get its values (a few kB)
-        tables = self._fan("query_by_example", example, features, relational_set, mode=mode, mismatches=mismatches,
-                           allowed=allowed)  # fmt: skip
-        return self._merged(tables, ["score", "doc_id", "start"], None, t0)
+        packs = self._fan("query_by_example", example, features, relational_set, mode, mismatches, allowed)
+        offset = 0
+        for pack in packs:  # a shard numbers its segments from its first; the database from the first shard's
+            for column in ("first_segment", "last_segment"):
+                pack["columns"][column] = pack["columns"][column].astype(np.int64) + offset
+            offset += pack["attrs"].pop("group_segments")
+        table = self._merged(packs, ["score", "doc_id", "start"], None, t0)
+        table.attrs["group_segments"] = offset
+        return table
 
     def find(self, description, n_matches: int | None = None, relational_set: str | None = None,
              template_cost: float | None = None, overlapping: bool = False) -> pd.DataFrame:  # fmt: skip

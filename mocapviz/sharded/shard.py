@@ -149,16 +149,17 @@ class Shard:
                                         exclude_document=own, paths=paths, features=self.numeric(numeric_set),
                                         min_length=min_length))
 
-    def query_by_example(self, example, features, relational_set: str = "2005", **options) -> dict | None:
-        """:func:`~mocapviz.relational.query.query_by_example` on the shard (``example``: a Motion or its
-        :class:`~mocapviz.relational.query.RelationalExample`); None when the example is longer than every document
-        of the shard (nothing can match here)."""
-        from ..relational.query import longer_than_every_document, query_by_example
+    def query_by_example(self, example, features, relational_set: str, mode: str, mismatches: int,
+                         allowed) -> dict:  # fmt: skip
+        """:func:`~mocapviz.relational.query.query_by_example` on the shard, its arguments checked by the coordinator
+        (:func:`~mocapviz.relational.query.example_hits`: a document of the shard shorter than the example may hold a
+        hit); ``example``: a Motion or its :class:`~mocapviz.relational.query.RelationalExample`. Attrs
+        ``group_segments``: the shard's segments of the first group queried (``first_segment`` / ``last_segment``
+        count from the shard's first segment)."""
+        from ..relational.query import example_hits
 
-        if longer_than_every_document(self.view, example):
-            return None
-        return self.packed(query_by_example(self.view, example, features, relational_set=relational_set,
-                                            indexes=self.indexes(relational_set), **options))  # fmt: skip
+        return self.packed(example_hits(self.view, example, features, mode, mismatches, relational_set,
+                                        self.indexes(relational_set), allowed))  # fmt: skip
 
     def find(self, description: str, relational_set: str, **options) -> dict:
         """:func:`~mocapviz.relational.scene.find` on the shard (its attrs: the hits of each part, ``counts``)."""
