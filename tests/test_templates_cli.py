@@ -71,6 +71,29 @@ def test_learn_via_the_cli_equals_learn_class_and_is_stored(db, tmp_path, capsys
     assert str(template_path(db, "squat1Reps-dg")) in printed and f"written to {out}" in printed
 
 
+def test_learn_on_a_database_with_unlabelled_takes(tmp_path, capsys):
+    """A lab's own take has no label (NA): learning a class ignores it, as example and as other class, and the
+    template equals the one learned without the take (it crashed: boolean value of NA is ambiguous)."""
+    from mocapviz.app.pages.templates import actors_of
+    from mocapviz.io import datasets
+
+    sample = datasets.sample()
+    own = tmp_path / "own"
+    own.mkdir()
+    shutil.copy(sample / "cmu-asfamc" / "asf" / "martialwalk.asf", own)  # no labels.tsv: an unlabelled take
+    shutil.copy(sample / "cmu-asfamc" / "amc" / "martialwalk" / "135_08.amc", own)
+    mixed = MotionDB.ingest([sample / "hdm05-cut", own], tmp_path / "mixed", progress=False)
+    labelled = MotionDB.ingest([sample / "hdm05-cut"], tmp_path / "labelled", progress=False)
+    assert mixed.documents["label"].isna().sum() == 1 and labelled.documents["label"].notna().all()
+    assert main(["template", "learn", str(mixed.path), "--label", "kickLFront1Reps"]) == 0
+    capsys.readouterr()
+    got, expected = load_template(mixed, "kickLFront1Reps"), learn_class(labelled, "kickLFront1Reps")
+    _same(got, expected)
+    assert got.meta["negatives"] == expected.meta["negatives"] > 0
+    assert got.meta["threshold"] == expected.meta["threshold"]
+    assert actors_of(mixed.documents, "kickLFront1Reps") == actors_of(labelled.documents, "kickLFront1Reps")
+
+
 def test_learn_2005_set_from_every_actor(db, capsys):
     assert main(["template", "learn", str(db.path), "--label", "kickLFront1Reps", "--relational-set", "2005"]) == 0
     stored = load_template(db, "kickLFront1Reps")

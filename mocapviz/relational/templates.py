@@ -971,7 +971,8 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     0.12
     """
     docs = db.documents
-    chosen = docs[docs["label"].astype("string") == str(label)]
+    labelled = docs["label"].astype("string").isin([str(label)]).to_numpy(bool)  # an unlabelled document: False
+    chosen = docs[labelled]
     if actors is not None:
         if group not in docs.columns:
             raise ParameterError(f"{db.path}: the documents have no {group} column; leave actors out")
@@ -993,7 +994,7 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     if by_group and group in docs.columns and chosen[group].notna().all():
         groups = chosen[group].astype(str).tolist()
     template = learn_template(examples, names, str(label), iterations, groups=groups)
-    others = docs["label"].notna().to_numpy() & (docs["label"].astype("string") != str(label)).to_numpy(bool)
+    others = docs["label"].notna().to_numpy() & ~labelled
     if actors is not None:
         others &= docs[group].astype("string").isin([str(a) for a in actors]).to_numpy(bool)
     negatives = _negative_costs(template, values, docs[others])

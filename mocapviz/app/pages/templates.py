@@ -84,7 +84,7 @@ def actors_of(documents: pd.DataFrame, label: str) -> list[str]:
     """The ``actor`` values of the documents of class ``label``, sorted (empty without an ``actor`` column)."""
     if "actor" not in documents or "label" not in documents:
         return []
-    rows = documents[documents["label"].astype("string") == str(label)]
+    rows = documents[documents["label"].astype("string").isin([str(label)]).to_numpy(bool)]  # NA: not the class
     return sorted({str(a) for a in rows["actor"].dropna() if str(a)})
 
 
