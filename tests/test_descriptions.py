@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import HealthCheck, assume, event, given, settings
+from hypothesis import strategies as st
 
 from mocapviz import MotionDB, ParameterError
 from mocapviz.cli import main
@@ -264,3 +266,165 @@ def test_state_conditions_equal_the_scan_and_split_the_hits(hdm05, text):
                   (base, f"{base} and somewhere lfoot raised", f"{base} and never lfoot raised")]
         assert counts[0] == counts[1] + counts[2] and min(counts[1:]) > 0
     assert "never" in str(parse_description(text)) or "somewhere" in str(parse_description(text))
+
+
+# ================================================================================================ against raw runs
+# find and find_by_scan against hits counted here, straight from the boolean feature matrix (issue 37: the scan read
+# the 2006 set's columns in another order, so comparing the two could not catch a 2006 error)
+def _count_hits(db, values, names, feature, steps, durations=(), conditions=()) -> list[tuple[int, int, int]]:
+    """(doc_id, start, end) of every hit of one progression, from ``values`` [shape=(N, f)] whose columns are
+    ``names``: its L states matched against L consecutive maximal runs of the feature's column in one document
+    (None: either), the hit from the last frame of the first run to the first frame of the last run (half-open);
+    ``durations`` ((steps, low s, high s), None: unbounded) bound the runs at those steps; ``conditions`` ((kind,
+    feature, value)) keep the hits where the state holds at some ("somewhere") or no ("never") frame."""
+    hits = set()
+    n = len(steps)
+    for doc in db.documents.itertuples():
+        x = values[doc.start : doc.start + doc.n_frames, names.index(feature)]
+        change = np.flatnonzero(x[1:] != x[:-1]) + 1
+        first, stop = np.r_[0, change], np.r_[change, x.size]
+        seconds = (stop - first) / doc.fps
+        for k in range(first.size - n + 1):
+            if any(v is not None and x[first[k + i]] != v for i, v in enumerate(steps)):
+                continue
+            if not all((low is None or seconds[k + s] >= low - 1e-9) and (high is None or seconds[k + s] <= high + 1e-9)
+                       for at, low, high in durations for s in at):  # fmt: skip
+                continue
+            a, b = int(stop[k] - 1), int(first[k + n - 1] + 1)
+            held = [(values[doc.start + a : doc.start + b, names.index(f)] == v).any() for _, f, v in conditions]
+            if all(h == (kind == "somewhere") for h, (kind, _, _) in zip(held, conditions)):
+                hits.add((int(doc.doc_id), a, b))
+    return sorted(hits)
+
+
+def _best_first(db, hits: list[tuple[int, int, int]]) -> list[tuple[int, int, int]]:
+    """The hits ranked by length in seconds, then by their first database frame, each kept unless it shares a frame
+    with a better one of its document."""
+    docs = db.documents.set_index("doc_id")
+    ranked = sorted(hits, key=lambda h: ((h[2] - h[1]) / docs.loc[h[0], "fps"], docs.loc[h[0], "start"] + h[1]))
+    kept: list[tuple[int, int, int]] = []
+    for d, a, b in ranked:
+        if all(d != e or b <= s or t <= a for e, s, t in kept):
+            kept.append((d, a, b))
+    return kept
+
+
+def _progressions(node):
+    """Every progression of a description tree."""
+    if isinstance(node, Event):
+        yield from node.progressions
+    elif isinstance(node, Named):
+        yield from _progressions(node.body)
+    elif isinstance(node, Sequence):
+        yield from _progressions(node.first)
+        yield from _progressions(node.second)
+    elif hasattr(node, "options"):
+        for option in node.options:
+            yield from _progressions(option)
+
+
+def _rows(hits: pd.DataFrame) -> list[tuple[int, int, int]]:
+    return [(int(d), int(s), int(e)) for d, s, e in zip(hits["doc_id"], hits["start"], hits["end"])]
+
+
+def _agree(db, relational_set, indexes, values, names, text, spec=None) -> pd.DataFrame:
+    """find == find_by_scan (the whole table, every hit and the best of overlapping ones); with ``spec`` (feature,
+    steps, durations, conditions) of a one-progression text, both equal to the hits counted from ``values``."""
+    found = find(db, text, relational_set=relational_set, indexes=indexes)
+    pd.testing.assert_frame_equal(found, find_by_scan(db, text, relational_set=relational_set, values=values))
+    every = find(db, text, relational_set=relational_set, indexes=indexes, overlapping=True)
+    pd.testing.assert_frame_equal(every, find_by_scan(db, text, relational_set=relational_set, values=values,
+                                                      overlapping=True))  # fmt: skip
+    if spec is not None:
+        counted = _count_hits(db, values, names, *spec)
+        assert sorted(_rows(every)) == counted, text
+        assert _rows(found) == _best_first(db, counted), text
+    return every
+
+
+def _check_shipped(db, relational_set) -> int:
+    """Every usable shipped description of the set: find == find_by_scan; every progression in it, and every
+    one-progression description whole, equal to the runs counted from the raw features. Returns the hits seen."""
+    values, names = relational_features(db, relational_set, progress=False)
+    indexes = build(db, relational_set, progress=False, values=values, save=False)
+    seen = 0
+    usable = {n: b for n, b in named_descriptions(relational_set).items() if not isinstance(b, DescriptionError)}
+    assert len(usable) >= 9, relational_set
+    for name, body in usable.items():
+        spec = None
+        if isinstance(body, Event) and len(body.progressions) == 1 and not body.overlaps:
+            p = body.progressions[0]
+            spec = (p.feature, p.values, [(d.ref.steps, d.low, d.high) for d in body.durations],
+                    [(c.kind, c.feature, c.value) for c in body.conditions])  # fmt: skip
+        seen += len(_agree(db, relational_set, indexes, values, names, name, spec))
+        for p in _progressions(body):
+            _agree(db, relational_set, indexes, values, names, str(p), (p.feature, p.values))
+    return seen
+
+
+@pytest.mark.parametrize("relational_set", ["2005", "2006"])
+def test_shipped_descriptions_equal_runs_counted_from_the_features_on_the_sample(sample_db, relational_set):
+    assert _check_shipped(sample_db, relational_set) > 0
+
+
+@pytest.mark.parametrize("relational_set", ["2005", "2006"])
+def test_shipped_descriptions_equal_runs_counted_from_the_features_on_hdm05(hdm05_db30, relational_set):
+    assert _check_shipped(hdm05_db30, relational_set) > 100
+
+
+def test_the_2006_reproducer_scan_equals_the_index(round3, sample_db):
+    """set2006_scan.txt of issue 37 (scan 143 candidates, index and a count of the runs 192 on hdm30.mdb)."""
+    text = (round3 / "descriptions" / "set2006_scan.txt").read_text()
+    values, names = relational_features(sample_db, "2006", progress=False)
+    indexes = build(sample_db, "2006", progress=False, values=values, save=False)
+    p = parse_description(text).root.progressions[0]
+    every = _agree(sample_db, "2006", indexes, values, names, text, (p.feature, p.values))
+    assert len(every) > 10 and p.feature == "rknee_bent"
+    assert vocabulary_of("2006").features.index("rknee_bent") != names.index("rknee_bent")  # what the scan read
+
+
+@pytest.fixture(scope="module")
+def sample_sets(sample_db) -> dict:
+    """Set -> (indexes, values, names) of the sample (indexes not saved)."""
+    out = {}
+    for relational_set in ("2005", "2006"):
+        values, names = relational_features(sample_db, relational_set, progress=False)
+        out[relational_set] = build(sample_db, relational_set, progress=False, values=values, save=False), values, names
+    return out
+
+
+@st.composite
+def _random_progression(draw):
+    """(set, text, spec): a progression of 2..4 states of a random feature of either set, maybe with a duration on
+    one of its states and a somewhere / never condition on any feature; spec as :func:`_count_hits` takes it."""
+    relational_set = draw(st.sampled_from(["2005", "2006"]))
+    words = vocabulary_of(relational_set)
+    feature = draw(st.sampled_from(words.features))
+    states = words.states(feature)
+    steps = [draw(st.sampled_from([0, 1, None]))]
+    for _ in range(draw(st.integers(1, 3))):  # a state never twice in a row (the language refuses it)
+        steps.append(draw(st.sampled_from([0, 1, None] if steps[-1] is None else [None, 1 - steps[-1]])))
+    assume(any(v is not None for v in steps))
+    text = f"{words.part(feature)}: " + " ".join("*" if v is None else states[v] for v in steps)
+    durations, conditions = [], []
+    if draw(st.booleans()):
+        value = draw(st.sampled_from([v for v in steps if v is not None]))
+        low = draw(st.sampled_from([None, 0.05, 0.2, 0.5]))
+        high = draw(st.sampled_from([h for h in (0.1, 0.4, 1.5) if low is None or h >= low] + [None] * (low is not None)))
+        text += f" and {words.part(feature)} {states[value]} for {low or ''}..{high or ''} s"
+        durations.append(([k for k, v in enumerate(steps) if v == value], low, high))
+    if draw(st.booleans()):
+        other, value, kind = draw(st.sampled_from(words.features)), draw(st.sampled_from([0, 1])), \
+            draw(st.sampled_from(["somewhere", "never"]))  # fmt: skip
+        text += f" and {kind} {words.part(other)} {words.states(other)[value]}"
+        conditions.append((kind, other, value))
+    return relational_set, text, (feature, steps, durations, conditions)
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(case=_random_progression())
+def test_random_progressions_find_equals_scan_equals_runs_counted(sample_db, sample_sets, case):
+    relational_set, text, spec = case
+    indexes, values, names = sample_sets[relational_set]
+    every = _agree(sample_db, relational_set, indexes, values, names, text, spec)
+    event("hits" if len(every) else "no hit")
