@@ -137,3 +137,10 @@ class DescriptionError(ParameterError):
 class ClusterError(MocapvizError, RuntimeError):
     """A sharded search could not get a whole answer from its Dask cluster (a worker died and no other could take
     its shards, or a shard failed twice). Never a partial answer: the message names the shard and what happened."""
+
+
+class SchedulerError(ClusterError, OSError):
+    """A Dask scheduler given by address (``--scheduler ADDRESS``, ``scheduler="tcp://..."``) cannot be used: nothing
+    answers there in time, what answers is not a Dask scheduler (a web server, a Dask worker, a silent peer), or it
+    has no worker. Raised by :func:`mocapviz.parallel.dask_client` within its ``timeout``; the message starts with
+    "cannot reach dask scheduler at ADDRESS". An :class:`OSError` too, as the connection errors it replaces."""

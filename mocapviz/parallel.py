@@ -40,7 +40,10 @@ and the worker opens the memory-mapped database itself.
     the cores; processes also keep the GIL out of the way of the pure-Python parsers). Closed on exit.
 an address, e.g. ``"tcp://10.0.0.5:8786"`` or ``"10.0.0.5:8786"``
     Connect to a running scheduler (``dask scheduler`` + ``dask worker``). The workers must see the same file
-    system paths as the client (the motion files and the MotionDB are opened by the workers themselves).
+    system paths as the client (the motion files and the MotionDB are opened by the workers themselves). Reaching
+    it (connection, handshake, an ``identity`` request, registration, a first worker) takes at most
+    ``CONNECT_TIMEOUT`` (10 s); a peer that is not a Dask scheduler, or one without workers, is a
+    :class:`~mocapviz.errors.SchedulerError` naming the address within that time.
 a ``dask.distributed.Client``
     Used as it is, and left open.
 
@@ -52,17 +55,20 @@ See ``docs/architecture.md`` (the base layer).
 """
 from __future__ import annotations
 
+import asyncio
 import collections
 import contextlib
 import contextvars
 import itertools
 import logging
 import os
+import threading
+import time
 import uuid
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 
-from .errors import Cancelled, ParameterError
+from .errors import Cancelled, ParameterError, SchedulerError
 from .validation import count
 
 __all__ = ["AHEAD_PER_THREAD", "LOCAL", "MAX_DEFAULT_THREADS", "checkpoint", "dask_client", "default_threads",
@@ -72,7 +78,7 @@ __all__ = ["AHEAD_PER_THREAD", "LOCAL", "MAX_DEFAULT_THREADS", "checkpoint", "da
 MAX_DEFAULT_THREADS = 8  # more threads than this rarely pay: the batches are memory-bound
 AHEAD_PER_THREAD = 2  # items started beyond the one waited for, per thread (or Dask worker thread)
 LOCAL = "local"
-CONNECT_TIMEOUT = 10.0  # seconds to wait for a scheduler given by address
+CONNECT_TIMEOUT = 10.0  # seconds to reach a scheduler given by address (connect, handshake, identity, a worker)
 
 
 def local_workers() -> int:
@@ -102,7 +108,9 @@ def dask_client(scheduler=LOCAL, n_workers: int | None = None, timeout: float | 
     n_workers : int, optional
         Workers of a local cluster (ignored otherwise).
     timeout : float, seconds, optional
-        How long to try to reach a scheduler given by address (default ``CONNECT_TIMEOUT``, 10 s).
+        The bound on reaching a scheduler given by address (default ``CONNECT_TIMEOUT``, 10 s): the connection,
+        the Dask handshake, an ``identity`` request, the client's registration and the wait for a first worker
+        all count against it (:func:`_connect`).
 
     Yields
     ------
@@ -110,9 +118,10 @@ def dask_client(scheduler=LOCAL, n_workers: int | None = None, timeout: float | 
 
     Raises
     ------
-    OSError
-        The scheduler cannot be reached: "cannot reach dask scheduler at ADDRESS: ...".
-    TypeError
+    mocapviz.errors.SchedulerError
+        (a ClusterError and an OSError) Within ``timeout``: the scheduler cannot be reached, what answers there is
+        not a Dask scheduler, or it has no worker: "cannot reach dask scheduler at ADDRESS: ...".
+    mocapviz.ParameterError
         ``scheduler`` is neither a string nor a Client.
     """
     from distributed import Client, LocalCluster
@@ -130,14 +139,87 @@ def dask_client(scheduler=LOCAL, n_workers: int | None = None, timeout: float | 
             )  # fmt: skip
             client = stack.enter_context(Client(cluster))
         else:
-            address = os.fspath(scheduler).strip()
-            try:
-                client = Client(address, timeout=CONNECT_TIMEOUT if timeout is None else timeout)
-            except (OSError, ValueError, TimeoutError) as exc:
-                detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-                raise OSError(f"cannot reach dask scheduler at {address}: {detail}") from None
-            stack.enter_context(client)
+            client = stack.enter_context(_connect(os.fspath(scheduler).strip(),
+                                                  CONNECT_TIMEOUT if timeout is None else timeout))  # fmt: skip
         yield client
+
+
+def _connect(address: str, timeout: float):
+    """A Client of the Dask scheduler at ``address`` with at least one worker, or a SchedulerError within
+    ``timeout`` seconds (plus the time to start a thread).
+
+    The Client of distributed bounds its connection and registration by its ``timeout`` but not the handshake
+    that comes between (a peer that accepts and never answers holds it forever), and it reads whatever a peer
+    sends as a Dask frame (an HTTP status line is a 3 EiB frame length). So a probe first makes the same
+    connection, handshake and an ``identity`` request on a thread of its own, under one deadline
+    (:func:`_probe`); only a peer that answered as a Dask scheduler gets the Client, with the time left.
+    """
+    from distributed import Client
+
+    deadline = time.monotonic() + timeout
+    _probe(address, timeout)
+    try:
+        client = Client(address, timeout=max(0.5, deadline - time.monotonic()))
+    except (OSError, ValueError, TimeoutError) as exc:
+        raise SchedulerError(f"cannot reach dask scheduler at {address}: {_first_line(exc)}") from None
+    try:
+        client.wait_for_workers(1, timeout=max(0.5, deadline - time.monotonic()))
+    except (OSError, TimeoutError):
+        client.close()
+        raise SchedulerError(f"cannot reach dask scheduler at {address}: it has no worker (waited {timeout:g} s "
+                             "in all; start `dask worker ADDRESS`)") from None  # fmt: skip
+    return client
+
+
+def _probe(address: str, timeout: float) -> None:
+    """Connect to ``address``, make the Dask handshake and ask the peer's ``identity``, all within ``timeout``
+    seconds, on a thread of its own (so that it needs no event loop of the caller's and a stuck read cannot
+    outlive the bound); raise a SchedulerError unless the peer answered as a Dask scheduler."""
+    outcome: dict = {}
+
+    def ask() -> None:
+        try:
+            outcome["identity"] = asyncio.run(asyncio.wait_for(_identity(address, timeout), timeout))
+        except BaseException as exc:  # noqa: BLE001 - whatever a peer that is not Dask makes the comm layer raise
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=ask, name="mocapviz-scheduler-probe", daemon=True)
+    thread.start()
+    thread.join(timeout + 1.0)  # (asyncio.wait_for has cancelled the request by then)
+    error, kind = outcome.get("error"), (outcome.get("identity") or {}).get("type")
+    if kind == "Scheduler":
+        return
+    if error is None and kind is not None:
+        why = f"what answers there is a Dask {kind}, not a scheduler"
+    elif error is None or isinstance(error, TimeoutError):
+        why = (f"no answer as a Dask scheduler within {timeout:g} s (it accepts connections but does not speak the "
+               "Dask protocol, or nothing answers)")  # fmt: skip
+    elif isinstance(error, OSError):
+        why = _first_line(error)
+    elif isinstance(error, MemoryError):  # (the first 8 bytes of "HTTP/1.0 426 ..." are a 3 EiB frame length)
+        why = "what answers there does not speak the Dask protocol (its reply announces a message larger than memory)"
+    else:  # (a reply that is not a Dask message: a msgpack error, ...)
+        why = f"what answers there does not speak the Dask protocol ({type(error).__name__}: {_first_line(error)})"
+    raise SchedulerError(f"cannot reach dask scheduler at {address}: {why}")
+
+
+async def _identity(address: str, timeout: float) -> dict:
+    """The ``identity`` of the Dask server at ``address`` (``{"type": "Scheduler", ...}``), over one connection."""
+    from distributed.comm import connect
+
+    comm = await connect(address, timeout=timeout)
+    try:
+        await comm.write({"op": "identity", "reply": True})
+        reply = await comm.read()
+    finally:
+        comm.abort()
+    return reply if isinstance(reply, dict) else {}
+
+
+def _first_line(exc: BaseException, limit: int = 200) -> str:
+    """An exception's first line, at most ``limit`` characters (its type's name when it has no text)."""
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    return text if len(text) <= limit else text[:limit] + "…"
 
 
 @contextlib.contextmanager
