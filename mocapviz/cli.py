@@ -12,6 +12,7 @@
                       [--method lng|dtw] [--min-length 0.5] [--paths] [--csv FILE]
     mocapviz search DB --example FILE|DOC_ID [--frames A:B] [--numeric-set F15E] [-K 10] [--mode fast|exact|brute]
                        [--stretches [--min-length 0.5]] [--exclude-document] [--csv FILE] [--paths]
+    mocapviz find DB "DESCRIPTION" | --file FILE [--template-file NAME=FILE]... [-K 100] [--explain] [--csv FILE]
     mocapviz template learn DB --label CLASS [--actors A,B,...] [--relational-set 2005|2006] [--out FILE]
     mocapviz template search DB FILE_OR_NAME [-K 10] [--max-cost C] [--csv FILE] [--prefilter]
     mocapviz export DB (--hits HITS.csv | --doc ID [--frames A:B]) --format bvh|amc|glb [--rig source|canonical]
@@ -314,11 +315,14 @@ def _find(args) -> None:
     _csv_folder(args.csv)
     from .relational.scene import find
 
+    given = _template_files(args.template_files)
+    if given and args.scheduler is not None:
+        raise ParameterError("--template-file works in this process only (the shards read the templates stored with "
+                             "the database): drop --scheduler, or store the template (`mocapviz template learn`)")
     db = MotionDB.open(args.db)
+    options = {"n_matches": args.n_matches, "relational_set": args.relational_set, "template_cost": args.template_cost}
     with _sharded(args, db) as sharded:
-        run = find if sharded is None else (lambda _, *a, **k: sharded.find(*a, **k))
-        hits = run(db, text, n_matches=args.n_matches, relational_set=args.relational_set,
-                   template_cost=args.template_cost)  # fmt: skip
+        hits = find(db, text, templates=given, **options) if sharded is None else sharded.find(text, **options)
     if args.explain:
         print(hits.attrs["description"])
         print("matched: " + "; ".join(f"{label}: {n}" for label, n in hits.attrs["counts"]))
@@ -333,6 +337,28 @@ def _find(args) -> None:
     with pd.option_context("display.width", 200, "display.max_rows", len(hits) + 5, "display.max_colwidth", 120):
         print(hits[cols].round(3).to_string(index=False))
     _write_csv(hits, args.csv)
+
+
+def _template_files(items: list[str] | None) -> dict:
+    """``find --template-file NAME=FILE`` (repeatable): name -> the MotionTemplate of FILE, for the description's
+    ``template:NAME`` atoms. Only a file named here, on the command line, is ever opened; the description's text
+    names stored templates only."""
+    from .errors import MotionDBError
+    from .relational.templates import MotionTemplate, is_template_name
+
+    given: dict = {}
+    for item in items or ():
+        name, sep, file = item.partition("=")
+        if not sep or not file or not is_template_name(name):
+            raise ParameterError(f"--template-file {item[:80]!r}: give NAME=FILE, NAME as written after 'template:' "
+                                 "(letters, digits, '.', '_' and '-', not first '.', at most 128 characters)")
+        if name in given:
+            raise ParameterError(f"--template-file {name}: given twice")
+        try:
+            given[name] = MotionTemplate.load(file)
+        except MotionDBError as exc:
+            raise ParameterError(f"--template-file {name}: {exc}") from None
+    return given
 
 
 def _pca_reference(text: str | None, names: list[str] | None) -> MotionDB | PCAModel | None:
@@ -798,6 +824,10 @@ def build_parser() -> argparse.ArgumentParser:
     fd.add_argument("--list", action="store_true", help="list the shipped named descriptions and exit")
     fd.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as "
                     "docs/glossary.md, Results: start and end within the document, half-open)")  # fmt: skip
+    fd.add_argument("--template-file", action="append", dest="template_files", metavar="NAME=FILE",
+                    help="read template:NAME from this template file (.npz, `mocapviz template learn --out`) instead "
+                    "of the one stored as NAME with the database; repeatable. The description itself names stored "
+                    "templates only, never a file")  # fmt: skip
     _search_scheduler(fd)
     fd.set_defaults(func=_find)
 

@@ -228,3 +228,21 @@ def test_names_and_parts_insert_and_a_stored_template_is_described(sample_db, sa
     _type(page, "set 2005;\nkick_left")  # a set the text names moves the buttons
     expect(page.locator(".mv-describe-set .bk-btn.bk-active")).to_have_text("2005")
     expect(page.locator(".mv-describe-parse")).to_contain_text("Reads well in the 2005 set")
+
+
+def test_the_page_never_opens_a_path_a_user_typed(backend, tmp_path, monkeypatch):
+    """The Describe page's backend (search, and template_stamps, its cache key) reads templates stored with the
+    database only: a real template file outside it, typed as template:PATH, is neither probed nor loaded, and every
+    refused or unknown name gives the one message, whether a file of that name exists or not (issue 37)."""
+    from mocapviz.features import feature_names
+    from mocapviz.relational.templates import MotionTemplate
+
+    monkeypatch.chdir(tmp_path)  # relative paths, as a user would type them
+    MotionTemplate(np.full((20, 39), 0.5), feature_names("2006"), "anything", 1, 1).save(tmp_path / "t.npz")
+    messages = set()
+    for name in ("t.npz", "./t.npz", "/etc/ld.so.conf", "u.npz", "/etc/no-such.conf", "../t.npz"):
+        assert page_mod.template_stamps(backend.db, f"template:{name}") == ((name, None),)
+        with pytest.raises(DescriptionError) as err:
+            page_mod.search(backend, f"set 2006; template:{name}", "2006", 5)
+        messages.add(str(err.value).replace(repr(name), "<NAME>"))
+    assert len(messages) == 1 and next(iter(messages)).startswith(f"no stored template <NAME> in {backend.db.path};")

@@ -6,7 +6,11 @@ no shared archives needed); one test learns and searches on all 287 HDM05 clips 
 
 from __future__ import annotations
 
+import contextlib
+import os
 import shutil
+import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -14,8 +18,9 @@ import pytest
 
 from mocapviz import MotionDB
 from mocapviz.cli import main
-from mocapviz.errors import MotionDBError, ParameterError, UnknownKeyError
+from mocapviz.errors import DescriptionError, MotionDBError, ParameterError, UnknownKeyError
 from mocapviz.features import feature_names, relational_features
+from mocapviz.relational.scene import find
 from mocapviz.relational.templates import (
     MotionTemplate,
     find_instances,
@@ -188,7 +193,7 @@ BAD = [  # (arguments after the DB, words of the one error line, exit status)
     ("learn --label squat1Reps --out {tmp}/missing/t.npz", ["--out", "no folder"], 1),
     ("learn", ["--label"], 2),
     ("search nope", ["nope: no such template file", "no stored template 'nope'", "kickLFront1Reps-dg"], 1),
-    ("search ../x", ["not filename-safe"], 1),
+    ("search ../x", ["../x: no such template file", "no stored template '../x' in "], 1),
     ("search kickLFront1Reps-dg -K 0", ["-K/--matches must be at least 1; got 0"], 2),
     ("search kickLFront1Reps-dg --matches x", ["-K/--matches", "integer"], 2),
     ("search kickLFront1Reps-dg --max-cost 1.5", ["--max-cost must be a number in [0, 1]; got '1.5'"], 2),
@@ -240,7 +245,8 @@ def test_store_list_and_load_back(db, tmp_path):
         "squat1Reps", 2, len(squat.values), "2006", "dg,mm")  # fmt: skip
     assert row["generation"] == mine.manifest["generation"] and row["current"]
     assert listed.loc["mine", "actors"] == "dg,mm" and pd.isna(listed.loc["a_b_.._c", "generation"])
-    with pytest.raises(UnknownKeyError, match=r"no stored template 'nope' \(stored: a_b_.._c, mine, squat1Reps-dg-mm"):
+    with pytest.raises(UnknownKeyError, match=rf"^no stored template 'nope' in {copy}; stored: a_b_.._c, mine, "
+                       r"squat1Reps-dg-mm \(`mocapviz template learn"):  # fmt: skip
         load_template(mine, "nope")
 
 
@@ -273,6 +279,91 @@ def test_a_damaged_stored_template_is_named(db, tmp_path, capsys):
     assert main(["check", str(copy)]) == 1  # `mocapviz check` reads the stored templates too
     out = capsys.readouterr().out
     assert "templates/squat1Reps-mm.npz" in out and "DAMAGED" in out
+
+
+# ------------------------------------------------------------------ template:NAME never reaches outside the DB
+@contextlib.contextmanager
+def _opened_files():
+    """The paths ``open`` is asked for inside the block (an audit hook: builtins.open, io.open, os.open, np.load)."""
+    seen: list[str] = []
+    _OPENED.append(seen)
+    try:
+        yield seen
+    finally:
+        _OPENED.remove(seen)
+
+
+_OPENED: list[list[str]] = []
+sys.addaudithook(lambda name, args: [seen.append(str(args[0])) for seen in _OPENED] if name == "open" else None)
+
+
+def _refused(db, name: str) -> str:
+    """The message of ``find(db, "template:NAME")``, with NAME in it replaced by ``<NAME>``; neither the file NAME
+    nor NAME.npz is opened."""
+    with _opened_files() as opened, pytest.raises(DescriptionError) as err:
+        find(db, f"template:{name} then kick_left within 2 s")
+    forbidden = {Path(name).resolve(), Path(f"{name}.npz").resolve()}
+    assert not [p for p in opened if Path(p).resolve() in forbidden], opened
+    message = str(err.value)
+    stored = ", ".join(sorted(stored_templates(db)["name"]))
+    assert message == (f"no stored template {name!r} in {db.path}; stored: {stored} (`mocapviz template learn "
+                       f"{db.path} --label CLASS` stores one)")  # fmt: skip
+    return message.replace(repr(name), "<NAME>")
+
+
+def test_a_template_name_is_a_stored_template_never_a_path(db, kick, tmp_path, capsys, monkeypatch):
+    """Issue 37's reproducers: `template:/elsewhere/t.npz` was loaded and searched, `template:/etc/ld.so.conf` opened,
+    `template:DB/positions.g0.npy` an untyped TypeError, and the messages told existing from missing files. Now every
+    refused or unknown name is the one message, the same whether a file of that name exists or not (paths relative
+    to the working directory, as the reproducers are written, so that they fit the language's 80-character names)."""
+    monkeypatch.chdir(tmp_path)
+    kick.save(tmp_path / "t.npz")  # a real template outside the database
+    rel = os.path.relpath(db.path, tmp_path)
+    existing = ["t.npz", "/etc/ld.so.conf", f"{rel}/positions.g0.npy", f"{rel}/templates/kickLFront1Reps-dg.npz",
+                f"{rel}/templates", f"./{rel}/manifest.json"]
+    assert all(Path(p).exists() for p in existing) and template_path(db, "kickLFront1Reps-dg").is_file()
+    missing = ["u.npz", "/etc/no-such.conf", f"{rel}/positions.g9.npy", f"{rel}/templates/nope.npz",
+               "kickLFront1Reps-dg.npz", f"{rel}/templates/kickLFront1Reps-dg", "nope", "-", "a" * 71]
+    messages = {_refused(db, name) for name in existing + missing}
+    assert len(messages) == 1, messages
+    assert main(["find", str(db.path), "template:/etc/ld.so.conf"]) == 1
+    assert _error(capsys) == f"mocapviz: error: {_refused(db, '/etc/ld.so.conf').replace('<NAME>', repr('/etc/ld.so.conf'))}"
+    with _opened_files() as opened:  # the stored name still works, and the hook sees what is opened
+        assert len(find(db, "template:kickLFront1Reps-dg", template_cost=0.2)) > 0
+    assert str(template_path(db, "kickLFront1Reps-dg")) in opened
+
+
+def test_template_file_route_from_the_command_line(db, kick, tmp_path, capsys):
+    """`find DB TEXT --template-file NAME=FILE` brings a learned template from a file (never stored here) under a
+    name; the same hits as the same template passed to find, and as it stored with the database."""
+    out = tmp_path / "squat.npz"
+    assert main(["template", "learn", str(db.path), "--label", "squat1Reps", "--actors", "mm", "--out", str(out)]) == 0
+    capsys.readouterr()
+    squat = MotionTemplate.load(out)
+    text = "template:mine then template:kick within 4 s | template:mine"
+    with pytest.raises(DescriptionError, match="no stored template 'mine'"):
+        find(db, text)
+    expected = find(db, text, templates={"mine": squat, "kick": kick}, template_cost=0.3)
+    assert len(expected) > 0 and expected["parts"].str.contains("template:mine").all()
+    csv = tmp_path / "hits.csv"
+    kick_file = tmp_path / "kick.npz"
+    kick.save(kick_file)
+    assert main(["find", str(db.path), text, "--template-file", f"mine={out}", "--template-file",
+                 f"kick={kick_file}", "--template-cost", "0.3", "-K", "1000", "--csv", str(csv)]) == 0  # fmt: skip
+    assert f"{len(expected)} hits" in capsys.readouterr().out
+    got = pd.read_csv(csv)
+    assert got[["doc_id", "start", "end"]].equals(expected[["doc_id", "start", "end"]].reset_index(drop=True))
+    stored = find(db, text.replace("mine", "squat1Reps-mm").replace("template:kick ", "template:kickLFront1Reps-dg "),
+                  template_cost=0.3)  # fmt: skip
+    assert stored[["doc_id", "start", "end"]].equals(expected[["doc_id", "start", "end"]])
+    for bad, says in [(f"{out}", "give NAME=FILE"), (f"../x={out}", "give NAME=FILE"),
+                      (f"mine={tmp_path / 'none.npz'}", "--template-file mine: "),
+                      (f"mine={Path(db.path) / 'positions.g0.npy'}", "not a readable motion template (not an .npz")]:
+        assert main(["find", str(db.path), "template:mine", "--template-file", bad]) == 1
+        assert says in _error(capsys), bad
+    assert main(["find", str(db.path), "template:mine", "--template-file", f"mine={out}", "--scheduler",
+                 "local"]) == 1  # fmt: skip
+    assert "--template-file works in this process only" in _error(capsys)
 
 
 # ---------------------------------------------------------------------------------------- all of HDM05 (30 Hz)

@@ -16,7 +16,8 @@ Semantics (docs/descriptions.md):
 - ``A then B within T s``: a hit of A and a later hit of B in the same document, B starting at or after A's end and
   at most T s later; the hit spans from A's start to B's end. ``A | B``: the hits of either.
 - A ``template:NAME`` atom's hits are the template's instances (:func:`~mocapviz.relational.templates.search_template`)
-  whose normalised cost is at most ``template_cost`` (default: the template's learned threshold).
+  whose normalised cost is at most ``template_cost`` (default: the template's learned threshold). NAME is a template
+  stored with the database, or one the caller passes in ``templates``; never a path.
 
 Every hit is scored by its length in seconds (the tightest first) and overlapping hits in one document are
 resolved best first, as :func:`mocapviz.match.subsequence_dtw` does; ``overlapping=True`` keeps them all.
@@ -26,14 +27,13 @@ from __future__ import annotations
 import itertools
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numba
 import numpy as np
 import pandas as pd
 
 from ..db.hits import hit_table
-from ..errors import DescriptionError, MotionDBError, ParameterError
+from ..errors import DescriptionError, MotionDBError, ParameterError, UnknownKeyError
 from ..validation import count, number, one_of
 from .description import (
     Alternatives,
@@ -401,20 +401,23 @@ def _ranked(ctx: _Context, hits: _Hits, n_matches: int | None, overlapping: bool
 
 
 # ================================================================================================ the entry points
-def _load_template(db, name: str):
-    from .templates import MotionTemplate, load_template
+def _load_template(db, name: str, given: dict):
+    """The template of a ``template:NAME`` atom: the one the caller gave under NAME, else the one stored as NAME
+    with ``db`` (:func:`~mocapviz.relational.templates.load_template`); never a file NAME points at."""
+    from .templates import load_template
 
-    path = Path(name)
-    if path.suffix and path.is_file():
-        return MotionTemplate.load(path)
+    if name in given:
+        return given[name]
     try:
         return load_template(db, name)
-    except (MotionDBError, ParameterError, FileNotFoundError) as exc:
+    except UnknownKeyError as exc:  # one message for every unknown or refused name
+        raise DescriptionError(str(exc)) from None
+    except MotionDBError as exc:  # a damaged stored template, named
         raise DescriptionError(f"template:{name}: {exc}") from None
 
 
-def read_description(db, description, relational_set: str | None = None,
-                     template_cost: float | None = None) -> tuple[Description, float | None, dict]:
+def read_description(db, description, relational_set: str | None = None, template_cost: float | None = None,
+                     templates: dict | None = None) -> tuple[Description, float | None, dict]:
     """A description read for ``db``, as :func:`find` reads it (a sharded search reads it once, for every shard).
 
     Parameters
@@ -424,6 +427,8 @@ def read_description(db, description, relational_set: str | None = None,
     relational_set : {"2005", "2006"}, optional
         As :func:`find`.
     template_cost : float, optional
+        As :func:`find` (checked here).
+    templates : dict, optional
         As :func:`find` (checked here).
 
     Returns
@@ -438,10 +443,13 @@ def read_description(db, description, relational_set: str | None = None,
     Raises
     ------
     DescriptionError
-        The text cannot be read, a template is missing, or was learned on another relational set.
+        The text cannot be read, a template is neither given nor stored (or its name is not a stored template's
+        name: one message for both, :func:`~mocapviz.relational.templates.load_template`), or it was learned on
+        another relational set.
     """
     from ..db.database import MotionDB
     from ..features import RELATIONAL_SETS, feature_names
+    from .templates import MotionTemplate, is_template_name
 
     if not isinstance(db, MotionDB):
         raise ParameterError(f"db must be a MotionDB; got {type(db).__name__}")
@@ -449,6 +457,11 @@ def read_description(db, description, relational_set: str | None = None,
         template_cost = number(template_cost, "template_cost (a mean mismatch per frame)", 0.0, 1.0)
     if relational_set is not None:
         one_of(relational_set, "relational set", RELATIONAL_SETS)
+    given = dict(templates or {})
+    for name, template in given.items():
+        if not is_template_name(name) or not isinstance(template, MotionTemplate):
+            raise ParameterError(f"templates must map template names (letters, digits, '.', '_', '-') to "
+                                 f"MotionTemplates; got {str(name)[:60]!r}: {type(template).__name__}")  # fmt: skip
     if isinstance(description, Description):
         if relational_set is not None and relational_set != description.relational_set:
             raise ParameterError(f"the description was read with the {description.relational_set} set, not "
@@ -460,7 +473,7 @@ def read_description(db, description, relational_set: str | None = None,
         raise ParameterError(f"description must be text or a Description; got {type(description).__name__}")
     templates, sets = {}, {}
     for name in names:
-        templates[name] = _load_template(db, name)
+        templates[name] = _load_template(db, name, given)
         sets[name] = next((s for s in RELATIONAL_SETS if feature_names(s) == templates[name].features), None)
         if sets[name] is None:
             raise DescriptionError(f"template:{name} was not learned on a relational set's features")
@@ -510,8 +523,9 @@ def empty_reason(counts: list[tuple[str, int]]) -> str:
     return f"no hit: '{first}' found nothing"
 
 
-def _run(db, description, n_matches, relational_set, template_cost, overlapping, indexes, values, scan: bool):
-    parsed, template_cost, templates = read_description(db, description, relational_set, template_cost)
+def _run(db, description, n_matches, relational_set, template_cost, overlapping, indexes, values, scan: bool,
+         given: dict | None):
+    parsed, template_cost, templates = read_description(db, description, relational_set, template_cost, given)
     n_matches = None if n_matches is None else count(n_matches, "n_matches")
     if scan:
         if values is None:
@@ -537,7 +551,7 @@ def _run(db, description, n_matches, relational_set, template_cost, overlapping,
 
 def find(db, description, n_matches: int | None = None, relational_set: str | None = None,
          template_cost: float | None = None, overlapping: bool = False, indexes: dict | None = None,
-         values: np.ndarray | None = None) -> pd.DataFrame:  # fmt: skip
+         values: np.ndarray | None = None, templates: dict | None = None) -> pd.DataFrame:  # fmt: skip
     """The stretches of a MotionDB that a scene description describes, through its relational indexes.
 
     Parameters
@@ -559,6 +573,10 @@ def find(db, description, n_matches: int | None = None, relational_set: str | No
         Group -> InvertedIndex, if already loaded.
     values : np.ndarray [shape=(N, f)], bool, optional
         The database's relational values of the set, for template atoms, if already computed.
+    templates : dict, optional
+        Name -> :class:`~mocapviz.relational.templates.MotionTemplate` for ``template:NAME`` atoms, instead of the
+        template stored as NAME (the CLI's ``--template-file NAME=FILE``). Otherwise NAME is only ever a template
+        stored with ``db`` (``DB/templates/NAME.npz``): never a path.
 
     Returns
     -------
@@ -572,7 +590,8 @@ def find(db, description, n_matches: int | None = None, relational_set: str | No
     Raises
     ------
     DescriptionError
-        The text cannot be read (line and column named), or a template atom is missing or of another set.
+        The text cannot be read (line and column named), or a template atom is missing or of another set (every
+        unknown or refused name: "no stored template NAME in DB; stored: ...").
     MotionDBError
         No relational index of the set (build it with ``mocapviz index``).
 
@@ -599,19 +618,20 @@ def find(db, description, n_matches: int | None = None, relational_set: str | No
     >>> hits["parts"].iloc[0]  # each progression's frames within the document
     'lfoot 52:98, lknee 36:66'
     """
-    return _run(db, description, n_matches, relational_set, template_cost, overlapping, indexes, values, False)
+    return _run(db, description, n_matches, relational_set, template_cost, overlapping, indexes, values, False,
+                templates)
 
 
 def find_by_scan(db, description, n_matches: int | None = None, relational_set: str | None = None,
                  template_cost: float | None = None, overlapping: bool = False,
-                 values: np.ndarray | None = None) -> pd.DataFrame:  # fmt: skip
+                 values: np.ndarray | None = None, templates: dict | None = None) -> pd.DataFrame:  # fmt: skip
     """:func:`find` without the index: every feature's runs walked frame by frame in every document, events and
     sequences by checking every combination of hits. The reference :func:`find` must equal (and the baseline of
     its benchmark).
 
     Parameters
     ----------
-    db, description, n_matches, relational_set, template_cost, overlapping
+    db, description, n_matches, relational_set, template_cost, overlapping, templates
         As :func:`find`.
     values : np.ndarray [shape=(N, f)], bool, optional
         The database's frame-wise relational values of the set (default: computed now).
@@ -621,7 +641,8 @@ def find_by_scan(db, description, n_matches: int | None = None, relational_set: 
     pandas.DataFrame
         As :func:`find`.
     """
-    return _run(db, description, n_matches, relational_set, template_cost, overlapping, None, values, True)
+    return _run(db, description, n_matches, relational_set, template_cost, overlapping, None, values, True,
+                templates)
 
 
 # ================================================================================================ learned descriptions

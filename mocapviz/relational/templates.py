@@ -17,7 +17,8 @@ keyframe_ranges     the frame ranges where a template's keyframes occur, read fr
                     pre-filter that spares the full DTW pass over a large database).
 classify            a clip's (T, f) feature values against several templates: the classes by DTW cost (§6).
 store_template      a template into a MotionDB's derived data, ``DB/templates/<name>.npz`` (template_path).
-stored_templates    the templates stored with a MotionDB, one row each; load_template reads one back.
+stored_templates    the templates stored with a MotionDB, one row each; load_template reads one back, by its
+                    name only (is_template_name: never a path).
 MotionTemplate      the real-valued template, its quantisation and the local cost of matching it.
 template_distance   the masked l1 local cost of template rows against boolean frames, (K, n).
 quantised_distance  the same for a quantised template, its don't-care entries left out (the matching cost).
@@ -239,6 +240,9 @@ class MotionTemplate:
         """
         path = Path(path)
         try:
+            with open(path, "rb") as fh:  # before np.load, which would read a whole .npy array (or text) first
+                if not zipfile.is_zipfile(fh):
+                    raise ValueError("not an .npz archive")
             with np.load(path, allow_pickle=False) as z:
                 header, values = json.loads(str(z["header"])), z["values"]
                 groups = z["group_values"] if "group_values" in z.files else None
@@ -1069,11 +1073,22 @@ def separating_threshold(positives, negatives) -> float:
     return float((best + above[0]) / 2) if len(above) else float(best)
 
 
+def is_template_name(name) -> bool:
+    """Whether ``name`` can name a stored template: 1 to 128 letters, digits, ``.``, ``_`` and ``-``, not starting
+    with ``.`` (so never a path: no ``/``, never ``..``).
+
+    Examples
+    --------
+    >>> is_template_name("squat1Reps-dg-mm"), is_template_name("/etc/passwd"), is_template_name("../t")
+    (True, False, False)
+    """
+    return isinstance(name, str) and _NAME.fullmatch(name) is not None
+
+
 def template_path(db, name: str) -> Path:
     """Where the template ``name`` of a MotionDB is stored: ``DB/templates/<name>.npz``.
 
-    ``name`` is filename-safe: letters, digits, ``.``, ``_`` and ``-``, not starting with ``.``, at most 128
-    characters; anything else is a ParameterError.
+    ``name`` is filename-safe (:func:`is_template_name`); anything else is a ParameterError.
 
     Parameters
     ----------
@@ -1087,7 +1102,7 @@ def template_path(db, name: str) -> Path:
     pathlib.Path
         ``DB/templates/<name>.npz``.
     """
-    if not isinstance(name, str) or not _NAME.fullmatch(name):
+    if not is_template_name(name):
         raise ParameterError(f"template name {name!r} is not filename-safe: use letters, digits, '.', '_' and '-' "
                              "(not first '.'), at most 128 characters")
     return Path(db.path) / TEMPLATES / f"{name}.npz"
@@ -1139,15 +1154,18 @@ def load_template(db, name: str) -> MotionTemplate:
     Raises
     ------
     UnknownKeyError
-        No template of that name is stored; the message lists those that are.
+        No template of that name is stored, or ``name`` is not a stored template's name (:func:`template_path`: a
+        path, a suffix of another folder, ...): one message for both, whether or not a file of that name exists
+        anywhere, naming the stored ones. Nothing outside ``DB/templates/`` is looked at.
     MotionDBError
         The stored file is damaged; the message names it.
     """
-    path = template_path(db, name)
-    if not path.is_file():
-        stored = ", ".join(sorted(p.stem for p in path.parent.glob("*.npz"))) or "none"
-        raise UnknownKeyError(f"{db.path} has no stored template {name!r} (stored: {stored}); "
-                              f"`mocapviz template learn {db.path} --label CLASS` stores one")  # fmt: skip
+    path = template_path(db, name) if is_template_name(name) else None
+    if path is None or not path.is_file():
+        stored = ", ".join(sorted(p.stem for p in (Path(db.path) / TEMPLATES).glob("*.npz"))) or "none"
+        shown = repr(name) if len(str(name)) <= 128 else f"{str(name)[:60]!r}... ({len(str(name))} characters)"
+        raise UnknownKeyError(f"no stored template {shown} in {db.path}; stored: {stored} "
+                              f"(`mocapviz template learn {db.path} --label CLASS` stores one)")  # fmt: skip
     return MotionTemplate.load(path)
 
 

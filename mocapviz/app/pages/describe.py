@@ -259,18 +259,15 @@ def vocabulary_view(relational_set: str) -> pd.DataFrame:
 
 def template_stamps(db, text: str) -> tuple:
     """(name, modification time) of each template the text names, for the result cache: a template stored again
-    gives a new key. Reading the text's syntax may raise its DescriptionError."""
-    from pathlib import Path
-
-    from ...relational.templates import template_path
+    gives a new key. Only the database's stored templates are looked at (``DB/templates/NAME.npz``); a name that is
+    not a stored template's (a path a user typed) is never opened or probed: None, and find says it is unknown.
+    Reading the text's syntax may raise its DescriptionError."""
+    from ...relational.templates import is_template_name, template_path
 
     stamps = []
     for name in template_names(text):
-        try:
-            path = Path(name) if Path(name).suffix and Path(name).is_file() else template_path(db, name)
-            stamps.append((name, path.stat().st_mtime_ns if path.is_file() else None))
-        except MocapvizError:
-            stamps.append((name, None))  # find says what is wrong with the name
+        path = template_path(db, name) if is_template_name(name) else None
+        stamps.append((name, path.stat().st_mtime_ns if path is not None and path.is_file() else None))
     return tuple(stamps)
 
 
