@@ -64,6 +64,7 @@ class Vocabulary:
 
     def __init__(self, relational_set: str):
         self.relational_set = relational_set
+        # group by group (lower, upper, mix); never a column position: the 2006 set's columns are in another order
         self.features = [f for names in feature_groups(relational_set).values() for f in names]
         self.group = {f: g for g, names in feature_groups(relational_set).items() for f in names}
         self.table = {f: _part_and_words(f) for f in self.features}
@@ -162,7 +163,9 @@ def vocabulary_table(relational_set: str = "2005") -> pd.DataFrame:
     Returns
     -------
     pandas.DataFrame
-        Columns ``feature``, ``group``, ``part``, ``state_0``, ``state_1``; one row per feature, in the set's order.
+        Columns ``feature``, ``group``, ``part``, ``state_0``, ``state_1``; one row per feature, group by group
+        (lower, upper, mix: :attr:`Vocabulary.features`). For the 2006 set that is not the order of the values'
+        columns (:func:`mocapviz.features.feature_names`: upper first): find a feature's column by its name.
 
     Examples
     --------
