@@ -38,7 +38,8 @@ Every command that prints hits (``query``, ``knn``, ``match``, ``search``, ``tem
 document, half-open, ``start_s`` and ``end_s`` at the document's own rate.
 
 ``export`` writes what a search found (``--hits``: the CSV of ``--csv FILE``) or one stretch of a document as files,
-one per hit, named ``<rank>_<name>_<start>-<end>.<format>`` (:mod:`mocapviz.export`, docs/export.md).
+one per hit, named ``<rank>_doc<id>_<name>_<start>-<end>.<format>``, all or nothing (a failure or SIGTERM leaves
+the output folder as it was; :mod:`mocapviz.export`, docs/export.md).
 
 Errors print one line (``mocapviz: error: ...``): a value the argument parser refuses (not a number, out of its
 range, an unknown name, a list where one value is allowed) exits with status 2, one the command refuses (checked
@@ -610,6 +611,27 @@ def _template_learn(args) -> None:
         print(f"written to {args.out}")
 
 
+@contextlib.contextmanager
+def _terminate_as_exit():
+    """In the block, SIGTERM raises SystemExit (status 143, as the signal's default) in the main thread, so that
+    cleanup in ``finally`` clauses and context managers runs; the previous handler afterwards."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def leave(signum, frame):
+        raise SystemExit(128 + signum)
+
+    previous = signal.signal(signal.SIGTERM, leave)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _export(args) -> None:
     from .db.database import MotionDB
     from .export import export_hits, export_stretch
@@ -618,12 +640,13 @@ def _export(args) -> None:
         raise ParameterError("--frames A:B cuts the document of --doc ID; the stretches of --hits are their rows' "
                              "start:end")  # fmt: skip
     db = MotionDB.open(args.db)
-    if args.doc is not None:
-        doc = int(db.document(args.doc)["doc_id"])  # an unknown id: an error naming the valid ones
-        a, b = frame_span(args.frames, int(db.document(doc)["n_frames"]), f"document {doc}", "--frames", least=1)
-        paths = export_stretch(db, doc, args.out, a, b, args.format, args.rig, args.search)
-    else:
-        paths = export_hits(db, args.hits, args.out, args.format, args.rig, args.search)
+    with _terminate_as_exit():  # SIGTERM mid-export: the written files are removed before the process ends
+        if args.doc is not None:
+            doc = int(db.document(args.doc)["doc_id"])  # an unknown id: an error naming the valid ones
+            a, b = frame_span(args.frames, int(db.document(doc)["n_frames"]), f"document {doc}", "--frames", least=1)
+            paths = export_stretch(db, doc, args.out, a, b, args.format, args.rig, args.search)
+        else:
+            paths = export_hits(db, args.hits, args.out, args.format, args.rig, args.search)
     for path in paths:
         print(path)
     print(f"{len(paths)} file(s) written to {args.out}")
@@ -953,7 +976,8 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--rig", choices=["source", "canonical"], help="source: the source file's frames on its own rig; "
                     "canonical: the 24 canonical joints posed to the database's frames (default: canonical for glb, "
                     "source otherwise)")  # fmt: skip
-    ex.add_argument("--out", required=True, help="output folder (created if missing)")
+    ex.add_argument("--out", required=True, help="output folder (created if missing; an existing one keeps its other "
+                    "files). Written all or nothing: on any failure, the folder as it was")  # fmt: skip
     ex.add_argument("--search", help="what found the hits, written into every file (default: the hits file's name)")
     ex.set_defaults(func=_export)
 

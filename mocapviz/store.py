@@ -6,7 +6,10 @@ atomic_file    a unique temporary path beside a target to write to; fsync'ed and
                leaves the previous file intact, plus at most a ``.<name>.*.tmp`` that the next write ignores).
 temporary_file the unique temporary path alone, and commit (fsync + rename), for a rename that must happen
 commit         under a lock (numeric features swap data and header together).
+temporary_folder  a new, empty folder with a unique name beside a target, removed when the block ends.
 atomic_folder  the same for a folder (a reproduced experiment, an unpacked archive).
+leftovers      the temporaries of a target that earlier (killed) writers left behind.
+fsync_folder   a rename in a folder made durable.
 locked         an advisory lock (``fcntl.flock`` on ``<folder>/.lock``): exclusive for writers of a MotionDB or of its
                derived data, shared for readers that must pair files written together.
 stamp          the header fields every stored format carries (format, version, written_by).
@@ -15,6 +18,11 @@ load_or_build  a derived artefact from disk when it is current, else built (and,
 fingerprint    size, sha256 and per-block xxh3 of a stored file, kept in its manifest or header.
 verify         a stored file against its fingerprint: the size always (fast), the sha256 on request.
 digest         sha256 of named arrays (names, dtypes, shapes and bytes), for files that are read whole.
+
+Temporary names are ``.<target name>.<8 random hex digits><suffix>``, the target's name shortened so that the
+whole name fits the file system's limit (NAME_MAX, 255 bytes on ext4, XFS, Btrfs, tmpfs, APFS), measured in bytes
+of the file-system encoding. Files and folders are created with the modes the user's umask gives (``0o666`` /
+``0o777`` masked: 0644 / 0755 under umask 022), as ``open`` and ``mkdir`` would, never ``mkstemp``'s private 0600.
 
 Formats stored: the MotionDB manifest (``mocapviz.MotionDB``), relational indexes (``mocapviz.InvertedIndex``),
 numeric-feature headers (``mocapviz.numeric-features``) and PCA models (``mocapviz.PCAModel``).
@@ -26,8 +34,8 @@ import contextlib
 import fcntl
 import hashlib
 import os
+import secrets
 import shutil
-import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TypeVar
@@ -36,6 +44,7 @@ from .errors import MotionDBError
 
 T = TypeVar("T")
 LOCK_FILE = ".lock"
+NAME_MAX = 255  # bytes of a file name, where the file system does not say (os.pathconf)
 
 
 def atomic_write(target: str | os.PathLike, data: bytes) -> None:
@@ -89,8 +98,9 @@ def atomic_file(target: str | os.PathLike) -> Iterator[Path]:
 
 @contextlib.contextmanager
 def temporary_file(target: str | os.PathLike) -> Iterator[Path]:
-    """A new, empty file beside ``target`` with a unique name (``.<target name>.<random>.tmp``), removed when the
-    block ends unless the block has committed it (:func:`commit`). For writers that must rename under a lock.
+    """A new, empty file beside ``target`` with a unique name (``.<target name>.<random>.tmp``, within NAME_MAX),
+    mode ``0o666`` under the umask, removed when the block ends unless the block has committed it (:func:`commit`).
+    For writers that must rename under a lock.
 
     Parameters
     ----------
@@ -102,10 +112,7 @@ def temporary_file(target: str | os.PathLike) -> Iterator[Path]:
     pathlib.Path
         The temporary file.
     """
-    target = Path(target)
-    fd, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    os.close(fd)
-    tmp = Path(name)
+    tmp = _created(Path(target), ".tmp", lambda p: os.close(os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)))
     try:
         yield tmp
     finally:
@@ -126,13 +133,105 @@ def commit(tmp: str | os.PathLike, target: str | os.PathLike) -> None:
     with open(tmp, "rb+") as fh:
         os.fsync(fh.fileno())
     os.replace(tmp, target)
-    _fsync_folder(Path(target).parent)
+    fsync_folder(Path(target).parent)
+
+
+@contextlib.contextmanager
+def temporary_folder(target: str | os.PathLike, suffix: str = ".tmp") -> Iterator[Path]:
+    """A new, empty folder beside ``target`` with a unique name (``.<target name>.<random><suffix>``, within
+    NAME_MAX), mode ``0o777`` under the umask, removed with its content when the block ends unless the block has
+    renamed it.
+
+    Parameters
+    ----------
+    target : str or os.PathLike
+        What the folder is for; its parent folder must exist.
+    suffix : str
+        The end of the name (:func:`leftovers` finds them by it).
+
+    Yields
+    ------
+    pathlib.Path
+        The folder.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     with temporary_folder(Path(folder) / ("x" * 300)) as tmp:
+    ...         print(len(os.fsencode(tmp.name)) <= NAME_MAX, tmp.name.endswith(".tmp"))
+    ...     print(os.listdir(folder))
+    True True
+    []
+    """
+    tmp = _created(Path(target), suffix, lambda p: os.mkdir(p, 0o777))
+    try:
+        yield tmp
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def leftovers(target: str | os.PathLike, suffix: str = ".tmp") -> list[Path]:
+    """The temporaries of ``target`` with ``suffix`` that exist beside it now (:func:`temporary_file`,
+    :func:`temporary_folder`): a running writer's, or what a killed writer left behind.
+
+    Parameters
+    ----------
+    target : str or os.PathLike
+        The file or folder they were made for.
+    suffix : str
+        Their suffix.
+
+    Returns
+    -------
+    list of pathlib.Path
+        Sorted.
+    """
+    target = Path(target)
+    start = _temporary_prefix(target, suffix)
+    try:
+        names = os.listdir(target.parent)
+    except OSError:
+        return []
+    return sorted(target.parent / n for n in names if n.startswith(start) and n.endswith(suffix)
+                  and len(n) == len(start) + _RANDOM_DIGITS + len(suffix))
+
+
+_RANDOM_DIGITS = 8
+
+
+def _temporary_prefix(target: Path, suffix: str) -> str:
+    """``.<target name>.``, the name cut (whole characters) so that the prefix, the random digits and ``suffix``
+    fit the file system's NAME_MAX in bytes."""
+    try:
+        limit = os.pathconf(target.parent, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        limit = NAME_MAX
+    room = min(limit, NAME_MAX) - len(os.fsencode(f"..{suffix}")) - _RANDOM_DIGITS
+    name = target.name
+    while len(os.fsencode(name)) > room:
+        name = name[:-1]
+    return f".{name}."
+
+
+def _created(target: Path, suffix: str, create: Callable[[Path], object]) -> Path:
+    """A path beside ``target`` named ``<_temporary_prefix><random><suffix>`` that ``create`` made (it must fail
+    with FileExistsError when the path exists: ``O_EXCL``, ``mkdir``)."""
+    prefix = _temporary_prefix(target, suffix)
+    for _ in range(100):
+        path = target.parent / f"{prefix}{secrets.token_hex(_RANDOM_DIGITS // 2)}{suffix}"
+        try:
+            create(path)
+        except FileExistsError:
+            continue
+        return path
+    raise FileExistsError(f"{target.parent}: no unused temporary name {prefix}*{suffix} in 100 tries")
 
 
 @contextlib.contextmanager
 def atomic_folder(target: str | os.PathLike, replace: bool = True) -> Iterator[Path]:
-    """A new, empty temporary folder beside ``target`` for the block to fill; renamed to ``target`` when the block
-    returns, removed when it raises.
+    """A new, empty temporary folder beside ``target`` (named and moded as :func:`temporary_folder`) for the block
+    to fill; renamed to ``target`` when the block returns, removed when it raises.
 
     An existing ``target`` is replaced only once the new folder is complete (moved aside, then deleted). With
     ``replace=False`` a ``target`` that exists by then (another process finished first) is kept and the new
@@ -152,14 +251,14 @@ def atomic_folder(target: str | os.PathLike, replace: bool = True) -> Iterator[P
     """
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+    tmp = _created(target, ".tmp", lambda p: os.mkdir(p, 0o777))
     old = None
     try:
         yield tmp
         if target.exists():
             if not replace:
                 return
-            old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
+            old = _created(target, ".old", lambda p: os.mkdir(p, 0o700))
             os.replace(target, old / "previous")
         try:
             os.replace(tmp, target)
@@ -167,7 +266,7 @@ def atomic_folder(target: str | os.PathLike, replace: bool = True) -> Iterator[P
             if replace or not target.exists():
                 raise
             return
-        _fsync_folder(target.parent)
+        fsync_folder(target.parent)
     finally:
         for leftover in (tmp, old):
             if leftover is not None and leftover.exists():
@@ -396,8 +495,14 @@ def verify(path: str | os.PathLike, expected: dict | None, full: bool = False, r
                             f"damaged{hint}")
 
 
-def _fsync_folder(folder: Path) -> None:
-    """Make a rename in ``folder`` durable (a no-op where folders cannot be opened)."""
+def fsync_folder(folder: str | os.PathLike) -> None:
+    """Make a rename in ``folder`` durable (fsync of the folder; a no-op where folders cannot be opened).
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        The folder whose entries changed.
+    """
     with contextlib.suppress(OSError):
         fd = os.open(folder, os.O_RDONLY)
         try:

@@ -86,7 +86,7 @@ def test_describe_hits_and_the_players_clip_download(sample_db, sample_dashboard
     span = sample_db.documents.set_index("doc_id").loc[0, "n_frames"]
     with page.expect_download() as clip:
         page.locator(".mv-clip-download button").click()
-    assert clip.value.suggested_filename == f"001_{sample_db.document(0)['name']}_0-{span}.bvh"
+    assert clip.value.suggested_filename == f"001_doc0_{sample_db.document(0)['name']}_0-{span}.bvh"
     want = sample_db.positions[sample_db.frames(0)]
     assert np.abs(_read_back(clip.value.path().read_bytes(), ".bvh", tmp_path) - want).max() < 0.01
 

@@ -13,19 +13,25 @@ import json
 import os
 import re
 import shutil
+import signal
 import subprocess
+import sys
+import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from mocapviz import MotionDB
 from mocapviz.cli import main
 from mocapviz.db.hits import hit_table
 from mocapviz.errors import ParameterError, SourceFileError
-from mocapviz.export import export_hits, export_stretch, hits_zip, read_hits, source_frames, stretch_files
+from mocapviz.export import (export_hits, export_stretch, hit_files, hits_zip, read_hits, source_frames,
+                              stretch_files)
 from mocapviz.io import load
 from mocapviz.motion import rotations
 from mocapviz.motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
@@ -498,3 +504,263 @@ def test_cut_bvh_keeps_the_lines_and_line_ends_of_a_crlf_file(tmp_path):
     assert _frame_lines(cut) == _frame_lines(raw)[1:3] and b"\n" not in cut.replace(b"\r\n", b"")
     assert _metadata(b"# mocapviz export: {}\r\n") == {} and b"# a note\r\n" in cut
     np.testing.assert_allclose(load(f, up="y").positions[:, 0, :2], values[1:3, :2])
+
+
+# ------------------------------------------------------------------------------------------------ all or nothing
+# issue 37: round3's export/ reproducers, on 12 Bandai Namco takes ingested from copies renamed as they were made
+RENAMED = {4: "a b.bvh", 6: "a_b.bvh", 9: "x" * 240 + ".bvh"}
+PAUSE_AT_THIRD_HIT = """
+import sys, time
+import mocapviz.export.hits as hits
+made = []
+def paused(*args, **kwargs):
+    made.append(args)
+    if len(made) == 3:  # hits 1 and 2 are written by now
+        print("third hit", flush=True)
+        time.sleep(120)
+    return stretch_files(*args, **kwargs)
+stretch_files, hits.stretch_files = hits.stretch_files, paused
+from mocapviz.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.fixture(scope="module")
+def renamed_db(tmp_path_factory, bandai1_files):
+    """The first 12 Bandai Namco 1 takes ingested from copies named so that doc 4 is ``a b.bvh`` and doc 6
+    ``a_b.bvh`` (both clean to ``a_b``), doc 9 240 x's + ``.bvh``."""
+    root = tmp_path_factory.mktemp("renamed")
+    (root / "files").mkdir()
+    files = [Path(shutil.copy(f, root / "files" / RENAMED.get(i, f.name))) for i, f in enumerate(bandai1_files[:12])]
+    db = MotionDB.ingest(files, root / "db", progress=False)
+    assert [Path(p).name for p in db.documents["path"]] == [f.name for f in files]
+    return db
+
+
+def _tree(root: Path) -> dict:
+    """Every file and folder under ``root`` (hidden ones too): relative path -> bytes (None for a folder)."""
+    return {str(p.relative_to(root)): None if p.is_dir() else p.read_bytes() for p in sorted(root.rglob("*"))}
+
+
+def _cli(*args, prologue: str = "", **popen) -> subprocess.Popen:
+    """``mocapviz ARGS`` in a new Python process (after ``prologue``), its output piped."""
+    code = f"{prologue}\nimport sys\nfrom mocapviz.cli import main\nsys.exit(main(sys.argv[1:]))"
+    return subprocess.Popen([sys.executable, "-c", code, *map(str, args)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **popen)
+
+
+def _existing_destination(folder: Path, first_name: str) -> Path:
+    """A destination that holds a file of its own, a folder and an earlier export's file of the name the first hit
+    will have."""
+    (folder / "out" / "notes").mkdir(parents=True)
+    (folder / "out" / "mine.txt").write_bytes(b"mine")
+    (folder / "out" / first_name).write_bytes(b"an earlier export")
+    return folder / "out"
+
+
+def test_round3_two_hits_whose_names_clean_alike_give_two_files(renamed_db, round3, tmp_path, capsys):
+    csv = round3 / "export" / "dup_rank.csv"
+    rows = pd.read_csv(csv)
+    assert main(["export", str(renamed_db.path), "--hits", str(csv), "--format", "bvh", "--out",
+                 str(tmp_path / "out")]) == 0
+    assert f"{len(rows)} file(s) written" in capsys.readouterr().out
+    files = sorted((tmp_path / "out").iterdir())
+    assert [f.name for f in files] == ["001_doc4_a_b_0-70.bvh", "001_doc6_a_b_0-70.bvh"]
+    for f, doc in zip(files, rows["doc_id"]):
+        assert _metadata(f.read_bytes())["doc_id"] == doc
+        assert _frame_lines(f.read_bytes()) == _frame_lines(Path(renamed_db.document(doc)["path"]).read_bytes())[:70]
+
+
+def test_the_same_hit_twice_is_refused_naming_both_rows(renamed_db, tmp_path):
+    hits = pd.DataFrame({"rank": [1, 2, 1], "doc_id": [4, 6, 4], "start": [0, 0, 0], "end": [70, 70, 70]})
+    with pytest.raises(ParameterError, match=r"rows 1 and 3 are the same hit \(rank 1, document 4, frames 0:70\)"):
+        export_hits(renamed_db, hits, tmp_path / "out")
+    assert _tree(tmp_path) == {}
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(rows=st.lists(st.tuples(st.integers(1, 3), st.sampled_from([0, 4, 6, 9]), st.integers(0, 20),
+                               st.integers(1, 20)), min_size=1, max_size=6, unique=True))
+def test_every_row_is_its_own_file_in_the_folder_and_in_the_zip(renamed_db, tmp_path, rows):
+    """Random hit tables of documents whose names clean alike (and one cut to fit 255 bytes): one file per row,
+    each naming its row, the zip holding the same names and bytes."""
+    hits = pd.DataFrame(rows, columns=["rank", "doc_id", "start", "length"])
+    hits["end"] = hits["start"] + hits["length"]
+    with tempfile.TemporaryDirectory(dir=tmp_path) as folder:
+        paths = export_hits(renamed_db, hits, Path(folder) / "out", search="random")
+        assert len(paths) == len(hits) == len(os.listdir(Path(folder) / "out"))
+        assert all(len(os.fsencode(p.name)) <= 255 for p in paths)
+        for p, row in zip(paths, hits.itertuples()):
+            meta = _metadata(p.read_bytes())
+            assert (meta["rank"], meta["doc_id"], meta["frames"]) == (row.rank, row.doc_id, [row.start, row.end])
+        archive = zipfile.ZipFile(io.BytesIO(hits_zip(renamed_db, hits, search="random")))
+        assert archive.namelist() == [p.name for p in paths]
+        assert all(archive.read(p.name) == p.read_bytes() for p in paths)
+
+
+def _fail_third(monkeypatch, where: str, out: Path) -> None:
+    """Make the third hit fail while it is made, written, or moved into the existing ``out``."""
+    import mocapviz.export.hits as hits_module
+    from mocapviz import store
+
+    calls = []
+
+    def third(real, error, wanted=lambda *a, **k: True):
+        def call(*args, **kwargs):
+            calls.append(wanted(*args, **kwargs))
+            if sum(calls) == 3 and calls[-1]:
+                raise error
+            return real(*args, **kwargs)
+        return call
+
+    if where == "made":
+        monkeypatch.setattr(hits_module, "stretch_files", third(hits_module.stretch_files, SourceFileError("gone")))
+    elif where == "written":
+        monkeypatch.setattr(store, "atomic_write", third(store.atomic_write, OSError(28, "No space left on device")))
+    else:
+        monkeypatch.setattr(os, "rename", third(os.rename, OSError(28, "No space left on device"),
+                                                lambda src, dst: Path(dst).parent == out))
+
+
+@pytest.mark.parametrize("where, existing", [("made", False), ("made", True), ("written", False),
+                                             ("written", True), ("moved", True)])  # fmt: skip
+def test_a_failure_at_the_third_hit_leaves_the_destination_as_it_was(renamed_db, round3, tmp_path, monkeypatch,
+                                                                     where, existing):
+    csv = round3 / "export" / "partial.csv"
+    first = next(iter(hit_files(renamed_db, csv)))
+    out = _existing_destination(tmp_path, first) if existing else tmp_path / "out"
+    before = _tree(tmp_path)
+    _fail_third(monkeypatch, where, out)
+    with pytest.raises((SourceFileError, OSError)):
+        export_hits(renamed_db, csv, out)
+    monkeypatch.undo()
+    assert _tree(tmp_path) == before
+    assert len(export_hits(renamed_db, csv, out)) == 4  # the reproducer's third hit (doc 9) itself exports
+
+
+def test_a_real_full_file_system_at_the_third_hit_leaves_nothing(renamed_db, tmp_path):
+    """A real process whose files may not grow past a limit (RLIMIT_FSIZE, between the first two hits' sizes and
+    the third's: EFBIG, as a full disk's ENOSPC) exports nothing, into a new or an existing folder."""
+    import resource
+
+    hits = pd.DataFrame({"doc_id": [0, 1, 2, 3], "start": [0, 0, 0, 0], "end": [10, 10, renamed_db.document(2)[
+        "n_frames"], 10]})
+    hits.to_csv(tmp_path / "hits.csv", index=False)
+    files = hit_files(renamed_db, hits)
+    sizes = [len(data) for data in files.values()]
+    limit = (max(sizes[:2]) + sizes[2]) // 2
+    assert sizes[2] > limit > max(sizes[:2] + sizes[3:])
+
+    def small_files():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    for out in (tmp_path / "new", _existing_destination(tmp_path, next(iter(files)))):
+        before = _tree(tmp_path)
+        run = _cli("export", renamed_db.path, "--hits", tmp_path / "hits.csv", "--format", "bvh", "--out", out,
+                   preexec_fn=small_files)
+        _, err = run.communicate(timeout=120)
+        assert run.returncode == 1 and "File too large" in err, err
+        assert _tree(tmp_path) == before
+
+
+@pytest.mark.parametrize("signal_name", ["SIGTERM", "SIGKILL"])
+def test_an_export_killed_at_the_third_hit_leaves_the_destination_as_it_was(renamed_db, round3, tmp_path,
+                                                                            signal_name):
+    """A real ``mocapviz export`` paused at its third hit (two written) and killed: SIGTERM leaves nothing;
+    SIGKILL leaves the destination as it was and a hidden folder that the next export into it removes, never one
+    of an export that is running."""
+    from mocapviz import store
+
+    csv = round3 / "export" / "partial.csv"
+    out = tmp_path / "out"
+    before = _tree(tmp_path)
+    run = _cli("export", renamed_db.path, "--hits", csv, "--format", "bvh", "--out", out, prologue=PAUSE_AT_THIRD_HIT)
+    assert run.stdout.readline() == "third hit\n", run.communicate()
+    [staging] = store.leftovers(out, ".export")
+    assert len(os.listdir(staging)) == 2 and not out.exists()
+    if signal_name == "SIGTERM":
+        run.send_signal(signal.SIGTERM)
+        assert run.wait(timeout=30) == 128 + signal.SIGTERM
+        assert _tree(tmp_path) == before
+        return
+    export_hits(renamed_db, hit_table(renamed_db, [5], [0], [10]), out)  # the running export's folder is kept
+    assert store.leftovers(out, ".export") == [staging]
+    after_ours = _tree(tmp_path)
+    run.kill()
+    assert run.wait(timeout=30) == -signal.SIGKILL
+    assert _tree(tmp_path) == after_ours  # the destination as the last export left it, and the killed one's folder
+    assert len(export_hits(renamed_db, csv, out)) == 4
+    assert store.leftovers(out, ".export") == [] and len(os.listdir(out)) == 5
+
+
+def test_names_and_temporary_names_fit_255_bytes(renamed_db, tmp_path, capsys):
+    """Doc 9 (240 x's): its final name cut to 255 bytes, written with the temporaries of an output folder whose
+    own name is 255 bytes; store's temporary names of 253- and 255-byte targets (ASCII and two-byte UTF-8) fit."""
+    from mocapviz import store
+
+    out = tmp_path / ("o" * 255)
+    assert main(["export", str(renamed_db.path), "--doc", "9", "--frames", "0:70", "--format", "bvh", "--out",
+                 str(out)]) == 0
+    assert "1 file(s) written" in capsys.readouterr().out
+    [f] = out.iterdir()
+    assert len(os.fsencode(f.name)) == 255 and f.name.startswith("001_doc9_xxx") and f.name.endswith("x_0-70.bvh")
+    assert _frame_lines(f.read_bytes()) == _frame_lines(Path(renamed_db.document(9)["path"]).read_bytes())[:70]
+    for name in ("y" * 249 + ".bvh", "y" * 251 + ".bvh", "é" * 125 + ".bvh"):
+        with store.temporary_file(tmp_path / name) as tmp:
+            assert len(os.fsencode(tmp.name)) <= 255 and tmp.name.startswith(f".{name[:50]}")
+        with store.temporary_folder(tmp_path / name) as tmp:
+            assert len(os.fsencode(tmp.name)) <= 255
+        store.atomic_write(tmp_path / name, b"1")
+        assert (tmp_path / name).read_bytes() == b"1"
+
+
+UMASK_RUN = """
+import os, sys
+from mocapviz import MotionDB
+from mocapviz.cli import main
+db, hits, out = sys.argv[1:4]
+for mask in (0o022, 0o077):
+    os.umask(mask)
+    assert main(["export", db, "--hits", hits, "--format", "bvh", "--out", f"{out}/new-{mask:o}"]) == 0
+    os.makedirs(f"{out}/old-{mask:o}")
+    assert main(["export", db, "--hits", hits, "--format", "glb", "--out", f"{out}/old-{mask:o}"]) == 0
+    MotionDB.ingest([MotionDB.open(db).document(0)["path"]], f"{out}/db-{mask:o}", progress=False)
+"""
+
+
+def test_files_are_readable_under_the_users_umask(renamed_db, round3, tmp_path):
+    """Under umask 022 every exported and stored file is 0644 and every folder 0755 (under 077: 0600 and 0700),
+    in a process of its own (the umask is the process's)."""
+    run = subprocess.run([sys.executable, "-c", UMASK_RUN, str(renamed_db.path), str(round3 / "export" / "partial.csv"),
+                          str(tmp_path)], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    for mask, file_mode, folder_mode in ((0o022, 0o644, 0o755), (0o077, 0o600, 0o700)):
+        for name in (f"new-{mask:o}", f"db-{mask:o}"):
+            assert (tmp_path / name).stat().st_mode & 0o777 == folder_mode, name
+        files = [p for name in ("new", "old", "db") for p in (tmp_path / f"{name}-{mask:o}").rglob("*") if p.is_file()]
+        assert len(files) > 8 and {p.stat().st_mode & 0o777 for p in files} == {file_mode}, files
+
+
+def test_a_folder_scan_passes_over_hidden_names_and_load_reads_a_dotted_name_by_its_ending(bandai1_files, tmp_path):
+    """round3: ``....bvh`` in a folder aborted its ingest ("unsupported file type '(none)'"). A folder scan passes
+    over names starting with a dot (files and folders below it); a file named explicitly is read by its ending."""
+    from mocapviz.db.ingest import expand_paths
+    from mocapviz.errors import MocapFormatError
+
+    scan = tmp_path / "scan"
+    (scan / ".git").mkdir(parents=True)
+    for name in ("....bvh", ".x.bvh", ".bvh", ".git/c.bvh"):
+        shutil.copy(bandai1_files[0], scan / name)
+    (scan / "._a b.bvh").write_bytes(b"\x00\x05\x16\x07\x00\x02\x00\x00Mac OS X")  # a macOS AppleDouble file
+    shutil.copy(bandai1_files[1], scan / "a b.bvh")
+    assert expand_paths(scan) == expand_paths(str(scan / "*.bvh")) == [(scan / "a b.bvh").resolve()]
+    assert main(["ingest", str(scan), "--out", str(tmp_path / "db"), "--no-cluster"]) == 0
+    assert MotionDB.open(tmp_path / "db").documents["name"].tolist() == ["a b"]
+    want = load(bandai1_files[0]).positions
+    for name in ("....bvh", ".x.bvh", ".bvh"):
+        assert np.array_equal(load(scan / name).positions, want)
+    db = MotionDB.ingest([scan / "....bvh"], tmp_path / "dots", progress=False)
+    assert db.documents[["name", "format"]].values.tolist() == [["...", "bvh"]]
+    with pytest.raises(MocapFormatError, match=r"\._a b\.bvh, line 1: binary data \(a NUL byte\), not a text file"):
+        load(scan / "._a b.bvh")
+    assert main(["ingest", str(scan / "._a b.bvh"), "--out", str(tmp_path / "bad"), "--no-cluster"]) == 1

@@ -249,6 +249,6 @@ def test_a_c3d_document_exports_on_the_canonical_rig_and_says_why_not_as_source_
     (tmp_path / name).write_bytes(data)
     back = load(tmp_path / name).canonical({c: c for c in CANONICAL_JOINTS}).positions
     assert np.abs(back - db.positions[db.frames(0)][10:70]).max() < 0.01
-    assert list(stretch_files(db, 0, 10, 70, "glb", "source")) == ["001_cmu_07_01_10-70.glb"]
+    assert list(stretch_files(db, 0, 10, 70, "glb", "source")) == ["001_doc0_cmu_07_01_10-70.glb"]
     with pytest.raises(ParameterError, match="C3D file: markers, no rig.*rig='canonical'"):
         stretch_files(db, 0, 10, 70, "bvh", "source")

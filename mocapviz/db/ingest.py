@@ -26,7 +26,7 @@ import pandas as pd
 
 from .. import errors as errors_module
 from ..errors import LabelTableError, MocapFormatError, MocapFormatWarning, MocapvizError
-from ..io import FORMATS, find_asf, load
+from ..io import FORMATS, file_format, find_asf, load
 from ..io.labels import MAIN_LABEL_COLUMNS, labels_for, read_labels_tsv
 from ..motion import Motion
 from ..parallel import map_ordered, optional_client, parallelism
@@ -41,6 +41,14 @@ _BASE_COLUMNS = BASE_COLUMNS
 def expand_paths(paths) -> list[Path]:
     """Motion files named by ``paths``: files, folders (searched recursively) and glob patterns.
 
+    What is picked, by the name's ending as :func:`mocapviz.io.file_format` reads it (``.amc``, ``.bvh``, ``.c3d``,
+    any case):
+
+    - a file named: always (``load`` reads ``....bvh`` or ``.x.bvh`` as BVH, or says what is wrong with it);
+    - a folder: its motion files at any depth, except hidden ones: a name starting with a dot, of the file or of a
+      folder below the one given (``.x.bvh``, ``....bvh``, macOS's ``._x.bvh``, ``.git/``, a writer's ``.x.tmp``);
+    - a glob pattern: its motion files, hidden ones only where the pattern's part starts with a dot (glob's rule).
+
     Parameters
     ----------
     paths : str, os.PathLike or list of them
@@ -49,7 +57,7 @@ def expand_paths(paths) -> list[Path]:
     Returns
     -------
     list of pathlib.Path
-        The absolute paths of the ``.amc`` / ``.bvh`` files, folders' contents sorted, duplicates removed.
+        The absolute paths of the motion files, folders' contents sorted, duplicates removed.
 
     Raises
     ------
@@ -69,13 +77,16 @@ def expand_paths(paths) -> list[Path]:
     for p in paths:
         p = os.fspath(p)
         if os.path.isdir(p):
-            found = sorted(f for f in Path(p).rglob("*") if f.suffix.lower() in FORMATS and f.is_file())
+            found = sorted(f for f in Path(p).rglob("*") if file_format(f) in FORMATS and f.is_file()
+                           and not any(part.startswith(".") for part in f.relative_to(p).parts))
         elif os.path.isfile(p):
             found = [Path(p)]
         else:
-            found = sorted(Path(f) for f in glob.glob(p, recursive=True) if Path(f).suffix.lower() in FORMATS)
+            found = sorted(Path(f) for f in glob.glob(p, recursive=True) if file_format(f) in FORMATS
+                           and os.path.isfile(f))
         if not found:
-            raise FileNotFoundError(f"{p}: no .amc or .bvh files there")
+            raise FileNotFoundError(f"{p}: no .amc or .bvh files there (nor .c3d; names starting with a dot are "
+                                    "not searched in a folder)")
         out += [f.resolve() for f in found]
     return list(dict.fromkeys(out))
 
@@ -97,7 +108,7 @@ def file_checksum(path, asf=None) -> str:
     """
     h = hashlib.sha256()
     parts = [Path(path)]
-    if Path(path).suffix.lower() == ".amc":
+    if file_format(path) == ".amc":
         parts.append(Path(asf) if asf is not None else find_asf(path))
     for part in parts:
         try:
@@ -144,7 +155,7 @@ def read_document(path, fps: float | None = None, labels: dict | None = None, ma
     meta = {
         "name": path.stem,
         "path": str(path),
-        "format": path.suffix.lower().lstrip("."),
+        "format": file_format(path).lstrip("."),
         "n_frames": motion.n_frames,
         "fps": motion.fps,
         "source_fps": source_fps,

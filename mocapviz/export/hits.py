@@ -1,8 +1,8 @@
 """Every hit of a search as files: one export per row of a hit table, in a folder or in a zip archive.
 
 read_hits     a hit table (DataFrame, or the CSV a search's ``--csv`` wrote) checked against the database.
-hit_files     {file name: bytes} of every hit, names sorted by rank.
-export_hits   those files written into a folder; returns the paths.
+hit_files     {file name: bytes} of every hit, names sorted by rank, one name per hit (rank, document, frames).
+export_hits   those files written into a folder, hit by hit, all or nothing; returns the paths.
 hits_zip      those files as the bytes of one zip archive (for a download button; nothing written to disk).
 zipped        {file name: bytes} as the bytes of one zip archive.
 """
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import zipfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import pandas as pd
@@ -92,24 +93,51 @@ def hit_files(db, hits, format: str = "bvh", rig: str | None = None, search: str
     Returns
     -------
     dict
-        File name -> bytes, in rank order; the search's own columns of each hit (cost, score, ...) are written into
-        its files too.
+        File name -> bytes, in the table's order; the search's own columns of each hit (cost, score, ...) are
+        written into its files too. Each hit has its own files (:func:`mocapviz.export.stretch.file_stem`).
+
+    Raises
+    ------
+    ParameterError
+        As :func:`read_hits`, or two rows of one rank, document and frames (the rows named).
     """
+    return {name: data for files in _each_hit(db, hits, format, rig, search) for name, data in files.items()}
+
+
+def _each_hit(db, hits, format: str, rig: str | None, search: str | None) -> Iterator[dict[str, bytes]]:
+    """The files of each row of ``hits`` (:func:`hit_files`), one row at a time, the table checked first."""
     if search is None and not isinstance(hits, pd.DataFrame):
         search = f"hits of {Path(hits).name}"
     table = read_hits(db, hits)
+    _one_row_per_hit(table, "hits" if isinstance(hits, pd.DataFrame) else f"hits {hits}")
     own = [c for c in table.columns if c not in COLUMNS and c not in db.label_columns and c != "path"]
     digits = max(3, len(str(int(table["rank"].max()))))
-    files: dict[str, bytes] = {}
     for r in table.to_dict("records"):
-        files.update(stretch_files(db, r["doc_id"], r["start"], r["end"], format, rig, rank=r["rank"], search=search,
-                                   scores={c: r[c] for c in own}, digits=digits))  # fmt: skip
-    return files
+        yield stretch_files(db, r["doc_id"], r["start"], r["end"], format, rig, rank=r["rank"], search=search,
+                            scores={c: r[c] for c in own}, digits=digits)  # fmt: skip
+
+
+def _one_row_per_hit(table: pd.DataFrame, what: str) -> None:
+    """ParameterError naming the first two rows of one rank, document and frames: their files would have one name."""
+    key = ["rank", "doc_id", "start", "end"]
+    again = table.duplicated(key)
+    if not again.any():
+        return
+    second = int(again.idxmax())
+    r = table.loc[second]
+    first = int((table[key] == r[key]).all(axis=1).idxmax())
+    raise ParameterError(f"{what}: rows {first + 1} and {second + 1} are the same hit (rank {r['rank']}, document "
+                         f"{r['doc_id']}, frames {r['start']}:{r['end']}), which would be one file; drop one, or give "
+                         "them different ranks")  # fmt: skip
 
 
 def export_hits(db, hits, out_dir, format: str = "bvh", rig: str | None = None, search: str | None = None
                 ) -> list[Path]:
-    """Every hit exported into ``out_dir``: one file per hit (an AMC with its ASF), each written atomically.
+    """Every hit exported into ``out_dir``: one file per hit (an AMC with its ASF), all or nothing.
+
+    Each hit's files are made and written in turn into a hidden folder, which is moved into place once every hit
+    is there (:func:`mocapviz.export.stretch.write_files`): a failure at any hit (a source file gone, a full disk)
+    leaves no file behind and ``out_dir`` as it was.
 
     Parameters
     ----------
@@ -118,14 +146,24 @@ def export_hits(db, hits, out_dir, format: str = "bvh", rig: str | None = None, 
     hits : pandas.DataFrame or str or os.PathLike
         A hit table or its CSV file.
     out_dir : str or os.PathLike
-        The folder (created if missing).
+        The folder (created if missing; an existing one keeps its other files, those of the same names are
+        replaced).
     format, rig, search
         As :func:`hit_files`.
 
     Returns
     -------
     list of pathlib.Path
-        The files written, in rank order.
+        The files written, in the table's order: as many as its rows (an AMC: two per row).
+
+    Raises
+    ------
+    ParameterError
+        As :func:`hit_files`; ``out_dir`` is a file.
+    SourceFileError
+        A hit's source file is gone or changed (``rig="source"``).
+    OSError
+        Writing failed.
 
     Examples
     --------
@@ -136,9 +174,9 @@ def export_hits(db, hits, out_dir, format: str = "bvh", rig: str | None = None, 
     >>> hits = hit_table(db, [11, 22], [0, 30], [60, 90], cost=[0.5, 0.7])
     >>> with tempfile.TemporaryDirectory() as folder:
     ...     [p.name for p in export_hits(db, hits, folder, format="glb", search="squats")]
-    ['001_HDM_dg_squat1Reps_033_120_0-60.glb', '002_HDM_mm_squat1Reps_037_120_30-90.glb']
+    ['001_doc11_HDM_dg_squat1Reps_033_120_0-60.glb', '002_doc22_HDM_mm_squat1Reps_037_120_30-90.glb']
     """
-    return write_files(hit_files(db, hits, format, rig, search), out_dir)
+    return write_files(_each_hit(db, hits, format, rig, search), out_dir)
 
 
 def hits_zip(db, hits, format: str = "bvh", rig: str | None = None, search: str | None = None) -> bytes:
@@ -168,7 +206,7 @@ def hits_zip(db, hits, format: str = "bvh", rig: str | None = None, search: str 
     >>> db = MotionDB.sample()
     >>> data = hits_zip(db, hit_table(db, [7], [0], [60]), format="amc")
     >>> zipfile.ZipFile(io.BytesIO(data)).namelist()
-    ['001_HDM_dg_kickLFront1Reps_017_120_0-60.amc', '001_HDM_dg_kickLFront1Reps_017_120_0-60.asf']
+    ['001_doc7_HDM_dg_kickLFront1Reps_017_120_0-60.amc', '001_doc7_HDM_dg_kickLFront1Reps_017_120_0-60.asf']
     """
     return zipped(hit_files(db, hits, format, rig, search))
 

@@ -1,8 +1,9 @@
 """One stretch of one document as files: its source cut on its own rig, or the database's frames on the canonical rig.
 
 stretch_files     (doc_id, start, end) -> {file name: bytes}: the export of one hit, in memory.
-export_stretch    the same written into a folder (each file atomically); returns the paths.
+export_stretch    the same written into a folder (all or nothing, :func:`write_files`); returns the paths.
 source_frames     a stretch at the database's rate -> the same seconds in frames of its source file.
+write_files       files made one group at a time written into a folder, all or nothing.
 
 What each combination writes (docs/export.md):
 
@@ -17,8 +18,13 @@ bvh, glb  canonical    the 24 canonical joints (upright T-pose at rest) posed to
 """
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import json
+import os
 import re
+import shutil
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +36,7 @@ from ..validation import frame_span, one_of
 
 FORMATS = ("bvh", "amc", "glb")
 RIGS = ("source", "canonical")
+STAGING = ".export"  # the suffix of the hidden folder an export is written into before it is moved into place
 
 
 def default_rig(format: str) -> str:
@@ -88,6 +95,43 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "_", str(name)).strip("_") or "document"
 
 
+def file_stem(rank: int, digits: int, doc_id: int, name: str, start: int, end: int, format: str) -> str:
+    """``<rank>_doc<doc_id>_<name>_<start>-<end>``: one name per hit (rank, document and frames), the document's
+    name cleaned to ``A-Z a-z 0-9 . _ -`` and cut so that the stem and ``.<format>`` fit
+    :data:`mocapviz.store.NAME_MAX` bytes.
+
+    Parameters
+    ----------
+    rank : int
+        The hit's rank.
+    digits : int
+        Digits of the rank (at least; zero-padded).
+    doc_id : int
+        The document.
+    name : str
+        The document's name.
+    start, end : int
+        Its frames, half-open.
+    format : str
+        The extension without its dot (``bvh``, ``amc``, ``asf``, ``glb``: three letters).
+
+    Returns
+    -------
+    str
+        The file name without ``.<format>``.
+
+    Examples
+    --------
+    >>> file_stem(1, 3, 4, "a b", 0, 70, "bvh"), file_stem(1, 3, 6, "a_b", 0, 70, "bvh")
+    ('001_doc4_a_b_0-70', '001_doc6_a_b_0-70')
+    >>> len(file_stem(1, 3, 9, "x" * 240, 0, 70, "bvh") + ".bvh")
+    255
+    """
+    head, tail = f"{int(rank):0{digits}d}_doc{int(doc_id)}_", f"_{int(start)}-{int(end)}"
+    room = store.NAME_MAX - len(f"{head}{tail}.{format}")  # ASCII: characters are bytes in any encoding
+    return f"{head}{_safe(name)[:max(room, 1)]}{tail}"
+
+
 def _plain(value):
     """A JSON value of a table cell (numpy scalars as Python numbers, NaN as None)."""
     if isinstance(value, np.generic):
@@ -126,9 +170,10 @@ def stretch_files(db, doc_id: int, start: int | None = None, end: int | None = N
     Returns
     -------
     dict
-        File name -> bytes: ``<rank>_<name>_<start>-<end>.<format>`` (and the ``.asf`` of an AMC). Each file names
-        its source document, frames, rig and search: a ``# mocapviz export: {JSON}`` comment line (BVH, AMC), the
-        same JSON object as ``asset.extras`` and scene ``extras`` (glTF).
+        File name -> bytes: ``<rank>_doc<doc_id>_<name>_<start>-<end>.<format>`` (and the ``.asf`` of an AMC;
+        :func:`file_stem`, at most 255 bytes). Each file names its source document, frames, rig and search: a
+        ``# mocapviz export: {JSON}`` comment line (BVH, AMC), the same JSON object as ``asset.extras`` and scene
+        ``extras`` (glTF).
 
     Raises
     ------
@@ -143,7 +188,7 @@ def stretch_files(db, doc_id: int, start: int | None = None, end: int | None = N
     >>> from mocapviz import MotionDB
     >>> files = stretch_files(MotionDB.sample(), 7, 0, 60, format="amc", search="an example")
     >>> sorted(files)
-    ['001_HDM_dg_kickLFront1Reps_017_120_0-60.amc', '001_HDM_dg_kickLFront1Reps_017_120_0-60.asf']
+    ['001_doc7_HDM_dg_kickLFront1Reps_017_120_0-60.amc', '001_doc7_HDM_dg_kickLFront1Reps_017_120_0-60.asf']
     """
     one_of(format, "export format", FORMATS)
     rig = default_rig(format) if rig is None else one_of(rig, "rig", RIGS)
@@ -163,7 +208,7 @@ def stretch_files(db, doc_id: int, start: int | None = None, end: int | None = N
             "frames": [start, end], "fps": float(row["fps"]), "source_frames": [a, b],
             "source_fps": float(row["source_fps"]), "format": format, "rig": rig, "rank": int(rank),
             "search": search, "scores": {k: _plain(v) for k, v in (scores or {}).items()}}  # fmt: skip
-    stem = f"{int(rank):0{digits}d}_{_safe(row['name'])}_{start}-{end}"
+    stem = file_stem(rank, digits, doc_id, row["name"], start, end, format)
     notes = [f"mocapviz export: {json.dumps(meta)}"]
     if rig == "canonical":
         return {f"{stem}.{format}": _canonical(db, int(doc_id), start, end, format, notes, meta)}
@@ -221,7 +266,7 @@ def export_stretch(db, doc_id: int, out_dir, start: int | None = None, end: int 
     doc_id : int
         The document.
     out_dir : str or os.PathLike
-        The folder (created if missing); each file is written to a temporary file there and renamed.
+        The folder (created if missing), written all or nothing (:func:`write_files`).
     start, end : int, optional
         Frames at the database's rate, half-open (default: the whole document).
     format : {"bvh", "amc", "glb"}
@@ -243,18 +288,110 @@ def export_stretch(db, doc_id: int, out_dir, start: int | None = None, end: int 
     >>> with tempfile.TemporaryDirectory() as folder:
     ...     [bvh] = export_stretch(MotionDB.sample(), 7, folder, 10, 70, rig="canonical")
     ...     bvh.name, load(bvh).n_frames
-    ('001_HDM_dg_kickLFront1Reps_017_120_10-70.bvh', 60)
+    ('001_doc7_HDM_dg_kickLFront1Reps_017_120_10-70.bvh', 60)
     """
-    files = stretch_files(db, doc_id, start, end, format, rig, search=search)
-    return write_files(files, out_dir)
+    return write_files([stretch_files(db, doc_id, start, end, format, rig, search=search)], out_dir)
 
 
-def write_files(files: dict[str, bytes], out_dir) -> list[Path]:
-    """``files`` (name -> bytes) written into ``out_dir`` (created if missing), each atomically; their paths."""
+def write_files(groups: Iterable[dict[str, bytes]], out_dir) -> list[Path]:
+    """Files written into ``out_dir``, all or nothing: every file, or (on any error, a full disk, a signal that
+    raises) none, ``out_dir`` as it was.
+
+    The files are written into a new hidden folder, ``.<out_dir name>.<random>.export``, beside ``out_dir`` when it
+    does not exist (renamed to ``out_dir`` at the end) or inside it when it does (its files renamed into ``out_dir``
+    at the end; a file of ``out_dir`` with one of their names is replaced, and put back if a rename fails). The
+    folder is removed when anything fails; one that a killed process left (its ``flock`` released) is removed by the
+    next export into ``out_dir``.
+
+    Parameters
+    ----------
+    groups : iterable of dict
+        File name -> bytes, one dict at a time (e.g. a hit's files, made when the writer asks for them).
+    out_dir : str or os.PathLike
+        The folder; its parents are created if missing.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written, in the order given.
+
+    Raises
+    ------
+    ParameterError
+        ``out_dir`` is a file, or holds a folder of a file's name.
+    OSError
+        Writing failed (nothing written); or ``out_dir`` was created and filled by another process meanwhile.
+    """
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for name, data in files.items():
-        store.atomic_write(out / name, data)
-        paths.append(out / name)
-    return paths
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"{out}: a file, not a folder; pass a folder to write the export into")
+    place = out if out.is_dir() else out.parent
+    place.mkdir(parents=True, exist_ok=True)
+    for old in store.leftovers(out, STAGING) + store.leftovers(out / out.name, STAGING):  # beside it, in it
+        _remove_if_abandoned(old)
+    with store.temporary_folder(place / out.name, STAGING) as tmp, _held(tmp):
+        names = [_written(tmp, name, data) for files in groups for name, data in files.items()]
+        if place == out:
+            _move_in(tmp, out, names)
+        else:
+            os.rename(tmp, out)  # onto nothing, or an empty folder made meanwhile; a filled one: OSError
+            store.fsync_folder(place)
+    return [out / name for name in names]
+
+
+def _written(folder: Path, name: str, data: bytes) -> str:
+    store.atomic_write(folder / name, data)
+    return name
+
+
+@contextlib.contextmanager
+def _held(folder: Path) -> Iterator[None]:
+    """An exclusive ``flock`` on ``folder`` (its inode: it holds across a rename) for the block; a process's locks
+    end with it, however it ends."""
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
+
+
+def _remove_if_abandoned(folder: Path) -> None:
+    """Remove an export's hidden folder when no process holds its lock (its writer was killed)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:  # gone meanwhile
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        shutil.rmtree(folder, ignore_errors=True)
+    except BlockingIOError:  # an export running now
+        pass
+    finally:
+        os.close(fd)
+
+
+def _move_in(tmp: Path, out: Path, names: list[str]) -> None:
+    """Rename the files ``names`` of ``tmp`` into ``out``; the files of ``out`` they replace wait in ``tmp`` until
+    every rename has succeeded and are put back if one fails."""
+    taken = [n for n in names if (out / n).is_dir() and not (out / n).is_symlink()]
+    if taken:
+        raise ParameterError(f"{out / taken[0]}: a folder has the name of an exported file; move it or export into "
+                             "another folder")  # fmt: skip
+    aside = tmp / STAGING  # no exported name starts with a dot
+    aside.mkdir()
+    moved: list[str] = []
+    try:
+        for name in names:
+            if os.path.lexists(out / name):
+                os.rename(out / name, aside / name)
+            moved.append(name)
+            os.rename(tmp / name, out / name)
+    except BaseException:
+        for name in reversed(moved):
+            with contextlib.suppress(FileNotFoundError):
+                os.rename(out / name, tmp / name)
+            if os.path.lexists(aside / name):
+                os.rename(aside / name, out / name)
+        raise
+    store.fsync_folder(out)

@@ -1,6 +1,7 @@
 """Readers: one entry point, :func:`load`, for every supported motion file.
 
 load          path -> Motion (ASF/AMC, BVH, C3D markers), dispatching on the file extension.
+file_format   the extension a file name ends in, as load reads it ('....bvh', '.x.bvh', '.bvh': '.bvh').
 find_asf      the ASF skeleton of an AMC file, by the CMU and HDM05 folder conventions.
 read_asf, read_amc, read_bvh, read_c3d   the format readers (``asfamc``, ``bvh``, ``c3d`` modules).
 
@@ -30,6 +31,30 @@ def __dir__():
 
 
 FORMATS = (".amc", ".bvh", ".c3d")
+
+
+def file_format(path) -> str:
+    """The extension ``path``'s name ends in, lower case, as :func:`load` reads the file: from its last dot on,
+    whatever comes before it (``....bvh``, ``.x.bvh`` and ``.bvh`` are BVH files; ``os.path.splitext`` gives
+    them no extension), ``""`` for a name without a dot.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file.
+
+    Returns
+    -------
+    str
+        E.g. ``".bvh"``; one of :data:`FORMATS` for a motion file.
+
+    Examples
+    --------
+    >>> [file_format(n) for n in ["a.BVH", "....bvh", ".bvh", "x.tar.gz", "README"]]
+    ['.bvh', '.bvh', '.bvh', '.gz', '']
+    """
+    name = os.path.basename(os.fspath(path))
+    return name[name.rfind("."):].lower() if "." in name else ""
 
 
 @functools.lru_cache(maxsize=4096)
@@ -139,7 +164,7 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
     ((130, 24, 3), ('root', 'lhip', 'lknee'))
     """
     path = os.fspath(path)
-    ext = os.path.splitext(path)[1].lower()
+    ext = file_format(path)
     if not os.path.isfile(path):
         raise MocapFormatError(path, "no such file")
     if ext == ".amc":
@@ -162,4 +187,4 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
     raise MocapFormatError(path, f"unsupported file type {ext or '(none)'!r}; supported: {', '.join(FORMATS)}")
 
 
-__all__ = ["FORMATS", "AsfSkeleton", "find_asf", "load", "read_amc", "read_asf", "read_bvh", "read_c3d"]
+__all__ = ["FORMATS", "AsfSkeleton", "file_format", "find_asf", "load", "read_amc", "read_asf", "read_bvh", "read_c3d"]
