@@ -23,21 +23,32 @@ Conventions:
   standing body is taller than wide) is up, positive upwards. ``up="y"`` / ``up="z"`` override.
 - Frame rate: POINT:RATE (the header's rate when absent), 1 to 10,000 fps; positions within ±1e7 cm
   (:mod:`mocapviz.io.checks`).
+- Damaged files: before ezc3d sees a file, :func:`mocapviz.io.c3d_layout.check_layout` checks its header against its
+  parameters (points, frames, rates, scale, analog samples, data block, the file's size) and refuses a file that
+  cannot be read right, naming the field and both values; ezc3d then reads in a helper process
+  (:func:`mocapviz.io.isolated.read_isolated`), so that a crash inside it is a MocapFormatError, not the end of the
+  calling process (an ingest, a Dask worker, the dashboard's server).
 """
 from __future__ import annotations
 
 import os
-import struct
 
 import numpy as np
 
 from ..errors import MocapFormatError, ParameterError
 from ..motion import Motion
-from .checks import DISTANCE_LIMIT_CM, check_frame_rate, describe, first_outside
+from .c3d_layout import check_layout
+from .checks import DISTANCE_LIMIT_CM, check_frame_rate, describe, first_outside, format_warning
+from .isolated import read_isolated
 
 _CM_PER_UNIT = {"mm": 0.1, "cm": 1.0, "m": 100.0}
 _AXES = {"X": 0, "Y": 1, "Z": 2}
 _MODEL_OUTPUTS = ("ANGLES", "FORCES", "MOMENTS", "POWERS", "REACTIONS", "SCALARS")  # POINT parameters listing non-markers
+# ezc3d's read in its helper process (mocapviz.io.isolated): at most this memory (ezc3d needs 10 to 25 times the
+# file's size: 45 MB for cmu_135_02's 3.4 MB) and this time (it reads about 30 MB/s here); a damaged file that passes
+# the checks and still asks for more is refused instead of exhausting the machine's memory or hanging the caller
+_MEMORY_FIXED, _MEMORY_PER_BYTE = 512 * 2**20, 64
+_TIMEOUT_FIXED_S, _TIMEOUT_BYTES_PER_S = 60.0, 2**20
 
 
 def read_c3d(path, up: str = "auto") -> Motion:
@@ -60,10 +71,17 @@ def read_c3d(path, up: str = "auto") -> Motion:
     Raises
     ------
     MocapFormatError
-        Not a readable C3D file (the reason ezc3d gives), no labelled points, unknown POINT:UNITS, a frame rate
-        outside 1 to 10,000 fps, or a coordinate beyond ±1e7 cm or infinite (naming the frame and marker).
+        Naming the file: a header and parameters that disagree or do not fit the file (naming the field and both
+        values, :func:`mocapviz.io.c3d_layout.check_layout`), ezc3d crashing, hanging or failing on it (the signal,
+        or the reason ezc3d gives), no labelled points, unknown POINT:UNITS, a frame rate outside 1 to 10,000 fps,
+        or a coordinate beyond ±1e7 cm or infinite (naming the frame and marker).
     ParameterError
         A bad ``up``.
+
+    Warns
+    -----
+    MocapFormatWarning
+        A frame rate of 0 (or none) in the header or in POINT:RATE, the other one used.
 
     References
     ----------
@@ -79,16 +97,13 @@ def read_c3d(path, up: str = "auto") -> Motion:
     if up not in ("auto", "y", "z"):
         raise ParameterError(f"up must be 'auto', 'y' or 'z', got {up!r}")
     path = os.fspath(path)
-    _check_structure(path)
-    import ezc3d
-
-    try:
-        c3d = ezc3d.c3d(path)
-        point = c3d["parameters"]["POINT"]
-        xyz = np.asarray(c3d["data"]["points"][:3], dtype=np.float64)  # (3, P, T)
-        header = c3d["header"]["points"]
-    except Exception as exc:  # noqa: BLE001 - ezc3d raises plain RuntimeError/IndexError/... on a damaged file
-        raise MocapFormatError(path, f"not a readable C3D file ({type(exc).__name__}: {exc})") from None
+    for note in check_layout(path):
+        format_warning(path, note)
+    size = os.path.getsize(path)
+    point, xyz, header = read_isolated(_ezc3d_points, path, reader="the C3D reader (ezc3d)", preload=("ezc3d",),
+                                       memory=_MEMORY_FIXED + _MEMORY_PER_BYTE * size,
+                                       timeout=_TIMEOUT_FIXED_S + size / _TIMEOUT_BYTES_PER_S)  # fmt: skip
+    xyz = xyz.astype(np.float64)  # (3, P, T)
     fps = _rate(point, header, path)
     cm = _CM_PER_UNIT.get(_text(point, "UNITS", "mm").lower())
     if cm is None:
@@ -110,96 +125,18 @@ def read_c3d(path, up: str = "auto") -> Motion:
                   parents=np.full(len(names), -1), source=path, labels={"first_frame": int(header["first_frame"]) + 1})
 
 
-_BLOCK = 512
-_PROCESSORS = {84: "<", 85: "<", 86: ">"}  # Intel, DEC (little-endian words), MIPS (big-endian)
+def _ezc3d_points(path: str) -> tuple[dict, np.ndarray, dict]:
+    """(the POINT parameters, the coordinates [shape=(3, P, T)] in the file's unit, the header's points section) as
+    ezc3d reads them: what runs in the helper process. The coordinates are float32 when that holds them
+    exactly (a file of floats: half the bytes to send back), else float64 (integers times the scale)."""
+    import ezc3d
 
+    c3d = ezc3d.c3d(path)
+    xyz = np.asarray(c3d["data"]["points"][:3], dtype=np.float64)
+    single = xyz.astype(np.float32)
+    return c3d["parameters"]["POINT"], single if np.array_equal(single, xyz, equal_nan=True) else xyz, \
+        c3d["header"]["points"]
 
-def _check_structure(path) -> None:
-    """Refuse, with a MocapFormatError, a file whose header or parameter section is not laid out as the C3D
-    format says, or whose point data would end beyond the file: what ezc3d reads without checking (a damaged
-    parameter entry can crash it)."""
-    try:
-        with open(path, "rb") as fh:
-            data = fh.read()
-    except OSError as exc:
-        raise MocapFormatError(path, f"cannot read the file ({exc.strerror or exc})") from None
-    if len(data) < 2 * _BLOCK or data[1] != 0x50 or data[0] < 2:
-        raise MocapFormatError(path, "not a C3D file (no C3D header: byte 2 must be 0x50, the first word must point "
-                                     "to the parameter section)")  # fmt: skip
-    start = (data[0] - 1) * _BLOCK
-    if start + 4 > len(data) or data[start + 3] not in _PROCESSORS:
-        raise MocapFormatError(path, f"parameter section at byte {start}: no processor type 84, 85 or 86")
-    order = _PROCESSORS[data[start + 3]]
-    params = _check_parameters(path, data, start + 4, min(len(data), start + max(1, data[start + 2]) * _BLOCK), order)
-    points, analog, first, last = struct.unpack_from(order + "HHHH", data, 2)
-    _check_analog(path, data, params, analog, order)
-    scale, (block,) = data[12:16], struct.unpack_from(order + "H", data, 16)
-    negative = (scale[1] if data[start + 3] == 85 else scale[3 if order == "<" else 0]) & 0x80
-    frames = last - first + 1 if last >= first else 0
-    need = (block - 1) * _BLOCK + frames * (4 * points + analog) * (4 if negative else 2)
-    if block < 2 or need > len(data):
-        raise MocapFormatError(path, f"truncated or damaged: {frames} frames of {points} points from block {block} "
-                                     f"need {need} bytes, the file has {len(data)}")  # fmt: skip
-
-
-def _check_parameters(path, data: bytes, at: int, end: int, order: str) -> dict:
-    """Walk the parameter entries from byte ``at`` to ``end``: each one inside the section and linking to the byte
-    after its own data (as ezc3d requires, which reads the data first), valid types and dimensions, groups
-    numbered 1 to N and defined once, every parameter in one of them.
-
-    Returns {(GROUP, NAME): (data type, dimensions, offset of the data)}."""
-    groups, params = {}, {}
-
-    def fail(why: str):
-        raise MocapFormatError(path, f"parameter section: the entry at byte {at} {why}")
-
-    while at + 2 <= end:
-        chars, group = struct.unpack_from("bb", data, at)
-        if chars == 0 or group == 0:
-            break
-        link = at + 2 + abs(chars)
-        if link + 3 > end:
-            fail("runs past the section's end")
-        name = data[at + 2 : link].decode("latin-1").strip().upper()
-        step = struct.unpack_from(order + "h", data, link)[0]
-        described = link + 2
-        if group < 0:
-            if -group in groups:
-                fail(f"defines group {-group} a second time")
-            groups[-group] = name
-        else:
-            kind, dims = struct.unpack_from("bB", data, link + 2) if link + 4 <= end else (0, 0)
-            if kind not in (-1, 1, 2, 4) or dims > 7:
-                fail(f"has data type {kind} and {dims} dimensions (C3D: type -1, 1, 2 or 4, at most 7 dimensions)")
-            shape = tuple(data[link + 4 : link + 4 + dims])
-            params[(group, name)] = (kind, shape, link + 4 + dims)
-            described = link + 4 + dims + abs(kind) * int(np.prod(shape, dtype=np.int64))
-        if described >= end or described + 1 + data[described] > end:
-            fail("holds more than the section")
-        if step == 0:
-            break
-        if link + step != described + 1 + data[described]:
-            fail(f"links to byte {link + step}, not to the end of its own data at byte {described + 1 + data[described]}")
-        at = link + step
-    used = {g for g, _ in params}
-    if used - set(groups) or set(groups) != set(range(1, len(groups) + 1)):
-        raise MocapFormatError(path, f"parameter section: groups {sorted(groups)} defined, parameters in groups "
-                                     f"{sorted(used)} (C3D writers number the groups 1, 2, 3, ...)")  # fmt: skip
-    return {(groups[g], name): value for (g, name), value in params.items()}
-
-
-def _check_analog(path, data: bytes, params: dict, analog: int, order: str) -> None:
-    """Analog samples in the data need ANALOG:USED channels (dividing the header's samples per frame), with a
-    SCALE and an OFFSET each: ezc3d indexes them without checking."""
-    if analog == 0:
-        return
-    kind, shape, offset = params.get(("ANALOG", "USED"), (0, (), 0))
-    channels = struct.unpack_from(order + "h", data, offset)[0] if kind == 2 and not shape else 0
-    counts = {n: int(np.prod(params[("ANALOG", n)][1], dtype=np.int64)) if ("ANALOG", n) in params else 0
-              for n in ("SCALE", "OFFSET")}  # fmt: skip
-    if channels <= 0 or analog % channels or min(counts.values()) < channels:
-        raise MocapFormatError(path, f"{analog} analog samples per frame but ANALOG:USED {channels} channels with "
-                                     f"{counts['SCALE']} SCALE and {counts['OFFSET']} OFFSET values")  # fmt: skip
 
 def _text(group: dict, name: str, default: str) -> str:
     value = group.get(name, {}).get("value", [])
