@@ -172,18 +172,29 @@ def _info(args) -> None:
             print(db.documents[cols].to_string(index=False))
 
 
-def _check(args) -> None:
+def _check(args) -> int:
+    """Print the report of ``mocapviz.integrity.check``; exit status 1 when a file is damaged, 3 when derived data
+    is only stale (with the commands that compute it again), else 0."""
     import pandas as pd
 
     from .errors import MotionDBError
-    from .integrity import check
+    from .integrity import check, rebuild_commands
 
     report = check(args.db)
+    shown = report.assign(status=report["status"].replace({"damaged": "DAMAGED"}))[["file", "what", "status", "detail"]]
     with pd.option_context("display.max_rows", 500, "display.width", 200, "display.max_colwidth", 160):
-        print(report.assign(ok=report["ok"].map({True: "ok", False: "DAMAGED"})).to_string(index=False))
-    bad = int((~report["ok"]).sum())
-    if bad:
-        raise MotionDBError(f"{args.db}: {bad} of {len(report)} files failed the check (see above)")
+        print(shown.to_string(index=False))
+    damaged, stale = (int((report["status"] == s).sum()) for s in ("damaged", "stale"))
+    rebuild = "".join(f"\n  {command}" for command in rebuild_commands(report))
+    also = f"; {stale} stale" if stale else ""
+    if damaged:
+        raise MotionDBError(f"{args.db}: {damaged} of {len(report)} files are damaged{also} (see above)" +
+                            (f"; derived data is computed again by:{rebuild}" if rebuild else ""))  # fmt: skip
+    if stale:
+        print(f"mocapviz: {args.db}: {stale} of {len(report)} files are stale derived data (intact, computed before "
+              f"the database last changed; nothing is damaged); compute them again with:{rebuild}", file=sys.stderr)
+        return 3
+    return 0
 
 
 def _index(args) -> None:
@@ -792,7 +803,9 @@ def build_parser() -> argparse.ArgumentParser:
     info.set_defaults(func=_info)
 
     chk = sub.add_parser("check", help="read every file of a MotionDB and its derived data back and verify its "
-                                       "checksum (exit status 1 if any is damaged)")  # fmt: skip
+                                       "checksum; exit status 0 if all are ok, 1 if any is damaged, 3 if derived data "
+                                       "is only stale (older than the documents: the commands that rebuild it are "
+                                       "printed)")  # fmt: skip
     chk.add_argument("db")
     chk.set_defaults(func=_check)
 
@@ -1035,8 +1048,9 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 
 def main(argv=None) -> int:
-    """Run ``mocapviz ARGV``; return the exit status: 0, 1 (the command refused a value or failed on bad input) or 2
-    (the argument parser refused the command line; returned, not raised, like every other status)."""
+    """Run ``mocapviz ARGV``; return the exit status: 0, 1 (the command refused a value or failed on bad input), 2
+    (the argument parser refused the command line; returned, not raised, like every other status) or 3 (``check``:
+    derived data stale, nothing damaged)."""
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help (0) or a refused command line (2), its one line already printed
@@ -1044,11 +1058,11 @@ def main(argv=None) -> int:
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _one_line_warning
-            args.func(args)
+            status = args.func(args)
     except (MocapvizError, OSError) as exc:  # bad input; anything else is a bug and shows its traceback
         print(f"mocapviz: error: {exc}", file=sys.stderr)
         return 1
-    return 0
+    return status or 0
 
 
 def run() -> None:

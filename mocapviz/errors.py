@@ -102,6 +102,13 @@ class MotionDBError(MocapvizError, ValueError):
     """A MotionDB on disk is missing, of another format version, or inconsistent."""
 
 
+class StaleDataError(MotionDBError):
+    """Derived data stored with a MotionDB (a relational index, a numeric feature set, a document's markers) reads
+    back exactly as written but belongs to an earlier state of the database: another generation or frame count, or
+    a PCA model since replaced. Nothing is damaged; the message names the command that computes it again
+    (``mocapviz check DB`` reports it as "stale", apart from "damaged")."""
+
+
 class SourceFileError(MocapvizError, ValueError):
     """A document's source file, needed to export it on its own rig (``mocapviz.export``), is gone or is not the file
     that was ingested (its sha256 differs from the documents table's); the message names the file and the way out

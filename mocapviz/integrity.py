@@ -1,6 +1,8 @@
 """Checking a MotionDB on disk and its derived data, file by file (``mocapviz check DB``).
 
-check   path -> one row per stored file: what it is, whether it reads back exactly as written, and why not.
+check             path -> one row per stored file: what it is, "ok", "stale" or "damaged", why, and the command
+                  that computes derived data again.
+rebuild_commands  the commands that rebuild the derived data of a report that is not ok, one per command.
 
 Every stored file carries a fingerprint written with it: the frame arrays and documents table their size and
 sha256 in the manifest, a relational index the sha256 of its arrays in its header, a numeric feature set its data
@@ -9,22 +11,33 @@ of its values in its header, a C3D document's stored markers the sha256 of their
 reads everything and checks every sha256 (and records the per-block xxh3 of frame arrays written before they were
 kept, :meth:`MotionDB.add_block_checksums`); between checks, every block of a frame array or numeric feature set is
 verified by its xxh3 when first read in a process (:mod:`mocapviz.checked_map`).
+
+Two ways derived data can be unusable are told apart. **Damaged**: it does not read back as written (size,
+checksum, format), or the database itself does not open. **Stale**: it reads back exactly as written but was
+computed for an earlier state of the database (another generation or frame count, a PCA model since replaced:
+:class:`~mocapviz.errors.StaleDataError`), as every index and feature set is after an ingest adds documents; the
+row names the command that computes it again. The check reads the database as of its opening: derived data
+written by a command that ran meanwhile for a newer generation is compared with the database as it is then (so a
+check beside a running ingest or ``mocapviz index`` never calls intact data damaged).
 """
 
 from __future__ import annotations
 
+import shlex
 from pathlib import Path
 
 import pandas as pd
 
 from .db.database import MotionDB
-from .errors import MocapvizError, MotionDBError
+from .errors import MocapvizError, StaleDataError
 
-COLUMNS = ["file", "what", "ok", "detail"]
+COLUMNS = ["file", "what", "status", "ok", "detail", "rebuild"]
+STATUSES = ("ok", "stale", "damaged")
 
 
 def check(path) -> pd.DataFrame:
-    """Read every file of the MotionDB at ``path`` and its derived data back and compare it with what was written.
+    """Read every file of the MotionDB at ``path`` and its derived data back and compare it with what was written
+    and with the database's current state.
 
     Parameters
     ----------
@@ -34,45 +47,82 @@ def check(path) -> pd.DataFrame:
     Returns
     -------
     pandas.DataFrame
-        One row per file: ``file`` (relative to the database), ``what``, ``ok`` (bool), ``detail`` (the reason
-        when not ok: damaged, stale, unreadable). When the database itself does not open, one row saying why.
+        One row per file: ``file`` (relative to the database), ``what``, ``status`` (``"ok"``; ``"stale"``:
+        intact derived data computed for an earlier state of the database; ``"damaged"``: does not read back as
+        written, or unreadable), ``ok`` (``status == "ok"``), ``detail`` (why, when not ok) and ``rebuild`` (for
+        derived data that is not ok: the command that computes it again, with this database's path; else
+        ``""``). When the database itself does not open, one damaged row saying why.
 
     Examples
     --------
     >>> from mocapviz import MotionDB
     >>> report = check(MotionDB.sample().path)
-    >>> report[report["what"] == "MotionDB"][["file", "ok"]].values.tolist()  # and a row per derived file stored
-    [['positions.g1.npy', True], ['quaternions.g1.npy', True], ['documents.g1.parquet', True]]
+    >>> report[report["what"] == "MotionDB"][["file", "status"]].values.tolist()  # and a row per derived file
+    [['positions.g1.npy', 'ok'], ['quaternions.g1.npy', 'ok'], ['documents.g1.parquet', 'ok']]
     """
     from .features import numeric as numeric_mod
-    from .relational.index import InvertedIndex
     from .relational.templates import TEMPLATES, MotionTemplate
 
     path = Path(path)
-    rows = []
     try:
         db = MotionDB.open(path, verify=True).add_block_checksums()
     except MocapvizError as exc:
-        return pd.DataFrame([{"file": "manifest.json", "what": "MotionDB", "ok": False, "detail": str(exc)}],
-                            columns=COLUMNS)  # fmt: skip
-    files = [*db.manifest["arrays"].values(), db.manifest["documents"]]
-    rows += [{"file": f, "what": "MotionDB", "ok": True, "detail": ""} for f in files]
+        return pd.DataFrame([_row_of("manifest.json", "MotionDB", "damaged", str(exc))], columns=COLUMNS)
+    rows = [_row_of(f, "MotionDB") for f in (*db.manifest["arrays"].values(), db.manifest["documents"])]
+    where = shlex.quote(str(path))
     for f in sorted((path / "index").glob("*.npz")):
-        rows.append(_row(f, path, "relational index", lambda f=f: _current_index(InvertedIndex.load(f), db, f)))
+        relational_set = f.stem.split("-")[1] if f.stem.count("-") == 2 else "2005"
+        option = "" if relational_set == "2005" else f" --relational-set {relational_set}"
+        rows.append(_row(f, path, "relational index", lambda db, f=f: _current_index(f, db),
+                         db, f"mocapviz index {where}{option}"))  # fmt: skip
     features = path / "features"
     for f in sorted(features.glob("numeric-*.json")):
         name = f.stem.removeprefix("numeric-")
-        rows.append(_row(f.with_suffix(".npy"), path, f"numeric set {name}",
-                         lambda name=name: _numeric(db, name)))  # fmt: skip
+        rows.append(_row(f.with_suffix(".npy"), path, f"numeric set {name}", lambda db, name=name: _numeric(db, name),
+                         db, f"mocapviz features {where} --numeric-sets {name}"))  # fmt: skip
     if (features / "pca.npz").exists():
-        rows.append(_row(features / "pca.npz", path, "PCA model", lambda: numeric_mod.PCAModel.load(features / "pca.npz")))
+        rows.append(_row(features / "pca.npz", path, "PCA model",
+                         lambda db: numeric_mod.PCAModel.load(features / "pca.npz"), db))  # fmt: skip
     for f in sorted((path / TEMPLATES).glob("*.npz")):
-        rows.append(_row(f, path, f"motion template {f.stem}", lambda f=f: MotionTemplate.load(f)))
+        rows.append(_row(f, path, f"motion template {f.stem}", lambda db, f=f: MotionTemplate.load(f), db))
     by_sha = dict(zip(db.documents["sha256"], db.documents["doc_id"]))
     for f in sorted((path / "markers").glob("*.npz")):
-        doc = by_sha.get(f.stem)
-        rows.append(_row(f, path, f"markers of document {doc}", lambda doc=doc, f=f: _markers(db, doc, f)))
+        if f.stem not in by_sha:  # (a document an ingest added since the check opened the database?)
+            documents = MotionDB.open(path).documents
+            by_sha.update(zip(documents["sha256"], documents["doc_id"]))
+        what = f"markers of document {by_sha[f.stem]}" if f.stem in by_sha else "markers of no document"
+        rows.append(_row(f, path, what, lambda db, f=f: _markers(db, f), db))
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def rebuild_commands(report: pd.DataFrame) -> list[str]:
+    """The commands that compute the derived data of a :func:`check` report that is not ok again, each once, the
+    numeric sets of one database in one ``mocapviz features`` command.
+
+    Parameters
+    ----------
+    report : pandas.DataFrame
+        As :func:`check` returns it.
+
+    Returns
+    -------
+    list of str
+        In the order of the report.
+
+    Examples
+    --------
+    >>> report = pd.DataFrame({"ok": [False, False, False], "rebuild": ["mocapviz index DB",
+    ...     "mocapviz features DB --numeric-sets F15E", "mocapviz features DB --numeric-sets Fp8"]})
+    >>> rebuild_commands(report)
+    ['mocapviz index DB', 'mocapviz features DB --numeric-sets F15E,Fp8']
+    """
+    merged: dict[str, list[str]] = {}
+    for command in report.loc[~report["ok"] & (report["rebuild"] != ""), "rebuild"]:
+        head, sets = command.split(" --numeric-sets ") if " --numeric-sets " in command else (command, "")
+        merged.setdefault(head, [])
+        if sets and sets not in merged[head]:
+            merged[head].append(sets)
+    return [f"{head} --numeric-sets {','.join(sets)}" if sets else head for head, sets in merged.items()]
 
 
 def _numeric(db: MotionDB, name: str) -> None:
@@ -82,22 +132,52 @@ def _numeric(db: MotionDB, name: str) -> None:
     numeric_mod.add_block_checksums(db, name)  # (a set stored before block hashes were kept)
 
 
-def _markers(db: MotionDB, doc, f: Path) -> None:
+def _markers(db: MotionDB, f: Path) -> None:
+    """Read the markers file ``f`` back as the markers of the document of ``db`` it belongs to (by its name, the
+    sha256 of the document's file)."""
     from .db.markers import load_markers
 
+    doc = dict(zip(db.documents["sha256"], db.documents["doc_id"])).get(f.stem)
     if doc is None:
-        raise MotionDBError(f"{f}: markers of no document of the database (left from a file no longer in it)")
+        raise StaleDataError(f"{f}: markers of no document of the database (left from a file no longer in it); "
+                             "nothing reads it")  # fmt: skip
     load_markers(db, doc)
 
 
-def _current_index(index, db: MotionDB, f: Path) -> None:
-    if (index.meta.get("generation"), index.meta.get("n_frames")) != (db.manifest["generation"], db.n_frames):
-        raise MotionDBError(f"{f}: stale: built before the database last changed; rebuild it with `mocapviz index DB`")
+def _current_index(f: Path, db: MotionDB) -> None:
+    from .relational.index import InvertedIndex
+
+    index = InvertedIndex.load(f)
+    built, now = (index.meta.get("generation"), index.meta.get("n_frames")), (db.manifest["generation"], db.n_frames)
+    if built != now:
+        raise StaleDataError(f"{f}: stale: built for generation {built[0]} ({built[1]} frames); the database is at "
+                             f"generation {now[0]} ({now[1]} frames)")  # fmt: skip
 
 
-def _row(f: Path, root: Path, what: str, read) -> dict:
+def _row(f: Path, root: Path, what: str, read, db: MotionDB, rebuild: str = "") -> dict:
+    """The row of one derived file: ``read(db)`` raises nothing (ok), a StaleDataError (stale) or another
+    MocapvizError (damaged). Stale against the database as the check opened it may be current against the database
+    now (written meanwhile by a command that saw a newer generation): then it is read once more against the
+    database as it is now."""
+    file = str(f.relative_to(root))
     try:
-        read()
+        try:
+            read(db)
+        except StaleDataError:
+            now = MotionDB.open(root)
+            if now.manifest["generation"] == db.manifest["generation"]:
+                raise
+            read(now)
+    except StaleDataError as exc:
+        return _row_of(file, what, "stale", str(exc), rebuild)
     except MocapvizError as exc:
-        return {"file": str(f.relative_to(root)), "what": what, "ok": False, "detail": str(exc)}
-    return {"file": str(f.relative_to(root)), "what": what, "ok": True, "detail": ""}
+        return _row_of(file, what, "damaged", str(exc), rebuild)
+    return _row_of(file, what)
+
+
+def _row_of(file, what: str, status: str = "ok", detail: str = "", rebuild: str = "") -> dict:
+    return {"file": str(file), "what": what, "status": status, "ok": status == "ok", "detail": detail,
+            "rebuild": rebuild if status != "ok" else ""}  # fmt: skip
+
+
+__all__ = ["COLUMNS", "STATUSES", "check", "rebuild_commands"]

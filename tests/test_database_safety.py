@@ -217,7 +217,7 @@ def test_check_reads_every_file_back(derived):
     from mocapviz.integrity import check
 
     report = check(derived.path)
-    assert report["ok"].all(), report
+    assert report["ok"].all() and set(report["status"]) == {"ok"} and not report["rebuild"].any(), report
     assert set(report["what"]) == {"MotionDB", "relational index", "numeric set F15E", "numeric set Fp8", "PCA model"}
     assert (report["what"] == "relational index").sum() == 3
 
@@ -254,6 +254,9 @@ def test_damaged_derived_files_are_named_never_answered(derived):
     bad = sorted(report.index[~report["ok"]])
     assert bad == ["features/numeric-F15E.npy", "features/numeric-Fp8.npy", "index/relational-2005-lower.npz",
                    "index/relational-2005-upper.npz"]  # fmt: skip
+    assert set(report.loc[bad, "status"]) == {"damaged"}  # (and each names the command that computes it again)
+    assert report.loc["index/relational-2005-lower.npz", "rebuild"] == f"mocapviz index {derived.path}"
+    assert report.loc["features/numeric-Fp8.npy", "rebuild"] == f"mocapviz features {derived.path} --numeric-sets Fp8"
     assert report.loc["index/relational-2005-mix.npz", "ok"] and report.loc["features/pca.npz", "ok"]
 
 
@@ -270,4 +273,4 @@ def test_mocapviz_check_prints_every_file_and_fails_on_a_damaged_one(derived, ca
     assert main(["check", str(derived.path)]) == 1
     out, err = capsys.readouterr()
     assert "DAMAGED" in out and arr.name in out
-    assert err.count("\n") == 1 and "1 of 1 files failed the check" in err
+    assert err.count("\n") == 1 and "1 of 1 files are damaged" in err

@@ -64,7 +64,7 @@ import numpy as np
 from ..checked_map import verified_blocks
 from ..db.batches import map_documents
 from ..db.database import MotionDB
-from ..errors import MotionDBError, ParameterError
+from ..errors import MotionDBError, ParameterError, StaleDataError
 from ..motion import Motion
 from ..motion.skeleton import CANONICAL_JOINTS, body_frame, heading
 from ..parallel import optional_client
@@ -766,9 +766,9 @@ def load_numeric(db: MotionDB, numeric_set: str, full_check: bool = False) -> np
     ValueError
         An unknown set numeric_set.
     mocapviz.MotionDBError
-        The set is not stored, or stale: computed for another generation or frame count of the database, or
-        with a PCA model other than the stored ``pca.npz``; or its files are unreadable or damaged (size, sha256).
-        The message says to run ``mocapviz features DB``.
+        The set is not stored, or stale (a :class:`~mocapviz.errors.StaleDataError`): computed for another
+        generation or frame count of the database, or with a PCA model other than the stored ``pca.npz``; or its
+        files are unreadable or damaged (size, sha256). The message says to run ``mocapviz features DB``.
     """
     spec = _spec(numeric_set)
     data_path, header_path = _paths(db, numeric_set)
@@ -799,7 +799,7 @@ def load_numeric(db: MotionDB, numeric_set: str, full_check: bool = False) -> np
         elif spec.pcs and _file_sha256(header_path.parent / "pca.npz") != (header.get("pca") or {}).get("sha256"):
             stale = "pca.npz has been replaced since it was computed"
     if stale:
-        raise MotionDBError(f"{db.path}: numeric feature set {numeric_set} is stale: {stale}; {_STALE_HINT}")
+        raise StaleDataError(f"{db.path}: numeric feature set {numeric_set} is stale: {stale}; {_STALE_HINT}")
     return data
 
 

@@ -27,7 +27,7 @@ import numba
 import numpy as np
 
 from .. import store
-from ..errors import MotionDBError, ParameterError
+from ..errors import MotionDBError, ParameterError, StaleDataError
 from ..features.segmentation import FeatureSequence, decode, encode, segment
 from ..store import atomic_file, check_format, stamp
 
@@ -905,8 +905,8 @@ def load(db, relational_set: str = "2005") -> dict:
     Raises
     ------
     MotionDBError
-        No index built yet, or built for an earlier state of the database: the message says to run
-        ``mocapviz index DB``.
+        No index built yet, or built for an earlier state of the database (a
+        :class:`~mocapviz.errors.StaleDataError`): the message says to run ``mocapviz index DB``.
     """
     from ..features import feature_groups
 
@@ -919,7 +919,7 @@ def load(db, relational_set: str = "2005") -> dict:
             raise MotionDBError(f"{db.path} has no {relational_set} relational index; build it with {how}")
         index = InvertedIndex.load(path)
         if index.meta.get("generation") != db.manifest["generation"] or index.meta.get("n_frames") != db.n_frames:
-            raise MotionDBError(f"{path} was built before the database last changed; rebuild it with {how}")
+            raise StaleDataError(f"{path} was built before the database last changed; rebuild it with {how}")
         out[group] = index
     return out
 
