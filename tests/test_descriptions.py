@@ -3,6 +3,8 @@ against the frame-wise scan on real databases (every shipped description, sequen
 descriptions finding their templates' examples, and the `find` command."""
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -14,6 +16,7 @@ from mocapviz.cli import main
 from mocapviz.db.hits import COLUMNS
 from mocapviz.errors import DescriptionError
 from mocapviz.features import relational_features
+from mocapviz.relational import description as language
 from mocapviz.relational.description import (
     Event,
     Named,
@@ -266,6 +269,195 @@ def test_state_conditions_equal_the_scan_and_split_the_hits(hdm05, text):
                   (base, f"{base} and somewhere lfoot raised", f"{base} and never lfoot raised")]
         assert counts[0] == counts[1] + counts[2] and min(counts[1:]) > 0
     assert "never" in str(parse_description(text)) or "somewhere" in str(parse_description(text))
+
+
+# ================================================================================================ hostile descriptions
+# issue 37: untyped errors at the end of the text, RecursionError, exponential time, int64 overflow, 100 kB messages
+def _doubling(levels: int) -> str:
+    """A chain of definitions each using the previous one twice (doubling_defs_16.txt is 16 levels)."""
+    return "".join(["define a0: rknee: straight bent;\n"] + [f"define a{k}: a{k - 1} | a{k - 1};\n"
+                                                                  for k in range(1, levels + 1)] + [f"a{levels}"])
+
+
+def _error(text: str) -> DescriptionError:
+    with pytest.raises(DescriptionError) as err:
+        parse_description(text)
+    return err.value
+
+
+@pytest.mark.parametrize("text, where, says", [
+    ("squat;", (1, 6), "unexpected ';'; expected the end of the text"),
+    ("kick_right )", (1, 12), "unexpected ')'; expected the end of the text"),
+    ("rknee: straight bent then", (1, 26), "unexpected end of the text; expected '(' or 'overlap' or a name"),
+    ("(squat then jump\n", (1, 17), "unexpected end of the text; expected"),
+    ("define a: squat;\n# and nothing else", (2, 19), "the description has no query"),
+    ("squat then jump within", (1, 23), "unexpected end of the text; expected a number"),
+])  # fmt: skip
+def test_errors_at_the_end_of_the_text_are_typed_and_placed(text, where, says):
+    err = _error(text)
+    assert (err.line, err.column) == where and says in err.reason, str(err)
+
+
+def test_the_end_of_the_text_through_the_command(sample_db, capsys):
+    for text, where in (("squat;", "line 1, column 6"), ("kick_right )", "line 1, column 12")):
+        assert main(["find", str(sample_db.path), text]) == 1
+        err = capsys.readouterr().err
+        assert err.startswith(f"mocapviz: error: {where}: unexpected") and err.count("\n") == 1, err
+
+
+@pytest.mark.parametrize("file, where, says", [
+    ("then_chain_332.txt", (1, 557), f"a chain of 331 'then'; at most {language.MAX_THEN} in one chain"),
+    ("deep_parens_492.txt", (1, 22), f"parentheses inside one another more than {language.MAX_PARENS} deep"),
+])  # fmt: skip
+def test_long_chains_and_deep_parentheses_are_refused_before_recursing(round3, sample_db, capsys, file, where, says):
+    text = (round3 / "descriptions" / file).read_text()
+    t0 = time.perf_counter()
+    err = _error(text)
+    assert (err.line, err.column) == where and says in err.reason and time.perf_counter() - t0 < 0.5, str(err)
+    assert main(["find", str(sample_db.path), "--file", str(round3 / "descriptions" / file)]) == 1
+    printed = capsys.readouterr().err
+    assert printed == f"mocapviz: error: line {where[0]}, column {where[1]}: {err.reason}\n"  # one line, no traceback
+
+
+def test_a_definition_used_twice_is_evaluated_once(hdm05, round3):
+    """doubling_defs_16.txt took 11.4 s (each level doubled the time; 30 levels never finished): now one evaluation
+    per definition. Every level's hits are those of the one progression, as the scan finds them too."""
+    db, indexes, values = hdm05
+    text = (round3 / "descriptions" / "doubling_defs_16.txt").read_text()
+    assert text.strip() == _doubling(16)
+    expected = _spans(find(db, "rknee: straight bent", indexes=indexes, overlapping=True))
+    assert expected
+    for levels in (16, 30, 49):
+        t0 = time.perf_counter()
+        hits = find(db, _doubling(levels), indexes=indexes, overlapping=True)
+        assert time.perf_counter() - t0 < 2.0, levels
+        assert _spans(hits) == expected and len(hits.attrs["counts"]) <= 3 * levels + 2
+        assert hits["parts"].str.fullmatch(r"a0 \d+:\d+").all()  # the one leaf under every name
+    assert _spans(find_by_scan(db, _doubling(30), values=values, overlapping=True)) == expected
+    err = _error(_doubling(50))
+    assert (err.line, err.column) == (51, 8) and f"at most {language.MAX_DEPTH}" in err.reason
+
+
+@pytest.mark.parametrize("bound", ["9223372036854775808", "99999999999999999999999999999999999999", "100000000000"])
+def test_a_time_bound_longer_than_the_documents_is_no_bound(hdm05, round3, bound):
+    """huge_within.txt found nothing (the bound overflowed int64 after x fps); any bound past the documents' ends
+    finds what 100000 s finds, through the index and the scan."""
+    db, indexes, values = hdm05
+    text = (round3 / "descriptions" / "huge_within.txt").read_text().replace("9223372036854775808", bound)
+    assert f"within {bound} s" in text
+    expected = find(db, "rknee: straight bent then lknee: straight bent within 100000 s", indexes=indexes)
+    assert len(expected) == 65  # as 1e17 s found in the probe
+    hits = find(db, text, indexes=indexes)
+    assert hits[["doc_id", "start", "end", "parts"]].equals(expected[["doc_id", "start", "end", "parts"]])
+    scan = find_by_scan(db, text, values=values)
+    assert scan[["doc_id", "start", "end"]].equals(expected[["doc_id", "start", "end"]])
+
+
+@pytest.mark.parametrize("make, where", [
+    (lambda: "x" * 100_000, (1, language.MAX_CHARS + 1)),
+    (lambda: "y" * 19_000, (1, 1)),
+    (lambda: "rknee: straight bent and rfoot: lowered " + "y" * 5_000, (1, 41)),
+    (lambda: "squat then jump within " + "9" * 10_000 + " s", (1, 24)),
+    (lambda: "template:" + "t" * 10_000, (1, 1)),
+    (lambda: "rknee: straight bent straight " + "bent straight " * 900 + "and overlap rknee bent[9999], rknee bent",
+     (1, 12_654)),
+    (lambda: "define " + "d" * 80 + ": squat;\n" + "d" * 79 + "x", (2, 1)),
+    (lambda: "squat;" + "x" * 10_000, (1, 6)),
+])  # fmt: skip
+def test_messages_quote_a_bounded_excerpt(make, where):
+    """A 100 kB name was echoed in a 100,068-character message: now no message quotes more than EXCERPT characters of
+    the text."""
+    text = make()
+    err = _error(text)
+    assert (err.line, err.column) == where, str(err)[:300]
+    assert len(str(err)) < 300, str(err)[:300]
+    quoted = [q for q in str(err).split("'")[1::2]]
+    assert all(len(q) <= language.EXCERPT for q in quoted), str(err)
+
+
+def test_the_limits_are_where_the_docs_say(capsys):
+    """Each limit: a text at it is read, one past it refused, at the place it is passed; the docs' table gives the
+    values of the constants."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "descriptions.md").read_text()
+    for name in ("MAX_CHARS", "MAX_WORD", "MAX_PARENS", "MAX_THEN", "MAX_DEFINITIONS", "MAX_DEPTH", "MAX_PAIRS"):
+        assert f"| `{name}` | {getattr(language, name):,} |" in doc, name
+    chain = "squat" + " then squat" * language.MAX_THEN
+    parse_description(chain)
+    assert _error(chain + " then jump").column == len(chain) + 2
+    parens = "(" * language.MAX_PARENS + "squat" + ")" * language.MAX_PARENS
+    parse_description(parens)
+    assert _error(f"({parens})").column == language.MAX_PARENS + 2
+    defs = "".join(f"define d{k}: squat;\n" for k in range(language.MAX_DEFINITIONS))
+    parse_description(defs + "d1")
+    assert _error(f"{defs}define extra: jump;\nextra").line == language.MAX_DEFINITIONS + 1
+    padded = "squat\n#" + "-" * (language.MAX_CHARS - 7)
+    assert len(padded) == language.MAX_CHARS and parse_description(padded).root.name == "squat"
+    assert (_error(padded + "-").line, _error(padded + "-").column) == (2, language.MAX_CHARS - 5)
+    word = "a" * language.MAX_WORD
+    assert parse_description(f"define {word}: squat; {word}").root.name == word
+    assert "at most 80" in _error(f"define {word}b: squat; squat").reason
+
+
+def test_the_deepest_descriptions_run_in_a_thread_with_little_stack_left(hdm05, round3):
+    """A served dashboard evaluates descriptions in threads already deep in the server's frames: the deepest the
+    limits allow needs about 260 frames, so 400 left are enough; the refused ones never recurse."""
+    import sys
+    import threading
+
+    db, indexes, _ = hdm05
+    step = "rknee: straight bent"
+    deepest = {
+        "then": " then ".join([step] * (language.MAX_THEN + 1)),
+        "parentheses": "(" * language.MAX_PARENS + f"{step} then {step} | {step}" + ")" * language.MAX_PARENS,
+        "names": _doubling(49),
+        "names and then": f"define a0: {' then '.join([step] * (language.MAX_THEN + 1))};\ndefine a1: a0 then "
+                          + " then ".join([step] * 47) + ";\na1",
+    }  # fmt: skip
+    refused = [(round3 / "descriptions" / f).read_text() for f in ("then_chain_332.txt", "deep_parens_492.txt")]
+    outcome = {}
+
+    def run():
+        def dive(n: int):
+            if n > 0:
+                return dive(n - 1)
+            for name, text in deepest.items():
+                outcome[name] = len(find(db, text, indexes=indexes))
+            for text in refused:
+                with pytest.raises(DescriptionError):
+                    find(db, text, indexes=indexes)
+            outcome["refused"] = True
+
+        try:
+            import inspect
+
+            dive(sys.getrecursionlimit() - 400 - len(inspect.stack(0)))
+        except BaseException as exc:  # noqa: BLE001 - reported in the test's thread
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=run)
+    thread.start()
+    thread.join()
+    assert "error" not in outcome, repr(outcome.get("error"))
+    assert outcome["names"] > 0 and outcome["parentheses"] > 0 and outcome["refused"]
+
+
+def test_a_join_past_the_limit_is_refused_before_it_is_made(hdm05, monkeypatch):
+    """MAX_PAIRS bounds what one then or and may join (a bound longer than the documents joins every pair): the
+    error names the part; every shipped description stays far below it."""
+    from mocapviz.relational import scene
+
+    db, indexes, _ = hdm05
+    text = "rknee: straight bent then lknee: straight bent within 100000 s"
+    pairs = len(find(db, text, indexes=indexes, overlapping=True))
+    monkeypatch.setattr(scene, "MAX_PAIRS", pairs // 2)
+    with pytest.raises(DescriptionError, match=r"rknee: straight bent then lknee: straight bent within 100000 s' "
+                                               r"joins [\d,]+ pairs of hits; at most"):  # fmt: skip
+        find(db, text, indexes=indexes)
+    with pytest.raises(DescriptionError, match=r"^'kick_right' joins [\d,]+ pairs of hits"):
+        monkeypatch.setattr(scene, "MAX_PAIRS", 1)
+        find(db, "kick_right", indexes=indexes)
 
 
 # ================================================================================================ against raw runs

@@ -38,12 +38,27 @@ from ..errors import DescriptionError, ParameterError
 from ..features import RELATIONAL_SETS
 from .vocabulary import vocabulary_of
 
-__all__ = ["DEFAULT_WITHIN", "Alternatives", "Condition", "Description", "Duration", "Event", "Named", "Overlap", "Progression",
-           "Sequence", "StateRef", "TemplateAtom", "declared_set", "named_descriptions", "parse_description",
-           "template_names"]
+__all__ = ["DEFAULT_WITHIN", "EXCERPT", "MAX_CHARS", "MAX_DEFINITIONS", "MAX_DEPTH", "MAX_PAIRS", "MAX_PARENS",
+           "MAX_THEN", "MAX_WORD", "Alternatives", "Condition", "Description", "Duration", "Event", "Named", "Overlap",
+           "Progression", "Sequence", "StateRef", "TemplateAtom", "declared_set", "excerpt", "named_descriptions",
+           "parse_description", "template_names", "walk"]
 
 DEFAULT_WITHIN = 2.0  # seconds: "A then B" without "within"
 LIBRARY = "named_descriptions.txt"  # the shipped descriptions, beside this module
+
+# Limits (docs/descriptions.md, "Limits"): checked before anything recursive or costly runs, each a DescriptionError
+# with the line and column where the text passes it. Far above any real description (the shipped library: 6,497
+# characters, 15 definitions, no parentheses, no `then`) and far below Python's recursion limit of 1,000 frames, even
+# in a dashboard thread that is already a few hundred frames deep (reading and evaluating a tree of MAX_DEPTH levels
+# takes about 3 frames a level).
+MAX_CHARS = 20_000  # characters of one description text
+MAX_WORD = 80  # characters of one name, number or template:NAME
+MAX_PARENS = 20  # parentheses inside one another
+MAX_THEN = 50  # `then` in one chain (A then B then C ...)
+MAX_DEFINITIONS = 100  # `define` statements in one text
+MAX_DEPTH = 100  # levels of the description tree, through the names it uses (a chain of n `then`s is n levels)
+EXCERPT = 80  # characters of the text a message quotes at most (cut with "…")
+MAX_PAIRS = 5_000_000  # pairs of hits one `then` or `and` of the evaluation may join (about 80 MB of row numbers)
 
 GRAMMAR = r"""
 start: set_statement? definition* expr?
@@ -259,20 +274,58 @@ class Description:
 
     def templates(self) -> list[str]:
         """The names of the template atoms the description uses (through its names too)."""
-        return list(dict.fromkeys(_template_names(self.root)))
+        return list(dict.fromkeys(node.name for node in walk(self.root) if isinstance(node, TemplateAtom)))
 
 
-def _template_names(node):
-    if isinstance(node, TemplateAtom):
-        yield node.name
-    elif isinstance(node, Named):
-        yield from _template_names(node.body)
-    elif isinstance(node, Sequence):
-        yield from _template_names(node.first)
-        yield from _template_names(node.second)
-    elif isinstance(node, Alternatives):
-        for o in node.options:
-            yield from _template_names(o)
+def _children(node) -> tuple:
+    if isinstance(node, Named):
+        return (node.body,)
+    if isinstance(node, Sequence):
+        return (node.first, node.second)
+    return node.options if isinstance(node, Alternatives) else ()
+
+
+def walk(node):
+    """Every distinct node of a description tree once, through the names it uses, first to last as written; without
+    recursion, and once per node however often a name is used (a chain of definitions each using the previous one
+    twice is walked in linear, not exponential, time).
+
+    Parameters
+    ----------
+    node : Event, Named, TemplateAtom, Sequence or Alternatives
+
+    Yields
+    ------
+    Event, Named, TemplateAtom, Sequence or Alternatives
+
+    Examples
+    --------
+    >>> d = parse_description("define k: kick_left | kick_left; k then k")
+    >>> [type(n).__name__ for n in walk(d.root)]
+    ['Sequence', 'Named', 'Alternatives', 'Named', 'Event', 'Named', 'Named']
+    """
+    seen, stack = set(), [node]
+    while stack:
+        node = stack.pop()
+        if id(node) not in seen:
+            seen.add(id(node))
+            yield node
+            stack.extend(reversed(_children(node)))
+
+
+def _depth(root, known: dict) -> int:
+    """Levels of a description tree through the names it uses, without recursion (``known``: id -> (levels, node)
+    of the nodes already measured, filled in)."""
+    stack = [root]
+    while stack:
+        node = stack[-1]
+        below = [c for c in _children(node) if id(c) not in known]
+        if below:
+            stack.extend(below)
+            continue
+        known[id(node)] = (1 + max((known[id(c)][0] for c in _children(node)), default=0), node)
+        stack.pop()
+    return known[id(root)][0]
 
 
 # ================================================================================================ parsing
@@ -281,12 +334,74 @@ def _parser() -> Lark:
     return Lark(GRAMMAR, parser="lalr", propagate_positions=True, maybe_placeholders=False)
 
 
+def excerpt(text: str) -> str:
+    """``text`` quoted for a message: at most :data:`EXCERPT` characters of it, cut with "…".
+
+    Examples
+    --------
+    >>> excerpt("rkne"), len(excerpt("x" * 100_000))
+    ("'rkne'", 82)
+    """
+    return repr(text if len(text) <= EXCERPT else text[: EXCERPT - 1] + "…")
+
+
 def _syntax(text: str, source: str | None) -> Tree:
+    """The lark tree of a text within the limits (:data:`MAX_CHARS` ... :data:`MAX_DEFINITIONS`), or the
+    DescriptionError at the line and column of the first syntax error or limit passed."""
+    if len(text) > MAX_CHARS:
+        line, column = _line_column(text, MAX_CHARS)
+        raise DescriptionError(f"the description is {len(text):,} characters long; at most {MAX_CHARS:,}", line,
+                               column, source)  # fmt: skip
     try:
-        return _parser().parse(text)
+        tree = _parser().parse(text)
     except UnexpectedInput as exc:
-        raise DescriptionError(_syntax_reason(exc, text), exc.line if exc.line > 0 else None,
-                               exc.column if exc.column > 0 else None, source) from None  # fmt: skip
+        raise DescriptionError(_syntax_reason(exc, text), *_where(exc, text), source) from None
+    _check_limits(tree, source)
+    return tree
+
+
+def _line_column(text: str, at: int) -> tuple[int, int]:
+    """1-based (line, column) of character ``at`` of ``text`` (``len(text)``: the end of the text)."""
+    return text.count("\n", 0, at) + 1, at - text.rfind("\n", 0, at)
+
+
+def _where(exc: UnexpectedInput, text: str) -> tuple[int, int]:
+    """(line, column) of a syntax error: the unexpected character or token; the end of the text when that is what
+    came too early (just after its last token)."""
+    token = getattr(exc, "token", None)
+    if token is not None and token.type == "$END" and getattr(token, "end_line", None):
+        return token.end_line, token.end_column
+    if exc.line > 0 and exc.column > 0 and not isinstance(exc, UnexpectedEOF):
+        return exc.line, exc.column
+    return _line_column(text, len(text.rstrip()))
+
+
+def _check_limits(tree: Tree, source: str | None) -> None:
+    """Every limit the parse tree can show, without recursion: definitions, words, parentheses, `then` chains."""
+    definitions = [c for c in tree.children if isinstance(c, Tree) and c.data == "definition"]
+    if len(definitions) > MAX_DEFINITIONS:
+        meta = definitions[MAX_DEFINITIONS].meta
+        raise DescriptionError(f"{len(definitions)} definitions; at most {MAX_DEFINITIONS} in one description",
+                               meta.line, meta.column, source)  # fmt: skip
+    stack = [(tree, 0)]
+    while stack:
+        node, parens = stack.pop()
+        if node.data == "alternatives":  # every expression: the top one, a definition's, each in parentheses
+            parens += 1
+            if parens > MAX_PARENS + 1:
+                raise DescriptionError(f"parentheses inside one another more than {MAX_PARENS} deep; at most "
+                                       f"{MAX_PARENS}", node.meta.line, node.meta.column, source)  # fmt: skip
+        if node.data == "sequence" and len(node.children) > MAX_THEN + 1:
+            meta = node.children[MAX_THEN + 1].meta
+            raise DescriptionError(f"a chain of {len(node.children) - 1} 'then'; at most {MAX_THEN} in one chain",
+                                   meta.line, meta.column, source)  # fmt: skip
+        for child in node.children:
+            if isinstance(child, Tree):
+                stack.append((child, parens))
+            elif len(child) > MAX_WORD:
+                raise DescriptionError(f"{excerpt(str(child))} is {len(child):,} characters long; names, numbers and "
+                                       f"template names have at most {MAX_WORD}", child.line, child.column,
+                                       source)  # fmt: skip
 
 
 def _syntax_reason(exc: UnexpectedInput, text: str) -> str:
@@ -298,8 +413,9 @@ def _syntax_reason(exc: UnexpectedInput, text: str) -> str:
     if isinstance(exc, UnexpectedEOF):
         return "the description ends too early"
     if isinstance(exc, UnexpectedToken):
-        got = "end of the text" if exc.token.type == "$END" else repr(str(exc.token))
-        expected = sorted({_EXPECTED.get(t, repr(_parser().get_terminal(t).pattern.value).lower()) for t in exc.expected})
+        got = "end of the text" if exc.token.type == "$END" else excerpt(str(exc.token))
+        expected = sorted({_EXPECTED[t] if t in _EXPECTED else repr(_parser().get_terminal(t).pattern.value).lower()
+                           for t in exc.expected})  # fmt: skip
         hint = ""
         if "SEMICOLON" in exc.expected and str(exc.token) == "define":
             hint = "; end each definition with ';'"
@@ -315,14 +431,19 @@ def declared_set(text: str) -> str | None:
     >>> declared_set("set 2006; rknee: straight bent straight"), declared_set("kick_left")
     ('2006', None)
     """
-    tree = _syntax(text, None)
+    token = _set_token(_syntax(text, None))
+    return None if token is None else str(token)
+
+
+def _set_token(tree: Tree) -> Token | None:
+    """The number of the text's ``set`` statement (one of RELATIONAL_SETS), or None."""
     for child in tree.children:
         if isinstance(child, Tree) and child.data == "set_statement":
             token = child.children[0]
             if str(token) not in RELATIONAL_SETS:
                 raise DescriptionError(f"set {token}: the relational sets are {', '.join(RELATIONAL_SETS)}",
                                        token.line, token.column)  # fmt: skip
-            return str(token)
+            return token
     return None
 
 
@@ -446,11 +567,11 @@ class _Resolve(Transformer):
             if len(tokens) > 2:
                 n = tokens[2]
                 if "." in n or not 1 <= int(n) <= len(steps):
-                    raise self._fail(f"{part} {word}[{n}]: {p} has {len(steps)} '{word}' state(s); number them "
-                                     f"1..{len(steps)}", n)  # fmt: skip
+                    raise self._fail(f"{part} {word}[{n}]: {excerpt(str(p))} has {len(steps)} '{word}' state(s); "
+                                     f"number them 1..{len(steps)}", n)  # fmt: skip
                 steps, text = [steps[int(n) - 1]], f"{text}[{n}]"
             if not steps:
-                raise self._fail(f"{part} {word}: the progression '{p}' has no step '{word}'", tokens[1])
+                raise self._fail(f"{part} {word}: the progression {excerpt(str(p))} has no step '{word}'", tokens[1])
             return StateRef(i, tuple(steps), text)
         states = " or ".join(f"{progressions[i].part}: {'/'.join(self.words.states(progressions[i].feature))}"
                              for i in matches)  # fmt: skip
@@ -508,25 +629,37 @@ def _resolve(tree, relational_set: str, names: dict, source: str | None):
         raise
 
 
-def _program(text: str, relational_set: str, names: dict, source: str | None, keep_errors: bool = False):
-    """(definitions, expression) of a text; definitions are added to ``names`` in order (later ones see earlier)."""
-    tree = _syntax(text, source)
-    definitions, root = {}, None
+def _program(tree: Tree, relational_set: str, names: dict, source: str | None, keep_errors: bool = False):
+    """(definitions, expression) of a text's tree; definitions are added to ``names`` in order (later ones see
+    earlier)."""
+    definitions, root, levels = {}, None, {}
     for child in tree.children:
         if isinstance(child, Tree) and child.data == "set_statement":
             continue
         if isinstance(child, Tree) and child.data == "definition":
             name_token, body = child.children
             try:
-                definitions[str(name_token)] = _resolve(body, relational_set, names, source)
+                definitions[str(name_token)] = _shallow(_resolve(body, relational_set, names, source), levels,
+                                                        name_token, source)  # fmt: skip
             except DescriptionError as exc:
                 if not keep_errors:
                     raise
                 definitions[str(name_token)] = exc
             names = {**names, str(name_token): definitions[str(name_token)]}
         else:
-            root = _resolve(child, relational_set, names, source)
+            root = _shallow(_resolve(child, relational_set, names, source), levels, child.meta, source)
     return definitions, root
+
+
+def _shallow(node, levels: dict, where, source: str | None):
+    """``node`` if its tree, through the names it uses, is at most :data:`MAX_DEPTH` levels deep (``levels``: as
+    :func:`_depth`), else the DescriptionError at ``where`` (a token or a lark meta)."""
+    depth = _depth(node, levels)
+    if depth > MAX_DEPTH:
+        raise DescriptionError(f"the description is {depth} levels deep through the names it uses (a chain of n "
+                               f"'then' is n levels); at most {MAX_DEPTH}", where.line, where.column,
+                               source)  # fmt: skip
+    return node
 
 
 @cache
@@ -549,7 +682,8 @@ def named_descriptions(relational_set: str = "2005") -> dict:
     (True, 'Event')
     """
     text = resources.files(__package__).joinpath(LIBRARY).read_text(encoding="utf-8")
-    definitions, root = _program(text, relational_set, {}, f"{__package__}/{LIBRARY}", keep_errors=True)
+    source = f"{__package__}/{LIBRARY}"
+    definitions, root = _program(_syntax(text, source), relational_set, {}, source, keep_errors=True)
     assert root is None, "the shipped library holds definitions only"
     return definitions
 
@@ -573,7 +707,10 @@ def parse_description(text: str, relational_set: str | None = None) -> Descripti
     ------
     DescriptionError
         A syntax error, an unknown part, state or name (with the closest valid ones), a progression of one state,
-        a negative or reversed time; the message starts with the line and column.
+        a negative or reversed time, a text beyond one of the limits (:data:`MAX_CHARS`, :data:`MAX_WORD`,
+        :data:`MAX_PARENS`, :data:`MAX_THEN`, :data:`MAX_DEFINITIONS`, :data:`MAX_DEPTH`; checked before anything
+        recursive runs); the message starts with the line and column and quotes at most :data:`EXCERPT` characters
+        of the text.
 
     References
     ----------
@@ -592,13 +729,15 @@ def parse_description(text: str, relational_set: str | None = None) -> Descripti
     """
     if not isinstance(text, str):
         raise ParameterError(f"a description must be text; got {type(text).__name__}")
-    declared = declared_set(text)
+    tree = _syntax(text, None)
+    declared = _set_token(tree)
     if relational_set is not None and declared is not None and relational_set != declared:
-        raise DescriptionError(f"the description says 'set {declared};' but is read with the {relational_set} set")
-    relational_set = relational_set or declared or "2005"
+        raise DescriptionError(f"the description says 'set {declared};' but is read with the {relational_set} set",
+                               declared.line, declared.column)  # fmt: skip
+    relational_set = relational_set or (declared and str(declared)) or "2005"
     names = dict(named_descriptions(vocabulary_of(relational_set).relational_set))
-    definitions, root = _program(text, relational_set, names, None)
+    definitions, root = _program(tree, relational_set, names, None)
     if root is None:
         raise DescriptionError("the description has no query: after the definitions, write what to find (e.g. "
-                               f"{next(iter(definitions), 'kick_right')})")  # fmt: skip
+                               f"{next(iter(definitions), 'kick_right')})", *_line_column(text, len(text)))  # fmt: skip
     return Description(root, relational_set, definitions, text, declared is not None)

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import itertools
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numba
 import numpy as np
@@ -36,6 +36,7 @@ from ..db.hits import hit_table
 from ..errors import DescriptionError, MotionDBError, ParameterError, UnknownKeyError
 from ..validation import count, number, one_of
 from .description import (
+    MAX_PAIRS,
     Alternatives,
     Description,
     Event,
@@ -44,8 +45,10 @@ from .description import (
     Sequence,
     TemplateAtom,
     declared_set,
+    excerpt,
     parse_description,
     template_names,
+    walk,
 )
 from .vocabulary import vocabulary_of
 
@@ -104,6 +107,7 @@ class _Context:
         self.indexes, self.values = indexes, values
         self.counts: list[tuple[str, int]] = []  # (node, raw hits), in evaluation order (--explain)
         self.cache: dict = {}  # per feature: what the state conditions count frames with
+        self.memo: dict = {}  # (id(node), prefix) -> its hits: every distinct node evaluated once per run
 
     def doc_of(self, frames: np.ndarray) -> np.ndarray:
         return np.searchsorted(self.doc_start, frames, side="right") - 1
@@ -205,9 +209,17 @@ def _framed(ctx: _Context, p: Progression, starts: np.ndarray, ends: np.ndarray,
 
 # ================================================================================================ the index path
 def _evaluate(ctx: _Context, node, prefix: str = "") -> _Hits:
+    """The hits of a description node, each distinct node once per run however often a name uses it (a chain of n
+    definitions each using the previous one twice costs n evaluations, not 2**n; ``ctx.memo``)."""
+    key = (id(node), prefix)
+    if key not in ctx.memo:
+        ctx.memo[key] = _evaluate_node(ctx, node, prefix)
+    return ctx.memo[key]
+
+
+def _evaluate_node(ctx: _Context, node, prefix: str) -> _Hits:
     if isinstance(node, Named):
-        hits = _evaluate(ctx, node.body, node.name)
-        hits.label = node.name
+        hits = replace(_evaluate(ctx, node.body, node.name), label=node.name)  # the body's hits may be shared
         return ctx.note(node.name, hits) if not isinstance(node.body, Named) else hits
     if isinstance(node, TemplateAtom):
         return ctx.note(str(node), _template_hits(ctx, node))
@@ -231,7 +243,7 @@ def _event(ctx: _Context, event: Event, prefix: str) -> _Hits:
         leaves.append(ctx.note(_label(prefix, p), _Hits(_label(prefix, p), a, b)))
     if len(leaves) == 1 and not event.overlaps and not event.conditions:
         return leaves[0]
-    rows = _concurrent(ctx, leaves) if ctx.indexes is not None else _concurrent_scan(ctx, leaves)
+    rows = _concurrent(ctx, leaves, prefix or str(event)) if ctx.indexes is not None else _concurrent_scan(ctx, leaves)
     ok = np.ones(len(rows), dtype=bool)
     for o in event.overlaps:
         (sa, ea), (sb, eb) = runs[o.a.progression], runs[o.b.progression]
@@ -255,8 +267,8 @@ def _event(ctx: _Context, event: Event, prefix: str) -> _Hits:
     return joined if prefix else ctx.note(str(event), joined)
 
 
-def _concurrent(ctx: _Context, leaves: list[_Hits]) -> np.ndarray:
-    """Rows (one per leaf) of the tuples of hits that share a frame, by sorted interval joins."""
+def _concurrent(ctx: _Context, leaves: list[_Hits], label: str) -> np.ndarray:
+    """Rows (one per leaf) of the tuples of hits that share a frame, by sorted interval joins (of event ``label``)."""
     rows = np.arange(len(leaves[0]))[:, None]
     lo, hi = leaves[0].start.copy(), leaves[0].end.copy()
     for leaf in leaves[1:]:
@@ -265,7 +277,7 @@ def _concurrent(ctx: _Context, leaves: list[_Hits]) -> np.ndarray:
         longest = int((e - s).max()) if len(s) else 0
         first = np.searchsorted(s, lo - longest, side="left")
         stop = np.searchsorted(s, hi, side="left")
-        i, j = _expand(first, stop)
+        i, j = _expand(first, stop, label)
         j = order[j]
         keep = leaf.end[j] > lo[i]
         i, j = i[keep], j[keep]
@@ -274,11 +286,17 @@ def _concurrent(ctx: _Context, leaves: list[_Hits]) -> np.ndarray:
     return rows
 
 
-def _expand(first: np.ndarray, stop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """All pairs (i, j) with first[i] <= j < stop[i]."""
+def _expand(first: np.ndarray, stop: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
+    """All pairs (i, j) with first[i] <= j < stop[i]; a DescriptionError naming part ``label`` when they are more
+    than :data:`~mocapviz.relational.description.MAX_PAIRS` (checked before they are made)."""
     sizes = np.maximum(stop - first, 0)
+    total = int(sizes.sum())
+    if total > MAX_PAIRS:
+        raise DescriptionError(f"{excerpt(label)} joins {total:,} pairs of hits; at most {MAX_PAIRS:,} "
+                               "(docs/descriptions.md, \"Limits\"): a shorter 'within' or fewer '*' steps ask for "
+                               "fewer")  # fmt: skip
     i = np.repeat(np.arange(first.size), sizes)
-    offsets = np.arange(sizes.sum()) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    offsets = np.arange(total) - np.repeat(np.cumsum(sizes) - sizes, sizes)
     return i, first[i] + offsets
 
 
@@ -287,8 +305,11 @@ def _then(ctx: _Context, a: _Hits, b: _Hits, within: float, label: str) -> _Hits
         return _then_scan(ctx, a, b, within, label)
     order = np.argsort(b.start, kind="stable")
     s = b.start[order]
-    reach = a.end + np.floor(within * ctx.fps[ctx.doc_of(a.start)] + 1e-9).astype(np.int64)
-    i, j = _expand(np.searchsorted(s, a.end, side="left"), np.searchsorted(s, reach, side="right"))
+    doc = ctx.doc_of(a.start)
+    # frames after A's end, at most to its document's end: a longer bound is no bound (and never overflows int64)
+    gap = np.minimum(np.floor(within * ctx.fps[doc] + 1e-9), ctx.doc_end[doc] - a.end)
+    reach = a.end + gap.astype(np.int64)
+    i, j = _expand(np.searchsorted(s, a.end, side="left"), np.searchsorted(s, reach, side="right"), label)
     j = order[j]
     same = ctx.doc_of(b.start[j]) == ctx.doc_of(a.start[i])
     i, j = i[same], j[same]
@@ -347,8 +368,10 @@ def _then_scan(ctx: _Context, a: _Hits, b: _Hits, within: float, label: str) -> 
 # ================================================================================================ ranking
 def _part_texts(hits: _Hits, rows: np.ndarray, offset: np.ndarray) -> np.ndarray:
     """``parts`` of hits ``rows``: each leaf's ``label start:end`` (frames of the document: global minus ``offset``),
-    joined by ", ", walking the hit tree once for all rows."""
+    joined by ", ", walking the hit tree once for all rows (never into a branch no row takes)."""
     out = np.empty(rows.size, dtype=object)
+    if not rows.size:
+        return out
     if hits.pick is not None:
         for branch, child in enumerate(hits.children):
             mask = hits.pick[rows] == branch
@@ -492,13 +515,7 @@ def read_description(db, description, relational_set: str | None = None, templat
 
 
 def _has_events(node) -> bool:
-    if isinstance(node, Event):
-        return True
-    if isinstance(node, Named):
-        return _has_events(node.body)
-    if isinstance(node, Sequence):
-        return _has_events(node.first) or _has_events(node.second)
-    return isinstance(node, Alternatives) and any(_has_events(o) for o in node.options)
+    return any(isinstance(n, Event) for n in walk(node))
 
 
 def empty_reason(counts: list[tuple[str, int]]) -> str:
