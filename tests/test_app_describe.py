@@ -52,6 +52,24 @@ def test_parse_status_is_one_line_with_line_and_column():
     assert ok is False and message.startswith("line 1, column 1: ") and "'kick_right'" in message
 
 
+def test_a_chain_of_doubling_definitions_reads_in_linear_time():
+    """Each definition used twice by the next (round3's doubling_defs, to the deepest chain the limits allow): the
+    page's reading of the text visits each named description once; it doubled per level (20 levels 2.7 s)."""
+    import time
+
+    from mocapviz.relational.description import MAX_DEPTH
+
+    levels = MAX_DEPTH // 2 - 1
+    text = "define a0: rknee: straight bent;\n" + "".join(f"define a{i}: a{i - 1} | a{i - 1};\n"
+                                                         for i in range(1, levels + 1)) + f"a{levels}"  # fmt: skip
+    t0 = time.perf_counter()
+    assert page_mod.parse_status(text) == (True, "Reads well in the 2005 set: features rknee_bent.")
+    described = parse_description(text)
+    assert page_mod.description_features(described) == ["rknee_bent"]
+    assert sorted(page_mod._named_bodies(described), key=lambda n: int(n[1:])) == [f"a{i}" for i in range(levels + 1)]
+    assert time.perf_counter() - t0 < 5.0  # 2^49 visits before: never within a lifetime
+
+
 def test_features_and_parts_of_a_hit():
     two = parse_description(TWO)
     assert page_mod.description_features(two) == ["rhand_above_neck", "rhand_fast", "relbow_bent"]

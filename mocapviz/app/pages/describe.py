@@ -30,16 +30,15 @@ import panel as pn
 from ...db.hits import database_frames
 from ...errors import DescriptionError, MocapvizError
 from ...relational.description import (
-    Alternatives,
     Description,
     Event,
     Named,
     Progression,
-    Sequence,
     declared_set,
     named_descriptions,
     parse_description,
     template_names,
+    walk,
 )
 from ...relational.templates import DELTA
 from ...relational.vocabulary import vocabulary_of, vocabulary_table
@@ -113,43 +112,22 @@ def reading_set(text: str, chosen: str) -> str:
 
 def description_features(node) -> list[str]:
     """The relational features a description (or one node of its tree) names, in the order written, each once;
-    template atoms name none."""
+    template atoms name none. Linear in the tree however often its names are used (:func:`walk`)."""
     found: list[str] = []
-
-    def walk(n) -> None:
-        if isinstance(n, Description):
-            walk(n.root)
-        elif isinstance(n, Event):
+    for n in walk(node.root if isinstance(node, Description) else node):
+        if isinstance(n, Event):
             found.extend(p.feature for p in n.progressions)
         elif isinstance(n, Progression):
             found.append(n.feature)
-        elif isinstance(n, Named):
-            walk(n.body)
-        elif isinstance(n, Sequence):
-            walk(n.first)
-            walk(n.second)
-        elif isinstance(n, Alternatives):
-            for o in n.options:
-                walk(o)
-
-    walk(node)
     return list(dict.fromkeys(found))
 
 
-def _named_bodies(node, out: dict | None = None) -> dict:
-    """Name -> tree of every named description used in ``node``."""
-    out = {} if out is None else out
-    if isinstance(node, Description):
-        _named_bodies(node.root, out)
-    elif isinstance(node, Named):
-        out.setdefault(node.name, node.body)
-        _named_bodies(node.body, out)
-    elif isinstance(node, Sequence):
-        _named_bodies(node.first, out)
-        _named_bodies(node.second, out)
-    elif isinstance(node, Alternatives):
-        for o in node.options:
-            _named_bodies(o, out)
+def _named_bodies(node) -> dict:
+    """Name -> tree of every named description used in ``node`` (each visited once: :func:`walk`)."""
+    out: dict = {}
+    for n in walk(node.root if isinstance(node, Description) else node):
+        if isinstance(n, Named):
+            out.setdefault(n.name, n.body)
     return out
 
 
