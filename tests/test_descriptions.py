@@ -397,7 +397,9 @@ def test_the_limits_are_where_the_docs_say(capsys):
     assert (_error(padded + "-").line, _error(padded + "-").column) == (2, language.MAX_CHARS - 5)
     word = "a" * language.MAX_WORD
     assert parse_description(f"define {word}: squat; {word}").root.name == word
-    assert "at most 80" in _error(f"define {word}b: squat; squat").reason
+    assert f"at most {language.MAX_WORD}" in _error(f"define {word}b: squat; squat").reason
+    longest = "template:" + "t" * 128  # the longest stored template name (templates.is_template_name)
+    assert len(longest) == language.MAX_WORD and parse_description(longest).templates() == ["t" * 128]
 
 
 def test_the_deepest_descriptions_run_in_a_thread_with_little_stack_left(hdm05, round3):

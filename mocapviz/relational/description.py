@@ -52,7 +52,7 @@ LIBRARY = "named_descriptions.txt"  # the shipped descriptions, beside this modu
 # in a dashboard thread that is already a few hundred frames deep (reading and evaluating a tree of MAX_DEPTH levels
 # takes about 3 frames a level).
 MAX_CHARS = 20_000  # characters of one description text
-MAX_WORD = 80  # characters of one name, number or template:NAME
+MAX_WORD = 137  # characters of one name, number or template:NAME (9 + a stored template's name, at most 128)
 MAX_PARENS = 20  # parentheses inside one another
 MAX_THEN = 50  # `then` in one chain (A then B then C ...)
 MAX_DEFINITIONS = 100  # `define` statements in one text
