@@ -203,7 +203,8 @@ class Event:
 
 @dataclass(frozen=True)
 class TemplateAtom:
-    """The instances of a stored motion template (``template:NAME``: a name under ``DB/templates/`` or a file)."""
+    """The instances of a stored motion template (``template:NAME``: a name under ``DB/templates/``, never a path; a
+    template from a file comes only through ``find(..., templates=...)`` / the CLI's ``--template-file``)."""
 
     name: str
 
