@@ -296,7 +296,8 @@ def _analog(path, header: _Header, params: _Parameters, fps: float, frames: int,
             raise MocapFormatError(path, f"ANALOG:USED {channels} channels × {header.per_frame} samples per frame "
                                          f"(header word 10) = {channels * header.per_frame}, but the header says "
                                          f"{header.analog} analog samples per frame (word 3)")  # fmt: skip
-        if math.floor(per_frame) != header.per_frame or not math.isclose(per_frame, header.per_frame, rel_tol=1e-4):
+        if not (math.isfinite(per_frame) and math.floor(per_frame) == header.per_frame
+                and math.isclose(per_frame, header.per_frame, rel_tol=1e-4)):  # ezc3d rounds down: 8.9999 is 8
             shown = "absent" if rate is None else f"{describe(rate)} Hz"
             raise MocapFormatError(path, f"ANALOG:RATE {shown} is {describe(per_frame)} samples per frame at "
                                          f"{describe(fps)} fps but the header says {header.per_frame} "

@@ -73,7 +73,8 @@ def read_isolated(function, path, *args, reader: str, preload: tuple = (), memor
     ------
     MocapFormatError
         Naming ``path``: "``reader`` crashed on this file (signal 11, SIGSEGV)", "``reader`` raised ``Type:
-        message``", "``reader`` did not finish within ``timeout`` s", or no helper could be started.
+        message``", "``reader`` needed more than its ``memory`` MiB", "``reader`` did not finish within ``timeout``
+        s", or no helper could be started.
     """
     request = pickle.dumps(("call", function.__module__, function.__qualname__, (path, *args), memory))
     try:
@@ -88,7 +89,10 @@ def read_isolated(function, path, *args, reader: str, preload: tuple = (), memor
         raise MocapFormatError(path, f"{reader} could not be run in a helper process ({exc})") from None
     if kind == _RAISED:
         helper.close()
-        raise MocapFormatError(path, f"{reader} raised {payload.decode(errors='replace')}")
+        raised = payload.decode(errors="replace")
+        if raised.startswith("MemoryError") or raised.endswith("std::bad_alloc"):  # Python's, or C++'s via SWIG
+            raise MocapFormatError(path, f"{reader} needed more than its {memory / 2**20:g} MiB ({raised})")
+        raise MocapFormatError(path, f"{reader} raised {raised}")
     _give_back(helper, preload)
     return pickle.loads(payload)
 
@@ -257,10 +261,11 @@ def _call(module: str, name: str, args: tuple, memory: int) -> tuple[int, bytes]
     """(kind, payload) of ``module.name(*args)`` computed under the memory limit: the pickled result, or the
     exception as ``Type: message``."""
     try:
+        function = getattr(importlib.import_module(module), name)  # imported before the limit, once per helper
         _limit_memory(memory)
-        return _VALUE, pickle.dumps(getattr(importlib.import_module(module), name)(*args), pickle.HIGHEST_PROTOCOL)
+        return _VALUE, pickle.dumps(function(*args), pickle.HIGHEST_PROTOCOL)
     except Exception as exc:  # noqa: BLE001 - any failure of the reader is reported, typed, by the caller
-        return _RAISED, f"{type(exc).__name__}: {exc}".encode(errors="replace")[:2000]
+        return _RAISED, ": ".join([type(exc).__name__] + [str(exc)] * bool(str(exc))).encode(errors="replace")[:2000]
 
 
 def _limit_memory(memory: int) -> None:
