@@ -47,14 +47,17 @@ References
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
 from ..errors import ParameterError, SkeletonMappingError
 from ..validation import number
-from .motion import Motion
-from .skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
+from .joints import CANONICAL_JOINTS, CANONICAL_PARENTS
+
+if TYPE_CHECKING:  # a type only: motion.py reaches this module through Motion.canonical, never the other way
+    from .motion import Motion
 
 MAX_GAP_S = 0.25
 MARKER_RADIUS_CM = 0.7
@@ -84,6 +87,7 @@ def is_marker_motion(motion: Motion) -> bool:
 
     Examples
     --------
+    >>> from mocapviz.motion import Motion
     >>> is_marker_motion(Motion(np.zeros((2, 3, 3)), 120.0, ("A", "B", "C"), [-1, -1, -1]))
     True
     """
@@ -105,6 +109,7 @@ def marker_gaps(motion: Motion) -> pd.Series:
 
     Examples
     --------
+    >>> from mocapviz.motion import Motion
     >>> p = np.zeros((4, 2, 3)); p[1:3, 1] = np.nan
     >>> marker_gaps(Motion(p, 120.0, ("A", "B"), [-1, -1])).tolist()
     [0.0, 0.5]
@@ -207,6 +212,7 @@ def marker_joints(motion: Motion, aliases: dict | None = None, max_gap_s: float 
 
     Examples
     --------
+    >>> from mocapviz.motion import Motion
     >>> m = Motion(np.zeros((1, 2, 3)), 120.0, ("LFHD", "RFHD"), [-1, -1], source="walk.c3d")
     >>> marker_joints(m)
     Traceback (most recent call last):

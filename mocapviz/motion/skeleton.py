@@ -1,7 +1,7 @@
 """The canonical skeleton: 24 named joints, mapping of reader skeletons onto them, body frame, body sizes.
 
-CANONICAL_JOINTS      the 24 joint names, in the fixed order of RELATIONAL_FEATURES.md §1.2.
-CANONICAL_PARENTS     their tree (parent index, -1 for the root).
+CANONICAL_JOINTS      the 24 joint names, in the fixed order of RELATIONAL_FEATURES.md §1.2 (from joints.py).
+CANONICAL_PARENTS     their tree (parent index, -1 for the root; from joints.py).
 ASF_MAP               canonical joint -> (ASF node whose tip it is, ASF node whose rotation acts there).
 guess_mapping         canonical joint -> source joint, for ASF skeletons and any humanoid rig: the chains are
                       found from the hierarchy and the clip's geometry, names only break near ties.
@@ -18,27 +18,18 @@ import functools
 import itertools
 import re
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
 from ..errors import SkeletonMappingError
-from .motion import Motion
+from .joints import CANONICAL_JOINTS, CANONICAL_PARENTS
+from .markers import is_marker_motion, marker_joints
 
-CANONICAL_JOINTS = (
-    "root", "lhip", "lknee", "lankle", "ltoes", "rhip", "rknee", "rankle", "rtoes",
-    "belly", "chest", "neck", "head", "headtop",
-    "lclavicle", "lshoulder", "lelbow", "lwrist", "lfingers",
-    "rclavicle", "rshoulder", "relbow", "rwrist", "rfingers",
-)  # fmt: skip
-_PARENT_NAMES = {
-    "lhip": "root", "lknee": "lhip", "lankle": "lknee", "ltoes": "lankle",
-    "rhip": "root", "rknee": "rhip", "rankle": "rknee", "rtoes": "rankle",
-    "belly": "root", "chest": "belly", "neck": "chest", "head": "neck", "headtop": "head",
-    "lclavicle": "neck", "lshoulder": "lclavicle", "lelbow": "lshoulder", "lwrist": "lelbow", "lfingers": "lwrist",
-    "rclavicle": "neck", "rshoulder": "rclavicle", "relbow": "rshoulder", "rwrist": "relbow", "rfingers": "rwrist",
-}  # fmt: skip
-CANONICAL_PARENTS = np.array([-1] + [CANONICAL_JOINTS.index(_PARENT_NAMES[j]) for j in CANONICAL_JOINTS[1:]])
+if TYPE_CHECKING:  # a type only: motion.py imports this module (Motion.canonical), never the other way
+    from .motion import Motion
+
 
 # RELATIONAL_FEATURES.md §1.2: a canonical joint is the distal end (tip) of an ASF node; the rotation that
 # acts there is that of the ASF bone starting at it (None: no bone starts there).
@@ -620,8 +611,6 @@ def to_canonical(motion: Motion, mapping: dict[str, str] | None = None) -> Motio
     """
     if motion.joint_names == CANONICAL_JOINTS and not mapping:
         return motion
-    from .markers import is_marker_motion, marker_joints
-
     if is_marker_motion(motion):
         return marker_joints(motion, aliases=mapping)
     mapping = dict(mapping or {})
