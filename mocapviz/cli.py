@@ -169,7 +169,7 @@ def _info(args) -> None:
         print(db.summary().round(2).to_string())
         if args.documents:
             cols = [c for c in db.documents.columns if c not in ("path", "sha256")]
-            print(db.documents[cols].to_string(index=False))
+            print(_printed(db.documents[cols]))
 
 
 def _check(args) -> int:
@@ -226,6 +226,16 @@ def _example(db: MotionDB, text: str) -> int | Path:
     ids = db.documents["doc_id"]
     raise ParameterError(f"--example {text} is neither a document id of {db.path} (doc ids {ids.min()}..{ids.max()}) "
                          "nor a motion file")
+
+
+def _printed(table: pd.DataFrame) -> str:
+    """A table as the commands print it, without its index: a missing cell (the label columns of an unlabelled
+    document, a take number another archive has none of) blank, never NaN or <NA>."""
+    import pandas as pd
+
+    blank = {c: table[c].astype(object).where(table[c].notna(), "") for c in table.columns
+             if pd.api.types.is_integer_dtype(table[c]) and table[c].hasnans}  # to_string's na_rep skips Int64
+    return table.assign(**blank).to_string(index=False, na_rep="")
 
 
 def _write_csv(table: pd.DataFrame, path: str | None) -> None:
@@ -299,7 +309,7 @@ def _query(args) -> None:
     print(f"{len(hits)} hits in {ms:.1f} ms ({mode}, features: {', '.join(features or ['all'])})")
     cols = [c for c in ("rank", "doc_id", "name", "start", "end", "start_s", "end_s", "score", "label") if c in hits]
     with pd.option_context("display.width", 160, "display.max_rows", args.n_matches + 5):
-        print(hits[cols].head(args.n_matches).round(3).to_string(index=False))
+        print(_printed(hits[cols].head(args.n_matches).round(3)))
     _write_csv(hits.head(args.n_matches), args.csv)
 
 
@@ -347,7 +357,7 @@ def _find(args) -> None:
     cols = [c for c in ("rank", "doc_id", "name", "start", "end", "start_s", "end_s", "score", "label") if c in hits]
     cols += ["parts"] if args.explain else []
     with pd.option_context("display.width", 200, "display.max_rows", len(hits) + 5, "display.max_colwidth", 120):
-        print(hits[cols].round(3).to_string(index=False))
+        print(_printed(hits[cols].round(3)))
     _write_csv(hits, args.csv)
 
 
@@ -486,7 +496,7 @@ def _knn(args) -> None:
     print(f"{found} neighbours of document {doc} frame {frame} by {args.numeric_set} in {ms:.2f} ms ({how}){each}")
     cols = [c for c in ("rank", "doc_id", "name", "start", "start_s", "distance", "label") if c in hits]
     with pd.option_context("display.width", 160, "display.max_rows", args.k + 5):
-        print(hits[cols].round(3).to_string(index=False))
+        print(_printed(hits[cols].round(3)))
     _write_csv(hits, args.csv)
 
 
@@ -546,7 +556,7 @@ def _print_ranked(table: pd.DataFrame, n_rows: int, empty: str) -> None:
 
     with pd.option_context("display.width", 160, "display.max_rows", n_rows + 5):
         shown = table.drop(columns=["path"], errors="ignore").dropna(axis=1, how="all")  # label columns of others
-        print(shown.round(3).to_string(index=False))
+        print(_printed(shown.round(3)))
 
 
 def _search(args) -> None:

@@ -273,7 +273,8 @@ class MotionDB:
         -------
         Motion
             Positions [shape=(n_frames, 24, 3)] in cm on the canonical joints, quaternions (None when the source
-            had no rotations), the document's ``fps``, ``source`` (its file) and ``labels``.
+            had no rotations), the document's ``fps``, ``source`` (its file) and ``labels`` (``label``, None for an
+            unlabelled document, and the label columns it has a value in).
 
         Examples
         --------
@@ -287,7 +288,8 @@ class MotionDB:
         row = self.document(doc_id)
         sl = self.frames(doc_id)
         quat = self.quaternions[sl]
-        labels = {"label": row["label"], **{c: row[c] for c in self.label_columns[1:] if not pd.isna(row[c])}}
+        labels = {"label": None if pd.isna(row["label"]) else row["label"],
+                  **{c: row[c] for c in self.label_columns[1:] if not pd.isna(row[c])}}  # fmt: skip
         return Motion(
             positions=self.positions[sl],
             fps=float(row["fps"]),
@@ -792,6 +794,18 @@ def _write_grown(old: Path | None, n_old: int, new: list[np.ndarray], width: int
         del arr
 
 
+def _stored(column: pd.Series) -> pd.Series:
+    """A column of the documents table as written: whole numbers as int64, or as nullable Int64 where some documents
+    have none (HDM05's ``take`` beside another archive's takes: 17 and a missing cell, not 17.0 and NaN), text as
+    strings, other values as pandas infers them."""
+    if column.dtype != object:
+        return column
+    if pd.api.types.infer_dtype(column, skipna=True) == "integer":
+        return column.astype("Int64" if column.isna().any() else "int64")
+    column = column.infer_objects()
+    return column.astype("string") if column.dtype == object else column
+
+
 def _commit(path: Path, manifest: dict | None, positions: list, quaternions: list, metas: list[dict]) -> None:
     """Write generation g+1 with the new documents appended, then switch the manifest to it."""
     gen = 0 if manifest is None else manifest["generation"] + 1
@@ -806,19 +820,18 @@ def _commit(path: Path, manifest: dict | None, positions: list, quaternions: lis
         old = None if manifest is None else path / manifest["arrays"][name]
         _write_grown(old, n_old, positions if name == "positions" else quaternions, width, target)
         files[name] = target.name
-    new_docs = pd.DataFrame(metas)
+    new_docs = pd.DataFrame(metas, dtype=object)  # typed by _stored with the old documents' values
     if len(new_docs):
         new_docs.insert(0, "doc_id", np.arange(len(new_docs)) + (int(old_docs["doc_id"].max()) + 1 if len(old_docs) else 0))
-        new_docs["start"] = n_old + np.concatenate([[0], np.cumsum(new_docs["n_frames"].to_numpy())[:-1]])
-    docs = pd.concat([old_docs, new_docs], ignore_index=True) if len(old_docs) else new_docs
+        new_docs["start"] = n_old + np.concatenate([[0], np.cumsum(new_docs["n_frames"].to_numpy(np.int64))[:-1]])
+    docs = pd.concat([old_docs.astype(object), new_docs], ignore_index=True) if len(old_docs) else new_docs
     if docs.empty:
         docs = pd.DataFrame({c: pd.Series(dtype="int64" if c in ("doc_id", "start", "n_frames") else "float64" if "fps" in c else "object") for c in _BASE_COLUMNS})
     docs = docs[_BASE_COLUMNS + [c for c in docs.columns if c not in _BASE_COLUMNS]]
     for c in ("doc_id", "start", "n_frames"):
         docs[c] = docs[c].astype("int64")
     for c in docs.columns:
-        if docs[c].dtype == object:
-            docs[c] = docs[c].astype("string")
+        docs[c] = _stored(docs[c])
     doc_file = path / f"documents.g{gen}.parquet"
     with atomic_file(doc_file) as tmp:
         docs.to_parquet(tmp, index=False)
