@@ -96,7 +96,9 @@ def clip_quality(db, descriptions=None, targets=None, label_column: str = "label
 
     A description *fires* on a clip when :func:`~mocapviz.relational.scene.find` returns at least one hit in it.
     The clips it should fire on are those whose label is one of its target classes (and, for a ``*_left`` /
-    ``*_right`` description, whose side in ``sides`` is its own or unknown).
+    ``*_right`` description, whose side in ``sides`` is its own or unknown). Only labelled clips are judged: a
+    take without a label (a lab's own, beside an archive's clips) counts nowhere, and every table's
+    ``attrs["unlabelled"]`` says how many were left out.
 
     Parameters
     ----------
@@ -156,6 +158,8 @@ def clip_quality(db, descriptions=None, targets=None, label_column: str = "label
     docs = db.documents
     if label_column not in docs.columns:
         raise ParameterError(f"{db.path}: the documents have no {label_column!r} column")
+    judged = docs[label_column].notna().to_numpy()
+    docs = docs[judged].reset_index(drop=True)  # a take without a label is neither a target nor an other clip
     targets = TARGETS if targets is None else dict(targets)
     sides = SIDES if sides is None else dict(sides)
     if descriptions is None:
@@ -171,6 +175,7 @@ def clip_quality(db, descriptions=None, targets=None, label_column: str = "label
         t0 = time.perf_counter()
         hits = find(db, text, relational_set=relational_set, indexes=indexes)
         ms = 1e3 * (time.perf_counter() - t0)
+        hits = hits[hits["doc_id"].isin(docs["doc_id"])]
         counts = hits.groupby("doc_id").size()
         fired = docs["doc_id"].isin(counts.index).to_numpy()
         classes = [c for c in targets.get(name, ()) if c in present]
@@ -200,8 +205,11 @@ def clip_quality(db, descriptions=None, targets=None, label_column: str = "label
                                "target": bool(target[i])})  # fmt: skip
     fire_rates = pd.DataFrame(rates).T
     fire_rates.index.name = "description"
-    return {"per_description": pd.DataFrame(rows), "fire_rates": fire_rates,
-            "fired": pd.DataFrame(fired_rows, columns=["description", "doc_id", "name", "class", "hits", "target"])}
+    out = {"per_description": pd.DataFrame(rows), "fire_rates": fire_rates,
+           "fired": pd.DataFrame(fired_rows, columns=["description", "doc_id", "name", "class", "hits", "target"])}
+    for frame in out.values():
+        frame.attrs["unlabelled"] = int((~judged).sum())
+    return out
 
 
 # ================================================================================================ long takes

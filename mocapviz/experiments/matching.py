@@ -241,7 +241,7 @@ def similarity_matrices(db, query_doc: int, query_frames: tuple[int, int] | None
     query_frames : (int, int), optional
         Frames [a, b) within it (default the whole document).
     database_docs : list of int, optional
-        The small database (default every other document of the query's label, at most 3).
+        The small database (default every other document of the query's label, at most 3: a labelled query).
     numeric_sets : sequence of str
         Numeric sets (old name ``sets``, with a FutureWarning).
     k : int
@@ -275,6 +275,9 @@ def similarity_matrices(db, query_doc: int, query_frames: tuple[int, int] | None
                          f"({span.stop - span.start} frames)")  # fmt: skip
     if database_docs is None:
         label = docs.loc[docs["doc_id"] == query_doc, "label"].iloc[0]
+        if pd.isna(label):
+            raise ParameterError(f"document {query_doc} has no label, so there are no documents of its class to "
+                                 "compare it with; pass database_docs")  # fmt: skip
         database_docs = [int(d) for d in docs.loc[docs["label"] == label, "doc_id"] if d != query_doc][:3]
     database_docs = [int(d) for d in database_docs]
     if not database_docs:
@@ -435,7 +438,8 @@ def numerical_search(db, classes=None, numeric_sets=TABLE2_SETS, k: int = 256, n
     For each class, its first document (whole clip) is the query. Numerical search: the graph's matches over
     the database (the query's document excluded) whose cost is at most ``factor`` times the best match's — a
     threshold relative to the best match, so that it means the same in every numeric set's units (the paper
-    does not state its threshold). A hit is correct when its document has the query's label. Logical search:
+    does not state its threshold). A hit is correct when its document has the query's label, wrong when it has
+    another (a hit in a document without a label is neither). Logical search:
     every hit found so far is used as a new query (its own document excluded), for ``iterations`` rounds; new
     hits are those not overlapping a hit already found.
 
@@ -484,7 +488,8 @@ def numerical_search(db, classes=None, numeric_sets=TABLE2_SETS, k: int = 256, n
     if missing or not classes:
         raise ParameterError(f"classes {missing or classes} not in {db.path}; classes there: {present}")
     starts, stops = _document_bounds(db)
-    label_of = labels.to_numpy()
+    label_of = labels.to_numpy(dtype=object, na_value=None)  # None: a take without a label, neither correct nor wrong
+    labelled = labels.notna().to_numpy()
     rows, reference = [], {}
     for name in numeric_sets:
         X = numeric_of(db, name)
@@ -495,6 +500,7 @@ def numerical_search(db, classes=None, numeric_sets=TABLE2_SETS, k: int = 256, n
             hits = _hits(X, index, starts, stops, np.arange(starts[query_doc], stops[query_doc]), query_doc, k,
                          n_matches, factor)  # fmt: skip
             correct = label_of[hits["doc_id"].to_numpy()] == cls
+            wrong = labelled[hits["doc_id"].to_numpy()] & ~correct
             found = hits.copy()
             frontier = hits
             for _ in range(iterations):
@@ -512,6 +518,7 @@ def numerical_search(db, classes=None, numeric_sets=TABLE2_SETS, k: int = 256, n
                 frontier = pd.concat(new) if new else found.iloc[:0]
                 found = pd.concat([found, frontier], ignore_index=True)
             l_correct = label_of[found["doc_id"].to_numpy()] == cls
+            l_wrong = labelled[found["doc_id"].to_numpy()] & ~l_correct
             relevant = len(members) - 1
             if name == numeric_sets[0]:
                 reference[cls] = hits
@@ -522,9 +529,9 @@ def numerical_search(db, classes=None, numeric_sets=TABLE2_SETS, k: int = 256, n
             l_recall = len(set(found["doc_id"][l_correct])) / relevant if relevant else np.nan
             rows.append({
                 "class": cls, "set": name, "query_doc": query_doc, "relevant": relevant,
-                "correct": int(correct.sum()), "wrong": int((~correct).sum()),
-                "correct_new": int((correct & novel).sum()), "wrong_new": int((~correct & novel).sum()),
-                "recall": recall, "logical_correct": int(l_correct.sum()), "logical_wrong": int((~l_correct).sum()),
+                "correct": int(correct.sum()), "wrong": int(wrong.sum()),
+                "correct_new": int((correct & novel).sum()), "wrong_new": int((wrong & novel).sum()),
+                "recall": recall, "logical_correct": int(l_correct.sum()), "logical_wrong": int(l_wrong.sum()),
                 "logical_recall": l_recall, "recall_gain": l_recall - recall,
             })  # fmt: skip
     return pd.DataFrame(rows)

@@ -3,7 +3,9 @@
 Every labelled document (or a seeded sample of ``n_queries``) is a query; each method ranks the *documents* of the
 database, and the ranking is judged by :mod:`mocapviz.experiments.evaluation` (the product's one definition of relevance,
 precision, recall and AP: the query's own document is left out, relevant = the other documents with the query's
-label among the documents searched).
+label among the documents searched). On a partly labelled database (a lab's own takes beside an archive's) the
+documents without a label are searched like any other but are never a query and never relevant, so a method that
+ranks one of them high pays for it; the tables' ``attrs["unlabelled"]`` says how many there are.
 
 Methods (:data:`METHODS`):
 
@@ -253,6 +255,10 @@ def _queries(labels: pd.Series, queries, n_queries, seed) -> np.ndarray:
         unknown = chosen[~np.isin(chosen, labels.index)]
         if len(unknown):
             raise ParameterError(f"queries {unknown[:5].tolist()} are not documents of the database")
+        unlabelled = chosen[labels.reindex(chosen).isna().to_numpy()]
+        if len(unlabelled):
+            raise ParameterError(f"queries {unlabelled[:5].tolist()} have no {labels.name!r}, so no ranking of theirs "
+                                 "can be judged; choose labelled documents")  # fmt: skip
         return chosen
     pool = labels.index[labels.notna()].to_numpy(np.int64)
     if len(pool) == 0:
@@ -292,7 +298,7 @@ def retrieval_quality(db, methods=None, label_column: str = "label", group_colum
     seed : int
         Seed of that sample.
     queries : sequence of int, optional
-        Explicit query doc ids (overrides ``n_queries``).
+        Explicit query doc ids (overrides ``n_queries``), each labelled.
     indexes : dict, optional
         The 2005 relational indexes (group -> InvertedIndex), if loaded.
     timing : bool
@@ -310,7 +316,8 @@ def retrieval_quality(db, methods=None, label_column: str = "label", group_colum
           leave-group-out, queries with a relevant document in other groups), ``p_at_1``, ``p_at_10`` (LOO),
           ``recall_dtw_top10`` (mean share of brute-force DTW's 10 best documents among the method's first 10,
           LOO), ``ms_per_query`` (mean) and ``median_ms`` (K = 10, LOO), ``note``. ``attrs``: label_column,
-          group_column, numeric_set, queries, notes.
+          group_column, numeric_set, queries, documents, unlabelled (the documents without a label: searched,
+          never relevant, never a query), notes.
         - ``per_class``: per (method, class): ``queries``, ``ap_loo`` (mean), ``n_loo`` (queries with a defined
           AP), ``ap_lgo``, ``n_lgo``, ``p_at_1``. The summary's ``map_loo`` is the ``n_loo``-weighted mean of
           ``ap_loo``.
@@ -321,7 +328,7 @@ def retrieval_quality(db, methods=None, label_column: str = "label", group_colum
     Raises
     ------
     ParameterError
-        An unknown method, a missing label or group column, no labelled document.
+        An unknown method, a missing label or group column, no labelled document, an unlabelled query.
 
     Examples
     --------
@@ -341,7 +348,7 @@ def retrieval_quality(db, methods=None, label_column: str = "label", group_colum
         raise ParameterError(f"the documents have no column {group_column!r}; columns: {', '.join(docs.columns)}")
     ids = docs["doc_id"].astype(np.int64).to_numpy()
     labels = pd.Series(docs[label_column].astype(object).where(docs[label_column].notna(), None).to_numpy(),
-                       index=ids).replace("", None)  # fmt: skip
+                       index=ids, name=label_column).replace("", None)  # fmt: skip
     groups = None if group_column is False else pd.Series(docs[group_column].astype(object).to_numpy(), index=ids)
     chosen = _queries(labels, queries, n_queries, seed)
     runner = _Runner(db, numeric_set, labels, groups, indexes)
@@ -443,7 +450,8 @@ def retrieval_quality(db, methods=None, label_column: str = "label", group_colum
               for (method, protocol), (total, n) in sums.items() for i, r in enumerate(RECALL_LEVELS)]  # fmt: skip
     curves = pd.DataFrame(curves, columns=["method", "protocol", "recall", "precision", "queries"])
     settings = {"label_column": label_column, "group_column": group_column or None, "numeric_set": numeric_set,
-                "queries": len(chosen), "documents": len(docs), "notes": notes}  # fmt: skip
+                "queries": len(chosen), "documents": len(docs), "unlabelled": int(labels.isna().sum()),
+                "notes": notes}  # fmt: skip
     for frame in (summary, per_class, curves, per_query):
         frame.attrs.update(settings)
     return {"summary": summary, "per_class": per_class, "curves": curves, "per_query": per_query}

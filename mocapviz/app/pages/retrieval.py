@@ -66,6 +66,17 @@ def summary_view(summary: pd.DataFrame) -> pd.DataFrame:
     return shown
 
 
+def count_text(summary: pd.DataFrame, methods, label: str, group) -> str:
+    """What was evaluated, above the summary table: the queries, the documents (and how many of them have no
+    ``label``: searched, never relevant, never a query), the relevance rule and the methods."""
+    attrs = summary.attrs
+    unlabelled = attrs.get("unlabelled", 0)
+    left_out = f" ({unlabelled} without a {label}: searched, never relevant, never a query)" if unlabelled else ""
+    return (f"**{attrs['queries']} queries** of {attrs['documents']} documents{left_out}, relevant = same {label}"
+            + (f", leave-{group}-out" if group else "")
+            + ", " + ", ".join(f"{m}: {METHOD_LABELS.get(m, m)}" for m in methods))  # fmt: skip
+
+
 class RetrievalPage(pn.viewable.Viewer):
     """Evaluate the search methods on the open database: summary table, AP per class, P/R curves."""
 
@@ -147,10 +158,7 @@ class RetrievalPage(pn.viewable.Viewer):
         summary = result["summary"]
         self.summary.param.update(value=summary_view(summary), titles=summary_titles(summary))
         methods, label, group, _ = settings
-        attrs = summary.attrs
-        self.count.object = (f"**{attrs['queries']} queries** of {attrs['documents']} documents, relevant = same "
-                             f"{label}" + (f", leave-{group}-out" if group else "")
-                             + ", " + ", ".join(f"{m}: {METHOD_LABELS.get(m, m)}" for m in methods))  # fmt: skip
+        self.count.object = count_text(summary, methods, label, group)
         panes = []
         for protocol in ("loo", "lgo"):
             if result["per_class"][f"ap_{protocol}"].notna().any():
