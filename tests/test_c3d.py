@@ -382,7 +382,7 @@ def test_ingest_on_a_cluster_reports_a_crash_as_a_typed_error(crashing, c3d_dir,
     folder.mkdir()
     for p in (crashing, c3d_dir / "cmu_07_01.c3d", c3d_dir / "cmu_85_02.c3d"):
         shutil.copy(p, folder / p.name)
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
             Client(cluster) as client:  # fmt: skip
         assert all(client.run(_without_checks).values())
         with pytest.warns(UserWarning, match=r"skipped .*analog_used_1_cmu_07_12.c3d: the C3D reader \(ezc3d\) crash"):

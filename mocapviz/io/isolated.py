@@ -31,6 +31,7 @@ import struct
 import subprocess
 import sys
 import threading
+import time
 
 from ..errors import MocapFormatError
 
@@ -85,8 +86,11 @@ def read_isolated(function, path, *args, reader: str, preload: tuple = (), memor
         raise MocapFormatError(path, f"{reader} did not finish within {timeout:g} s") from None
     except EOFError:
         raise MocapFormatError(path, f"{reader} crashed on this file ({_how(helper.ended())})") from None
-    except OSError as exc:  # no helper started, or it ended before the request
+    except OSError as exc:  # no helper started, or it had ended before the request (then killed)
         raise MocapFormatError(path, f"{reader} could not be run in a helper process ({exc})") from None
+    except BaseException:  # interrupted (KeyboardInterrupt): nobody would read the helper's reply
+        helper.kill()
+        raise
     if kind == _RAISED:
         helper.close()
         raised = payload.decode(errors="replace")
@@ -124,6 +128,9 @@ class _Helper:
             self.call(pickle.dumps(("preload", preload)), _START_S)
         except EOFError:
             raise OSError(f"the helper process ended while starting ({_how(self.ended())})") from None
+        except TimeoutError:
+            self.kill()
+            raise OSError(f"the helper process was not ready within {_START_S:g} s") from None
         except BaseException:
             self.kill()
             raise
@@ -136,14 +143,18 @@ class _Helper:
         except OSError:
             self.kill()
             raise
-        kind, size = _REPLY.unpack(self._read(_REPLY.size, timeout))
-        return kind, bytes(self._read(size, timeout))
+        deadline = time.monotonic() + timeout
+        kind, size = _REPLY.unpack(self._read(_REPLY.size, deadline))
+        return kind, bytes(self._read(size, deadline))
 
-    def _read(self, size: int, timeout: float) -> bytearray:
+    def _read(self, size: int, deadline: float) -> bytearray:
         out = bytearray(size)
         view, done = memoryview(out), 0
+        ready = select.poll()  # not select.select: a server's descriptors may number beyond 1024
+        ready.register(self._replies, select.POLLIN)
         while done < size:
-            if not select.select([self._replies], [], [], timeout)[0]:
+            left = deadline - time.monotonic()
+            if left <= 0 or not ready.poll(left * 1000):
                 raise TimeoutError
             got = os.readv(self._replies, [view[done:]])
             if not got:
