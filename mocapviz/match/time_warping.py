@@ -571,7 +571,8 @@ def matches_frame(doc_starts: np.ndarray, starts, ends, costs, paths) -> pd.Data
 
 @renamed(k="n_matches")
 def subsequence_dtw(query, database, starts=None, n_matches: int = 10, distance=None, steps="basic",
-                    paths: bool = True, progress: bool = False, min_length: float | None = MIN_LENGTH) -> pd.DataFrame:
+                    paths: bool = True, progress: bool = False, min_length: float | None = MIN_LENGTH,
+                    checked: bool = False) -> pd.DataFrame:  # fmt: skip
     """The ``n_matches`` best non-overlapping matches of a query in a database by subsequence DTW (Müller 2007
     §4.4): the local minima of the accumulated cost over the last query frame, best first, each discarding the
     candidates that overlap it. The reference that the lazy neighbourhood graph (Krüger et al. 2010 §4.1)
@@ -601,6 +602,10 @@ def subsequence_dtw(query, database, starts=None, n_matches: int = 10, distance=
         :data:`mocapviz.validation.MIN_LENGTH`, half as long as the query); None: any length (Müller's subsequence DTW, whose best
         match may map every query frame to one database frame). An end frame whose best alignment is shorter is
         no candidate.
+    checked : bool
+        The query's length was checked against a whole database already (:func:`check_query_length`): ``database``
+        is a part of it (a shard of :mod:`mocapviz.sharded`) whose documents may all be shorter than the query and
+        still hold matches of ``min_length``.
 
     Returns
     -------
@@ -638,7 +643,8 @@ def subsequence_dtw(query, database, starts=None, n_matches: int = 10, distance=
     n_matches = count(n_matches, "n_matches")
     n = len(database)
     doc_starts = _check_document_starts(starts, n)
-    check_query_length(len(query), doc_starts, n)
+    if not checked:
+        check_query_length(len(query), doc_starts, n)
     shortest = shortest_match(min_length, len(query))
     cost, first = subsequence_costs(query, database, starts, distance, steps, progress)
     cost[np.arange(n) - first + 1 < shortest] = np.inf

@@ -22,8 +22,8 @@ import pandas as pd
 from ..db.database import MotionDB
 from ..db.hits import first_frames, hit_table
 from ..db.shards import split_documents
-from ..errors import ClusterError, MocapvizError
-from ..match.time_warping import shortest_match
+from ..errors import ClusterError, MocapvizError, ParameterError
+from ..match.time_warping import check_query_length, shortest_match
 from ..parallel import dask_client
 from ..validation import MIN_LENGTH, count
 from .shard import Shard
@@ -48,6 +48,10 @@ class ShardedDB:
         object's life, a scheduler's address, or a Client.
     n_shards : int, optional
         Shards (default: one per worker at the start).
+    shards : sequence of array_like of int, optional
+        Instead of ``n_shards``: each shard's doc ids, runs of consecutive documents in storage order that hold
+        every document once, in that order (default :func:`~mocapviz.db.shards.split_documents`, shards of about
+        equal frames); uneven shards, e.g. a few short documents alone, are how the tests reach every case.
     numeric_sets, relational_sets : sequence of str
         Derived data every shard makes now rather than on its first query (kd-trees, inverted indexes).
 
@@ -59,15 +63,20 @@ class ShardedDB:
     ...     hits = sharded.clips(7, n_matches=3, mode="exact")
     """
 
-    def __init__(self, db, scheduler="local", n_shards: int | None = None, numeric_sets=(), relational_sets=()):
+    def __init__(self, db, scheduler="local", n_shards: int | None = None, numeric_sets=(), relational_sets=(),
+                 shards=None):  # fmt: skip
         self.db = db if isinstance(db, MotionDB) else MotionDB.open(db)
+        if shards is not None:
+            shards = _given_shards(self.db, shards, n_shards)
         self._stack = contextlib.ExitStack()
         try:
             self.client = self._stack.enter_context(dask_client(scheduler))
             workers = self._workers()
             if not workers:
                 raise ClusterError(f"the dask cluster at {self.client.scheduler.address} has no worker")
-            self.shards = split_documents(self.db, count(n_shards, "n_shards") if n_shards else len(workers))
+            if shards is None:
+                shards = split_documents(self.db, count(n_shards, "n_shards") if n_shards else len(workers))
+            self.shards = shards
             self.actors = [self._start(i, workers[i % len(workers)]) for i in range(len(self.shards))]
             if numeric_sets or relational_sets:
                 self._fan("warm", tuple(numeric_sets), tuple(relational_sets))
@@ -171,18 +180,21 @@ class ShardedDB:
         numeric_set : str
         radius, eps
             As :meth:`KnnIndex.query`.
-        exclude : np.ndarray [shape=(q, 2) or (2,)], int, optional
-            Database-wide [a, b) frames left out, per query.
+        exclude : np.ndarray [shape=(q, 2), or (2,) for one query], int, optional
+            Database-wide [a, b) frames left out, per query (a shard whose frames are all left out answers
+            nothing for that query).
 
         Returns
         -------
         distances : np.ndarray [shape=(q, k)], float64 (inf where fewer)
         frames : np.ndarray [shape=(q, k)], int64, database-wide (-1 where fewer); nearest first.
         """
-        k = count(k, "k")
-        queries = np.atleast_2d(np.asarray(queries, dtype=np.float32))
+        from ..similarity.knn import excluded_ranges
+
+        k = count(k, "k", 1, self.db.n_frames, "the number of indexed frames")  # checked as one kd-tree would
+        queries = np.atleast_2d(np.asarray(queries, dtype=np.float64))  # searched in float64, as by one kd-tree
         if exclude is not None:
-            exclude = np.broadcast_to(np.asarray(exclude, dtype=np.int64).reshape(-1, 2), (len(queries), 2))
+            exclude = excluded_ranges(exclude, len(queries), self.db.n_frames)
         parts = self._fan("knn", numeric_set, queries, k, radius, eps, exclude)
         distances = np.concatenate([d for d, _ in parts], axis=1)
         frames = np.concatenate([f for _, f in parts], axis=1)
@@ -204,20 +216,27 @@ class ShardedDB:
         options = {"n_matches": n_matches, "exclude_document": exclude_document}
         limit = self._limit("clips", numeric_set, query, "normalised_cost", mode, options)
         tables = self._fan("clips", numeric_set, query, mode=mode, paths=paths, limit=limit, **options)
-        return self._merged(tables, ["normalised_cost", "doc_id"], n_matches, t0)
+        return _work_added(self._merged(tables, ["normalised_cost", "doc_id"], n_matches, t0), tables)
 
     def stretches(self, example, frames=None, n_matches: int = 10, numeric_set: str = "F15E", mode: str = "fast",
                   min_length: float | None = MIN_LENGTH, exclude_document: bool = False,
                   paths: bool = False) -> pd.DataFrame:  # fmt: skip
         """:meth:`SimilaritySearch.stretches` over every shard: the K best non-overlapping stretches by DTW cost, then
         by their last frame in the database (exact and brute mode: the single process's answer)."""
+        from ..similarity.search import check_stretch_query
+
         query = self._query(example, frames, numeric_set)
         n_matches = count(n_matches, "n_matches")
+        m, docs = len(query.values), self.db.documents
+        lengths = docs["n_frames"].to_numpy()
+        if exclude_document and query.doc_id is not None:
+            lengths = lengths[docs["doc_id"].to_numpy() != query.doc_id]
+        check_stretch_query(lengths, m, shortest_match(min_length, m))  # once, on the whole database
         t0 = time.perf_counter()
         options = {"n_matches": n_matches, "min_length": min_length, "exclude_document": exclude_document}
         limit = self._limit("stretches", numeric_set, query, "cost", mode, options)
         tables = self._fan("stretches", numeric_set, query, mode=mode, paths=paths, limit=limit, **options)
-        return self._merged(tables, ["cost", "_last"], n_matches, t0)
+        return _work_added(self._merged(tables, ["cost", "_last"], n_matches, t0), tables)
 
     def _limit(self, method: str, numeric_set: str, query, column: str, mode: str, options: dict) -> float | None:
         """The K-th best cost shared by every shard in exact mode (:func:`mocapviz.match.pruned.search_ranges`): a
@@ -248,7 +267,8 @@ class ShardedDB:
             query = self._query(example, frames, numeric_set)
             n_matches = count(n_matches, "n_matches")
             t0 = time.perf_counter()
-            shortest_match(min_length, len(query.values))  # checked here, once
+            shortest_match(min_length, len(query.values))  # checked here, once, on the whole database
+            check_query_length(len(query.values), self.db.documents["start"].sort_values().to_numpy(), self.db.n_frames)
             tables = self._fan("match_dtw", numeric_set, query, n_matches, exclude_document, paths, min_length)
             table = self._merged(tables, ["cost", "_last"], n_matches, t0)
             table.attrs.update(method="dtw", query_frames=len(query.values))
@@ -288,13 +308,13 @@ class ShardedDB:
         results = self._fan("find", parsed.text, parsed.relational_set, n_matches=n_matches,
                             template_cost=template_cost, overlapping=overlapping)  # fmt: skip
         table = self._merged(results, ["score", "_first"], n_matches, t0)
-        counts: dict[str, int] = {}
-        for attrs in (p["attrs"] for p in results):
-            for label, n in attrs["counts"]:
-                counts[label] = counts.get(label, 0) + n
-        table.attrs.update(description=str(parsed), relational_set=parsed.relational_set, counts=list(counts.items()),
+        # every shard evaluates the same parts in the same order: their counts add up place by place (a label may
+        # come twice: 'kick_right | kick_right')
+        counts = [(label, sum(p["attrs"]["counts"][i][1] for p in results))
+                  for i, (label, _) in enumerate(results[0]["attrs"]["counts"])]  # fmt: skip
+        table.attrs.update(description=str(parsed), relational_set=parsed.relational_set, counts=counts,
                            candidates=sum(p["attrs"]["candidates"] for p in results),
-                           empty_reason=empty_reason(list(counts.items())) if table.empty else "")  # fmt: skip
+                           empty_reason=empty_reason(counts) if table.empty else "")  # fmt: skip
         return table
 
     def search_template(self, template, n_matches: int = 10, delta: float | None = None,
@@ -361,6 +381,29 @@ class _ShardedSearch:
 
     def stretches(self, example, frames=None, **options) -> pd.DataFrame:
         return self.sharded.stretches(example, frames, numeric_set=self.numeric_set, **options)
+
+
+def _work_added(table: pd.DataFrame, packs: list) -> pd.DataFrame:
+    """A similarity search's table with its work counted over every shard (attrs ``documents``, ``ranges``,
+    ``aligned``, ``cells``, ``brute_cells``; the first shard's alone otherwise): documents searched and brute
+    force's cells are then the single process's."""
+    for key in ("documents", "ranges", "aligned", "cells", "brute_cells"):
+        if key in packs[0]["attrs"]:
+            table.attrs[key] = sum(int(p["attrs"][key]) for p in packs)
+    return table
+
+
+def _given_shards(db: MotionDB, shards, n_shards) -> list[np.ndarray]:
+    """``shards=`` of :class:`ShardedDB` as int64 arrays, checked: not empty, consecutive documents in storage order,
+    every document once, in that order (the merge numbers segments shard after shard)."""
+    if n_shards is not None:
+        raise ParameterError("give n_shards or shards (each shard's doc ids), not both")
+    parts = [np.asarray(s, dtype=np.int64).reshape(-1) for s in shards]
+    order = db.documents.sort_values("start")["doc_id"].to_numpy(np.int64)
+    if not parts or any(len(p) == 0 for p in parts) or not np.array_equal(np.concatenate(parts), order):
+        raise ParameterError(f"shards must be runs of consecutive documents of {db.path} in storage order, every "
+                             "document once, in that order (as split_documents returns them)")
+    return parts
 
 
 def _why(exc: Exception) -> str:

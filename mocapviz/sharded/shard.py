@@ -108,14 +108,21 @@ class Shard:
     # ------------------------------------------------------------------ searches
     def knn(self, numeric_set: str, queries: np.ndarray, k: int, radius=None, eps: float = 0.0, exclude=None):
         """The k nearest frames of the shard to each query row: (distances (q, k'), database-wide frames (q, k'),
-        -1 where fewer), k' = min(k, the shard's indexed frames). ``exclude``: database-wide [a, b) per query."""
+        -1 where fewer), k' = min(k, the shard's indexed frames). ``exclude``: database-wide [a, b) per query,
+        checked by the coordinator; a query whose range holds every frame of the shard finds nothing here."""
         index = self.search(numeric_set).knn_index
         k = min(int(k), index.n_indexed)
+        queries = np.atleast_2d(queries)
+        distances, frames = np.full((len(queries), k), np.inf), np.full((len(queries), k), -1, dtype=np.int64)
+        rows = np.arange(len(queries))
         if exclude is not None:
-            exclude = np.asarray(exclude, dtype=np.int64).reshape(-1, 2) - self.offset
-            exclude = np.clip(exclude, 0, self.view.n_frames)
-        distances, frames = index.query(np.atleast_2d(queries), k, radius=radius, eps=eps, exclude=exclude)
-        return distances, np.where(frames >= 0, frames + self.offset, -1)
+            exclude = np.clip(np.asarray(exclude, dtype=np.int64).reshape(-1, 2) - self.offset, 0, self.view.n_frames)
+            rows = np.flatnonzero(exclude[:, 1] - exclude[:, 0] < self.view.n_frames)
+            exclude = exclude[rows]
+        if len(rows):
+            distances[rows], found = index.query(queries[rows], k, radius=radius, eps=eps, exclude=exclude)
+            frames[rows] = np.where(found >= 0, found + self.offset, -1)
+        return distances, frames
 
     def packed(self, table) -> dict:
         """A hit table as it travels to the coordinator: ``columns`` (doc_id, start, end and the search's own
@@ -135,19 +142,20 @@ class Shard:
         return self.packed(self.search(numeric_set).clips(query, **options))
 
     def stretches(self, numeric_set: str, query, **options) -> dict:
-        """:meth:`SimilaritySearch.stretches` on the shard."""
-        return self.packed(self.search(numeric_set).stretches(query, **options))
+        """:meth:`SimilaritySearch.stretches` on the shard, the query checked by the coordinator (the shard's
+        documents may all be shorter than it and still hold matches)."""
+        return self.packed(self.search(numeric_set).stretches(query, checked=True, **options))
 
     def match_dtw(self, numeric_set: str, query, n_matches: int, exclude_document: bool, paths: bool,
                   min_length: float | None) -> dict:
         """:func:`~mocapviz.similarity.motion_matching.match_motion` by subsequence DTW on the shard (the query's own
-        document left out when it is one of the shard's)."""
+        document left out when it is one of the shard's; its length checked by the coordinator)."""
         from ..similarity.motion_matching import match_motion
 
         own = exclude_document and query.doc_id is not None and query.doc_id in self.doc_ids
         return self.packed(match_motion(self.view, query, numeric_set=numeric_set, method="dtw", n_matches=n_matches,
                                         exclude_document=own, paths=paths, features=self.numeric(numeric_set),
-                                        min_length=min_length))
+                                        min_length=min_length, checked=True))
 
     def query_by_example(self, example, features, relational_set: str, mode: str, mismatches: int,
                          allowed) -> dict:  # fmt: skip

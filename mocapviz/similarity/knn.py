@@ -151,6 +151,49 @@ def _check_exclude(exclude, n_queries: int) -> np.ndarray:
     return arr.astype(np.int64)
 
 
+def excluded_ranges(exclude, n_queries: int, frames) -> np.ndarray:
+    """``exclude`` of :meth:`KnnIndex.query` checked: one [start, stop) range of frames per query, each leaving
+    some indexed frame (fewer than k left are padded, as with a radius; none left is refused).
+
+    Parameters
+    ----------
+    exclude : array_like [shape=(q, 2), or (2,) for one query], int
+    n_queries : int
+        q.
+    frames : np.ndarray [shape=(n,)], int64, or int
+        The indexed frame numbers, increasing (:attr:`KnnIndex.frames`), or N: frames 0..N-1, every one indexed
+        (a sharded search's whole database).
+
+    Returns
+    -------
+    np.ndarray [shape=(q, 2)], int64
+
+    Raises
+    ------
+    ParameterError
+        Not one range per query, a start after its stop, or a range holding every indexed frame.
+
+    Examples
+    --------
+    >>> excluded_ranges([2, 5], 1, 10).tolist()
+    [[2, 5]]
+    >>> excluded_ranges([[0, 10]], 1, 10)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    mocapviz.errors.ParameterError: exclude: query 0 leaves out frames 0:10, every indexed frame; ...
+    """
+    ranges = _check_exclude(exclude, n_queries)
+    if isinstance(frames, (int, np.integer)):
+        n, inside = int(frames), np.clip(ranges[:, 1], 0, frames) - np.clip(ranges[:, 0], 0, frames)
+    else:
+        n, inside = len(frames), np.searchsorted(frames, ranges[:, 1]) - np.searchsorted(frames, ranges[:, 0])
+    if (inside >= n).any():
+        q = int(np.argmax(inside >= n))
+        raise ParameterError(f"exclude: query {q} leaves out frames {ranges[q, 0]}:{ranges[q, 1]}, every indexed "
+                             f"frame; exclude a shorter range")  # fmt: skip
+    return ranges
+
+
 # ============================================================================ engines
 def _float64_rows(features: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
     """``features[rows]`` (all rows for None) as the C-contiguous float64 (M, d) array scipy's kd-tree searches in.
@@ -398,12 +441,7 @@ class KnnIndex:
         if exclude is None:
             d, i = self._search(queries, k, radius, eps, threads)
         else:
-            ranges = _check_exclude(exclude, len(queries))
-            left = self.n_indexed - (np.searchsorted(self.frames, ranges[:, 1]) - np.searchsorted(self.frames, ranges[:, 0]))
-            if (left < 1).any():  # (fewer than k left: the rest padded, as with a radius)
-                q = int(np.argmax(left < 1))
-                raise ParameterError(f"exclude: query {q} leaves out frames {ranges[q, 0]}:{ranges[q, 1]}, every "
-                                     f"indexed frame; exclude a shorter range")  # fmt: skip
+            ranges = excluded_ranges(exclude, len(queries), self.frames)
             d, i = self._search_excluding(queries, k, radius, eps, threads, ranges)
         return (d[0], i[0]) if (x.ndim if isinstance(x, np.ndarray) else np.ndim(x)) == 1 else (d, i)
 

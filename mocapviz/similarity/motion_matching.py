@@ -28,7 +28,8 @@ DEFAULT_K = 256  # neighbours per query frame of the graph
 def match_motion(db, example, frames=None, numeric_set: str = "F15E", method: str = "lng", n_matches: int = 10,
                  k: int = DEFAULT_K, radius: float | None = None, eps: float = 0.0, exclude_document: bool = False,
                  paths: bool = False, features: np.ndarray | None = None, index: KnnIndex | None = None,
-                 option: str = "frames", min_length: float | None = MIN_LENGTH) -> pd.DataFrame:  # fmt: skip
+                 option: str = "frames", min_length: float | None = MIN_LENGTH,
+                 checked: bool = False) -> pd.DataFrame:  # fmt: skip
     """The stretches of a MotionDB most like a query, by the lazy neighbourhood graph or subsequence DTW.
 
     Parameters
@@ -60,6 +61,9 @@ def match_motion(db, example, frames=None, numeric_set: str = "F15E", method: st
         The shortest match, a share in (0, 1] of the query's frames (default 0.5: half as long), by either method:
         the rule of the similarity search's stretches (:func:`mocapviz.match.time_warping.shortest_match`); None:
         any length (a match may then hold the whole query on one frame).
+    checked : bool
+        ``method="dtw"``: the query's length was checked against a whole database already (``db`` is a shard of
+        it, :mod:`mocapviz.sharded`, whose documents may all be shorter than the query and still hold matches).
 
     Returns
     -------
@@ -104,7 +108,7 @@ def match_motion(db, example, frames=None, numeric_set: str = "F15E", method: st
     t0 = time.perf_counter()
     if method == "dtw":
         found = subsequence_dtw(query, X, starts, n_matches=n_matches + (n_matches if span else 0), paths=paths,
-                                min_length=min_length)
+                                min_length=min_length, checked=checked)
         if span is not None:
             found = found[(found["end"] < span.start) | (found["start"] >= span.stop)].head(n_matches)
     else:

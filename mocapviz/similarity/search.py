@@ -307,7 +307,7 @@ class SimilaritySearch:
     # ------------------------------------------------------------------------ stretches
     def stretches(self, example, frames=None, n_matches: int = 10, mode: str = "fast",
                   min_length: float | None = MIN_LENGTH, exclude_document: bool = False, paths: bool = False,
-                  limit: float | None = None) -> pd.DataFrame:  # fmt: skip
+                  limit: float | None = None, checked: bool = False) -> pd.DataFrame:  # fmt: skip
         """The K best non-overlapping stretches of the documents by subsequence DTW (raw cost, as
         :func:`mocapviz.match.subsequence_dtw` ranks them), each at least ``min_length`` × the query's frames.
 
@@ -331,6 +331,10 @@ class SimilaritySearch:
         limit : float, optional
             A cost that the best matches of K different documents are known to reach elsewhere (e.g. on other
             shards): what costs more is pruned from the start (exact mode stays exact for the K best overall).
+        checked : bool
+            The query was checked against a whole database already (:func:`check_stretch_query`; a shard of
+            :mod:`mocapviz.sharded`, whose documents may all be shorter than the query and still hold matches of
+            ``min_length``): not refused here, and no document to search answers nothing.
 
         Returns
         -------
@@ -344,14 +348,12 @@ class SimilaritySearch:
         lo, hi = self._lo[rows_idx], self._hi[rows_idx]
         m = len(q)
         shortest = shortest_match(min_length, m)
-        if not len(lo) or (hi - lo).max() < max(m, shortest):
-            longest = int((hi - lo).max()) if len(lo) else 0
-            raise ParameterError(f"the query has {m} frames, more than the longest searchable document ({longest} "
-                                 f"frames); choose a shorter span or search whole clips")  # fmt: skip
+        if not checked:
+            check_stretch_query(hi - lo, m, shortest)
         bound = np.zeros(len(lo))
         rows = np.zeros((len(lo), m))
         order = np.arange(len(lo))
-        if mode != "brute":
+        if mode != "brute" and len(lo):
             dist, nb = self._neighbours(q)
             if mode == "fast":
                 seeds = _windows(nb, m, self._lo[rows_idx], self._hi[rows_idx])
@@ -403,6 +405,29 @@ class SimilaritySearch:
         cost = np.asarray(cost, dtype=np.float64)
         return hit_table(self.db, self._doc_ids[np.asarray(doc_rows, dtype=np.int64)], start, end, cost=cost,
                          normalised_cost=cost / (m + frames))  # fmt: skip
+
+
+def check_stretch_query(frames, m: int, shortest: int) -> None:
+    """Refuse a stretch search that no searchable document can answer: none is as long as the query.
+
+    Parameters
+    ----------
+    frames : np.ndarray [shape=(n,)], int
+        The searchable documents' frames (the query's own left out when it is excluded).
+    m : int
+        The query's frames.
+    shortest : int
+        The shortest match, frames (:func:`~mocapviz.match.time_warping.shortest_match`).
+
+    Raises
+    ------
+    ParameterError
+        No searchable document, or every one shorter than the query.
+    """
+    if not len(frames) or np.max(frames) < max(m, shortest):
+        longest = int(np.max(frames)) if len(frames) else 0
+        raise ParameterError(f"the query has {m} frames, more than the longest searchable document ({longest} "
+                             f"frames); choose a shorter span or search whole clips")  # fmt: skip
 
 
 class Query(NamedTuple):
