@@ -309,7 +309,7 @@ def draw_example(data, db, motion: bool = True):
     return doc, (start, stop)
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=60, deadline=None)
 @given(data=st.data())
 def test_random_similarity_searches_are_the_single_process_table(single, shardings, data):
     """clips and stretches, exact and brute mode (fast mode is per shard: README, Sharded search)."""
@@ -350,7 +350,7 @@ def test_random_knn_is_the_single_process_answer(single, shardings, data):
     event("some padded" if (one[1] < 0).any() else "k found")
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=40, deadline=None)
 @given(data=st.data())
 def test_random_motion_matching_is_the_single_process_table(single, shardings, data):
     """match_motion by the lazy neighbourhood graph (the shards' merged neighbours) and by subsequence DTW."""
@@ -414,9 +414,11 @@ def progression(data, relational_set: str) -> str:
     return text
 
 
-def description(data, relational_set: str) -> str:
-    """Shipped names and random progressions joined by ``then`` (maybe ``within``) and ``|``, maybe bracketed."""
+def description(data, relational_set: str, templates=()) -> str:
+    """Shipped names, random progressions and ``templates`` (stored names: ``template:NAME``) joined by ``then``
+    (maybe ``within``) and ``|``."""
     names = [n for n, body in named_descriptions(relational_set).items() if not isinstance(body, DescriptionError)]
+    names += [f"template:{name}" for name in templates]
 
     def primary() -> str:
         if data.draw(st.integers(0, 2), label="progression?") == 0:
@@ -447,7 +449,7 @@ def test_random_descriptions_find_the_single_process_table(single, shardings, da
     identical(one, many, ("description", "relational_set", "counts", "candidates", "empty_reason"))
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=30, deadline=None)
 @given(data=st.data())
 def test_random_template_searches_are_the_single_process_table(single, shardings, data):
     """The template of a random label (either set), with and without the keyframe pre-filter."""
@@ -543,14 +545,22 @@ def test_a_similarity_searchs_work_is_counted_on_every_shard(single, shardings):
 # ------------------------------------------------------------------------------------------------ the CLI's --csv
 @pytest.fixture(scope="module")
 def cli_db(single, tmp_path_factory):
-    """A copy of the HDM05 database with both relational indexes and F15E stored (F15x3E computed per call)."""
+    """A copy of the HDM05 database with both relational indexes, F15E (F15x3E computed per call) and the templates
+    of :data:`CLI_TEMPLATES` stored."""
+    from mocapviz.relational.templates import store_template
+
     path = tmp_path_factory.mktemp("cli") / "db"
     shutil.copytree(single.db.path, path)
     db = MotionDB.open(path)
     for relational_set in RELATIONAL:
         build(db, relational_set, progress=False, values=single.values[relational_set])
+        for label in CLI_TEMPLATES:
+            store_template(db, single.template(label, relational_set), f"{label}-{relational_set}")
     store_numeric(db, ["F15E"], progress=False)
     return db
+
+
+CLI_TEMPLATES = ("squat1Reps", "kickLFront1Reps")  # stored as LABEL-SET, named by template: atoms of find
 
 
 def cli_command(data, db) -> list[str]:
@@ -572,7 +582,8 @@ def cli_command(data, db) -> list[str]:
                 *mode, "--relational-set", relational_set, "-K", K]  # fmt: skip
     if command == "find":
         relational_set = data.draw(st.sampled_from(RELATIONAL), label="set")
-        return ["find", str(db.path), description(data, relational_set), "-K", K]
+        stored = [f"{label}-{relational_set}" for label in CLI_TEMPLATES]
+        return ["find", str(db.path), description(data, relational_set, stored), "-K", K]
     numeric_set = data.draw(st.sampled_from(["F15E", "F15x3E"]), label="numeric set")
     if command == "knn":
         frame = data.draw(st.integers(0, n - 1), label="frame")
@@ -600,7 +611,7 @@ def test_random_cli_csv_is_the_same_with_a_scheduler(cli_db, client, tmp_path, c
         err = capsys.readouterr().err
         outputs.append((code, csv.read_bytes() if code == 0 else err))
     assert outputs[0] == outputs[1], command
-    event(f"{command[0]}: exit {outputs[0][0]}")
+    event(f"{command[0]}{' with a template' if 'template:' in ' '.join(command) else ''}: exit {outputs[0][0]}")
 
 
 def test_cli_stretches_longer_than_a_shards_documents(cli_db, client, tmp_path, capsys):
