@@ -524,6 +524,22 @@ def test_knn_checks_k_and_exclude_on_the_whole_database(single, shardings):
               shardings["uneven"].match_motion(alone, k=64, exclude_document=True), ("method", "query_frames"))
 
 
+def test_knn_ties_across_the_kth_neighbour_go_to_the_first_frame(single, shardings):
+    """HDM05's cut clips often share a pose at a cut (the last frame of one document is the first of the next,
+    distance 0): asked for k=1 at such a frame, the kd-tree over the whole database returned one of the two and a
+    shard's kd-tree the other (random CLI test: knn --frame 53:0 -k 1, doc 52 frame 43 against doc 53 frame 0). The
+    k returned are now the k least by (distance, frame) from any index: the first frame of the pose."""
+    db, features = single.db, single.features["F15E"]
+    starts = db.documents.sort_values("start")["start"].to_numpy()[1:]
+    shared = starts[(features[starts] == features[starts - 1]).all(axis=1)]
+    assert len(shared) > 10
+    first = [int(np.flatnonzero((features == features[f]).all(axis=1))[0]) for f in shared]
+    for engine in ("ckdtree", "brute"):
+        assert KnnIndex(features, engine=engine).query(features[shared], 1)[1][:, 0].tolist() == first
+    for sharded in shardings.values():
+        assert sharded.knn(features[shared], 1)[1][:, 0].tolist() == first
+
+
 def test_a_name_used_twice_is_counted_twice(single, shardings):
     """find's attrs ``counts`` hold a label once per part, in evaluation order, twice when a name is used twice;
     the shards' counts were merged by label ('kick_right | kick_right': one ('kick_right', 0) fewer, random test)."""
@@ -614,14 +630,16 @@ def test_random_cli_csv_is_the_same_with_a_scheduler(cli_db, client, tmp_path, c
     event(f"{command[0]}{' with a template' if 'template:' in ' '.join(command) else ''}: exit {outputs[0][0]}")
 
 
-def test_cli_stretches_longer_than_a_shards_documents(cli_db, client, tmp_path, capsys):
+def test_cli_cases_the_random_tests_found(cli_db, client, tmp_path, capsys):
     """`search --stretches` of 200 frames of document 102 exited 1 with --scheduler on two shards (the second's
-    longest document has 186 frames) and answered without; now the same CSV."""
-    command = ["search", str(cli_db.path), "--example", "102", "--frames", "0:200", "--stretches", "--mode", "exact",
-               "-K", "5"]  # fmt: skip
-    assert main([*command, "--csv", str(tmp_path / "one.csv")]) == 0
-    assert main([*command, "--csv", str(tmp_path / "many.csv"), "--scheduler", client.scheduler.address]) == 0
-    assert (tmp_path / "one.csv").read_bytes() == (tmp_path / "many.csv").read_bytes()
+    longest document has 186 frames) and answered without; `knn --frame 53:0 -k 1` (a pose documents 52 and 53
+    share) named another frame. Now the same CSV."""
+    stretches = ["--frames", "0:200", "--stretches", "--mode", "exact", "-K", "5"]
+    for command in (["search", str(cli_db.path), "--example", "102", *stretches],
+                    ["knn", str(cli_db.path), "--frame", "53:0", "-k", "1", "--quiet"]):  # fmt: skip
+        assert main([*command, "--csv", str(tmp_path / "one.csv")]) == 0
+        assert main([*command, "--csv", str(tmp_path / "many.csv"), "--scheduler", client.scheduler.address]) == 0
+        assert (tmp_path / "one.csv").read_bytes() == (tmp_path / "many.csv").read_bytes(), command
     capsys.readouterr()
 
 

@@ -311,6 +311,32 @@ def _ties_by_frame(d: np.ndarray, i: np.ndarray):
     return d, i
 
 
+def _least_by_frame(search, structure, queries: np.ndarray, k: int, n: int, radius, eps: float, threads: int):
+    """The k nearest of each query by distance, then by position (frame order), whatever the search structure:
+    ``search`` is asked for one neighbour more, and where the k-th ties with it, for twice as many until the tied
+    group is whole (a kd-tree returns any of the points tied across the k-th: one over the whole database and one
+    over a shard chose different frames of two documents holding the same pose; HDM05's cut clips share frames).
+
+    Returns
+    -------
+    distances (q, k) float64 increasing, positions (q, k) int64 (-1 missing), equal distances in position order.
+    """
+    want = min(k + 1, n)
+    d, i = _ties_by_frame(*search(structure, queries, want, radius, eps, threads))
+    tied = d[:, k] == d[:, k - 1] if want > k else None
+    if tied is None or not tied.any():  # the usual case: one comparison
+        return d[:, :k], i[:, :k]
+    rows = np.flatnonzero(tied & np.isfinite(d[:, k]))
+    d, i = d[:, :k].copy(), i[:, :k].copy()
+    while len(rows):
+        want = min(2 * want, n)
+        more_d, more_i = _ties_by_frame(*search(structure, queries[rows], want, radius, eps, threads))
+        whole = (want == n) | ~np.isfinite(more_d[:, -1]) | (more_d[:, -1] > more_d[:, k - 1])
+        d[rows[whole]], i[rows[whole]] = more_d[whole, :k], more_i[whole, :k]
+        rows = rows[~whole]
+    return d, i
+
+
 # ============================================================================ the index
 class KnnIndex:
     """Nearest-neighbour searches over the frames of a feature array (Krüger et al. 2010 §3.3, §4.1).
@@ -414,7 +440,9 @@ class KnnIndex:
         Returns
         -------
         distances : np.ndarray [shape=(q, k), or (k,) for x (d,)], float64, sorted increasing.
-        indices : np.ndarray [shape=(q, k), or (k,) for x (d,)], int64 frame numbers; -1 where missing.
+        indices : np.ndarray [shape=(q, k), or (k,) for x (d,)], int64 frame numbers; -1 where missing. Equal
+            distances come in frame order, also across the k-th: the k least by (distance, frame), the same from
+            every index over these frames (a shard's included).
 
         Raises
         ------
@@ -446,9 +474,10 @@ class KnnIndex:
         return (d[0], i[0]) if (x.ndim if isinstance(x, np.ndarray) else np.ndim(x)) == 1 else (d, i)
 
     def _search(self, queries: np.ndarray, k: int, radius, eps: float, threads: int):
-        """Checked queries (q, d) -> distances (q, k), database frame numbers (q, k) (-1 missing)."""
-        d, i = _ENGINES[self.engine][1](self._structure, queries, k, radius, eps, threads)
-        d, i = _ties_by_frame(d, i)
+        """Checked queries (q, d) -> distances (q, k), database frame numbers (q, k) (-1 missing): the k least by
+        (distance, frame) (:func:`_least_by_frame`)."""
+        d, i = _least_by_frame(_ENGINES[self.engine][1], self._structure, queries, k, self.n_indexed, radius, eps,
+                               threads)  # fmt: skip
         if self._every:  # every frame indexed: positions are frame numbers already (-1 where missing)
             return d, i
         return d, np.where(i >= 0, self.frames[np.maximum(i, 0)], -1)
