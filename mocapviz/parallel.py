@@ -135,7 +135,10 @@ def dask_client(scheduler=LOCAL, n_workers: int | None = None, timeout: float | 
         if str(scheduler) == LOCAL:
             cluster = stack.enter_context(
                 LocalCluster(n_workers=n_workers or local_workers(), threads_per_worker=1, processes=True,
-                             dashboard_address=None, silence_logs=logging.ERROR)
+                             dashboard_address=None, silence_logs=logging.ERROR,
+                             # no dashboard; its HTTP routes on a free port (never 8787: a second cluster on the
+                             # machine printed "Port 8787 is already in use" into a command's one-line output)
+                             scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
             )  # fmt: skip
             client = stack.enter_context(Client(cluster))
         else:

@@ -30,9 +30,10 @@ def _mocapviz(*args, timeout: float = 300) -> subprocess.CompletedProcess:
 
 @pytest.fixture
 def indexed(sample_db, tmp_path) -> MotionDB:
-    """A copy of the sample database with its 2005 relational indexes and two numeric sets, all current."""
+    """A copy of the sample database with its 2005 relational indexes and two numeric sets, all current, and no other
+    derived data (the session's sample database gathers what earlier tests computed: other sets, templates)."""
     folder = tmp_path / "db"
-    shutil.copytree(sample_db.path, folder)
+    shutil.copytree(sample_db.path, folder, ignore=shutil.ignore_patterns("index", "features", "templates"))
     db = MotionDB.open(folder)
     index.build(db, "2005", progress=False)
     store_numeric(db, SETS, progress=False)

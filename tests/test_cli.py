@@ -70,6 +70,25 @@ def test_errors_are_one_line_and_exit_1(argv, needle, tmp_path, sample_dir, caps
     assert err.startswith("mocapviz: error:") and needle in err and "\n" not in err
 
 
+def test_a_busy_dask_dashboard_port_adds_no_line_to_an_error(tmp_path, capsys):
+    """Another cluster on the machine holds Dask's dashboard port (8787): the local cluster an ingest starts takes a
+    free port silently, and the error stays one line (it was preceded by "Port 8787 is already in use" and two more
+    lines when two mocapviz commands ran at once)."""
+    import socket
+
+    bad = tmp_path / "broken.bvh"
+    bad.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n}\n")
+    with socket.socket() as busy:
+        try:
+            busy.bind(("", 8787))
+            busy.listen()
+        except OSError:  # already held by something else: the condition this test makes
+            pass
+        assert main(["ingest", str(bad), "--out", str(tmp_path / "db"), "--quiet"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("mocapviz: error:") and "line 4: OFFSET needs three" in err and "\n" not in err, err
+
+
 def test_console_script_runs_as_module(sample_dir, tmp_path):
     """The same command through a fresh interpreter (as the installed `mocapviz` script runs it)."""
     res = subprocess.run([sys.executable, "-m", "mocapviz.cli", "info", str(tmp_path)], capture_output=True, text=True, check=False)
