@@ -1,10 +1,11 @@
-"""Every code example of the README runs as written.
+"""Every code example of the README and of the user guide's pages (``GUIDE``, docs/index.md's order) runs as written.
 
 - The demo commands on the demo database (the embedded sample with its indexes and numeric feature sets, as
   `make demo` builds it), each of which must print a ranked row 1.
-- Every ```python block, in README order in one namespace (a later block uses the ``db`` of an earlier one), in an
-  empty working folder: the examples use the embedded sample, so they never need the shared archives.
-- Every line of every ```sh / ```bash block, in README order in one working folder, through bash with the
+- Every ```python block, in order (the README, then the guide's pages) in one namespace (a later block uses the ``db``
+  of an earlier one), in an empty working folder: the examples use the embedded sample, so they never need the
+  shared archives.
+- Every line of every ```sh / ```bash block, in the same order in one working folder, through bash with the
   installed ``mocapviz`` command. Lines that cannot run in a test are checked instead, each for a stated reason
   (:data:`CHECKED_ONLY`): make targets by ``make -n`` (a dry run), long-running ``mocapviz`` commands by the CLI's own
   argument parser. Lines that need the shared archives skip, with the reason, when they are absent.
@@ -25,6 +26,8 @@ import pytest
 from mocapviz.cli import main
 
 README = Path(__file__).resolve().parent.parent / "README.md"
+GUIDE = [README.parent / "docs" / f"{page}.md" for page in
+         ("use", "relational", "similarity", "templates", "reproduce", "files", "dashboard")]  # docs/index.md's order
 MARKER = "<!-- demo commands: each line is run by tests/test_readme.py -->"
 
 
@@ -71,19 +74,32 @@ CHECKED_ONLY = {  # line prefix -> why it is checked, not run
 ARCHIVES = ("hdm05-cut", "cmu-asfamc", "bandai-namco")
 
 
-def _examples(languages: tuple[str, ...]) -> list[tuple[int, str]]:
-    """(README line number, code) of every fenced block in ``languages``, in README order."""
-    text = README.read_text()
-    return [(text[: m.start()].count("\n") + 2, m.group(2)) for m in FENCE.finditer(text) if m.group(1) in languages]
+def _examples(languages: tuple[str, ...]) -> list[tuple[str, str]]:
+    """("file:line", code) of every fenced block in ``languages``: the README's, then each guide page's, in order."""
+    out = []
+    for page in (README, *GUIDE):
+        text = page.read_text()
+        where = page.relative_to(README.parent)
+        out += [(f"{where}:{text[: m.start()].count(chr(10)) + 2}", m.group(2)) for m in FENCE.finditer(text)
+                if m.group(1) in languages]  # fmt: skip
+    return out
 
 
-def _shell_lines() -> list[tuple[int, str]]:
+def test_the_guide_is_the_index_in_its_order():
+    """The pages whose examples run, in the order they run, are the guide as docs/index.md lists it."""
+    index = (README.parent / "docs" / "index.md").read_text()
+    listed = re.findall(r"^\d+\. \[[^]]+\]\(([\w-]+\.md)\)", index, re.MULTILINE)
+    assert listed == [p.name for p in GUIDE]
+
+
+def _shell_lines() -> list[tuple[str, str]]:
     out = []
     for first, code in _examples(("sh", "bash")):
-        for offset, line in enumerate(code.splitlines()):
-            command = re.sub(r"\s+#.*$", "", line).strip()  # (a comment after two spaces or more)
+        page, line = first.rsplit(":", 1)
+        for offset, text in enumerate(code.splitlines()):
+            command = re.sub(r"\s+#.*$", "", text).strip()  # (a comment after two spaces or more)
             if command and not command.startswith("#"):
-                out.append((first + offset, command))
+                out.append((f"{page}:{int(line) + offset}", command))
     return out
 
 
@@ -97,9 +113,9 @@ def namespace(tmp_path_factory):
     os.chdir(old)
 
 
-@pytest.mark.parametrize(("line", "code"), _examples(("python",)), ids=lambda v: f"line{v}" if isinstance(v, int) else "")
+@pytest.mark.parametrize(("line", "code"), _examples(("python",)), ids=lambda v: v if ".md:" in v else "")
 def test_readme_python_example_runs(line, code, namespace):
-    exec(compile(code, f"README.md, block at line {line}", "exec"), namespace)  # noqa: S102 - the README's own code
+    exec(compile(code, f"{line} (block)", "exec"), namespace)  # noqa: S102 - the README's and the guide's own code
 
 
 @pytest.fixture(scope="module")
@@ -122,22 +138,22 @@ def _archives_present() -> bool:
         return False
 
 
-@pytest.mark.parametrize(("line", "command"), _shell_lines(), ids=lambda v: f"line{v}" if isinstance(v, int) else "")
+@pytest.mark.parametrize(("line", "command"), _shell_lines(), ids=lambda v: v if ".md:" in v else "")
 def test_readme_shell_example_runs(line, command, shell_folder):
     folder, env = shell_folder
     reason = next((why for prefix, why in CHECKED_ONLY.items() if command.startswith(prefix)), None)
     if reason is None and any(a in command for a in ARCHIVES) and not _archives_present():
-        pytest.skip(f"README line {line} needs the shared archives (set MOCAPVIZ_DATA_URL or put ../shared beside)")
+        pytest.skip(f"{line} needs the shared archives (set MOCAPVIZ_DATA_URL or put ../shared beside)")
     if reason is None:
         done = subprocess.run(["bash", "-ec", command], cwd=folder, env=env, capture_output=True, text=True,
                               timeout=900, check=False)  # fmt: skip
-        assert done.returncode == 0, f"README line {line}: {command!r} failed:\n{done.stdout}\n{done.stderr}"
+        assert done.returncode == 0, f"{line}: {command!r} failed:\n{done.stdout}\n{done.stderr}"
         assert "Traceback" not in done.stderr
     elif command.startswith("make "):
         words = shlex.split(command)
         dry = subprocess.run(["make", "-n", *words[1:]], cwd=README.parent, capture_output=True, text=True,
                              check=False, env=dict(os.environ, FULL=""))  # fmt: skip
-        assert dry.returncode == 0, f"README line {line}: {command!r} is not a make target:\n{dry.stderr}"
+        assert dry.returncode == 0, f"{line}: {command!r} is not a make target:\n{dry.stderr}"
     elif command.startswith("mocapviz "):
         from mocapviz.cli import build_parser
 

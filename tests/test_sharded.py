@@ -312,7 +312,7 @@ def draw_example(data, db, motion: bool = True):
 @settings(max_examples=60, deadline=None)
 @given(data=st.data())
 def test_random_similarity_searches_are_the_single_process_table(single, shardings, data):
-    """clips and stretches, exact and brute mode (fast mode is per shard: README, Sharded search)."""
+    """clips and stretches, exact and brute mode (fast mode is per shard: docs/reproduce.md, Sharded search)."""
     key, numeric_set = data.draw(shards_of, label="shards"), data.draw(st.sampled_from(NUMERIC), label="numeric set")
     example, frames = draw_example(data, single.db)
     task = data.draw(st.sampled_from(["clips", "stretches"]), label="task")

@@ -366,7 +366,7 @@ def _not_found_message() -> str:
         f"'mocapviz datasets list'; a source checkout also finds ../shared/data); the embedded '{SAMPLE}' needs none.\n"
         "They repackage public data: HDM05 cut clips (resources.mpi-inf.mpg.de/HDM05, CC BY-SA 3.0), the CMU "
         "Graphics Lab database (mocap.cs.cmu.edu) and the Bandai Namco Research motion dataset "
-        "(github.com/BandaiNamcoResearchInc/Bandai-Namco-Research-Motiondataset, CC BY-NC 4.0); see the README, "
+        "(github.com/BandaiNamcoResearchInc/Bandai-Namco-Research-Motiondataset, CC BY-NC 4.0); see docs/files.md, "
         "'Data and licences'."
     )
 

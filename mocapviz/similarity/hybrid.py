@@ -27,8 +27,8 @@ from .search import SimilaritySearch
 # Lenient selections per HDM05 class for the hybrid, as keyword arguments of hybrid_search: fewer features than
 # DEFAULT_QUERIES (mocapviz.experiments.relational), so that the relational stage keeps (nearly) every clip of the
 # class and DTW sorts out the rest. Chosen on the 287 HDM05 cut clips, leave-actor-out (query clips of one actor,
-# candidate documents of the other four), by the hybrid's mean AP at 30 Hz and checked at 120 Hz; the README gives
-# the numbers. Kick: both feet raised, adaptive (recall 1; the four Fig. 9 features keep a third of the kicks).
+# candidate documents of the other four), by the hybrid's mean AP at 30 Hz and checked at 120 Hz; docs/similarity.md
+# gives the numbers. Kick: both feet raised, adaptive (recall 1; the four Fig. 9 features keep a third of the kicks).
 # Throw: the left hand above the neck alone (recall 1; both hands give varying run orders and miss 80 %), ranked
 # with F15x3E (windows of F15E), which tells throws from arm rotations and elbow-to-knee better than F15E.
 HYBRID_QUERIES: dict[str, dict] = {
