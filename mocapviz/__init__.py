@@ -30,8 +30,8 @@ from .errors import (
 
 _install_moved()
 __getattr__, _exported = lazy_exports(__name__, {"MotionDB": ".db.database", "load": ".io", "Motion": ".motion",
-                                                 "datasets": ".io.datasets"})  # fmt: skip
-__all__ = ["MocapFormatError", "MocapFormatWarning", "MocapvizError", "Motion", "MotionDB", "MotionDBError",
+                                                 "datasets": ".io.datasets", "Engine": ".engine.engine"})  # fmt: skip
+__all__ = ["Engine", "MocapFormatError", "MocapFormatWarning", "MocapvizError", "Motion", "MotionDB", "MotionDBError",
            "ParameterError", "SkeletonMappingError", "__version__", "load"]  # fmt: skip
 
 

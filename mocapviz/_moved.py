@@ -29,6 +29,9 @@ MOVED = {
     "mocapviz.database": ("mocapviz.db.database", "mocapviz.db.ingest", "mocapviz.db.batches"),
     "mocapviz.batch": ("mocapviz.parallel", "mocapviz.db.batches"),
     "mocapviz.cluster": ("mocapviz.parallel", "mocapviz.db.batches"),
+    "mocapviz.sharded": ("mocapviz.engine",),
+    "mocapviz.sharded.engine": ("mocapviz.engine.engine",),
+    "mocapviz.sharded.shard": ("mocapviz.engine.shard",),
 }
 
 

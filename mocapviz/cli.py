@@ -66,8 +66,6 @@ from .features import NUMERIC_SETS
 from .motion import FPS_RANGE
 from .parallel import LOCAL, dask_client, optional_client  # light: dask itself is imported by dask_client
 from .validation import (
-    MIN_LENGTH,
-    MIN_LENGTH_RANGE,
     frame_span,
     parse_count,
     parse_integers,
@@ -268,55 +266,46 @@ def _query_segments(example, features: list[str], relational_set: str) -> int:
 def _query(args) -> None:
     import pandas as pd
 
-    from .db.database import MotionDB
     from .features import feature_names
-    from .io import load
-    from .relational.query import query_by_example
 
     _csv_folder(args.csv)
-    db = MotionDB.open(args.db)
-    example = _example(db, args.example)
-    motion = db.motion(example) if isinstance(example, int) else load(example)
-    what = f"document {example}" if isinstance(example, int) else str(example)
-    a, b = frame_span(args.frames, motion.n_frames, what, "--frames")
-    motion = motion[a:b]
+    engine = _engine(args)
+    example = _example(engine.db, args.example)
     features = None if args.features is None else [f.strip() for f in args.features.split(",") if f.strip()]
     known = feature_names(args.relational_set)
     if features == []:
         raise ParameterError(f"--features {args.features!r} names no feature; choose from the {args.relational_set} "
                              f"set: {', '.join(known)}")
-    if args.mismatch_at is not None and not args.mismatch:
+    if args.allowed is not None and not args.mismatches:
         raise ParameterError("--mismatch-at lists the query segments that may disagree: it needs --mismatch M (M >= 1)")
-    if args.mismatch and args.mode not in (None, "adaptive"):
-        raise ParameterError(f"--mismatch {args.mismatch} answers in mismatch mode (adaptive hits with up to M "
-                             f"segments disagreeing); leave out --mode {args.mode}")
-    if args.mismatch and all(f in known for f in features or known):  # unknown names: query_by_example says which
+    if args.mismatches and args.query_mode not in ("adaptive", "mismatch"):
+        raise ParameterError(f"--mismatch {args.mismatches} answers in mismatch mode (adaptive hits with up to M "
+                             f"segments disagreeing); leave out --mode {args.query_mode}")
+    motion = engine._motion(example, args.frames)
+    if args.mismatches and all(f in known for f in features or known):  # unknown names: the engine says which
         n = _query_segments(motion, features or list(known), args.relational_set)
-        if args.mismatch > n - 1:
-            raise ParameterError(f"--mismatch must be between 0 and {n - 1}, one less than the query's {n} segment(s) "
-                                 f"on the chosen features; got {args.mismatch}")
-        outside = sorted({i for i in args.mismatch_at or () if i >= n})
+        if args.mismatches > n - 1:
+            raise ParameterError(f"--mismatch must be between 0 and {n - 1}, one less than the query's {n} "
+                                 f"segment(s) on the chosen features; got {args.mismatches}")
+        outside = sorted({i for i in args.allowed or () if i >= n})
         if outside:
             raise ParameterError(f"--mismatch-at lists query segments from 0 to {n - 1} (the query has {n} on the "
                                  f"chosen features); got {', '.join(map(str, outside))}")
-    mode = "mismatch" if args.mismatch else args.mode or "adaptive"
+    mode = "mismatch" if args.mismatches else args.query_mode
     t0 = time.perf_counter()
-    with _sharded(args, db) as sharded:
-        run = query_by_example if sharded is None else (lambda _, *a, **k: sharded.query_by_example(*a, **k))
-        hits = run(db, motion, features, mode=mode, mismatches=args.mismatch, relational_set=args.relational_set,
-                   allowed=args.mismatch_at)  # fmt: skip
+    with engine:
+        hits = engine.query(motion, features=features, mode=mode, mismatches=args.mismatches or ...,
+                            relational_set=args.relational_set, allowed=args.allowed)  # fmt: skip
     ms = 1000 * (time.perf_counter() - t0)
     print(f"{len(hits)} hits in {ms:.1f} ms ({mode}, features: {', '.join(features or ['all'])})")
     cols = [c for c in ("rank", "doc_id", "name", "start", "end", "start_s", "end_s", "score", "label") if c in hits]
-    with pd.option_context("display.width", 160, "display.max_rows", args.n_matches + 5):
-        print(_printed(hits[cols].head(args.n_matches).round(3)))
-    _write_csv(hits.head(args.n_matches), args.csv)
-
+    with pd.option_context("display.width", 160, "display.max_rows", args.rows + 5):
+        print(_printed(hits[cols].head(args.rows).round(3)))
+    _write_csv(hits.head(args.rows), args.csv)
 
 def _find(args) -> None:
     import pandas as pd
 
-    from .db.database import MotionDB
     from .relational.description import named_descriptions
 
     if args.list:
@@ -335,16 +324,10 @@ def _find(args) -> None:
         except (OSError, UnicodeDecodeError) as exc:
             raise ParameterError(f"--file {args.file}: {exc.strerror if isinstance(exc, OSError) else exc}") from None
     _csv_folder(args.csv)
-    from .relational.scene import find
-
     given = _template_files(args.template_files)
-    if given and args.scheduler is not None:
-        raise ParameterError("--template-file works in this process only (the shards read the templates stored with "
-                             "the database): drop --scheduler, or store the template (`mocapviz template learn`)")
-    db = MotionDB.open(args.db)
-    options = {"n_matches": args.n_matches, "relational_set": args.relational_set, "template_cost": args.template_cost}
-    with _sharded(args, db) as sharded:
-        hits = find(db, text, templates=given, **options) if sharded is None else sharded.find(text, **options)
+    with _engine(args) as engine:
+        hits = engine.find(text, n_matches=args.n_matches, relational_set=args.relational_set,
+                           template_cost=args.template_cost, templates=given or None)  # fmt: skip
     if args.explain:
         print(hits.attrs["description"])
         print("matched: " + "; ".join(f"{label}: {n}" for label, n in hits.attrs["counts"]))
@@ -447,63 +430,40 @@ def _scheduler_address(text: str, name: str) -> str:
     return text
 
 
-@contextlib.contextmanager
-def _sharded(args, db):
-    """``--scheduler local|ADDRESS`` of a search command: a ShardedDB over that cluster (mocapviz.sharded), else
-    None (the search runs in this process)."""
-    if getattr(args, "scheduler", None) is None:
-        yield None
-        return
-    from .sharded import ShardedDB
+def _engine(args):
+    """The engine of a search command's database: its shards in this process, or on the cluster of
+    ``--scheduler local|ADDRESS``."""
+    from .engine import Engine
 
-    with ShardedDB(db, args.scheduler) as sharded:
-        yield sharded
-
+    return Engine(args.db, scheduler=getattr(args, "scheduler", None))
 
 def _knn(args) -> None:
     import pandas as pd
 
-    from .db.database import MotionDB
-    from .features import numeric_of
-    from .similarity.knn import KnnIndex, describe_frames
-
     _csv_folder(args.csv)
-    db = MotionDB.open(args.db)
     doc, frame = args.frame
-    try:
-        span = db.frames(doc)
-    except ParameterError as exc:
-        raise ParameterError(f"--frame {doc}:{frame}: {exc}") from None
-    if not 0 <= frame < span.stop - span.start:
-        raise ParameterError(f"document {doc} has frames 0..{span.stop - span.start - 1}; --frame asks for {frame}")
-    features = numeric_of(db, args.numeric_set, progress=not args.quiet)
-    own = (span.start, span.stop) if args.exclude_document else None
-    with _sharded(args, db) as sharded:
-        if sharded is None:
-            index = KnnIndex(features)
-            t0 = time.perf_counter()
-            dist, idx = index.query(features[span.start + frame], args.k, radius=args.radius, eps=args.eps,
-                                    exclude=own)  # fmt: skip
-            how = str(index)
-        else:
-            t0 = time.perf_counter()
-            dist, idx = sharded.knn(features[span.start + frame], args.k, args.numeric_set, args.radius, args.eps, own)
-            dist, idx, how = dist[0], idx[0], repr(sharded)
-        ms = 1000 * (time.perf_counter() - t0)
-    hits = describe_frames(db, idx, dist, per_document=args.per_document)
-    found = int((idx >= 0).sum())
+    with _engine(args) as engine:
+        try:
+            engine.db.frames(doc)
+        except ParameterError as exc:
+            raise ParameterError(f"--frame {doc}:{frame}: {exc}") from None
+        span = engine.db.frames(doc)
+        n = span.stop - span.start
+        if not 0 <= frame < n:
+            raise ParameterError(f"--frame {doc}:{frame}: document {doc} has frames 0..{n - 1}")
+        hits = engine.neighbours(doc, frame, k=args.k, numeric_set=args.numeric_set, radius=args.radius, eps=args.eps,
+                                 exclude_document=args.exclude_document, per_document=args.per_document)  # fmt: skip
+        how = repr(engine)
     each = f"; one row per document: the nearest in each of {len(hits)}" if args.per_document else ""
-    print(f"{found} neighbours of document {doc} frame {frame} by {args.numeric_set} in {ms:.2f} ms ({how}){each}")
+    print(f"{hits.attrs['found']} neighbours of document {doc} frame {frame} by {args.numeric_set} in "
+          f"{hits.attrs['ms']:.2f} ms ({how}){each}")  # fmt: skip
     cols = [c for c in ("rank", "doc_id", "name", "start", "start_s", "distance", "label") if c in hits]
     with pd.option_context("display.width", 160, "display.max_rows", args.k + 5):
         print(_printed(hits[cols].round(3)))
     _write_csv(hits, args.csv)
 
-
 def _match(args) -> None:
-    from .db.database import MotionDB
     from .features import load_numeric
-    from .similarity.motion_matching import DEFAULT_K, match_motion
 
     if args.method == "dtw":
         given = [o for o, v in (("-k", args.k), ("--radius", args.radius), ("--eps", args.eps)) if v is not None]
@@ -511,33 +471,25 @@ def _match(args) -> None:
             raise ParameterError(f"{', '.join(given)} shape the neighbourhood graph of --method lng; subsequence DTW "
                                  "(--method dtw) compares every frame: leave them out")
     _csv_folder(args.csv)
-    k, eps = args.k or DEFAULT_K, args.eps or 0.0
-    db = MotionDB.open(args.db)
-    name = args.numeric_set
-    X = load_numeric(db, name)  # a clear error naming `mocapviz features DB` when the set is not stored
-    example = _example(db, args.example)
-    with _sharded(args, db) as sharded:
-        if sharded is None:
-            table = match_motion(db, example, args.frames, name, args.method, args.n_matches, k, args.radius, eps,
-                                 exclude_document=isinstance(example, int), paths=args.paths, features=X,
-                                 option="--frames", min_length=args.min_length)  # fmt: skip
-        else:
-            table = sharded.match_motion(example, args.frames, name, args.method, args.n_matches,
-                                         None if args.method == "dtw" else k, args.radius, eps,
-                                         exclude_document=isinstance(example, int), paths=args.paths,
-                                         min_length=args.min_length)  # fmt: skip
+    with _engine(args) as engine:
+        load_numeric(engine.db, args.numeric_set)  # a clear error naming `mocapviz features DB` when not stored
+        example = _example(engine.db, args.example)
+        lng = {} if args.method == "dtw" else {"k": args.k or ..., "radius": args.radius, "eps": args.eps or ...}
+        table = engine.match(example, frames=args.frames, numeric_set=args.numeric_set, method=args.method,
+                             n_matches=args.n_matches, exclude_document=isinstance(example, int), paths=args.paths,
+                             min_length=args.min_length, **lng)  # fmt: skip
+    k = table.attrs.get("k", "")
     what = "subsequence DTW" if args.method == "dtw" else f"lazy neighbourhood graph, k={k}" + (
         f", r={args.radius:g}" if args.radius else "")  # fmt: skip
     own = isinstance(example, int)
-    print(f"{len(table)} matches of a {table.attrs['query_frames']}-frame query by {name} ({what}), each at least "
-          f"{args.min_length:g} × the query long, in {table.attrs['ms']:.1f} ms"
+    print(f"{len(table)} matches of a {table.attrs['query_frames']}-frame query by {args.numeric_set} ({what}), each "
+          f"at least {args.min_length:g} × the query long, in {table.attrs['ms']:.1f} ms"
           + (" (the query's own document excluded)" if own else ""))  # fmt: skip
-    _print_ranked(table, args.n_matches, "the lazy neighbourhood graph needs a neighbour of every query frame along a whole "
-                  "path: try a larger -k such as 1024, --method dtw, or `mocapviz search DB --stretches`"
+    _print_ranked(table, args.n_matches, "the lazy neighbourhood graph needs a neighbour of every query frame along a "
+                  "whole path: try a larger -k such as 1024, --method dtw, or `mocapviz search DB --stretches`"
                   if args.method == "lng" else "no document long enough outside the query's own")  # fmt: skip
     _print_paths(table, args.paths)
     _write_csv(table, args.csv)
-
 
 def _print_paths(table: pd.DataFrame, paths: bool) -> None:
     """``--paths``: each hit's warping path as query frame:frame of its document."""
@@ -560,44 +512,36 @@ def _print_ranked(table: pd.DataFrame, n_rows: int, empty: str) -> None:
 
 
 def _search(args) -> None:
-    from .db.database import MotionDB
-    from .similarity.search import SimilaritySearch
-
     if args.min_length is not None and not args.stretches:
         raise ParameterError("--min-length is the shortest stretch as a share of the query: it needs --stretches")
     _csv_folder(args.csv)
-    db = MotionDB.open(args.db)
-    example = _example(db, args.example)
-    options = {"n_matches": args.n_matches, "mode": args.mode, "exclude_document": args.exclude_document, "paths": args.paths}
-    frames = None if args.frames is None else slice(*args.frames)  # checked against the example by the search
-    with _sharded(args, db) as sharded:
-        if sharded is not None:
-            search, options = sharded, {**options, "numeric_set": args.numeric_set}
-        else:
-            search = SimilaritySearch(db, args.numeric_set)
+    with _engine(args) as engine:
+        example = _example(engine.db, args.example)
+        options = {"frames": args.frames, "n_matches": args.n_matches, "numeric_set": args.numeric_set,
+                   "mode": args.mode, "exclude_document": args.exclude_document, "paths": args.paths}  # fmt: skip
         if args.stretches:
-            min_length = MIN_LENGTH if args.min_length is None else args.min_length
-            table = search.stretches(example, frames=frames, min_length=min_length, **options)
+            table = engine.stretches(example, min_length=... if args.min_length is None else args.min_length, **options)
         else:
-            table = search.clips(example, frames=frames, **options)
+            table = engine.clips(example, **options)
     what = "stretches" if args.stretches else "clips"
     print(f"{len(table)} {what} like {args.example} ({table.attrs['query_frames']} frames) by DTW on {args.numeric_set}"
           f", {args.mode} mode, in {table.attrs['ms']:.1f} ms" + (" (its own document excluded)" if
                                                                  args.exclude_document else ""))  # fmt: skip
-    _print_ranked(table, args.n_matches, "the query's own document is the only one long enough; try whole clips, a shorter "
-                  "--frames span or a smaller --min-length" if args.stretches else "no other document to compare")
+    _print_ranked(table, args.n_matches, "the query's own document is the only one long enough; try whole clips, a "
+                  "shorter --frames span or a smaller --min-length" if args.stretches else "no other document to "
+                  "compare")  # fmt: skip
     _print_paths(table, args.paths)
     _write_csv(table, args.csv)
 
-
 def _template_learn(args) -> None:
-    from .db.database import MotionDB
-    from .relational.templates import DELTA, DONT_CARE, learn_class, store_template
+    from .engine.parameters import default
+    from .relational.templates import DONT_CARE, store_template
     from .validation import one_of, some_of
 
     if args.out and not Path(args.out).parent.is_dir():
         raise ParameterError(f"--out {args.out}: no folder {Path(args.out).parent} to write it in")
-    db = MotionDB.open(args.db)
+    engine = _engine(args)
+    db = engine.db
     docs = db.documents
     try:
         one_of(args.label, "label", sorted(map(str, docs["label"].dropna().unique())))
@@ -612,14 +556,16 @@ def _template_learn(args) -> None:
         except ParameterError as exc:
             raise ParameterError(f"--actors: {exc}") from None
     t0 = time.perf_counter()
-    template = learn_class(db, args.label, actors, args.relational_set)
+    template = engine.learn_template(args.label, actors=actors, relational_set=args.relational_set,
+                                     max_examples=args.max_examples)  # fmt: skip
     seconds = time.perf_counter() - t0
     stored = store_template(db, template)
-    dont_care = float((template.quantised() == DONT_CARE).mean())
+    delta = default("search_template", "delta")
+    dont_care = float((template.quantised(delta) == DONT_CARE).mean())
     n = template.n_examples
     print(f"template {template.label!r} of {db.path} ({', '.join(actors) if actors else 'every actor'}): "
           f"{n} example{'s' * (n != 1)}, {len(template.values)} frames x {len(template.features)} features of the "
-          f"{args.relational_set} set, {dont_care:.0%} don't care (δ = {DELTA}), {template.iterations} iterations, "
+          f"{args.relational_set} set, {dont_care:.0%} don't care (δ = {delta}), {template.iterations} iterations, "
           f"{seconds:.1f} s")  # fmt: skip
     meta = template.meta
     print(f"its examples' own best matches cost up to {meta['example_threshold']:.3f} per frame; its learned threshold "
@@ -674,33 +620,21 @@ def _export(args) -> None:
 
 
 def _template_search(args) -> None:
-    from .db.database import MotionDB
-    from .relational.templates import MotionTemplate, load_template, search_template, shortest_instance
+    from .relational.templates import shortest_instance
 
     _csv_folder(args.csv)
-    db = MotionDB.open(args.db)
-    if Path(args.template).is_file():
-        template = MotionTemplate.load(args.template)
-    else:
+    with _engine(args) as engine:
+        template = engine.template(args.template)
         try:
-            template = load_template(db, args.template)
-        except ParameterError as exc:  # not a stored name either
-            raise ParameterError(f"{args.template}: no such template file, and {exc}") from None
-    try:
-        with _sharded(args, db) as sharded:
-            if sharded is None:
-                table = search_template(db, template, n_matches=args.n_matches, max_cost=args.max_cost,
-                                        prefilter=args.prefilter)  # fmt: skip
-            else:
-                table = sharded.search_template(template, n_matches=args.n_matches, max_cost=args.max_cost,
-                                                prefilter=args.prefilter)  # fmt: skip
-    except ParameterError as exc:
-        raise ParameterError(f"{args.template}: {exc}") from None
+            table = engine.search_template(template, n_matches=args.n_matches, delta=args.delta,
+                                           max_cost=args.max_cost, prefilter=args.prefilter)  # fmt: skip
+        except ParameterError as exc:
+            raise ParameterError(f"{args.template}: {exc}") from None
     limit = "" if args.max_cost is None else f", normalised cost <= {args.max_cost:g}"
     n = template.n_examples
     aligned = f", keyframe pre-filter: {table.attrs['aligned']:.0%} of the frames aligned" if args.prefilter else ""
     print(f"{len(table)} matches of template {template.label!r} ({len(template.values)} frames, {n} "
-          f"example{'s' * (n != 1)}, {table.attrs['relational_set']} set) in {db.path}{limit}{aligned}, in "
+          f"example{'s' * (n != 1)}, {table.attrs['relational_set']} set) in {engine.db.path}{limit}{aligned}, in "
           f"{table.attrs['ms']:.1f} ms")  # fmt: skip
     own = template.meta.get("threshold")
     if args.max_cost is not None:
@@ -709,7 +643,6 @@ def _template_search(args) -> None:
         empty = f"no document holds the template's shortest instance, {shortest_instance(template)} frames"
     _print_ranked(table, args.n_matches, empty)
     _write_csv(table, args.csv)
-
 
 def _reproduce(args) -> None:
     from .reproduction import reproduce
@@ -787,6 +720,9 @@ def _search_scheduler(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .engine.parameters import PARAMETERS as P
+    from .engine.parameters import RULES, default
+
     p = _Parser(prog="mocapviz", description="Content-based retrieval in motion-capture databases.")
     sub = p.add_subparsers(dest="command", required=True)
 
@@ -832,15 +768,13 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--example", required=True, help="a motion file, or a document id of the DB")
     _option(q, "--frames", check=parse_span, help="frame span A:B of the example, B excluded (default: all of it)")
     q.add_argument("--features", help="comma-separated relational feature names (default: all of the set)")
-    q.add_argument("--mode", choices=["adaptive", "fuzzy", "exact"],
-                   help="adaptive fuzzy (default), plain fuzzy or exact hits")
-    _option(q, "--mismatch", check=_count(least=0), default=0, help="allow M segments of the query (segmented on the "
-            "chosen features) to disagree: 0..L-1 for a query of L segments (adaptive mismatch hits)")
-    _option(q, "--mismatch-at", check=functools.partial(parse_integers, least=0), help="with --mismatch: "
-            "comma-separated 0-based query segments that may disagree (default any)")
-    q.add_argument("--relational-set", "--feature-set", dest="relational_set", default="2005",
-                   choices=["2005", "2006"], help="relational set (default 2005; --feature-set: its old name)")
-    _option(q, "-K", "--matches", "--top", check=_count(least=1), dest="n_matches", default=20,
+    P["query_mode"].add_to(q, "--mode")
+    q.add_argument("--mismatch", dest="mismatches", type=P["mismatches"].reader("--mismatch"),
+                   help="answer in mismatch mode: " + P["mismatches"].help("none: the --mode given"))
+    _option(q, "--mismatch-at", check=functools.partial(parse_integers, least=0), dest="allowed",
+            help=P["allowed"].help() + "; with --mismatch, comma-separated 0-based segments")
+    P["relational_set"].add_to(q, "--relational-set", "--feature-set")
+    _option(q, "-K", "--matches", "--top", check=_count(least=1), dest="rows", default=20,
             help="hits to print (default 20; --top: its old name)")
     q.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
     _search_scheduler(q)
@@ -857,14 +791,11 @@ def build_parser() -> argparse.ArgumentParser:
     fd.add_argument("db", nargs="?", help="the MotionDB")
     fd.add_argument("description", nargs="?", help="the description, in quotes")
     fd.add_argument("--file", help="read the description from this file instead")
-    _option(fd, "-K", "--matches", check=_count(least=1), dest="n_matches", default=100,
-            help="hits to report (default 100)")
-    fd.add_argument("--relational-set", dest="relational_set", choices=["2005", "2006"],
+    P["n_matches"].add_to(fd, default=default("find", "n_matches"))
+    fd.add_argument("--relational-set", dest="relational_set", choices=P["relational_set"].choices,
                     help="the set whose words the description uses (default: the one its 'set' statement or its "
                     "templates name, else 2005)")  # fmt: skip
-    _option(fd, "--template-cost", check=_number(low=0, high=1), help="template:NAME atoms: instances of normalised "
-            "cost at most this, in [0, 1] (default: each template's learned threshold, the cost that best separates its "
-            "examples from the other classes' clips)")  # fmt: skip
+    P["template_cost"].add_to(fd)
     fd.add_argument("--explain", action="store_true", help="print the description as read, the hits of each part "
                     "and where each hit's parts matched")  # fmt: skip
     fd.add_argument("--list", action="store_true", help="list the shipped named descriptions and exit")
@@ -891,16 +822,12 @@ def build_parser() -> argparse.ArgumentParser:
     kn = sub.add_parser("knn", help="the k nearest frames of one frame of a MotionDB (kd-tree)")
     kn.add_argument("db")
     _option(kn, "--frame", check=_doc_frame, required=True, help="DOC:FRAME, a document id and a frame within it")
-    _option(kn, "--numeric-set", "--features", check=_numeric_set, dest="numeric_set", default="F15E",
-            help="one numeric set (default F15E; --features: its old name)")
-    _option(kn, "-k", check=_count(least=1), default=16, help="neighbours (default 16; at most the frames)")
-    _option(kn, "--radius", check=_number(low=0, low_open=True), help="only neighbours closer than this (> 0, "
-            "feature units, cm)")
-    _option(kn, "--eps", check=_number(low=0), default=0.0, help="approximate search: k-th distance within (1+eps), "
-            "eps >= 0")
-    kn.add_argument("--exclude-document", action="store_true", help="leave out the frame's own document")
-    kn.add_argument("--per-document", action="store_true", help="one row per document: the nearest of the k "
-                    "neighbours in each (consecutive frames of one take otherwise fill the top rows)")
+    P["numeric_set"].add_to(kn, "--numeric-set", "--features")
+    P["k"].add_to(kn, "-k")
+    P["radius"].add_to(kn)
+    P["eps"].add_to(kn)
+    P["exclude_document"].add_to(kn)
+    P["per_document"].add_to(kn)
     kn.add_argument("--quiet", action="store_true", help="no progress bar")
     kn.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
     _search_scheduler(kn)
@@ -912,20 +839,15 @@ def build_parser() -> argparse.ArgumentParser:
     mt.add_argument("--example", required=True, help="a motion file, or a document id of the DB (then its own "
                     "document is excluded from the matches)")  # fmt: skip
     _option(mt, "--frames", check=parse_span, help="frame span A:B of the example, B excluded (default: all of it)")
-    _option(mt, "--numeric-set", "--features", check=_numeric_set, dest="numeric_set", default="F15E", help="one "
-            "stored numeric set (default F15E; see `mocapviz features`; --features: its old name)")  # fmt: skip
-    _option(mt, "-K", "--matches", check=_count(least=1), dest="n_matches", default=10,
-            help="matches to report (default 10)")
-    _option(mt, "-k", check=_count(least=1), help="--method lng: neighbours per query frame (default 256)")
-    _option(mt, "--radius", check=_number(low=0, low_open=True), help="--method lng: only neighbours closer than "
-            "this (> 0, feature units)")
-    _option(mt, "--eps", check=_number(low=0), help="--method lng: approximate kNN, k-th distance within (1+eps), "
-            "eps >= 0 (default 0)")
-    mt.add_argument("--method", choices=["lng", "dtw"], default="lng", help="lng (default) or subsequence DTW")
-    _option(mt, "--min-length", check=MIN_LENGTH_RANGE.parse, default=MIN_LENGTH, help="the shortest match as a "
-            "share of the query's frames, in (0, 1] (default 0.5, as search --stretches)")
-    mt.add_argument("--paths", action="store_true", help="also print each match's alignment (query frame:document "
-                    "frame pairs)")  # fmt: skip
+    P["numeric_set"].add_to(mt, "--numeric-set", "--features")
+    P["n_matches"].add_to(mt)
+    for name in ("k", "radius", "eps"):  # of --method lng only: None when not given (refused with dtw)
+        mt.add_argument(*P[name].cli_flags if name != "k" else ("-k",), dest=name, default=None,
+                        type=P[name].reader("-k" if name == "k" else P[name].cli_flags[0]),
+                        help="--method lng: " + P[name].help(RULES.get(("match", name), default("match", name))))
+    P["method"].add_to(mt)
+    P["min_length"].add_to(mt)
+    P["paths"].add_to(mt)
     mt.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
     _search_scheduler(mt)
     mt.set_defaults(func=_match)
@@ -935,21 +857,16 @@ def build_parser() -> argparse.ArgumentParser:
     se.add_argument("db")
     se.add_argument("--example", required=True, help="a motion file, or a document id of the DB")
     _option(se, "--frames", check=parse_span, help="frame span A:B of the example, B excluded (default: all of it)")
-    _option(se, "--numeric-set", "--features", check=_numeric_set, dest="numeric_set", default="F15E",
-            help="one numeric set (default F15E; --features: its old name)")
-    _option(se, "-K", "--matches", check=_count(least=1), dest="n_matches", default=10,
-            help="matches to report (default 10)")
-    se.add_argument("--mode", choices=["fast", "exact", "brute"], default="fast", help="fast (default): aligns only "
-                    "where kNN and a coarse pass point; exact: brute force's answer, pruned by lower bounds; brute: "
-                    "every cell")  # fmt: skip
+    P["numeric_set"].add_to(se, "--numeric-set", "--features")
+    P["n_matches"].add_to(se)
+    P["mode"].add_to(se)
     se.add_argument("--stretches", action="store_true", help="the K best non-overlapping stretches inside documents "
                     "(subsequence DTW) instead of whole clips")  # fmt: skip
-    _option(se, "--min-length", check=MIN_LENGTH_RANGE.parse, help="with --stretches: the shortest "
-            "match as a share of the query's frames, in (0, 1] (default 0.5)")  # fmt: skip
-    se.add_argument("--exclude-document", action="store_true", help="leave out the example's own document")
+    se.add_argument("--min-length", dest="min_length", type=P["min_length"].reader("--min-length"),
+                    help="with --stretches: " + P["min_length"].help())
+    P["exclude_document"].add_to(se)
     se.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
-    se.add_argument("--paths", action="store_true", help="also print each match's alignment (query frame:document "
-                    "frame pairs)")  # fmt: skip
+    P["paths"].add_to(se)
     _search_scheduler(se)
     se.set_defaults(func=_search)
 
@@ -961,8 +878,8 @@ def build_parser() -> argparse.ArgumentParser:
     tl.add_argument("db")
     tl.add_argument("--label", required=True, help="the class: a value of the documents' label column")
     tl.add_argument("--actors", help="comma-separated actors: learn from their documents only (default all)")
-    tl.add_argument("--relational-set", dest="relational_set", default="2006", choices=["2005", "2006"],
-                    help="relational set (default 2006, as in the paper)")
+    P["relational_set"].add_to(tl, default=default("learn_template", "relational_set"))
+    P["max_examples"].add_to(tl)
     tl.add_argument("--out", help="also write the template to this file (.npz)")
     tl.set_defaults(func=_template_learn)
     ts = tsub.add_parser("search", help="the stretches of the DB that match a template, best first",
@@ -974,14 +891,11 @@ def build_parser() -> argparse.ArgumentParser:
     ts.add_argument("db")
     ts.add_argument("template", metavar="FILE_OR_NAME", help="a template file, or the name of one stored in "
                     "DB/templates/ (by `mocapviz template learn`)")  # fmt: skip
-    _option(ts, "-K", "--matches", check=_count(least=1), dest="n_matches", default=10,
-            help="matches to report (default 10)")
-    _option(ts, "--max-cost", check=_number(low=0, high=1), help="only matches of normalised cost at most this, in "
-            "[0, 1] (default: the K best, whatever their cost)")  # fmt: skip
+    P["n_matches"].add_to(ts, default=default("search_template", "n_matches"))
+    P["delta"].add_to(ts)
+    P["max_cost"].add_to(ts)
     ts.add_argument("--csv", help="also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start and end within the document, half-open)")
-    ts.add_argument("--prefilter", action="store_true", help="align only where the template's keyframes occur in "
-                    "order (read from the relational indexes, built and stored when missing): faster for a specific "
-                    "template, and may miss a hit whose keyframes disagree")  # fmt: skip
+    P["prefilter"].add_to(ts)
     _search_scheduler(ts)
     ts.set_defaults(func=_template_search)
 

@@ -25,19 +25,16 @@ from playwright.sync_api import expect
 from mocapviz.app.backend import Backend
 from mocapviz.app.pages.retrieval import DEFAULT_METHODS, label_columns, summary_view
 from mocapviz.app.pages.similarity import (
-    LNG_K_AT_30HZ,
-    LNG_REFERENCE_FRAMES,
-    graph_k,
     match_alignment,
     match_span,
     matrix_docs,
     nearest_frames,
-    scaled_k,
 )
 from mocapviz.experiments.retrieval import retrieval_quality
 from mocapviz.features import numeric_of
 from mocapviz.match.neighbourhood_graph import lng
 from mocapviz.similarity.knn import KnnIndex, describe_frames
+from mocapviz.similarity.motion_matching import LNG_K_AT_30HZ, LNG_REFERENCE_FRAMES, graph_k, scaled_k
 from mocapviz.similarity.search import SimilaritySearch
 
 QUERY_NAME = "HDM_dg_kickLFront1Reps"  # a kick of the sample: its mm twin must come first

@@ -170,8 +170,6 @@ def warm_up(backend: Backend) -> dict[str, float]:
     cannot run (a :class:`~mocapviz.errors.MocapvizError`) is skipped. Returns the seconds of each step (logged at INFO
     level).
     """
-    from ..relational.query import query_by_example
-    from ..relational.scene import find
     from .pages import relational, similarity
 
     docs = backend.documents
@@ -201,18 +199,17 @@ def warm_up(backend: Backend) -> dict[str, float]:
         similarity.match_span(backend, "F15E", doc, span, k, 1, True)
 
     def relational_query() -> None:
-        indexes = backend.indexes(relational.RELATIONAL_SET)
         example = db.motion(doc)[span[0]:span[1]]
         for mode in relational.MODES.values():
-            query_by_example(db, example, list(relational.DEFAULT_FEATURES), mode, 1, relational.RELATIONAL_SET,
-                             indexes)
+            backend.engine.query(example, features=list(relational.DEFAULT_FEATURES), mode=mode, mismatches=1,
+                                 relational_set=relational.RELATIONAL_SET)  # fmt: skip
 
     step("search", search)
     step("knn", knn)
     step("lng", lng)
     step("relational", relational_query)
     step("row_click", lambda: backend.clip_relational(doc))
-    step("describe", lambda: find(db, "kick_right", n_matches=1, indexes=backend.indexes("2005")))
+    step("describe", lambda: backend.engine.find("kick_right", n_matches=1, relational_set="2005"))
     step("templates", lambda: _first_template(backend))
     LOG.info("warmed up in %.1f s (%s)", sum(seconds.values()),
              ", ".join(f"{name} {s:.1f} s" for name, s in seconds.items()))
@@ -224,7 +221,7 @@ def _first_template(backend: Backend) -> None:
     ``backend``'s caches; only the 2006 features of every frame when no class has two documents."""
     from .pages import templates
 
-    templates.database_features(backend, "2006")
+    backend.engine.relational_values("2006")
     label = templates.default_class(backend.documents)
     if label is not None:
         templates.learn_and_search(backend, label, (), "2006", templates.DEFAULT_DELTA, templates.DEFAULT_MATCHES,

@@ -3,8 +3,8 @@
 A :class:`Backend` is shared by every browser session showing the same database (``Backend.open`` keeps one per
 database path and generation, so an ingest that adds documents gives a fresh one). Its results are computed once,
 under a lock per result, and kept: a second session, or the same page opened again, gets them at once. The derived
-data of the whole database (:data:`DERIVED`: indexes, feature sets, kd-trees, the jobs' tables) stay for the life of
-the server, one copy for all sessions; the answers to single queries (a search, a kNN, a template's hits, ...) are
+data of the whole database (indexes, feature sets, kd-trees: its :class:`~mocapviz.engine.Engine`'s, and the jobs'
+tables, :data:`DERIVED`) stay for the life of the server, one copy for all sessions; the answers to single queries (a search, a kNN, a template's hits, ...) are
 kept :data:`ANSWERS_KEPT` per kind, the least recently used forgotten first, so the server's memory does not grow
 with every query ever asked.
 """
@@ -20,18 +20,16 @@ import numpy as np
 import pandas as pd
 
 from ..db.database import MotionDB
+from ..engine import Engine
 from ..errors import MotionDBError
-from ..features import numeric_of, relational_features
-from ..relational import index as index_mod
-from ..similarity.knn import KnnIndex
+from ..features import relational_features
 from .documents import document_table, picker_options
 
 _BACKENDS: dict = {}
 _BY_MANIFEST: dict = {}  # (path, manifest's (mtime, size), scheduler) -> Backend: a session's open reads no table
 _OPEN_LOCK = threading.Lock()
 # kinds of results (a key's first element) computed over the whole database: kept while the server runs
-DERIVED = frozenset({"indexes", "relational", "numeric", "knn", "search", "templates.features", "statistics",
-                     "correlations", "retrieval"})  # fmt: skip
+DERIVED = frozenset({"relational", "statistics", "correlations", "retrieval"})
 ANSWERS_KEPT = {"recon-prior": 4, "reconstruction": 16}  # answers kept of these kinds (each holds kd-trees, clips)
 DEFAULT_ANSWERS_KEPT = 256  # answers kept of any other kind (hit tables, neighbours, images: small)
 
@@ -73,6 +71,8 @@ class Backend:
     Attributes
     ----------
     db : MotionDB
+    engine : Engine, the database's engine (in this process, or on the cluster of ``scheduler``): every search and
+        the derived data of the whole database (indexes, feature sets, kd-trees) go through it.
     documents : pandas.DataFrame, the database's document table.
     fps : float, the database's typical frame rate: the rate of most of its frames (for defaults that scale with
         the rate, such as the neighbours k at 30 Hz); a duration or playback of a document uses
@@ -82,11 +82,7 @@ class Backend:
     def __init__(self, db: MotionDB, scheduler=None):
         self.db = db
         self.scheduler = scheduler
-        self.sharded = None
-        if scheduler is not None:  # every search asked of the cluster's shards (mocapviz.sharded)
-            from ..sharded import ShardedDB
-
-            self.sharded = ShardedDB(db, scheduler)
+        self.engine = Engine(db, scheduler=scheduler)  # every search and the derived data of the whole database
         self.documents = db.documents
         self.fps = db.typical_fps
         self._results: dict = {}
@@ -177,7 +173,7 @@ class Backend:
         >>> from mocapviz import MotionDB
         >>> b = Backend(MotionDB.sample())
         >>> _ = b.cached(("answer", 1), lambda: np.zeros(1000))
-        >>> _ = b.cached(("numeric", "x"), lambda: np.zeros(5000))  # derived data: not an answer
+        >>> _ = b.cached(("statistics", "x"), lambda: np.zeros(5000))  # derived data: not an answer
         >>> b.kept_answers()
         (1, 8000)
         """
@@ -186,80 +182,19 @@ class Backend:
         return len(answers), sum(_size(v) for v in answers)
 
     # ------------------------------------------------------------------ derived data
-    def indexes(self, relational_set: str = "2005") -> dict:
-        """The relational inverted indexes (group -> InvertedIndex); built and saved in DB/index/ when missing or
-        stale (Müller et al. 2005 §4), as ``mocapviz index DB`` would."""
-        return self.cached(("indexes", relational_set), lambda: index_mod.load_or_build(self.db, relational_set))
-
     def clip_relational(self, doc: int, relational_set: str = "2005") -> tuple[np.ndarray, list[str]]:
         """One document's relational features: (T, f) bool and the f names, computed on the clip (§3)."""
         return self.cached(("relational", doc, relational_set),
                            lambda: relational_features(self.db.motion(doc), relational_set, progress=False))
 
-    def numeric(self, name: str) -> np.ndarray:
-        """A numeric set of every frame, (N, d) float32 cm (stored when current, else computed)."""
-        return self.cached(("numeric", name), lambda: numeric_of(self.db, name))
-
-    def knn(self, name: str) -> KnnIndex:
-        """The kd-tree over a numeric set (Krüger et al. 2010 §3.3): the one of this process, shared by the kNN
-        table, motion matching and :meth:`search` (sharded: one that asks the cluster's shards)."""
-        if self.sharded is not None:
-            return self.cached(("knn", name), lambda: self.sharded.knn_index(name))
-        return self.cached(("knn", name), lambda: KnnIndex(self.numeric(name)))
-
-    def search(self, name: str = "F15E"):
-        """The DTW search over a numeric set (:class:`mocapviz.similarity.search.SimilaritySearch`), one per set,
-        over :meth:`numeric`'s features and :meth:`knn`'s kd-tree (its coarse database is built on first use);
-        sharded: its ``clips`` and ``stretches`` asked of the cluster's shards."""
-        from ..similarity.search import SimilaritySearch
-
-        if self.sharded is not None:
-            return self.cached(("search", name), lambda: self.sharded.search(name))
-        return self.cached(("search", name), lambda: SimilaritySearch(self.db, name, features=self.numeric(name),
-                                                                     index=self.knn(name)))
-
-    # ------------------------------------------------------------------ searches the pages ask
-    def query_by_example(self, example, features, mode: str, mismatches: int, relational_set: str):
-        """:func:`mocapviz.relational.query.query_by_example` with this Backend's indexes, or of the shards."""
-        if self.sharded is not None:
-            return self.sharded.query_by_example(example, features, mode, mismatches, relational_set)
-        from ..relational.query import query_by_example
-
-        return query_by_example(self.db, example, features, mode, mismatches, relational_set,
-                                self.indexes(relational_set))  # fmt: skip
-
-    def find(self, text: str, n_matches: int | None, relational_set: str, values=None):
-        """:func:`mocapviz.relational.scene.find` with this Backend's indexes (and relational ``values`` for
-        template atoms), or of the shards."""
-        if self.sharded is not None:
-            return self.sharded.find(text, n_matches=n_matches, relational_set=relational_set)
-        from ..relational.scene import find
-
-        return find(self.db, text, n_matches=n_matches, relational_set=relational_set,
-                    indexes=self.indexes(relational_set), values=values)  # fmt: skip
-
-    def search_template(self, template, n_matches: int, delta: float, max_cost, values=None):
-        """:func:`mocapviz.relational.templates.search_template` over ``values`` (the template's set), or of the
-        shards."""
-        if self.sharded is not None:
-            return self.sharded.search_template(template, n_matches=n_matches, delta=delta, max_cost=max_cost)
-        from ..relational.templates import search_template
-
-        return search_template(self.db, template, n_matches=n_matches, delta=delta, max_cost=max_cost,
-                               values=values)  # fmt: skip
-
     def retrieval(self, methods, label_column: str = "label", group_column=None, n_queries: int | None = None,
                   seed: int = 0) -> dict:  # fmt: skip
-        """:func:`mocapviz.experiments.retrieval_quality` of the database (computed once per arguments; the
-        relational methods use this Backend's indexes)."""
-        from ..experiments.retrieval import retrieval_quality
-
+        """:meth:`Engine.quality` of the database, computed once per arguments."""
         methods = tuple(methods)
         key = ("retrieval", methods, label_column, group_column, n_queries, seed)
-        relational_methods = {"relational", "hybrid"} & set(methods)
-        return self.cached(key, lambda: retrieval_quality(
-            self.db, methods, label_column=label_column, group_column=group_column, n_queries=n_queries, seed=seed,
-            indexes=self.indexes() if relational_methods else None, progress=False))
+        return self.cached(key, lambda: self.engine.quality(methods, label_column=label_column,
+                                                            group_column=group_column, n_queries=n_queries,
+                                                            seed=seed, progress=False))  # fmt: skip
 
     def document_table(self) -> pd.DataFrame:
         """The documents as the dashboard lists them, with their archive and performer

@@ -117,10 +117,10 @@ class DatabasePage(pn.viewable.Viewer):
     def _prepare(self, doc: int, numeric_set: str) -> None:
         """Compute what the plots of ``doc`` read (cached by the Backend): in a worker thread."""
         self.backend.clip_relational(doc)
-        self.backend.numeric(numeric_set)
+        self.backend.engine.numeric(numeric_set)
 
     async def _on_numeric_set(self, event) -> None:
-        await in_thread(self.backend.numeric, event.new)
+        await in_thread(self.backend.engine.numeric, event.new)
         if self.numeric_set.value == event.new:
             self._draw_curves()
 
@@ -229,7 +229,7 @@ class DatabasePage(pn.viewable.Viewer):
         return _framewise(relational_timeline(values, names, fps, feature_groups(relational_set)), span, fps)
 
     def _curves_frame(self, name: str, doc: int, fps: float, span) -> hv.Overlay:
-        X = self.backend.numeric(name)[self.backend.db.frames(doc)]
+        X = self.backend.engine.numeric(name)[self.backend.db.frames(doc)]
         return _framewise(numeric_curves(X, numeric_columns(name), fps, title=f"{name} (cm, body frame)"), span, fps)
 
 

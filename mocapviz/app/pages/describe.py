@@ -28,6 +28,7 @@ import pandas as pd
 import panel as pn
 
 from ...db.hits import database_frames
+from ...engine.parameters import default
 from ...errors import DescriptionError, MocapvizError
 from ...relational.description import (
     Description,
@@ -49,10 +50,9 @@ from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task, in_thread
 from ..widgets import BoundedIntInput, action_button, hit_columns, hit_titles, notes, results_table
-from .templates import database_features
 
 RELATIONAL_SETS = ["2005", "2006"]
-DEFAULT_MATCHES = 20
+DEFAULT_MATCHES = default("find", "n_matches")
 DEBOUNCE_S = 0.3  # the text is read this long after the last keystroke
 MARGIN_S = 0.5  # seconds of the document shown before and after a hit in its timeline
 TIMELINE_WIDTH = 760
@@ -271,11 +271,7 @@ def search(backend, text: str, relational_set: str, n_matches: int) -> pd.DataFr
     stamps = template_stamps(backend.db, text)
     key = ("describe.find", relational_set, str(text), n_matches, stamps)
 
-    def compute() -> pd.DataFrame:
-        values = database_features(backend, relational_set)[0] if stamps and backend.sharded is None else None
-        return backend.find(text, n_matches, relational_set, values)
-
-    return backend.cached(key, compute)
+    return backend.cached(key, lambda: backend.engine.find(text, n_matches=n_matches, relational_set=relational_set))
 
 
 def describe_template(backend, name: str, delta: float = DELTA) -> tuple[str, str]:
@@ -409,7 +405,7 @@ class DescribePage(pn.viewable.Viewer):
             pn.state.execute(self._load_indexes)
 
     async def _load_indexes(self) -> None:
-        await self.task.run("Loading the relational indexes", self.backend.indexes, self.relational_set.value,
+        await self.task.run("Loading the relational indexes", self.backend.engine.indexes, self.relational_set.value,
                             busy=self.find)
 
     # ------------------------------------------------------------------ the editor

@@ -131,8 +131,9 @@ def search(backend, q: dict) -> pd.DataFrame:
     key = ("relational query", RELATIONAL_SET, q["doc"], tuple(q["span"]), tuple(sorted(q["features"])), q["mode"],
            q["mismatches"] if q["mode"] == "mismatch" else 0)
     start, end = q["span"]
-    return backend.cached(key, lambda: backend.query_by_example(backend.db.motion(q["doc"])[start:end], q["features"],
-                                                                q["mode"], q["mismatches"], RELATIONAL_SET))
+    return backend.cached(key, lambda: backend.engine.query(q["doc"], frames=(start, end), features=q["features"],
+                                                            mode=q["mode"], mismatches=q["mismatches"],
+                                                            relational_set=RELATIONAL_SET))  # fmt: skip
 
 
 def first_query(backend, doc: int) -> dict:
@@ -227,7 +228,8 @@ class RelationalPage(pn.viewable.Viewer):
 
     async def _load_indexes(self) -> None:
         """Load (or build, the first time) the relational indexes behind the progress bar; Run waits for them."""
-        await self.task.run("Loading the relational indexes", self.backend.indexes, RELATIONAL_SET, busy=self.run)
+        await self.task.run("Loading the relational indexes", self.backend.engine.indexes, RELATIONAL_SET,
+                            busy=self.run)
 
     def _set_query(self, doc: int, span) -> None:
         """Show document ``doc`` and ``span`` (first, last frames, inclusive, as the slider and the boxes show it;

@@ -23,10 +23,10 @@ import panel as pn
 from ...db.hits import database_frames
 from ...errors import ParameterError
 from ...experiments.matching import similarity_matrices
+from ...engine.parameters import default
 from ...features import NUMERIC_SETS
 from ...match.time_warping import shortest_match
-from ...similarity.knn import describe_frames
-from ...similarity.motion_matching import match_motion
+from ...similarity.motion_matching import graph_k, scaled_k
 from ...similarity.search import MODES as SEARCH_MODES
 from ...validation import count
 from ...viz.matching import similarity_layout
@@ -42,8 +42,6 @@ SEARCH_SETS = [s for s in NUMERIC_SETS if not s.startswith("Fp")]  # the numeric
 MAX_NEIGHBOURS = 256  # Fig. 1 draws 256 neighbours; more make an unreadable figure and a slow render
 MAX_MATCHES = 100
 MAX_MATRIX_CELLS = 600_000  # query frames x small-database frames of the Fig. 3 matrices
-LNG_K_AT_30HZ = 256  # neighbours per query frame of §4.2's experiments (scaled with the frame rate and the size)
-LNG_REFERENCE_FRAMES = 100_000  # frames at 30 Hz up to which LNG_K_AT_30HZ finds matches (graph_k)
 # the graph matches at most the span's first this many seconds (graph_span): its k-NN of every query frame is most of
 # its time (some CMU takes, alone in their part of the feature space, cost 16 ms a frame). On every shared archive at
 # 30 Hz (k = 1,143), 20 takes of at least 10 s: their first 10 s took 0.29 s median, 1.63 s p95, 1.72 s at most;
@@ -86,12 +84,10 @@ def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own
     own = backend.db.frames(doc)  # the one "no such document" error
     if not 0 <= frame < own.stop - own.start:
         raise ParameterError(f"frame {frame} is outside document {doc} (frames 0..{own.stop - own.start - 1})")
-    index = backend.knn(name)
-    k = count(k, "k", 1, min(MAX_NEIGHBOURS, index.n_indexed))
-    query = backend.numeric(name)[database_frames(backend.db, doc, frame, frame + 1).start]
-    distances, frames = index.query(query, k, exclude=(own.start, own.stop) if exclude_own else None)
-    table = describe_frames(backend.db, frames, distances, per_document=per_document)
-    table.attrs["neighbours"] = int((frames >= 0).sum())
+    k = count(k, "k", 1, min(MAX_NEIGHBOURS, backend.db.n_frames))
+    table = backend.engine.neighbours(doc, frame, k=k, numeric_set=name, exclude_document=exclude_own,
+                                      per_document=per_document)  # fmt: skip
+    table.attrs["neighbours"] = table.attrs["found"]
     return table
 
 
@@ -127,11 +123,10 @@ def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, n_ma
     within the span, frame within the match's document)); each match at least half the span long (the library's
     ``min_length``, as the DTW search's stretches).
     """
-    index = backend.knn(name)
-    k = count(k, "k", 1, index.n_indexed)
+    k = count(k, "k", 1, backend.db.n_frames)
     n_matches = count(n_matches, "K", 1, MAX_MATCHES)
-    return match_motion(backend.db, doc, span, numeric_set=name, method="lng", n_matches=n_matches, k=k,
-                        exclude_document=exclude_own, paths=True, features=backend.numeric(name), index=index)
+    return backend.engine.match(doc, frames=span, numeric_set=name, method="lng", n_matches=n_matches, k=k,
+                                exclude_document=exclude_own, paths=True)
 
 
 def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, mode: str, n_matches: int,
@@ -158,37 +153,9 @@ def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, 
     n_matches = count(n_matches, "K", 1, MAX_MATCHES)
     if kind not in SEARCH_KINDS.values():
         raise ParameterError(f"kind must be one of {', '.join(SEARCH_KINDS.values())}; got {kind!r}")
-    search = backend.search(name)
-    run = search.clips if kind == "clips" else search.stretches
-    return run(doc, frames=span, n_matches=n_matches, mode=mode, exclude_document=exclude_own, paths=True)
-
-
-def scaled_k(k_at_30hz: int, fps: float) -> int:
-    """Neighbours per query frame for the graph at ``fps``: ``k_at_30hz`` at 30 Hz or less, proportionally more at
-    higher frame rates (a pose's nearest frames then include more of its own neighbouring frames, leaving fewer for
-    other motions, and the graph finds no path)."""
-    return round(k_at_30hz * max(1.0, fps / 30.0))
-
-
-def graph_k(n_frames: int, fps: float) -> int:
-    """The default neighbours per query frame of the lazy neighbourhood graph on a database of ``n_frames`` frames at
-    ``fps``: the papers' 256 at 30 Hz (:func:`scaled_k` at higher rates), times the database's frames at 30 Hz over
-    :data:`LNG_REFERENCE_FRAMES` when it holds more, at most ``n_frames``.
-
-    A pose's k nearest frames are shared by every take of similar motions; in a database of many takes of the same
-    motions they fill up with other takes' frames before the graph can follow any one take, and it finds no path.
-    Measured on every shared archive at 30 Hz (446,551 frames; 16 clips of the four archives, their first 3 s and
-    whole: 32 queries): k = 256 found no match for 20 queries, this rule's k = 1,143 for 16 (most of them CMU
-    trials, which no other take resembles), in a median of 1.0 s against 0.5 s. The sample (5,543 frames at 120 Hz)
-    and HDM05 (71k frames at 120 Hz: 18k at 30 Hz) keep the papers' k scaled with the rate: 1,024.
-
-    Examples
-    --------
-    >>> graph_k(5_543, 120.0), graph_k(71_000, 30.0), graph_k(446_551, 30.0), graph_k(100, 30.0)
-    (1024, 256, 1143, 100)
-    """
-    at_30hz = n_frames * 30.0 / fps
-    return min(int(n_frames), round(scaled_k(LNG_K_AT_30HZ, fps) * max(1.0, at_30hz / LNG_REFERENCE_FRAMES)))
+    run = backend.engine.clips if kind == "clips" else backend.engine.stretches
+    return run(doc, frames=span, numeric_set=name, n_matches=n_matches, mode=mode, exclude_document=exclude_own,
+               paths=True)
 
 
 def graph_span(span, fps: float) -> tuple[int, int]:
@@ -253,7 +220,7 @@ class SimilarityPage(pn.viewable.Viewer):
         super().__init__()
         self.backend, self.selection = backend, selection
         self.query = pn.pane.Markdown("", css_classes=["mv-similarity-query"], margin=(0, 10))
-        self.numeric_set = pn.widgets.Select(label="numeric set", options=SEARCH_SETS, value="F15E",
+        self.numeric_set = pn.widgets.Select(label="numeric set", options=SEARCH_SETS, value=default("clips", "numeric_set"),
                                              width=160)
         self.exclude_own = pn.widgets.Checkbox(label="exclude the query's own document", value=True, width=260,
                                                align="end", css_classes=["mv-exclude-own"])
@@ -268,9 +235,9 @@ class SimilarityPage(pn.viewable.Viewer):
         self.search_kind = pn.widgets.RadioButtonGroup(options=list(SEARCH_KINDS), value="whole clips", width=220,
                                                        align="end", css_classes=["mv-search-kind"])
         self.search_mode = pn.widgets.RadioButtonGroup(options=[m for m in SEARCH_MODES if m != "brute"],
-                                                       value="exact", width=140, align="end",
+                                                       value=default("clips", "mode"), width=140, align="end",
                                                        css_classes=["mv-search-mode"])  # fmt: skip
-        self.search_k = BoundedIntInput("K results", 10, 1, MAX_MATCHES, width=130, css_classes=["mv-search-k"])
+        self.search_k = BoundedIntInput("K results", default("clips", "n_matches"), 1, MAX_MATCHES, width=130, css_classes=["mv-search-k"])
         self.search_button = action_button("Search", "mv-search-run", self._run_search)
         self.search_task = Task()
         self.search_count = pn.pane.Markdown("", css_classes=["mv-search-count"], margin=(0, 10))
@@ -288,7 +255,7 @@ class SimilarityPage(pn.viewable.Viewer):
 
     def _build_knn(self) -> None:
         most = min(MAX_NEIGHBOURS, self.backend.db.n_frames)
-        self.knn_k = BoundedIntInput("k neighbours", min(64, most), 1, most, width=150, css_classes=["mv-knn-k"])
+        self.knn_k = BoundedIntInput("k neighbours", min(default("knn", "k"), most), 1, most, width=150, css_classes=["mv-knn-k"])
         self.knn_per_document = pn.widgets.Checkbox(label="one row per document", value=False, width=180,
                                                     align="end", css_classes=["mv-knn-per-document"])
         self.knn_button = action_button("Search", "mv-knn-search", self._search)
@@ -304,7 +271,7 @@ class SimilarityPage(pn.viewable.Viewer):
         n = self.backend.db.n_frames
         self.match_k = BoundedIntInput("k neighbours per frame", graph_k(n, self.backend.fps), 1, n, width=220,
                                        css_classes=["mv-match-k"])
-        self.match_count_k = BoundedIntInput("K matches", 10, 1, MAX_MATCHES, width=130, css_classes=["mv-match-kk"])
+        self.match_count_k = BoundedIntInput("K matches", default("match", "n_matches"), 1, MAX_MATCHES, width=130, css_classes=["mv-match-kk"])
         self.match_button = action_button("Match", "mv-match-run", self._match)
         self.match_task = Task()
         self.match_count = pn.pane.Markdown("", css_classes=["mv-match-count"], margin=(0, 10))

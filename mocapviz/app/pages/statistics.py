@@ -70,7 +70,7 @@ def table3(backend, group: str, queries: int = QUERIES) -> pd.DataFrame:
     """Table 3 on the open database's ``group`` index: one row per (mode, L, hits group) with our statistics of
     ``queries`` random queries per (mode, L) and the paper's µh, σh, µt (I_u^180) beside them."""
     ours = backend.cached(("statistics", "table3", group, queries), lambda: query_statistics(
-        backend.indexes()[group], n_queries=queries, lengths=TABLE3_LENGTHS, seed=SEED))  # fmt: skip
+        backend.engine.indexes()[group], n_queries=queries, lengths=TABLE3_LENGTHS, seed=SEED))  # fmt: skip
     paper = mueller2005_table3()[["mode", "L", "hits", *TABLE3_PAPER]].rename(columns=TABLE3_PAPER)
     return ours.merge(paper, on=["mode", "L", "hits"], how="left").rename(columns=TABLE3_RENAMED)
 
@@ -78,7 +78,7 @@ def table3(backend, group: str, queries: int = QUERIES) -> pd.DataFrame:
 def query_times(backend, group: str, queries: int = QUERIES) -> pd.DataFrame:
     """Every random query of :data:`SCATTER_LENGTHS` on the ``group`` index: mode, L, k, query, hits, ms, group."""
     return backend.cached(("statistics", "query_times", group, queries), lambda: query_statistics(
-        backend.indexes()[group], n_queries=queries, lengths=SCATTER_LENGTHS, seed=SEED, per_query=True))  # fmt: skip
+        backend.engine.indexes()[group], n_queries=queries, lengths=SCATTER_LENGTHS, seed=SEED, per_query=True))  # fmt: skip
 
 
 def table1(backend, queries: int = KNN_QUERIES, repeats: int = KNN_REPEATS) -> pd.DataFrame:

@@ -19,17 +19,17 @@ import pandas as pd
 import panel as pn
 
 from ...db.hits import database_frames
-from ...features import relational_features
+from ...engine.parameters import default
+from ...features import feature_names
 from ...match import dtw
 from ...relational.templates import (
     DELTA_RANGE,
     DONT_CARE,
     MAX_COST_RANGE,
     MotionTemplate,
-    learn_class,
     template_distance,
 )
-from ...validation import count, one_of
+from ...validation import count
 from ...viz.templates import template_image
 from ..downloads import table_download
 from ..gallery import HitGallery
@@ -39,7 +39,7 @@ from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, hit_tit
 
 RELATIONAL_SETS = ["2006", "2005"]  # the 39 features of Müller & Röder 2006 (the paper's), or the 31 of 2005
 MAX_MATCHES = 100
-DEFAULT_MATCHES = 20
+DEFAULT_MATCHES = default("search_template", "n_matches")
 STEP = 0.01  # of the δ and max cost boxes
 VIEWS = {"quantised": True, "averaged values": False}
 HIT_TITLES = hit_titles("rank", "doc_id", "name", "label", "start", "end", "start_s", "end_s", "normalised_cost")
@@ -49,11 +49,11 @@ LISTED_EXAMPLES = 5  # a summary names the training documents up to this many, e
 # a class of a large database is learned from this many of its documents, spread over them (learn_class's
 # max_examples): 2 s instead of 16 minutes for a class of 208 Bandai Namco takes, whose template of 16 found 20 of
 # the class in 20 hits on every shared archive at 30 Hz, where the template of all 208 found another class
-MAX_EXAMPLES = 16
+MAX_EXAMPLES = default("learn_template", "max_examples")
 # the page's δ; at the paper's (the library's DELTA, 0.1) 5 of 8 class templates (16 examples each) gave all their 20
 # hits on every shared archive at 30 Hz at cost 0, in no order; at 0.2, 2 gave 19 or 20 (mean precision at 20: 0.88
 # and 0.84; tie_note)
-DEFAULT_DELTA = 0.2
+DEFAULT_DELTA = default("search_template", "delta")
 SECONDS_DECIMALS = 2
 
 
@@ -91,9 +91,7 @@ def actors_of(documents: pd.DataFrame, label: str) -> list[str]:
 def database_features(backend, relational_set: str) -> tuple[np.ndarray, list[str]]:
     """The relational features of every frame of the database, (N, f) bool and the f names, computed once per set
     (:func:`mocapviz.features.relational_features`, each document on its own)."""
-    relational_set = one_of(str(relational_set), "relational set", RELATIONAL_SETS)
-    return backend.cached(("templates.features", relational_set),
-                          lambda: relational_features(backend.db, relational_set, progress=False))
+    return backend.engine.relational_values(relational_set), feature_names(relational_set)
 
 
 def _actors_key(actors) -> tuple[str, ...] | None:
@@ -117,11 +115,9 @@ def learn(backend, label: str, actors, relational_set: str) -> MotionTemplate:
     MotionTemplate, values (K, f) in [0, 1]; ``meta["doc_ids"]`` the training documents.
     """
     key = _actors_key(actors)
-    values, _ = database_features(backend, relational_set)
     return backend.cached(("templates.template", str(label), key, str(relational_set)),
-                          lambda: learn_class(backend.db, str(label), actors=None if key is None else list(key),
-                                              relational_set=str(relational_set), values=values,
-                                              max_examples=MAX_EXAMPLES))  # fmt: skip
+                          lambda: backend.engine.learn_template(str(label), actors=None if key is None else list(key),
+                                                                relational_set=str(relational_set)))  # fmt: skip
 
 
 def search_template(backend, template: MotionTemplate, delta: float, n_matches: int,
@@ -145,9 +141,7 @@ def search_template(backend, template: MotionTemplate, delta: float, n_matches: 
     n_matches = count(n_matches, "K", 1, MAX_MATCHES)
     if max_cost is not None:
         max_cost = MAX_COST_RANGE.check(max_cost, "the max cost (a mean mismatch per frame)")
-    values = None if backend.sharded is not None else database_features(backend, template.meta.get(
-        "relational_set", "2006"))[0]
-    return backend.search_template(template, n_matches, delta, max_cost, values)
+    return backend.engine.search_template(template, n_matches=n_matches, delta=delta, max_cost=max_cost)
 
 
 def learn_and_search(backend, label: str, actors, relational_set: str, delta: float, n_matches: int,

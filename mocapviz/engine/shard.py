@@ -1,11 +1,12 @@
-"""One shard of a sharded MotionDB, resident on a Dask worker (a Dask actor): its documents as a view of the
-database (:func:`mocapviz.db.shards.shard_view`), and the derived data its searches need, made once and kept across
-queries: each numeric set's rows with its similarity search and kd-tree, each relational set's frame-wise values and
-inverted indexes.
+"""One shard of a MotionDB, in this process or resident on a Dask worker (a Dask actor): its documents as a view of
+the database (:func:`mocapviz.db.shards.shard_view`), and the derived data its searches need, made once and kept
+across queries: each numeric set's rows with its similarity search and kd-tree, each relational set's frame-wise
+values and inverted indexes. A shard that holds the whole database uses the derived data stored with it (inverted
+indexes loaded, or built and stored as ``mocapviz index`` would); a part of it makes its own in memory.
 
 Every search method runs one library function on the shard and returns its hit table packed (:meth:`Shard.packed`:
 doc ids, in-document frames and the search's own columns as numpy arrays, as on the whole database; names, seconds
-and labels are added once, by :class:`mocapviz.sharded.engine.ShardedDB` when it merges them): a DataFrame costs
+and labels are added once, by :class:`mocapviz.engine.Engine` when it merges them): a DataFrame costs
 milliseconds to pickle, its arrays microseconds.
 
 A shard lets its worker process keep the memory its queries free (:func:`mocapviz.heap.keep_freed_memory`): Dask's
@@ -13,6 +14,8 @@ nanny pins glibc's thresholds low, which made every query map and fault in its t
 scene query took twice its CPU time).
 """
 from __future__ import annotations
+
+import threading
 
 import numpy as np
 
@@ -29,8 +32,8 @@ class Shard:
 
     Parameters
     ----------
-    path : str
-        The MotionDB's folder, as the worker sees it.
+    db : MotionDB or str
+        The MotionDB (in this process), or its folder as the worker sees it.
     doc_ids : sequence of int
         Consecutive documents in storage order (:func:`mocapviz.db.shards.split_documents`).
     generation : int
@@ -46,56 +49,74 @@ class Shard:
     (2810, 14)
     """
 
-    def __init__(self, path: str, doc_ids, generation):
-        parent = MotionDB.open(path)
+    def __init__(self, db, doc_ids, generation):
+        parent = db if isinstance(db, MotionDB) else MotionDB.open(db)
         if parent.manifest.get("generation") != generation:
-            raise MotionDBError(f"{path} changed since the sharded search opened it; open it again")
+            raise MotionDBError(f"{parent.path} changed since the engine opened it; open it again")
         self.parent, self.view = parent, shard_view(parent, doc_ids, labels=False)
         self.offset = self.view.shard_frames[0]
         self.doc_ids = np.asarray(doc_ids, dtype=np.int64)
-        self._numeric, self._searches, self._values, self._indexes = {}, {}, {}, {}
-        keep_freed_memory()
+        self.whole = len(self.doc_ids) == len(parent)
+        self._made: dict = {}
+        self._locks: dict = {}
+        self._guard = threading.Lock()
+        if not isinstance(db, MotionDB):  # a worker process of its own
+            keep_freed_memory()
+
+    def _once(self, key, make):
+        """``make()``'s result, made once per ``key`` and kept; callers on other threads wait for it."""
+        with self._guard:
+            if key in self._made:
+                return self._made[key]
+            lock = self._locks.setdefault(key, threading.Lock())
+        with lock:
+            if key not in self._made:
+                value = make()
+                with self._guard:
+                    self._made[key] = value
+            return self._made[key]
 
     # ------------------------------------------------------------------ derived data, made once
     def numeric(self, numeric_set: str) -> np.ndarray:
         """The shard's rows of a numeric set: the database's stored ones, else computed on the shard (Fp sets with
         the database's PCA model, as on the whole database)."""
-        if numeric_set not in self._numeric:
-            from ..features.numeric import _spec, default_pca, load_numeric, numeric_features
+        return self._once(("numeric", numeric_set), lambda: self._numeric_rows(numeric_set))
 
-            a, b = self.view.shard_frames
-            try:
-                values = load_numeric(self.parent, numeric_set)[a:b]
-            except MotionDBError:
-                pca = default_pca(self.parent) if _spec(numeric_set).pcs else None
-                values = numeric_features(self.view, numeric_set, pca=pca, progress=False)
-            self._numeric[numeric_set] = values
-        return self._numeric[numeric_set]
+    def _numeric_rows(self, numeric_set: str) -> np.ndarray:
+        from ..features.numeric import _spec, default_pca, load_numeric, numeric_features, numeric_of
+
+        if self.whole:
+            return numeric_of(self.parent, numeric_set)
+        a, b = self.view.shard_frames
+        try:
+            return load_numeric(self.parent, numeric_set)[a:b]
+        except MotionDBError:
+            pca = default_pca(self.parent) if _spec(numeric_set).pcs else None
+            return numeric_features(self.view, numeric_set, pca=pca, progress=False)
 
     def search(self, numeric_set: str):
         """The shard's :class:`~mocapviz.similarity.search.SimilaritySearch` of a numeric set (its kd-tree too)."""
-        if numeric_set not in self._searches:
-            from ..similarity.search import SimilaritySearch
+        from ..similarity.search import SimilaritySearch
 
-            self._searches[numeric_set] = SimilaritySearch(self.view, numeric_set, features=self.numeric(numeric_set))
-        return self._searches[numeric_set]
+        return self._once(("search", numeric_set),
+                          lambda: SimilaritySearch(self.view, numeric_set, features=self.numeric(numeric_set)))
 
     def values(self, relational_set: str) -> np.ndarray:
         """The shard's frame-wise relational values of a set (computed per document, as on the whole database)."""
-        if relational_set not in self._values:
-            from ..features import relational_features
+        from ..features import relational_features
 
-            self._values[relational_set] = relational_features(self.view, relational_set, progress=False)[0]
-        return self._values[relational_set]
+        return self._once(("values", relational_set),
+                          lambda: relational_features(self.view, relational_set, progress=False)[0])
 
     def indexes(self, relational_set: str) -> dict:
-        """The shard's inverted indexes of a relational set (built from :meth:`values`, kept in memory)."""
-        if relational_set not in self._indexes:
-            from ..relational.index import build
+        """The shard's inverted indexes of a relational set: the whole database's stored ones (built and stored
+        when missing or stale), a part's built from :meth:`values` and kept in memory."""
+        from ..relational.index import build, load_or_build
 
-            self._indexes[relational_set] = build(self.view, relational_set, progress=False,
-                                                  values=self.values(relational_set), save=False)  # fmt: skip
-        return self._indexes[relational_set]
+        if self.whole:
+            return self._once(("indexes", relational_set), lambda: load_or_build(self.parent, relational_set))
+        return self._once(("indexes", relational_set), lambda: build(
+            self.view, relational_set, progress=False, values=self.values(relational_set), save=False))
 
     def warm(self, numeric_sets=(), relational_sets=()) -> int:
         """Make the derived data of these sets now (before the first query); returns the shard's frames."""

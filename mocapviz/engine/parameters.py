@@ -1,0 +1,259 @@
+"""Every parameter of the engine's use cases, declared once: its name, kind, bounds or choices, default and a
+one-line doc (scikit-learn's ``_parameter_constraints`` is the model).
+
+The :class:`~mocapviz.engine.engine.Engine` checks its keyword arguments against this table at its boundary
+(:func:`checked`); the command line's options (:meth:`Parameter.add_to`: type check, default and ``--help``), the
+dashboard's widgets (:meth:`Parameter.widget`: bounds, step, default, choices) and docs/parameters.md
+(:func:`markdown`) are made from it, so no front offers a default, a bound or a choice the run does not share.
+A use case may give a parameter its own default (:data:`USE_DEFAULTS`: kNN lists 16 neighbours, the lazy
+neighbourhood graph asks 256 per frame); every front uses that default for that use case.
+"""
+from __future__ import annotations
+
+import argparse
+import functools
+import inspect
+from dataclasses import dataclass, field, replace
+
+from ..errors import ParameterError
+from ..features import NUMERIC_SETS, RELATIONAL_SETS
+from ..validation import MIN_LENGTH, count, number, one_of, parse_count, parse_number
+
+__all__ = ["PARAMETERS", "USE_DEFAULTS", "Parameter", "checked", "markdown", "parameter"]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One parameter: ``kind`` "int", "float", "bool", "choice" or "names" (a list of names or ints, checked by
+    the kernel that knows its options); ``low`` / ``high`` (closed unless ``low_open`` / ``high_open``) bound a
+    number, ``choices`` a choice; ``optional``: None is allowed (meaning ``none_means``).
+
+    Examples
+    --------
+    >>> n = Parameter("n_matches", "int", 10, "matches to report", low=1)
+    >>> n.check(3), n.check(None) if n.optional else "required"
+    (3, 'required')
+    >>> n.check(0)
+    Traceback (most recent call last):
+    ...
+    mocapviz.errors.ParameterError: n_matches must be at least 1; got 0
+    """
+
+    name: str
+    kind: str
+    default: object
+    doc: str
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    choices: tuple = ()
+    optional: bool = False
+    none_means: str = ""
+    flags: tuple = field(default=())  # command-line spellings; default --name-with-dashes
+
+    def check(self, value, where: str = ""):
+        """``value`` as this parameter's type inside its bounds, or a ParameterError naming it (``where``: the
+        spelling a front used, such as ``-K/--matches``)."""
+        name = where or self.name
+        if value is None and (self.optional or self.kind == "names"):
+            return None
+        if self.kind == "int":
+            return count(value, name, int(self.low) if self.low is not None else -(2**62),
+                         None if self.high is None else int(self.high))  # fmt: skip
+        if self.kind == "float":
+            return number(value, name, self.low, self.high, self.low_open, self.high_open)
+        if self.kind == "bool":
+            if not isinstance(value, bool) and type(value).__name__ != "bool_":
+                raise ParameterError(f"{name} must be True or False; got {value!r}")
+            return bool(value)
+        if self.kind == "choice":
+            return one_of(str(value) if value is not None else value, self.name.replace("_", " "), self.choices)
+        return list(value)
+
+    @property
+    def bounds(self) -> str:
+        """A number's interval as text ("[1, inf)", "(0, 0.5)"), else ""."""
+        if self.kind not in ("int", "float") or (self.low is None and self.high is None):
+            return ""
+        lo = "(-inf" if self.low is None else f"{'(' if self.low_open else '['}{self.low:g}"
+        hi = "inf)" if self.high is None else f"{self.high:g}{')' if self.high_open else ']'}"
+        return f"{lo}, {hi}"
+
+    @property
+    def cli_flags(self) -> tuple:
+        return self.flags or ("--" + self.name.replace("_", "-"),)
+
+    def help(self, default=None) -> str:
+        """The one-line doc with its bounds and default, as ``--help`` prints it."""
+        default = self.default if default is None else default
+        parts = [self.doc]
+        if self.choices:
+            parts.append("one of " + ", ".join(map(str, self.choices)))
+        elif self.bounds:
+            parts.append(self.bounds)
+        if self.kind != "bool":
+            parts.append(f"default {self.none_means or 'none'}" if default is None else f"default {default}")
+        return f"{parts[0]} ({'; '.join(parts[1:])})" if len(parts) > 1 else parts[0]
+
+    def reader(self, shown: str):
+        """An argparse ``type`` for this parameter: the text read as its kind, then checked (:meth:`check`);
+        ``shown``: the option's spellings, for the message."""
+
+        def parse(text: str):
+            try:
+                if self.kind == "int":
+                    low = -(2**62) if self.low is None else int(self.low)
+                    return parse_count(text, shown, low, None if self.high is None else int(self.high))
+                if self.kind == "float":
+                    return parse_number(text, shown, self.low, self.high, self.low_open, self.high_open)
+                return self.check(text, shown)
+            except ParameterError as exc:
+                raise argparse.ArgumentTypeError(str(exc)) from None
+
+        return parse
+
+    def add_to(self, parser: argparse.ArgumentParser, *flags: str, default=None, **kwargs) -> None:
+        """This parameter as an option of ``parser`` (``flags``: its spellings there, default :attr:`cli_flags`):
+        the text is read, then checked (:meth:`reader`); a bool is a switch; ``default`` the use case's own."""
+        flags = flags or self.cli_flags
+        default = self.default if default is None else default
+        if self.kind == "bool":
+            parser.add_argument(*flags, dest=self.name, action="store_true", help=self.help(default), **kwargs)
+            return
+        parser.add_argument(*flags, dest=self.name, type=self.reader("/".join(flags)), default=default,
+                            help=self.help(default), **kwargs)  # fmt: skip
+
+    def widget(self, default=None) -> dict:
+        """Keyword arguments for a Panel widget of this parameter: ``name``, ``value`` and the bounds
+        (``start`` / ``end`` for numbers, an open end moved in by one step) or ``options``."""
+        value = self.default if default is None else default
+        if self.kind == "choice":
+            return {"value": value, "options": list(self.choices)}
+        if self.kind in ("int", "float"):
+            step = 1 if self.kind == "int" else 0.01
+            start = None if self.low is None else self.low + (step if self.low_open else 0)
+            end = None if self.high is None else self.high - (step if self.high_open else 0)
+            if self.kind == "float":
+                start, end = (None if v is None else round(v, 4) for v in (start, end))
+            return {"value": value, "start": start, "end": end, "step": step}
+        return {"value": value}
+
+
+def _p(*args, **kwargs) -> Parameter:
+    return Parameter(*args, **kwargs)
+
+
+PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
+    _p("n_matches", "int", 10, "matches to report", low=1, flags=("-K", "--matches")),
+    _p("numeric_set", "choice", "F15E", "numeric feature set (Krüger et al. 2010 §3.2)", choices=NUMERIC_SETS),
+    _p("mode", "choice", "exact", "similarity search: exact (brute force's answer, pruned by lower bounds), fast "
+       "(aligns only where kNN and a coarse pass point) or brute (every cell)", choices=("exact", "fast", "brute")),
+    _p("min_length", "float", MIN_LENGTH, "the shortest match, a share of the query's frames", low=0.0, high=1.0,
+       low_open=True, optional=True, none_means="any length"),
+    _p("exclude_document", "bool", False, "leave out the example's own document"),
+    _p("paths", "bool", False, "also return each match's warping path"),
+    _p("k", "int", 16, "neighbours per query frame", low=1),
+    _p("radius", "float", None, "only neighbours closer than this (feature units, cm)", low=0.0, low_open=True,
+       optional=True, none_means="no limit"),
+    _p("eps", "float", 0.0, "approximate kNN: the k-th distance within (1 + eps)", low=0.0),
+    _p("method", "choice", "lng", "global matching by the lazy neighbourhood graph or subsequence DTW",
+       choices=("lng", "dtw")),
+    _p("relational_set", "choice", "2005", "relational feature set (2005: Müller et al.; 2006: Müller & Röder)",
+       choices=RELATIONAL_SETS),
+    _p("query_mode", "choice", "adaptive", "relational query: exact, fuzzy, adaptive fuzzy or m-mismatch hits "
+       "(Müller et al. 2005 §5)", choices=("exact", "fuzzy", "adaptive", "mismatch"), flags=("--mode",)),
+    _p("mismatches", "int", 1, "query segments that may disagree (mismatch mode)", low=0, flags=("--mismatch",)),
+    _p("allowed", "names", None, "the query segments that may disagree (default any)", flags=("--mismatch-at",)),
+    _p("features", "names", None, "relational features of the query (default all of the set)"),
+    _p("delta", "float", 0.2, "template quantisation threshold δ: < δ is 0, > 1 - δ is 1, else don't care (0.2: "
+       "at the paper's 0.1, 5 of 8 class templates gave all their 20 hits at cost 0 on the shared archives)",
+       low=0.0, high=0.5, low_open=True, high_open=True),
+    _p("max_cost", "float", None, "only matches of normalised cost at most this", low=0.0, high=1.0, optional=True,
+       none_means="the K best, whatever their cost"),
+    _p("prefilter", "bool", False, "align only where the template's keyframes occur in order in the inverted "
+       "indexes (faster; may miss a hit)"),
+    _p("max_examples", "int", 16, "learn from at most this many of the class's documents, spread over them (a "
+       "template of 16 found 20 of 20 of its class on every shared archive)", low=1),
+    _p("template_cost", "float", None, "a description's template atoms: the largest normalised cost of a hit",
+       low=0.0, high=1.0, optional=True, none_means="each template's learned threshold"),
+    _p("overlapping", "bool", False, "keep hits of a description that overlap"),
+    _p("per_document", "bool", False, "kNN: one row per document, its nearest frame"),
+]}
+"""The table, by name."""
+
+USE_DEFAULTS = {
+    ("find", "n_matches"): 20,  # a description's hits shown at first (None in Python: every hit)
+    ("search_template", "n_matches"): 20,  # as many as the classes' hits the templates page measures
+    ("match", "k"): None,  # the graph's neighbours per frame: 256 at 30 Hz, scaled with the rate and the database's
+    # size (mocapviz.similarity.motion_matching.graph_k: Krüger et al. 2010 §4.2's 256 find no path in a large one)
+    ("learn_template", "relational_set"): "2006",  # Müller & Röder 2006 learn on their own set
+}
+"""A use case's own default of a parameter, for every front: (use case, parameter) -> default (None: a rule of the
+use case, :data:`RULES`)."""
+
+RULES = {("match", "k"): "256 at 30 Hz, scaled with the rate and with the database's frames past 100,000 at 30 Hz "
+                         "(graph_k)"}
+"""What a use case does when its default is None, in words (docs/parameters.md)."""
+
+
+def parameter(name: str) -> Parameter:
+    """The declared parameter ``name``."""
+    return PARAMETERS[name]
+
+
+def default(use: str, name: str):
+    """The default of parameter ``name`` in use case ``use`` (:data:`USE_DEFAULTS`, else the table's)."""
+    return USE_DEFAULTS.get((use, name), PARAMETERS[name].default)
+
+
+def checked(use: str, **names: str):
+    """Decorator of an engine method (use case ``use``): its keyword arguments named in ``names`` (argument ->
+    declared parameter; most are the same name) are checked against the table once, at the call; a default of
+    ``...`` in the method's signature is the table's default for the use case.
+
+    Examples
+    --------
+    >>> @checked("demo", n=("n_matches"))
+    ... def f(*, n=...):
+    ...     return n
+    >>> f(), f(n=3)
+    (10, 3)
+    """
+
+    def wrap(function):
+        signature = inspect.signature(function)
+        declared = {arg: PARAMETERS[p] for arg, p in names.items()}
+
+        @functools.wraps(function)
+        def run(*args, **kwargs):
+            bound = signature.bind(*args, **kwargs)
+            for arg, p in declared.items():
+                value = bound.arguments.get(arg, ...)
+                if value is ... or value is None and default(use, p.name) is None:
+                    bound.arguments[arg] = default(use, p.name)
+                else:
+                    bound.arguments[arg] = p.check(value, arg)
+            return function(*bound.args, **bound.kwargs)
+
+        run.__signature__ = signature.replace(parameters=[
+            q.replace(default=default(use, declared[q.name].name)) if q.name in declared else q
+            for q in signature.parameters.values()])  # fmt: skip
+        run.use_case = use
+        run.parameters = {arg: replace(p, default=default(use, p.name)) for arg, p in declared.items()}
+        return run
+
+    return wrap
+
+
+def markdown() -> str:
+    """The table as docs/parameters.md shows it (tests/test_parameters.py checks the file equals this)."""
+    lines = ["| parameter | kind | bounds or choices | default | what it is |", "|---|---|---|---|---|"]
+    for p in PARAMETERS.values():
+        bounds = ", ".join(map(str, p.choices)) if p.choices else p.bounds
+        shown = p.none_means or "none" if p.default is None else str(p.default)
+        own = [f"{use}: {RULES.get((use, name), value)}" for (use, name), value in USE_DEFAULTS.items()
+               if name == p.name]
+        shown += f" ({'; '.join(own)})" if own else ""
+        lines.append(f"| `{p.name}` | {p.kind} | {bounds} | {shown} | {p.doc} |")
+    return "\n".join(lines) + "\n"
