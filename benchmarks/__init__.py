@@ -9,4 +9,6 @@ bench_relational  relational features, inverted-index build and queries (Müller
 bench_knn         kNN search per feature set and fat-graph base poses (Krüger et al. 2010, Table 1, §5.3).
 bench_startup     wall time of ``import mocapviz``, ``mocapviz --help`` and one search from a fresh process.
 bench_descriptions  scene descriptions (issue 25): ``find`` through the 2005 indexes vs the frame-wise scan.
+bench_engine      every use case through ``mocapviz.engine.Engine(db)`` beside the library function it wraps: the
+                  engine's added milliseconds per query, its construction and first queries (issue 38).
 """

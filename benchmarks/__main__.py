@@ -16,7 +16,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 NAMES = ("io", "dask", "relational", "knn", "match", "search", "templates", "scaling", "startup", "descriptions",
-         "integrity", "dashboard")
+         "integrity", "dashboard", "engine")
 
 
 class _Tee(io.TextIOBase):
@@ -53,6 +53,7 @@ def main(argv=None) -> int:
         bench_dashboard,
         bench_dask,
         bench_descriptions,
+        bench_engine,
         bench_integrity,
         bench_io,
         bench_knn,
@@ -73,7 +74,7 @@ def main(argv=None) -> int:
                              ("match", bench_match), ("search", bench_search), ("templates", bench_templates),
                              ("scaling", bench_scaling), ("startup", bench_startup),
                              ("descriptions", bench_descriptions), ("integrity", bench_integrity),
-                             ("dashboard", bench_dashboard))},
+                             ("dashboard", bench_dashboard), ("engine", bench_engine))},
     }  # fmt: skip
     status = 0
     for name in args.only or NAMES:

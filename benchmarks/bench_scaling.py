@@ -20,8 +20,9 @@ DB PLAN OUT``), so that its memory is its own: setup timed once, a warm-up query
 - search: ``SimilaritySearch.stretches`` (1 s) and ``.clips`` (whole HDM05 clips), exact and fast, K = 10;
 - lng: ``match_motion`` (the lazy neighbourhood graph, k = 256) of 1 s queries;
 - templates: ``search_template(..., prefilter=True)`` of one learned kick template (2006 set);
-- sharded: the same queries through ``ShardedDB(db, "local", n_shards=2)``, and each shard's own work (a ``Shard``
-  in this process, no Dask) with the pickled sizes of what is sent to and returned by a shard.
+- sharded: the same queries through ``Engine(db, scheduler="local", n_shards=2)`` (``mocapviz.engine``), and each
+  shard's own work (a ``mocapviz.engine.shard.Shard`` in this process, no Dask) with the pickled sizes of what is sent
+  to and returned by a shard.
 
 Memory: the peak of ``RssAnon`` (/proc/self/status, sampled every 10 ms while the queries run: the heap, not the
 memory-mapped database) and ``ru_maxrss`` of each fresh process. The exponent b of time ~ frames^b is the
@@ -460,15 +461,20 @@ _RUNS = {"relational exact": 2, "relational fuzzy": 2, "relational mismatch": 2,
 
 
 def _group_sharded(db, plan, quick, out):
-    """The same queries through ShardedDB(db, "local", n_shards=2), and each shard's own work timed here (a
-    :class:`Shard` made in this process: no Dask) with the pickled sizes of what travels."""
+    """The same queries through Engine(db, scheduler="local", n_shards=2), and each shard's own work timed here (a
+    :class:`~mocapviz.engine.shard.Shard` made in this process: no Dask) with the pickled sizes of what travels.
+
+    Every engine call is given the arguments that make it the query the one-process groups time: ``k=256`` to LNG
+    (the engine's default is graph_k of the database), ``n_matches=None`` to find (every hit, as ``scene.find``),
+    ``delta=0.1`` to the template search (the library's default; the engine's is 0.2), ``mismatches=1`` to every
+    relational query (as ``query_by_example`` is called)."""
     import psutil
 
     from mocapviz.db.shards import split_documents
+    from mocapviz.engine import Engine
+    from mocapviz.engine.shard import Shard
     from mocapviz.features import feature_groups
     from mocapviz.relational.templates import MotionTemplate
-    from mocapviz.sharded import ShardedDB
-    from mocapviz.sharded.shard import Shard
 
     k = 1 if quick else 0
     lookup = _doc_lookup(db)
@@ -479,27 +485,27 @@ def _group_sharded(db, plan, quick, out):
     clips = [_example(db, lookup, q)[0] for q in plan["clips"][: N_SHARDED["clips"][k]]]
     lng = [_example(db, lookup, q) for q in plan["lng"][: N_SHARDED["lng"][k]]]
     t0 = time.perf_counter()
-    with ShardedDB(db, "local", n_shards=2, numeric_sets=("F15E",), relational_sets=("2005", "2006")) as sh:
-        out["setup: ShardedDB start + warm (s)"] = time.perf_counter() - t0
-        features = sh.features("F15E")
+    with Engine(db, scheduler="local", n_shards=2, numeric_sets=("F15E",), relational_sets=("2005", "2006")) as sh:
+        out["setup: Engine start + warm (s)"] = time.perf_counter() - t0
+        features = sh.numeric("F15E")
         single = _knn_queries(features, N_SHARDED["knn_single"][k])
         batch = _knn_queries(features, N_SHARDED["knn_batch"][k])
         calls = {
-            "relational exact": (rel, lambda e: sh.query_by_example(e, lower, mode="exact")),
-            "relational fuzzy": (rel, lambda e: sh.query_by_example(e, lower, mode="fuzzy")),
-            "relational mismatch": (rel, lambda e: sh.query_by_example(e, lower, mode="mismatch", mismatches=1)),
-            **{f"scene: {t}": ([t] * 3, lambda t: sh.find(t)) for t in DESCRIPTIONS},
-            "16-NN single": (single, lambda q: sh.knn(q, K_KNN)),
-            "16-NN batched, per query": ([batch], lambda b: sh.knn(b, K_KNN)),
-            "stretches 1 s, exact": (stretches, lambda e: sh.stretches(e[0], e[1], K_SEARCH, mode="exact",
-                                                                       exclude_document=True)),
-            "stretches 1 s, fast": (stretches, lambda e: sh.stretches(e[0], e[1], K_SEARCH, mode="fast",
-                                                                      exclude_document=True)),
+            "relational exact": (rel, lambda e: sh.query(e, features=lower, mode="exact", mismatches=1)),
+            "relational fuzzy": (rel, lambda e: sh.query(e, features=lower, mode="fuzzy", mismatches=1)),
+            "relational mismatch": (rel, lambda e: sh.query(e, features=lower, mode="mismatch", mismatches=1)),
+            **{f"scene: {t}": ([t] * 3, lambda t: sh.find(t, n_matches=None)) for t in DESCRIPTIONS},
+            "16-NN single": (single, lambda q: sh.knn(q, k=K_KNN)),
+            "16-NN batched, per query": ([batch], lambda b: sh.knn(b, k=K_KNN)),
+            "stretches 1 s, exact": (stretches, lambda e: sh.stretches(e[0], frames=e[1], n_matches=K_SEARCH,
+                                                                       mode="exact", exclude_document=True)),
+            "stretches 1 s, fast": (stretches, lambda e: sh.stretches(e[0], frames=e[1], n_matches=K_SEARCH,
+                                                                      mode="fast", exclude_document=True)),
             "clips, exact": (clips, lambda d: sh.clips(d, n_matches=K_SEARCH, mode="exact", exclude_document=True)),
             "clips, fast": (clips, lambda d: sh.clips(d, n_matches=K_SEARCH, mode="fast", exclude_document=True)),
-            "LNG 1 s, k = 256": (lng, lambda e: sh.match_motion(e[0], e[1], n_matches=K_SEARCH,
-                                                                 exclude_document=True)),
-            "template search, pre-filter": ([template], lambda t: sh.search_template(t, n_matches=K_SEARCH,
+            "LNG 1 s, k = 256": (lng, lambda e: sh.match(e[0], frames=e[1], method="lng", n_matches=K_SEARCH, k=256,
+                                                          exclude_document=True)),
+            "template search, pre-filter": ([template], lambda t: sh.search_template(t, n_matches=K_SEARCH, delta=0.1,
                                                                                       prefilter=True)),
         }  # fmt: skip
         for name, (items, fn) in calls.items():
@@ -519,15 +525,17 @@ def _group_sharded(db, plan, quick, out):
     q_stretch = [example_features(db, feats_all, e[0], e[1], "F15E") for e in stretches]
     q_clip = [example_features(db, feats_all, d, None, "F15E") for d in clips]
     parsed = [read_description(db, t) for t in DESCRIPTIONS]
-    rel_values = [relational_example(e, "2005") for e in rel]  # what ShardedDB.query_by_example sends a shard
+    rel_values = [relational_example(e, "2005") for e in rel]  # what Engine.query sends a shard
     q_lng = [np.asarray(feats_all[db.documents.set_index("doc_id").loc[d, "start"] + a:
                                   db.documents.set_index("doc_id").loc[d, "start"] + b], dtype=np.float32)
              for d, (a, b) in lng]
     shard_calls = lambda s: {
-        "relational exact": (rel_values, lambda e: s.query_by_example(e, lower, "2005", mode="exact")),
-        "relational fuzzy": (rel_values, lambda e: s.query_by_example(e, lower, "2005", mode="fuzzy")),
+        "relational exact": (rel_values, lambda e: s.query_by_example(e, lower, "2005", mode="exact", mismatches=1,
+                                                                      allowed=None)),
+        "relational fuzzy": (rel_values, lambda e: s.query_by_example(e, lower, "2005", mode="fuzzy", mismatches=1,
+                                                                      allowed=None)),
         "relational mismatch": (rel_values, lambda e: s.query_by_example(e, lower, "2005", mode="mismatch",
-                                                                         mismatches=1)),
+                                                                         mismatches=1, allowed=None)),
         **{f"scene: {t}": ([p] * 3, lambda p: s.find(p[0].text, p[0].relational_set, n_matches=None,
                                                       template_cost=p[1]))
            for t, p in zip(DESCRIPTIONS, parsed)},
@@ -540,7 +548,7 @@ def _group_sharded(db, plan, quick, out):
         "clips, exact": (q_clip, lambda q: s.clips("F15E", q, n_matches=K_SEARCH, mode="exact", exclude_document=True)),
         "clips, fast": (q_clip, lambda q: s.clips("F15E", q, n_matches=K_SEARCH, mode="fast", exclude_document=True)),
         "LNG 1 s, k = 256": (q_lng, lambda q: s.knn("F15E", q, 256)),  # the shards' part of LNG: the kNN
-        "template search, pre-filter": ([template], lambda t: s.search_template(t, n_matches=K_SEARCH,
+        "template search, pre-filter": ([template], lambda t: s.search_template(t, n_matches=K_SEARCH, delta=0.1,
                                                                                 prefilter=True)),
     }  # fmt: skip
     shard_out = []
@@ -871,14 +879,15 @@ def render(ctx: dict, big, record: dict, out_dir: Path) -> None:
           "VmHWM of the fresh process at its end (setup included, file-backed pages too; `ru_maxrss` is not used: "
           "Linux carries the parent's value over fork + exec). The ≤ 2 GB target is read as the anon peak (everything beyond the mapped arrays).")
     print()
-    print("#### Sharded (`ShardedDB(db, \"local\", n_shards=2)`: a LocalCluster of 2 workers on this 2-core machine) "
-          "beside one process")
+    print("#### Sharded (`Engine(db, scheduler=\"local\", n_shards=2)`: a LocalCluster of 2 workers on this 2-core "
+          "machine) beside one process")
     print()
     print(shard_md)
     print()
     print("One process: the figures of the table above (same queries, another fresh process at the same size). "
-          "Sharded: the same queries (a prefix of them) through the ShardedDB, warmed (`numeric_sets=('F15E',), "
-          "relational_sets=('2005', '2006')`), median ms (each relational query and single 16-NN query the best of 2 "
+          "Sharded: the same queries (a prefix of them) through the Engine, warmed (`numeric_sets=('F15E',), "
+          "relational_sets=('2005', '2006')`; `k=256` to `match`, `n_matches=None` to `find`, `delta=0.1` to "
+          "`search_template`: the one-process calls' arguments), median ms (each relational query and single 16-NN query the best of 2 "
           "runs, as in one process); 'added' = sharded − one process. Per-shard work: the "
           "same `Shard` methods called in one process without Dask (each shard's half of the documents). ask / reply: "
           "pickled bytes of the query sent to a shard and of each shard's reply (hit table or (distances, frames)). "
@@ -886,14 +895,15 @@ def render(ctx: dict, big, record: dict, out_dir: Path) -> None:
     print()
     if have:
         sh = results[have[-1][0]]["sharded"]
-        print(f"ShardedDB start + warm at {have[-1][1]:,} frames: {sh.get('setup: ShardedDB start + warm (s)', 0):.1f} s; "
+        start = sh.get("setup: Engine start + warm (s)", sh.get("setup: ShardedDB start + warm (s)", 0))  # older runs
+        print(f"Engine start + warm at {have[-1][1]:,} frames: {start:.1f} s; "
               f"peak RSS of the coordinator and its 2 workers (the sum of each process's VmHWM, incl. file-backed pages): "
               f"{sh.get('sharded_peak_rss_MB', 0):,.0f} MB")
         print()
-    print("Library notes: `ShardedDB.search_template(..., prefilter=True)`: each shard pre-filters on its own "
+    print("Library notes: `Engine.search_template(..., prefilter=True)`: each shard pre-filters on its own "
           "inverted indexes; exact clips and stretches run a fast round on every shard first and share the K-th best "
           "cost it finds as each shard's starting limit (the round's time is in the sharded figure); "
-          "`ShardedDB.match_motion` (LNG) asks the shards for the 256 nearest frames of every "
+          "`Engine.match` (LNG, `k=256`) asks the shards for the 256 nearest frames of every "
           "query frame and builds the graph at the coordinator: its per-shard work is that kNN "
           "(`Shard.knn(F15E, 120 rows, 256)`) and its transfer 120 x 256 (distance, frame) pairs per shard.")
     print()
