@@ -174,7 +174,7 @@ def test_segment_based_says_when_the_database_cannot(sample_db, sample_dashboard
 @pytest.fixture(scope="module")
 def sample_indexes(sample_db):
     """The sample's relational indexes (group -> InvertedIndex) as the dashboard opens them."""
-    return Backend(sample_db).indexes()
+    return Backend(sample_db).engine.indexes()
 
 
 def test_statistics_tables_match_the_library(sample_db, sample_dashboard, sample_indexes, page, screenshot):

@@ -168,10 +168,10 @@ def test_the_backend_keeps_derived_data_and_a_bounded_number_of_answers(sample_d
     def answer(key):
         return backend.cached(key, lambda: computed.append(key) or len(computed))
 
-    features = backend.numeric("F15E")
+    features = backend.engine.numeric("F15E")
     for frame in range(5):
         answer(("similarity.knn", frame))
     answer(("similarity.knn", 3))  # recent: still kept
     assert [backend.is_cached(("similarity.knn", f)) for f in range(5)] == [False, False, False, True, True]
     assert answer(("similarity.knn", 0)) == 6 and len(computed) == 6  # forgotten, so computed again
-    assert backend.numeric("F15E") is features  # derived data stays
+    assert backend.engine.numeric("F15E") is features  # derived data stays

@@ -155,9 +155,9 @@ def warm_up(backend: Backend) -> dict[str, float]:
     sets loaded into ``backend``'s caches, the plotting code imported.
 
     - Similarity search: DTW search of whole clips and stretches, exact and fast, with warping paths (the F15E
-      kd-tree and coarse database of :meth:`Backend.search`); kNN of a frame (:meth:`Backend.knn`) and its Fig. 1
+      kd-tree and coarse database of the engine's shard); kNN of a frame (:meth:`Engine.neighbours`) and its Fig. 1
       picture; lazy neighbourhood graph matching with the page's default k (:func:`~.pages.similarity.graph_k`).
-    - Relational query: the relational indexes (:meth:`Backend.indexes`, built and saved when missing) and a query by
+    - Relational query: the relational indexes (:meth:`Engine.indexes`, built and saved when missing) and a query by
       example of each kind of hit.
     - Database page: a clip's relational features (its row click draws them).
     - Describe page: a shipped scene description found through the 2005 indexes (the ranking kernel loaded).

@@ -204,6 +204,12 @@ class Engine:
 
         return relational_features(self.db, relational_set, progress=False)[0]
 
+    def holds(self, kind: str, name: str) -> bool:
+        """Whether derived data of the whole database is made and kept in this process: ``kind`` "numeric",
+        "search" (a numeric set's DTW search and kd-tree), "values" (relational features) or "indexes", of the set
+        ``name`` (on a cluster: False, the workers hold theirs)."""
+        return self.client is None and all(actor.shard.holds(kind, name) for actor in self.actors)
+
     def knn_index(self, numeric_set: str = "F15E"):
         """A stand-in for a :class:`~mocapviz.similarity.knn.KnnIndex` of a numeric set whose ``query`` asks every
         shard (:meth:`knn`): what the lazy neighbourhood graph and the dashboard's kNN table use."""

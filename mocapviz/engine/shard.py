@@ -63,6 +63,10 @@ class Shard:
         if not isinstance(db, MotionDB):  # a worker process of its own
             keep_freed_memory()
 
+    def holds(self, kind: str, name: str) -> bool:
+        """Whether the derived data ``(kind, name)`` of :meth:`_once` is made."""
+        return (kind, name) in self._made
+
     def _once(self, key, make):
         """``make()``'s result, made once per ``key`` and kept; callers on other threads wait for it."""
         with self._guard:

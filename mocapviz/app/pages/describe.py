@@ -401,7 +401,7 @@ class DescribePage(pn.viewable.Viewer):
         """When the tab is shown: list the stored templates again (some may have been stored since) and load the
         relational indexes of the set in the background (Find waits for them)."""
         self._refresh_templates()
-        if not self.backend.is_cached(("indexes", self.relational_set.value)):
+        if not self.backend.engine.holds("indexes", self.relational_set.value):
             pn.state.execute(self._load_indexes)
 
     async def _load_indexes(self) -> None:
@@ -443,7 +443,7 @@ class DescribePage(pn.viewable.Viewer):
         self.names.value = names_view(event.new)
         self.words.value = vocabulary_view(event.new)
         self._show_status(self._text())
-        if not self.backend.is_cached(("indexes", event.new)):
+        if not self.backend.engine.holds("indexes", event.new):
             pn.state.execute(self._load_indexes)
 
     def _on_name(self, event) -> None:

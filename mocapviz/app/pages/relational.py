@@ -223,7 +223,7 @@ class RelationalPage(pn.viewable.Viewer):
         """Take the session's clip and span (the Database page may have changed them) when the tab is shown."""
         if (self.selection.doc, tuple(self.selection.span)) != (self.doc.value, half_open(self.span.value)):
             self._set_query(self.selection.doc, inclusive(self.selection.span))
-        if not self.backend.is_cached(("indexes", RELATIONAL_SET)):
+        if not self.backend.engine.holds("indexes", RELATIONAL_SET):
             pn.state.execute(self._load_indexes)
 
     async def _load_indexes(self) -> None:

@@ -4,7 +4,7 @@
    most like the current span by DTW, exact or fast; a chosen result plays beside the query, aligned by its DTW
    warping path.
 1. Nearest neighbours of the current frame (§3.3): the k nearest database frames by a numeric feature set (kd-tree
-   of :meth:`Backend.knn`), as a table and drawn together in the body frame as in Fig. 1.
+   of :meth:`Engine.neighbours`), as a table and drawn together in the body frame as in Fig. 1.
 2. Global motion matching of the current span with the lazy neighbourhood graph (§4.1): the K best matches; a
    chosen match plays beside the query, step by step along its warping path.
 3. The similarity matrices of Fig. 3: the span against the documents of the best matches, with the cells the graph
@@ -220,8 +220,8 @@ class SimilarityPage(pn.viewable.Viewer):
         super().__init__()
         self.backend, self.selection = backend, selection
         self.query = pn.pane.Markdown("", css_classes=["mv-similarity-query"], margin=(0, 10))
-        self.numeric_set = pn.widgets.Select(label="numeric set", options=SEARCH_SETS, value=default("clips", "numeric_set"),
-                                             width=160)
+        self.numeric_set = pn.widgets.Select(label="numeric set", options=SEARCH_SETS,
+                                             value=default("clips", "numeric_set"), width=160)
         self.exclude_own = pn.widgets.Checkbox(label="exclude the query's own document", value=True, width=260,
                                                align="end", css_classes=["mv-exclude-own"])
         self._build_search()
