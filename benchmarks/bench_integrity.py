@@ -78,7 +78,8 @@ def _median(code: str, args: list[str], repeats: int) -> list[float]:
 
 def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> int:
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
-    from mocapviz.features.numeric import _paths, store_numeric
+    from mocapviz.db import layout
+    from mocapviz.features.numeric import store_numeric
 
     t_start = time.perf_counter()
     monitor, info = CpuMonitor(), machine_info()
@@ -89,7 +90,7 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
         db = db.add_block_checksums()
         notes.append(f"block hashes added to the manifest (written before they were kept): "
                      f"{time.perf_counter() - t0:.1f} s, sha256 of each array checked first")  # fmt: skip
-    data, head = _paths(db, "F15E")
+    data, head = layout.numeric_data(db.path, "F15E"), layout.numeric_header(db.path, "F15E")
     if not head.is_file() or "xxh3" not in (json.loads(head.read_text()).get("data") or {}):
         log("storing F15E with block hashes")
         store_numeric(db, ["F15E"], progress=False)

@@ -71,6 +71,7 @@ def _mocapviz() -> list[str]:
 def sample_db() -> Path:
     """The embedded sample ingested, with its numeric feature sets stored (built once, rebuilt when stale)."""
     from mocapviz.db.database import MotionDB
+    from mocapviz.db.layout import manifest_file
     from mocapviz.errors import MocapvizError
     from mocapviz.features import load_numeric
     from mocapviz.io import datasets
@@ -83,7 +84,7 @@ def sample_db() -> Path:
     except MocapvizError:
         pass
     log(f"building {path} (the embedded sample and its numeric features)")
-    if not (path / "manifest.json").is_file():
+    if not manifest_file(path).is_file():
         subprocess.run([*cli, "ingest", str(datasets.fetch("sample")), "--out", str(path), "--no-cluster", "--quiet"],
                        check=True, env=env, capture_output=True)  # fmt: skip
     subprocess.run([*cli, "features", str(path), "--no-cluster", "--quiet"], check=True, env=env, capture_output=True)

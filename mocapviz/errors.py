@@ -105,7 +105,8 @@ class MotionDBError(MocapvizError, ValueError):
 class StaleDataError(MotionDBError):
     """Derived data stored with a MotionDB (a relational index, a numeric feature set, a document's markers) reads
     back exactly as written but belongs to an earlier state of the database: another generation or frame count, or
-    a PCA model since replaced. Nothing is damaged; the message names the command that computes it again
+    a PCA model since replaced; or was written by an older mocapviz in another version of its format
+    (:mod:`mocapviz.db.arrays`). Nothing is damaged; the message names the command that computes it again
     (``mocapviz check DB`` reports it as "stale", apart from "damaged")."""
 
 

@@ -14,11 +14,12 @@ verified by its xxh3 when first read in a process (:mod:`mocapviz.checked_map`).
 
 Two ways derived data can be unusable are told apart. **Damaged**: it does not read back as written (size,
 checksum, format), or the database itself does not open. **Stale**: it reads back exactly as written but was
-computed for an earlier state of the database (another generation or frame count, a PCA model since replaced:
-:class:`~mocapviz.errors.StaleDataError`), as every index and feature set is after an ingest adds documents; the
-row names the command that computes it again. The check reads the database as of its opening: derived data
-written by a command that ran meanwhile for a newer generation is compared with the database as it is then (so a
-check beside a running ingest or ``mocapviz index`` never calls intact data damaged).
+computed for an earlier state of the database (another generation or frame count, a PCA model since replaced), or
+written in an older version of its format (:mod:`mocapviz.db.arrays`): :class:`~mocapviz.errors.StaleDataError`, as
+every index and feature set is after an ingest adds documents; the row names the command that computes it again.
+The check reads the database as of its opening: derived data written by a command that ran meanwhile for a newer
+generation is compared with the database as it is then (so a check beside a running ingest or ``mocapviz index``
+never calls intact data damaged).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from .db import layout
 from .db.database import MotionDB
 from .errors import MocapvizError, StaleDataError
 
@@ -60,38 +62,37 @@ def check(path) -> pd.DataFrame:
     >>> report[report["what"] == "MotionDB"][["file", "status"]].values.tolist()  # and a row per derived file
     [['positions.g1.npy', 'ok'], ['quaternions.g1.npy', 'ok'], ['documents.g1.parquet', 'ok']]
     """
-    from .features import numeric as numeric_mod
-    from .relational.templates import TEMPLATES, MotionTemplate
+    from .features.numeric import PCAModel
+    from .relational.templates import MotionTemplate
 
     path = Path(path)
     try:
         db = MotionDB.open(path, verify=True).add_block_checksums()
     except MocapvizError as exc:
-        return pd.DataFrame([_row_of("manifest.json", "MotionDB", "damaged", str(exc))], columns=COLUMNS)
+        manifest = layout.manifest_file(path).name
+        return pd.DataFrame([_row_of(manifest, "MotionDB", "damaged", str(exc))], columns=COLUMNS)
     rows = [_row_of(f, "MotionDB") for f in (*db.manifest["arrays"].values(), db.manifest["documents"])]
     where = shlex.quote(str(path))
-    for f in sorted((path / "index").glob("*.npz")):
-        relational_set = f.stem.split("-")[1] if f.stem.count("-") == 2 else "2005"
+    for f, relational_set in layout.index_files(path).items():
         option = "" if relational_set == "2005" else f" --relational-set {relational_set}"
         rows.append(_row(f, path, "relational index", lambda db, f=f: _current_index(f, db),
                          db, f"mocapviz index {where}{option}"))  # fmt: skip
-    features = path / "features"
-    for f in sorted(features.glob("numeric-*.json")):
-        name = f.stem.removeprefix("numeric-")
-        rows.append(_row(f.with_suffix(".npy"), path, f"numeric set {name}", lambda db, name=name: _numeric(db, name),
-                         db, f"mocapviz features {where} --numeric-sets {name}"))  # fmt: skip
-    if (features / "pca.npz").exists():
-        rows.append(_row(features / "pca.npz", path, "PCA model",
-                         lambda db: numeric_mod.PCAModel.load(features / "pca.npz"), db))  # fmt: skip
-    for f in sorted((path / TEMPLATES).glob("*.npz")):
-        rows.append(_row(f, path, f"motion template {f.stem}", lambda db, f=f: MotionTemplate.load(f), db))
+    for name in layout.numeric_sets(path):
+        rows.append(_row(layout.numeric_data(path, name), path, f"numeric set {name}",
+                         lambda db, name=name: _numeric(db, name), db,
+                         f"mocapviz features {where} --numeric-sets {name}"))  # fmt: skip
+    pca = layout.pca_file(path)
+    if pca.exists():
+        rows.append(_row(pca, path, "PCA model", lambda db: PCAModel.load(pca), db))
+    for name, f in layout.template_files(path).items():
+        rows.append(_row(f, path, f"motion template {name}", lambda db, f=f: MotionTemplate.load(f), db))
     by_sha = dict(zip(db.documents["sha256"], db.documents["doc_id"]))
-    for f in sorted((path / "markers").glob("*.npz")):
-        if f.stem not in by_sha:  # (a document an ingest added since the check opened the database?)
+    for sha, f in layout.markers_files(path).items():
+        if sha not in by_sha:  # (a document an ingest added since the check opened the database?)
             documents = MotionDB.open(path).documents
             by_sha.update(zip(documents["sha256"], documents["doc_id"]))
-        what = f"markers of document {by_sha[f.stem]}" if f.stem in by_sha else "markers of no document"
-        rows.append(_row(f, path, what, lambda db, f=f: _markers(db, f), db))
+        what = f"markers of document {by_sha[sha]}" if sha in by_sha else "markers of no document"
+        rows.append(_row(f, path, what, lambda db, f=f, sha=sha: _markers(db, f, sha), db))
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
@@ -132,12 +133,12 @@ def _numeric(db: MotionDB, name: str) -> None:
     numeric_mod.add_block_checksums(db, name)  # (a set stored before block hashes were kept)
 
 
-def _markers(db: MotionDB, f: Path) -> None:
-    """Read the markers file ``f`` back as the markers of the document of ``db`` it belongs to (by its name, the
-    sha256 of the document's file)."""
+def _markers(db: MotionDB, f: Path, sha256: str) -> None:
+    """Read the markers file ``f`` back as the markers of the document of ``db`` it belongs to (``sha256``, the
+    checksum of the document's file, :func:`mocapviz.db.layout.markers_files`)."""
     from .db.markers import load_markers
 
-    doc = dict(zip(db.documents["sha256"], db.documents["doc_id"])).get(f.stem)
+    doc = dict(zip(db.documents["sha256"], db.documents["doc_id"])).get(sha256)
     if doc is None:
         raise StaleDataError(f"{f}: markers of no document of the database (left from a file no longer in it); "
                              "nothing reads it")  # fmt: skip

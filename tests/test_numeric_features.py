@@ -286,8 +286,8 @@ def test_pca_model_round_trip_and_bad_files(pca, tmp_path):
     for field in ("mean", "components", "explained_variance"):
         np.testing.assert_array_equal(getattr(back, field), getattr(pca, field))
     assert (back.total_variance, back.n_frames, back.reference) == (pca.total_variance, pca.n_frames, pca.reference)
-    with np.load(path, allow_pickle=False) as z:  # plain arrays, no pickled objects
-        assert {"mean", "components", "explained_variance", "reference"} <= set(z.files)
+    with np.load(path, allow_pickle=False) as z:  # plain arrays and a JSON header, no pickled objects
+        assert set(z.files) == {"header", "mean", "components", "explained_variance"}
     bad = tmp_path / "bad.npz"
     bad.write_bytes(b"not a zip file")
     with pytest.raises(ValueError, match="bad.npz"):

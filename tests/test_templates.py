@@ -357,7 +357,7 @@ def test_group_values_survive_save_and_load_and_are_checked(tmp_path):
         arrays = {k: z[k] for k in z.files}
     arrays["group_values"] = arrays["group_values"] * 0.5
     np.savez(tmp_path / "bad.npz", **arrays)
-    with pytest.raises(MotionDBError, match="group values differ"):
+    with pytest.raises(MotionDBError, match="bad.npz: its arrays differ from those written"):
         MotionTemplate.load(tmp_path / "bad.npz")
 
 

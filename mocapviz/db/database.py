@@ -1,6 +1,6 @@
 """MotionDB: many motions on the canonical skeleton, concatenated on disk.
 
-Layout of a MotionDB directory (format version 1)::
+Layout of a MotionDB directory (format version 1; the names are :mod:`mocapviz.db.layout`'s)::
 
     manifest.json                  format, version, generation, frame count, joints, file names
     positions.g<G>.npy             (N, 24, 3) float32, cm, y up -- all frames of all documents
@@ -48,6 +48,7 @@ from ..store import atomic_file, atomic_write, check_format, stamp
 from ..validation import renamed
 from .ingest import BASE_COLUMNS as _BASE_COLUMNS
 from .ingest import IngestOptions, expand_paths, read_new
+from .layout import generation_file, generation_of, manifest_file
 
 __all__ = ["FORMAT", "VERSION", "MotionDB"]
 
@@ -408,7 +409,7 @@ class MotionDB:
 
         folder = datasets.sample()
         out = folder.parent / "sample.mdb"
-        if not (out / "manifest.json").exists():
+        if not manifest_file(out).exists():
             cls.ingest(folder, out, progress=False)
         return cls.open(out).add_block_checksums()  # (a sample built by an older mocapviz)
 
@@ -439,7 +440,7 @@ class MotionDB:
                         raise MotionDBError(f"{self.path / name}: its sha256 differs from the one recorded when it "
                                             f"was written: the file is damaged; {_RESTORE}")  # fmt: skip
                     manifest["checksums"][name] = now
-            atomic_write(self.path / "manifest.json", json.dumps(manifest, indent=2).encode())
+            atomic_write(manifest_file(self.path), json.dumps(manifest, indent=2).encode())
         return MotionDB.open(self.path)
 
     @classmethod
@@ -559,12 +560,12 @@ class MotionDB:
         retries = 2  # again when a concurrent failed ingest removed the empty database it created
         while True:
             created = False
-            if not (out / "manifest.json").exists():
+            if not manifest_file(out).exists():
                 try:
                     cls.create(out)
                     created = True
                 except MotionDBError:
-                    if not (out / "manifest.json").exists():  # (not another ingest that created it first)
+                    if not manifest_file(out).exists():  # (not another ingest that created it first)
                         raise
             try:
                 return cls.open(out)._append_files(files, options)
@@ -678,7 +679,7 @@ class MotionDB:
 # ---------------------------------------------------------------------- storage helpers
 def _locked(path: Path):
     """The database's writer lock (:func:`mocapviz.store.locked`): one writer at a time, a second one waits."""
-    if not (path / "manifest.json").is_file():
+    if not manifest_file(path).is_file():
         raise MotionDBError(f"{path}: not a MotionDB (no manifest.json); it may have been removed by a failed ingest")
     return store.locked(path)
 
@@ -692,16 +693,13 @@ def _exists(f: Path) -> None:
         raise _Gone(f"{f}: missing; {_RESTORE}")
 
 
-_GENERATION = re.compile(r"(?:positions|quaternions|documents)\.g(?P<generation>\d+)\.(?:npy|parquet)")
-
-
 class _Vanished(MotionDBError):
     """The database was removed while this writer waited for its lock (a concurrent fresh ingest failed)."""
 
 
 def _reopen(path: Path) -> MotionDB:
     """The database as it is now (called under the writer lock: another writer may have committed meanwhile)."""
-    if not (path / "manifest.json").is_file():
+    if not manifest_file(path).is_file():
         raise _Vanished(f"{path}: removed by a failed ingest while this one waited to write; run it again")
     return MotionDB.open(path)
 
@@ -732,7 +730,7 @@ def _check_documents(documents: pd.DataFrame, table: Path, n_frames: int) -> Non
 
 
 def _read_manifest(path: Path) -> dict:
-    f = path / "manifest.json"
+    f = manifest_file(path)
     if not f.is_file():
         raise MotionDBError(f"{path}: not a MotionDB (no manifest.json)")
     try:
@@ -816,7 +814,7 @@ def _commit(path: Path, manifest: dict | None, positions: list, quaternions: lis
     ]
     files = {}
     for name, width in _ARRAYS.items():
-        target = path / f"{name}.g{gen}.npy"
+        target = generation_file(path, name, gen)
         old = None if manifest is None else path / manifest["arrays"][name]
         _write_grown(old, n_old, positions if name == "positions" else quaternions, width, target)
         files[name] = target.name
@@ -832,7 +830,7 @@ def _commit(path: Path, manifest: dict | None, positions: list, quaternions: lis
         docs[c] = docs[c].astype("int64")
     for c in docs.columns:
         docs[c] = _stored(docs[c])
-    doc_file = path / f"documents.g{gen}.parquet"
+    doc_file = generation_file(path, "documents", gen)
     with atomic_file(doc_file) as tmp:
         docs.to_parquet(tmp, index=False)
     new_manifest = {
@@ -844,10 +842,10 @@ def _commit(path: Path, manifest: dict | None, positions: list, quaternions: lis
         "documents": doc_file.name,
         "checksums": {f: store.fingerprint(path / f) for f in [*files.values(), doc_file.name]},
     }
-    atomic_write(path / "manifest.json", json.dumps(new_manifest, indent=2).encode())
+    atomic_write(manifest_file(path), json.dumps(new_manifest, indent=2).encode())
     for f in path.iterdir():
-        older = _GENERATION.fullmatch(f.name)
-        if (older and int(older["generation"]) <= gen - _KEEP_GENERATIONS) or f.name.endswith(".tmp"):
+        older = generation_of(f.name)
+        if (older is not None and older <= gen - _KEEP_GENERATIONS) or f.name.endswith(".tmp"):
             with contextlib.suppress(FileNotFoundError):
                 f.unlink()
 
@@ -861,7 +859,8 @@ def _remove_if_untouched(path: Path) -> None:
             if manifest["generation"] != 0 or manifest["n_frames"] != 0:
                 return
             for f in path.iterdir():
-                if f.name in ("manifest.json", store.LOCK_FILE) or f.name.endswith((".npy", ".parquet", ".tmp")):
+                if f in (manifest_file(path), path / store.LOCK_FILE) or generation_of(f.name) is not None \
+                        or f.name.endswith(".tmp"):
                     f.unlink()
     except (MotionDBError, OSError):  # another writer is in it, or it is gone: leave it
         return

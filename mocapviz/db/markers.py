@@ -2,9 +2,9 @@
 
 A C3D document's joints are estimates (:mod:`mocapviz.motion.markers`); the markers they were made from are stored
 too, so that nothing the file held is lost when the file is gone: one ``.npz`` per document under ``DB/markers/``,
-named by the file's checksum (the document's ``sha256``), at the file's own rate, written atomically with a format
-header and a checksum of its arrays (:mod:`mocapviz.store`). Gaps are stored as a mask, not as NaN (no non-finite
-value is stored), and come back as NaN.
+named by the file's checksum (the document's ``sha256``, :func:`mocapviz.db.layout.markers_file`), at the file's own
+rate, written atomically with a format header and a checksum of its arrays (:mod:`mocapviz.db.arrays`). Gaps are
+stored as a mask, not as NaN (no non-finite value is stored), and come back as NaN.
 
 store_markers   read the C3D documents' files once more and store their markers (ingest does it for new ones).
 load_markers    a document's markers as a marker Motion (NaN in gaps), checked against its checksum.
@@ -13,7 +13,6 @@ has_markers     whether a document's markers are stored.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -21,15 +20,18 @@ import numpy as np
 from .. import store
 from ..errors import MotionDBError
 from ..motion import Motion
+from .arrays import load_arrays, save_arrays
+from .layout import markers_file
 
 __all__ = ["has_markers", "load_markers", "markers_path", "store_markers"]
 
 FORMAT, VERSION = "mocapviz-markers", 1
+_REBUILD = "delete it and store the markers again from the C3D file (mocapviz.db.markers.store_markers)"
 
 
 def markers_path(db, doc_id: int) -> Path:
     """Where document ``doc_id``'s markers are stored: ``DB/markers/<sha256 of its file>.npz``."""
-    return Path(db.path) / "markers" / f"{db.document(doc_id)['sha256']}.npz"
+    return markers_file(db.path, db.document(doc_id)["sha256"])
 
 
 def has_markers(db, doc_id: int) -> bool:
@@ -73,12 +75,11 @@ def store_markers(db, doc_ids=None) -> list[Path]:
         present = np.isfinite(motion.positions).all(axis=2)
         arrays = {"positions": np.where(present[..., None], motion.positions, 0.0).astype(np.float32),
                   "present": present}  # fmt: skip
-        header = {**store.stamp(FORMAT, VERSION), "doc_name": row.name, "source": str(path), "fps": motion.fps,
-                  "markers": list(motion.joint_names), "labels": motion.labels,
-                  "sha256": store.digest(arrays)}  # fmt: skip
+        header = {"doc_name": row.name, "source": str(path), "fps": motion.fps, "markers": list(motion.joint_names),
+                  "labels": motion.labels}  # fmt: skip
         target.parent.mkdir(exist_ok=True)
-        with store.locked(target.parent), store.atomic_file(target) as tmp, open(tmp, "wb") as fh:
-            np.savez(fh, header=np.array(json.dumps(header)), **arrays)
+        with store.locked(target.parent):
+            save_arrays(target, arrays, header, FORMAT, VERSION)
         written.append(target)
     return written
 
@@ -107,17 +108,7 @@ def load_markers(db, doc_id: int) -> Motion:
     if not path.is_file():
         raise MotionDBError(f"{db.path}: no markers stored for {what}: only documents read from C3D files have "
                             "them (stored at ingest, or by mocapviz.db.markers.store_markers)")  # fmt: skip
-    import zipfile
-
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            header = json.loads(str(z["header"]))
-            arrays = {"positions": z["positions"], "present": z["present"]}
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
-        raise MotionDBError(f"{path}: the markers of {what} cannot be read ({exc})") from None
-    store.check_format(header, FORMAT, VERSION, path)
-    if store.digest(arrays) != header.get("sha256"):
-        raise MotionDBError(f"{path}: the markers of {what} are damaged (checksum mismatch)")
+    arrays, header = load_arrays(path, FORMAT, VERSION, f"markers file of {what}", _REBUILD)
     positions = np.where(arrays["present"][..., None], arrays["positions"], np.nan).astype(np.float32)
     n = positions.shape[1]
     return Motion(positions=positions, fps=float(header["fps"]), joint_names=tuple(header["markers"]),

@@ -51,10 +51,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import hashlib
-import io
 import json
-import zipfile
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -62,6 +59,8 @@ from pathlib import Path
 import numpy as np
 
 from ..checked_map import verified_blocks
+from ..db import layout
+from ..db.arrays import load_arrays, save_arrays
 from ..db.batches import map_documents
 from ..db.database import MotionDB
 from ..errors import MotionDBError, ParameterError, StaleDataError
@@ -104,9 +103,10 @@ _FRAME_JOINTS = ("root", "lhip", "rhip")  # what the body frame itself is comput
 _BATCH_FRAMES = 1 << 15  # a MotionDB is processed in batches of whole documents of about this many frames
 _HEADER_FORMAT = "mocapviz.numeric-features"
 _PCA_FORMAT = "mocapviz.PCAModel"
-_FORMAT_VERSION = 1  # of a PCA model file
+_PCA_VERSION = 2  # of a PCA model file; 2: mocapviz.db.arrays' header and sha256 (a version 1 file is stale)
 _HEADER_VERSION = 2  # of a numeric-feature header; 2: it holds the data file's size and sha256
 _STALE_HINT = "run `mocapviz features DB` (store_numeric(db)) to compute them"
+_PCA_HINT = "fit it again: `mocapviz features DB` for a database's own, fit_pca(reference).save(path) for another"
 
 
 @dataclass(frozen=True)
@@ -306,29 +306,16 @@ class PCAModel:
         return self.mean + c @ self.components[: c.shape[1]]
 
     def save(self, path) -> None:
-        """Write the model as an ``.npz`` (no pickled objects), atomically (temporary file, then rename).
+        """Write the model as an ``.npz`` (no pickled objects), atomically (:func:`mocapviz.db.arrays.save_arrays`).
 
         Parameters
         ----------
         path : str or os.PathLike
             The file to write (replaced if it exists).
         """
-        atomic_write(Path(path), self._npz_bytes())
-
-    def _npz_bytes(self) -> bytes:
-        buf = io.BytesIO()
-        np.savez(
-            buf,
-            format=np.str_(_PCA_FORMAT),
-            version=np.int64(_FORMAT_VERSION),
-            mean=self.mean,
-            components=self.components,
-            explained_variance=self.explained_variance,
-            total_variance=np.float64(self.total_variance),
-            n_frames=np.int64(self.n_frames),
-            reference=np.str_(self.reference),
-        )
-        return buf.getvalue()
+        arrays = {"mean": self.mean, "components": self.components, "explained_variance": self.explained_variance}
+        header = {"total_variance": self.total_variance, "n_frames": self.n_frames, "reference": self.reference}
+        save_arrays(path, arrays, header, _PCA_FORMAT, _PCA_VERSION)
 
     @classmethod
     def load(cls, path) -> PCAModel:
@@ -346,26 +333,14 @@ class PCAModel:
         Raises
         ------
         MotionDBError
-            Not such a file (names the file and what is wrong), as for every other saved artefact.
+            Not such a file (names the file and what is wrong), as for every other saved artefact; one written by
+            an older mocapviz is stale (a StaleDataError).
         """
-        path = Path(path)
+        arrays, header = load_arrays(path, _PCA_FORMAT, _PCA_VERSION, "PCA model", _PCA_HINT)
         try:
-            with np.load(path, allow_pickle=False) as z:
-                fields = {k: z[k] for k in z.files}
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-            raise MotionDBError(f"{path}: cannot read a PCA model ({exc})") from None
-        check_format({"format": str(fields.get("format", "")), "version": int(fields.get("version", -1))},
-                     _PCA_FORMAT, _FORMAT_VERSION, path)
-        try:
-            return cls(
-                mean=fields["mean"],
-                components=fields["components"],
-                explained_variance=fields["explained_variance"],
-                total_variance=fields["total_variance"],
-                n_frames=fields["n_frames"],
-                reference=str(fields["reference"]),
-            )
-        except (KeyError, ValueError) as exc:
+            return cls(**arrays, total_variance=header["total_variance"], n_frames=header["n_frames"],
+                       reference=header["reference"])  # fmt: skip
+        except (KeyError, TypeError, ValueError) as exc:
             raise MotionDBError(f"{path}: malformed PCA model ({exc})") from None
 
 
@@ -620,11 +595,6 @@ def numeric_columns(numeric_set: str) -> list[str]:
 # ================================================================================================== storage
 
 
-def _paths(db: MotionDB, name: str) -> tuple[Path, Path]:
-    folder = db.path / "features"
-    return folder / f"numeric-{name}.npy", folder / f"numeric-{name}.json"
-
-
 def store_numeric(
     db: MotionDB, numeric_sets=None, pca: PCAModel | None = None, progress: bool = True, threads: int | None = None,
     scheduler=None,
@@ -677,27 +647,26 @@ def _store_numeric(db: MotionDB, specs: dict, pca: PCAModel | None, progress: bo
                    client) -> dict[str, np.ndarray]:
     """:func:`store_numeric` of the sets ``specs`` (name -> _Set), batches on threads or on ``client``."""
     names = list(specs)
-    folder = db.path / "features"
+    folder, pca_file = layout.features_folder(db.path), layout.pca_file(db.path)
     folder.mkdir(exist_ok=True)
     pca_header = None
     if any(s.pcs for s in specs.values()):
         fitted_here = pca is None
         if fitted_here:
             pca = _own_pca(db, progress, threads, client)
-        blob = pca._npz_bytes()
-        pca_header = {
-            "file": "pca.npz",
-            "sha256": hashlib.sha256(blob).hexdigest(),
-            "reference": pca.reference,
-            "n_components": pca.n_components,
-            "n_frames": pca.n_frames,
-            "fitted_on_this_database": fitted_here,
-        }
         with locked(folder):
-            atomic_write(folder / "pca.npz", blob)
+            pca.save(pca_file)
+            pca_header = {
+                "file": pca_file.name,
+                "sha256": fingerprint(pca_file)["sha256"],
+                "reference": pca.reference,
+                "n_components": pca.n_components,
+                "n_frames": pca.n_frames,
+                "fitted_on_this_database": fitted_here,
+            }
     fps_values = sorted({float(f) for f in db.documents["fps"]})
     for name, spec in specs.items():
-        data_path, header_path = _paths(db, name)
+        data_path, header_path = layout.numeric_data(db.path, name), layout.numeric_header(db.path, name)
         header = {
             **stamp(_HEADER_FORMAT, _HEADER_VERSION),
             "set": name,
@@ -771,7 +740,7 @@ def load_numeric(db: MotionDB, numeric_set: str, full_check: bool = False) -> np
         files are unreadable or damaged (size, sha256). The message says to run ``mocapviz features DB``.
     """
     spec = _spec(numeric_set)
-    data_path, header_path = _paths(db, numeric_set)
+    data_path, header_path = layout.numeric_data(db.path, numeric_set), layout.numeric_header(db.path, numeric_set)
     missing = MotionDBError(f"{db.path}: numeric feature set {numeric_set} is not stored; {_STALE_HINT}")
     if not header_path.parent.is_dir():
         raise missing
@@ -796,7 +765,7 @@ def load_numeric(db: MotionDB, numeric_set: str, full_check: bool = False) -> np
             )
         elif data.shape != (db.n_frames, spec.dims) or data.dtype != np.float32:
             stale = f"{data_path.name} holds {data.shape} {data.dtype}, expected ({db.n_frames}, {spec.dims}) float32"
-        elif spec.pcs and _file_sha256(header_path.parent / "pca.npz") != (header.get("pca") or {}).get("sha256"):
+        elif spec.pcs and _file_sha256(layout.pca_file(db.path)) != (header.get("pca") or {}).get("sha256"):
             stale = "pca.npz has been replaced since it was computed"
     if stale:
         raise StaleDataError(f"{db.path}: numeric feature set {numeric_set} is stale: {stale}; {_STALE_HINT}")
@@ -825,7 +794,7 @@ def add_block_checksums(db: MotionDB, numeric_set: str) -> bool:
     mocapviz.MotionDBError
         The set is not stored or its data differ from its recorded sha256 (nothing written).
     """
-    data_path, header_path = _paths(db, numeric_set)
+    data_path, header_path = layout.numeric_data(db.path, numeric_set), layout.numeric_header(db.path, numeric_set)
     load_numeric(db, numeric_set)  # stored, current and readable
     with locked(header_path.parent):
         header = json.loads(header_path.read_text())
@@ -896,7 +865,7 @@ def default_pca(db: MotionDB, progress: bool = False) -> PCAModel:
 def _stored_pca(db: MotionDB, reference: str | None = None) -> PCAModel:
     """The stored ``features/pca.npz`` of a MotionDB (of this ``reference`` with the default components when
     given), or MotionDBError."""
-    path = db.path / "features" / "pca.npz"
+    path = layout.pca_file(db.path)
     if not path.is_file():
         raise MotionDBError(f"{db.path}: no stored PCA model")
     stored = PCAModel.load(path)

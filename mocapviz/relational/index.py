@@ -19,17 +19,16 @@ load(db, relational_set)      the saved indexes of a MotionDB (checked to be cur
 """
 from __future__ import annotations
 
-import json
-import zipfile
 from pathlib import Path
 
 import numba
 import numpy as np
 
 from .. import store
+from ..db import layout
+from ..db.arrays import load_arrays, save_arrays
 from ..errors import MotionDBError, ParameterError, StaleDataError
 from ..features.segmentation import FeatureSequence, decode, encode, segment
-from ..store import atomic_file, check_format, stamp
 
 FORMAT = "mocapviz.InvertedIndex"
 _REBUILD = "rebuild it with `mocapviz index DB`"
@@ -707,20 +706,15 @@ class InvertedIndex:
         }
 
     def save(self, path) -> None:
-        """Write the index to ``path`` (.npz, no pickle) atomically: a temporary file renamed into place.
+        """Write the index to ``path`` atomically (:func:`mocapviz.db.arrays.save_arrays`).
 
         Parameters
         ----------
         path : str or os.PathLike
             The file (its folder is created); its header holds the format, names, meta and the arrays' sha256.
         """
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        arrays = self._stored()
-        header = {**stamp(FORMAT, VERSION), "n_features": self.n_features, "feature_names": list(self.feature_names),
-                  "meta": self.meta, "sha256": store.digest(arrays)}  # fmt: skip
-        with atomic_file(path) as tmp, open(tmp, "wb") as fh:  # (np.savez would add ".npz" to a bare name)
-            np.savez(fh, header=np.array(json.dumps(header)), **arrays)
+        header = {"n_features": self.n_features, "feature_names": list(self.feature_names), "meta": self.meta}
+        save_arrays(path, self._stored(), header, FORMAT, VERSION)
 
     @classmethod
     def load(cls, path) -> InvertedIndex:
@@ -738,19 +732,10 @@ class InvertedIndex:
         Raises
         ------
         MotionDBError
-            Missing or unreadable file, another format or version, or arrays that differ from those written (their
-            sha256 is kept in the header and checked here).
+            Missing or unreadable file, another format, or arrays that differ from those written (their sha256 is
+            kept in the header and checked here); another version is stale (a StaleDataError).
         """
-        path = Path(path)
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                header = json.loads(str(z["header"]))
-                arrays = {k: z[k] for k in z.files if k != "header"}
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
-            raise MotionDBError(f"{path}: not a readable index ({exc})") from None
-        check_format(header, FORMAT, VERSION, path, _REBUILD)
-        if store.digest(arrays) != header.get("sha256"):
-            raise MotionDBError(f"{path}: its arrays differ from those written (sha256): the file is damaged; {_REBUILD}")
+        arrays, header = load_arrays(path, FORMAT, VERSION, "index", _REBUILD)
         codes = np.repeat(arrays["list_codes"], np.diff(arrays["list_offsets"]))
         seq_codes = np.empty_like(codes)
         seq_codes[arrays["positions"]] = codes
@@ -774,9 +759,9 @@ def index_path(db, relational_set: str, group: str) -> Path:
     Returns
     -------
     pathlib.Path
-        ``DB/index/relational-<set>-<group>.npz``.
+        ``DB/index/relational-<set>-<group>.npz`` (:func:`mocapviz.db.layout.index_file`).
     """
-    return Path(db.path) / "index" / f"relational-{relational_set}-{group}.npz"
+    return layout.index_file(db.path, relational_set, group)
 
 
 def feature_group_values(values: np.ndarray, relational_set: str = "2005") -> dict:

@@ -61,10 +61,8 @@ default and both switchable off:
 
 from __future__ import annotations
 
-import json
 import re
 import time
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -73,8 +71,10 @@ import numpy as np
 import pandas as pd
 
 from .. import store
+from ..db import layout
+from ..db.arrays import load_arrays, save_arrays
 from ..db.hits import from_database_frames, hit_table
-from ..errors import MotionDBError, ParameterError, UnknownKeyError
+from ..errors import ParameterError, UnknownKeyError
 from ..features import RELATIONAL_SETS, feature_names, relational_features
 from ..match import best_ends, dtw, subsequence_costs
 from ..match.time_warping import _check_document_starts, matches_frame
@@ -82,7 +82,8 @@ from ..parallel import default_threads, map_ordered
 from ..validation import Interval, count, number
 
 FORMAT = "mocapviz.MotionTemplate"
-VERSION = 1
+VERSION = 2  # 2: one sha256 over all its arrays (mocapviz.db.arrays); a version 1 file is stale: learn it again
+_RELEARN = "learn it again (`mocapviz template learn`)"
 DONT_CARE = 0.5  # the value a quantised template holds where a feature does not matter
 TIE = 1e-9  # row-bounded alignment: costs this close are equal (sums of mismatch shares in another order)
 DELTA = 0.1  # default quantisation threshold: < δ -> 0, > 1 - δ -> 1, else don't care
@@ -94,7 +95,6 @@ KEYFRAMES = 4  # template rows used by the pre-filter
 TOLERANCE = 0.2  # a keyframe occurs where at most this share of its cared-for features disagree
 SPEED = 2.0  # instances up to this much faster than the fastest example (or slower than the slowest) are sought
 TOL = 1e-6
-TEMPLATES = "templates"  # the folder of a MotionDB holding its stored templates (store_template)
 MAX_NEGATIVES = 500  # documents of other labels a learned threshold is judged against at most
 _NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,127}")  # a stored template's name: filename-safe
 _SAFE = re.compile(r"[^A-Za-z0-9._-]")
@@ -115,8 +115,8 @@ class MotionTemplate:
     group_values : np.ndarray [shape=(G, K, f)] or None, the mean of each group's aligned examples (``meta["groups"]``
     names the groups), when learned with groups: what :meth:`quantised` judges consistency by.
 
-    ``save(path)`` writes it as an ``.npz`` (no pickle) through :mod:`mocapviz.store` with a format header and the
-    sha256 of its values; ``MotionTemplate.load(path)`` checks both.
+    ``save(path)`` writes it as an ``.npz`` (no pickle) through :mod:`mocapviz.db.arrays` with a format header and the
+    sha256 of its arrays; ``MotionTemplate.load(path)`` checks both.
 
     Parameters
     ----------
@@ -208,17 +208,12 @@ class MotionTemplate:
         path : str or os.PathLike
             The file (its folder is created; an existing file is replaced).
         """
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        header = {**store.stamp(FORMAT, VERSION), "features": self.features, "label": self.label,
-                  "n_examples": self.n_examples, "iterations": self.iterations, "meta": self.meta,
-                  "sha256": store.digest({"values": self.values})}  # fmt: skip
+        header = {"features": self.features, "label": self.label, "n_examples": self.n_examples,
+                  "iterations": self.iterations, "meta": self.meta}  # fmt: skip
         arrays = {"values": self.values}
-        if self.group_values is not None:  # an optional array with its own checksum: older readers ignore it
+        if self.group_values is not None:
             arrays["group_values"] = np.asarray(self.group_values, dtype=np.float64)
-            header["group_sha256"] = store.digest({"group_values": arrays["group_values"]})
-        with store.atomic_file(path) as tmp, open(tmp, "wb") as fh:
-            np.savez(fh, header=np.array(json.dumps(header, default=str)), **arrays)
+        save_arrays(path, arrays, header, FORMAT, VERSION)
 
     @classmethod
     def load(cls, path) -> MotionTemplate:
@@ -236,25 +231,12 @@ class MotionTemplate:
         Raises
         ------
         MotionDBError
-            The file is not a template or is damaged; the message names it.
+            The file is not a template or is damaged; the message names it. A template of an older version is
+            stale (a StaleDataError).
         """
-        path = Path(path)
-        try:
-            with open(path, "rb") as fh:  # before np.load, which would read a whole .npy array (or text) first
-                if not zipfile.is_zipfile(fh):
-                    raise ValueError("not an .npz archive")
-            with np.load(path, allow_pickle=False) as z:
-                header, values = json.loads(str(z["header"])), z["values"]
-                groups = z["group_values"] if "group_values" in z.files else None
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
-            raise MotionDBError(f"{path}: not a readable motion template ({exc})") from None
-        store.check_format(header, FORMAT, VERSION, path, "learn it again (`mocapviz template learn`)")
-        if store.digest({"values": values}) != header.get("sha256"):
-            raise MotionDBError(f"{path}: its values differ from those written (sha256): the file is damaged")
-        if groups is not None and store.digest({"group_values": groups}) != header.get("group_sha256"):
-            raise MotionDBError(f"{path}: its group values differ from those written (sha256): the file is damaged")
-        return cls(values, list(header["features"]), header["label"], int(header["n_examples"]),
-                   int(header["iterations"]), dict(header["meta"]), groups)  # fmt: skip
+        arrays, header = load_arrays(path, FORMAT, VERSION, "motion template", _RELEARN)
+        return cls(arrays["values"], list(header["features"]), header["label"], int(header["n_examples"]),
+                   int(header["iterations"]), dict(header["meta"]), arrays.get("group_values"))  # fmt: skip
 
 
 def template_distance(template: np.ndarray, frames: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
@@ -1100,12 +1082,12 @@ def template_path(db, name: str) -> Path:
     Returns
     -------
     pathlib.Path
-        ``DB/templates/<name>.npz``.
+        ``DB/templates/<name>.npz`` (:func:`mocapviz.db.layout.template_file`).
     """
     if not is_template_name(name):
         raise ParameterError(f"template name {name!r} is not filename-safe: use letters, digits, '.', '_' and '-' "
                              "(not first '.'), at most 128 characters")
-    return Path(db.path) / TEMPLATES / f"{name}.npz"
+    return layout.template_file(db.path, name)
 
 
 def store_template(db, template: MotionTemplate, name: str | None = None) -> Path:
@@ -1162,7 +1144,7 @@ def load_template(db, name: str) -> MotionTemplate:
     """
     path = template_path(db, name) if is_template_name(name) else None
     if path is None or not path.is_file():
-        stored = ", ".join(sorted(p.stem for p in (Path(db.path) / TEMPLATES).glob("*.npz"))) or "none"
+        stored = ", ".join(layout.template_files(db.path)) or "none"
         shown = repr(name) if len(str(name)) <= 128 else f"{str(name)[:60]!r}... ({len(str(name))} characters)"
         raise UnknownKeyError(f"no stored template {shown} in {db.path}; stored: {stored} "
                               f"(`mocapviz template learn {db.path} --label CLASS` stores one)")  # fmt: skip
@@ -1190,9 +1172,9 @@ def stored_templates(db) -> pd.DataFrame:
         A damaged file; the message names it.
     """
     rows = []
-    for path in sorted((Path(db.path) / TEMPLATES).glob("*.npz")):
+    for name, path in layout.template_files(db.path).items():
         t = MotionTemplate.load(path)
-        rows.append({"name": path.stem, "label": t.label, "n_examples": t.n_examples, "frames": len(t.values),
+        rows.append({"name": name, "label": t.label, "n_examples": t.n_examples, "frames": len(t.values),
                      "relational_set": t.meta.get("relational_set"), "actors": ",".join(t.meta.get("actors") or []),
                      "generation": t.meta.get("generation"),
                      "current": t.meta.get("generation") == db.manifest["generation"]})  # fmt: skip
