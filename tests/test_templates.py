@@ -107,6 +107,9 @@ def test_find_instances_normalises_and_thresholds_by_template_frames():
     np.testing.assert_allclose(every["normalised_cost"], every["cost"] / 3)
     kept = find_instances(t, db, starts, n_matches=10, max_cost=0.0)
     assert sorted(kept["doc_id"]) == [1, 2, 3]
+    lengths = np.diff(np.r_[starts, len(db)])  # each example is matched whole: frames within it, half-open
+    assert (kept["start"] >= 0).all() and (kept["start"] < kept["end"]).all()
+    assert (kept["end"] <= lengths[kept["doc_id"]]).all() and kept.set_index("doc_id").loc[1, "end"] == 3
     with pytest.raises(ParameterError, match=r"needs \(frames, 2\)"):
         find_instances(t, db[:, :1], starts)
 
@@ -285,7 +288,8 @@ def test_a_match_starts_at_the_latest_frame_its_cost_allows_in_exact_arithmetic_
         return cost[-1] if e - (a + first[-1]) + 1 >= least else np.inf
 
     moved = 0
-    for start, end, cost in hits[["start", "end", "cost"]].itertuples(index=False):
+    first = starts[hits["doc_id"].to_numpy()]  # the hits' frames of x, last included (theirs: in-document, half-open)
+    for start, end, cost in zip(hits["start"] + first, hits["end"] - 1 + first, hits["cost"]):
         assert free_first[end] <= start <= end - least + 1
         assert exact(start, end) == pytest.approx(cost, abs=1e-9)
         if start < end - least + 1:

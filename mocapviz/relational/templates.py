@@ -73,7 +73,7 @@ import pandas as pd
 from .. import store
 from ..db import layout
 from ..db.arrays import load_arrays, save_arrays
-from ..db.hits import from_database_frames, hit_table
+from ..db.hits import hit_table
 from ..errors import ParameterError, UnknownKeyError
 from ..features import RELATIONAL_SETS, feature_names, relational_features
 from ..match import best_ends, dtw, subsequence_costs
@@ -466,8 +466,8 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
 
     Returns
     -------
-    pd.DataFrame, best first: doc_id (index into ``starts``), start, end (frames, inclusive), cost,
-    normalised_cost.
+    pd.DataFrame, best first: doc_id (the document's position in ``starts``; 0 without), start, end (frames within
+    that document, half-open: end is one past the last frame, as every hit table), cost, normalised_cost.
     """
     x = np.asarray(values)
     if x.ndim != 2 or x.shape[1] != len(template.features):
@@ -492,7 +492,8 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
         ends = ends[cost[ends] / len(q) <= max_cost]
     begin = _tight_starts(q, xs, first[ends], ends, cost[ends], *_limits(template, q, min_frames, max_rows)[::-1])
     hits = matches_frame(doc_starts, frames[begin], frames[ends], cost[ends], [None] * len(ends))
-    hits = hits.drop(columns="path")
+    first = doc_starts[hits["doc_id"].to_numpy()]
+    hits = hits.drop(columns="path").assign(start=hits["start"] - first, end=hits["end"] + 1 - first)
     hits["normalised_cost"] = hits["cost"] / len(q)
     return hits
 
@@ -1286,9 +1287,9 @@ def search_template(db, template: MotionTemplate, n_matches: int = 10, delta: fl
     found = find_instances(template, values, starts, n_matches=n_matches, delta=delta, max_cost=max_cost,
                            ranges=ranges)  # fmt: skip
     ms = 1e3 * (time.perf_counter() - t0)
-    first = found["start"].to_numpy(np.int64)
-    doc_ids, a, b = from_database_frames(db, first, found["end"].to_numpy(np.int64) + 1)
-    table = hit_table(db, doc_ids, a, b, cost=found["cost"].to_numpy(np.float64),
+    doc_ids = db.documents["doc_id"].to_numpy(np.int64)[found["doc_id"].to_numpy(np.int64)]
+    table = hit_table(db, doc_ids, found["start"].to_numpy(np.int64), found["end"].to_numpy(np.int64),
+                      cost=found["cost"].to_numpy(np.float64),
                       normalised_cost=found["normalised_cost"].to_numpy(np.float64))  # fmt: skip
     aligned = 1.0 if ranges is None else float((ranges[:, 1] - ranges[:, 0]).sum() / max(1, db.n_frames))
     table.attrs.update(relational_set=relational_set, ms=ms, aligned=aligned)
