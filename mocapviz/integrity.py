@@ -29,8 +29,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .db import layout
-from .db.database import MotionDB
+from .engine import MotionDB, layout
 from .errors import MocapvizError, StaleDataError
 
 COLUMNS = ["file", "what", "status", "ok", "detail", "rebuild"]
@@ -62,8 +61,7 @@ def check(path) -> pd.DataFrame:
     >>> report[report["what"] == "MotionDB"][["file", "status"]].values.tolist()  # and a row per derived file
     [['positions.g1.npy', 'ok'], ['quaternions.g1.npy', 'ok'], ['documents.g1.parquet', 'ok']]
     """
-    from .features.numeric import PCAModel
-    from .relational.templates import MotionTemplate
+    from .engine import MotionTemplate, PCAModel
 
     path = Path(path)
     try:
@@ -127,16 +125,16 @@ def rebuild_commands(report: pd.DataFrame) -> list[str]:
 
 
 def _numeric(db: MotionDB, name: str) -> None:
-    from .features import numeric as numeric_mod
+    from .engine import add_block_checksums, load_numeric
 
-    numeric_mod.load_numeric(db, name, full_check=True)
-    numeric_mod.add_block_checksums(db, name)  # (a set stored before block hashes were kept)
+    load_numeric(db, name, full_check=True)
+    add_block_checksums(db, name)  # (a set stored before block hashes were kept)
 
 
 def _markers(db: MotionDB, f: Path, sha256: str) -> None:
     """Read the markers file ``f`` back as the markers of the document of ``db`` it belongs to (``sha256``, the
     checksum of the document's file, :func:`mocapviz.db.layout.markers_files`)."""
-    from .db.markers import load_markers
+    from .engine import load_markers
 
     doc = dict(zip(db.documents["sha256"], db.documents["doc_id"])).get(sha256)
     if doc is None:
@@ -146,7 +144,7 @@ def _markers(db: MotionDB, f: Path, sha256: str) -> None:
 
 
 def _current_index(f: Path, db: MotionDB) -> None:
-    from .relational.index import InvertedIndex
+    from .engine import InvertedIndex
 
     index = InvertedIndex.load(f)
     built, now = (index.meta.get("generation"), index.meta.get("n_frames")), (db.manifest["generation"], db.n_frames)

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .db.database import MotionDB
+from .engine import MotionDB
 from .errors import ParameterError
 from .io import datasets
 from .store import atomic_folder
@@ -87,9 +87,9 @@ class _Data:
     def relational_indexes(self) -> dict:
         """Inverted indexes (2005 features) of the HDM05 clips at 120 Hz, built once."""
         if self._indexes is None:
-            from .relational.index import build
+            from .engine import Engine
 
-            self._indexes = build(self.hdm05(120.0), "2005", progress=self.progress)
+            self._indexes = Engine(self.hdm05(120.0)).indexes("2005")
         return self._indexes
 
     @staticmethod
@@ -106,7 +106,7 @@ def _stacked(ours: pd.DataFrame, paper: pd.DataFrame, ours_name: str) -> pd.Data
 
 
 def _index_statistics(data: _Data) -> Result:
-    from .experiments.relational import index_statistics, mueller2005_table2
+    from .engine import index_statistics, mueller2005_table2
     from .viz.paper import comparison_bars
 
     db = data.hdm05(120.0)
@@ -125,7 +125,7 @@ def _index_statistics(data: _Data) -> Result:
 
 
 def _query_statistics(data: _Data) -> Result:
-    from .experiments.relational import mueller2005_table3, query_statistics
+    from .engine import mueller2005_table3, query_statistics
     from .viz.paper import curves
 
     n_queries = 10_000 if data.full else 300
@@ -141,7 +141,7 @@ def _query_statistics(data: _Data) -> Result:
 
 
 def _relational_query(data: _Data) -> Result:
-    from .experiments.relational import relational_query
+    from .engine import relational_query
     from .viz.paper import comparison_bars
 
     db = data.hdm05(120.0)
@@ -156,7 +156,7 @@ def _relational_query(data: _Data) -> Result:
 
 
 def _alignment(data: _Data) -> Result:
-    from .experiments.matching import alignment
+    from .engine import alignment
     from .viz import alignment_layout
 
     db = data.hdm05(120.0)
@@ -177,7 +177,7 @@ def _alignment(data: _Data) -> Result:
 
 
 def _knn_timings(data: _Data) -> Result:
-    from .experiments.numeric import knn_timings, krueger2010_table1
+    from .engine import knn_timings, krueger2010_table1
     from .viz.paper import comparison_bars
 
     db = data.large()
@@ -191,7 +191,7 @@ def _knn_timings(data: _Data) -> Result:
 
 
 def _rank_correlations(data: _Data) -> Result:
-    from .experiments.correlation import paper_claims, rank_correlations
+    from .engine import paper_claims, rank_correlations
     from .viz.correlation import correlation_heatmap
 
     db = data.hdm05(30.0)
@@ -209,7 +209,7 @@ def _rank_correlations(data: _Data) -> Result:
 
 
 def _similarity_matrices(data: _Data) -> Result:
-    from .experiments.matching import similarity_matrices
+    from .engine import similarity_matrices
     from .viz import similarity_layout
 
     db = data.hdm05(30.0)
@@ -222,7 +222,7 @@ def _similarity_matrices(data: _Data) -> Result:
 
 
 def _lng_accuracy(data: _Data) -> Result:
-    from .experiments.matching import PAPER_SECONDS, PAPER_SPEARMAN, lng_accuracy, summarize_accuracy
+    from .engine import PAPER_SECONDS, PAPER_SPEARMAN, lng_accuracy, summarize_accuracy
     from .viz import accuracy_plot
 
     db = data.large()
@@ -234,7 +234,7 @@ def _lng_accuracy(data: _Data) -> Result:
 
 
 def _numerical_search(data: _Data) -> Result:
-    from .experiments.matching import krueger2010_table2, numerical_search
+    from .engine import krueger2010_table2, numerical_search
     from .viz.paper import comparison_bars
 
     db = data.hdm05(30.0)
@@ -248,8 +248,7 @@ def _numerical_search(data: _Data) -> Result:
 
 
 def _reconstruction(data: _Data) -> Result:
-    from .experiments.marker_reconstruction import krueger2010_table3, krueger2010_table4, reconstruction
-    from .experiments.markers import marker_comparison, marker_reconstruction
+    from .engine import krueger2010_table3, krueger2010_table4, marker_comparison, marker_reconstruction, reconstruction
     from .viz.reconstruction import reconstruction_figures
 
     db, other = data.hdm05(30.0), data.cmu(30.0)
@@ -266,12 +265,11 @@ def _reconstruction(data: _Data) -> Result:
 
 
 def _base_poses(data: _Data) -> Result:
-    from .experiments.numeric import base_pose_experiment
-    from .features.numeric import numeric_features
+    from .engine import Engine, base_pose_experiment
     from .viz.paper import curves
 
     db = data.large()
-    table = base_pose_experiment(numeric_features(db, "F15E", progress=data.progress), radius=10.0, k=32, quadratic_frames=5000)
+    table = base_pose_experiment(Engine(db).numeric("F15E"), radius=10.0, k=32, quadratic_frames=5000)
     return Result(tables={"base_poses": table},
                   figures={"scaling": curves(table, "frames", "seconds", "method", logx=True, logy=True,
                                              title="Krüger 2010 §5.3: base poses, r = 10 cm, k = 32")},
@@ -279,7 +277,7 @@ def _base_poses(data: _Data) -> Result:
 
 
 def _retrieval_quality(data: _Data) -> Result:
-    from .experiments.retrieval import retrieval_quality
+    from .engine import retrieval_quality
     from .viz.retrieval import class_ap_bars, pr_curves, summary_bars
 
     runs = {"hdm05": (data.hdm05(30.0), "label", None)}  # the HDM05 clips: class, leave-actor-out
@@ -307,7 +305,7 @@ def _retrieval_quality(data: _Data) -> Result:
 
 
 def _template_quality(data: _Data) -> Result:
-    from .experiments.templates import template_quality
+    from .engine import template_quality
     from .viz.retrieval import class_ap_bars
 
     # HDM05: templates of four actors searched in the fifth's clips; Bandai Namco 1 (one actor, 15 styles of every
@@ -331,7 +329,7 @@ def _descriptions(data: _Data) -> Result:
     import holoviews.plotting.bokeh  # registers the backends the figure's options are checked against
     import holoviews.plotting.mpl
 
-    from .experiments.descriptions import (
+    from .engine import (
         clip_quality,
         cmu_sequence_quality,
         composite_quality,

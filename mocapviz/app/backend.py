@@ -19,10 +19,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..db.database import MotionDB
-from ..engine import Engine
+from ..engine import Engine, MotionDB
 from ..errors import MotionDBError
-from ..features import relational_features
 from .documents import document_table, picker_options
 
 _BACKENDS: dict = {}
@@ -185,7 +183,7 @@ class Backend:
     def clip_relational(self, doc: int, relational_set: str = "2005") -> tuple[np.ndarray, list[str]]:
         """One document's relational features: (T, f) bool and the f names, computed on the clip (§3)."""
         return self.cached(("relational", doc, relational_set),
-                           lambda: relational_features(self.db.motion(doc), relational_set, progress=False))
+                           lambda: self.engine.clip_relational(doc, relational_set=relational_set))
 
     def retrieval(self, methods, label_column: str = "label", group_column=None, n_queries: int | None = None,
                   seed: int = 0) -> dict:  # fmt: skip

@@ -83,10 +83,11 @@ class HitDownload:
         self.button.filename = f"{self.noun}.{ext}" if n == 1 else f"{self.noun}s.zip"
 
     def _file(self) -> io.BytesIO | None:
-        from ..export import hit_files, zipped
+        from ..engine import zipped
 
         try:
-            files = hit_files(self.backend.db, self.hits(), self.format.value, self.rig.value, self.search())
+            files = self.backend.engine.export_files(self.hits(), format=self.format.value, rig=self.rig.value,
+                                                     search=self.search())
         except MocapvizError as exc:  # e.g. the source file is gone: said under the button, nothing downloaded
             self.note.param.update(object=f"Not exported: {exc}", visible=True)
             return None

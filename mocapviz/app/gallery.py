@@ -29,8 +29,7 @@ import panel as pn
 import param
 from panel.custom import JSComponent
 
-from ..db.hits import first_frames
-from ..motion.skeleton import CANONICAL_PARENTS
+from ..engine import CANONICAL_PARENTS, first_frames
 from ..viz.palette import SIDES
 from .player import component_code, joint_sides, recentred, scene_box
 

@@ -26,8 +26,8 @@ import panel as pn
 import param
 from panel.custom import JSComponent
 
+from ..engine import CANONICAL_PARENTS
 from ..errors import ParameterError
-from ..motion.skeleton import CANONICAL_PARENTS
 from ..viz.palette import SIDE_NAMES, SIDES, joint_sides, legend
 
 SPEEDS = (0.25, 0.5, 1.0, 2.0)

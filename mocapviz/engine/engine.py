@@ -517,6 +517,65 @@ class Engine:
         merged.attrs.update(shards=len(self.shards), ms=1e3 * (time.perf_counter() - t0))
         return merged
 
+    # ------------------------------------------------------------------ for the fronts
+    def clip_relational(self, example, *, frames=None, relational_set: str = "2005") -> tuple[np.ndarray, list[str]]:
+        """The relational features of one clip, computed on the clip (Müller et al. 2005 §3): what a page draws for
+        a document or the span it queries with.
+
+        Parameters
+        ----------
+        example : int or Motion or str or os.PathLike
+            A doc id, a Motion or a motion file.
+        frames : tuple of int or slice, optional
+            [a, b) of the clip (default: all of it).
+        relational_set : {"2005", "2006"}
+
+        Returns
+        -------
+        values : np.ndarray [shape=(T, f)], bool
+        names : list of str, the f feature names.
+        """
+        from ..features import relational_features
+
+        relational_set = checked_value("relational_set", relational_set)
+        return relational_features(self._motion(example, frames), relational_set, progress=False)
+
+    def pose_prior(self):
+        """The pose prior of reconstruction from sparse markers over every frame of the database (Krüger et al.
+        2010 §5.2): its body-frame poses and kd-trees, made anew on each call (keep it; ``restrict`` leaves
+        frames out).
+
+        Returns
+        -------
+        PosePrior
+            :class:`mocapviz.similarity.reconstruction.PosePrior` of this process's database.
+        """
+        from ..similarity.reconstruction import PosePrior
+
+        return PosePrior(self.db)
+
+    def export_files(self, hits, *, format: str = "bvh", rig: str | None = None, search: str | None = None) -> dict:
+        """What :meth:`export` writes, in memory: each hit's files of a hit table or its CSV file.
+
+        Parameters
+        ----------
+        hits : pandas.DataFrame or str or os.PathLike
+            A hit table or its CSV file.
+        format : {"bvh", "amc", "glb"}
+        rig : {"source", "canonical"}, optional
+            Default: canonical for glb, source otherwise.
+        search : str, optional
+            What found the hits, written into every file.
+
+        Returns
+        -------
+        dict of str to bytes
+            File name -> contents, in the table's order (:func:`mocapviz.export.hit_files`).
+        """
+        from ..export import hit_files
+
+        return hit_files(self.db, hits, format, rig, search)
+
 
 class _ShardedIndex:
     """What the lazy neighbourhood graph asks of a kd-tree (:class:`mocapviz.similarity.knn.KnnIndex`), answered by

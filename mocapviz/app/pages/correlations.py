@@ -16,13 +16,7 @@ from __future__ import annotations
 import pandas as pd
 import panel as pn
 
-from ...experiments.correlation import (
-    available_measures,
-    correlation_sample,
-    pose_correlations,
-    pose_limits,
-    segment_correlations,
-)
+from ...engine import available_measures, correlation_sample, pose_correlations, pose_limits, segment_correlations
 from ...viz.correlation import correlation_heatmap
 from ..jobs import JobTask
 from ..widgets import BoundedIntInput, action_button, notes

@@ -9,8 +9,7 @@ import holoviews as hv
 import pandas as pd
 import panel as pn
 
-from ...features import NUMERIC_SETS, feature_groups, numeric_columns
-from ...features.segmentation import segment
+from ...engine import NUMERIC_SETS, feature_groups, numeric_columns, segment
 from ...viz.palette import PART_NAMES, PARTS, legend
 from ...viz.timeline import numeric_curves, relational_timeline
 from ..documents import filter_documents

@@ -27,22 +27,23 @@ import holoviews as hv
 import pandas as pd
 import panel as pn
 
-from ...db.hits import database_frames
-from ...engine.parameters import default
-from ...errors import DescriptionError, MocapvizError
-from ...relational.description import (
+from ...engine import (
+    DELTA,
     Description,
     Event,
     Named,
     Progression,
+    database_frames,
     declared_set,
     named_descriptions,
     parse_description,
     template_names,
+    vocabulary_of,
+    vocabulary_table,
     walk,
 )
-from ...relational.templates import DELTA
-from ...relational.vocabulary import vocabulary_of, vocabulary_table
+from ...engine.parameters import default
+from ...errors import DescriptionError, MocapvizError
 from ...validation import count, one_of
 from ...viz.timeline import relational_timeline
 from ..downloads import table_download
@@ -240,7 +241,7 @@ def template_stamps(db, text: str) -> tuple:
     gives a new key. Only the database's stored templates are looked at (``DB/templates/NAME.npz``); a name that is
     not a stored template's (a path a user typed) is never opened or probed: None, and find says it is unknown.
     Reading the text's syntax may raise its DescriptionError."""
-    from ...relational.templates import is_template_name, template_path
+    from ...engine import is_template_name, template_path
 
     stamps = []
     for name in template_names(text):
@@ -277,19 +278,15 @@ def search(backend, text: str, relational_set: str, n_matches: int) -> pd.DataFr
 def describe_template(backend, name: str, delta: float = DELTA) -> tuple[str, str]:
     """(description text, relational set) of the template stored as ``name`` with the Backend's database
     (:func:`mocapviz.relational.scene.describe`)."""
-    from ...relational import scene
-    from ...relational.templates import load_template
+    from ...engine import describe
 
-    describe = getattr(scene, "describe", None)
-    if describe is None:
-        raise MocapvizError("describing a template is not available in this version of mocapviz")
-    template = load_template(backend.db, str(name))
+    template = backend.engine.template(str(name))
     return describe(template, delta=delta), str(template.meta.get("relational_set") or "2005")
 
 
 def stored_template_names(backend) -> list[str]:
     """The names of the templates stored with the database (none when they cannot be listed)."""
-    from ...relational.templates import stored_templates
+    from ...engine import stored_templates
 
     try:
         return list(stored_templates(backend.db)["name"])

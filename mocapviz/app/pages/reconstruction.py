@@ -22,19 +22,21 @@ import numpy as np
 import pandas as pd
 import panel as pn
 
-from ...errors import ParameterError
-from ...experiments.marker_reconstruction import frame_actors, marker_clip
-from ...experiments.markers import aligned_takes, real_marker_clip
-from ...features import NUMERIC_SETS
-from ...motion.skeleton import CANONICAL_JOINTS
-from ...similarity.reconstruction import (
+from ...engine import (
+    CANONICAL_JOINTS,
     DEFAULT_K,
     MARKERS,
     NOISE_RANGE_CM,
+    NUMERIC_SETS,
     PosePrior,
+    aligned_takes,
+    frame_actors,
+    marker_clip,
+    real_marker_clip,
     reconstruct,
     reconstruction_errors,
 )
+from ...errors import ParameterError
 from ...viz.reconstruction import error_curves, joint_error_bars
 from ..documents import DocumentPicker
 from ..player import SkeletonPlayer
@@ -133,7 +135,7 @@ def prior_for(backend, doc: int, kind: str) -> tuple[PosePrior, str]:
     """The cached PosePrior of a test clip (one per left-out clip or actor, its kd-trees reused) and what it
     leaves out; every prior of the database shares the body-frame poses and feature values."""
     valid, left_out = prior_mask(backend.db, doc, kind)
-    full = backend.cached(("recon-prior",), lambda: PosePrior(backend.db))
+    full = backend.cached(("recon-prior",), backend.engine.pose_prior)
     key = ("recon-prior", kind, left_out if kind == "actor" else doc)
     return backend.cached(key, lambda: full.restrict(valid)), left_out
 

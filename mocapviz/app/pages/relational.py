@@ -18,9 +18,7 @@ import numpy as np
 import pandas as pd
 import panel as pn
 
-from ...db.hits import database_frames
-from ...features import feature_groups, relational_features
-from ...relational.query import query_segmentation
+from ...engine import database_frames, feature_groups, query_segmentation
 from ...viz.query import precision_recall, precision_recall_plot
 from ..documents import DocumentPicker
 from ..downloads import table_download
@@ -108,9 +106,9 @@ def span_features(backend, doc: int, first: int, last: int) -> tuple[np.ndarray,
     (True, dtype('bool'))
     """
     doc, first, last = int(doc), int(first), int(last)
-    db = backend.db
     return backend.cached(("relational span", RELATIONAL_SET, doc, first, last),
-                          lambda: relational_features(db.motion(doc)[first:last + 1], RELATIONAL_SET, progress=False))
+                          lambda: backend.engine.clip_relational(doc, frames=(first, last + 1),
+                                                                 relational_set=RELATIONAL_SET))
 
 
 def search(backend, q: dict) -> pd.DataFrame:

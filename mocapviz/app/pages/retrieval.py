@@ -14,8 +14,8 @@ from __future__ import annotations
 import pandas as pd
 import panel as pn
 
+from ...engine import METHOD_LABELS, METHODS
 from ...errors import ParameterError
-from ...experiments.retrieval import METHOD_LABELS, METHODS
 from ...viz.retrieval import class_ap_bars, pr_curves
 from ..jobs import JobTask
 from ..widgets import BoundedIntInput, action_button, notes

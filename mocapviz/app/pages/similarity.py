@@ -20,14 +20,9 @@ import numpy as np
 import pandas as pd
 import panel as pn
 
-from ...db.hits import database_frames
+from ...engine import NUMERIC_SETS, database_frames, graph_k, scaled_k, shortest_match, similarity_matrices
+from ...engine.parameters import default, parameter
 from ...errors import ParameterError
-from ...experiments.matching import similarity_matrices
-from ...engine.parameters import default
-from ...features import NUMERIC_SETS
-from ...match.time_warping import shortest_match
-from ...similarity.motion_matching import graph_k, scaled_k
-from ...similarity.search import MODES as SEARCH_MODES
 from ...validation import count
 from ...viz.matching import similarity_layout
 from ...viz.palette import OTHERS, SIDE_NAMES, SIDES, legend
@@ -234,7 +229,7 @@ class SimilarityPage(pn.viewable.Viewer):
     def _build_search(self) -> None:
         self.search_kind = pn.widgets.RadioButtonGroup(options=list(SEARCH_KINDS), value="whole clips", width=220,
                                                        align="end", css_classes=["mv-search-kind"])
-        self.search_mode = pn.widgets.RadioButtonGroup(options=[m for m in SEARCH_MODES if m != "brute"],
+        self.search_mode = pn.widgets.RadioButtonGroup(options=[m for m in parameter("mode").choices if m != "brute"],
                                                        value=default("clips", "mode"), width=140, align="end",
                                                        css_classes=["mv-search-mode"])  # fmt: skip
         self.search_k = BoundedIntInput("K results", default("clips", "n_matches"), 1, MAX_MATCHES, width=130, css_classes=["mv-search-k"])

@@ -18,8 +18,14 @@ from __future__ import annotations
 import pandas as pd
 import panel as pn
 
-from ...experiments.numeric import knn_timings, krueger2010_table1
-from ...experiments.relational import index_statistics, mueller2005_table2, mueller2005_table3, query_statistics
+from ...engine import (
+    index_statistics,
+    knn_timings,
+    krueger2010_table1,
+    mueller2005_table2,
+    mueller2005_table3,
+    query_statistics,
+)
 from ...viz.paper import comparison_bars, curves
 from ...viz.statistics import query_time_scatter
 from ..jobs import JobTask

@@ -18,17 +18,17 @@ import numpy as np
 import pandas as pd
 import panel as pn
 
-from ...db.hits import database_frames
-from ...engine.parameters import default
-from ...features import feature_names
-from ...match import dtw
-from ...relational.templates import (
+from ...engine import (
     DELTA_RANGE,
     DONT_CARE,
     MAX_COST_RANGE,
     MotionTemplate,
+    database_frames,
+    dtw,
+    feature_names,
     template_distance,
 )
+from ...engine.parameters import default
 from ...validation import count
 from ...viz.templates import template_image
 from ..downloads import table_download
