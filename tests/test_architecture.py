@@ -633,7 +633,7 @@ def test_imports_the_checker_cannot_read_are_refused(copy):
 def test_the_package_root_and_moved_paths_are_refused_below_the_root(copy):
     _append(copy, "mocapviz/viz/palette.py", "def _root():\n    import mocapviz\n")
     _edit(copy, "mocapviz/_moved.py", '"mocapviz.skeleton": ("mocapviz.motion.skeleton",),', "")
-    _append(copy, "mocapviz/cli.py", "def _gone():\n    from mocapviz.skeleton import CANONICAL_JOINTS\n")
+    _append(copy, "mocapviz/cli/__init__.py", "def _gone():\n    from mocapviz.skeleton import CANONICAL_JOINTS\n")
     found = check(copy)
     assert any("mocapviz.viz.palette imports the package root (function-level import)" in p for p in found), found
     assert any("imports from mocapviz.skeleton, which is no module of the package" in p for p in found), found

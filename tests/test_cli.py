@@ -16,7 +16,8 @@ from unittest import mock
 import numpy as np
 import pytest
 
-from mocapviz import MotionDB, cli
+from mocapviz import MotionDB
+from mocapviz.cli import database as cli_database
 from mocapviz.cli import main
 from mocapviz.io import datasets
 
@@ -61,7 +62,8 @@ def test_datasets_list_and_fetch_sample(capsys):
 )
 def test_errors_are_one_line_and_exit_1(argv, needle, tmp_path, sample_dir, capsys, monkeypatch):
     if argv[0] == "ingest" and "{bad}" not in argv:  # bad arguments are refused before any Dask cluster starts
-        monkeypatch.setattr(cli, "dask_client", lambda *a, **k: pytest.fail("a cluster started on an error path"))
+        monkeypatch.setattr(cli_database, "dask_client",
+                            lambda *a, **k: pytest.fail("a cluster started on an error path"))
     bad = tmp_path / "broken.bvh"
     bad.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n}\n")
     argv = [a.format(tmp=tmp_path, bad=bad) for a in argv]
@@ -190,7 +192,8 @@ def test_ingest_prints_the_format_warnings_of_each_file(sample_dir, tmp_path, ca
 
 
 def test_operating_system_errors_are_one_line(sample_dir, tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr(cli, "dask_client", lambda *a, **k: pytest.fail("a cluster started on an error path"))
+    monkeypatch.setattr(cli_database, "dask_client",
+                        lambda *a, **k: pytest.fail("a cluster started on an error path"))
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     assert main(["ingest", str(sample_dir / "cmu-asfamc"), "--out", str(blocker / "db"), "--quiet"]) == 1
@@ -466,7 +469,7 @@ def _no_server_no_cluster():
     def would_run(*args, **kwargs):
         raise _WouldRun
 
-    with mock.patch("mocapviz.app.serve", would_run), mock.patch.object(cli, "dask_client", would_run), \
+    with mock.patch("mocapviz.app.serve", would_run), mock.patch.object(cli_database, "dask_client", would_run), \
             mock.patch("mocapviz.parallel.dask_client", would_run):  # fmt: skip
         yield
 

@@ -1,0 +1,128 @@
+"""The similarity commands (Krüger et al.): ``mocapviz features`` (the numeric feature sets they search, stored
+with the database), ``mocapviz knn`` (the nearest frames of a frame), ``mocapviz match`` (stretches that move like
+an example: lazy neighbourhood graph or subsequence DTW) and ``mocapviz search`` (clips or stretches by DTW),
+through the engine."""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pandas as pd
+
+from ..db.database import MotionDB
+from ..errors import MocapvizError, ParameterError
+from ..features import NUMERIC_SETS, PCAModel, fit_pca, load_numeric, store_numeric
+from ..parallel import optional_client
+from .inputs import engine_of, example_of
+from .options import scheduler_of
+from .output import csv_folder, print_paths, print_ranked, printed, write_csv
+
+PCA_SETS = tuple(n for n in NUMERIC_SETS if n.startswith("Fp"))
+"""The numeric sets made by PCA (``features --pca``)."""
+
+
+def run_features(args) -> None:
+    db = MotionDB.open(args.db)
+    names = args.numeric_sets
+    reference = _pca_reference(args.pca, names)
+    t0 = time.perf_counter()
+    with optional_client(scheduler_of(args)) as client:  # one cluster for the PCA fit and every set
+        pca = reference
+        if isinstance(reference, MotionDB):
+            pca = fit_pca(reference, progress=not args.quiet, scheduler=client)
+        stored = store_numeric(db, names, pca=pca, progress=not args.quiet, scheduler=client)
+    print(f"{db}: {len(stored)} numeric feature sets in {time.perf_counter() - t0:.1f} s, "
+          f"written to {Path(db.path) / 'features'}")
+    rows = [{"set": n, "dims": a.shape[1], "MB": a.nbytes / 2**20} for n, a in stored.items()]
+    print(pd.DataFrame(rows).round(1).to_string(index=False))
+
+
+def _pca_reference(text: str | None, names: list[str] | None) -> MotionDB | PCAModel | None:
+    """``--pca``: a MotionDB to fit the PCA model on, or a saved model; refused when no Fp set is asked for."""
+    if text is None:
+        return None
+    if names is not None and not set(names) & set(PCA_SETS):
+        raise ParameterError(f"--pca is the reference of the PCA sets {', '.join(PCA_SETS)}; --numeric-sets "
+                             f"{','.join(names)} has none of them")
+    ref = Path(text)
+    if not ref.exists():
+        raise ParameterError(f"--pca {text}: no such file or folder; give a saved PCA model (.npz) or a MotionDB")
+    try:
+        return MotionDB.open(ref) if ref.is_dir() else PCAModel.load(ref)
+    except MocapvizError as exc:
+        raise ParameterError(f"--pca: {exc}") from None
+
+
+def run_knn(args) -> None:
+    csv_folder(args.csv)
+    doc, frame = args.frame
+    with engine_of(args) as engine:
+        try:
+            engine.db.frames(doc)
+        except ParameterError as exc:
+            raise ParameterError(f"--frame {doc}:{frame}: {exc}") from None
+        span = engine.db.frames(doc)
+        n = span.stop - span.start
+        if not 0 <= frame < n:
+            raise ParameterError(f"--frame {doc}:{frame}: document {doc} has frames 0..{n - 1}")
+        hits = engine.neighbours(doc, frame, k=args.k, numeric_set=args.numeric_set, radius=args.radius, eps=args.eps,
+                                 exclude_document=args.exclude_document, per_document=args.per_document)  # fmt: skip
+        how = repr(engine)
+    each = f"; one row per document: the nearest in each of {len(hits)}" if args.per_document else ""
+    print(f"{hits.attrs['found']} neighbours of document {doc} frame {frame} by {args.numeric_set} in "
+          f"{hits.attrs['ms']:.2f} ms ({how}){each}")  # fmt: skip
+    cols = [c for c in ("rank", "doc_id", "name", "start", "start_s", "distance", "label") if c in hits]
+    with pd.option_context("display.width", 160, "display.max_rows", args.k + 5):
+        print(printed(hits[cols].round(3)))
+    write_csv(hits, args.csv)
+
+
+def run_match(args) -> None:
+    if args.method == "dtw":
+        given = [o for o, v in (("-k", args.k), ("--radius", args.radius), ("--eps", args.eps)) if v is not None]
+        if given:
+            raise ParameterError(f"{', '.join(given)} shape the neighbourhood graph of --method lng; subsequence DTW "
+                                 "(--method dtw) compares every frame: leave them out")
+    csv_folder(args.csv)
+    with engine_of(args) as engine:
+        load_numeric(engine.db, args.numeric_set)  # a clear error naming `mocapviz features DB` when not stored
+        example = example_of(engine.db, args.example)
+        lng = {} if args.method == "dtw" else {"k": args.k or ..., "radius": args.radius, "eps": args.eps or ...}
+        table = engine.match(example, frames=args.frames, numeric_set=args.numeric_set, method=args.method,
+                             n_matches=args.n_matches, exclude_document=isinstance(example, int), paths=args.paths,
+                             min_length=args.min_length, **lng)  # fmt: skip
+    k = table.attrs.get("k", "")
+    what = "subsequence DTW" if args.method == "dtw" else f"lazy neighbourhood graph, k={k}" + (
+        f", r={args.radius:g}" if args.radius else "")  # fmt: skip
+    own = isinstance(example, int)
+    print(f"{len(table)} matches of a {table.attrs['query_frames']}-frame query by {args.numeric_set} ({what}), each "
+          f"at least {args.min_length:g} × the query long, in {table.attrs['ms']:.1f} ms"
+          + (" (the query's own document excluded)" if own else ""))  # fmt: skip
+    print_ranked(table, args.n_matches, "the lazy neighbourhood graph needs a neighbour of every query frame along a "
+                  "whole path: try a larger -k such as 1024, --method dtw, or `mocapviz search DB --stretches`"
+                  if args.method == "lng" else "no document long enough outside the query's own")  # fmt: skip
+    print_paths(table, args.paths)
+    write_csv(table, args.csv)
+
+
+def run_search(args) -> None:
+    if args.min_length is not None and not args.stretches:
+        raise ParameterError("--min-length is the shortest stretch as a share of the query: it needs --stretches")
+    csv_folder(args.csv)
+    with engine_of(args) as engine:
+        example = example_of(engine.db, args.example)
+        options = {"frames": args.frames, "n_matches": args.n_matches, "numeric_set": args.numeric_set,
+                   "mode": args.mode, "exclude_document": args.exclude_document, "paths": args.paths}  # fmt: skip
+        if args.stretches:
+            table = engine.stretches(example, min_length=... if args.min_length is None else args.min_length, **options)
+        else:
+            table = engine.clips(example, **options)
+    what = "stretches" if args.stretches else "clips"
+    print(f"{len(table)} {what} like {args.example} ({table.attrs['query_frames']} frames) by DTW on {args.numeric_set}"
+          f", {args.mode} mode, in {table.attrs['ms']:.1f} ms" + (" (its own document excluded)" if
+                                                                 args.exclude_document else ""))  # fmt: skip
+    print_ranked(table, args.n_matches, "the query's own document is the only one long enough; try whole clips, a "
+                  "shorter --frames span or a smaller --min-length" if args.stretches else "no other document to "
+                  "compare")  # fmt: skip
+    print_paths(table, args.paths)
+    write_csv(table, args.csv)
