@@ -267,7 +267,6 @@ def _doc_frame(text: str, name: str) -> tuple[int, int]:
     return doc, frame
 
 
-
 # The handlers: each imports its command group's module when the command runs.
 def _ingest(args):
     from . import database
