@@ -134,6 +134,18 @@ def test_the_engine_refuses_a_value_outside_the_table_naming_it(engine, data):
     assert arg in str(refused.value) or parameter.name.replace("_", " ") in str(refused.value)
 
 
+def test_the_tables_bounds_are_the_kernels():
+    """The kernels check their own arguments for their direct callers with an Interval; the table (loaded by
+    `mocapviz --help`, which cannot import them) states the same bounds."""
+    from mocapviz.relational.templates import DELTA_RANGE, MAX_COST_RANGE
+    from mocapviz.validation import MIN_LENGTH_RANGE
+
+    for name, interval in (("delta", DELTA_RANGE), ("max_cost", MAX_COST_RANGE), ("min_length", MIN_LENGTH_RANGE)):
+        p = PARAMETERS[name]
+        assert (p.low, p.high, p.low_open, p.high_open) == (interval.low, interval.high, interval.low_open,
+                                                            interval.high_open), name  # fmt: skip
+
+
 def test_the_pages_defaults_are_the_tables():
     from mocapviz.app.pages import describe, templates
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 
 from ..errors import ParameterError
 from ..features import NUMERIC_SETS, RELATIONAL_SETS
-from ..validation import MIN_LENGTH, count, number, one_of, parse_count, parse_number
+from ..validation import MIN_LENGTH, MIN_LENGTH_RANGE, count, number, one_of, parse_count, parse_number
 
 __all__ = ["PARAMETERS", "USE_DEFAULTS", "Parameter", "checked", "markdown", "parameter"]
 
@@ -140,7 +140,11 @@ class Parameter:
         return {"value": value}
 
 
-def _p(*args, **kwargs) -> Parameter:
+def _p(*args, interval=None, **kwargs) -> Parameter:
+    """A Parameter; ``interval``: the kernel's own :class:`~mocapviz.validation.Interval` of a number, whose bounds
+    it takes (declared once, where the kernel checks them for its direct callers)."""
+    if interval is not None:
+        kwargs.update(low=interval.low, high=interval.high, low_open=interval.low_open, high_open=interval.high_open)
     return Parameter(*args, **kwargs)
 
 
@@ -149,8 +153,8 @@ PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
     _p("numeric_set", "choice", "F15E", "numeric feature set (Krüger et al. 2010 §3.2)", choices=NUMERIC_SETS),
     _p("mode", "choice", "exact", "similarity search: exact (brute force's answer, pruned by lower bounds), fast "
        "(aligns only where kNN and a coarse pass point) or brute (every cell)", choices=("exact", "fast", "brute")),
-    _p("min_length", "float", MIN_LENGTH, "the shortest match, a share of the query's frames", low=0.0, high=1.0,
-       low_open=True, optional=True, none_means="any length"),
+    _p("min_length", "float", MIN_LENGTH, "the shortest match, a share of the query's frames",
+       interval=MIN_LENGTH_RANGE, optional=True, none_means="any length"),
     _p("exclude_document", "bool", False, "leave out the example's own document"),
     _p("paths", "bool", False, "also return each match's warping path"),
     _p("k", "int", 16, "neighbours per query frame", low=1),
@@ -168,9 +172,9 @@ PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
     _p("features", "names", None, "relational features of the query (default all of the set)"),
     _p("delta", "float", 0.2, "template quantisation threshold δ: < δ is 0, > 1 - δ is 1, else don't care (0.2: "
        "at the paper's 0.1, 5 of 8 class templates gave all their 20 hits at cost 0 on the shared archives)",
-       low=0.0, high=0.5, low_open=True, high_open=True),
+       low=0.0, high=0.5, low_open=True, high_open=True),  # relational.templates.DELTA_RANGE (a test keeps them equal)
     _p("max_cost", "float", None, "only matches of normalised cost at most this", low=0.0, high=1.0, optional=True,
-       none_means="the K best, whatever their cost"),
+       none_means="the K best, whatever their cost"),  # relational.templates.MAX_COST_RANGE
     _p("prefilter", "bool", False, "align only where the template's keyframes occur in order in the inverted "
        "indexes (faster; may miss a hit)"),
     _p("max_examples", "int", 16, "learn from at most this many of the class's documents, spread over them (a "
