@@ -137,7 +137,8 @@ def test_features_then_knn_prints_the_index_answer(sample_db, capsys):
 
 def test_knn_radius_prints_only_neighbours_within_it(sample_db, capsys):
     doc = int(sample_db.documents["doc_id"].iloc[-1])
-    assert main(["knn", str(sample_db.path), "--frame", f"{doc}:5", "-k", "50", "--radius", "4"]) == 0
+    assert main(["knn", str(sample_db.path), "--frame", f"{doc}:5", "-k", "50", "--radius", "4",
+                 "--no-exclude-document"]) == 0  # fmt: skip
     rows = _table(capsys.readouterr().out)
     assert 1 <= len(rows) < 50 and rows[0][3] == "5" and float(rows[0][5]) == 0.0
     assert all(float(r[5]) < 4 for r in rows)
@@ -251,10 +252,13 @@ def test_match_keeps_matches_of_at_least_min_length_and_knn_one_row_per_document
     assert main(["match", str(sample_db.path), "--example", "7", "--min-length", "0"]) == 2
     assert "--min-length must be a number in (0, 1]" in capsys.readouterr().err
 
-    assert main(["knn", str(sample_db.path), "--frame", "7:10", "-k", "300", "--per-document"]) == 0
+    assert main(["knn", str(sample_db.path), "--frame", "7:10", "-k", "300", "--per-document",
+                 "--no-exclude-document"]) == 0  # fmt: skip
     out = capsys.readouterr().out
     docs = [int(r[1]) for r in _table(out)]
     assert len(docs) == len(set(docs)) > 1 and docs[0] == 7 and "one row per document" in out
+    assert main(["knn", str(sample_db.path), "--frame", "7:10", "-k", "300", "--per-document"]) == 0
+    assert 7 not in [int(r[1]) for r in _table(capsys.readouterr().out)]  # by default, without its own document
 
 
 def test_match_errors_are_one_line(sample_dir, sample_db, tmp_path, capsys):

@@ -57,7 +57,7 @@ def test_a_similarity_search_is_the_same_from_python_the_cli_and_the_page(sample
     own = data.draw(st.booleans(), label="exclude own")
     args = ["search", str(sample_db.path), "--example", str(doc), "--frames", f"{start}:{stop}", "-K", str(k),
             "--mode", mode, *(["--stretches"] if kind == "stretches" else []),
-            *(["--exclude-document"] if own else [])]  # fmt: skip
+            "--exclude-document" if own else "--no-exclude-document"]  # fmt: skip
     cli = _csv(args, tmp_path, capsys)
     try:
         python = getattr(backend.engine, kind)(doc, frames=(start, stop), n_matches=k, mode=mode,

@@ -118,11 +118,11 @@ def test_similarity_search_is_exactly_the_single_process_answer(hdm05, sharded):
     search = SimilaritySearch(db, "F15E")
     for doc in db.documents["doc_id"].iloc[[0, 40, 130, 286]].astype(int):
         for mode in ("exact", "brute"):
-            same(search.clips(doc, n_matches=8, mode=mode), sharded.clips(doc, n_matches=8, mode=mode), "cost")
+            same(search.clips(doc, n_matches=8, mode=mode), sharded.clips(doc, n_matches=8, mode=mode, exclude_document=False), "cost")
         same(search.clips(doc, n_matches=5, mode="exact", exclude_document=True),
              sharded.clips(doc, n_matches=5, mode="exact", exclude_document=True), "cost")  # fmt: skip
         same(search.stretches(doc, (0, 20), n_matches=6, mode="exact"),
-             sharded.stretches(doc, frames=(0, 20), n_matches=6, mode="exact"), "cost")  # fmt: skip
+             sharded.stretches(doc, frames=(0, 20), n_matches=6, mode="exact", exclude_document=False), "cost")  # fmt: skip
 
 
 def test_motion_matching_is_exactly_the_single_process_answer(hdm05, sharded):
@@ -507,7 +507,8 @@ def test_a_query_longer_than_a_shards_documents_still_searches_them(single, shar
                   shardings[key].match(doc, frames=frames, **options), ("method", "query_frames"))  # fmt: skip
     every = search.stretches(0, (0, 15), n_matches=400, mode="brute")
     assert (short.loc[every["doc_id"]].to_numpy() < 15).any()  # documents shorter than the query hold matches
-    identical(every, shardings["uneven"].stretches(0, frames=(0, 15), n_matches=400, mode="brute"), ("documents",))
+    identical(every, shardings["uneven"].stretches(0, frames=(0, 15), n_matches=400, mode="brute",
+                                                      exclude_document=False), ("documents",))
 
 
 def test_knn_checks_k_and_exclude_on_the_whole_database(single, shardings):
@@ -560,7 +561,7 @@ def test_a_similarity_searchs_work_is_counted_on_every_shard(single, shardings):
     """attrs ``documents`` and ``brute_cells`` were the first shard's (103 documents of 287 on three shards)."""
     one = single.searches["F15E"].clips(40, n_matches=3, mode="exact")
     for sharded in shardings.values():
-        many = sharded.clips(40, n_matches=3, mode="exact")
+        many = sharded.clips(40, n_matches=3, mode="exact", exclude_document=False)
         assert (many.attrs["documents"], many.attrs["brute_cells"]) == (287, one.attrs["brute_cells"])
 
 
@@ -688,7 +689,7 @@ def test_a_real_cluster_and_a_killed_worker(hdm05, real_cluster):
     expected = search.clips(40, n_matches=6, mode="exact")
     kicks = find(db, "kick_left", indexes=indexes)
     with Engine(db, scheduler=address, n_shards=4) as sharded:
-        same(expected, sharded.clips(40, n_matches=6, mode="exact"), "cost")
+        same(expected, sharded.clips(40, n_matches=6, mode="exact", exclude_document=False), "cost")
         same(kicks, sharded.find("kick_left", n_matches=None), "score")
         procs[1].send_signal(signal.SIGKILL)  # one worker dies: its shards go to the other
         procs[1].wait()
@@ -696,12 +697,12 @@ def test_a_real_cluster_and_a_killed_worker(hdm05, real_cluster):
             if len(client.scheduler_info()["workers"]) == 1:
                 break
             time.sleep(0.1)
-        same(expected, sharded.clips(40, n_matches=6, mode="exact"), "cost")  # the whole answer, recomputed
+        same(expected, sharded.clips(40, n_matches=6, mode="exact", exclude_document=False), "cost")  # the whole answer, recomputed
         same(kicks, sharded.find("kick_left", n_matches=None), "score")
         procs[2].send_signal(signal.SIGKILL)  # no worker left: an error, never a partial answer
         procs[2].wait()
         with pytest.raises(ClusterError, match="no worker is left|failed twice"):
-            sharded.clips(40, n_matches=6, mode="exact")
+            sharded.clips(40, n_matches=6, mode="exact", exclude_document=False)
 
 
 # ================================================================================================ the dashboard

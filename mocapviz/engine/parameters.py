@@ -118,8 +118,10 @@ class Parameter:
         the text is read, then checked (:meth:`reader`); a bool is a switch; ``default`` the use case's own."""
         flags = flags or self.cli_flags
         default = self.default if default is None else default
-        if self.kind == "bool":
-            parser.add_argument(*flags, dest=self.name, action="store_true", help=self.help(default), **kwargs)
+        if self.kind == "bool":  # --name, and --no-name where it is on by default
+            action = argparse.BooleanOptionalAction if default else "store_true"
+            parser.add_argument(*flags, dest=self.name, action=action, default=default,
+                                help=self.help(default) + (" (on by default)" if default else ""), **kwargs)
             return
         parser.add_argument(*flags, dest=self.name, type=self.reader("/".join(flags)), default=default,
                             help=self.help(default), **kwargs)  # fmt: skip
@@ -155,7 +157,8 @@ PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
        "(aligns only where kNN and a coarse pass point) or brute (every cell)", choices=("exact", "fast", "brute")),
     _p("min_length", "float", MIN_LENGTH, "the shortest match, a share of the query's frames",
        interval=MIN_LENGTH_RANGE, optional=True, none_means="any length"),
-    _p("exclude_document", "bool", False, "leave out the example's own document"),
+    _p("exclude_document", "bool", True, "leave out the example's own document (an example that is a document of "
+       "the database finds itself first otherwise; no effect for a Motion or a file)"),
     _p("paths", "bool", False, "also return each match's warping path"),
     _p("k", "int", 16, "neighbours per query frame", low=1),
     _p("radius", "float", None, "only neighbours closer than this (feature units, cm)", low=0.0, low_open=True,
