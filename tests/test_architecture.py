@@ -1,5 +1,6 @@
-"""The package's layers (docs/architecture.md): every import points to the same or a lower layer, the imports run
-when a module is loaded form no cycle, and the modules form no cycle even through imports inside functions.
+"""The package's layers (docs/architecture.md): every import points to the same or a lower layer, the runners import
+the engine, viz, io and the base modules only, the imports run when a module is loaded form no cycle, and the
+modules form no cycle even through imports inside functions.
 
 The checker, :func:`check`, is a function of a source tree (a folder holding ``mocapviz/`` and
 ``docs/architecture.md``): the tests run it on this checkout, and on modified copies of it written to ``tmp_path``
@@ -52,6 +53,12 @@ ORDER = ["base", "motion", "io", "db", "export", "features", "match", "relationa
 """The layers, lowest first, as docs/architecture.md's table orders them. The checker reads the layers from the
 table; this copy of their order makes any reordering of its rows fail, even one the imports allow (export and
 features, features and match, engine and viz, runners and root import nothing of each other)."""
+
+RUNNERS = "runners"
+RUNNER_IMPORTS = ("base", "io", "engine", "viz", RUNNERS)
+"""The layers a module of the runners layer may import: the fronts go through the engine, which offers what they use
+of the layers below it (mocapviz/engine/library.py); nothing of motion, db, export, features, match, relational,
+similarity or experiments directly."""
 
 ALLOWED: dict[str, str] = {}
 """Violations tolerated for now: the checker's message -> the issue that removes it. Empty: none is tolerated."""
@@ -445,8 +452,9 @@ def check(root: Path) -> list[str]:
     -------
     list of str
         Messages naming the file and line: the layers in another order than :data:`ORDER`, a module in no
-        layer, a layer naming no module, an import that points up (of any kind), an import of the package root,
-        of an old module path or of no module, an import the checker cannot read, a cycle of imports run at load,
+        layer, a layer naming no module, an import that points up (of any kind), a runner's import of a layer not
+        in :data:`RUNNER_IMPORTS`, an import of the package root, of an old module path or of no module, an import
+        the checker cannot read, a cycle of imports run at load,
         a cycle of modules through any import that may run (function-level and lazy ones included; TYPE_CHECKING
         imports never run and count for the layers only, and so do imports of a module's own package).
     """
@@ -504,7 +512,8 @@ def _runs_in_any_order(e: Import) -> bool:
 
 
 def _layering(root: Path, tree: Tree, table, layer) -> list[str]:
-    """An import of the package root, and every import that points to a higher layer."""
+    """An import of the package root, every import that points to a higher layer, and every import of a runner
+    that points to a layer other than :data:`RUNNER_IMPORTS`."""
     out = []
     for e in tree.imports:
         where = _where(root, tree.files[e.source], e.line)
@@ -514,6 +523,9 @@ def _layering(root: Path, tree: Tree, table, layer) -> list[str]:
         low, high = layer(e.source), layer(e.target)
         if low is not None and high is not None and high > low:
             out.append(f"{where} ({table[low][0]}) imports {e.target} ({table[high][0]}): {e.how} against the layers")
+        elif low is not None and high is not None and table[low][0] == RUNNERS and table[high][0] not in RUNNER_IMPORTS:
+            out.append(f"{where} ({RUNNERS}) imports {e.target} ({table[high][0]}): {e.how}; the runners import "
+                       f"{', '.join(RUNNER_IMPORTS[:-1])} and each other only (mocapviz.engine offers the rest)")
     return out
 
 
@@ -688,6 +700,38 @@ def test_type_checking_imports_count_for_the_layers_not_for_cycles(copy):
     _append(copy, "mocapviz/errors.py", "if TYPE_CHECKING:\n    from .db.database import MotionDB\n")
     found = check(copy)
     assert len(found) == 1 and "(base) imports mocapviz.db.database (db): TYPE_CHECKING import" in found[0], found
+
+
+def test_a_runner_importing_below_the_engine_is_found(copy):
+    """The runners import the engine, viz, io and the base modules only, however written: a page importing
+    mocapviz.relational.query, or reproduction.py importing a similarity module inside a function, is reported; the
+    same name through mocapviz.engine is not."""
+    _append(copy, "mocapviz/app/pages/relational.py", "from ...relational.query import query_by_example\n")
+    _append(copy, "mocapviz/reproduction.py", "def _late():\n    from .similarity.knn import KnnIndex\n")
+    found = check(copy)
+    assert len(found) == 2, found
+    assert any(p.startswith("mocapviz/app/pages/relational.py:") and "(runners) imports mocapviz.relational.query "
+               "(relational): import; the runners import base, io, engine, viz and each other only" in p
+               for p in found), found  # fmt: skip
+    assert any(p.startswith("mocapviz/reproduction.py:") and "(runners) imports mocapviz.similarity.knn "
+               "(similarity): function-level import" in p for p in found), found  # fmt: skip
+    for module in ("mocapviz/app/pages/relational.py", "mocapviz/reproduction.py"):
+        (copy / module).write_text((REPO / module).read_text())
+    _append(copy, "mocapviz/app/pages/relational.py", "from ...engine import query_segmentation\n")
+    assert check(copy) == []
+
+
+def test_the_engine_offers_every_name_of_its_library_module():
+    """A front's ``from mocapviz.engine import NAME`` of a library name reads as an import of the engine: the
+    engine's lazy table names library.py for exactly the names of library.py's own table, which are its __all__."""
+    from mocapviz.engine import library
+
+    def lazy(module: str, file: str) -> dict[str, str]:
+        return _read_module(f"{PACKAGE}.{module}", f"{PACKAGE}.engine", (REPO / PACKAGE / file).read_text()).lazy
+
+    offered = {name for name, where in lazy("engine", "engine/__init__.py").items()
+               if where == f"{PACKAGE}.engine.library"}  # fmt: skip
+    assert offered == set(lazy("engine.library", "engine/library.py")) == set(library.__all__)
 
 
 def test_cycles_are_found_one_per_tangle():

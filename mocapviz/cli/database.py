@@ -10,11 +10,9 @@ from pathlib import Path
 import pandas as pd
 
 from .. import io as readers  # lazy: the ASF reader (and numba) load only for --asf
-from ..db.database import MotionDB
-from ..db.ingest import expand_paths
+from ..engine import CANONICAL_JOINTS, MotionDB, expand_paths
 from ..errors import MocapvizError, MotionDBError, ParameterError
 from ..integrity import check, rebuild_commands
-from ..motion.skeleton import CANONICAL_JOINTS
 from ..parallel import LOCAL, dask_client
 from .options import scheduler_of
 from .output import printed

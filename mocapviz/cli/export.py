@@ -6,9 +6,8 @@ import contextlib
 import signal
 import threading
 
-from ..db.database import MotionDB
+from ..engine import Engine
 from ..errors import ParameterError
-from ..export import export_hits, export_stretch
 from ..validation import frame_span
 
 
@@ -16,14 +15,16 @@ def run_export(args) -> None:
     if args.frames is not None and args.doc is None:
         raise ParameterError("--frames A:B cuts the document of --doc ID; the stretches of --hits are their rows' "
                              "start:end")  # fmt: skip
-    db = MotionDB.open(args.db)
+    engine = Engine(args.db)
+    db = engine.db
     with _terminate_as_exit():  # SIGTERM mid-export: the written files are removed before the process ends
         if args.doc is not None:
             doc = int(db.document(args.doc)["doc_id"])  # an unknown id: an error naming the valid ones
             a, b = frame_span(args.frames, int(db.document(doc)["n_frames"]), f"document {doc}", "--frames", least=1)
-            paths = export_stretch(db, doc, args.out, a, b, args.format, args.rig, args.search)
+            paths = engine.export_stretch(doc, args.out, frames=(a, b), format=args.format, rig=args.rig,
+                                          search=args.search)  # fmt: skip
         else:
-            paths = export_hits(db, args.hits, args.out, args.format, args.rig, args.search)
+            paths = engine.export(args.hits, args.out, format=args.format, rig=args.rig, search=args.search)
     for path in paths:
         print(path)
     print(f"{len(paths)} file(s) written to {args.out}")

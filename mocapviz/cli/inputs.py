@@ -9,7 +9,7 @@ from ..engine import Engine
 from ..errors import ParameterError
 
 if TYPE_CHECKING:
-    from ..db.database import MotionDB
+    from ..engine import MotionDB
 
 
 def engine_of(args) -> Engine:

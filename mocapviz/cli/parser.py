@@ -11,11 +11,10 @@ from __future__ import annotations
 import argparse
 import functools
 
+from ..engine import FPS_RANGE, NUMERIC_SETS
 from ..engine.parameters import PARAMETERS as P
 from ..engine.parameters import RULES, default
 from ..errors import ParameterError
-from ..features import NUMERIC_SETS
-from ..motion import FPS_RANGE
 from ..validation import parse_integers, parse_names, parse_port, parse_span
 from .options import CSV_HELP, Parser, cluster_options, count_check, number_check, option, search_scheduler
 

@@ -7,11 +7,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..engine import MotionTemplate, feature_groups, feature_names, is_template_name, named_descriptions, segment
 from ..errors import MotionDBError, ParameterError
-from ..features import feature_groups, feature_names, relational_features
-from ..features.segmentation import segment
-from ..relational.description import named_descriptions
-from ..relational.templates import MotionTemplate, is_template_name
 from .inputs import engine_of, example_of
 from .output import csv_folder, printed, write_csv
 
@@ -32,7 +29,7 @@ def run_query(args) -> None:
                              f"segments disagreeing); leave out --mode {args.query_mode}")
     motion = engine._motion(example, args.frames)
     if args.mismatches and all(f in known for f in features or known):  # unknown names: the engine says which
-        n = _query_segments(motion, features or list(known), args.relational_set)
+        n = _query_segments(engine, motion, features or list(known), args.relational_set)
         if args.mismatches > n - 1:
             raise ParameterError(f"--mismatch must be between 0 and {n - 1}, one less than the query's {n} "
                                  f"segment(s) on the chosen features; got {args.mismatches}")
@@ -53,10 +50,10 @@ def run_query(args) -> None:
     write_csv(hits.head(args.rows), args.csv)
 
 
-def _query_segments(example, features: list[str], relational_set: str) -> int:
+def _query_segments(engine, example, features: list[str], relational_set: str) -> int:
     """The segments of the example on the chosen features, fewest over the feature groups they touch: the L of an
     m-mismatch query (query_by_example segments each group's chosen features separately, m < L in each)."""
-    values, names = relational_features(example, relational_set)
+    values, names = engine.clip_relational(example, relational_set=relational_set)
     counts = [len(segment(values[:, [names.index(f) for f in features if f in members]]).codes)
               for members in feature_groups(relational_set).values() if any(f in members for f in features)]
     return min(counts)

@@ -5,7 +5,7 @@ import contextlib
 
 from .. import app
 from ..app.backend import sample_database
-from ..db.database import MotionDB
+from ..engine import MotionDB
 
 
 def run_serve(args) -> None:

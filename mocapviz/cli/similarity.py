@@ -9,10 +9,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..db.database import MotionDB
+from ..engine import NUMERIC_SETS, Engine, MotionDB, PCAModel, layout, load_numeric
 from ..errors import MocapvizError, ParameterError
-from ..features import NUMERIC_SETS, PCAModel, fit_pca, load_numeric, store_numeric
-from ..parallel import optional_client
 from .inputs import engine_of, example_of
 from .options import scheduler_of
 from .output import csv_folder, print_paths, print_ranked, printed, write_csv
@@ -22,17 +20,14 @@ PCA_SETS = tuple(n for n in NUMERIC_SETS if n.startswith("Fp"))
 
 
 def run_features(args) -> None:
-    db = MotionDB.open(args.db)
+    engine = Engine(args.db)
+    db = engine.db
     names = args.numeric_sets
     reference = _pca_reference(args.pca, names)
     t0 = time.perf_counter()
-    with optional_client(scheduler_of(args)) as client:  # one cluster for the PCA fit and every set
-        pca = reference
-        if isinstance(reference, MotionDB):
-            pca = fit_pca(reference, progress=not args.quiet, scheduler=client)
-        stored = store_numeric(db, names, pca=pca, progress=not args.quiet, scheduler=client)
+    stored = engine.store_numeric(names, pca=reference, progress=not args.quiet, scheduler=scheduler_of(args))
     print(f"{db}: {len(stored)} numeric feature sets in {time.perf_counter() - t0:.1f} s, "
-          f"written to {Path(db.path) / 'features'}")
+          f"written to {layout.features_folder(db.path)}")
     rows = [{"set": n, "dims": a.shape[1], "MB": a.nbytes / 2**20} for n, a in stored.items()]
     print(pd.DataFrame(rows).round(1).to_string(index=False))
 

@@ -6,9 +6,9 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from ..engine import DONT_CARE, shortest_instance, store_template
 from ..engine.parameters import default
 from ..errors import ParameterError
-from ..relational.templates import DONT_CARE, shortest_instance, store_template
 from ..validation import one_of, some_of
 from .inputs import engine_of
 from .output import csv_folder, print_ranked, write_csv

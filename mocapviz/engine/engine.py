@@ -576,6 +576,86 @@ class Engine:
 
         return hit_files(self.db, hits, format, rig, search)
 
+    def export_stretch(self, doc_id: int, out, *, frames=None, format: str = "bvh", rig: str | None = None,
+                       search: str | None = None) -> list:
+        """One stretch of a document written into the folder ``out`` as motion files, all or nothing (``mocapviz
+        export --doc``; :func:`mocapviz.export.export_stretch`).
+
+        Parameters
+        ----------
+        doc_id : int
+        out : str or os.PathLike
+        frames : tuple of int, optional
+            [a, b) of the document (default: all of it).
+        format, rig, search
+            As :meth:`export_files`.
+
+        Returns
+        -------
+        list of pathlib.Path, the files written.
+        """
+        from ..export import export_stretch
+
+        a, b = (None, None) if frames is None else frames
+        return export_stretch(self.db, doc_id, out, a, b, format, rig, search)
+
+    def build_indexes(self, relational_set: str = "2005", *, progress: bool = False, scheduler=None) -> pd.DataFrame:
+        """The relational features of every frame computed and the inverted indexes of a set built and stored with
+        the database, even over current ones (``mocapviz index``; Müller et al. 2005 §3-5).
+
+        Parameters
+        ----------
+        relational_set : {"2005", "2006"}
+        progress : bool
+            A progress bar while the features are computed.
+        scheduler : None, "local", str or dask.distributed.Client
+            Where the features are computed (:func:`mocapviz.parallel.dask_client`; None: threads of this
+            process), whatever holds this engine's shards.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The indexes' statistics (:func:`mocapviz.experiments.index_statistics`: Müller et al. 2005 Table 2).
+        """
+        from ..experiments import index_statistics
+        from ..features import relational_features
+        from ..relational.index import build
+
+        relational_set = checked_value("relational_set", relational_set)
+        t0 = time.perf_counter()
+        values, _ = relational_features(self.db, relational_set, progress=progress, scheduler=scheduler)
+        t_features = time.perf_counter() - t0
+        build(self.db, relational_set, values=values)
+        return index_statistics(self.db, relational_set, values=values, t_features=t_features)
+
+    def store_numeric(self, numeric_sets=None, *, pca=None, progress: bool = False, scheduler=None) -> dict:
+        """Numeric feature sets computed and stored with the database (``mocapviz features``; Krüger et al. 2010
+        §3.2).
+
+        Parameters
+        ----------
+        numeric_sets : sequence of str, optional
+            Default: every set.
+        pca : MotionDB or PCAModel, optional
+            The reference of the Fp sets: a database to fit the model on, or a model (default: fitted on this
+            database).
+        progress : bool
+        scheduler : None, "local", str or dask.distributed.Client
+            Where the sets (and the model) are computed, one cluster for all (None: threads of this process),
+            whatever holds this engine's shards.
+
+        Returns
+        -------
+        dict of str to np.ndarray, each set's (N, d) float32 values as stored.
+        """
+        from ..features import fit_pca, store_numeric
+        from ..parallel import optional_client
+
+        with optional_client(scheduler) as client:
+            if isinstance(pca, MotionDB):
+                pca = fit_pca(pca, progress=progress, scheduler=client)
+            return store_numeric(self.db, numeric_sets, pca=pca, progress=progress, scheduler=client)
+
 
 class _ShardedIndex:
     """What the lazy neighbourhood graph asks of a kd-tree (:class:`mocapviz.similarity.knn.KnnIndex`), answered by

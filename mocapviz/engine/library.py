@@ -23,6 +23,7 @@ __getattr__, __dir__ = lazy_exports(__package__, {
     **dict.fromkeys(["CANONICAL_JOINTS", "CANONICAL_PARENTS"], "..motion.joints"),
     # db: the database type, frame conversions of the hit table's convention
     "MotionDB": "..db.database",
+    "expand_paths": "..db.ingest",
     **dict.fromkeys(["database_frames", "first_frames"], "..db.hits"),
     # storage: the database folder's files and the readers of its derived data (mocapviz check reads them back)
     "layout": "..db.layout",
@@ -45,7 +46,8 @@ __getattr__, __dir__ = lazy_exports(__package__, {
     **dict.fromkeys(["vocabulary_of", "vocabulary_table"], "..relational.vocabulary"),
     "describe": "..relational.scene",
     **dict.fromkeys(["DELTA", "DELTA_RANGE", "DONT_CARE", "MAX_COST_RANGE", "MotionTemplate", "is_template_name",
-                     "stored_templates", "template_distance", "template_path"], "..relational.templates"),
+                     "shortest_instance", "store_template", "stored_templates", "template_distance",
+                     "template_path"], "..relational.templates"),
     # similarity: the lazy neighbourhood graph's k, reconstruction from sparse markers
     **dict.fromkeys(["graph_k", "scaled_k"], "..similarity.motion_matching"),
     **dict.fromkeys(["DEFAULT_K", "MARKERS", "NOISE_RANGE_CM", "PosePrior", "reconstruct", "reconstruction_errors"],
@@ -74,13 +76,14 @@ __all__ = ["CANONICAL_JOINTS", "CANONICAL_PARENTS", "DEFAULT_K", "DELTA", "DELTA
            "MotionTemplate", "Named", "PCAModel", "PosePrior", "Progression", "add_block_checksums", "aligned_takes",
            "alignment", "available_measures", "base_pose_experiment", "clip_quality", "cmu_sequence_quality",
            "composite_quality", "correlation_sample", "database_frames", "declared_set", "describe", "dtw",
-           "event_quality", "feature_groups", "feature_names", "first_frames", "frame_actors", "graph_k",
-           "index_statistics", "is_template_name", "knn_timings", "krueger2010_table1", "krueger2010_table2",
-           "krueger2010_table3", "krueger2010_table4", "layout", "lng_accuracy", "load_markers", "load_numeric",
-           "marker_clip", "marker_comparison", "marker_reconstruction", "mueller2005_table2", "mueller2005_table3",
-           "named_descriptions", "numeric_columns", "numerical_search", "paper_claims", "parse_description",
-           "pose_correlations", "pose_limits", "query_segmentation", "query_statistics", "rank_correlations",
-           "read_annotations", "real_marker_clip", "reconstruct", "reconstruction", "reconstruction_errors",
-           "relational_query", "retrieval_quality", "scaled_k", "segment", "segment_correlations", "shortest_match",
-           "similarity_matrices", "stored_templates", "summarize_accuracy", "template_distance", "template_names",
-           "template_path", "template_quality", "vocabulary_of", "vocabulary_table", "walk", "zipped"]  # fmt: skip
+           "event_quality", "expand_paths", "feature_groups", "feature_names", "first_frames", "frame_actors",
+           "graph_k", "index_statistics", "is_template_name", "knn_timings", "krueger2010_table1",
+           "krueger2010_table2", "krueger2010_table3", "krueger2010_table4", "layout", "lng_accuracy", "load_markers",
+           "load_numeric", "marker_clip", "marker_comparison", "marker_reconstruction", "mueller2005_table2",
+           "mueller2005_table3", "named_descriptions", "numeric_columns", "numerical_search", "paper_claims",
+           "parse_description", "pose_correlations", "pose_limits", "query_segmentation", "query_statistics",
+           "rank_correlations", "read_annotations", "real_marker_clip", "reconstruct", "reconstruction",
+           "reconstruction_errors", "relational_query", "retrieval_quality", "scaled_k", "segment",
+           "segment_correlations", "shortest_instance", "shortest_match", "similarity_matrices", "store_template",
+           "stored_templates", "summarize_accuracy", "template_distance", "template_names", "template_path",
+           "template_quality", "vocabulary_of", "vocabulary_table", "walk", "zipped"]  # fmt: skip
