@@ -8,6 +8,7 @@ import argparse
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -132,6 +133,26 @@ def test_the_engine_refuses_a_value_outside_the_table_naming_it(engine, data):
     with pytest.raises(ParameterError) as refused:
         getattr(engine, use)(*args, **{arg: bad})
     assert arg in str(refused.value) or parameter.name.replace("_", " ") in str(refused.value)
+
+
+def test_a_new_parameter_reaches_every_front_from_the_table(sample_db, tmp_path, capsys):
+    """`iterations` was added to learn_template by a row of the table, its name in USES, the engine method's
+    keyword and this test: the command line offers it (with its bounds and default) and the template learned
+    through it is the engine's."""
+    from mocapviz.cli import main
+
+    assert _action(_subparser(["template", "learn"]), "iterations").default == default("learn_template", "iterations")
+    out = tmp_path / "t.npz"
+    args = ["template", "learn", str(sample_db.path), "--label", "squat1Reps", "--iterations", "1", "--out", str(out)]
+    assert main(args) == 0
+    assert "1 iterations" in capsys.readouterr().out
+    from mocapviz.engine import MotionTemplate
+
+    once = MotionTemplate.load(out)
+    assert once.iterations == 1 and np.array_equal(
+        once.values, Engine(sample_db).learn_template("squat1Reps", iterations=1).values)
+    assert main([*args[:-4], "--iterations", "0"]) == 2
+    assert "--iterations must be at least 1" in capsys.readouterr().err
 
 
 def test_the_tables_bounds_are_the_kernels():

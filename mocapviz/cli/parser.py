@@ -13,13 +13,16 @@ import functools
 
 from ..engine import FPS_RANGE, NUMERIC_SETS
 from ..engine.parameters import PARAMETERS as P
-from ..engine.parameters import RULES, default
+from ..engine.parameters import RULES, add_options, default
 from ..errors import ParameterError
 from ..validation import parse_integers, parse_names, parse_port, parse_span
 from .options import CSV_HELP, Parser, cluster_options, count_check, number_check, option, search_scheduler
 
 MAX_JOBS = 256
 """``ingest --jobs``: worker processes or reader threads at most."""
+
+
+NUMERIC_SPELLINGS = {"numeric_set": ("--numeric-set", "--features")}  # --features: the option's old name
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -123,12 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
     kn = sub.add_parser("knn", help="the k nearest frames of one frame of a MotionDB (kd-tree)")
     kn.add_argument("db")
     option(kn, "--frame", check=_doc_frame, required=True, help="DOC:FRAME, a document id and a frame within it")
-    P["numeric_set"].add_to(kn, "--numeric-set", "--features")
-    P["k"].add_to(kn, "-k")
-    P["radius"].add_to(kn)
-    P["eps"].add_to(kn)
-    P["exclude_document"].add_to(kn)
-    P["per_document"].add_to(kn)
+    add_options(kn, "neighbours", {**NUMERIC_SPELLINGS, "k": ("-k",)})
     kn.add_argument("--quiet", action="store_true", help="no progress bar")
     kn.add_argument("--csv", help=CSV_HELP)
     search_scheduler(kn)
@@ -140,15 +138,11 @@ def build_parser() -> argparse.ArgumentParser:
     mt.add_argument("--example", required=True, help="a motion file, or a document id of the DB (then its own "
                     "document is excluded from the matches)")  # fmt: skip
     option(mt, "--frames", check=parse_span, help="frame span A:B of the example, B excluded (default: all of it)")
-    P["numeric_set"].add_to(mt, "--numeric-set", "--features")
-    P["n_matches"].add_to(mt)
     for name in ("k", "radius", "eps"):  # of --method lng only: None when not given (refused with dtw)
         mt.add_argument(*P[name].cli_flags if name != "k" else ("-k",), dest=name, default=None,
                         type=P[name].reader("-k" if name == "k" else P[name].cli_flags[0]),
                         help="--method lng: " + P[name].help(RULES.get(("match", name), default("match", name))))
-    P["method"].add_to(mt)
-    P["min_length"].add_to(mt)
-    P["paths"].add_to(mt)
+    add_options(mt, "match", NUMERIC_SPELLINGS)
     mt.add_argument("--csv", help=CSV_HELP)
     search_scheduler(mt)
     mt.set_defaults(func=_match)
@@ -158,16 +152,13 @@ def build_parser() -> argparse.ArgumentParser:
     se.add_argument("db")
     se.add_argument("--example", required=True, help="a motion file, or a document id of the DB")
     option(se, "--frames", check=parse_span, help="frame span A:B of the example, B excluded (default: all of it)")
-    P["numeric_set"].add_to(se, "--numeric-set", "--features")
-    P["n_matches"].add_to(se)
-    P["mode"].add_to(se)
     se.add_argument("--stretches", action="store_true", help="the K best non-overlapping stretches inside documents "
                     "(subsequence DTW) instead of whole clips")  # fmt: skip
     se.add_argument("--min-length", dest="min_length", type=P["min_length"].reader("--min-length"),
                     help="with --stretches: " + P["min_length"].help())
-    P["exclude_document"].add_to(se)
+    add_options(se, "clips", NUMERIC_SPELLINGS)
+    add_options(se, "stretches")
     se.add_argument("--csv", help=CSV_HELP)
-    P["paths"].add_to(se)
     search_scheduler(se)
     se.set_defaults(func=_search)
 
@@ -179,8 +170,7 @@ def build_parser() -> argparse.ArgumentParser:
     tl.add_argument("db")
     tl.add_argument("--label", required=True, help="the class: a value of the documents' label column")
     tl.add_argument("--actors", help="comma-separated actors: learn from their documents only (default all)")
-    P["relational_set"].add_to(tl, default=default("learn_template", "relational_set"))
-    P["max_examples"].add_to(tl)
+    add_options(tl, "learn_template")
     tl.add_argument("--out", help="also write the template to this file (.npz)")
     tl.set_defaults(func=_template_learn)
     ts = tsub.add_parser("search", help="the stretches of the DB that match a template, best first",
@@ -192,11 +182,8 @@ def build_parser() -> argparse.ArgumentParser:
     ts.add_argument("db")
     ts.add_argument("template", metavar="FILE_OR_NAME", help="a template file, or the name of one stored in "
                     "DB/templates/ (by `mocapviz template learn`)")  # fmt: skip
-    P["n_matches"].add_to(ts, default=default("search_template", "n_matches"))
-    P["delta"].add_to(ts)
-    P["max_cost"].add_to(ts)
+    add_options(ts, "search_template")
     ts.add_argument("--csv", help=CSV_HELP)
-    P["prefilter"].add_to(ts)
     search_scheduler(ts)
     ts.set_defaults(func=_template_search)
 

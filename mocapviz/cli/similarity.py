@@ -10,6 +10,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..engine import NUMERIC_SETS, Engine, MotionDB, PCAModel, layout, load_numeric
+from ..engine.parameters import arguments
 from ..errors import MocapvizError, ParameterError
 from .inputs import engine_of, example_of
 from .options import scheduler_of
@@ -60,8 +61,7 @@ def run_knn(args) -> None:
         n = span.stop - span.start
         if not 0 <= frame < n:
             raise ParameterError(f"--frame {doc}:{frame}: document {doc} has frames 0..{n - 1}")
-        hits = engine.neighbours(doc, frame, k=args.k, numeric_set=args.numeric_set, radius=args.radius, eps=args.eps,
-                                 exclude_document=args.exclude_document, per_document=args.per_document)  # fmt: skip
+        hits = engine.neighbours(doc, frame, **arguments(args, "neighbours"))
         how = repr(engine)
     each = f"; one row per document: the nearest in each of {len(hits)}" if args.per_document else ""
     print(f"{hits.attrs['found']} neighbours of document {doc} frame {frame} by {args.numeric_set} in "
@@ -82,14 +82,12 @@ def run_match(args) -> None:
     with engine_of(args) as engine:
         load_numeric(engine.db, args.numeric_set)  # a clear error naming `mocapviz features DB` when not stored
         example = example_of(engine.db, args.example)
-        lng = {} if args.method == "dtw" else {"k": args.k or ..., "radius": args.radius, "eps": args.eps or ...}
-        table = engine.match(example, frames=args.frames, numeric_set=args.numeric_set, method=args.method,
-                             n_matches=args.n_matches, exclude_document=isinstance(example, int), paths=args.paths,
-                             min_length=args.min_length, **lng)  # fmt: skip
+        table = engine.match(example, frames=args.frames,
+                             **arguments(args, "match", eps=... if args.eps is None else args.eps))
     k = table.attrs.get("k", "")
     what = "subsequence DTW" if args.method == "dtw" else f"lazy neighbourhood graph, k={k}" + (
         f", r={args.radius:g}" if args.radius else "")  # fmt: skip
-    own = isinstance(example, int)
+    own = isinstance(example, int) and args.exclude_document
     print(f"{len(table)} matches of a {table.attrs['query_frames']}-frame query by {args.numeric_set} ({what}), each "
           f"at least {args.min_length:g} × the query long, in {table.attrs['ms']:.1f} ms"
           + (" (the query's own document excluded)" if own else ""))  # fmt: skip
@@ -106,12 +104,11 @@ def run_search(args) -> None:
     csv_folder(args.csv)
     with engine_of(args) as engine:
         example = example_of(engine.db, args.example)
-        options = {"frames": args.frames, "n_matches": args.n_matches, "numeric_set": args.numeric_set,
-                   "mode": args.mode, "exclude_document": args.exclude_document, "paths": args.paths}  # fmt: skip
         if args.stretches:
-            table = engine.stretches(example, min_length=... if args.min_length is None else args.min_length, **options)
+            table = engine.stretches(example, frames=args.frames, **arguments(
+                args, "stretches", min_length=... if args.min_length is None else args.min_length))
         else:
-            table = engine.clips(example, **options)
+            table = engine.clips(example, frames=args.frames, **arguments(args, "clips"))
     what = "stretches" if args.stretches else "clips"
     print(f"{len(table)} {what} like {args.example} ({table.attrs['query_frames']} frames) by DTW on {args.numeric_set}"
           f", {args.mode} mode, in {table.attrs['ms']:.1f} ms" + (" (its own document excluded)" if

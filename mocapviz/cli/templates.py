@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 
 from ..engine import DONT_CARE, shortest_instance, store_template
-from ..engine.parameters import default
+from ..engine.parameters import arguments, default
 from ..errors import ParameterError
 from ..validation import one_of, some_of
 from .inputs import engine_of
@@ -33,8 +33,7 @@ def run_template_learn(args) -> None:
         except ParameterError as exc:
             raise ParameterError(f"--actors: {exc}") from None
     t0 = time.perf_counter()
-    template = engine.learn_template(args.label, actors=actors, relational_set=args.relational_set,
-                                     max_examples=args.max_examples)  # fmt: skip
+    template = engine.learn_template(args.label, actors=actors, **arguments(args, "learn_template"))
     seconds = time.perf_counter() - t0
     stored = store_template(db, template)
     delta = default("search_template", "delta")
@@ -60,8 +59,7 @@ def run_template_search(args) -> None:
     with engine_of(args) as engine:
         template = engine.template(args.template)
         try:
-            table = engine.search_template(template, n_matches=args.n_matches, delta=args.delta,
-                                           max_cost=args.max_cost, prefilter=args.prefilter)  # fmt: skip
+            table = engine.search_template(template, **arguments(args, "search_template"))
         except ParameterError as exc:
             raise ParameterError(f"{args.template}: {exc}") from None
     limit = "" if args.max_cost is None else f", normalised cost <= {args.max_cost:g}"

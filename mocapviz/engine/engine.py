@@ -245,7 +245,7 @@ class Engine:
         return motion[a:b]
 
     # ------------------------------------------------------------------ use cases
-    @checked("knn", k="k", numeric_set="numeric_set", radius="radius", eps="eps")
+    @checked("knn")
     def knn(self, queries, *, k=..., numeric_set=..., radius=..., eps=..., exclude=None
             ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """The k nearest database frames of each query row (Krüger et al. 2010 §3.3), over every shard.
@@ -282,8 +282,7 @@ class Engine:
             frames = np.pad(frames, ((0, 0), (0, pad)), constant_values=-1)
         return distances, frames
 
-    @checked("knn", k="k", numeric_set="numeric_set", radius="radius", eps="eps", exclude_document="exclude_document",
-             per_document="per_document")  # fmt: skip
+    @checked("neighbours")
     def neighbours(self, doc_id: int, frame: int, *, k=..., numeric_set=..., radius=..., eps=...,
                    exclude_document=..., per_document=...) -> pd.DataFrame:  # fmt: skip
         """The k nearest frames of the database to frame ``frame`` of document ``doc_id`` (in-document, from 0), as
@@ -293,7 +292,10 @@ class Engine:
         Examples
         --------
         >>> from mocapviz import MotionDB
-        >>> Engine(MotionDB.sample()).neighbours(3, 10, k=2)[["doc_id", "start", "end"]].values.tolist()
+        >>> engine = Engine(MotionDB.sample())
+        >>> engine.neighbours(3, 10, k=2)[["doc_id", "start", "end"]].values.tolist()  # its own document left out
+        [[14, 21, 22], [14, 22, 23]]
+        >>> engine.neighbours(3, 10, k=2, exclude_document=False)[["doc_id", "start", "end"]].values.tolist()
         [[3, 10, 11], [3, 11, 12]]
         """
         from ..similarity.knn import describe_frames
@@ -309,8 +311,7 @@ class Engine:
         table.attrs.update(ms=1e3 * (time.perf_counter() - t0), found=int((frames[0] >= 0).sum()))
         return table
 
-    @checked("clips", n_matches="n_matches", numeric_set="numeric_set", mode="mode",
-             exclude_document="exclude_document", paths="paths")  # fmt: skip
+    @checked("clips")
     def clips(self, example, *, frames=None, n_matches=..., numeric_set=..., mode=..., exclude_document=...,
               paths=...) -> pd.DataFrame:  # fmt: skip
         """The documents that move most like the example, by DTW cost normalised by the frames of both, then doc
@@ -323,8 +324,7 @@ class Engine:
         tables = self._fan("clips", numeric_set, query, mode=mode, paths=paths, limit=limit, **options)
         return _work_added(self._merged(tables, ["normalised_cost", "doc_id"], n_matches, t0), tables)
 
-    @checked("stretches", n_matches="n_matches", numeric_set="numeric_set", mode="mode", min_length="min_length",
-             exclude_document="exclude_document", paths="paths")  # fmt: skip
+    @checked("stretches")
     def stretches(self, example, *, frames=None, n_matches=..., numeric_set=..., mode=..., min_length=...,
                   exclude_document=..., paths=...) -> pd.DataFrame:  # fmt: skip
         """The K best non-overlapping stretches inside documents like the example, by subsequence DTW cost, then
@@ -359,8 +359,7 @@ class Engine:
         k = options["n_matches"]
         return float(costs[k - 1]) * (1 + 1e-9) if len(costs) >= k else None
 
-    @checked("match", numeric_set="numeric_set", method="method", n_matches="n_matches", k="k", radius="radius",
-             eps="eps", exclude_document="exclude_document", paths="paths", min_length="min_length")  # fmt: skip
+    @checked("match")
     def match(self, example, *, frames=None, numeric_set=..., method=..., n_matches=..., k=..., radius=..., eps=...,
               exclude_document=..., paths=..., min_length=...) -> pd.DataFrame:  # fmt: skip
         """Global matching of a query (Krüger et al. 2010 §4): ``method="lng"``, the lazy neighbourhood graph on the
@@ -385,8 +384,7 @@ class Engine:
         table.attrs["k"] = k
         return table
 
-    @checked("query", features="features", mode="query_mode", mismatches="mismatches", relational_set="relational_set",
-             allowed="allowed")  # fmt: skip
+    @checked("query")
     def query(self, example, *, frames=None, features=..., mode=..., mismatches=..., relational_set=...,
               allowed=...) -> pd.DataFrame:  # fmt: skip
         """Query by example (Müller et al. 2005 §5): the stretches whose feature progression on ``features``
@@ -409,7 +407,7 @@ class Engine:
         table.attrs["group_segments"] = offset
         return table
 
-    @checked("find", template_cost="template_cost", overlapping="overlapping")
+    @checked("find")
     def find(self, description, *, n_matches=..., relational_set=None, template_cost=..., overlapping=...,
              templates: dict | None = None) -> pd.DataFrame:  # fmt: skip
         """The stretches a scene description describes (Müller et al. 2005 §6.3; docs/relational.md), by score
@@ -439,8 +437,8 @@ class Engine:
                            empty_reason=empty_reason(counts) if table.empty else "")  # fmt: skip
         return table
 
-    @checked("learn_template", relational_set="relational_set", max_examples="max_examples")
-    def learn_template(self, label: str, *, actors=None, relational_set=..., max_examples=...):
+    @checked("learn_template")
+    def learn_template(self, label: str, *, actors=None, relational_set=..., max_examples=..., iterations=...):
         """The motion template of the documents labelled ``label`` (of ``actors`` only, when given), from at most
         ``max_examples`` of them spread over the class (Müller & Röder 2006 §3; documents without a label are of
         no class). Returns a :class:`~mocapviz.relational.templates.MotionTemplate` (not stored: see
@@ -448,9 +446,9 @@ class Engine:
         from ..relational.templates import learn_class
 
         return learn_class(self.db, str(label), actors, relational_set, values=self.relational_values(relational_set),
-                           max_examples=max_examples)  # fmt: skip
+                           iterations=iterations, max_examples=max_examples)  # fmt: skip
 
-    @checked("search_template", n_matches="n_matches", delta="delta", max_cost="max_cost", prefilter="prefilter")
+    @checked("search_template")
     def search_template(self, template, *, n_matches=..., delta=..., max_cost=..., prefilter=...) -> pd.DataFrame:
         """The instances of a motion template (Müller & Röder 2006 §4), by cost, then their last frame in the
         database; ``template``: a MotionTemplate, a template file or the name of one stored with the database;

@@ -182,6 +182,8 @@ PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
        "indexes (faster; may miss a hit)"),
     _p("max_examples", "int", 16, "learn from at most this many of the class's documents, spread over them (a "
        "template of 16 found 20 of 20 of its class on every shared archive)", low=1),
+    _p("iterations", "int", 10, "learning a template: at most this many rounds of warping and averaging the examples "
+       "(Müller & Röder 2006 §3; it stops sooner when the template settles)", low=1),
     _p("template_cost", "float", None, "a description's template atoms: the largest normalised cost of a hit",
        low=0.0, high=1.0, optional=True, none_means="each template's learned threshold"),
     _p("overlapping", "bool", False, "keep hits of a description that overlap"),
@@ -204,6 +206,26 @@ RULES = {("match", "k"): "256 at 30 Hz, scaled with the rate and with the databa
 """What a use case does when its default is None, in words (docs/parameters.md)."""
 
 
+USES = {
+    "knn": {"k": "k", "numeric_set": "numeric_set", "radius": "radius", "eps": "eps"},
+    "neighbours": {"k": "k", "numeric_set": "numeric_set", "radius": "radius", "eps": "eps",
+                   "exclude_document": "exclude_document", "per_document": "per_document"},
+    "clips": {"n_matches": "n_matches", "numeric_set": "numeric_set", "mode": "mode",
+              "exclude_document": "exclude_document", "paths": "paths"},
+    "stretches": {"n_matches": "n_matches", "numeric_set": "numeric_set", "mode": "mode", "min_length": "min_length",
+                  "exclude_document": "exclude_document", "paths": "paths"},
+    "match": {"numeric_set": "numeric_set", "method": "method", "n_matches": "n_matches", "k": "k", "radius": "radius",
+              "eps": "eps", "exclude_document": "exclude_document", "paths": "paths", "min_length": "min_length"},
+    "query": {"features": "features", "mode": "query_mode", "mismatches": "mismatches",
+              "relational_set": "relational_set", "allowed": "allowed"},
+    "find": {"template_cost": "template_cost", "overlapping": "overlapping"},
+    "learn_template": {"relational_set": "relational_set", "max_examples": "max_examples", "iterations": "iterations"},
+    "search_template": {"n_matches": "n_matches", "delta": "delta", "max_cost": "max_cost", "prefilter": "prefilter"},
+}  # fmt: skip
+"""Each use case's keyword arguments and the declared parameter each one is (most have its name): the engine
+checks them (:func:`checked`), the command line offers them (:func:`add_options`, :func:`arguments`)."""
+
+
 def parameter(name: str) -> Parameter:
     """The declared parameter ``name``."""
     return PARAMETERS[name]
@@ -214,23 +236,23 @@ def default(use: str, name: str):
     return USE_DEFAULTS.get((use, name), PARAMETERS[name].default)
 
 
-def checked(use: str, **names: str):
-    """Decorator of an engine method (use case ``use``): its keyword arguments named in ``names`` (argument ->
-    declared parameter; most are the same name) are checked against the table once, at the call; a default of
-    ``...`` in the method's signature is the table's default for the use case.
+def checked(use: str):
+    """Decorator of the engine's method of use case ``use``: its keyword arguments of :data:`USES` are checked
+    against the table once, at the call; a default of ``...`` in the method's signature is the table's default for
+    the use case.
 
     Examples
     --------
-    >>> @checked("demo", n=("n_matches"))
-    ... def f(*, n=...):
-    ...     return n
-    >>> f(), f(n=3)
-    (10, 3)
+    >>> @checked("search_template")
+    ... def f(*, n_matches=..., delta=..., max_cost=..., prefilter=...):
+    ...     return n_matches, delta
+    >>> f(), f(n_matches=3)
+    ((20, 0.2), (3, 0.2))
     """
 
     def wrap(function):
         signature = inspect.signature(function)
-        declared = {arg: PARAMETERS[p] for arg, p in names.items()}
+        declared = {arg: PARAMETERS[p] for arg, p in USES[use].items()}
 
         @functools.wraps(function)
         def run(*args, **kwargs):
@@ -251,6 +273,23 @@ def checked(use: str, **names: str):
         return run
 
     return wrap
+
+
+def add_options(parser: argparse.ArgumentParser, use: str, spellings: dict | None = None, skip=()) -> None:
+    """Every parameter of use case ``use`` (:data:`USES`) as an option of ``parser`` with the use case's default,
+    except those in ``skip`` and those the parser has already (a front's own spelling or help); ``spellings``:
+    {parameter: flags} where a command spells one differently (an old name kept)."""
+    have = {action.dest for action in parser._actions}
+    for name in USES[use].values():
+        if name not in have and name not in skip:
+            PARAMETERS[name].add_to(parser, *(spellings or {}).get(name, ()), default=default(use, name))
+
+
+def arguments(args, use: str, **given) -> dict:
+    """The keyword arguments of use case ``use`` from the command line's ``args`` (an argparse Namespace; what it
+    lacks is left to the engine's default), with ``given`` instead where a command decides them itself."""
+    found = {arg: getattr(args, name) for arg, name in USES[use].items() if hasattr(args, name)}
+    return {**found, **given}
 
 
 def markdown() -> str:
