@@ -187,3 +187,18 @@ def test_the_similarity_pages_boxes_start_at_the_tables_defaults(sample_db):
     assert page.numeric_set.value == default("clips", "numeric_set")
     assert page.knn_k.value == default("knn", "k")
     assert page.match_count_k.value == default("match", "n_matches")
+    assert page.exclude_own.value == default("clips", "exclude_document")
+    for box in (page.search_k, page.knn_k, page.match_count_k, page.match_k):  # the table's lower bound
+        assert box.start == 1 == PARAMETERS["n_matches"].low == PARAMETERS["k"].low
+
+
+def test_the_templates_pages_boxes_take_the_tables_bounds(sample_db):
+    from mocapviz.app.backend import Backend
+    from mocapviz.app.pages.templates import TemplatesPage
+    from mocapviz.app.state import Selection
+
+    page = TemplatesPage(Backend(sample_db), Selection(doc=0, span=(0, 10)))
+    delta = PARAMETERS["delta"]
+    assert (page.delta.value, page.delta.start, page.delta.end) == (default("search_template", "delta"), 0.01, 0.49)
+    assert delta.low < page.delta.start and page.delta.end < delta.high  # open ends: one step inside
+    assert (page.max_cost.start, page.max_cost.end, page.max_cost.value) == (0.0, 1.0, None)

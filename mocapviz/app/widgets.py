@@ -8,6 +8,8 @@ import math
 import pandas as pd
 import panel as pn
 
+from ..engine.parameters import PARAMETERS, default
+
 PAGE_SIZE = 25  # rows of a result table's page (the rest stay on the server until their page is shown)
 # The titles of the hit table's columns (mocapviz.db.hits.hit_table), the same on every page: each page shows the
 # columns it wants, in this order, under these titles (``hit_columns``).
@@ -149,6 +151,28 @@ class BoundedFloatInput(_KeepsBounds, pn.widgets.FloatInput):
         """A box stepping by ``step`` whose bounds are the library's :class:`~mocapviz.validation.Interval` of the
         parameter (an open end one step inside it, :meth:`~mocapviz.validation.Interval.closed`)."""
         return cls(label, value, *interval.closed(step), step=step, **params)
+
+
+def parameter_box(label: str, name: str, use: str, most: int | None = None, value=None, **params):
+    """A bounded box of the declared parameter ``name`` of use case ``use`` (:mod:`mocapviz.engine.parameters`):
+    its default (or ``value``: a page's own choice for its database) and the table's bounds, the upper one lowered to
+    ``most`` where the page shows its answer as a picture or a page of rows; never a value the engine refuses.
+
+    Examples
+    --------
+    >>> box = parameter_box("K", "n_matches", "search_template", most=100)
+    >>> box.value, box.start, box.end
+    (20, 1, 100)
+    """
+    parameter = PARAMETERS[name]
+    spec = parameter.widget(default(use, name) if value is None else value)
+    end = spec.get("end")
+    if most is not None:
+        end = most if end is None else min(end, most)
+    if parameter.kind == "int":
+        return BoundedIntInput(label, spec["value"], spec["start"], end, **params)
+    return BoundedFloatInput(label, spec["value"], spec["start"], end, optional=parameter.optional,
+                             step=spec["step"], **params)  # fmt: skip
 
 
 def notes(*inputs) -> pn.Column:

@@ -50,7 +50,7 @@ from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task, in_thread
-from ..widgets import BoundedIntInput, action_button, hit_columns, hit_titles, notes, results_table
+from ..widgets import action_button, hit_columns, hit_titles, notes, parameter_box, results_table
 
 RELATIONAL_SETS = ["2005", "2006"]
 DEFAULT_MATCHES = default("find", "n_matches")
@@ -348,8 +348,7 @@ class DescribePage(pn.viewable.Viewer):
                                                placeholder="kick_right then punch_left within 2 s",
                                                css_classes=["mv-describe-editor"])  # fmt: skip
         self.status = pn.pane.HTML("", margin=(0, 10), width=640, css_classes=["mv-describe-parse"])
-        self.n_matches = BoundedIntInput("K (results)", DEFAULT_MATCHES, 1, None, width=140,
-                                         css_classes=["mv-describe-k"])
+        self.n_matches = parameter_box("K (results)", "n_matches", "find", width=140, css_classes=["mv-describe-k"])
         self.find = action_button("Find", "mv-describe-find", self._on_find, width=120)
         self.templates = pn.widgets.Select(name="stored template", options=[], width=300,
                                            css_classes=["mv-describe-template"])

@@ -31,7 +31,7 @@ from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task
-from ..widgets import BoundedIntInput, action_button, hit_columns, hit_titles, notes, results_table
+from ..widgets import BoundedIntInput, action_button, hit_columns, hit_titles, notes, parameter_box, results_table
 
 SEARCH_SETS = [s for s in NUMERIC_SETS if not s.startswith("Fp")]  # the numeric sets offered: Fp need a PCA model
 MAX_NEIGHBOURS = 256  # Fig. 1 draws 256 neighbours; more make an unreadable figure and a slow render
@@ -217,7 +217,8 @@ class SimilarityPage(pn.viewable.Viewer):
         self.query = pn.pane.Markdown("", css_classes=["mv-similarity-query"], margin=(0, 10))
         self.numeric_set = pn.widgets.Select(label="numeric set", options=SEARCH_SETS,
                                              value=default("clips", "numeric_set"), width=160)
-        self.exclude_own = pn.widgets.Checkbox(label="exclude the query's own document", value=True, width=260,
+        self.exclude_own = pn.widgets.Checkbox(label="exclude the query's own document", width=260,
+                                               value=default("clips", "exclude_document"),
                                                align="end", css_classes=["mv-exclude-own"])
         self._build_search()
         self._build_knn()
@@ -232,7 +233,8 @@ class SimilarityPage(pn.viewable.Viewer):
         self.search_mode = pn.widgets.RadioButtonGroup(options=[m for m in parameter("mode").choices if m != "brute"],
                                                        value=default("clips", "mode"), width=140, align="end",
                                                        css_classes=["mv-search-mode"])  # fmt: skip
-        self.search_k = BoundedIntInput("K results", default("clips", "n_matches"), 1, MAX_MATCHES, width=130, css_classes=["mv-search-k"])
+        self.search_k = parameter_box("K results", "n_matches", "clips", most=MAX_MATCHES, width=130,
+                                      css_classes=["mv-search-k"])
         self.search_button = action_button("Search", "mv-search-run", self._run_search)
         self.search_task = Task()
         self.search_count = pn.pane.Markdown("", css_classes=["mv-search-count"], margin=(0, 10))
@@ -250,7 +252,8 @@ class SimilarityPage(pn.viewable.Viewer):
 
     def _build_knn(self) -> None:
         most = min(MAX_NEIGHBOURS, self.backend.db.n_frames)
-        self.knn_k = BoundedIntInput("k neighbours", min(default("knn", "k"), most), 1, most, width=150, css_classes=["mv-knn-k"])
+        self.knn_k = parameter_box("k neighbours", "k", "neighbours", most=most, value=min(default("neighbours", "k"), most),
+                                   width=150, css_classes=["mv-knn-k"])
         self.knn_per_document = pn.widgets.Checkbox(label="one row per document", value=False, width=180,
                                                     align="end", css_classes=["mv-knn-per-document"])
         self.knn_button = action_button("Search", "mv-knn-search", self._search)
@@ -264,9 +267,10 @@ class SimilarityPage(pn.viewable.Viewer):
 
     def _build_match(self) -> None:
         n = self.backend.db.n_frames
-        self.match_k = BoundedIntInput("k neighbours per frame", graph_k(n, self.backend.fps), 1, n, width=220,
-                                       css_classes=["mv-match-k"])
-        self.match_count_k = BoundedIntInput("K matches", default("match", "n_matches"), 1, MAX_MATCHES, width=130, css_classes=["mv-match-kk"])
+        self.match_k = parameter_box("k neighbours per frame", "k", "match", most=n, value=graph_k(n, self.backend.fps),
+                                     width=220, css_classes=["mv-match-k"])
+        self.match_count_k = parameter_box("K matches", "n_matches", "match", most=MAX_MATCHES, width=130,
+                                           css_classes=["mv-match-kk"])
         self.match_button = action_button("Match", "mv-match-run", self._match)
         self.match_task = Task()
         self.match_count = pn.pane.Markdown("", css_classes=["mv-match-count"], margin=(0, 10))

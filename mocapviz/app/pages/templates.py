@@ -19,7 +19,6 @@ import pandas as pd
 import panel as pn
 
 from ...engine import (
-    DELTA_RANGE,
     DONT_CARE,
     MAX_COST_RANGE,
     MotionTemplate,
@@ -35,7 +34,7 @@ from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task, in_thread
-from ..widgets import BoundedFloatInput, BoundedIntInput, action_button, hit_titles, notes, results_table
+from ..widgets import action_button, hit_titles, notes, parameter_box, results_table
 
 RELATIONAL_SETS = ["2006", "2005"]  # the 39 features of Müller & Röder 2006 (the paper's), or the 31 of 2005
 MAX_MATCHES = 100
@@ -257,12 +256,12 @@ class TemplatesPage(pn.viewable.Viewer):
                                              visible="actor" in docs, css_classes=["mv-templates-actors"])
         self.relational_set = pn.widgets.RadioButtonGroup(options=RELATIONAL_SETS, value="2006", width=120,
                                                           align="end", css_classes=["mv-templates-set"])
-        self.delta = BoundedFloatInput.within("δ (quantisation)", DEFAULT_DELTA, DELTA_RANGE, STEP, width=130,
-                                              css_classes=["mv-templates-delta"])
-        self.n_matches = BoundedIntInput("K (results)", DEFAULT_MATCHES, 1, MAX_MATCHES, width=120,
-                                         css_classes=["mv-templates-k"])
-        self.max_cost = BoundedFloatInput.within("max cost / frame", None, MAX_COST_RANGE, STEP, optional=True,
-                                                 width=210, css_classes=["mv-templates-max-cost"])
+        self.delta = parameter_box("δ (quantisation)", "delta", "search_template", width=130,
+                                   css_classes=["mv-templates-delta"])
+        self.n_matches = parameter_box("K (results)", "n_matches", "search_template", most=MAX_MATCHES, width=120,
+                                       css_classes=["mv-templates-k"])
+        self.max_cost = parameter_box("max cost / frame", "max_cost", "search_template", width=210,
+                                      css_classes=["mv-templates-max-cost"])
         self.button = action_button("Learn and search", "mv-templates-run", self._run, width=150)
         self.task = Task()
         self.summary = pn.pane.Markdown("", css_classes=["mv-templates-summary"], margin=(0, 10))
