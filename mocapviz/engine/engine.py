@@ -272,10 +272,13 @@ class Engine:
         if exclude is not None:
             exclude = excluded_ranges(exclude, len(queries), self.db.n_frames)
         parts = self._fan("knn", numeric_set, queries, k, radius, eps, exclude)
-        distances = np.concatenate([d for d, _ in parts], axis=1)
-        frames = np.concatenate([f for _, f in parts], axis=1)
-        order = np.lexsort((np.where(frames < 0, np.iinfo(np.int64).max, frames), distances), axis=1)[:, :k]
-        distances, frames = np.take_along_axis(distances, order, 1), np.take_along_axis(frames, order, 1)
+        if len(parts) == 1:  # one shard's answer is in the merge's order already (ties by frame, missing last)
+            distances, frames = parts[0]
+        else:
+            distances = np.concatenate([d for d, _ in parts], axis=1)
+            frames = np.concatenate([f for _, f in parts], axis=1)
+            order = np.lexsort((np.where(frames < 0, np.iinfo(np.int64).max, frames), distances), axis=1)[:, :k]
+            distances, frames = np.take_along_axis(distances, order, 1), np.take_along_axis(frames, order, 1)
         if distances.shape[1] < k:
             pad = k - distances.shape[1]
             distances = np.pad(distances, ((0, 0), (0, pad)), constant_values=np.inf)

@@ -253,17 +253,17 @@ def checked(use: str):
     def wrap(function):
         signature = inspect.signature(function)
         declared = {arg: PARAMETERS[p] for arg, p in USES[use].items()}
+        defaults = {arg: default(use, p.name) for arg, p in declared.items()}
+        if any(signature.parameters[arg].kind is not inspect.Parameter.KEYWORD_ONLY for arg in declared):
+            raise TypeError(f"{function.__qualname__}: the parameters of {use} must be keyword-only")
 
         @functools.wraps(function)
         def run(*args, **kwargs):
-            bound = signature.bind(*args, **kwargs)
             for arg, p in declared.items():
-                value = bound.arguments.get(arg, ...)
-                if value is ... or value is None and default(use, p.name) is None:
-                    bound.arguments[arg] = default(use, p.name)
-                else:
-                    bound.arguments[arg] = p.check(value, arg)
-            return function(*bound.args, **bound.kwargs)
+                value = kwargs.get(arg, ...)
+                none = value is None and defaults[arg] is None
+                kwargs[arg] = defaults[arg] if value is ... or none else p.check(value, arg)
+            return function(*args, **kwargs)
 
         run.__signature__ = signature.replace(parameters=[
             q.replace(default=default(use, declared[q.name].name)) if q.name in declared else q

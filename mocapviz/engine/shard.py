@@ -138,6 +138,9 @@ class Shard:
         index = self.search(numeric_set).knn_index
         k = min(int(k), index.n_indexed)
         queries = np.atleast_2d(queries)
+        if exclude is None:  # every query asks every frame of the shard
+            distances, found = index.query(queries, k, radius=radius, eps=eps)
+            return distances, np.where(found >= 0, found + self.offset, -1) if self.offset else found
         distances, frames = np.full((len(queries), k), np.inf), np.full((len(queries), k), -1, dtype=np.int64)
         rows = np.arange(len(queries))
         if exclude is not None:
