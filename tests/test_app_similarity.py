@@ -30,6 +30,7 @@ from mocapviz.app.pages.similarity import (
     matrix_docs,
     nearest_frames,
 )
+from mocapviz.engine.parameters import default
 from mocapviz.experiments.retrieval import retrieval_quality
 from mocapviz.features import numeric_of
 from mocapviz.match.neighbourhood_graph import lng
@@ -379,10 +380,11 @@ def test_knn_round_trip_on_hdm05(page, hdm05_dashboard, hdm05_db30, screenshot):
     doc, frame, _ = _query(page)
     search = page.locator(".mv-knn-search button")
     cold = timed(search.click, lambda: page.locator(".mv-knn-count", has_text="neighbours").wait_for())
-    assert _leading_int(page, ".mv-knn-count") == len(_knn_library(hdm05_db30, doc, frame, 64))
-    _set(page, ".mv-knn-k", 32)
-    warm = timed(search.click, lambda: page.locator(".mv-knn-count", has_text="32 neighbours").wait_for())
-    expected = _knn_library(hdm05_db30, doc, frame, 32)
+    k = default("neighbours", "k")  # the page's box starts at the parameter table's default
+    assert _leading_int(page, ".mv-knn-count") == len(_knn_library(hdm05_db30, doc, frame, k))
+    _set(page, ".mv-knn-k", 2 * k)
+    warm = timed(search.click, lambda: page.locator(".mv-knn-count", has_text=f"{2 * k} neighbours").wait_for())
+    expected = _knn_library(hdm05_db30, doc, frame, 2 * k)
     assert _leading_int(page, ".mv-knn-count") == len(expected)
     assert _cells(page, ".mv-knn-table", "doc_id", 3) == [str(d) for d in expected["doc_id"][:3]]
     record_timing("knn_round_trip_ms", warm, "ms")
