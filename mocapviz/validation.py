@@ -564,7 +564,7 @@ def parse_span(text: str, name: str) -> tuple[int | None, int | None]:
         raise ParameterError(f"{name} must look like A:B (frame numbers from 0, B excluded; A or B may be left out), "
                              f"got {text!r}") from None
     if any(v is not None and v < 0 for v in (first, last)):
-        raise ParameterError(f"{name} takes frame numbers from 0 (A:B, B excluded), got {text!r}")
+        raise ParameterError(f"{name} {text}: frames count from 0 (A:B, B excluded)")
     if first is not None and last is not None and first >= last:
         raise ParameterError(f"{name} {text}: the first frame must come before the last (A < B, B excluded)")
     return first, last

@@ -54,8 +54,10 @@ def test_datasets_list_and_fetch_sample(capsys):
 @pytest.mark.parametrize(
     "argv, needle",
     [
-        (["info", "/nonexistent/db"], "not a MotionDB"),
-        (["ingest", "/nonexistent/*.amc", "--out", "{tmp}/db"], "no .amc or .bvh files"),
+        (["info", "/nonexistent/db"], "/nonexistent/db: does not exist"),
+        (["ingest", "/nonexistent/*.amc", "--out", "{tmp}/db"], "no .amc, .bvh or .c3d file matches this pattern"),
+        (["ingest", "/nonexistent", "--out", "{tmp}/db"], "/nonexistent: does not exist"),
+        (["ingest", "{tmp}/empty", "--out", "{tmp}/db"], "empty: no .amc, .bvh or .c3d files in this folder"),
         (["datasets", "fetch", "no-such-archive"], "no-such-archive"),
         (["ingest", "{bad}", "--out", "{tmp}/db2", "--quiet"], "line 4: OFFSET needs three"),
     ],
@@ -66,6 +68,7 @@ def test_errors_are_one_line_and_exit_1(argv, needle, tmp_path, sample_dir, caps
                             lambda *a, **k: pytest.fail("a cluster started on an error path"))
     bad = tmp_path / "broken.bvh"
     bad.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n}\n")
+    (tmp_path / "empty").mkdir()
     argv = [a.format(tmp=tmp_path, bad=bad) for a in argv]
     assert main(argv) == 1
     err = capsys.readouterr().err.strip()
@@ -326,16 +329,16 @@ BAD_VALUES = [
     (f"{INGEST} --labels {{missing}}", ["--labels", "missing"], 1),
     (f"{INGEST} --asf {{missing}}", ["--asf", "missing"], 1),
     (f"{INGEST} --asf {{text}}", ["--asf", "text.txt"], 1),
-    ("ingest {missing} --out {out} --no-cluster", ["no .amc or .bvh files"], 1),
+    ("ingest {missing} --out {out} --no-cluster", ["missing: does not exist"], 1),
     ("ingest {clip} --out {text}/db --no-cluster", ["--out", "is a file"], 1),
     ("ingest {clip} --out {out} --scheduler '' --quiet", ["--scheduler", "tcp://"], 2),
     ("ingest {clip} --out {out} --scheduler tcp://127.0.0.1:1 --no-cluster", ["exclude each other"], 1),
     ("ingest {clip} --out {out} --scheduler tcp://127.0.0.1:1 --jobs 2", ["--jobs"], 1),
-    ("info {missing}", ["not a MotionDB"], 1),
+    ("info {missing}", ["missing: does not exist"], 1),
     ("info {clip}", ["not a MotionDB"], 1),
     ("index {db} --relational-set 2007 --no-cluster", ["--relational-set", "'2005', '2006'"], 2),
     ("index {db} --feature-set 2007 --no-cluster", ["--feature-set", "'2005', '2006'"], 2),
-    ("index {missing} --no-cluster --quiet", ["not a MotionDB"], 1),
+    ("index {missing} --no-cluster --quiet", ["missing: does not exist"], 1),
     ("index {db} --scheduler '' --quiet", ["--scheduler", "tcp://"], 2),
     ("index {db} --scheduler 'tcp://a b' --quiet", ["--scheduler", "tcp://"], 2),
     (f"{QUERY} -K -5", ["-K", "at least 1"], 2),
@@ -360,7 +363,8 @@ BAD_VALUES = [
     (f"{QUERY} --frames a:b", ["--frames", "A:B"], 2),
     (f"{QUERY} --frames 5", ["--frames", "A:B"], 2),
     (f"{QUERY} --frames 0:1:2", ["--frames", "A:B"], 2),
-    (f"{QUERY} --frames=-5:10", ["--frames", "from 0"], 2),
+    (f"{QUERY} --frames=-5:10", ["--frames -5:10: frames count from 0"], 2),
+    (f"{QUERY} --frames -5:10", ["--frames -5:10: frames count from 0"], 2),
     (f"{QUERY} --frames ''", ["--frames", "A:B"], 2),
     ("query {db} --example 0 --features nosuch", ["unknown feature(s) 'nosuch'", "rknee_bent"], 1),
     ("query {db} --example 0 --features ''", ["--features", "rknee_bent"], 1),
@@ -445,7 +449,7 @@ BAD_VALUES = [
     ("serve {db} --address 0.0.0.0 --allow-origin ''", ["--allow-origin", "HOST:PORT"], 1),
     ("serve {db} --address 0.0.0.0 --allow-origin http://host:5006", ["--allow-origin", "HOST:PORT"], 1),
     ("serve {db} --address 0.0.0.0 --allow-origin host:99999", ["--allow-origin host:99999", "1 to 65535"], 1),
-    ("serve {missing}", ["not a MotionDB"], 1),
+    ("serve {missing}", ["missing: does not exist"], 1),
     ("export {db} --doc 7 --frames 0:500 --format bvh --out {out}", ["--frames 0:500", "document 7", "frames 0.."], 1),
     ("export {db} --doc 7 --frames 9:3 --format bvh --out {out}", ["--frames 9:3", "A < B"], 2),
     ("export {db} --doc x --format bvh --out {out}", ["--doc", "at least 0"], 2),

@@ -211,6 +211,8 @@ def test_open_checks_format_version_and_consistency(sample_db, tmp_path):
         MotionDB.open(copy)
     with pytest.raises(MotionDBError, match="not a MotionDB"):
         MotionDB.open(tmp_path)
+    with pytest.raises(MotionDBError, match="nosuch: does not exist"):
+        MotionDB.open(tmp_path / "nosuch")
     with pytest.raises(MotionDBError, match="not an empty directory"):
         MotionDB.ingest(sample_db.documents["path"].iloc[0], tmp_path, progress=False)
 

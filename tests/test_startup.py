@@ -71,7 +71,7 @@ def test_the_lazy_names_are_the_modules_own():
 
 @pytest.mark.parametrize("argv, status, out, err", [
     (["--help"], 0, "usage: mocapviz", ""),
-    (["info", "/nonexistent/db"], 1, "", "not a MotionDB"),
+    (["info", "/nonexistent/db"], 1, "", "does not exist"),
     (["search", "--no-such-option"], 2, "", "mocapviz: error:"),
 ])  # fmt: skip
 def test_the_command_exits_with_its_status_after_its_output_and_the_atexit_handlers(argv, status, out, err):

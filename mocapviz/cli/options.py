@@ -19,6 +19,12 @@ CSV_HELP = ("also write the ranked hit table to this CSV file (columns and frame
 class Parser(argparse.ArgumentParser):
     """argparse with mocapviz's one-line errors: ``mocapviz: error: ...`` and where to read the usage, status 2."""
 
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # a value such as "-5:10" (--frames) is the option's value, as "-1" is, not an option: its check says why
+        # it is refused
+        self._negative_number_matcher = re.compile(r"^-\d+$|^-\d*\.\d+$|^-\d*:\d*$")
+
     def error(self, message: str):
         message = re.sub(r"^argument (\S+): \1(?=[ :])", r"\1", message)  # a check that names the option itself
         self.exit(2, f"mocapviz: error: {message} (see `{self.prog} --help`)\n")

@@ -141,7 +141,7 @@ class MotionDB:
         Raises
         ------
         MotionDBError
-            Not a MotionDB, another format version, or a file missing, damaged (size or checksum) or inconsistent
+            No such folder, not a MotionDB, another format version, or a file missing, damaged (size or checksum) or inconsistent
             with the manifest; the message names the file.
 
         Examples
@@ -732,6 +732,8 @@ def _check_documents(documents: pd.DataFrame, table: Path, n_frames: int) -> Non
 def _read_manifest(path: Path) -> dict:
     f = manifest_file(path)
     if not f.is_file():
+        if not Path(path).exists():
+            raise MotionDBError(f"{path}: does not exist (a MotionDB is a folder holding a manifest.json)")
         raise MotionDBError(f"{path}: not a MotionDB (no manifest.json)")
     try:
         manifest = json.loads(f.read_text())

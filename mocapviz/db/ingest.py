@@ -62,7 +62,8 @@ def expand_paths(paths) -> list[Path]:
     Raises
     ------
     FileNotFoundError
-        A path or pattern that names nothing.
+        A path that does not exist, a folder that holds no motion file, a pattern that matches none (the message
+        says which).
 
     Examples
     --------
@@ -85,10 +86,19 @@ def expand_paths(paths) -> list[Path]:
             found = sorted(Path(f) for f in glob.glob(p, recursive=True) if file_format(f) in FORMATS
                            and os.path.isfile(f))
         if not found:
-            raise FileNotFoundError(f"{p}: no .amc or .bvh files there (nor .c3d; names starting with a dot are "
-                                    "not searched in a folder)")
+            raise FileNotFoundError(_nothing_found(p))
         out += [f.resolve() for f in found]
     return list(dict.fromkeys(out))
+
+
+def _nothing_found(p: str) -> str:
+    """Why the path or pattern ``p`` names no motion file: it does not exist, or holds or matches none."""
+    formats = f"{', '.join(FORMATS[:-1])} or {FORMATS[-1]}"
+    if os.path.isdir(p):
+        return f"{p}: no {formats} files in this folder (names starting with a dot are not searched)"
+    if glob.has_magic(p):
+        return f"{p}: no {formats} file matches this pattern"
+    return f"{p}: does not exist" if not os.path.lexists(p) else f"{p}: neither a file nor a folder"
 
 
 def file_checksum(path, asf=None) -> str:
