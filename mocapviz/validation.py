@@ -20,6 +20,9 @@ parse_count        an integer within a range; parse_port a TCP port; parse_integ
 parse_number       a finite number within an interval (:func:`number` checks one given in Python).
 parse_names        comma-separated names (or exactly one) from a fixed set.
 parse_span         ``A:B`` frame numbers (either may be left out), A < B.
+
+The text of messages: :func:`plural`, a count and its word agreeing in number ("1 match", "2 matches"), for every
+message and page that states a count.
 """
 
 from __future__ import annotations
@@ -281,6 +284,34 @@ def integer_columns(table, names, what: str, hint: str = "") -> dict:
                                  f"{'; ' + hint if hint else ''}")
         out[name] = values.astype(np.float64).astype(np.int64)
     return out
+
+
+def plural(n, one: str, many: str | None = None, number: bool = True) -> str:
+    """``n`` and the word that agrees with it: ``one`` for 1, else ``many`` (default ``one`` + "s"); the count
+    written with thousands separators. The one way a message or a page states a count.
+
+    Parameters
+    ----------
+    n : int
+        The count.
+    one, many : str
+        The word for one thing and for any other count (0 too).
+    number : bool
+        Write the count before the word (False: the word alone, for "template a, b").
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> plural(1, "match", "matches"), plural(0, "match", "matches"), plural(12000, "frame")
+    ('1 match', '0 matches', '12,000 frames')
+    >>> plural(1, "neighbour"), plural(2, "template", number=False)
+    ('1 neighbour', 'templates')
+    """
+    word = one if n == 1 else (many or one + "s")
+    return f"{n:,} {word}" if number else word
 
 
 def _span_text(first, last) -> str:

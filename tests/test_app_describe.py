@@ -5,12 +5,21 @@ which part found nothing, and a stored template's description fills the editor."
 
 from __future__ import annotations
 
+import html
 import re
 import time
 
 import numpy as np
 import pytest
-from browser_helpers import EXCEPTION_NAME, assert_no_exception_names, open_dashboard, open_tab, record_timing, timed
+from browser_helpers import (
+    EXCEPTION_NAME,
+    assert_no_exception_names,
+    in_own_loop,
+    open_dashboard,
+    open_tab,
+    record_timing,
+    timed,
+)
 from playwright.sync_api import Error as PlaywrightError
 from playwright.sync_api import expect
 
@@ -116,7 +125,7 @@ def test_search_equals_find_is_cached_and_checks_k(sample_db, backend):
     for c in ("doc_id", "start", "end", "parts"):
         np.testing.assert_array_equal(hits[c], expected[c])
     assert page_mod.search(backend, KICK, "2005", 4) is hits
-    assert page_mod.search(backend, EMPTY, "2005", 4).attrs["empty_reason"].startswith("no hit: 'rfoot' found nothing")
+    assert page_mod.search(backend, EMPTY, "2005", 4).attrs["empty_reason"].startswith("'rfoot' found nothing")
     with pytest.raises(ParameterError, match="K"):
         page_mod.search(backend, KICK, "2005", 0)
     with pytest.raises(DescriptionError, match="line 2, column"):
@@ -124,6 +133,37 @@ def test_search_equals_find_is_cached_and_checks_k(sample_db, backend):
 
 
 # ============================================================================ the page in the browser
+def test_the_status_names_a_template_not_stored_before_find(sample_db):
+    """issue 39: "Reads well ... template nosuch", then Find failed on it. With the database, the status refuses a
+    template it does not store, naming it; the text alone still reads."""
+    text = "template:nosuch then kick_left"
+    assert page_mod.parse_status(text)[0] is True
+    ok, message = page_mod.parse_status(text, db=sample_db)
+    assert ok is False and message.startswith("template nosuch is not stored with this database")
+    ok, message = page_mod.parse_status("template:nosuch then template:nosuch2", db=sample_db)
+    assert ok is False and message.startswith("templates nosuch, nosuch2 are not stored")
+    assert page_mod.parse_status(KICK, db=sample_db)[0] is True
+
+
+def test_k_is_bounded_and_an_empty_find_says_no_hit_once(backend):
+    """issue 39: the K box took 1,000,000,000, and an empty result read "No hit: no hit: 'rfoot' found nothing"."""
+    from mocapviz.app.state import Selection
+    from mocapviz.app.widgets import MAX_MATCHES
+
+    page = page_mod.DescribePage(backend, Selection())
+    assert (page.n_matches.start, page.n_matches.end) == (1, MAX_MATCHES)
+    with pytest.raises(ParameterError, match="K"):
+        page_mod.search(backend, KICK, "2005", 10**9)
+    page._set_text(EMPTY)
+    in_own_loop(page._on_find())
+    reason = page_mod.search(backend, EMPTY, "2005", page.n_matches.value).attrs["empty_reason"]
+    assert page.count.object == f"<b>No hit</b>: {html.escape(reason)}."
+    assert page.count.object.lower().count("no hit") == 1
+    page._set_text(KICK)
+    in_own_loop(page._on_find())
+    assert page.count.object.startswith(f"<b>{len(page.hits)} hits</b>") and len(page.hits) > 1
+
+
 def _open_page(page, url: str) -> None:
     open_dashboard(page, url)
     open_tab(page, TAB)

@@ -170,7 +170,7 @@ def test_an_empty_answer_says_which_part_found_nothing(hdm05):
     assert hits.empty and "kick_left then kick_left" in hits.attrs["empty_reason"]
     assert "kick_left (" in hits.attrs["empty_reason"]  # what its parts did find
     hits = find(db, "rknee: straight bent straight and rknee bent for 30.. s", indexes=indexes)
-    assert hits.empty and hits.attrs["empty_reason"] == "no hit: 'rknee' found nothing"
+    assert hits.empty and hits.attrs["empty_reason"] == "'rknee' found nothing"
 
 
 # ================================================================================================ learned descriptions

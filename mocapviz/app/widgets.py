@@ -11,6 +11,7 @@ import panel as pn
 from ..engine.parameters import PARAMETERS, default
 
 PAGE_SIZE = 25  # rows of a result table's page (the rest stay on the server until their page is shown)
+MAX_MATCHES = 100  # K of the pages that list matches (Similarity, Templates, Describe): a gallery, 4 table pages
 # The titles of the hit table's columns (mocapviz.db.hits.hit_table), the same on every page: each page shows the
 # columns it wants, in this order, under these titles (``hit_columns``).
 HIT_TITLES = {"rank": "rank", "doc_id": "document", "name": "name", "label": "label", "start": "start frame",

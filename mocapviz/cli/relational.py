@@ -86,7 +86,7 @@ def run_find(args) -> None:
     print(f"{len(hits)} hits in {hits.attrs['ms']:.1f} ms ({hits.attrs['candidates']} before overlaps were "
           f"resolved; {hits.attrs['relational_set']} set)")  # fmt: skip
     if hits.empty:
-        print(hits.attrs["empty_reason"])
+        print(f"no hit: {hits.attrs['empty_reason']}")
         write_csv(hits, args.csv)
         return
     cols = [c for c in ("rank", "doc_id", "name", "start", "end", "start_s", "end_s", "score", "label") if c in hits]

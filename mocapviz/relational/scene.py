@@ -519,7 +519,8 @@ def _has_events(node) -> bool:
 
 
 def empty_reason(counts: list[tuple[str, int]]) -> str:
-    """Why a description found nothing: the first part with no hit, and what its parts found (or "").
+    """Why a description found nothing: the first part with no hit, and what its parts found (or "" when every part
+    found something). Without a "no hit" of its own: the CLI and the Describe page say that before it.
 
     Parameters
     ----------
@@ -529,6 +530,13 @@ def empty_reason(counts: list[tuple[str, int]]) -> str:
     Returns
     -------
     str
+
+    Examples
+    --------
+    >>> empty_reason([("kick_left", 3), ("kick_left then kick_left", 0)])
+    "'kick_left then kick_left' found nothing (its parts found: kick_left (3))"
+    >>> empty_reason([("kick_left", 3)])
+    ''
     """
     zero = [label for label, n in counts if n == 0]
     if not zero:
@@ -536,8 +544,8 @@ def empty_reason(counts: list[tuple[str, int]]) -> str:
     first = zero[0]
     found = [f"{label} ({n})" for label, n in counts if n and label != first]
     if found:
-        return f"no hit: '{first}' found nothing (its parts found: {', '.join(found[-3:])})"
-    return f"no hit: '{first}' found nothing"
+        return f"'{first}' found nothing (its parts found: {', '.join(found[-3:])})"
+    return f"'{first}' found nothing"
 
 
 def _run(db, description, n_matches, relational_set, template_cost, overlapping, indexes, values, scan: bool,

@@ -44,13 +44,13 @@ from ...engine import (
 )
 from ...engine.parameters import default
 from ...errors import DescriptionError, MocapvizError
-from ...validation import count, one_of
+from ...validation import count, one_of, plural
 from ...viz.timeline import relational_timeline
 from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task, in_thread
-from ..widgets import action_button, hit_columns, hit_titles, notes, parameter_box, results_table
+from ..widgets import MAX_MATCHES, action_button, hit_columns, hit_titles, notes, parameter_box, results_table
 
 RELATIONAL_SETS = ["2005", "2006"]
 DEFAULT_MATCHES = default("find", "n_matches")
@@ -73,9 +73,11 @@ def one_line(text: str) -> str:
     return " ".join(str(text).split())
 
 
-def parse_status(text: str, relational_set: str = "2005") -> tuple[bool | None, str]:
+def parse_status(text: str, relational_set: str = "2005", db=None) -> tuple[bool | None, str]:
     """How the editor's text reads, in one line: (True, what it names) when it parses, (False, the error: "line L,
     column C: reason", as :class:`~mocapviz.errors.DescriptionError` says it) when not, (None, a hint) when empty.
+    With ``db``, a text that names a template not stored with it (``template:NAME``) is refused too, naming it:
+    Find would fail on it.
 
     Examples
     --------
@@ -83,6 +85,9 @@ def parse_status(text: str, relational_set: str = "2005") -> tuple[bool | None, 
     (False, "line 1, column ...: 'bnt' is not a state of rknee in the 2005 set; did you mean 'bent'?")
     >>> parse_status("rknee: straight bent straight and rfoot: lowered raised lowered")
     (True, 'Reads well in the 2005 set: features rknee_bent, rfoot_raised.')
+    >>> from mocapviz import MotionDB
+    >>> parse_status("template:nosuch then kick_left", db=MotionDB.sample())
+    (False, 'template nosuch is not stored with this database (the stored ones: "stored template" below)')
     """
     if not str(text).strip():
         return None, EMPTY_HINT
@@ -91,8 +96,13 @@ def parse_status(text: str, relational_set: str = "2005") -> tuple[bool | None, 
     except MocapvizError as exc:  # DescriptionError: its message starts with the line and column
         return False, one_line(exc)
     features, templates = description_features(parsed), parsed.templates()
+    missing = [name for name, stamp in template_stamps(db, text) if stamp is None] if db is not None else []
+    if missing:
+        return False, (f"{plural(len(missing), 'template', number=False)} {', '.join(missing)} "
+                       f"{'is' if len(missing) == 1 else 'are'} not stored with this database (the stored ones: "
+                       '"stored template" below)')
     said = [f"features {', '.join(features)}" if features else "",
-            f"template{'s' if len(templates) != 1 else ''} {', '.join(templates)}" if templates else ""]
+            f"{plural(len(templates), 'template', number=False)} {', '.join(templates)}" if templates else ""]
     return True, f"Reads well in the {parsed.relational_set} set: " + "; ".join(s for s in said if s) + "."
 
 
@@ -260,7 +270,7 @@ def search(backend, text: str, relational_set: str, n_matches: int) -> pd.DataFr
     backend : Backend
     text : str, the description.
     relational_set : {"2005", "2006"}
-    n_matches : int, K >= 1 (as the library checks it).
+    n_matches : int, K, 1..MAX_MATCHES.
 
     Returns
     -------
@@ -268,7 +278,7 @@ def search(backend, text: str, relational_set: str, n_matches: int) -> pd.DataFr
     """
 
     relational_set = one_of(str(relational_set), "relational set", RELATIONAL_SETS)
-    n_matches = count(n_matches, "K")
+    n_matches = count(n_matches, "K", 1, MAX_MATCHES)
     stamps = template_stamps(backend.db, text)
     key = ("describe.find", relational_set, str(text), n_matches, stamps)
 
@@ -348,7 +358,8 @@ class DescribePage(pn.viewable.Viewer):
                                                placeholder="kick_right then punch_left within 2 s",
                                                css_classes=["mv-describe-editor"])  # fmt: skip
         self.status = pn.pane.HTML("", margin=(0, 10), width=640, css_classes=["mv-describe-parse"])
-        self.n_matches = parameter_box("K (results)", "n_matches", "find", width=140, css_classes=["mv-describe-k"])
+        self.n_matches = parameter_box("K (results)", "n_matches", "find", most=MAX_MATCHES, width=140,
+                                       css_classes=["mv-describe-k"])
         self.find = action_button("Find", "mv-describe-find", self._on_find, width=120)
         self.templates = pn.widgets.Select(name="stored template", options=[], width=300,
                                            css_classes=["mv-describe-template"])
@@ -423,7 +434,7 @@ class DescribePage(pn.viewable.Viewer):
         self._show_status(text)
 
     def _show_status(self, text: str) -> None:
-        ok, message = parse_status(text, self.relational_set.value)
+        ok, message = parse_status(text, self.relational_set.value, self.backend.db)
         colour = {True: "#1b5e20", False: "#b00020", None: "#555555"}[ok]
         shown = html.escape(message if ok is not False else f"⚠ {message}")
         self.status.object = f'<span style="color: {colour}">{shown}</span>'
@@ -489,7 +500,7 @@ class DescribePage(pn.viewable.Viewer):
         self.table.param.update(selection=[], value=hit_columns(hits, HIT_TITLES, HIT_DECIMALS))
         n = len(hits)
         if n:
-            self.count.object = (f"<b>{n} hit{'s' if n != 1 else ''}</b> (K = {n_matches}; score: the hit's length "
+            self.count.object = (f"<b>{plural(n, 'hit')}</b> (K = {n_matches}; score: the hit's length "
                                  "in seconds, shortest first; parts: the frames where each part matched), found in "
                                  f"{hits.attrs.get('ms', 0):.0f} ms")  # fmt: skip
         else:

@@ -31,11 +31,19 @@ from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task
-from ..widgets import BoundedIntInput, action_button, hit_columns, hit_titles, notes, parameter_box, results_table
+from ..widgets import (
+    MAX_MATCHES,
+    BoundedIntInput,
+    action_button,
+    hit_columns,
+    hit_titles,
+    notes,
+    parameter_box,
+    results_table,
+)
 
 SEARCH_SETS = [s for s in NUMERIC_SETS if not s.startswith("Fp")]  # the numeric sets offered: Fp need a PCA model
 MAX_NEIGHBOURS = 256  # Fig. 1 draws 256 neighbours; more make an unreadable figure and a slow render
-MAX_MATCHES = 100
 MAX_MATRIX_CELLS = 600_000  # query frames x small-database frames of the Fig. 3 matrices
 # the graph matches at most the span's first this many seconds (graph_span): its k-NN of every query frame is most of
 # its time (some CMU takes, alone in their part of the feature space, cost 16 ms a frame). On every shared archive at

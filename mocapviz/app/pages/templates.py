@@ -34,10 +34,9 @@ from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task, in_thread
-from ..widgets import action_button, hit_titles, notes, parameter_box, results_table
+from ..widgets import MAX_MATCHES, action_button, hit_titles, notes, parameter_box, results_table
 
 RELATIONAL_SETS = ["2006", "2005"]  # the 39 features of Müller & Röder 2006 (the paper's), or the 31 of 2005
-MAX_MATCHES = 100
 DEFAULT_MATCHES = default("search_template", "n_matches")
 STEP = 0.01  # of the δ and max cost boxes
 VIEWS = {"quantised": True, "averaged values": False}
