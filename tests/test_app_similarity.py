@@ -162,6 +162,42 @@ def test_the_page_matches_the_first_seconds_of_a_long_span_and_says_so(sample_db
     assert "the span's first" not in page.match_count.object
 
 
+def test_a_new_run_replaces_the_playing_captions_and_the_matrix_of_the_last(backend, sample_db):
+    """issue 39: "Playing ... beside result 1 (document 18, frames 0:130)" stayed under a new run whose result 1 was
+    another stretch, and the similarity matrix stayed that of the last match run. A new run shows the hint again,
+    hides the player and empties the matrix; the matrix is of the matches in the table."""
+    from mocapviz.app.pages.similarity import MATCH_PLAY_HINT, SEARCH_PLAY_HINT, SimilarityPage
+    from mocapviz.app.state import Selection
+
+    doc = int(sample_db.documents.loc[sample_db.documents["name"].str.startswith(QUERY_NAME), "doc_id"].iloc[0])
+    page = SimilarityPage(backend, Selection(doc=doc, span=(0, int(sample_db.document(doc)["n_frames"]))))
+    page.search_k.value = 3
+    in_own_loop(page._run_search())
+    page.search_table.selection = [0]
+    first = page.results.iloc[0]
+    assert page.search_playing.object.startswith("Playing the query") and page.search_player_box.visible
+    assert f"frames {first['start']}:{first['end']}" in page.search_playing.object
+    page.search_kind.value = "stretches"
+    in_own_loop(page._run_search())
+    assert page.search_playing.object == SEARCH_PLAY_HINT and not page.search_player_box.visible
+    assert page.search_count.object.startswith(f"**{len(page.results)} stretches**")
+
+    page.match_count_k.value, page.exclude_own.value = 2, False  # the kick itself and its mm twin
+    in_own_loop(page._match())
+    assert len(page.matches) == 2 and page.match_count.object.startswith("**2 matches**")
+    page.match_table.selection = [0]
+    assert page.playing.object.startswith("Playing the query") and page.player_box.visible
+    in_own_loop(page._matrix())
+    assert page.matrix.object is not None
+    page.match_count_k.value = 1  # a run whose table holds one match
+    in_own_loop(page._match())
+    assert len(page.matches) == 1 and page.match_count.object.startswith("**1 match**")
+    assert page.playing.object == MATCH_PLAY_HINT and not page.player_box.visible
+    assert page.matrix.object is None and page.matrix_task.status.object == ""
+    page.match_count_k.value = 5  # changed after the run: the matrix is still that of the table's matches
+    assert page.match_key[4] == 1 and page._match_key()[4] == 5
+
+
 def test_match_alignment_counts_the_match_clip_from_its_first_frame():
     path = np.array([[0, 500], [1, 500], [1, 501], [2, 502]])
     np.testing.assert_array_equal(match_alignment(path, 500), [[0, 0], [1, 0], [1, 1], [2, 2]])
@@ -242,7 +278,7 @@ def test_lng_matches_equal_the_library_and_play_aligned(page, sample_dashboard, 
     doc, _, span = _query(page)
     k = graph_k(sample_db.n_frames, sample_db.fps)
     assert page.locator(".mv-match-k input").input_value() == str(k)
-    _first_click(page, "lng", ".mv-match-run button", page.locator(".mv-match-count", has_text="matches"))
+    _first_click(page, "lng", ".mv-match-run button", page.locator(".mv-match-count", has_text=" match"))  # "1 match", "2 matches"
 
     expected = _lng_library(sample_db, doc, span, k)
     assert len(expected) > 0

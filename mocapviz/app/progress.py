@@ -51,6 +51,12 @@ class Task(pn.viewable.Viewer):
     def __panel__(self):
         return pn.Column(self.bar, self.status, self.error, sizing_mode="stretch_width", margin=0)
 
+    def forget(self) -> None:
+        """Empty the status line and hide the error: the result they were about is no longer shown (another run
+        replaced what it was computed from)."""
+        self.status.object = ""
+        self.error.visible = False
+
     async def run(self, label: str, fn, *args, busy=(), stale=()):
         busy = [busy] if isinstance(busy, pn.widgets.Widget) else list(busy)
         for w in busy:

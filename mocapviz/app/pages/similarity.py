@@ -23,7 +23,7 @@ import panel as pn
 from ...engine import NUMERIC_SETS, database_frames, graph_k, scaled_k, shortest_match, similarity_matrices
 from ...engine.parameters import default, parameter
 from ...errors import ParameterError
-from ...validation import count
+from ...validation import count, plural
 from ...viz.matching import similarity_layout
 from ...viz.palette import OTHERS, SIDE_NAMES, SIDES, legend
 from ...viz.skeleton import neighbour_poses, png_bytes
@@ -253,8 +253,7 @@ class SimilarityPage(pn.viewable.Viewer):
                                               "mv-search-download")  # fmt: skip
         self.search_gallery = HitGallery(self.backend, self.search_table, "mv-search-gallery")
         self.results = None
-        self.search_playing = pn.pane.Markdown("Click a result to play it beside the query, aligned by its DTW "
-                                               "warping path.", margin=(0, 10), css_classes=["mv-search-playing"])
+        self.search_playing = pn.pane.Markdown(SEARCH_PLAY_HINT, margin=(0, 10), css_classes=["mv-search-playing"])
         self.search_player = SkeletonPlayer(size=(760, 380))
         self.search_player_box = pn.Column(self.search_player, visible=False, css_classes=["mv-search-player"])
 
@@ -288,9 +287,8 @@ class SimilarityPage(pn.viewable.Viewer):
         self.match_download = table_download(self.backend, self.match_table, lambda: self._found_by("match"),
                                              "mv-match-download")  # fmt: skip
         self.match_gallery = HitGallery(self.backend, self.match_table, "mv-match-gallery")
-        self.matches = None
-        self.playing = pn.pane.Markdown("Click a match to play it beside the query, aligned by its warping path.",
-                                        margin=(0, 10), css_classes=["mv-match-playing"])
+        self.matches = self.match_key = None  # the matches shown in the table and the matching that found them
+        self.playing = pn.pane.Markdown(MATCH_PLAY_HINT, margin=(0, 10), css_classes=["mv-match-playing"])
         self.player = SkeletonPlayer(size=(760, 380))
         self.player_box = pn.Column(self.player, visible=False, css_classes=["mv-match-player"])
 
@@ -355,17 +353,18 @@ class SimilarityPage(pn.viewable.Viewer):
         key = self._search_key()
         found = await self.search_task.run("Searching", self.backend.cached, ("similarity.search", *key),
                                            lambda: search_span(self.backend, *key), busy=self.search_button,
-                                           stale=(self.search_count, self.search_table, self.search_player_box))
+                                           stale=(self.search_count, self.search_table, self.search_player_box,
+                                                  self.search_playing))
         if found is None:
             self.results = None
             return
         name, doc, span, kind, mode, n_matches, own = key
         self.results, self.search_query = found, (doc, span)
         self.search_table.param.update(selection=[], value=hit_columns(found, SEARCH_TITLES, SEARCH_DECIMALS))
-        self.search_player_box.visible = False
-        what = "clips" if kind == "clips" else "stretches"
+        self.search_player_box.visible, self.search_playing.object = False, SEARCH_PLAY_HINT
+        what = ("clip", "clips") if kind == "clips" else ("stretch", "stretches")
         ms = found.attrs.get("ms")
-        self.search_count.object = (f"**{len(found)} {what}** like document {doc} frames {_frames(*span)} by {name}, "
+        self.search_count.object = (f"**{plural(len(found), *what)}** like document {doc} frames {_frames(*span)} by {name}, "
                                     f"{mode} DTW (K = {n_matches})" + (", its own document excluded" if own else "")
                                     + (f"; search {ms:.0f} ms, {found.attrs.get('aligned', 0)} alignments"
                                        if ms is not None else ""))  # fmt: skip
@@ -408,7 +407,7 @@ class SimilarityPage(pn.viewable.Viewer):
             return
         self.knn_table.value = hit_columns(table, KNN_TITLES, KNN_DECIMALS)
         found = table.attrs.get("neighbours", len(table))
-        self.knn_count.object = (f"**{found} neighbours** of document {doc} frame {frame} by {name}"
+        self.knn_count.object = (f"**{plural(found, 'neighbour')}** of document {doc} frame {frame} by {name}"
                                  + (", its own document excluded" if own else "")
                                  + (f"; one row per document: the nearest in each of {len(table)}" if each else ""))
         image = await self.knn_task.run("Drawing the neighbours", self.backend.cached, (*key, "png"),
@@ -432,17 +431,19 @@ class SimilarityPage(pn.viewable.Viewer):
     async def _match(self, event=None) -> None:
         key, asked = self._match_key(), tuple(self.selection.span)
         found = await self.match_task.run("Matching", self._cached_matches, key, busy=self.match_button,
-                                          stale=(self.match_count, self.match_table, self.player_box))
+                                          stale=(self.match_count, self.match_table, self.player_box, self.playing,
+                                                 self.matrix))
+        self.matrix_task.forget()  # the matrix was of the matches this run replaces
         if found is None:
-            self.matches = None
+            self.matches = self.match_key = None
             return
         name, doc, span, k, n_matches, own = key
-        self.matches, self.match_query = found, (doc, span)
+        self.matches, self.match_query, self.match_key = found, (doc, span), key
         self.match_table.param.update(selection=[], value=hit_columns(found, MATCH_TITLES, MATCH_DECIMALS))
-        self.player_box.visible = False
+        self.player_box.visible, self.playing.object, self.matrix.object = False, MATCH_PLAY_HINT, None
         share = found.attrs["min_length"]
         cut = asked != span
-        self.match_count.object = (f"**{len(found)} matches** of document {doc} frames {_frames(*span)} by {name} "
+        self.match_count.object = (f"**{plural(len(found), 'match', 'matches')}** of document {doc} frames {_frames(*span)} by {name} "
                                    + (f"(the span's first {LNG_MAX_SECONDS:g} s: the graph looks up the k nearest "
                                       "frames of every query frame) " if cut else "")
                                    + f"(k = {k}, K = {n_matches}), each at least {share:g} × the span long "
@@ -472,12 +473,15 @@ class SimilarityPage(pn.viewable.Viewer):
         return similarity_layout(result, cols=2, width=560, height=360)
 
     async def _matrix(self, event=None) -> None:
-        layout = await self.matrix_task.run("Computing the similarity matrix", self._similarity, self._match_key(),
+        key = self.match_key or self._match_key()  # the matches in the table (before a run: the widgets' matching)
+        layout = await self.matrix_task.run("Computing the similarity matrix", self._similarity, key,
                                             self.matrix_k.value, busy=self.matrix_button, stale=(self.matrix,))
         if layout is not None:
             self.matrix.object = layout
 
 
+SEARCH_PLAY_HINT = "Click a result to play it beside the query, aligned by its DTW warping path."
+MATCH_PLAY_HINT = "Click a match to play it beside the query, aligned by its warping path."
 SEARCH_LEGEND = ("Whole clips: every document aligned with the whole span by DTW, ranked by cost / (span frames + "
                  "document frames). Stretches: the K best non-overlapping stretches of the documents by subsequence "
                  "DTW (raw cost), each at least half the span long. Exact: exactly the brute-force ranking, with "
