@@ -5,6 +5,7 @@ PY := $(VENV)/bin/python
 BIN := $(VENV)/bin
 DEMO_DB ?= build/sample.mdb
 PORT ?= 5006
+LAB_PORT ?= 8888
 CHROMIUM := /usr/bin/chromium
 # Debian's Chromium for the dashboard's browser tests (never `playwright install`) and Mesa's EGL / OSMesa for
 # PyVista's offscreen rendering; installed once, as root or through sudo
@@ -12,7 +13,7 @@ SYSTEM_PACKAGES := chromium libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6
 # the Khronos glTF validator (npm) for the glTF export's test (tests/test_export.py), under .cache (not in git)
 GLTF_VALIDATOR := .cache/gltf/node_modules/gltf-validator
 
-.PHONY: install demo test test-fast gltf-validator notebooks-full reproduce bench clean
+.PHONY: install demo lab test test-fast gltf-validator notebooks-full reproduce bench clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +22,11 @@ $(VENV)/.installed: pyproject.toml
 	touch $@
 
 install: $(VENV)/.installed
+
+# JupyterLab and ipywidgets (the `notebook` extra) beside the test install
+$(VENV)/.notebook: $(VENV)/.installed
+	$(PY) -m pip install --quiet -e '.[test,bench,notebook]'
+	touch $@
 
 $(CHROMIUM):
 	@if [ "$$(id -u)" = 0 ]; then SUDO=; elif command -v sudo >/dev/null; then SUDO=sudo; else \
@@ -40,6 +46,12 @@ demo: install
 	$(BIN)/mocapviz index $(DEMO_DB) --no-cluster --quiet
 	$(BIN)/mocapviz features $(DEMO_DB) --no-cluster --quiet
 	$(BIN)/mocapviz serve $(DEMO_DB) --port $(PORT)
+
+# JupyterLab on the notebooks folder, without opening a browser: open the http://127.0.0.1:$(LAB_PORT)/lab?token=...
+# address it prints (Ctrl-C stops it); notebooks/12_search_your_database.ipynb starts from your own folder
+lab: $(VENV)/.notebook
+	$(BIN)/jupyter lab --no-browser --ip=127.0.0.1 --port=$(LAB_PORT) --ServerApp.root_dir=notebooks \
+	  $$([ "$$(id -u)" = 0 ] && echo --allow-root)
 
 test: install $(CHROMIUM) $(GLTF_VALIDATOR)
 	MOCAPVIZ_REQUIRE_BROWSER=1 $(PY) -m pytest --doctest-modules mocapviz tests notebooks --nbmake
