@@ -96,18 +96,6 @@ def test_bones_keep_their_length(c3d_dir):
             assert length.std() / length.mean() < 0.08, (name, a, b, length.mean(), length.std())
 
 
-def test_plug_in_gait_file_after_its_first_gap(c3d_dir):
-    """btk_PiG_Motion-FlatFoot-Full (Vicon Plug-in Gait, 100 fps): LFHD is missing for its first 30 frames (0.3 s,
-    longer than the 0.25 s filled); the error says so, and the clip from frame 30 maps with plausible bones."""
-    m = load(c3d_dir / "btk_PiG_Motion-FlatFoot-Full.c3d")
-    with pytest.raises(SkeletonMappingError, match=r"LFHD \(frames 0 to 29"):
-        m.canonical()
-    p = m[30:].canonical().positions
-    thigh = np.linalg.norm(p[:, J("lhip")] - p[:, J("lknee")], axis=1)
-    assert 30 < thigh.mean() < 55 and thigh.std() / thigh.mean() < 0.08
-    assert (p[:, J("head")] - p[:, J("root")])[:, 1].min() > 30  # walking upright
-
-
 def test_missing_markers_named_with_a_template_and_aliases_fix_it(take):
     names = tuple("LWT1" if n == "LFWT" else n for n in take.joint_names)
     renamed = replace(take, joint_names=names)
@@ -131,13 +119,15 @@ def test_long_gap_refused_naming_marker_and_frames(take):
 
 def test_ingest_a_folder_of_c3d_files(c3d_dir, tmp_path):
     """The nine CMU and HDM05 files carry the whole 41-marker set and no gap the filling cannot close (manifest:
-    gaps 0 or 2.4 %): they become documents with their frame counts; the three gait-lab files (head markers
-    absent, a too-long gap, an older marker set) are skipped with a warning under skip_bad."""
-    with pytest.warns(UserWarning):
-        db = MotionDB.ingest(c3d_dir, tmp_path / "db", skip_bad=True, progress=False)
+    gaps 0 or 2.4 %); the three gait-lab Plug-in Gait files convert with what was estimated said
+    (tests/test_c3d_plugin_gait.py): all twelve become documents with their frame counts, btk_Gait's cut to the
+    194 frames in which its subject is in view."""
+    with pytest.warns(UserWarning, match="btk_Gait.c3d: .* cut"):
+        db = MotionDB.ingest(c3d_dir, tmp_path / "db", progress=False)
     docs = db.documents.set_index("name")
-    assert sorted(docs.index) == sorted(p.stem for p in c3d_dir.glob("*.c3d") if not p.name.startswith("btk_"))
+    assert sorted(docs.index) == sorted(p.stem for p in c3d_dir.glob("*.c3d"))
     assert docs.loc["cmu_135_02", "n_frames"] == 5202 and docs.loc["HDM_bd_01-02_01_120", "n_frames"] == 2900
+    assert docs.loc["btk_Gait", "n_frames"] == 194 and docs.loc["btk_FunctionalWalk", "n_frames"] == 438
     assert (docs["format"] == "c3d").all()
 
 

@@ -4,13 +4,15 @@ is_marker_motion   whether a Motion holds marker trajectories (a C3D file's: no 
 marker_gaps        the share of gap (NaN) frames per marker.
 fill_gaps          short gaps filled by linear interpolation (at most ``max_gap_s``, default 0.25 s).
 marker_set         which marker set a clip carries ("cmu" or "plug-in gait").
+rigid_fill         gaps of a marker of a rigid cluster (the four head markers) placed from the others seen.
 marker_joints      a marker Motion on the canonical joints (what :meth:`Motion.canonical` does with one).
 
 The estimates (all lengths in cm; each offset scaled by a segment length measured on the clip, as the median over
 its frames, because marker files carry no anthropometry):
 
 - hips: Harrington et al. 2007 (below) from the pelvis markers: Plug-in Gait's LASI RASI and LPSI RPSI (or SACR),
-  the CMU/HDM05 front and back waist markers LFWT RFWT LBWT RBWT in their places. root: the midpoint of the hips.
+  the CMU/HDM05 front and back waist markers LFWT RFWT LBWT RBWT in their places. root: the centre of the four
+  pelvis markers.
 - knees, ankles: the Plug-in Gait chord rule (Davis et al. 1991): the joint centre lies in the plane of the joint
   above, a lateral wand marker (thigh LTHI; shank LSHN for CMU, LTIB for Plug-in Gait) and the lateral joint
   marker (LKNE, LANK), at the offset d from that marker, medially, where the segment from the joint above meets
@@ -28,11 +30,35 @@ its frames, because marker files carry no anthropometry):
   forward and left axes) by 0.5 x head width (|LFHD - RFHD| + |LBHD - RBHD|, halved) to the skull base, where the
   canonical head joint is; headtop: moved up by 0.6 x head width to the vertex.
 
-Gaps (NaN samples of a marker, :func:`marker_gaps`) up to ``max_gap_s`` (0.25 s: a fraction of a step) are filled
-(:func:`fill_gaps`): linearly inside the clip, by holding the nearest sample at its start or end. Longer gaps are not
-guessed (no rigid-cluster reconstruction): a joint that needs such a marker there cannot be placed, and
-:func:`marker_joints` raises, naming the marker and frames (cut the clip with ``motion[a:b]`` or pass a larger
-``max_gap_s``).
+Plug-in Gait as gait labs record it (:data:`PLUG_IN_GAIT_NAMES`, :data:`PLUG_IN_GAIT_OPTIONAL`):
+
+- the older (Helen Hayes) names stand for the set's: VSAC for SACR, LSHA for LTIB, IJ (jugular notch) for CLAV,
+  PX (xiphoid) for STRN, a single wrist marker LWRI for LWRA (the wrist is then that marker);
+- without T10, the chest is behind STRN by half the trunk's depth there: STRN + (C7 - CLAV) / 2;
+- without LFIN, the fingers lie along the forearm (LELB to the wrist) 0.055 H beyond the wrist, H the body height
+  estimated from the legs (hip to ankle centre = 0.491 H, Winter 2009);
+- without all four head markers, head and headtop lie on the trunk's axis (root to neck) 0.07 H and 0.18 H above
+  the neck (skull base 0.89 H, vertex 1.0 H, jugular notch 0.82 H);
+- a lower-body clip (no upper-body marker seen): the trunk, arms and head are not measured; they are placed in the
+  pelvis frame (up, to the side) from the mid-hip point at Winter's heights (neck 0.29 H above it, chest 0.19,
+  shoulders 0.27 and 0.12 H to the side, elbows 0.10, wrists -0.045, fingers -0.10, 0.13 H to the side; head 0.36,
+  headtop 0.47): a standing upper body carried by the pelvis.
+
+Each of these is said in one :class:`~mocapviz.errors.MocapFormatWarning` per clip, with the gaps filled.
+
+Gaps (NaN samples of a marker, :func:`marker_gaps`), in this order, said in the warning (marker, frames):
+
+1. the leading and trailing frames in which none of the markers the joints need is seen (the subject outside the
+   cameras' view) are cut; ``labels["first_frame"]`` moves with the cut;
+2. a head marker missing where the three others are seen is placed by a rigid-body fill (:func:`rigid_fill`,
+   Söderkvist & Wedin 1993): the head is rigid, so this holds over gaps of any length (1 s of LFHD blanked in a
+   real walk comes back within 0.2 cm, a linear fill is 2.5 cm off);
+3. gaps up to ``max_gap_s`` (0.25 s: a fraction of a step) are filled (:func:`fill_gaps`): linearly inside the
+   clip, by holding the nearest sample at its start or end.
+
+Longer gaps in other markers are not guessed: a joint that needs such a marker there cannot be placed, and
+:func:`marker_joints` raises, naming the file, the marker and frames (cut the clip with ``motion[a:b]`` or pass a
+larger ``max_gap_s``). No non-finite position is ever returned.
 
 References
 ----------
@@ -43,16 +69,21 @@ References
 .. [2] R. B. Davis, S. Õunpuu, D. Tyburski, J. R. Gage. A gait analysis data collection and reduction technique.
    Human Movement Science 10(5), 575-587, 1991 (marker placement, the chord rule for knee and ankle centres).
 .. [3] Vicon. Plug-in Gait Reference Guide (marker names LASI ... RTOE, chord function, offsets).
+.. [4] D. A. Winter. Biomechanics and Motor Control of Human Movement, 4th ed., Wiley, 2009, fig. 4.1 (segment
+   lengths as fractions of the body height).
+.. [5] I. Söderkvist, P.-Å. Wedin. Determining the movements of the skeleton using well-configured markers.
+   J. Biomech. 26(12), 1473-1477, 1993.
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
-from ..errors import ParameterError, SkeletonMappingError
+from ..errors import MocapFormatWarning, ParameterError, SkeletonMappingError
 from ..validation import number
 from .joints import CANONICAL_JOINTS, CANONICAL_PARENTS
 
@@ -70,7 +101,25 @@ MARKER_SETS = {
     + ("LFWT", "RFWT", "LBWT", "RBWT"),
     "plug-in gait": _COMMON + tuple(s + m for s in "LR" for m in _SIDED + ("TIB",)) + ("LASI", "RASI", "LPSI", "RPSI"),
 }  # fmt: skip
-"""The markers each set needs for the 24 joints (Plug-in Gait: SACR may stand for LPSI and RPSI)."""
+"""The markers each set uses for the 24 joints (Plug-in Gait: SACR may stand for LPSI and RPSI; the markers of
+:data:`PLUG_IN_GAIT_OPTIONAL` may be absent, and the older names of :data:`PLUG_IN_GAIT_NAMES` stand for theirs)."""
+PLUG_IN_GAIT_NAMES = {"SACR": "VSAC", "LTIB": "LSHA", "RTIB": "RSHA", "CLAV": "IJ", "STRN": "PX",
+                      "LWRA": "LWRI", "RWRA": "RWRI"}  # fmt: skip
+"""Plug-in Gait marker -> its older (Helen Hayes, Davis et al. 1991) name, taken where the clip lacks the first:
+a single wrist marker WRI, the shank wand SHA, the virtual sacrum VSAC, the jugular notch IJ, the xiphoid PX."""
+_HEAD = ("LFHD", "RFHD", "LBHD", "RBHD")
+_UPPER = ("C7", "CLAV", "STRN", "LSHO", "LELB", "LWRA", "RSHO", "RELB", "RWRA")
+PLUG_IN_GAIT_OPTIONAL = _HEAD + ("T10", "LWRB", "RWRB", "LFIN", "RFIN")
+"""Plug-in Gait markers placed by a stated rule when the clip lacks them (or never sees them): see the module
+docstring. Without every upper-body marker (:data:`_UPPER` and these), a clip is lower-body Plug-in Gait."""
+# Heights of body landmarks as fractions of the body height H (Winter 2009, fig. 4.1): hip 0.530 (greater
+# trochanter), ankle 0.039, so a leg (hip to ankle centre) is 0.491 H; the offsets below are (up, lateral) from the
+# mid-hip point in H: shoulder 0.818 (acromion; the joint centre 0.02 H lower), elbow 0.630, wrist 0.485, knuckles
+# 0.43 (between wrist and fingertip 0.377), skull base 0.89 (between chin 0.870 and eye 0.936), vertex 1.0;
+# neck (jugular notch) 0.82, chest (xiphoid) 0.72; half the shoulder width 0.13 H.
+_LEG_PER_H = 0.491
+_STANDING = {"neck": (0.29, 0), "chest": (0.19, 0), "shoulder": (0.27, 0.12), "elbow": (0.10, 0.13),
+             "wrist": (-0.045, 0.13), "fingers": (-0.10, 0.13), "head": (0.36, 0), "headtop": (0.47, 0)}  # fmt: skip
 
 
 def is_marker_motion(motion: Motion) -> bool:
@@ -194,8 +243,16 @@ def marker_joints(motion: Motion, aliases: dict | None = None, max_gap_s: float 
     Returns
     -------
     Motion
-        Positions [shape=(T, 24, 3)], float32, cm, on :data:`~mocapviz.motion.skeleton.CANONICAL_JOINTS`; no
-        rotations; ``fps``, ``source``, ``labels`` kept.
+        Positions [shape=(T, 24, 3)], float32, cm, finite, on :data:`~mocapviz.motion.skeleton.CANONICAL_JOINTS`;
+        no rotations; ``fps``, ``source``, ``labels`` kept. T is the clip's frames but the leading and trailing
+        ones that see none of the markers needed (cut; ``labels["first_frame"]`` moved by the frames cut).
+
+    Warns
+    -----
+    MocapFormatWarning
+        Naming the clip, once, when anything was estimated or filled: frames cut, head markers placed by the
+        rigid-body fill, short gaps filled (each marker with its frames), Plug-in Gait markers absent and placed
+        by rule, a lower-body clip's upper body not measured.
 
     Raises
     ------
@@ -208,7 +265,8 @@ def marker_joints(motion: Motion, aliases: dict | None = None, max_gap_s: float 
 
     References
     ----------
-    See the module docstring: Harrington et al. 2007 (hips), Davis et al. 1991 (chord rule).
+    See the module docstring: Harrington et al. 2007 (hips), Davis et al. 1991 (chord rule), Winter 2009 (body
+    proportions), Söderkvist & Wedin 1993 (rigid-body fill).
 
     Examples
     --------
@@ -227,16 +285,59 @@ def marker_joints(motion: Motion, aliases: dict | None = None, max_gap_s: float 
                              f"it has {', '.join(motion.joint_names)}")  # fmt: skip
     kind = marker_set(motion.joint_names, aliases)
     index = {n: k for k, n in enumerate(motion.joint_names)}
+    if kind == "plug-in gait":
+        index.update({m: index[old] for m, old in PLUG_IN_GAIT_NAMES.items() if m not in index and old in index})
     index.update({k: index[v] for k, v in aliases.items()})
     if kind == "plug-in gait" and "SACR" in index and not {"LPSI", "RPSI"} <= set(index):
         index["LPSI"] = index["RPSI"] = index["SACR"]
-    missing = [m for m in MARKER_SETS[kind] if m not in index]
+    seen = ~np.isnan(motion.positions).any(axis=2)  # (T, M)
+    have = {m for m in MARKER_SETS[kind] if m in index and (seen[:, index[m]].any() or not motion.n_frames)}
+    needed, notes = list(MARKER_SETS[kind]), []
+    if kind == "plug-in gait":
+        upper = set(_UPPER + PLUG_IN_GAIT_OPTIONAL)
+        if not have & upper:
+            notes.append("no upper-body marker seen (a lower-body Plug-in Gait clip): the trunk, arms and head are "
+                         "not measured, they stand on the pelvis in a standing posture (Winter 2009 proportions)")
+            skip = upper
+        else:
+            skip = {m for m in PLUG_IN_GAIT_OPTIONAL if m not in have} | (set() if set(_HEAD) <= have else set(_HEAD))
+            if skip:
+                notes.append(f"{', '.join(m for m in PLUG_IN_GAIT_OPTIONAL if m in skip)} not used (absent, or "
+                             f"not all four head markers): {_ESTIMATED_WHEN_ABSENT}")
+        needed = [m for m in needed if m not in skip]
+    missing = [m for m in needed if m not in have]
     if missing:
         raise _missing_error(motion, kind, missing, index)
-    filled = fill_gaps(motion.positions, motion.fps, max_gap_s).astype(np.float64)
-    if np.isnan(filled[:, [index[m] for m in MARKER_SETS[kind]]]).any():
-        raise _gap_error(motion, filled, index, kind, max_gap_s)
-    joints = _joints(lambda name: filled[:, index[name]], kind)
+    name = lambda m: m if motion.joint_names[index[m]] == m else f"{m} ({motion.joint_names[index[m]]})"
+    columns = sorted({index[m] for m in needed})
+    rows = np.flatnonzero(seen[:, columns].any(axis=1))
+    rows = rows if len(rows) else np.array([0, motion.n_frames - 1])  # no frame: nothing to cut
+    if rows[0] > 0 or rows[-1] < motion.n_frames - 1:
+        ends = [f"the first {rows[0]}" if rows[0] else "", f"the last {motion.n_frames - 1 - rows[-1]}"
+                if rows[-1] < motion.n_frames - 1 else ""]  # fmt: skip
+        notes.append(f"{' and '.join(e for e in ends if e)} frames see none of the markers the joints need (the "
+                     f"subject outside the cameras' view): cut, the joints are frames {rows[0]} to {rows[-1]} of the "
+                     f"{motion.n_frames}")
+        motion = replace(motion, positions=motion.positions[rows[0]:rows[-1] + 1],
+                         labels={**motion.labels, "first_frame": motion.labels.get("first_frame", 1) + int(rows[0])})
+    positions = motion.positions
+    if set(_HEAD) <= have:
+        positions, placed = rigid_fill(positions, [index[m] for m in _HEAD])
+        if placed:
+            notes.append("gaps of a head marker placed from the three others seen (rigid-body fill: the "
+                         f"cluster's nearest complete frame moved onto them): "
+                         f"{_frames({_HEAD[k]: f for k, f in placed.items()}, _HEAD, name, rows[0])}")
+    gappy = {m: np.flatnonzero(np.isnan(positions[:, index[m]]).any(axis=1)) for m in needed}
+    filled = fill_gaps(positions, motion.fps, max_gap_s).astype(np.float64)
+    if np.isnan(filled[:, [index[m] for m in needed]]).any():
+        raise _gap_error(motion, filled, [(name(m), index[m]) for m in needed], max_gap_s, rows[0])
+    gappy = {m: f for m, f in gappy.items() if len(f)}
+    if gappy:
+        notes.append(f"gaps of at most {max_gap_s:g} s filled (linearly inside the clip, the nearest sample held "
+                     f"at its ends): {_frames(gappy, list(gappy), name, rows[0])}")
+    if notes:
+        warnings.warn(MocapFormatWarning(motion.source, "; ".join(notes)), stacklevel=2)
+    joints = _joints({m: filled[:, index[m]] for m in needed}, kind)
     bad = ~np.isfinite(joints).all(axis=2)
     if bad.any():
         frames, which = np.flatnonzero(bad.any(axis=1)), [CANONICAL_JOINTS[j] for j in np.flatnonzero(bad.any(axis=0))]
@@ -246,6 +347,87 @@ def marker_joints(motion: Motion, aliases: dict | None = None, max_gap_s: float 
         )
     return replace(motion, positions=joints.astype(np.float32), joint_names=CANONICAL_JOINTS,
                    parents=CANONICAL_PARENTS, quaternions=None)  # fmt: skip
+
+
+_ESTIMATED_WHEN_ABSENT = ("placed by rule (head markers: head and headtop on the trunk's axis above the neck; T10: "
+                          "chest behind STRN by half the C7-CLAV depth; WRB: the wrist is WRA; FIN: fingers along "
+                          "the forearm)")
+
+
+def _frames(frames: dict, order, name=str, offset: int = 0) -> str:
+    """``{marker: frame indices}`` as "LFHD (frames 0 to 29 and 100 to 199, 130 frames), ..." in ``order``, each
+    marker shown as ``name(marker)``, frames counted from ``offset``; more than three stretches end in "...
+    (n stretches)"."""
+    parts = []
+    for m in order:
+        f = np.asarray(frames.get(m, []), dtype=np.int64) + offset
+        if not len(f):
+            continue
+        cut = np.flatnonzero(np.diff(f) > 1)
+        runs = [f"{a} to {b}" if b > a else f"{a}" for a, b in zip(f[np.r_[0, cut + 1]], f[np.r_[cut, len(f) - 1]])]
+        shown = " and ".join(runs) if len(runs) <= 3 else f"{', '.join(runs[:3])}, ... ({len(runs)} stretches)"
+        parts.append(f"{name(m)} (frames {shown}, {len(f)} frame{'s' if len(f) > 1 else ''})")
+    return ", ".join(parts)
+
+
+def rigid_fill(positions: np.ndarray, cluster: list) -> tuple[np.ndarray, dict]:
+    """Markers of a rigid cluster (the four head markers) missing in frames where at least three of it are seen,
+    placed by the rigid motion that best takes the cluster's nearest complete frame onto the markers seen.
+
+    The rigid motion is the least-squares rotation and translation of the seen markers (Söderkvist & Wedin 1993,
+    by the singular value decomposition); the missing marker moves with them: a "rigid body fill".
+
+    Parameters
+    ----------
+    positions : np.ndarray [shape=(T, M, 3)]
+        Marker positions, NaN in gaps.
+    cluster : list of int
+        Columns of the markers of one rigid segment (at least four).
+
+    Returns
+    -------
+    (positions, placed) : np.ndarray [shape=(T, M, 3)], dict
+        A copy with the gaps placed; ``placed``: position in ``cluster`` -> frames placed (int arrays), for the
+        markers that had any. Frames with fewer than three cluster markers seen, or a clip without a complete frame,
+        stay NaN.
+
+    References
+    ----------
+    .. [1] I. Söderkvist, P.-Å. Wedin. Determining the movements of the skeleton using well-configured markers.
+       J. Biomech. 26(12), 1473-1477, 1993.
+
+    Examples
+    --------
+    >>> head = np.array([[0.0, 0, 0], [10, 0, 0], [0, 10, 0], [10, 10, 3]])
+    >>> p = np.stack([head, head @ np.array([[0.0, 1, 0], [-1, 0, 0], [0, 0, 1]]) + 5.0])  # turned 90 degrees, moved
+    >>> gap = p.copy(); gap[1, 3] = np.nan
+    >>> out, placed = rigid_fill(gap, [0, 1, 2, 3])
+    >>> bool(np.allclose(out, p)), {k: v.tolist() for k, v in placed.items()}
+    (True, {3: [1]})
+    """
+    out = np.array(positions, dtype=np.float64)
+    sub = out[:, cluster]
+    seen = ~np.isnan(sub).any(axis=2)
+    complete = np.flatnonzero(seen.all(axis=1))
+    todo = np.flatnonzero(~seen.all(axis=1) & (seen.sum(axis=1) >= 3))
+    placed: dict = {}
+    if not len(complete):
+        return out.astype(positions.dtype), placed
+    after = np.minimum(np.searchsorted(complete, todo), len(complete) - 1)
+    before = np.maximum(after - 1, 0)
+    nearest = np.where(np.abs(complete[before] - todo) < np.abs(complete[after] - todo), complete[before],
+                       complete[after])  # fmt: skip
+    for t, s in zip(todo, nearest):
+        ok = seen[t]
+        a, b = sub[s, ok], sub[t, ok]
+        ca, cb = a.mean(axis=0), b.mean(axis=0)
+        u, _, vt = np.linalg.svd((a - ca).T @ (b - cb))
+        d = np.sign(np.linalg.det(vt.T @ u.T))
+        rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+        for k in np.flatnonzero(~ok):
+            out[t, cluster[k]] = (sub[s, k] - ca) @ rot.T + cb
+            placed.setdefault(int(k), []).append(int(t))
+    return out.astype(positions.dtype), {k: np.array(v) for k, v in placed.items()}
 
 
 def _missing_error(motion: Motion, kind: str, missing: list, index: dict) -> SkeletonMappingError:
@@ -266,15 +448,13 @@ def _missing_error(motion: Motion, kind: str, missing: list, index: dict) -> Ske
     return exc
 
 
-def _gap_error(motion: Motion, filled: np.ndarray, index: dict, kind: str, max_gap_s: float) -> SkeletonMappingError:
-    parts = []
-    for m in MARKER_SETS[kind]:
-        gap = np.flatnonzero(np.isnan(filled[:, index[m]]).any(axis=1))
-        if len(gap):
-            parts.append(f"{m} (frames {gap[0]} to {gap[-1]}, {len(gap)} frames)")
+def _gap_error(motion: Motion, filled: np.ndarray, needed: list, max_gap_s: float, offset: int) -> SkeletonMappingError:
+    """The gaps left in ``needed`` (``(shown name, column)`` each), frames counted from ``offset``."""
+    gaps = {m: np.flatnonzero(np.isnan(filled[:, k]).any(axis=1)) for m, k in needed}
+    parts = _frames(gaps, [m for m, _ in needed], offset=offset)
     return SkeletonMappingError(
         f"{motion.source or 'motion'}: gaps longer than {max_gap_s:g} s in "
-        f"{', '.join(parts)}; cut the clip (motion[a:b]) or fill more (mocapviz.motion.markers.marker_joints with "
+        f"{parts}; cut the clip (motion[a:b]) or fill more (mocapviz.motion.markers.marker_joints with "
         f"a larger max_gap_s)"
     )
 
@@ -350,46 +530,72 @@ def harrington_hips(lasi, rasi, lpsi, rpsi) -> tuple[np.ndarray, np.ndarray]:
     >>> left.round(2).tolist(), right.round(2).tolist()
     ([[8.65, -8.29, -4.83]], [[-8.65, -8.29, -4.83]])
     """
-    origin = (lasi + rasi) / 2
-    back = (lpsi + rpsi) / 2
-    width, depth = 10 * _length(lasi, rasi), 10 * _length(origin, back)  # mm
-    side = _unit(rasi - lasi)
-    fwd = origin - back
-    fwd = _unit(fwd - np.sum(fwd * side, axis=-1, keepdims=True) * side)
-    up = np.cross(side, fwd)
+    origin, fwd, up, side = _pelvis_frame(lasi, rasi, lpsi, rpsi)
+    width, depth = 10 * _length(lasi, rasi), 10 * _length(origin, (lpsi + rpsi) / 2)  # mm
     x, y, z = (-0.24 * depth - 9.9) / 10, (-0.30 * width - 10.9) / 10, (0.33 * width + 7.3) / 10  # cm
     centre = origin + x * fwd + y * up
     return centre - z * side, centre + z * side
 
 
-def _joints(marker, kind: str) -> np.ndarray:
-    """The 24 canonical joints [shape=(T, 24, 3)] from ``marker(name) -> (T, 3)`` of the set ``kind``."""
-    mid = lambda a, b: (marker(a) + marker(b)) / 2
+def _pelvis_frame(lasi, rasi, lpsi, rpsi) -> tuple[np.ndarray, ...]:
+    """Mid-ASIS and the pelvis axes [shape=(T, 3)] each: forward, up, to the right (LASI to RASI)."""
+    origin = (lasi + rasi) / 2
+    side = _unit(rasi - lasi)
+    fwd = origin - (lpsi + rpsi) / 2
+    fwd = _unit(fwd - np.sum(fwd * side, axis=-1, keepdims=True) * side)
+    return origin, fwd, np.cross(side, fwd), side
+
+
+def _joints(marker: dict, kind: str) -> np.ndarray:
+    """The 24 canonical joints [shape=(T, 24, 3)] from ``marker[name] -> (T, 3)`` of the set ``kind`` (Plug-in Gait:
+    the markers of :data:`PLUG_IN_GAIT_OPTIONAL`, or the whole upper body, may be absent: placed by rule)."""
+    mid = lambda a, b: (marker[a] + marker[b]) / 2
     out = {}
-    pelvis = ("LASI", "RASI", "LPSI", "RPSI") if kind == "plug-in gait" else ("LFWT", "RFWT", "LBWT", "RBWT")
-    out["lhip"], out["rhip"] = harrington_hips(*(marker(n) for n in pelvis))
-    out["root"] = sum(marker(n) for n in pelvis) / 4
-    neck, chest = mid("CLAV", "C7"), mid("STRN", "T10")
-    out["neck"] = out["lclavicle"] = out["rclavicle"] = neck
-    out["chest"], out["belly"] = chest, (out["root"] + chest) / 2
-    down = _unit(chest - neck)
+    pelvis = [marker[n] for n in (("LASI", "RASI", "LPSI", "RPSI") if kind == "plug-in gait" else
+                                  ("LFWT", "RFWT", "LBWT", "RBWT"))]  # fmt: skip
+    out["lhip"], out["rhip"] = harrington_hips(*pelvis)
+    out["root"] = sum(pelvis) / 4
     shank = "SHN" if kind == "cmu" else "TIB"
     for s in "lr":
         S = s.upper()
-        hip, knee_m, ankle_m = out[s + "hip"], marker(S + "KNE"), marker(S + "ANK")
-        knee = chord(hip, marker(S + "THI"), knee_m, MARKER_RADIUS_CM + _KNEE * _length(hip, knee_m))
+        hip, knee_m, ankle_m = out[s + "hip"], marker[S + "KNE"], marker[S + "ANK"]
+        knee = chord(hip, marker[S + "THI"], knee_m, MARKER_RADIUS_CM + _KNEE * _length(hip, knee_m))
         out[s + "knee"] = knee
-        out[s + "ankle"] = chord(knee, marker(S + shank), ankle_m, MARKER_RADIUS_CM + _ANKLE * _length(knee, ankle_m))
-        out[s + "toes"] = marker(S + "TOE")
-        sho, elb = marker(S + "SHO"), marker(S + "ELB")
-        arm = _length(sho, elb)
-        out[s + "shoulder"] = shoulder = sho + (MARKER_RADIUS_CM + _SHOULDER * arm) * down
-        out[s + "wrist"] = wrist = mid(S + "WRA", S + "WRB")
-        wand = marker(S + "UPA") if kind == "cmu" else wrist
-        out[s + "elbow"] = chord(shoulder, wand, elb, MARKER_RADIUS_CM + _ELBOW * arm)
-        out[s + "fingers"] = marker(S + "FIN")
-    centre = (marker("LFHD") + marker("RFHD") + marker("LBHD") + marker("RBHD")) / 4
-    width = (_length(marker("LFHD"), marker("RFHD")) + _length(marker("LBHD"), marker("RBHD"))) / 2
-    up = _unit(np.cross(mid("LFHD", "RFHD") - mid("LBHD", "RBHD"), mid("LFHD", "LBHD") - mid("RFHD", "RBHD")))
-    out["head"], out["headtop"] = centre - _HEAD_DOWN * width * up, centre + _HEAD_UP * width * up
+        out[s + "ankle"] = chord(knee, marker[S + shank], ankle_m, MARKER_RADIUS_CM + _ANKLE * _length(knee, ankle_m))
+        out[s + "toes"] = marker[S + "TOE"]
+    height = (_length(out["lhip"], out["lankle"]) + _length(out["rhip"], out["rankle"])) / 2 / _LEG_PER_H
+    if "C7" not in marker:  # lower-body Plug-in Gait: a standing upper body carried by the pelvis
+        *_, up, right = _pelvis_frame(*pelvis)
+        base = (out["lhip"] + out["rhip"]) / 2
+        at = lambda part, sign=0: base + height * (_STANDING[part][0] * up + sign * _STANDING[part][1] * right)
+        out["neck"], out["chest"], out["head"], out["headtop"] = at("neck"), at("chest"), at("head"), at("headtop")
+        for s, sign in (("l", -1), ("r", 1)):
+            for part in ("shoulder", "elbow", "wrist", "fingers"):
+                out[s + part] = at(part, sign)
+    else:
+        t10 = marker["T10"] if "T10" in marker else marker["STRN"] + marker["C7"] - marker["CLAV"]
+        neck, chest = mid("CLAV", "C7"), (marker["STRN"] + t10) / 2
+        out["neck"], out["chest"] = neck, chest
+        down = _unit(chest - neck)
+        for s in "lr":
+            S = s.upper()
+            sho, elb = marker[S + "SHO"], marker[S + "ELB"]
+            arm = _length(sho, elb)
+            out[s + "shoulder"] = shoulder = sho + (MARKER_RADIUS_CM + _SHOULDER * arm) * down
+            out[s + "wrist"] = wrist = mid(S + "WRA", S + "WRB") if S + "WRB" in marker else marker[S + "WRA"]
+            wand = marker[S + "UPA"] if kind == "cmu" else wrist
+            out[s + "elbow"] = chord(shoulder, wand, elb, MARKER_RADIUS_CM + _ELBOW * arm)
+            out[s + "fingers"] = (marker[S + "FIN"] if S + "FIN" in marker else
+                                  wrist + (_STANDING["wrist"][0] - _STANDING["fingers"][0]) * height * _unit(wrist - elb))
+        if set(_HEAD) <= set(marker):
+            centre = sum(marker[n] for n in _HEAD) / 4
+            width = (_length(marker["LFHD"], marker["RFHD"]) + _length(marker["LBHD"], marker["RBHD"])) / 2
+            up = _unit(np.cross(mid("LFHD", "RFHD") - mid("LBHD", "RBHD"), mid("LFHD", "LBHD") - mid("RFHD", "RBHD")))
+            out["head"], out["headtop"] = centre - _HEAD_DOWN * width * up, centre + _HEAD_UP * width * up
+        else:  # no head markers: on the trunk's axis (root to neck) above the neck
+            up = _unit(neck - out["root"])
+            for part in ("head", "headtop"):
+                out[part] = neck + (_STANDING[part][0] - _STANDING["neck"][0]) * height * up
+    out["lclavicle"] = out["rclavicle"] = out["neck"]
+    out["belly"] = (out["root"] + out["chest"]) / 2
     return np.stack([out[j] for j in CANONICAL_JOINTS], axis=1)
