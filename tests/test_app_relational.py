@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from browser_helpers import (
     assert_no_exception_names,
+    in_own_loop,
     open_dashboard,
     open_tab,
     pick_document,
@@ -36,6 +37,7 @@ from mocapviz.app.widgets import PAGE_SIZE
 from mocapviz.features import feature_groups, relational_features
 from mocapviz.relational import index
 from mocapviz.relational.query import query_by_example, query_segmentation
+from mocapviz.validation import plural
 from mocapviz.viz.query import precision_recall
 
 COUNT = ".mv-hit-count"
@@ -225,6 +227,25 @@ def test_a_new_clip_ticks_the_features_that_change_least_often_in_it(sample_db):
     values, names = relational_features(sample_db.motion(12), "2005", progress=False)
     assert sorted(page.query()["features"]) == sorted(suggested_features(values, names))
     assert suggested_features(values[:1].repeat(5, axis=0), names) == list(DEFAULT_FEATURES)  # nothing changes
+
+
+def test_a_new_run_shows_the_query_alone_again_and_counts_agree_in_number(sample_db):
+    """issue 39: the player's caption (and the player) stayed "... beside hit 2" of a table a new run replaced; a
+    count of one read "1 hits". A new run shows the query alone with its caption; one hit reads "1 hit"."""
+    backend = Backend.open(sample_db.path)
+    doc = int(sample_db.documents.loc[sample_db.documents["name"].str.startswith("HDM_dg_sneak"), "doc_id"].iloc[0])
+    n = int(sample_db.document(doc)["n_frames"])
+    page = RelationalPage(backend, Selection(doc=doc, span=(0, n)))
+    in_own_loop(page._on_run())
+    assert len(page.hits) > 1 and page.count.object.startswith(f"**{len(page.hits)} hits** for ")
+    page.table.selection = [1]
+    assert "beside hit 2" in page.player_caption.object
+    page.mismatches.value = 0  # a new query: exact, fewer hits
+    in_own_loop(page._on_run())
+    assert page.player_caption.object.startswith(f"Query: **{sample_db.document(doc)['name']}**, frames 0–{n - 1}. ")
+    assert page.count.object.startswith(f"**{plural(len(page.hits), 'hit')}** for ")
+    page._show_hits(page.shown_query, page.hits.iloc[:1])
+    assert page.count.object.startswith("**1 hit** for ")
 
 
 def test_a_new_clip_gets_the_default_m_again_and_the_pages_first_query(sample_db):

@@ -94,6 +94,16 @@ def test_a_busy_dask_dashboard_port_adds_no_line_to_an_error(tmp_path, capsys):
     assert err.startswith("mocapviz: error:") and "line 4: OFFSET needs three" in err and "\n" not in err, err
 
 
+def test_a_count_of_one_takes_the_singular(sample_db, capsys):
+    """issue 39: "1 matches", "1 frames", "1 examples": a count the commands print agrees with its word."""
+    assert main(["knn", str(sample_db.path), "--frame", "7:10", "-k", "1"]) == 0
+    assert capsys.readouterr().out.startswith("1 neighbour of document 7 frame 10 by F15E")
+    assert main(["search", str(sample_db.path), "--example", "7", "-K", "1"]) == 0
+    assert capsys.readouterr().out.startswith("1 clip like 7 (")
+    assert main(["find", str(sample_db.path), "kick_left", "-K", "1"]) == 0
+    assert capsys.readouterr().out.startswith("1 hit in ")
+
+
 def test_console_script_runs_as_module(sample_dir, tmp_path):
     """The same command through a fresh interpreter (as the installed `mocapviz` script runs it)."""
     res = subprocess.run([sys.executable, "-m", "mocapviz.cli", "info", str(tmp_path)], capture_output=True, text=True, check=False)

@@ -43,7 +43,7 @@ from tornado.routing import Matcher, Rule
 from tornado.web import RequestHandler
 
 from ..errors import MocapvizError, ParameterError
-from ..validation import parse_port
+from ..validation import parse_port, plural
 from .backend import Backend, answers_in_memory
 from .jobs import on_session_closed, release_memory
 from .state import Selection
@@ -110,7 +110,7 @@ def dashboard(db_path, scheduler=None) -> pn.viewable.Viewable:
         on_session_closed(session_closed)
     db = backend.db
     header = pn.pane.Markdown(
-        f"## mocapviz · {db.path.name}\n{len(db)} documents · {db.n_frames:,} frames · "
+        f"## mocapviz · {db.path.name}\n{plural(len(db), 'document')} · {plural(db.n_frames, 'frame')} · "
         + (f"{db.fps:g} fps" if db.fps else "mixed frame rates"), css_classes=["mv-header"], margin=(0, 10))
     layout = pn.Column(header, tabs, sizing_mode="stretch_width")
     _DASHBOARDS.add(layout)

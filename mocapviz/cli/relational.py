@@ -9,6 +9,7 @@ import pandas as pd
 
 from ..engine import MotionTemplate, feature_groups, feature_names, is_template_name, named_descriptions, segment
 from ..errors import MotionDBError, ParameterError
+from ..validation import plural
 from .inputs import engine_of, example_of
 from .output import csv_folder, printed, write_csv
 
@@ -43,7 +44,7 @@ def run_query(args) -> None:
         hits = engine.query(motion, features=features, mode=mode, mismatches=args.mismatches or ...,
                             relational_set=args.relational_set, allowed=args.allowed)  # fmt: skip
     ms = 1000 * (time.perf_counter() - t0)
-    print(f"{len(hits)} hits in {ms:.1f} ms ({mode}, features: {', '.join(features or ['all'])})")
+    print(f"{plural(len(hits), 'hit')} in {ms:.1f} ms ({mode}, features: {', '.join(features or ['all'])})")
     cols = [c for c in ("rank", "doc_id", "name", "start", "end", "start_s", "end_s", "score", "label") if c in hits]
     with pd.option_context("display.width", 160, "display.max_rows", args.rows + 5):
         print(printed(hits[cols].head(args.rows).round(3)))
@@ -83,7 +84,7 @@ def run_find(args) -> None:
     if args.explain:
         print(hits.attrs["description"])
         print("matched: " + "; ".join(f"{label}: {n}" for label, n in hits.attrs["counts"]))
-    print(f"{len(hits)} hits in {hits.attrs['ms']:.1f} ms ({hits.attrs['candidates']} before overlaps were "
+    print(f"{plural(len(hits), 'hit')} in {hits.attrs['ms']:.1f} ms ({hits.attrs['candidates']} before overlaps were "
           f"resolved; {hits.attrs['relational_set']} set)")  # fmt: skip
     if hits.empty:
         print(f"no hit: {hits.attrs['empty_reason']}")

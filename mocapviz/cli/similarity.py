@@ -12,6 +12,7 @@ import pandas as pd
 from ..engine import NUMERIC_SETS, Engine, MotionDB, PCAModel, layout, load_numeric
 from ..engine.parameters import arguments
 from ..errors import MocapvizError, ParameterError
+from ..validation import plural
 from .inputs import engine_of, example_of
 from .options import scheduler_of
 from .output import csv_folder, print_paths, print_ranked, printed, write_csv
@@ -64,7 +65,7 @@ def run_knn(args) -> None:
         hits = engine.neighbours(doc, frame, **arguments(args, "neighbours"))
         how = repr(engine)
     each = f"; one row per document: the nearest in each of {len(hits)}" if args.per_document else ""
-    print(f"{hits.attrs['found']} neighbours of document {doc} frame {frame} by {args.numeric_set} in "
+    print(f"{plural(hits.attrs['found'], 'neighbour')} of document {doc} frame {frame} by {args.numeric_set} in "
           f"{hits.attrs['ms']:.2f} ms ({how}){each}")  # fmt: skip
     cols = [c for c in ("rank", "doc_id", "name", "start", "start_s", "distance", "label") if c in hits]
     with pd.option_context("display.width", 160, "display.max_rows", args.k + 5):
@@ -88,7 +89,7 @@ def run_match(args) -> None:
     what = "subsequence DTW" if args.method == "dtw" else f"lazy neighbourhood graph, k={k}" + (
         f", r={args.radius:g}" if args.radius else "")  # fmt: skip
     own = isinstance(example, int) and args.exclude_document
-    print(f"{len(table)} matches of a {table.attrs['query_frames']}-frame query by {args.numeric_set} ({what}), each "
+    print(f"{plural(len(table), 'match', 'matches')} of a {table.attrs['query_frames']}-frame query by {args.numeric_set} ({what}), each "
           f"at least {args.min_length:g} × the query long, in {table.attrs['ms']:.1f} ms"
           + (" (the query's own document excluded)" if own else ""))  # fmt: skip
     print_ranked(table, args.n_matches, "the lazy neighbourhood graph needs a neighbour of every query frame along a "
@@ -109,8 +110,8 @@ def run_search(args) -> None:
                 args, "stretches", min_length=... if args.min_length is None else args.min_length))
         else:
             table = engine.clips(example, frames=args.frames, **arguments(args, "clips"))
-    what = "stretches" if args.stretches else "clips"
-    print(f"{len(table)} {what} like {args.example} ({table.attrs['query_frames']} frames) by DTW on {args.numeric_set}"
+    what = ("stretch", "stretches") if args.stretches else ("clip", "clips")
+    print(f"{plural(len(table), *what)} like {args.example} ({plural(table.attrs['query_frames'], 'frame')}) by DTW on {args.numeric_set}"
           f", {args.mode} mode, in {table.attrs['ms']:.1f} ms" + (" (its own document excluded)" if
                                                                  args.exclude_document else ""))  # fmt: skip
     print_ranked(table, args.n_matches, "the query's own document is the only one long enough; try whole clips, a "

@@ -9,7 +9,7 @@ from pathlib import Path
 from ..engine import DONT_CARE, shortest_instance, store_template
 from ..engine.parameters import arguments, default
 from ..errors import ParameterError
-from ..validation import one_of, some_of
+from ..validation import one_of, plural, some_of
 from .inputs import engine_of
 from .output import csv_folder, print_ranked, write_csv
 
@@ -40,8 +40,8 @@ def run_template_learn(args) -> None:
     dont_care = float((template.quantised(delta) == DONT_CARE).mean())
     n = template.n_examples
     print(f"template {template.label!r} of {db.path} ({', '.join(actors) if actors else 'every actor'}): "
-          f"{n} example{'s' * (n != 1)}, {len(template.values)} frames x {len(template.features)} features of the "
-          f"{args.relational_set} set, {dont_care:.0%} don't care (δ = {delta}), {template.iterations} iterations, "
+          f"{plural(n, 'example')}, {plural(len(template.values), 'frame')} x {len(template.features)} features of the "
+          f"{args.relational_set} set, {dont_care:.0%} don't care (δ = {delta}), {plural(template.iterations, 'iteration')}, "
           f"{seconds:.1f} s")  # fmt: skip
     meta = template.meta
     print(f"its examples' own best matches cost up to {meta['example_threshold']:.3f} per frame; its learned threshold "
@@ -65,8 +65,8 @@ def run_template_search(args) -> None:
     limit = "" if args.max_cost is None else f", normalised cost <= {args.max_cost:g}"
     n = template.n_examples
     aligned = f", keyframe pre-filter: {table.attrs['aligned']:.0%} of the frames aligned" if args.prefilter else ""
-    print(f"{len(table)} matches of template {template.label!r} ({len(template.values)} frames, {n} "
-          f"example{'s' * (n != 1)}, {table.attrs['relational_set']} set) in {engine.db.path}{limit}{aligned}, in "
+    print(f"{plural(len(table), 'match', 'matches')} of template {template.label!r} "
+          f"({plural(len(template.values), 'frame')}, {plural(n, 'example')}, {table.attrs['relational_set']} set) in {engine.db.path}{limit}{aligned}, in "
           f"{table.attrs['ms']:.1f} ms")  # fmt: skip
     own = template.meta.get("threshold")
     if args.max_cost is not None:

@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ParameterError
+from ..validation import plural
 from .palette import SERIES
 
 NOT_COMPUTED = "#2b5fd9"  # Fig. 3's blue: cells the graph did not have to compute
@@ -110,8 +111,7 @@ def similarity_layout(result: dict, cols: int = 3, width: int = 380, height: int
             color=PATH_COLOUR, linewidth=2, backend="matplotlib")  # fmt: skip
         share = computed.mean()
         how = "subsequence DTW" if name.startswith("Dpc") else "LNG"
-        found = len(part["matches"])
-        title = f"{name} ({how}): {share:.1%} of cells computed, {found} match{'es' if found != 1 else ''}"
+        title = f"{name} ({how}): {share:.1%} of cells computed, {plural(len(part['matches']), 'match', 'matches')}"
         panels.append(hv.Overlay([image, boundaries, paths], label=name).opts(
             title=title, width=width, height=height, backend="bokeh"))  # fmt: skip
     return hv.Layout(panels).cols(cols)

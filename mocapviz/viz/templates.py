@@ -10,6 +10,7 @@ import holoviews as hv
 import holoviews.plotting.bokeh  # registers the bokeh backend and its options
 
 from ..relational.templates import DELTA, MotionTemplate
+from ..validation import plural
 
 __all__ = ["template_image"]
 
@@ -38,7 +39,8 @@ def template_image(template: MotionTemplate, quantised: bool = True, delta: floa
     values = template.quantised(delta) if quantised else template.values
     k, f = values.shape
     what = "quantised, grey = don't care" if quantised else "averaged values"
-    title = f"{template.label or 'motion template'}: {template.n_examples} examples, {k} frames ({what})"
+    title = (f"{template.label or 'motion template'}: {plural(template.n_examples, 'example')}, {plural(k, 'frame')} "
+             f"({what})")
     # row 0 of an Image is drawn at the top: feature 0 first, as in the papers' figures
     image = hv.Image(values.T, bounds=(-0.5, -0.5, k - 0.5, f - 0.5), kdims=["frame", "feature"], vdims=["value"])
     ticks = [(f - 1 - i, name) for i, name in enumerate(template.features)]

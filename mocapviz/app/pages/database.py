@@ -10,6 +10,7 @@ import pandas as pd
 import panel as pn
 
 from ...engine import NUMERIC_SETS, feature_groups, numeric_columns, segment
+from ...validation import plural
 from ...viz.palette import PART_NAMES, PARTS, legend
 from ...viz.timeline import numeric_curves, relational_timeline
 from ..documents import filter_documents
@@ -98,7 +99,7 @@ class DatabasePage(pn.viewable.Viewer):
         shown = filter_documents(t, self.label_filter.value, self.performer_filter.value, self.archive_filter.value,
                                  self.text_filter.value_input or "", self.length_filter.value)
         self.table.value = shown
-        self.count.object = f"{len(shown)} of {len(t)} documents"
+        self.count.object = f"{len(shown)} of {plural(len(t), 'document')}"
 
     async def _on_select(self, event) -> None:
         if event.new:
@@ -201,7 +202,7 @@ class DatabasePage(pn.viewable.Viewer):
         a, b = self.selection.span
         self.timeline_info.object = (
             f"{len(names)} features of the 2005 set ({legend(PARTS, PART_NAMES, 'feature groups')}), "
-            f"{len(segment(values).starts)} segments in the clip, {len(segment(values[a:b]).starts)} "
+            f"{plural(len(segment(values).starts), 'segment')} in the clip, {len(segment(values[a:b]).starts):,} "
             f"in the span {a}..{b - 1}")
 
     def _draw_curves(self) -> None:

@@ -19,6 +19,7 @@ import pandas as pd
 import panel as pn
 
 from ...engine import database_frames, feature_groups, query_segmentation
+from ...validation import plural
 from ...viz.query import precision_recall, precision_recall_plot
 from ..documents import DocumentPicker
 from ..downloads import table_download
@@ -279,11 +280,9 @@ class RelationalPage(pn.viewable.Viewer):
         if (self.selection.doc, tuple(self.selection.span)) != (doc, (first, last + 1)):
             self.selection.param.update(doc=doc, frame=first, span=(first, last + 1))
         fps = self._doc_fps(doc)
-        self.span_info.object = (f"{last - first + 1} frames · {first / fps:.2f}–{(last + 1) / fps:.2f} s of "
-                                 f"{self._doc_name(doc)}")
-        self.player.load([self._clip(doc, first, last + 1)], titles=["query"], fps=fps)
-        self.player_caption.object = f"Query: **{self._doc_name(doc)}**, frames {first}–{last}. Click a hit to " \
-                                     "play it beside the query."
+        self.span_info.object = (f"{plural(last - first + 1, 'frame')} · {first / fps:.2f}–{(last + 1) / fps:.2f} s "
+                                 f"of {self._doc_name(doc)}")
+        self._play_query(doc, first, last)
         self._bound_mismatches()
 
     def query_segments(self) -> int:
@@ -356,11 +355,17 @@ class RelationalPage(pn.viewable.Viewer):
     def _show_hits(self, q: dict, hits: pd.DataFrame) -> None:
         self.hits, self.shown_query = hits, q
         self.table.param.update(selection=[], value=hit_columns(hits, HIT_TITLES, HIT_DECIMALS))
-        n = len(hits)
         kind = f"{q['mode']} hits" + (f" with m = {q['mismatches']}" if q["mode"] == "mismatch" else "")
-        self.count.object = f"**{n} hit{'s' if n != 1 else ''}** for {len(q['features'])} features, " \
+        self.count.object = f"**{plural(len(hits), 'hit')}** for {plural(len(q['features']), 'feature')}, " \
                             f"{kind} (score: seconds of segment-length difference, §6.2; lower " \
                             "is better)"
+        self._play_query(q["doc"], q["span"][0], q["span"][1] - 1)  # no hit of the table it replaces beside it
+
+    def _play_query(self, doc: int, first: int, last: int) -> None:
+        """The query alone in the player (frames first..last of ``doc``, both included), and its caption."""
+        self.player.load([self._clip(doc, first, last + 1)], titles=["query"], fps=self._doc_fps(doc))
+        self.player_caption.object = f"Query: **{self._doc_name(doc)}**, frames {first}–{last}. Click a hit to " \
+                                     "play it beside the query."
 
     async def _show_quality(self, q: dict, hits: pd.DataFrame) -> None:
         """Precision and recall against the query document's label, as numbers and over the rank (the numbers reach
@@ -382,7 +387,7 @@ class RelationalPage(pn.viewable.Viewer):
         recall = "undefined (no other document has this label)" if not n_rel else f"{last['recall']:.2f}"
         ap = curve.attrs["average_precision"]
         self.quality.object = (f"**Precision {last['precision']:.2f}** ({int(curve['relevant'].sum())} of "
-                               f"{len(curve)} documents) · **recall {recall}** · **AP "
+                               f"{plural(len(curve), 'document')}) · **recall {recall}** · **AP "
                                f"{'undefined' if pd.isna(ap) else f'{ap:.2f}'}**. {rule}")
         await asyncio.sleep(0)
         self.curve.object = precision_recall_plot(curve, label=str(label))

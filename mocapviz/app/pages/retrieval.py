@@ -16,6 +16,7 @@ import panel as pn
 
 from ...engine import METHOD_LABELS, METHODS
 from ...errors import ParameterError
+from ...validation import plural
 from ...viz.retrieval import class_ap_bars, pr_curves
 from ..jobs import JobTask
 from ..widgets import BoundedIntInput, action_button, notes
@@ -72,7 +73,7 @@ def count_text(summary: pd.DataFrame, methods, label: str, group) -> str:
     attrs = summary.attrs
     unlabelled = attrs.get("unlabelled", 0)
     left_out = f" ({unlabelled} without a {label}: searched, never relevant, never a query)" if unlabelled else ""
-    return (f"**{attrs['queries']} queries** of {attrs['documents']} documents{left_out}, relevant = same {label}"
+    return (f"**{plural(attrs['queries'], 'query', 'queries')}** of {plural(attrs['documents'], 'document')}{left_out}, relevant = same {label}"
             + (f", leave-{group}-out" if group else "")
             + ", " + ", ".join(f"{m}: {METHOD_LABELS.get(m, m)}" for m in methods))  # fmt: skip
 

@@ -332,7 +332,7 @@ class SimilarityPage(pn.viewable.Viewer):
         fps = float(row["fps"])
         start, end = s.span
         self.query.object = (f"**Query**: document {s.doc} ({row['name']}), frame {s.frame} ({s.frame / fps:.2f} s); "
-                             f"span {_frames(start, end)} ({end - start} frames, "
+                             f"span {_frames(start, end)} ({plural(end - start, 'frame')}, "
                              f"{start / fps:.2f}–{end / fps:.2f} s). "
                              "Choose the document, frame and span on the Database page.")
 

@@ -26,6 +26,7 @@ from ...engine import (
     mueller2005_table3,
     query_statistics,
 )
+from ...validation import plural
 from ...viz.paper import comparison_bars, curves
 from ...viz.statistics import query_time_scatter
 from ..jobs import JobTask
@@ -130,7 +131,7 @@ class StatisticsPage(pn.viewable.Viewer):
         db = self.backend.db
         quick, paper = SIZES["quick"], SIZES[list(SIZES)[1]]
         intro = pn.pane.Markdown(
-            f"The indexes of **{db.path.name}** ({db.n_frames:,} frames, {len(db)} documents) beside the papers' "
+            f"The indexes of **{db.path.name}** ({plural(db.n_frames, 'frame')}, {plural(len(db), 'document')}) beside the papers' "
             f"tables: Müller, Röder & Clausen 2005 Tables 2 and 3 (relational indexes, 120 Hz), Krüger et al. 2010 "
             f"Table 1 (kd-tree k-NN search, 30 Hz). *Quick*: {quick[0]} random queries per row of Table 3, "
             f"{quick[1]} k-NN queries per feature set; *the papers' sizes*: {paper[0]:,} and {paper[1]:,}, "

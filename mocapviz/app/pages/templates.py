@@ -28,7 +28,7 @@ from ...engine import (
     template_distance,
 )
 from ...engine.parameters import default
-from ...validation import count
+from ...validation import count, plural
 from ...viz.templates import template_image
 from ..downloads import table_download
 from ..gallery import HitGallery
@@ -186,13 +186,13 @@ def template_summary(template: MotionTemplate, delta: float) -> str:
     docs = template.meta.get("doc_ids", [])
     actors = template.meta.get("actors")
     n, rounds = template.n_examples, template.iterations
-    s = "s" if n != 1 else ""
-    which = f"document{s} {', '.join(map(str, docs))}" if len(docs) <= LISTED_EXAMPLES else f"{len(docs):,} documents"
+    which = (f"{plural(len(docs), 'document', number=False)} {', '.join(map(str, docs))}"
+             if len(docs) <= LISTED_EXAMPLES else plural(len(docs), "document"))
     who = "actors " + ", ".join(actors) if actors else "every actor"
     of = template.meta.get("class_documents", n)
-    return (f"**{template.label}**: learned from {n:,}{f' of its {of:,}' if of > n else ''} example{s} ({which}; "
-            f"{who}) in "
-            f"{rounds} iteration{'s' if rounds != 1 else ''}; {k} frames × {f} features of set "
+    return (f"**{template.label}**: learned from {n:,}{f' of its {of:,}' if of > n else ''} "
+            f"{plural(n, 'example', number=False)} ({which}; {who}) in {plural(rounds, 'iteration')}; "
+            f"{plural(k, 'frame')} × {f} features of set "
             f"{template.meta.get('relational_set', '?')}, {dont_care_share(template, delta):.1%} don't care at "
             f"δ = {delta:g}")
 
@@ -304,7 +304,7 @@ class TemplatesPage(pn.viewable.Viewer):
         t = self.template
         if t is None:
             return "motion template search"
-        return (f"motion template {t.label!r} ({t.n_examples} examples, delta {self.delta_used:g}) searched by "
+        return (f"motion template {t.label!r} ({plural(t.n_examples, 'example')}, delta {self.delta_used:g}) searched by "
                 "subsequence DTW")
 
     def _on_class(self, event=None) -> None:
@@ -331,7 +331,7 @@ class TemplatesPage(pn.viewable.Viewer):
         self.table.param.update(selection=[], value=hits_view(self.hits))
         self.player_box.visible, self.playing.object = False, PLAY_HINT
         n = len(self.hits)
-        self.count.object = (f"**{n} hit{'' if n == 1 else 's'}** of the {label} template in the whole database "
+        self.count.object = (f"**{plural(n, 'hit')}** of the {label} template in the whole database "
                              f"(K = {n_matches}" + (f", cost / frame ≤ {max_cost:g}" if max_cost is not None else "")
                              + ")" + ("; try a larger max cost" if self.hits.empty else "")
                              + tie_note(self.hits, delta))  # fmt: skip
