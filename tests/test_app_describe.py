@@ -211,7 +211,10 @@ def test_typo_fix_find_play_and_empty(sample_db, sample_dashboard, page, screens
     k = page.locator(".mv-describe-k input")
     k.fill("0")
     k.press("Enter")
-    page.locator(".mv-input-note", has_text="K (results) must be ≥ 1: 0 was set to 1.").wait_for()
+    page.locator(".mv-input-note", has_text="K (results) must be 1–100: 0 was set to 1.").wait_for()
+    k.fill("1000000000")  # issue 39: it was taken
+    k.press("Enter")
+    page.locator(".mv-input-note", has_text="K (results) must be 1–100: 1,000,000,000 was set to 100.").wait_for()
     k.fill("4")
     k.press("Enter")
     expect(k).to_have_value("4")
