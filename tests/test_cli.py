@@ -163,7 +163,7 @@ def test_knn_radius_prints_only_neighbours_within_it(sample_db, capsys):
         (["--frame", "0:100000"], "document 0 has frames 0..", 1),
         (["--frame", "3"], "DOC:FRAME", 2),
         (["--frame", "999:0"], "no document 999", 1),
-        (["--frame", "0:1", "--numeric-set", "F16E"], "unknown numeric set 'F16E'", 2),
+        (["--frame", "0:1", "--numeric-set", "F16E"], "unknown numeric set F16E", 2),
         (["--frame", "0:1", "-k", "0"], "-k must be at least 1", 2),
         (["--frame", "0:1", "-k", "100000"], "k must be between 1", 1),
     ],

@@ -14,7 +14,7 @@ from mocapviz.features import store_numeric
 from mocapviz.relational.index import build
 from mocapviz.relational.query import query_by_example
 from mocapviz.similarity.knn import KnnIndex, describe_frames
-from mocapviz.similarity.motion_matching import match_motion
+from mocapviz.similarity.motion_matching import graph_k, match_motion
 from mocapviz.similarity.search import SimilaritySearch
 
 FEATURES = ["rknee_bent", "lknee_bent", "rfoot_raised"]
@@ -126,17 +126,18 @@ def test_cli_csv_is_the_library_table(mixed, tmp_path, capsys, command):
         out = tmp_path / f"{command}-{doc}.csv"
         n = int(db.documents.set_index("doc_id").loc[doc, "n_frames"])
         if command == "search":
-            args = ["--example", str(doc), "-K", "3", "--mode", "exact"]
+            args = ["--example", str(doc), "-K", "3", "--mode", "exact", "--no-exclude-document"]
             expected = SimilaritySearch(db, "F15E").clips(doc, n_matches=3, mode="exact")
         elif command == "match":
             span = (n // 4, n // 4 + 40)
             args = ["--example", str(doc), "--frames", f"{span[0]}:{span[1]}", "-K", "3"]
-            expected = match_motion(db, doc, span, n_matches=3, exclude_document=True)
+            expected = match_motion(db, doc, span, n_matches=3, exclude_document=True,
+                                    k=graph_k(db.n_frames, db.typical_fps))  # the engine's default k
         elif command == "query":
             args = ["--example", str(doc), "--features", ",".join(FEATURES)]
             expected = query_by_example(db, db.motion(doc), FEATURES)
         else:
-            args = ["--frame", f"{doc}:{n // 2}", "-k", "5", "--quiet"]
+            args = ["--frame", f"{doc}:{n // 2}", "-k", "5", "--quiet", "--no-exclude-document"]
             features = SimilaritySearch(db, "F15E").features
             row = database_frames(db, doc, n // 2, n // 2 + 1).start
             distances, frames = KnnIndex(features).query(features[row], 5)

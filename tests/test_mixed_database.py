@@ -177,7 +177,7 @@ def test_find_shipped_names_and_a_template(mixed, ids, kick_template, tmp_path, 
 def test_knn_of_an_unlabelled_and_a_labelled_frame(mixed, ids, tmp_path, capsys):
     out = tmp_path / "knn.csv"
     rc, printed = _run(capsys, "knn", mixed.path, "--frame", f"{ids['135_08']}:100", "-k", 20, "--per-document",
-                       "--csv", out)  # fmt: skip
+                       "--no-exclude-document", "--csv", out)  # fmt: skip
     own = _csv(out)
     assert rc == 0 and own.loc[0, ["name", "start", "distance"]].tolist() == ["135_08", "100", "0.0"]
     _assert_clean(own, mixed)
@@ -216,7 +216,8 @@ def test_search_clips_and_stretches_in_every_mode(mixed, ids, tmp_path, capsys, 
         for mode in ("fast", "exact", "brute"):
             out = tmp_path / f"{mode}-{stretches}.csv"
             rc, printed = _run(capsys, "search", mixed.path, "--example", ids[example], "--mode", mode, "-K", 8,
-                               *(["--stretches"] if stretches else []), "--csv", out)  # fmt: skip
+                               "--no-exclude-document", *(["--stretches"] if stretches else []),
+                               "--csv", out)  # fmt: skip
             assert rc == 0
             tables[mode, stretches] = table = _csv(out)
             assert table.loc[0, ["name", "start", "cost"]].tolist() == [example, "0", "0.0"]

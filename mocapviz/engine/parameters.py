@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 
 from ..errors import ParameterError
 from ..features import NUMERIC_SETS, RELATIONAL_SETS
-from ..validation import MIN_LENGTH, MIN_LENGTH_RANGE, count, number, one_of, parse_count, parse_number
+from ..validation import MIN_LENGTH, MIN_LENGTH_RANGE, count, number, one_of, parse_count, parse_names, parse_number
 
 __all__ = ["PARAMETERS", "USE_DEFAULTS", "Parameter", "checked", "markdown", "parameter"]
 
@@ -107,6 +107,8 @@ class Parameter:
                     return parse_count(text, shown, low, None if self.high is None else int(self.high))
                 if self.kind == "float":
                     return parse_number(text, shown, self.low, self.high, self.low_open, self.high_open)
+                if self.kind == "choice":  # one name: a list is refused, not cut to its first name
+                    return parse_names(text, shown, self.name.replace("_", " "), self.choices, one=True)[0]
                 return self.check(text, shown)
             except ParameterError as exc:
                 raise argparse.ArgumentTypeError(str(exc)) from None
