@@ -11,6 +11,7 @@ from mocapviz.features import feature_groups, relational_features
 from mocapviz.features.segmentation import segment
 from mocapviz.relational.index import build, load
 from mocapviz.relational.query import query_by_example, query_segmentation
+from mocapviz.validation import plural
 
 KICK = ["rfoot_raised", "lfoot_raised", "rknee_bent", "lknee_bent"]  # Fig. 9 of the paper (DEFAULT_QUERIES)
 
@@ -235,7 +236,7 @@ def test_cli_index_and_query_print_the_library_answer(db, tmp_path, capsys):
                  "rknee_bent,lknee_bent"]) == 0  # fmt: skip
     first = capsys.readouterr().out.splitlines()[0]
     hits = query_by_example(copy, copy.motion(doc), ["rknee_bent", "lknee_bent"])
-    assert first.startswith(f"{len(hits)} hits")
+    assert first.startswith(plural(len(hits), "hit") + " ")
     assert main(["query", str(copy.path), "--example", str(doc), "--features", "bogus"]) == 1
     assert "unknown feature" in capsys.readouterr().err
     assert main(["query", str(copy.path), "--example", str(doc), "--features", ""]) == 1
@@ -243,7 +244,7 @@ def test_cli_index_and_query_print_the_library_answer(db, tmp_path, capsys):
     assert main(["query", str(copy.path), "--example", str(doc), "--features", "rknee_bent", "--mismatch", "1",
                  "--mismatch-at", "0"]) == 0  # fmt: skip
     at_first = query_by_example(copy, copy.motion(doc), ["rknee_bent"], mode="mismatch", allowed=[0])
-    assert capsys.readouterr().out.startswith(f"{len(at_first)} hits")
+    assert capsys.readouterr().out.startswith(plural(len(at_first), "hit") + " ")
 
 
 def test_hit_durations_use_each_documents_frame_rate(hdm05_dir, bandai1_files, tmp_path):
