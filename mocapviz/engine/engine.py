@@ -39,7 +39,7 @@ from ..errors import ClusterError, MocapvizError, ParameterError
 from ..match.time_warping import check_query_length, shortest_match
 from ..parallel import dask_client
 from ..validation import count, frame_span
-from .parameters import checked
+from .parameters import PARAMETERS, checked
 from .shard import Shard
 
 __all__ = ["Engine", "ShardedDB"]
@@ -209,16 +209,6 @@ class Engine:
         "search" (a numeric set's DTW search and kd-tree), "values" (relational features) or "indexes", of the set
         ``name`` (on a cluster: False, the workers hold theirs)."""
         return self.client is None and all(actor.shard.holds(kind, name) for actor in self.actors)
-
-    def knn_index(self, numeric_set: str = "F15E"):
-        """A stand-in for a :class:`~mocapviz.similarity.knn.KnnIndex` of a numeric set whose ``query`` asks every
-        shard (:meth:`knn`): what the lazy neighbourhood graph and the dashboard's kNN table use."""
-        return _ShardedIndex(self, checked_value("numeric_set", numeric_set))
-
-    def search(self, numeric_set: str = "F15E"):
-        """A stand-in for a :class:`~mocapviz.similarity.search.SimilaritySearch` of a numeric set: its ``clips`` and
-        ``stretches`` are :meth:`clips` and :meth:`stretches`."""
-        return _ShardedSearch(self, checked_value("numeric_set", numeric_set))
 
     def _query(self, example, frames, numeric_set: str):
         from ..similarity.search import example_features
@@ -673,19 +663,6 @@ class _ShardedIndex:
         return (distances[0], frames[0]) if np.ndim(x) == 1 else (distances, frames)
 
 
-class _ShardedSearch:
-    """``clips`` and ``stretches`` of :class:`~mocapviz.similarity.search.SimilaritySearch`, asked of the shards."""
-
-    def __init__(self, sharded: Engine, numeric_set: str):
-        self.sharded, self.numeric_set = sharded, numeric_set
-
-    def clips(self, example, frames=None, **options) -> pd.DataFrame:
-        return self.sharded.clips(example, frames=frames, numeric_set=self.numeric_set, **options)
-
-    def stretches(self, example, frames=None, **options) -> pd.DataFrame:
-        return self.sharded.stretches(example, frames=frames, numeric_set=self.numeric_set, **options)
-
-
 def _work_added(table: pd.DataFrame, packs: list) -> pd.DataFrame:
     """A similarity search's table with its work counted over every shard (attrs ``documents``, ``ranges``,
     ``aligned``, ``cells``, ``brute_cells``; the first shard's alone otherwise): documents searched and brute
@@ -716,9 +693,7 @@ def _why(exc: Exception) -> str:
 
 def checked_value(name: str, value):
     """``value`` of the declared parameter ``name``, checked (:meth:`Parameter.check`)."""
-    from .parameters import parameter
-
-    return parameter(name).check(value)
+    return PARAMETERS[name].check(value)
 
 
 class _Here:
