@@ -49,8 +49,11 @@ def section_path(out_dir: Path, name: str, quick: bool) -> Path:
 
 
 def _demote(text: str) -> str:
-    """Headings two levels down, below the report's section headings (the title is the only level-1 heading)."""
-    return re.sub(r"^(#+) ", lambda m: "##" + m.group(1) + " ", text, flags=re.MULTILINE)
+    """Headings moved down so that a benchmark's top heading is level 3, below the report's section headings (the
+    title is the only level-1 heading; no level skipped, which the documentation site's build refuses)."""
+    levels = [len(m.group(1)) for m in re.finditer(r"^(#+) ", text, flags=re.MULTILINE)]
+    shift = 3 - min(levels, default=3)
+    return re.sub(r"^(#+) ", lambda m: "#" * (len(m.group(1)) + shift) + " ", text, flags=re.MULTILINE)
 
 
 def existing_sections(text: str) -> dict[str, str]:
