@@ -356,9 +356,9 @@ class Engine:
     def match(self, example, *, frames=None, numeric_set=..., method=..., n_matches=..., k=..., radius=..., eps=...,
               exclude_document=..., paths=..., min_length=...) -> pd.DataFrame:  # fmt: skip
         """Global matching of a query (Krüger et al. 2010 §4): ``method="lng"``, the lazy neighbourhood graph on the
-        k nearest database frames of every query frame (default ``k``: :func:`~mocapviz.similarity.motion_matching.
-        graph_k` of the database; attrs ``k``), merged from every shard (:meth:`knn`); ``"dtw"``: subsequence DTW on
-        every shard, matches merged by cost, then their last frame."""
+        k nearest database frames of every query frame (default ``k``:
+        :func:`~mocapviz.similarity.motion_matching.graph_k` of the database; attrs ``k``), merged from every shard
+        (:meth:`knn`); ``"dtw"``: subsequence DTW on every shard, matches merged by cost, then their last frame."""
         from ..similarity.motion_matching import graph_k, match_motion
 
         if method == "dtw":

@@ -1,8 +1,8 @@
 """Alignment of motions (docs/architecture.md, the match layer, used by relational templates and similarity search).
 
-time_warping.py         DTW, band-restricted DTW, subsequence DTW and the shared choice of non-overlapping matches.
-neighbourhood_graph.py  the lazy neighbourhood graph of Krüger, Tautges, Weber & Zinke 2010 §4.1 (the function
-                        ``lng``).
+- ``time_warping.py``: DTW, band-restricted DTW, subsequence DTW and the shared choice of non-overlapping matches.
+- ``neighbourhood_graph.py``: the lazy neighbourhood graph of Krüger, Tautges, Weber & Zinke 2010 §4.1 (the
+  function ``lng``).
 
 The names are imported when first used (``mocapviz._lazy``).
 """

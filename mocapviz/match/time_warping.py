@@ -604,8 +604,8 @@ def subsequence_dtw(query, database, starts=None, n_matches: int = 10, distance=
         no candidate.
     checked : bool
         The query's length was checked against a whole database already (:func:`check_query_length`): ``database``
-        is a part of it (a shard of :mod:`mocapviz.sharded`) whose documents may all be shorter than the query and
-        still hold matches of ``min_length``.
+        is a part of it (a shard of :class:`mocapviz.engine.ShardedDB`) whose documents may all be shorter than the
+        query and still hold matches of ``min_length``.
 
     Returns
     -------

@@ -1,4 +1,4 @@
-"""The scene description language (Müller, Röder & Clausen 2005 §6.3, Fig. 10; grammar in docs/descriptions.md).
+"""The scene description language (Müller, Röder & Clausen 2005 §6.3, Fig. 10 [1]_; grammar: docs/descriptions.md).
 
 A description says what a motion looks like in the words of the relational features, without an example clip::
 

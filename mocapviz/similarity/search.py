@@ -333,8 +333,8 @@ class SimilaritySearch:
             shards): what costs more is pruned from the start (exact mode stays exact for the K best overall).
         checked : bool
             The query was checked against a whole database already (:func:`check_stretch_query`; a shard of
-            :mod:`mocapviz.sharded`, whose documents may all be shorter than the query and still hold matches of
-            ``min_length``): not refused here, and no document to search answers nothing.
+            :class:`mocapviz.engine.ShardedDB`, whose documents may all be shorter than the query and still hold
+            matches of ``min_length``): not refused here, and no document to search answers nothing.
 
         Returns
         -------
