@@ -3,7 +3,14 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 BIN := $(VENV)/bin
-DEMO_DB ?= build/sample.mdb
+# what `make demo` serves: the embedded demo (default), `ARCHIVES=all` for every shared archive of ../shared/data
+# (446k frames at 30 Hz; the first run ingests for minutes), or a list of archive names (`mocapviz datasets list`)
+ARCHIVES ?= demo
+ALL_ARCHIVES := hdm05-cut cmu-asfamc bandai-namco-1 bandai-namco-2 c3d-markers
+DEMO_ARCHIVES := $(if $(filter all,$(ARCHIVES)),$(ALL_ARCHIVES),$(ARCHIVES))
+empty :=
+space := $(empty) $(empty)
+DEMO_DB ?= build/$(subst $(space),+,$(strip $(ARCHIVES))).mdb
 PORT ?= 5006
 LAB_PORT ?= 8888
 CHROMIUM := /usr/bin/chromium
@@ -13,7 +20,7 @@ SYSTEM_PACKAGES := chromium libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6
 # the Khronos glTF validator (npm) for the glTF export's test (tests/test_export.py), under .cache (not in git)
 GLTF_VALIDATOR := .cache/gltf/node_modules/gltf-validator
 
-.PHONY: install demo lab test test-fast gltf-validator notebooks-full reproduce bench clean
+.PHONY: install demo lab docs test test-fast gltf-validator notebooks-full reproduce bench clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +35,11 @@ $(VENV)/.notebook: $(VENV)/.installed
 	$(PY) -m pip install --quiet -e '.[test,bench,notebook]'
 	touch $@
 
+# Sphinx, its theme and extensions (the `docs` extra) beside the test install
+$(VENV)/.docs: $(VENV)/.installed
+	$(PY) -m pip install --quiet -e '.[test,bench,docs]'
+	touch $@
+
 $(CHROMIUM):
 	@if [ "$$(id -u)" = 0 ]; then SUDO=; elif command -v sudo >/dev/null; then SUDO=sudo; else \
 	  echo "the browser tests need Debian's packages: apt-get install $(SYSTEM_PACKAGES)" >&2; exit 1; fi; \
@@ -39,10 +51,14 @@ $(GLTF_VALIDATOR):
 
 gltf-validator: $(GLTF_VALIDATOR)
 
-# the embedded sample as a MotionDB with its relational indexes and numeric feature sets, then the dashboard on
-# http://127.0.0.1:$(PORT)/ (Ctrl-C stops it)
+# the embedded demo (or ARCHIVES) as a MotionDB at 30 Hz with its relational indexes and numeric feature sets, then
+# the dashboard on http://127.0.0.1:$(PORT)/ (Ctrl-C stops it). The demo's folders go in in DEMO_ORDER (HDM05
+# first); a file that cannot be read is skipped with a warning naming it. Ingesting again adds nothing new.
 demo: install
-	$(BIN)/mocapviz ingest "$$($(BIN)/mocapviz datasets fetch sample)" --out $(DEMO_DB) --no-cluster --quiet
+	folders=$$(for name in $(DEMO_ARCHIVES); do folder=$$($(BIN)/mocapviz datasets fetch $$name) || exit 1; \
+	  if [ $$name = demo ]; then echo $$folder/hdm05-cut $$folder/cmu-asfamc $$folder/c3d-markers; \
+	  else echo $$folder; fi; done) && \
+	  $(BIN)/mocapviz ingest $$folders --out $(DEMO_DB) --fps 30 --skip-bad --no-cluster
 	$(BIN)/mocapviz index $(DEMO_DB) --no-cluster --quiet
 	$(BIN)/mocapviz features $(DEMO_DB) --no-cluster --quiet
 	$(BIN)/mocapviz serve $(DEMO_DB) --port $(PORT)
@@ -52,6 +68,13 @@ demo: install
 lab: $(VENV)/.notebook
 	$(BIN)/jupyter lab --no-browser --ip=127.0.0.1 --port=$(LAB_PORT) --ServerApp.root_dir=notebooks \
 	  $$([ "$$(id -u)" = 0 ] && echo --allow-root)
+
+# the documentation site (docs/conf.py) into build/docs/html (open build/docs/html/index.html): the guide's pages,
+# the API reference from the docstrings, the CLI reference from the parser, the notebooks executed (cached in
+# build/docs/jupyter_cache: a notebook runs again only when its code changes); any warning, an unresolved link or
+# reference included, fails it
+docs: $(VENV)/.docs
+	$(PY) -m sphinx -q -c docs -W --keep-going . build/docs/html
 
 test: install $(CHROMIUM) $(GLTF_VALIDATOR)
 	MOCAPVIZ_REQUIRE_BROWSER=1 $(PY) -m pytest --doctest-modules mocapviz tests notebooks --nbmake

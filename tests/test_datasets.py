@@ -107,8 +107,8 @@ def test_info_in_an_empty_cache(home):
     assert list(table.columns) == ["name", "description", "files", "frames", "fps", "size", "embedded", "licence",
                                    "source", "sha256", "cached"]
     assert not table["cached"].any()
-    assert table["name"].tolist() == [*datasets.names(), "sample"]
-    assert table["embedded"].tolist() == [False] * len(datasets.names()) + [True]
+    assert table["name"].tolist() == [*datasets.names(), "sample", "demo"]
+    assert table["embedded"].tolist() == [False] * len(datasets.names()) + [True, True]
     assert table["source"].str.len().gt(0).all() and table["licence"].str.len().gt(0).all()
 
 
@@ -129,6 +129,45 @@ def test_info_describes_the_embedded_sample(home, no_data):
 
 def test_fetch_sample_is_the_embedded_sample(home, no_data):
     assert datasets.fetch("sample") == datasets.sample()
+    assert datasets.fetch("demo") == datasets.demo()
+
+
+def test_info_describes_the_embedded_demo(home, no_data):
+    demo = datasets.info().set_index("name").loc["demo"]
+    archive = resources.files("mocapviz") / "data" / "demo.tar.xz"
+    assert demo["size"] == archive.stat().st_size and demo["sha256"] == pooch.file_hash(str(archive))
+    folder = datasets.demo()
+    readme = (folder / "README.md").read_text(encoding="utf-8")
+    assert f"56 motion files, {demo['frames']} frames in total" in readme
+    assert len(list(folder.rglob("*.amc"))) == 54 and len(list(folder.rglob("*.c3d"))) == 2
+    assert len(list(folder.rglob("*.asf"))) == 6 and not list(folder.rglob("*.bvh"))  # never Bandai Namco's
+
+
+def test_package_data_stays_under_10_mb():
+    data = resources.files("mocapviz") / "data"
+    assert sum(p.stat().st_size for p in Path(str(data)).glob("*.tar.xz")) <= 10 * 1024 * 1024
+
+
+def test_demo_holds_every_hdm05_class_from_four_actors_and_cmu_kicks_and_punches(home, no_data):
+    folder = datasets.demo()
+    assert [p.name for p in sorted(folder.iterdir()) if p.is_dir()] == sorted(datasets.DEMO_ORDER)
+    table = read_labels_tsv(folder / "hdm05-cut" / "labels.tsv")
+    per_class = table.groupby("class")["actor"].nunique()
+    assert len(per_class) == 11 and per_class.min() >= 3
+    cmu = read_labels_tsv(folder / "cmu-asfamc" / "labels.tsv").set_index("cmu_trial")["description"]
+    assert {cmu["04"], cmu["07"], cmu["11"], cmu["09"]} == {"Front Kick", "Mawashigeri", "Yokogeri", "Oiduki"}
+    c3d = read_labels_tsv(folder / "c3d-markers" / "labels.tsv")
+    assert c3d["file"].tolist() == ["cmu_85_02.c3d"]  # the HDM05 scene take stays unlabelled, on purpose
+    licence = (folder / "LICENSE.md").read_text(encoding="utf-8")
+    assert "CC BY-SA 3.0" in licence and "NSF EIA-0196217" in licence and "c3d-markers/" in licence
+
+
+def test_demo_files_are_unchanged_files_of_the_shared_archives(hdm05, home, fetch_archive):
+    folder = datasets.demo()
+    for name in datasets.DEMO_ORDER:
+        shared = fetch_archive(name)
+        files = [p for p in (folder / name).rglob("*") if p.suffix in (".amc", ".asf", ".c3d")]
+        assert files and all(p.read_bytes() == (shared / p.relative_to(folder / name)).read_bytes() for p in files)
 
 
 def test_corrupted_archive_is_rejected(archives_folder, home, tmp_path, monkeypatch):
@@ -257,6 +296,7 @@ def test_cli_list_shows_every_dataset_with_the_sample_embedded(home, capsys):
         assert f"licence: {row.licence}" in out and f"source: {row.source}" in out
     block = out.split("sample: ", 1)[1]
     assert "5,543 frames at 120 Hz; 1.1 MB .tar.xz; embedded in the package, no download" in block
+    assert "32,097 frames at 120 Hz; 6.4 MB .tar.xz; embedded in the package, no download" in out.split("demo: ", 1)[1]
     assert out.splitlines()[-1].endswith(f"cache {home.resolve()} (MOCAPVIZ_HOME)")
 
 

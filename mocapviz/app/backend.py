@@ -205,6 +205,7 @@ class Backend:
         return self.cached(("document options",), lambda: picker_options(self.document_table()))
 
 
-def sample_database() -> Path:
-    """The folder of :meth:`MotionDB.sample` (the embedded sample at 120 Hz, built once)."""
-    return MotionDB.sample().path
+def demo_database() -> Path:
+    """The folder of :meth:`MotionDB.demo` (the embedded demo at 30 Hz, built once): what ``mocapviz serve`` serves
+    when given no database."""
+    return MotionDB.demo().path

@@ -20,9 +20,9 @@
                        --out DIR [--search TEXT]
     mocapviz reproduce NAME|all [--full] --out DIR   (NAME: an experiment, e.g. rank_correlations, reconstruction)
     mocapviz serve [DB] [--port 5006] [--address 127.0.0.1 | --address ADDRESS --allow-origin HOST:PORT...] [--show]
-                                                                                (no DB: the embedded sample)
+                                                                                (no DB: the embedded demo)
     mocapviz datasets list
-    mocapviz datasets fetch NAME        (NAME: a shared archive, or ``sample`` for the embedded sample)
+    mocapviz datasets fetch NAME        (NAME: a shared archive, or ``sample`` / ``demo``, embedded)
 
 ``ingest``, ``features`` and ``index`` run their work as Dask tasks: on the scheduler at ``--scheduler ADDRESS``
 (``tcp://host:8786``), else on a local cluster started for the command (one single-threaded worker process per

@@ -28,7 +28,7 @@ def run_datasets(args) -> None:
         print(f"{located}; cache {datasets.cache_dir()} ({datasets.HOME_ENV})")
     else:
         if not args.name:
-            raise ParameterError(f"datasets fetch needs a NAME: {', '.join(datasets.names())} or {datasets.SAMPLE}")
+            raise ParameterError(f"datasets fetch needs a NAME: {', '.join([*datasets.names(), *datasets.EMBEDDED])}")
         print(datasets.fetch(args.name, progress=True))
 
 

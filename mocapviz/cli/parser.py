@@ -220,7 +220,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     sv = sub.add_parser("serve", help="the dashboard in the browser: browse, query by example, kNN, matching, "
                         "correlations, index statistics, reconstruction")
-    sv.add_argument("db", nargs="?", help="MotionDB folder (default: the embedded sample, ingested once)")
+    sv.add_argument("db", nargs="?", help="MotionDB folder (default: the embedded demo at 30 Hz, ingested once)")
     option(sv, "--port", check=parse_port, default=5006, help="port (1..65535, default 5006)")
     sv.add_argument("--address", default="127.0.0.1",
                     help="interface to listen on (default 127.0.0.1: this machine only; anything else exposes the "
@@ -234,9 +234,9 @@ def build_parser() -> argparse.ArgumentParser:
     sv.set_defaults(func=_serve)
 
     ds = sub.add_parser("datasets", help="list the registered motion-capture datasets (the shared archives and the "
-                        "embedded sample) with sizes, licences and sources, or fetch one")
+                        "embedded sample and demo) with sizes, licences and sources, or fetch one")
     ds.add_argument("action", choices=["list", "fetch"])
-    ds.add_argument("name", nargs="?", help="for fetch: a shared archive (see list) or 'sample' (embedded)")
+    ds.add_argument("name", nargs="?", help="for fetch: a shared archive (see list), or 'sample' or 'demo' (embedded)")
     ds.set_defaults(func=_datasets)
     return p
 

@@ -59,6 +59,7 @@ _RESTORE = "restore it from a backup or ingest the files again into a new databa
 _OPEN_ATTEMPTS = 5  # manifests read again when a writer deleted the files of the one read (two commits meanwhile)
 _KEEP_GENERATIONS = 2  # a commit deletes the files of older generations: a reader that read the previous manifest
 #                        still finds its files, and one that has mapped them keeps reading them after deletion
+DEMO_FPS = 30.0  # the demo's rate: the rate of Krüger et al. 2010 and of every figure of the docs
 
 
 class MotionDB:
@@ -412,6 +413,34 @@ class MotionDB:
         if not manifest_file(out).exists():
             cls.ingest(folder, out, progress=False)
         return cls.open(out).add_block_checksums()  # (a sample built by an older mocapviz)
+
+    @classmethod
+    def demo(cls) -> MotionDB:
+        """The embedded demo as a MotionDB at 30 Hz: 44 HDM05 clips (4 actors x 11 classes), 10 CMU trials (9 of
+        martial arts) and 2 C3D takes, document ids in the order of
+        :data:`mocapviz.io.datasets.DEMO_ORDER` (the HDM05 clips first); what ``make demo`` serves.
+
+        Built once beside the unpacked demo (:func:`mocapviz.io.datasets.demo`, under ``$MOCAPVIZ_HOME``) and opened
+        from there afterwards, without indexes or numeric feature sets (``mocapviz index`` and ``mocapviz
+        features``, or the engine, build them).
+
+        Returns
+        -------
+        MotionDB
+
+        Examples
+        --------
+        >>> db = MotionDB.demo()
+        >>> len(db), db.fps, int((db.documents["label"] == "kickLFront1Reps").sum())
+        (56, 30.0, 4)
+        """
+        from ..io import datasets
+
+        folder = datasets.demo()
+        out = folder.parent / "demo.mdb"
+        if not manifest_file(out).exists():
+            cls.ingest([folder / name for name in datasets.DEMO_ORDER], out, fps=DEMO_FPS, progress=False)
+        return cls.open(out)
 
     # ------------------------------------------------------------------ writing
     def add_block_checksums(self) -> MotionDB:

@@ -12,8 +12,9 @@ sha256 and unpacked once into a local cache:
 The archives repackage public data (``Archive.source``: HDM05, the CMU Graphics Lab database, the Bandai
 Namco Research motion dataset), each under its own licence (``Archive.licence``).
 
-``sample()`` (also ``fetch("sample")``) needs no download: it unpacks the small sample (22 HDM05 clips,
-2 CMU trials) shipped inside the package. Every unpack goes to a temporary folder renamed into place at the
+``sample()`` (also ``fetch("sample")``) and ``demo()`` (``fetch("demo")``) need no download: they unpack the
+small sample (22 HDM05 clips, 2 CMU trials) and the demo (44 HDM05 clips, 10 CMU trials, 2 C3D takes) shipped
+inside the package (:data:`EMBEDDED`). Every unpack goes to a temporary folder renamed into place at the
 end, so an interrupted unpack never leaves a folder that a later call would take for complete. Besides the
 sha256, every member is checked as it is unpacked (tarfile's ``data`` filter and :func:`_refusal`): a member with
 an absolute path or ``..`` leading outside the folder, a link pointing outside it, or a device file is refused
@@ -178,16 +179,59 @@ ARCHIVES: dict[str, Archive] = {
 
 
 SAMPLE = "sample"
-"""Name of the sample embedded in the package (see :func:`sample`); not an entry of ``ARCHIVES``."""
+"""Name of the small sample embedded in the package (see :func:`sample`); not an entry of ``ARCHIVES``."""
+DEMO = "demo"
+"""Name of the demo embedded in the package (see :func:`demo`); not an entry of ``ARCHIVES``."""
 
-_SAMPLE_DESCRIPTION = "embedded sample: 22 HDM05 cut clips (actors dg, mm x 11 classes) + 2 CMU trials (ASF/AMC)"
-_SAMPLE_FILES = "22 HDM05 AMC + 2 CMU AMC + their 4 ASF"
-_SAMPLE_FRAMES = 5_543
-_SAMPLE_LICENCE = (
+
+@dataclass(frozen=True)
+class Embedded:
+    """A dataset shipped inside the package (``mocapviz/data/<name>.tar.xz``, made by ``scripts/make_sample.py``):
+    real files, bytes unchanged, cut from the shared archives whose licences allow it (never Bandai Namco's)."""
+
+    name: str
+    description: str
+    files: str
+    frames: int
+    licence: str
+    source: str
+
+
+_HDM05_CMU_LICENCE = (
     "HDM05 clips: CC BY-SA 3.0 (cite Müller et al., Tech. Rep. CG-2007-2, Universität Bonn, 2007); CMU trials: "
     "credit mocap.cs.cmu.edu (NSF EIA-0196217); full text in its LICENSE.md"
 )
-_SAMPLE_SOURCE = "embedded in the package (mocapviz/data/sample.tar.xz), cut from hdm05-cut and cmu-asfamc"
+EMBEDDED: dict[str, Embedded] = {
+    e.name: e
+    for e in (
+        Embedded(
+            name=SAMPLE,
+            description="embedded sample: 22 HDM05 cut clips (actors dg, mm x 11 classes) + 2 CMU trials (ASF/AMC)",
+            files="22 HDM05 AMC + 2 CMU AMC + their 4 ASF",
+            frames=5_543,
+            licence=_HDM05_CMU_LICENCE,
+            source="embedded in the package (mocapviz/data/sample.tar.xz), cut from hdm05-cut and cmu-asfamc",
+        ),
+        Embedded(
+            name=DEMO,
+            description=(
+                "embedded demo: 44 HDM05 cut clips (4 actors x 11 classes), 10 CMU trials (9 martial arts: kicks, "
+                "punches, kata), 2 C3D takes (CMU, HDM05)"
+            ),
+            files="44 HDM05 AMC + 10 CMU AMC + their 6 ASF + 2 C3D",
+            frames=32_097,
+            licence=_HDM05_CMU_LICENCE,
+            source=(
+                "embedded in the package (mocapviz/data/demo.tar.xz), cut from hdm05-cut, cmu-asfamc and c3d-markers"
+            ),
+        ),
+    )
+}
+"""The embedded datasets by name: :data:`SAMPLE` (the database of every Examples section and most tests) and
+:data:`DEMO` (what ``make demo`` serves: every headline feature has something to find in it)."""
+DEMO_ORDER = ("hdm05-cut", "cmu-asfamc", "c3d-markers")
+"""The demo's folders in the order ``make demo`` and :meth:`mocapviz.MotionDB.demo` ingest them (document ids
+follow it: the HDM05 clips first)."""
 
 INFO_COLUMNS = ["name", "description", "files", "frames", "fps", "size", "embedded", "licence", "source", "sha256",
                 "cached"]
@@ -237,21 +281,22 @@ def info() -> pd.DataFrame:
         }
         for a in ARCHIVES.values()
     ]
-    with resources.as_file(_sample_archive()) as archive:
-        digest = hashlib.sha256(archive.read_bytes()).hexdigest()
-        rows.append({
-            "name": SAMPLE,
-            "description": _SAMPLE_DESCRIPTION,
-            "files": _SAMPLE_FILES,
-            "frames": _SAMPLE_FRAMES,
-            "fps": 120,
-            "size": archive.stat().st_size,
-            "embedded": True,
-            "licence": _SAMPLE_LICENCE,
-            "source": _SAMPLE_SOURCE,
-            "sha256": digest,
-            "cached": (cache / f"{SAMPLE}-{digest[:12]}" / SAMPLE).is_dir(),
-        })
+    for e in EMBEDDED.values():
+        with resources.as_file(_embedded_archive(e.name)) as archive:
+            digest = hashlib.sha256(archive.read_bytes()).hexdigest()
+            rows.append({
+                "name": e.name,
+                "description": e.description,
+                "files": e.files,
+                "frames": e.frames,
+                "fps": 120,
+                "size": archive.stat().st_size,
+                "embedded": True,
+                "licence": e.licence,
+                "source": e.source,
+                "sha256": digest,
+                "cached": (cache / f"{e.name}-{digest[:12]}" / e.name).is_dir(),
+            })
     return pd.DataFrame(rows, columns=INFO_COLUMNS)
 
 
@@ -277,8 +322,8 @@ def fetch(name: str, progress: bool = False) -> Path:
         Unknown name, base location not found (the message says where the archives come from and how to
         provide them), download failure or sha256 mismatch.
     """
-    if name == SAMPLE:
-        return sample()
+    if name in EMBEDDED:
+        return _embedded(name)
     archive = _archive(name)
     base = data_url()
     cache = _cache_dir()
@@ -311,17 +356,49 @@ def sample() -> Path:
     >>> len(list((folder / "hdm05-cut" / "amc").glob("*.amc")))
     22
     """
-    with resources.as_file(_sample_archive()) as archive:
+    return _embedded(SAMPLE)
+
+
+def demo() -> Path:
+    """Unpack the demo shipped inside the package, once, and return its folder.
+
+    The demo holds real files, unchanged, chosen so that each headline feature has something to find: every HDM05
+    class from four actors (the shortest clip of each, 44 clips), nine CMU martial-arts trials (front, round and
+    side kicks, lunge punches, two kata) and a CMU walk, and two C3D takes of marker trajectories (CMU subject 85's
+    jump twist, the HDM05 locomotion scene 01-02 of actor bd), with their ASF skeletons, ``labels.tsv`` tables,
+    ``LICENSE.md`` and ``README.md``.
+
+    Returns
+    -------
+    pathlib.Path
+        ``<cache>/demo-<12 hex digits of the archive's sha256>/demo``, holding the folders of :data:`DEMO_ORDER`,
+        ``LICENSE.md`` and ``README.md``.
+
+    Examples
+    --------
+    >>> folder = demo()
+    >>> sorted(p.name for p in folder.iterdir())
+    ['LICENSE.md', 'README.md', 'c3d-markers', 'cmu-asfamc', 'hdm05-cut']
+    >>> len(list((folder / "hdm05-cut" / "amc").glob("*.amc"))), len(list((folder / "c3d-markers").glob("*.c3d")))
+    (44, 2)
+    """
+    return _embedded(DEMO)
+
+
+def _embedded(name: str) -> Path:
+    """Unpack the embedded dataset ``name`` (a key of :data:`EMBEDDED`) once, into a folder named after its
+    sha256, and return its top folder."""
+    with resources.as_file(_embedded_archive(name)) as archive:
         digest = hashlib.sha256(archive.read_bytes()).hexdigest()
-        target = _cache_dir() / f"{SAMPLE}-{digest[:12]}"
+        target = _cache_dir() / f"{name}-{digest[:12]}"
         if not target.is_dir():
             _unpack(archive, target, replace=False)
-    return target / SAMPLE
+    return target / name
 
 
-def _sample_archive():
-    """The sample archive inside the package (an importlib.resources Traversable)."""
-    return resources.files("mocapviz") / "data" / f"{SAMPLE}.tar.xz"
+def _embedded_archive(name: str):
+    """The embedded archive ``name`` inside the package (an importlib.resources Traversable)."""
+    return resources.files("mocapviz") / "data" / f"{name}.tar.xz"
 
 
 def data_url() -> str:
@@ -390,7 +467,9 @@ def _archive(name: str) -> Archive:
     try:
         return ARCHIVES[name]
     except KeyError:
-        raise DatasetError(f"unknown dataset {name!r}: known are {', '.join(ARCHIVES)} and {SAMPLE} (embedded)") from None
+        raise DatasetError(
+            f"unknown dataset {name!r}: known are {', '.join(ARCHIVES)}, and {SAMPLE} and {DEMO} (embedded)"
+        ) from None
 
 
 def _downloader(base: str, progress: bool):
