@@ -1,7 +1,7 @@
 """Every code example of the README and of the user guide's pages (``GUIDE``, docs/index.md's order) runs as written.
 
-- The demo commands on the demo database (the embedded sample with its indexes and numeric feature sets, as
-  `make demo` builds it), each of which must print a ranked row 1.
+- The demo commands on the demo database (the embedded demo at 30 Hz with its indexes and numeric feature sets, as
+  `make demo` builds it), each of which must give the answer its comment says (:data:`DEMO_ANSWERS`).
 - Every ```python block, in order (the README, then the guide's pages) in one namespace (a later block uses the ``db``
   of an earlier one), in an empty working folder: the examples use the embedded sample, so they never need the
   shared archives.
@@ -23,6 +23,7 @@ from pathlib import Path
 
 import pytest
 
+from mocapviz import MotionDB
 from mocapviz.cli import main
 
 README = Path(__file__).resolve().parent.parent / "README.md"
@@ -39,27 +40,66 @@ def demo_commands() -> list[str]:
 
 
 @pytest.fixture(scope="module")
-def demo_build(sample_db, tmp_path_factory):
-    """A folder laid out like the repository's build/ after `make demo`: sample.mdb with indexes and F15E/F30E."""
+def demo_build(tmp_path_factory):
+    """A folder laid out like the repository's build/ after `make demo`: demo.mdb (the embedded demo at 30 Hz, the
+    HDM05 clips first) with its relational indexes and the F15E/F30E numeric sets."""
     build = tmp_path_factory.mktemp("demo") / "build"
     build.mkdir()
-    shutil.copytree(sample_db.path, build / "sample.mdb")
-    assert main(["index", str(build / "sample.mdb"), "--no-cluster", "--quiet"]) == 0
-    assert main(["features", str(build / "sample.mdb"), "--numeric-sets", "F15E,F30E", "--no-cluster", "--quiet"]) == 0
+    shutil.copytree(MotionDB.demo().path, build / "demo.mdb")
+    assert main(["index", str(build / "demo.mdb"), "--no-cluster", "--quiet"]) == 0
+    assert main(["features", str(build / "demo.mdb"), "--numeric-sets", "F15E,F30E", "--no-cluster", "--quiet"]) == 0
     return build
 
 
+def _ranked(out: str) -> list[int]:
+    """The document ids of the ranked rows a search command printed, best first."""
+    return [int(m.group(1)) for m in re.finditer(r"^\s+\d+\s+(\d+)\s", out, re.MULTILINE)]
+
+
+KICK, SQUAT, CMU_KICKS = "kickLFront1Reps", "squat1Reps", {"Front Kick", "Mawashigeri", "Yokogeri"}
+# what each demo command of the README must answer (its comment says it): (a part of the command, the check of the
+# document ids it ranked, given the demo's labels and actors); every demo command has exactly one
+DEMO_ANSWERS = {
+    "search build/demo.mdb --example 5 ": lambda docs, label, actor: [label[d] for d in docs[:3]] == [KICK] * 3
+    and {actor[d] for d in docs[:3]} == {"dg", "mm", "tr"},
+    "--stretches": lambda docs, label, actor: docs[:2] == [45, 45],  # the query, then the same take's next kick
+    "mocapviz knn": lambda docs, label, actor: len(docs) == 5 and {label[d] for d in docs} == {KICK} and 5 not in docs,
+    "mocapviz match": lambda docs, label, actor: docs and label[docs[0]] == SQUAT and 9 not in docs,
+    "mocapviz query": lambda docs, label, actor: len(docs) >= 2 and label[docs[0]] == KICK and 5 not in docs,
+    "kick_right then kick_left": lambda docs, label, actor: docs and {label[d] for d in docs} <= CMU_KICKS,
+    "kick_right then punch_left": lambda docs, label, actor: docs == [],
+    "template learn": lambda docs, label, actor: docs == [],
+    "template search": lambda docs, label, actor: [label[d] for d in docs[:4]] == [SQUAT] * 4
+    and "tr" in {actor[d] for d in docs[:4]},
+    "mocapviz export": lambda docs, label, actor: docs == [],
+}
+
+
+def _answer(command: str):
+    [check] = [check for part, check in DEMO_ANSWERS.items() if part in command]
+    return check
+
+
+def test_every_demo_command_has_its_expected_answer():
+    assert [len([p for p in DEMO_ANSWERS if p in c]) for c in demo_commands()] == [1] * len(demo_commands())
+    assert len(demo_commands()) == len(DEMO_ANSWERS)
+
+
 @pytest.mark.parametrize("command", demo_commands())
-def test_readme_demo_command_runs(command, demo_build, capsys):
-    words = shlex.split(command)
+def test_readme_demo_command_answers_what_it_says(command, demo_build, capsys):
+    words = shlex.split(command, comments=True)  # (the comment says what it answers)
     assert words[0] == "mocapviz"
     args = [str(demo_build / w.removeprefix("build/")) if w.startswith("build/") else w for w in words[1:]]
     status = main(args)
     out, err = capsys.readouterr()
     assert status == 0, f"{command!r} failed: {err}"
-    assert "no matches" not in out and "Empty DataFrame" not in out, f"{command!r} found nothing:\n{out}"
-    lines = [line for line in out.splitlines() if re.match(r"\s+1\s", line)]
-    assert lines, f"{command!r} printed no ranked row 1:\n{out}"
+    documents = MotionDB.open(demo_build / "demo.mdb").documents.set_index("doc_id")
+    docs = _ranked(out)
+    assert _answer(command)(docs, documents["label"], documents["actor"]), f"{command!r} answered:\n{out}"
+    if "punch_left" in command:  # say why: both parts were found, never in one take within 2 s
+        assert "found nothing (its parts found:" in out and "punch_left (" in out
+    if command.startswith("mocapviz export"):
+        assert len(list((demo_build / "kicks").glob("*.bvh"))) == 3
 
 
 # ------------------------------------------------------------------------------------------- every example
@@ -120,7 +160,7 @@ def test_readme_python_example_runs(line, code, namespace):
 
 @pytest.fixture(scope="module")
 def shell_folder(tmp_path_factory, demo_build):
-    """The working folder of the shell examples: the demo build beside it (``build/sample.mdb``), and the
+    """The working folder of the shell examples: the demo build beside it (``build/demo.mdb``), and the
     installed ``mocapviz`` on PATH."""
     folder = tmp_path_factory.mktemp("readme-shell")
     shutil.copytree(demo_build, folder / "build")
