@@ -198,3 +198,16 @@ def test_readme_shell_example_runs(line, command, shell_folder):
         from mocapviz.cli import build_parser
 
         build_parser().parse_args(shlex.split(command)[1:])  # SystemExit(2) on an unknown option or value
+
+
+def test_readme_c3d_ingest_reads_both_demo_takes(tmp_path):
+    """The README's C3D line, run as written in an empty folder: both takes of the demo become documents of the
+    lengths their headers give (2,900 and 810 frames at 120 Hz, so 725 and 203 at 30 Hz), the CMU take with the label
+    its table gives and the unlabelled scene take without one."""
+    [command] = [c for _, c in _shell_lines() if "c3d-markers" in c and c.startswith("mocapviz ingest")]
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}")
+    done = subprocess.run(["bash", "-ec", command], cwd=tmp_path, env=env, capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    documents = MotionDB.open(tmp_path / "build" / "c3d.mdb").documents.set_index("name")
+    assert documents["n_frames"].to_dict() == {"HDM_bd_01-02_01_120": 725, "cmu_85_02": 203}
+    assert documents["label"].get("cmu_85_02") == "JumpTwist" and documents["label"].isna().sum() == 1
