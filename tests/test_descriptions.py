@@ -622,3 +622,46 @@ def test_random_progressions_find_equals_scan_equals_runs_counted(sample_db, sam
     indexes, values, names = sample_sets[relational_set]
     every = _agree(sample_db, relational_set, indexes, values, names, text, spec)
     event("hits" if len(every) else "no hit")
+
+
+# ============================================================================ an event written without a progression
+_WORDS = vocabulary_table("2005")
+_STATE = st.tuples(st.sampled_from(range(len(_WORDS))), st.sampled_from(["state_0", "state_1"]))
+
+
+def _framed(row: int, column: str) -> tuple[str, str, str]:
+    """(part, the state named, the progression framing it by the other state) of a vocabulary row."""
+    w = _WORDS.iloc[row]
+    other = w["state_1"] if column == "state_0" else w["state_0"]
+    return w["part"], w[column], f"{w['part']}: {other} {w[column]} {other}"
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(a=_STATE, b=_STATE, low=st.sampled_from([None, 0.1, 0.2]), high=st.sampled_from([None, 0.5, 1.0]),
+       form=st.sampled_from(["for", "overlap", "somewhere"]))
+def test_an_event_without_a_progression_reads_as_the_states_it_names(hdm05, a, b, low, high, form):
+    """docs/descriptions.md's clause examples typed alone (`rfoot raised for 0.1..1 s`, `overlap rknee bent, rfoot
+    raised`, `somewhere rhand above_neck`): each state named is its run framed by the other state, so the answer is
+    the one of the description written out with those progressions, and the frame-wise scan's."""
+    db, indexes, values = hdm05
+    (part_a, word_a, framed_a), (part_b, word_b, framed_b) = _framed(*a), _framed(*b)
+    if form == "for":
+        assume(low is not None or high is not None)
+        clause = f"{part_a} {word_a} for {'' if low is None else low}..{'' if high is None else high} s"
+        written = f"{framed_a} and {clause}"
+    elif form == "overlap":
+        assume(part_a != part_b and _WORDS.iloc[a[0]]["feature"] != _WORDS.iloc[b[0]]["feature"])
+        clause = f"overlap {part_a} {word_a}, {part_b} {word_b}"
+        written = f"{framed_a} and {framed_b} and {clause}"
+    else:
+        clause = f"somewhere {part_a} {word_a}"
+        written = f"{framed_a} and {clause}"
+    alone = _same_answer(db, indexes, values, clause)
+    assert _spans(alone) == _spans(find(db, written, indexes=indexes)), (clause, written)
+    event(f"{form}: {'hits' if len(alone) else 'no hit'}")
+
+
+def test_never_alone_says_what_to_add():
+    with pytest.raises(DescriptionError, match="'never arms crossed' only drops the hits of an event where it holds: "
+                       "give the event a progression"):  # fmt: skip
+        parse_description("never arms crossed")

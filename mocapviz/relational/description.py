@@ -525,10 +525,7 @@ class _Resolve(Transformer):
 
     @v_args(meta=True)
     def event(self, meta, children):
-        progressions = [c for c in children if isinstance(c, Progression)]
-        if not progressions:
-            raise self._fail("an event needs at least one progression (part: state state ...) for its overlap or "
-                             "duration to refer to", meta)  # fmt: skip
+        progressions = [c for c in children if isinstance(c, Progression)] or self._implied(children, meta)
         seen = {}
         for p in progressions:
             if p.feature in seen:
@@ -550,8 +547,33 @@ class _Resolve(Transformer):
                 durations.append(Duration(ref, low, high))
         return Event(tuple(progressions), tuple(overlaps), tuple(durations), tuple(conditions))
 
+    def _implied(self, children, meta) -> list[Progression]:
+        """The progressions of an event written without any (``rfoot raised for 0.1..1 s``, ``overlap rknee bent,
+        rfoot raised``, ``somewhere rhand above_neck``): each state it names, framed by the other state
+        (``rfoot: lowered raised lowered``), so that its hit is that state's run. ``never`` alone is refused: it
+        only drops hits."""
+        states = []  # (part token, word token) in the order written
+        for kind, args in (c for c in children if isinstance(c, tuple)):
+            if kind == "condition" and args.kind == "somewhere":
+                part, word = args.text.split(" ", 1)
+                states.append((part, word))
+            elif kind in ("overlap", "duration"):
+                states += [(str(ref[1][0]), str(ref[1][1])) for ref in args if isinstance(ref, tuple) and ref[0] == "ref"]
+        if not states:
+            never = next(c[1].text for c in children if isinstance(c, tuple) and c[0] == "condition")
+            raise self._fail(f"'never {never}' only drops the hits of an event where it holds: give the event a "
+                             f"progression to drop them from, e.g. 'rknee: straight bent straight and never {never}'",
+                             meta)  # fmt: skip
+        implied = {}
+        for part, word in states:
+            feature, (value,) = self.words.resolve(part, [word])
+            if part not in implied and value is not None:
+                other = self.words.states(feature)[1 - value]
+                implied[part] = Progression(part, feature, (1 - value, value, 1 - value), (other, word, other))
+        return list(implied.values())
+
     def _ref(self, ref, progressions) -> StateRef:
-        _, tokens, meta = ref
+        _, tokens, _meta = ref
         part, word = str(tokens[0]), str(tokens[1])
         matches = [i for i, p in enumerate(progressions) if p.part == part or p.feature == part]
         if not matches:
