@@ -89,7 +89,7 @@ class _Data:
         if self._indexes is None:
             from .engine import Engine
 
-            self._indexes = Engine(self.hdm05(120.0)).indexes("2005")
+            self._indexes = Engine(self.hdm05(120.0)).indexes("2005", progress=self.progress)
         return self._indexes
 
     @staticmethod

@@ -146,3 +146,20 @@ def test_the_old_sharded_names_still_work_with_a_future_warning(sample_db):
     features = ["rknee_bent", "lknee_bent"]
     assert old.query_by_example(example, features, mode="adaptive").equals(
         Engine(sample_db).query(example, features=features, mode="adaptive"))
+
+
+def test_indexes_built_on_demand_show_progress_when_asked(tmp_path, capsys):
+    """`mocapviz reproduce` builds its indexes through the engine and shows the bar of their features (it lost it when
+    the reproduction moved onto the engine); a built index loads without one. (The demo: a database of more than
+    PROGRESS_MIN_DOCUMENTS documents shows a bar.)"""
+    import shutil
+
+    from mocapviz import MotionDB
+
+    shutil.copytree(MotionDB.demo().path, tmp_path / "db.mdb")
+    shutil.rmtree(tmp_path / "db.mdb" / "index", ignore_errors=True)
+    engine = Engine(MotionDB.open(tmp_path / "db.mdb"))
+    built = engine.indexes("2005", progress=True)
+    assert "relational features" in capsys.readouterr().err
+    again = Engine(MotionDB.open(tmp_path / "db.mdb")).indexes("2005", progress=True)
+    assert capsys.readouterr().err == "" and sorted(again) == sorted(built)

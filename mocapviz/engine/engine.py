@@ -185,15 +185,16 @@ class Engine:
             self._features[numeric_set] = numeric_of(self.db, numeric_set)
         return self._features[numeric_set]
 
-    def indexes(self, relational_set: str = "2005") -> dict:
+    def indexes(self, relational_set: str = "2005", *, progress: bool = False) -> dict:
         """The relational inverted indexes of the whole database (group -> InvertedIndex; Müller et al. 2005 §4),
-        loaded, or built and stored in the database when missing or stale, as ``mocapviz index DB`` would."""
+        loaded, or built and stored in the database when missing or stale, as ``mocapviz index DB`` would (with a
+        progress bar while the features are computed when ``progress``)."""
         relational_set = checked_value("relational_set", relational_set)
         if self._whole is not None:
-            return self._whole.indexes(relational_set)
+            return self._whole.indexes(relational_set, progress=progress)
         from ..relational.index import load_or_build
 
-        return load_or_build(self.db, relational_set)
+        return load_or_build(self.db, relational_set, progress=progress)
 
     def relational_values(self, relational_set: str = "2005") -> np.ndarray:
         """The relational features of every frame, (N, f) bool (each document on its own; Müller et al. 2005 §3)."""

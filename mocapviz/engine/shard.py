@@ -112,13 +112,15 @@ class Shard:
         return self._once(("values", relational_set),
                           lambda: relational_features(self.view, relational_set, progress=False)[0])
 
-    def indexes(self, relational_set: str) -> dict:
+    def indexes(self, relational_set: str, progress: bool = False) -> dict:
         """The shard's inverted indexes of a relational set: the whole database's stored ones (built and stored
-        when missing or stale), a part's built from :meth:`values` and kept in memory."""
+        when missing or stale, a progress bar while their features are computed when ``progress``), a part's built
+        from :meth:`values` and kept in memory."""
         from ..relational.index import build, load_or_build
 
         if self.whole:
-            return self._once(("indexes", relational_set), lambda: load_or_build(self.parent, relational_set))
+            return self._once(("indexes", relational_set),
+                              lambda: load_or_build(self.parent, relational_set, progress=progress))
         return self._once(("indexes", relational_set), lambda: build(
             self.view, relational_set, progress=False, values=self.values(relational_set), save=False))
 
