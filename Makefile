@@ -22,22 +22,26 @@ GLTF_VALIDATOR := .cache/gltf/node_modules/gltf-validator
 
 .PHONY: install demo lab docs test test-fast gltf-validator notebooks-full reproduce bench clean
 
+# the checkout on sys.path through a .pth file (setuptools' compat editable mode), not an import hook: a script run
+# from the folder above a checkout named mocapviz/ would otherwise import that folder as an empty namespace package
+EDITABLE := --config-settings editable_mode=compat
+
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test,bench]'
+	$(PY) -m pip install --quiet -e '.[test,bench]' $(EDITABLE)
 	touch $@
 
 install: $(VENV)/.installed
 
 # JupyterLab and ipywidgets (the `notebook` extra) beside the test install
 $(VENV)/.notebook: $(VENV)/.installed
-	$(PY) -m pip install --quiet -e '.[test,bench,notebook]'
+	$(PY) -m pip install --quiet -e '.[test,bench,notebook]' $(EDITABLE)
 	touch $@
 
 # Sphinx, its theme and extensions (the `docs` extra) beside the test install
 $(VENV)/.docs: $(VENV)/.installed
-	$(PY) -m pip install --quiet -e '.[test,bench,docs]'
+	$(PY) -m pip install --quiet -e '.[test,bench,docs]' $(EDITABLE)
 	touch $@
 
 $(CHROMIUM):
