@@ -64,10 +64,11 @@ numpydoc_xref_param_type = False
 # every internal cross-reference must resolve (-W makes a miss an error); no intersphinx: the machine is offline,
 # so a reference into Python, NumPy or pandas is left as text, not checked
 nitpicky = True
-nitpick_ignore_regex = [(r"py:.*", r"(?!mocapviz)\w+(\.\w+)*")]
+nitpick_ignore_regex = []
 
 html_theme = "pydata_sphinx_theme"
 html_title = f"mocapviz {release}"
 html_theme_options = {"navigation_depth": 2, "show_toc_level": 2, "secondary_sidebar_items": ["page-toc"]}
+html_sidebars = {"**": []}  # every page is a top-level entry of the navigation bar: no section to list beside it
 html_additional_pages = {"index": "redirect.html"}  # the site's root sends to docs/index.html
 html_show_sourcelink = False

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import html
+import importlib
 import re
 import subprocess
 import sys
@@ -24,11 +25,19 @@ import mocapviz
 from mocapviz.cli.parser import build_parser
 from mocapviz.engine.parameters import PARAMETERS
 
-pytestmark = pytest.mark.slow
-
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "build" / "docs" / "html"
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
+
+
+@pytest.fixture(scope="module")
+def references():
+    """docs/_ext/references.py, the build's check of the docstrings' cross-references."""
+    sys.path.insert(0, str(ROOT / "docs" / "_ext"))
+    try:
+        yield importlib.import_module("references")
+    finally:
+        sys.path.remove(str(ROOT / "docs" / "_ext"))
 
 
 @pytest.fixture(scope="module")
@@ -39,6 +48,21 @@ def site() -> Path:
     warnings = [line for line in run.stderr.splitlines() if "WARNING:" in line or "ERROR:" in line]
     assert run.returncode == 0, "\n".join(warnings) or run.stderr[-4000:]
     return OUT
+
+
+def test_references_are_checked_against_the_code(references):
+    """A docstring's reference finds what the code would: through a re-export, relative to the documented object,
+    an instance attribute; an old (moved) or unknown name finds nothing, so the build fails on it."""
+    templates = ["mocapviz.relational.templates.learn_class", "mocapviz.relational.templates"]
+    assert references.named_object("mocapviz.engine.Engine", []) is mocapviz.Engine
+    assert references.named_object("learn_template", templates).__name__ == "learn_template"
+    assert references.named_object("positions", ["mocapviz.db.database.MotionDB"]) is references.ATTRIBUTE
+    assert references.named_object("numeric_set", ["mocapviz.similarity.search.SimilaritySearch"]) \
+        is references.ATTRIBUTE  # assigned as `self.db, self.numeric_set, self.k = ...`
+    for stale in ("mocapviz.sharded", "learn_templates", "mocapviz.relational.templates.nosuch"):
+        assert references.named_object(stale, templates) is references.MISSING, stale
+        assert not references._external(stale)
+    assert references._external("np.ndarray") and references._external("dict")
 
 
 def _text(source: str) -> str:
@@ -60,6 +84,7 @@ def _section(page: Path, ident: str) -> str:
     return _text(source[start:end])
 
 
+@pytest.mark.slow
 def test_the_guide_and_its_references_are_pages(site):
     """Every page of docs/ and the repository's pages that docs/ links to are in the site."""
     pages = [*(ROOT / "docs").glob("*.md"), ROOT / "README.md", ROOT / "benchmarks" / "REPORT.md"]
@@ -68,6 +93,7 @@ def test_the_guide_and_its_references_are_pages(site):
     assert "docs/index.html" in (site / "index.html").read_text()  # the site's root sends to the guide
 
 
+@pytest.mark.slow
 def test_api_reference_documents_the_top_level_and_every_engine_method(site):
     """Each name of ``mocapviz.__all__`` and each public method of the Engine has its entry, from its docstring."""
     page = (site / "docs" / "api.html").read_text()
@@ -90,6 +116,7 @@ def _commands(parser: argparse.ArgumentParser, path=()):
                 yield from _commands(sub, (*path, name))
 
 
+@pytest.mark.slow
 def test_cli_reference_lists_every_command_and_option_of_the_parser(site):
     """Each sub-command has its section, holding every option string the parser gives it."""
     page = site / "docs" / "cli.html"
@@ -101,6 +128,7 @@ def test_cli_reference_lists_every_command_and_option_of_the_parser(site):
         assert flags <= set(re.findall(r"(?<![\w-])(--?[\w-]+)", text)), (path, flags)
 
 
+@pytest.mark.slow
 def test_cli_reference_gives_search_mode_choices_from_the_parser(site):
     """``mocapviz search --mode``: its help as the parser writes it, with the parameter table's choices."""
     search = dict(_commands(build_parser()))[("search",)]
@@ -111,6 +139,7 @@ def test_cli_reference_gives_search_mode_choices_from_the_parser(site):
     assert "--mode" in text and re.sub(r"\s+", " ", mode.help % {}) in text
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("notebook", NOTEBOOKS, ids=[n.stem for n in NOTEBOOKS])
 def test_notebooks_are_rendered_with_their_outputs(site, notebook):
     """Every notebook is a page with outputs, though stored without: the build executed it."""
@@ -118,6 +147,7 @@ def test_notebooks_are_rendered_with_their_outputs(site, notebook):
     assert page.count('class="cell_output') >= 1
 
 
+@pytest.mark.slow
 def test_a_notebook_output_is_its_computation(site):
     """00_motiondb prints the canonical clip's arrays: 24 joints (positions and quaternions) per frame."""
     text = _text((site / "notebooks" / "00_motiondb.html").read_text())

@@ -309,8 +309,8 @@ class Engine:
     def clips(self, example, *, frames=None, n_matches=..., numeric_set=..., mode=..., exclude_document=...,
               paths=...) -> pd.DataFrame:  # fmt: skip
         """The documents that move most like the example, by DTW cost normalised by the frames of both, then doc
-        id (Krüger et al. 2010 §3.2 features; :meth:`SimilaritySearch.clips` on every shard). ``example``: a doc
-        id, a Motion or a motion file; ``frames``: [a, b) of it."""
+        id (Krüger et al. 2010 §3.2 features; :meth:`~mocapviz.similarity.SimilaritySearch.clips` on every shard).
+        ``example``: a doc id, a Motion or a motion file; ``frames``: [a, b) of it."""
         query = self._query(example, frames, numeric_set)
         t0 = time.perf_counter()
         options = {"n_matches": n_matches, "exclude_document": exclude_document}
@@ -322,7 +322,7 @@ class Engine:
     def stretches(self, example, *, frames=None, n_matches=..., numeric_set=..., mode=..., min_length=...,
                   exclude_document=..., paths=...) -> pd.DataFrame:  # fmt: skip
         """The K best non-overlapping stretches inside documents like the example, by subsequence DTW cost, then
-        their last frame in the database (:meth:`SimilaritySearch.stretches` on every shard)."""
+        their last frame in the database (:meth:`~mocapviz.similarity.SimilaritySearch.stretches` on every shard)."""
         from ..similarity.search import check_stretch_query
 
         query = self._query(example, frames, numeric_set)
@@ -400,6 +400,22 @@ class Engine:
         table = self._merged(packs, ["score", "doc_id", "start"], None, t0)
         table.attrs["group_segments"] = offset
         return table
+
+    @checked("suggest_query")
+    def suggest_query(self, example, *, frames=None, relational_set=...):
+        """The query by example suggested for a clip (:func:`mocapviz.relational.suggestion.suggest_query`: the
+        most specific selection of its features that finds 5 other documents in the database, and its m), what the
+        Relational page opens with and ``mocapviz query`` asks without ``--features``. ``example``: a doc id (its
+        own document is no answer), a Motion or a motion file; ``frames``: [a, b). Returns a SuggestedQuery
+        (features, mode, mismatches, others), to pass on to :meth:`query`."""
+        from ..relational.query import relational_example
+        from ..relational.suggestion import suggest_query
+
+        motion, own = self._motion(example, frames), None
+        if isinstance(example, (int, np.integer)) and not isinstance(example, bool):
+            own = int(np.flatnonzero(self.db.documents["doc_id"].to_numpy() == int(example))[0])
+        values, names, _, _ = relational_example(motion, relational_set)
+        return suggest_query(values, names, self.indexes(relational_set), relational_set, own_row=own)
 
     @checked("find")
     def find(self, description, *, n_matches=..., relational_set=None, template_cost=..., overlapping=...,
