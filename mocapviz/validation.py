@@ -10,6 +10,7 @@ finite_positions   joint positions without NaN or inf, the first bad frame and j
 renamed            a decorator accepting a parameter's old name (see the glossary) with a FutureWarning.
 frame_span         a [first, last) span of frames inside a clip of n frames, at least ``least`` of them.
 integer_columns    integer columns of a table (a hit table read from CSV), the missing column or first bad row named.
+text               a non-empty printable string of at most so many characters (a segment label, an author's name).
 
 MIN_LENGTH_RANGE   the shortest match of a search as a share of the query's frames, (0, 1] (default MIN_LENGTH,
                    0.5): every search by subsequence alignment and its command-line option take it.
@@ -312,6 +313,25 @@ def plural(n, one: str, many: str | None = None, number: bool = True) -> str:
     """
     word = one if n == 1 else (many or one + "s")
     return f"{n:,} {word}" if number else word
+
+
+def text(value, name: str, most: int = 128) -> str:
+    """``value`` when it is a non-empty printable string (``str.isprintable``: no newline, tab or control
+    character) of at most ``most`` characters, else a ParameterError naming ``name`` and the value.
+
+    Examples
+    --------
+    >>> text("kick front", "label")
+    'kick front'
+    >>> text("a\\nb", "label")
+    Traceback (most recent call last):
+    ...
+    mocapviz.errors.ParameterError: label must be a non-empty printable text of at most 128 characters; got 'a\\nb'
+    """
+    if not isinstance(value, str) or not value or not value.isprintable() or len(value) > most:
+        shown = repr(value) if len(repr(value)) <= 80 else f"{repr(value)[:60]}... ({len(value)} characters)"
+        raise ParameterError(f"{name} must be a non-empty printable text of at most {most} characters; got {shown}")
+    return value
 
 
 def _span_text(first, last) -> str:

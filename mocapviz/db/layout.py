@@ -12,10 +12,11 @@
     DB/features/pca.npz                     pca_file
     DB/templates/<name>.npz                 template_file; template_files   (mocapviz.relational.templates)
     DB/markers/<sha256 of the file>.npz     markers_file; markers_files     (mocapviz.db.markers)
+    DB/labels/changes.json                  labels_file                     (mocapviz.db.segments)
 
-The folders (``index_folder``, ``features_folder``, ``templates_folder``, ``markers_folder``) are created by the
-writers and hold the lock of their files (:func:`mocapviz.store.locked`). The ``.npz`` files are written and read
-by :mod:`mocapviz.db.arrays`.
+The folders (``index_folder``, ``features_folder``, ``templates_folder``, ``markers_folder``,
+``labels_folder``) are created by the writers and hold the lock of their files (:func:`mocapviz.store.locked`).
+The ``.npz`` files are written and read by :mod:`mocapviz.db.arrays`.
 
 Examples
 --------
@@ -33,8 +34,8 @@ from pathlib import Path
 
 __all__ = [
     "features_folder", "generation_file", "generation_of", "index_file", "index_files", "index_folder",
-    "manifest_file", "markers_file", "markers_files", "markers_folder", "numeric_data", "numeric_header",
-    "numeric_sets", "pca_file", "template_file", "template_files", "templates_folder",
+    "labels_file", "labels_folder", "manifest_file", "markers_file", "markers_files", "markers_folder",
+    "numeric_data", "numeric_header", "numeric_sets", "pca_file", "template_file", "template_files", "templates_folder",
 ]  # fmt: skip
 
 _GENERATION = re.compile(r"(?:positions|quaternions|documents)\.g(?P<generation>\d+)\.(?:npy|parquet)")
@@ -142,3 +143,13 @@ def markers_file(db_path: str | os.PathLike, sha256: str) -> Path:
 def markers_files(db_path: str | os.PathLike) -> dict[str, Path]:
     """The stored markers, the checksum of their file -> :func:`markers_file`, in name order."""
     return dict(sorted((f.stem, f) for f in markers_folder(db_path).glob("*.npz")))
+
+
+def labels_folder(db_path: str | os.PathLike) -> Path:
+    """``DB/labels/``: the segment labels (its lock serialises their writers)."""
+    return Path(db_path) / "labels"
+
+
+def labels_file(db_path: str | os.PathLike) -> Path:
+    """``DB/labels/changes.json``: the log of every change to the segment labels (:mod:`mocapviz.db.segments`)."""
+    return labels_folder(db_path) / "changes.json"
