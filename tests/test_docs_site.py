@@ -3,8 +3,9 @@ cross-reference resolved, and holds what it is for: the API reference from the d
 the parser, the notebooks with the outputs of their execution.
 
 The build goes to ``build/docs/html`` with its notebook cache (``build/docs/jupyter_cache``), as ``make docs``: after
-it, or a previous run, only changed pages are read again. From scratch it executes the 13 notebooks (the bulk of its
-cost, see the Makefile's ``docs``); the test is slow.
+it, or a previous run, only changed pages are read again (10 s). From scratch, as in CI, it executes the 13
+notebooks: 7 min 36 s on the 2-core machine, 435 s of it the notebooks, so the tests that need the site are slow;
+the check of the reference lookup takes 2 s.
 """
 from __future__ import annotations
 
