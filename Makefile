@@ -81,8 +81,10 @@ lab: $(VENV)/.notebook
 docs: $(VENV)/.docs
 	$(PY) -m sphinx -q -c docs -W --keep-going . build/docs/html
 
+# every test, the docstrings' Examples as doctests; the notebooks are executed once, by the documentation site's
+# build in tests/test_docs_site.py (a cell's error fails it, naming the notebook), not a second time by nbmake
 test: $(VENV)/.docs $(CHROMIUM) $(GLTF_VALIDATOR)
-	MOCAPVIZ_REQUIRE_BROWSER=1 $(PY) -m pytest --doctest-modules mocapviz tests notebooks --nbmake
+	MOCAPVIZ_REQUIRE_BROWSER=1 $(PY) -m pytest --doctest-modules mocapviz tests
 
 test-fast: install
 	$(PY) -m pytest --doctest-modules mocapviz tests -m "not slow"
