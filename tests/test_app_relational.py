@@ -1,14 +1,13 @@
 """Browser tests of the dashboard's Relational query page (Müller, Röder & Clausen 2005 §5) in headless Chromium: the
 hits shown are those of :func:`mocapviz.relational.query.query_by_example` for the query chosen through the widgets;
-its boxes' notes without a browser. Then, without a browser, the page's default query: the features a new clip ticks
-and their precision."""
+its boxes' notes without a browser. Then, without a browser, the page's default query: the suggested query a new clip
+ticks (its precision: tests/test_suggestion.py)."""
 
 from __future__ import annotations
 
 import re
 import time
 
-import numpy as np
 import pytest
 from browser_helpers import (
     assert_no_exception_names,
@@ -26,19 +25,16 @@ from playwright.sync_api import expect
 from mocapviz.app.backend import Backend
 from mocapviz.app.pages.relational import (
     DEFAULT_FEATURES,
-    DEFAULT_MISMATCHES,
     MODES,
-    SUGGESTED,
     RelationalPage,
-    suggested_features,
 )
 from mocapviz.app.state import Selection
 from mocapviz.app.widgets import PAGE_SIZE
-from mocapviz.features import feature_groups, relational_features
+from mocapviz.engine import Engine
+from mocapviz.features import feature_groups
 from mocapviz.relational import index
-from mocapviz.relational.query import query_by_example, query_segmentation
+from mocapviz.relational.query import query_by_example
 from mocapviz.validation import plural
-from mocapviz.viz.query import precision_recall
 
 COUNT = ".mv-hit-count"
 KNEES = ["rknee_bent", "lknee_bent"]
@@ -189,12 +185,9 @@ def test_notes_say_what_the_user_changed_only(sample_db):
 
 
 def _default_query(db, doc: int) -> tuple[list[str], int]:
-    """The features and m the page starts with for the whole clip ``doc``: :func:`suggested_features`, and m = 1
-    unless the query has a single segment (then 0: the page's bound)."""
-    values, names = relational_features(db.motion(doc), "2005", progress=False)
-    features = suggested_features(values, names)
-    segments = max(len(seq.codes) for _, seq in query_segmentation(values, names, features, "2005").values())
-    return features, min(DEFAULT_MISMATCHES, segments - 1)
+    """The features and m the page starts with for the whole clip ``doc``: its suggested query."""
+    suggested = Engine(db).suggest_query(doc)
+    return suggested.features, suggested.mismatches
 
 
 def test_round_trip_on_hdm05(hdm05_db30, hdm05_dashboard, page, screenshot):
@@ -213,20 +206,22 @@ def test_round_trip_on_hdm05(hdm05_db30, hdm05_dashboard, page, screenshot):
 
 
 # ============================================================================ the default query, no browser
-def test_a_new_clip_ticks_the_features_that_change_least_often_in_it(sample_db):
-    page = RelationalPage(Backend.open(sample_db.path), Selection(doc=10, span=(0, 215)))
-    values, names = relational_features(sample_db.motion(10), "2005", progress=False)
-    changes = [(int((np.diff(values[:, j].astype(int)) != 0).sum()), j) for j in range(len(names))]
-    fewest = sorted(c for c in changes if c[0] > 0)[:SUGGESTED]  # fewest changes first, then the set's order
-    q = page.query()
-    assert sorted(q["features"]) == sorted(names[j] for _, j in fewest)
-    assert (q["mode"], q["mismatches"]) == ("mismatch", DEFAULT_MISMATCHES)
+def test_a_new_clip_ticks_its_suggested_query(sample_db):
+    """Before the indexes are loaded a new clip ticks the kick features; once they are, a new clip ticks its
+    suggested query (:meth:`mocapviz.engine.Engine.suggest_query` of the clip) and m; a narrower span of the same
+    clip keeps them."""
+    backend = Backend.open(sample_db.path)
+    page = RelationalPage(backend, Selection(doc=10, span=(0, 215)))
+    assert sorted(page.query()["features"]) == sorted(DEFAULT_FEATURES)
+    backend.engine.indexes("2005")
+    for doc in (12, 7):
+        page.doc.value = doc
+        suggested, q = Engine(sample_db).suggest_query(doc), page.query()
+        assert (sorted(q["features"]), q["mode"], q["mismatches"]) == (sorted(suggested.features), suggested.mode,
+                                                                       suggested.mismatches)  # fmt: skip
+    assert q["features"] == ["lknee_bent"]  # the kick (7): the other kick is its first hit (first_query's example)
     page.first.value = 20  # a narrower span of the same clip keeps the ticks
-    assert page.query()["features"] == q["features"] and page.query()["span"] == (20, 215)
-    page.doc.value = 12  # another clip: its own
-    values, names = relational_features(sample_db.motion(12), "2005", progress=False)
-    assert sorted(page.query()["features"]) == sorted(suggested_features(values, names))
-    assert suggested_features(values[:1].repeat(5, axis=0), names) == list(DEFAULT_FEATURES)  # nothing changes
+    assert page.query()["features"] == q["features"] and page.query()["span"] == (20, 129)
 
 
 def test_a_new_run_shows_the_query_alone_again_and_counts_agree_in_number(sample_db):
@@ -248,41 +243,23 @@ def test_a_new_run_shows_the_query_alone_again_and_counts_agree_in_number(sample
     assert page.count.object.startswith("**1 hit** for ")
 
 
-def test_a_new_clip_gets_the_default_m_again_and_the_pages_first_query(sample_db):
-    """A page opened on a one-frame span (m bounded to 0), then given another clip: m is back at its default and
-    the query is the page's first query of that clip (:func:`first_query`), with its hits; the same clip again
-    keeps what the user set."""
+def test_a_new_clip_gets_its_suggested_m_again_and_the_pages_first_query(sample_db):
+    """A clip whose m the user changed, then another clip: m is back at that clip's suggestion and the query is the
+    page's first query of that clip (:func:`first_query`), with its hits; the same clip again keeps what the user
+    set."""
     from mocapviz.app.pages.relational import first_query, search
 
     backend = Backend.open(sample_db.path)
+    backend.engine.indexes("2005")
     page = RelationalPage(backend, Selection(doc=0, span=(0, 1)))
     assert page.mismatches.value == 0 and page.query_segments() == 1
-    page.doc.value = 3  # before: m stayed 0, and the query found fewer hits
+    page.doc.value = 10  # sneak2StepsLStart (dg): several segments, so m can be raised
+    page.mismatches.value = 1
+    page.doc.value = 3
     q, first = page.query(), first_query(backend, 3)
     assert {**q, "features": sorted(q["features"])} == {**first, "features": sorted(first["features"])}
-    assert page.mismatches.value == DEFAULT_MISMATCHES
-    assert len(page.search(q)) == len(search(backend, first)) > len(search(backend, {**first, "mismatches": 0}))
-    features, m = _default_query(sample_db, 3)  # the reference from the clip's own features
-    assert sorted(page.query()["features"]) == sorted(features) and page.mismatches.value == m
-    page.mismatches.value = 0
+    assert page.mismatches.value == first["mismatches"] == 0
+    assert len(page.search(q)) == len(search(backend, first)) < len(search(backend, {**first, "mismatches": 1}))
+    page.mismatches.value = 1
     page.first.value = 5  # the same clip, a narrower span: the user's m stays
-    assert page.mismatches.value == 0
-
-
-def test_the_default_query_is_more_precise_than_the_kick_features(hdm05_db30):
-    """Every 6th of the 287 HDM05 clips at 30 Hz queried whole: the page's default (suggested features, m-mismatch)
-    retrieves documents with a higher mean precision, as the page's quality line judges them, than §6.2's kick
-    features (adaptive fuzzy) queried on every clip, the page's earlier default."""
-    db = hdm05_db30
-    indexes = index.load_or_build(db, save=False)
-    precision = {"default": [], "kick": []}
-    for doc in db.documents["doc_id"].iloc[::6]:
-        features, m = _default_query(db, int(doc))
-        for name, (feats, mode, mm) in {"default": (features, "mismatch", m),
-                                        "kick": (list(DEFAULT_FEATURES), "adaptive", 1)}.items():  # fmt: skip
-            hits = query_by_example(db, db.motion(int(doc)), feats, mode, mm, indexes=indexes)
-            curve = precision_recall(hits["doc_id"], db.documents, int(doc))
-            precision[name].append(curve["precision"].iloc[-1] if len(curve) else np.nan)
-    mean = {name: np.nanmean(p) for name, p in precision.items()}
-    answered = {name: np.mean(~np.isnan(p)) for name, p in precision.items()}
-    assert mean["default"] > mean["kick"] and answered["default"] >= 0.75
+    assert page.mismatches.value == 1

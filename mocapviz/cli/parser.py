@@ -72,7 +72,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("db")
     q.add_argument("--example", required=True, help="a motion file, or a document id of the DB")
     option(q, "--frames", check=parse_span, help="frame span A:B of the example, B excluded (default: all of it)")
-    q.add_argument("--features", help="comma-separated relational feature names (default: all of the set)")
+    q.add_argument("--features", help="comma-separated relational feature names (default: the clip's suggested "
+                   "query, its features and m, as the Relational page poses it: docs/relational.md)")
     P["query_mode"].add_to(q, "--mode")
     q.add_argument("--mismatch", dest="mismatches", type=P["mismatches"].reader("--mismatch"),
                    help="answer in mismatch mode: " + P["mismatches"].help("none: the --mode given"))

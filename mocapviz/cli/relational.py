@@ -8,6 +8,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..engine import MotionTemplate, feature_groups, feature_names, is_template_name, named_descriptions, segment
+from ..engine.parameters import default
 from ..errors import MotionDBError, ParameterError
 from ..validation import plural
 from .inputs import engine_of, example_of
@@ -29,8 +30,12 @@ def run_query(args) -> None:
         raise ParameterError(f"--mismatch {args.mismatches} answers in mismatch mode (adaptive hits with up to M "
                              f"segments disagreeing); leave out --mode {args.query_mode}")
     motion = engine._motion(example, args.frames)
-    if args.mismatches and all(f in known for f in features or known):  # unknown names: the engine says which
-        n = _query_segments(engine, motion, features or list(known), args.relational_set)
+    suggested = None
+    if features is None:  # the clip's suggested query, as the Relational page poses it (docs/relational.md)
+        suggested = engine.suggest_query(example, frames=args.frames, relational_set=args.relational_set)
+        features = list(suggested.features)
+    if args.mismatches and all(f in known for f in features):  # unknown names: the engine says which
+        n = _query_segments(engine, motion, features, args.relational_set)
         if args.mismatches > n - 1:
             raise ParameterError(f"--mismatch must be between 0 and {n - 1}, one less than the query's {n} "
                                  f"segment(s) on the chosen features; got {args.mismatches}")
@@ -38,13 +43,17 @@ def run_query(args) -> None:
         if outside:
             raise ParameterError(f"--mismatch-at lists query segments from 0 to {n - 1} (the query has {n} on the "
                                  f"chosen features); got {', '.join(map(str, outside))}")
-    mode = "mismatch" if args.mismatches else args.query_mode
+    mode, m = ("mismatch", args.mismatches) if args.mismatches else (args.query_mode, default("query", "mismatches"))
+    if suggested is not None and not args.mismatches and mode == "adaptive":  # --mode left at its default
+        mode, m = suggested.mode, suggested.mismatches
     t0 = time.perf_counter()
     with engine:
-        hits = engine.query(motion, features=features, mode=mode, mismatches=args.mismatches or ...,
-                            relational_set=args.relational_set, allowed=args.allowed)  # fmt: skip
+        hits = engine.query(motion, features=features, mode=mode, mismatches=m, relational_set=args.relational_set,
+                            allowed=args.allowed)  # fmt: skip
     ms = 1000 * (time.perf_counter() - t0)
-    print(f"{plural(len(hits), 'hit')} in {ms:.1f} ms ({mode}, features: {', '.join(features or ['all'])})")
+    how = f"{mode}, m = {m}" if mode == "mismatch" else mode
+    chosen = "suggested features" if suggested is not None else "features"
+    print(f"{plural(len(hits), 'hit')} in {ms:.1f} ms ({how}, {chosen}: {', '.join(features)})")
     cols = [c for c in ("rank", "doc_id", "name", "start", "end", "start_s", "end_s", "score", "label") if c in hits]
     with pd.option_context("display.width", 160, "display.max_rows", args.rows + 5):
         print(printed(hits[cols].head(args.rows).round(3)))

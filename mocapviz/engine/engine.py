@@ -401,6 +401,22 @@ class Engine:
         table.attrs["group_segments"] = offset
         return table
 
+    @checked("suggest_query")
+    def suggest_query(self, example, *, frames=None, relational_set=...):
+        """The query by example suggested for a clip (:func:`mocapviz.relational.suggestion.suggest_query`: the
+        most specific selection of its features that finds 5 other documents in the database, and its m), what the
+        Relational page opens with and ``mocapviz query`` asks without ``--features``. ``example``: a doc id (its
+        own document is no answer), a Motion or a motion file; ``frames``: [a, b). Returns a SuggestedQuery
+        (features, mode, mismatches, others), to pass on to :meth:`query`."""
+        from ..relational.query import relational_example
+        from ..relational.suggestion import suggest_query
+
+        motion, own = self._motion(example, frames), None
+        if isinstance(example, (int, np.integer)) and not isinstance(example, bool):
+            own = int(np.flatnonzero(self.db.documents["doc_id"].to_numpy() == int(example))[0])
+        values, names, _, _ = relational_example(motion, relational_set)
+        return suggest_query(values, names, self.indexes(relational_set), relational_set, own_row=own)
+
     @checked("find")
     def find(self, description, *, n_matches=..., relational_set=None, template_cost=..., overlapping=...,
              templates: dict | None = None) -> pd.DataFrame:  # fmt: skip

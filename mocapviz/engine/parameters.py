@@ -220,6 +220,7 @@ USES = {
               "eps": "eps", "exclude_document": "exclude_document", "paths": "paths", "min_length": "min_length"},
     "query": {"features": "features", "mode": "query_mode", "mismatches": "mismatches",
               "relational_set": "relational_set", "allowed": "allowed"},
+    "suggest_query": {"relational_set": "relational_set"},
     "find": {"template_cost": "template_cost", "overlapping": "overlapping"},
     "learn_template": {"relational_set": "relational_set", "max_examples": "max_examples", "iterations": "iterations"},
     "search_template": {"n_matches": "n_matches", "delta": "delta", "max_cost": "max_cost", "prefilter": "prefilter"},
