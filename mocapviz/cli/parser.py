@@ -188,6 +188,39 @@ def build_parser() -> argparse.ArgumentParser:
     search_scheduler(ts)
     ts.set_defaults(func=_template_search)
 
+    lb = sub.add_parser("labels", help="segment labels: label stretches of documents (with author and time), list, "
+                        "remove, undo, export and import them; every change kept in the label history")  # fmt: skip
+    lb.add_argument("db", help="the MotionDB (its labels live in DB/labels/)")
+    lsub = lb.add_subparsers(dest="action", required=True)
+    la = lsub.add_parser("add", help="label frames A:B (B excluded) of a document")
+    option(la, "--doc", check=count_check(least=0), required=True, metavar="ID", help="the document (a doc id)")
+    option(la, "--frames", check=parse_span, required=True, metavar="A:B", help="frames A:B of it, B excluded")
+    P["label"].add_to(la, required=True)
+    for name in ("author", "source", "note"):
+        P[name].add_to(la)
+    ll = lsub.add_parser("list", help="the segment labels now, as a hit table")
+    P["label"].add_to(ll)
+    ll.add_argument("--csv", help="also write them to this CSV file (the hit table's columns, then label_id, label, "
+                    "author, source, time, note)")  # fmt: skip
+    lr = lsub.add_parser("remove", help="remove a segment label (a change of the history: undo puts it back)")
+    option(lr, "label_id", check=count_check(least=1), metavar="ID", help="the label's id (labels list)")
+    P["author"].add_to(lr)
+    lu = lsub.add_parser("undo", help="undo the author's last change to the segment labels (or --change N), by a new "
+                         "change that puts the label back exactly as it was")  # fmt: skip
+    option(lu, "--change", check=count_check(least=1), metavar="N", help="the change to undo (labels history)")
+    P["author"].add_to(lu)
+    lh = lsub.add_parser("history", help="every change to the segment labels, in order")
+    le = lsub.add_parser("export", help="write the segment labels to a file: CSV or BABEL-style JSON")
+    P["label_format"].add_to(le)
+    P["label"].add_to(le)
+    le.add_argument("--out", required=True, help="the file to write (atomically)")
+    li = lsub.add_parser("import", help="add the labels of a CSV or BABEL-style JSON file (.json), documents matched "
+                         "by name, source 'imported'; all or none")  # fmt: skip
+    li.add_argument("file", help="the CSV or .json file")
+    P["author"].add_to(li)
+    for action in (la, ll, lr, lu, lh, le, li):
+        action.set_defaults(func=_labels)
+
     ex = sub.add_parser("export", help="write the stretches a search found (--hits, its --csv file) or one stretch "
                         "of a document (--doc) as motion files: BVH, AMC or glTF binary, one per hit")  # fmt: skip
     ex.add_argument("db")
@@ -325,6 +358,12 @@ def _template_search(args):
     from . import templates
 
     return templates.run_template_search(args)
+
+
+def _labels(args):
+    from . import labels
+
+    return labels.run_labels(args)
 
 
 def _export(args):

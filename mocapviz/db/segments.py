@@ -18,7 +18,7 @@ atomic_write`): several processes writing at once all land, in some order. Reade
 a whole log. The file carries the format header (:func:`mocapviz.store.stamp`) and the sha256 of its changes, so a
 damaged file is a MotionDBError naming it, never a wrong table.
 
-Exchange formats (:func:`export_csv`, :func:`export_babel`, :func:`read_labels`): CSV with the hit table's columns
+Exchange formats (:func:`exported`, :func:`read_labels`): CSV with the hit table's columns
 (:func:`mocapviz.db.hits.hit_table`) and the label's, and BABEL-style JSON (Punnakkal et al. 2021's
 ``frame_ann`` per sequence: segments in seconds at the document's own rate, with action names). Both name the
 documents, so labels move to another database holding the same documents under the same names.
@@ -40,7 +40,7 @@ from ..validation import one_of, text
 from .hits import hit_table
 from .layout import labels_file, labels_folder
 
-__all__ = ["COLUMNS", "POSITIVE", "SOURCES", "SegmentLabels", "export_babel", "export_csv", "label_hits", "read_labels"]
+__all__ = ["COLUMNS", "POSITIVE", "SOURCES", "SegmentLabels", "babel_json", "exported", "label_hits", "overlapping", "read_labels"]
 
 FORMAT = "mocapviz.SegmentLabels"
 VERSION = 1
@@ -328,34 +328,60 @@ def label_hits(db, table: pd.DataFrame) -> pd.DataFrame:
                      **{c: table[c].to_numpy() for c in ("label_id", "label", "author", "source", "time", "note")})
 
 
-def export_csv(db, table: pd.DataFrame, out: str | os.PathLike) -> None:
-    """Write labels as CSV (:func:`label_hits`' columns), atomically."""
-    store.atomic_write(out, label_hits(db, table).to_csv(index=False).encode())
+def exported(db, table: pd.DataFrame, format: str = "csv") -> bytes:
+    """Labels as a file's content: ``"csv"``, :func:`label_hits`' columns; ``"babel"``, BABEL-style JSON
+    (:func:`babel_json`).
+
+    Parameters
+    ----------
+    db : MotionDB
+    table : pandas.DataFrame
+        Labels (:meth:`SegmentLabels.table`).
+    format : {"csv", "babel"}
+
+    Returns
+    -------
+    bytes
+    """
+    if one_of(format, "format", ("csv", "babel")) == "csv":
+        return label_hits(db, table).to_csv(index=False).encode()
+    return json.dumps(babel_json(db, table), indent=1).encode()
 
 
-def export_babel(db, table: pd.DataFrame, out: str | os.PathLike) -> None:
-    """Write labels as BABEL-style JSON, atomically: per document (by name) that holds a label of a positive
-    source (:data:`POSITIVE`; a rejected hit is no action), ``{"feat_p": its file, "dur": seconds, "fps": its
-    rate, "frame_ann": {"labels": [{"seg_id", "raw_label", "proc_label", "act_cat", "start_t", "end_t"}]}}`` with
-    times in seconds at the document's own rate (BABEL's ``frame_ann``; ``fps`` is mocapviz's addition, BABEL's
-    AMASS files carry their rate)."""
+def babel_json(db, table: pd.DataFrame) -> dict:
+    """Labels in BABEL's layout (Punnakkal et al. 2021, its ``frame_ann``): per document (by name) that holds a
+    label of a positive source (:data:`POSITIVE`; a rejected hit is no action), ``{"feat_p": its file, "dur":
+    seconds, "fps": its rate, "frame_ann": {"labels": [{"seg_id", "raw_label", "proc_label", "act_cat", "start_t",
+    "end_t"}]}}``, times in seconds at the document's own rate (``fps`` is mocapviz's addition: BABEL's AMASS files
+    carry their rate).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()  # 120 Hz
+    >>> rows = pd.DataFrame({"label_id": [1], "doc_id": [7], "start": [12], "end": [60], "label": ["kick"],
+    ...                      "source": ["manual"]})
+    >>> entry = babel_json(db, rows)["HDM_dg_kickLFront1Reps_017_120"]
+    >>> entry["frame_ann"]["labels"][0]["start_t"], entry["frame_ann"]["labels"][0]["end_t"], entry["fps"]
+    (0.1, 0.5, 120.0)
+    """
     docs = db.documents.set_index("doc_id")
-    out_json = {}
+    out = {}
     for row in table[table["source"].isin(POSITIVE)].itertuples():
         doc = docs.loc[row.doc_id]
         fps = float(doc["fps"])
-        entry = out_json.setdefault(str(doc["name"]), {"feat_p": str(doc.get("path", doc["name"])),
-                                                        "dur": int(doc["n_frames"]) / fps, "fps": fps,
-                                                        "frame_ann": {"labels": []}})  # fmt: skip
+        entry = out.setdefault(str(doc["name"]), {"feat_p": Path(str(doc.get("path", doc["name"]))).name,
+                                                   "dur": int(doc["n_frames"]) / fps, "fps": fps,
+                                                   "frame_ann": {"labels": []}})  # fmt: skip
         entry["frame_ann"]["labels"].append({"seg_id": f"mocapviz-{row.label_id}", "raw_label": row.label,
                                              "proc_label": row.label, "act_cat": [row.label],
                                              "start_t": row.start / fps, "end_t": row.end / fps})  # fmt: skip
-    store.atomic_write(out, json.dumps(out_json, indent=1).encode())
+    return out
 
 
 def read_labels(db, path: str | os.PathLike) -> list[dict]:
-    """The labels of a CSV (:func:`export_csv`'s columns; ``name`` or else ``doc_id``, ``start``, ``end``,
-    ``label``, optionally ``note``) or BABEL-style JSON file (:func:`export_babel`'s layout, ``proc_label`` or
+    """The labels of a CSV (:func:`exported`'s columns; ``name`` or else ``doc_id``, ``start``, ``end``,
+    ``label``, optionally ``note``) or BABEL-style JSON file (:func:`babel_json`'s layout, ``proc_label`` or
     else ``raw_label``; seconds turned into frames at the document's rate, rounded) as rows for
     :meth:`SegmentLabels.add_many` (source ``imported``), the documents found by name in ``db``.
 
@@ -398,3 +424,34 @@ def read_labels(db, path: str | os.PathLike) -> list[dict]:
     notes = table["note"] if "note" in table.columns else [""] * len(table)
     return [{"doc_id": d, "start": s, "end": e, "label": lab, "source": "imported", "note": n}
             for d, s, e, lab, n in zip(docs, table["start"], table["end"], table["label"], notes)]
+
+
+def overlapping(hits: pd.DataFrame, labels: pd.DataFrame) -> np.ndarray:
+    """Whether each hit overlaps a labelled segment: the same document and at least one frame in common
+    (``hit.start < label.end`` and ``label.start < hit.end``, both half-open).
+
+    Parameters
+    ----------
+    hits : pandas.DataFrame
+        ``doc_id``, ``start``, ``end`` (a hit table).
+    labels : pandas.DataFrame
+        ``doc_id``, ``start``, ``end`` of the segments (:meth:`SegmentLabels.table`).
+
+    Returns
+    -------
+    np.ndarray [shape=(len(hits),)], bool
+
+    Examples
+    --------
+    >>> hits = pd.DataFrame({"doc_id": [1, 1, 2], "start": [0, 10, 0], "end": [10, 20, 5]})
+    >>> overlapping(hits, pd.DataFrame({"doc_id": [1], "start": [9], "end": [10]})).tolist()
+    [True, False, False]
+    """
+    pairs = pd.DataFrame({"row": np.arange(len(hits)), "doc_id": np.asarray(hits["doc_id"], np.int64),
+                          "start": np.asarray(hits["start"], np.int64), "end": np.asarray(hits["end"], np.int64)})
+    segs = pd.DataFrame({c: np.asarray(labels[c], np.int64) for c in ("doc_id", "start", "end")})
+    both = pairs.merge(segs, on="doc_id", suffixes=("", "_label"))
+    hit = both.loc[(both["start"] < both["end_label"]) & (both["start_label"] < both["end"]), "row"]
+    found = np.zeros(len(hits), dtype=bool)
+    found[hit.to_numpy()] = True
+    return found

@@ -449,14 +449,17 @@ class Engine:
 
     @checked("learn_template")
     def learn_template(self, label: str, *, actors=None, relational_set=..., max_examples=..., iterations=...):
-        """The motion template of the documents labelled ``label`` (of ``actors`` only, when given), from at most
+        """The motion template of the documents labelled ``label`` and of the stretches with that segment label
+        (manual, accepted or imported: :meth:`segment_labels`; of ``actors`` only, when given), from at most
         ``max_examples`` of them spread over the class (Müller & Röder 2006 §3; documents without a label are of
         no class). Returns a :class:`~mocapviz.relational.templates.MotionTemplate` (not stored: see
         :func:`~mocapviz.relational.templates.store_template`)."""
+        from ..db.segments import POSITIVE, SegmentLabels
         from ..relational.templates import learn_class
 
+        segments = SegmentLabels(self.db).table(str(label), POSITIVE)
         return learn_class(self.db, str(label), actors, relational_set, values=self.relational_values(relational_set),
-                           iterations=iterations, max_examples=max_examples)  # fmt: skip
+                           iterations=iterations, max_examples=max_examples, segments=segments)  # fmt: skip
 
     @checked("search_template")
     def search_template(self, template, *, n_matches=..., delta=..., max_cost=..., prefilter=...) -> pd.DataFrame:
@@ -494,6 +497,102 @@ class Engine:
 
         relational = methods is None or {"relational", "hybrid"} & set(methods)
         return retrieval_quality(self.db, methods, indexes=self.indexes() if relational else None, **options)
+
+    # ------------------------------------------------------------------ segment labels (mocapviz.db.segments)
+    @checked("segment_labels")
+    def segment_labels(self, *, label=...) -> pd.DataFrame:
+        """The database's segment labels now (every change replayed), by label id, as a hit table: rank, doc_id,
+        name, start, end (frames of the document, half-open), frames, start_s, end_s, then label_id, label, author,
+        source, time (UTC ISO 8601), note and the documents' other label columns; ``label``: that label's only."""
+        from ..db.segments import SegmentLabels, label_hits
+
+        return label_hits(self.db, SegmentLabels(self.db).table(label))
+
+    @checked("add_label")
+    def add_label(self, doc: int, *, frames, label=..., author=..., source=..., note=...) -> int:
+        """Label frames ``frames`` = (a, b), half-open, of document ``doc`` as ``label``, by ``author`` (default the
+        operating system's user name), from ``source``; returns the new label's id. One change of the label history,
+        written atomically under the labels' lock (several writers at once all land)."""
+        from ..db.segments import SegmentLabels
+
+        a, b = (frames.start, frames.stop) if isinstance(frames, slice) else frames
+        return SegmentLabels(self.db).add(doc, a, b, label, author=_author(author), source=source, note=note or "")
+
+    @checked("add_label")
+    def add_labels(self, hits, *, label=..., author=..., source=..., note=...) -> list[int]:
+        """Every row of a hit table (doc_id, start, end) labelled ``label`` at once (a page of hits accepted, with
+        ``source="accepted hit"``, or rejected): one change per row, written together; returns the new ids."""
+        from ..db.segments import SegmentLabels
+
+        rows = [{"doc_id": d, "start": a, "end": b, "label": label, "source": source, "note": note or ""}
+                for d, a, b in zip(hits["doc_id"], hits["start"], hits["end"])]  # fmt: skip
+        return SegmentLabels(self.db).add_many(rows, author=_author(author))
+
+    @checked("remove_label")
+    def remove_label(self, label_id: int, *, author=...) -> int:
+        """Remove the segment label ``label_id`` (a change of the history, by ``author``); returns the change's
+        number."""
+        from ..db.segments import SegmentLabels
+
+        return SegmentLabels(self.db).remove(label_id, author=_author(author))
+
+    @checked("undo_label")
+    def undo_label(self, change: int | None = None, *, author=...) -> int:
+        """Undo change ``change`` of the label history (default: ``author``'s last change not undone) by a new
+        change that puts the label back exactly as it was; returns that change's number
+        (:meth:`mocapviz.db.segments.SegmentLabels.undo`)."""
+        from ..db.segments import SegmentLabels
+
+        return SegmentLabels(self.db).undo(change, author=_author(author))
+
+    def label_history(self) -> pd.DataFrame:
+        """Every change of the segment labels, in order: change, op (add, remove, edit), label_id, author, time,
+        undoes (the change an undo reverts) and the row it leaves (:meth:`SegmentLabels.history`)."""
+        from ..db.segments import SegmentLabels
+
+        return SegmentLabels(self.db).history()
+
+    @checked("export_labels")
+    def export_labels(self, out=None, *, format=..., label=...):
+        """The segment labels (``label``'s only, when given) as a file: ``format="csv"``, :meth:`segment_labels`'
+        columns; ``"babel"``, BABEL-style JSON (per document name, segments with start_t / end_t in seconds at the
+        document's rate and action names; :func:`mocapviz.db.segments.babel_json`). Written atomically to ``out``
+        (returned), or returned as bytes when ``out`` is None (a page's download)."""
+        from ..db.segments import SegmentLabels, exported
+        from ..store import atomic_write
+
+        data = exported(self.db, SegmentLabels(self.db).table(label), format)
+        if out is None:
+            return data
+        atomic_write(out, data)
+        return Path(out)
+
+    @checked("import_labels")
+    def import_labels(self, path, *, author=...) -> list[int]:
+        """The labels of a CSV or BABEL-style JSON file (:meth:`export_labels`' formats, read by
+        :func:`mocapviz.db.segments.read_labels`; documents matched by name) added with source ``imported``, all or
+        none; returns their new ids."""
+        from ..db.segments import SegmentLabels, read_labels
+
+        return SegmentLabels(self.db).add_many(read_labels(self.db, path), author=_author(author))
+
+    @checked("segment_labels")
+    def with_label(self, hits, *, label=...) -> pd.DataFrame:
+        """The rows of a hit table that overlap a stretch of ``label``: a segment labelled so (not a rejected hit;
+        :func:`mocapviz.db.segments.overlapping`: a frame in common) or a document whose file-name label is it;
+        ranked again, its attrs kept (``mocapviz search/find --label``)."""
+        from ..db.segments import POSITIVE, SegmentLabels, overlapping
+
+        if label is None:
+            raise ParameterError("with_label needs a label")
+        keep = overlapping(hits, SegmentLabels(self.db).table(label, POSITIVE))
+        if "label" in self.db.documents.columns:
+            file_label = self.db.documents.set_index("doc_id")["label"].astype("string")
+            keep |= (file_label.reindex(hits["doc_id"]) == label).fillna(False).to_numpy(bool)
+        kept = hits[keep].copy()
+        kept["rank"] = np.arange(1, len(kept) + 1)
+        kept.attrs = dict(hits.attrs)
+        return kept.reset_index(drop=True)
 
     def export(self, hits, out, *, format: str = "bvh", rig: str | None = None, search: str | None = None) -> list:
         """Every row of a hit table (or its CSV file) written into the folder ``out`` as motion files, all or
@@ -706,6 +805,13 @@ def _given_shards(db: MotionDB, shards, n_shards) -> list[np.ndarray]:
 def _why(exc: Exception) -> str:
     text = str(exc).splitlines()[0] if str(exc) else ""
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _author(author: str | None) -> str:
+    """The author of a label change: as given, else the operating system's user name."""
+    import getpass
+
+    return getpass.getuser() if author is None else author
 
 
 def checked_value(name: str, value):

@@ -15,6 +15,7 @@ import functools
 import inspect
 from dataclasses import dataclass, field, replace
 
+from .. import validation
 from ..errors import ParameterError
 from ..features import NUMERIC_SETS, RELATIONAL_SETS
 from ..validation import MIN_LENGTH, MIN_LENGTH_RANGE, count, number, one_of, parse_count, parse_names, parse_number
@@ -24,8 +25,9 @@ __all__ = ["PARAMETERS", "USE_DEFAULTS", "Parameter", "checked", "markdown", "pa
 
 @dataclass(frozen=True)
 class Parameter:
-    """One parameter: ``kind`` "int", "float", "bool", "choice" or "names" (a list of names or ints, checked by
-    the kernel that knows its options); ``low`` / ``high`` (closed unless ``low_open`` / ``high_open``) bound a
+    """One parameter: ``kind`` "int", "float", "bool", "choice", "names" (a list of names or ints, checked by
+    the kernel that knows its options) or "text" (a printable text of 1 to ``high`` characters, e.g. a segment
+    label's name); ``low`` / ``high`` (closed unless ``low_open`` / ``high_open``) bound a
     number, ``choices`` a choice; ``optional``: None is allowed (meaning ``none_means``).
 
     Examples
@@ -69,11 +71,15 @@ class Parameter:
             return bool(value)
         if self.kind == "choice":
             return one_of(str(value) if value is not None else value, self.name.replace("_", " "), self.choices)
+        if self.kind == "text":
+            return validation.text(value, name, int(self.high))
         return list(value)
 
     @property
     def bounds(self) -> str:
-        """A number's interval as text ("[1, inf)", "(0, 0.5)"), else ""."""
+        """A number's interval as text ("[1, inf)", "(0, 0.5)"), a text's length ("1 to 128 characters"), else ""."""
+        if self.kind == "text":
+            return f"1 to {self.high:g} printable characters"
         if self.kind not in ("int", "float") or (self.low is None and self.high is None):
             return ""
         lo = "(-inf" if self.low is None else f"{'(' if self.low_open else '['}{self.low:g}"
@@ -190,6 +196,15 @@ PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
        low=0.0, high=1.0, optional=True, none_means="each template's learned threshold"),
     _p("overlapping", "bool", False, "keep hits of a description that overlap"),
     _p("per_document", "bool", False, "kNN: one row per document, its nearest frame"),
+    _p("label", "text", None, "a segment label's name (the class of a stretch)", high=128, optional=True,
+       none_means="every label"),
+    _p("author", "text", None, "who made the change (recorded with it)", high=128, optional=True,
+       none_means="the user name of the operating system"),
+    _p("source", "choice", "manual", "where a segment label comes from (a rejected hit says the stretch is not of "
+       "its label)", choices=("manual", "accepted hit", "rejected hit", "imported")),  # db.segments.SOURCES
+    _p("note", "text", None, "a note kept with a segment label", high=1000, optional=True, none_means="no note"),
+    _p("label_format", "choice", "csv", "segment labels' file: CSV with the hit table's columns, or BABEL-style "
+       "JSON (per sequence, segments in seconds with action names)", choices=("csv", "babel"), flags=("--format",)),
 ]}
 """The table, by name."""
 
@@ -224,6 +239,12 @@ USES = {
     "find": {"template_cost": "template_cost", "overlapping": "overlapping"},
     "learn_template": {"relational_set": "relational_set", "max_examples": "max_examples", "iterations": "iterations"},
     "search_template": {"n_matches": "n_matches", "delta": "delta", "max_cost": "max_cost", "prefilter": "prefilter"},
+    "segment_labels": {"label": "label"},
+    "add_label": {"label": "label", "author": "author", "source": "source", "note": "note"},
+    "remove_label": {"author": "author"},
+    "undo_label": {"author": "author"},
+    "export_labels": {"format": "label_format", "label": "label"},
+    "import_labels": {"author": "author"},
 }  # fmt: skip
 """Each use case's keyword arguments and the declared parameter each one is (most have its name): the engine
 checks them (:func:`checked`), the command line offers them (:func:`add_options`, :func:`arguments`)."""

@@ -902,8 +902,9 @@ def classify(values: np.ndarray, templates, delta: float = DELTA) -> pd.DataFram
 
 def learn_class(db, label: str, actors=None, relational_set: str = "2006", values: np.ndarray | None = None,
                 iterations: int = ITERATIONS, group: str = "actor", by_group: bool = True,
-                max_examples: int | None = None) -> MotionTemplate:  # fmt: skip
-    """Learn the template of the documents of a MotionDB with ``label`` (of ``actors`` only, when given).
+                max_examples: int | None = None, segments: pd.DataFrame | None = None) -> MotionTemplate:  # fmt: skip
+    """Learn the template of the documents of a MotionDB with ``label`` (of ``actors`` only, when given), and of
+    the stretches labelled so (``segments``).
 
     Parameters
     ----------
@@ -930,12 +931,18 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
         last included). Learning grows faster than the examples (a class of 208 takes: 16 minutes; 16 of them: 2
         s), and a template of hundreds of takes of different styles cares for little more than what every take
         of the database shares. Default: all of them.
+    segments : pandas.DataFrame, optional
+        ``doc_id``, ``start``, ``end`` (frames of the document, half-open) of segment labels of the class
+        (:meth:`mocapviz.db.segments.SegmentLabels.table`): each stretch is an example beside the documents whose
+        file-name label is ``label`` (spread over with them by ``max_examples``), and their documents are no
+        negatives.
 
     Returns
     -------
     MotionTemplate
-        ``meta`` holds the relational set, the example doc ids, the class's documents (``class_documents``, more
-        than the examples with ``max_examples``), the actors, the database path and its
+        ``meta`` holds the relational set, the example doc ids, the class's documents and segments
+        (``class_documents``, more than the examples with ``max_examples``; of the examples, ``file_examples``
+        documents and ``segment_examples`` segments), the actors, the database path and its
         ``generation`` (``db.manifest["generation"]``: the state of the database it was learned from),
         ``groups`` when learned by group, and the learned ``threshold`` (:func:`separating_threshold` of the
         examples' costs, judged as unseen when learned by group, and the best costs of the documents of other
@@ -959,7 +966,7 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     """
     docs = db.documents
     labelled = docs["label"].astype("string").isin([str(label)]).to_numpy(bool)  # an unlabelled document: False
-    chosen = docs[labelled]
+    chosen = _class_examples(docs, labelled, segments)
     if actors is not None:
         if group not in docs.columns:
             raise ParameterError(f"{db.path}: the documents have no {group} column; leave actors out")
@@ -968,7 +975,7 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
         known = ", ".join(sorted(map(str, docs["label"].dropna().unique()))[:20])
         raise ParameterError(f"no document of {db.path} has label {label!r}"
                              + (f" and {group} in {list(actors)}" if actors is not None else "")
-                             + f"; labels: {known}")  # fmt: skip
+                             + f", nor any segment label; labels: {known}")  # fmt: skip
     of_class = len(chosen)
     if max_examples is not None and of_class > count(max_examples, "max_examples"):
         chosen = chosen.iloc[np.linspace(0, of_class - 1, max_examples).round().astype(np.int64)]
@@ -981,7 +988,7 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     if by_group and group in docs.columns and chosen[group].notna().all():
         groups = chosen[group].astype(str).tolist()
     template = learn_template(examples, names, str(label), iterations, groups=groups)
-    others = docs["label"].notna().to_numpy() & ~labelled
+    others = docs["label"].notna().to_numpy() & ~labelled & ~docs["doc_id"].isin(chosen["doc_id"]).to_numpy()
     if actors is not None:
         others &= docs[group].astype("string").isin([str(a) for a in actors]).to_numpy(bool)
     negatives = _negative_costs(template, values, docs[others])
@@ -989,10 +996,24 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     template.meta |= {"threshold": separating_threshold(positives, negatives), "negatives": len(negatives),
                       "nearest_negative": float(negatives.min()) if len(negatives) else None}  # fmt: skip
     template.meta |= {"relational_set": str(relational_set), "doc_ids": chosen["doc_id"].astype(int).tolist(),
-                      "class_documents": of_class,
+                      "class_documents": of_class, "segment_examples": int(chosen["segment"].sum()),
+                      "file_examples": int((~chosen["segment"]).sum()),
                      "database": str(db.path), "generation": db.manifest["generation"],
                      "actors": None if actors is None else [str(a) for a in actors]}
     return template
+
+
+def _class_examples(docs: pd.DataFrame, labelled: np.ndarray, segments: pd.DataFrame | None) -> pd.DataFrame:
+    """The examples of a class as rows of ``docs`` (``start``, ``n_frames``: database-wide frames of each example):
+    its file-labelled documents whole, then each segment's stretch (its document's row, narrowed), marked by a
+    ``segment`` column."""
+    whole = docs[labelled].assign(segment=False)
+    if segments is None or not len(segments):
+        return whole
+    rows = docs.set_index("doc_id", drop=False).loc[np.asarray(segments["doc_id"], np.int64)].reset_index(drop=True)
+    rows["start"] = rows["start"].to_numpy(np.int64) + np.asarray(segments["start"], np.int64)
+    rows["n_frames"] = np.asarray(segments["end"], np.int64) - np.asarray(segments["start"], np.int64)
+    return pd.concat([whole, rows.assign(segment=True)], ignore_index=True)
 
 
 def _negative_costs(template: MotionTemplate, values: np.ndarray, others: pd.DataFrame) -> np.ndarray:

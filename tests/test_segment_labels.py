@@ -1,0 +1,284 @@
+"""Segment labels (mocapviz/db/segments.py, the engine's label use cases, ``mocapviz labels``): the table is the log
+replayed and equals a plain in-memory model after any sequence of adds, removes and undos (hypothesis); 4 processes
+adding at once all land; a writer killed mid-way leaves a whole log; export -> import into another database gives
+the same labels; a template learned from segment labels finds its class in clips that carry no label of it."""
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mocapviz import Engine, MotionDB
+from mocapviz.cli import main
+from mocapviz.db.layout import labels_file
+from mocapviz.db.segments import SegmentLabels
+from mocapviz.errors import MotionDBError, ParameterError
+
+
+@pytest.fixture(scope="module")
+def demo_copy(tmp_path_factory):
+    """The demo database copied (labels are written into its folder)."""
+    return shutil.copytree(MotionDB.demo().path, tmp_path_factory.mktemp("labels") / "demo.mdb")
+
+
+@pytest.fixture
+def db(demo_copy, tmp_path):
+    """A fresh copy per test, without labels."""
+    return MotionDB.open(shutil.copytree(demo_copy, tmp_path / "demo.mdb"))
+
+
+def test_add_list_remove_undo_round_trip(db):
+    engine = Engine(db)
+    first = engine.add_label(45, frames=(82, 106), label="front kick", author="ann", note="right leg")
+    second = engine.add_label(45, frames=slice(132, 159), label="front kick", author="bob", source="accepted hit")
+    table = engine.segment_labels()
+    assert table[["label_id", "doc_id", "name", "start", "end", "frames", "author", "source"]].values.tolist() == [
+        [first, 45, "135_04", 82, 106, 24, "ann", "manual"], [second, 45, "135_04", 132, 159, 27, "bob", "accepted hit"]]
+    assert table["start_s"].tolist() == [82 / 30, 132 / 30] and table["note"].tolist() == ["right leg", ""]
+    before = engine.segment_labels()
+    engine.remove_label(first, author="bob")
+    assert engine.segment_labels()["label_id"].tolist() == [second]
+    engine.undo_label(author="bob")  # bob's last change: the remove
+    pd.testing.assert_frame_equal(engine.segment_labels(), before)  # author and time as they were
+    history = engine.label_history()
+    assert history["op"].tolist() == ["add", "add", "remove", "add"] and history["undoes"].tolist()[-1] == 3
+    assert history["author"].tolist() == ["ann", "bob", "bob", "bob"]
+    engine.undo_label(author="ann")  # ann's add
+    assert engine.segment_labels()["label_id"].tolist() == [second]
+
+
+@pytest.mark.parametrize(("doc", "frames", "label", "message"), [
+    (99, (0, 5), "kick", "no document 99"),
+    (45, (300, 400), "kick", "frames 300:400 are not a stretch of document 45 (0:329"),
+    (45, (5, 5), "kick", "frames 5:5"),
+    (45, (0, 5), "", "label must be a non-empty printable text"),
+    (45, (0, 5), "a\nb", "label must be a non-empty printable text"),
+    (45, (0, 5), "x" * 129, "at most 128 characters"),
+])  # fmt: skip
+def test_a_change_outside_the_database_is_refused_naming_the_value(db, doc, frames, label, message):
+    with pytest.raises(ParameterError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        Engine(db).add_label(doc, frames=frames, label=label, author="ann")
+    assert not labels_file(db.path).exists()
+
+
+def test_undo_is_refused_when_a_later_change_touched_the_label(db):
+    labels = SegmentLabels(db)
+    lid = labels.add(3, 0, 10, "hop", author="ann")
+    labels.edit(lid, author="bob", label="jump")
+    with pytest.raises(ParameterError, match="change 2 changed label 1 since"):
+        labels.undo(1, author="ann")
+    labels.undo(author="bob")
+    assert labels.table()["label"].tolist() == ["hop"]
+    with pytest.raises(ParameterError, match="change 2 is undone already"):
+        labels.undo(2, author="bob")
+
+
+class _Model:
+    """The plain in-memory model: a dict of rows, and each author's stack of (label_id, row before) to undo."""
+
+    def __init__(self):
+        self.rows, self.stack, self.next_id = {}, [], 1
+
+    def add(self, doc, start, end, label, author):
+        self.stack.append((self.next_id, None))
+        self.rows[self.next_id] = (doc, start, end, label, author)
+        self.next_id += 1
+
+    def remove(self, label_id):
+        self.stack.append((label_id, self.rows.pop(label_id)))
+
+    def undo(self):
+        label_id, row = self.stack.pop()
+        if row is None:
+            del self.rows[label_id]
+        else:
+            self.rows[label_id] = row
+
+
+_STEP = st.one_of(st.tuples(st.just("add"), st.integers(0, 55), st.integers(0, 15), st.integers(1, 15),
+                            st.sampled_from(["kick", "hop", "front kick"])),
+                  st.tuples(st.just("remove"), st.integers(0, 10)), st.tuples(st.just("undo")))  # fmt: skip
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(steps=st.lists(_STEP, max_size=12))
+def test_any_sequence_of_changes_equals_the_in_memory_model(db, steps):
+    shutil.rmtree(labels_file(db.path).parent, ignore_errors=True)
+    labels, model = SegmentLabels(db), _Model()
+    for step in steps:
+        if step[0] == "add":
+            _, doc, start, length, label = step
+            labels.add(doc, start, start + length, label, author="ann")
+            model.add(doc, start, start + length, label, "ann")
+        elif step[0] == "remove" and model.rows:
+            label_id = sorted(model.rows)[step[1] % len(model.rows)]
+            labels.remove(label_id, author="ann")
+            model.remove(label_id)
+        elif step[0] == "undo" and model.stack:
+            before_last = _previous_state(labels)
+            labels.undo(author="ann")
+            model.undo()
+            pd.testing.assert_frame_equal(labels.table(), before_last)  # exactly, author and time included
+        table = labels.table()
+        assert {r.label_id: (r.doc_id, r.start, r.end, r.label, r.author) for r in table.itertuples()} == model.rows
+        assert len(labels.history()) == len(labels.changes())
+
+
+def _previous_state(labels: SegmentLabels) -> pd.DataFrame:
+    """The table before the change an undo would revert now: the log without that change's effect, replayed by
+    hand (the changes before it, then the ones after it, which touched other labels)."""
+    log = labels.changes()
+    undone = {c["undoes"] for c in log if c.get("undoes") is not None}
+    k = next(c["change"] for c in reversed(log) if c.get("undoes") is None and c["change"] not in undone)
+    from mocapviz.db.segments import _frame, _replay
+
+    state = _replay(log)[0]
+    before = _replay(log[: k - 1])[0]
+    label_id = log[k - 1]["label_id"]
+    if label_id in before:
+        state[label_id] = before[label_id]
+    else:
+        state.pop(label_id, None)
+    return _frame(state)
+
+
+def _adder(path: str, author: str, n: int) -> None:
+    db = MotionDB.open(path)
+    labels = SegmentLabels(db)
+    for i in range(n):
+        labels.add(i % 50, 0, 2, f"label {i}", author=author)
+
+
+def test_four_processes_adding_at_once_all_land(db):
+    t0 = time.perf_counter()
+    context = multiprocessing.get_context("spawn")
+    writers = [context.Process(target=_adder, args=(str(db.path), f"writer{w}", 50)) for w in range(4)]
+    for p in writers:
+        p.start()
+    for p in writers:
+        p.join(120)
+        assert p.exitcode == 0
+    table = SegmentLabels(db).table()
+    assert len(table) == 200 and sorted(table["label_id"]) == list(range(1, 201))
+    assert table.groupby("author").size().to_dict() == {f"writer{w}": 50 for w in range(4)}
+    for w in range(4):  # each writer's labels in its own order
+        assert table[table["author"] == f"writer{w}"]["label"].tolist() == [f"label {i}" for i in range(50)]
+    assert [c["change"] for c in SegmentLabels(db).changes()] == list(range(1, 201))
+    print(f"4 x 50 adds: {time.perf_counter() - t0:.1f} s")
+
+
+def test_a_writer_killed_mid_way_leaves_a_whole_log(db):
+    script = ("import sys; from mocapviz import MotionDB; from mocapviz.db.segments import SegmentLabels\n"
+              "labels = SegmentLabels(MotionDB.open(sys.argv[1]))\n"
+              "for i in range(100000): labels.add(i % 50, 0, 3, 'x' * 100, author='killed', note='n' * 900)\n")
+    writer = subprocess.Popen([sys.executable, "-c", script, str(db.path)], env=os.environ.copy())
+    path, seen = labels_file(db.path), 0
+    try:
+        deadline = time.monotonic() + 60
+        while seen < 30 and time.monotonic() < deadline:  # readers meanwhile always see a whole log
+            try:
+                seen = len(SegmentLabels(db).changes())
+            except FileNotFoundError:
+                pass
+        writer.send_signal(signal.SIGKILL)
+        writer.wait()
+    finally:
+        if writer.poll() is None:
+            writer.kill()
+    assert seen >= 30
+    labels = SegmentLabels(db)
+    n = len(labels.changes())
+    assert n >= seen and [c["change"] for c in labels.changes()] == list(range(1, n + 1))
+    labels.add(0, 0, 2, "after", author="ann")  # the lock was released with the process; a temporary file is ignored
+    assert len(labels.table()) == n + 1
+    path.write_bytes(path.read_bytes().replace(b'"killed"', b'"kilLed"', 1))  # damage: refused, not misread
+    with pytest.raises(MotionDBError, match="sha256"):
+        labels.table()
+
+
+@pytest.mark.parametrize("format", ["csv", "babel"])
+def test_export_then_import_into_another_database_gives_the_same_labels(db, tmp_path, format):
+    engine = Engine(db)
+    engine.add_label(45, frames=(82, 106), label="front kick", author="ann", note="right")
+    engine.add_label(5, frames=(3, 37), label="kick", author="bob")
+    engine.add_label(52, frames=(80, 100), label="side kick", author="bob", source="rejected hit")
+    out = engine.export_labels(tmp_path / f"labels.{'json' if format == 'babel' else 'csv'}", format=format)
+    # another database holding the same documents in another order: labels follow the names, not the doc ids
+    other = MotionDB.ingest([db.document(d)["path"] for d in (52, 5, 45)], tmp_path / "other.mdb", fps=30,
+                            progress=False)  # fmt: skip
+    into = Engine(other)
+    ids = into.import_labels(out, author="carol")
+    got = into.segment_labels()
+    kept = engine.segment_labels()
+    if format == "babel":  # a rejected hit is no action of BABEL's
+        kept = kept[kept["source"] != "rejected hit"]
+        data = json.loads(out.read_text())
+        assert data["135_04"]["frame_ann"]["labels"][0]["start_t"] == pytest.approx(82 / 30)
+        assert data["135_04"]["dur"] == pytest.approx(329 / 30) and data["135_04"]["fps"] == 30.0
+    assert len(ids) == len(kept) and set(got["author"]) == {"carol"} and set(got["source"]) == {"imported"}
+    columns = ["name", "start", "end", "label"]
+    assert sorted(got[columns].values.tolist()) == sorted(kept[columns].values.tolist())
+    assert got["doc_id"].tolist() != kept["doc_id"].tolist()
+
+
+def test_the_command_line(db, tmp_path, capsys):
+    path = str(db.path)
+    assert main(["labels", path, "add", "--doc", "45", "--frames", "82:106", "--label", "front kick", "--author",
+                 "ann"]) == 0  # fmt: skip
+    assert main(["labels", path, "add", "--doc", "45", "--frames", "132:159", "--label", "front kick"]) == 0
+    assert main(["labels", path, "add", "--doc", "45", "--frames", "300:400", "--label", "x"]) == 1
+    assert "frames 300:400 are not a stretch of document 45" in capsys.readouterr().err
+    assert main(["labels", path, "list", "--csv", str(tmp_path / "l.csv")]) == 0
+    table = pd.read_csv(tmp_path / "l.csv")
+    import getpass
+
+    assert table["author"].tolist() == ["ann", getpass.getuser()] and table["end"].tolist() == [106, 159]
+    assert main(["labels", path, "remove", "1", "--author", "bob"]) == 0
+    assert main(["labels", path, "undo", "--author", "bob"]) == 0
+    assert "change 3 undone by change 4" in capsys.readouterr().out
+    assert main(["labels", path, "history"]) == 0 and "4 changes" in capsys.readouterr().out
+    assert main(["labels", path, "export", "--format", "babel", "--out", str(tmp_path / "l.json")]) == 0
+    assert main(["labels", path, "import", str(tmp_path / "l.json"), "--author", "carol"]) == 0
+    assert len(Engine(db).segment_labels(label="front kick")) == 4
+
+
+def test_hits_filtered_by_label(db):
+    engine = Engine(db)
+    engine.add_label(45, frames=(82, 106), label="kick", author="ann")
+    hits = pd.DataFrame({"rank": [1, 2, 3, 4], "doc_id": [45, 45, 5, 16], "start": [100, 0, 0, 0],
+                         "end": [120, 82, 10, 10]})  # fmt: skip
+    assert engine.with_label(hits, label="kick")[["rank", "doc_id", "start"]].values.tolist() == [[1, 45, 100]]
+    kept = engine.with_label(hits, label="kickLFront1Reps")  # a file-name label: its documents
+    assert kept[["rank", "doc_id"]].values.tolist() == [[1, 5], [2, 16]]
+
+
+@pytest.mark.slow
+def test_a_template_learned_from_segment_labels_finds_its_class_where_nothing_is_labelled(hdm05_db30, tmp_path):
+    """The left front kicks of 3 actors (bd, dg, mm) labelled as segments "front kick", a name no file has: the
+    template learned from them alone finds the other 2 actors' kicks (bk, tr), which carry no label of that name,
+    and under its learned threshold nothing else (the file-name labels, unseen by the learning, are the oracle)."""
+    db = MotionDB.open(shutil.copytree(hdm05_db30.path, tmp_path / "hdm.mdb"))
+    engine = Engine(db)
+    docs = db.documents
+    kicks = docs[docs["label"] == "kickLFront1Reps"]
+    taught = kicks[kicks["actor"].isin(["bd", "dg", "mm"])]
+    engine.add_labels(taught.assign(start=0, end=taught["n_frames"]), label="front kick", author="ann")
+    template = engine.learn_template("front kick")
+    assert (template.meta["segment_examples"], template.meta["file_examples"]) == (16, 0)
+    hits = engine.search_template(template, n_matches=40)
+    under = hits[hits["normalised_cost"] <= template.meta["threshold"]]
+    new = under[~under["doc_id"].isin(taught["doc_id"])]
+    assert set(docs.set_index("doc_id").loc[new["doc_id"], "label"]) == {"kickLFront1Reps"}  # no other class
+    assert len(new) >= 5  # of the 11 kicks of bk and tr (measured: 6)
+    assert np.isin(new["doc_id"], kicks["doc_id"]).all()
