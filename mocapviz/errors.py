@@ -152,3 +152,8 @@ class SchedulerError(ClusterError, OSError):
     answers there in time, what answers is not a Dask scheduler (a web server, a Dask worker, a silent peer), or it
     has no worker. Raised by :func:`mocapviz.parallel.dask_client` within its ``timeout``; the message starts with
     "cannot reach dask scheduler at ADDRESS". An :class:`OSError` too, as the connection errors it replaces."""
+
+
+class UsersFileError(MocapvizError, ValueError):
+    """The users file of ``mocapviz serve --auth`` (``mocapviz users FILE ...``, :mod:`mocapviz.users`) is missing,
+    not JSON, of another format or version, or holds a record that is not a user's; the message names the file."""

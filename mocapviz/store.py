@@ -274,7 +274,8 @@ def atomic_folder(target: str | os.PathLike, replace: bool = True) -> Iterator[P
 
 
 @contextlib.contextmanager
-def locked(folder: str | os.PathLike, shared: bool = False, wait: bool = True, what: str = "") -> Iterator[None]:
+def locked(folder: str | os.PathLike, shared: bool = False, wait: bool = True, what: str = "",
+           name: str = LOCK_FILE) -> Iterator[None]:
     """Hold the advisory lock of ``folder`` (``flock`` on ``<folder>/.lock``) for the block.
 
     Parameters
@@ -287,6 +288,9 @@ def locked(folder: str | os.PathLike, shared: bool = False, wait: bool = True, w
         Wait for another holder to finish (default), or fail at once.
     what : str
         What the folder is, for the error message (default: the folder's path).
+    name : str
+        The lock file's name in ``folder``: another than ``.lock`` for a lock of one file in a folder of other
+        things (the users file of ``mocapviz serve --auth``: ``.<its name>.lock``).
 
     Yields
     ------
@@ -299,7 +303,7 @@ def locked(folder: str | os.PathLike, shared: bool = False, wait: bool = True, w
         ``wait=False`` and another process holds the lock.
     """
     folder = Path(folder)
-    with open(folder / LOCK_FILE, "a") as fh:
+    with open(folder / name, "a") as fh:
         mode = fcntl.LOCK_SH if shared else fcntl.LOCK_EX
         try:
             fcntl.flock(fh, mode if wait else mode | fcntl.LOCK_NB)
