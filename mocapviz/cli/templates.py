@@ -21,9 +21,10 @@ def run_template_learn(args) -> None:
     db = engine.db
     docs = db.documents
     try:
-        one_of(args.label, "label", sorted(map(str, docs["label"].dropna().unique())))
+        one_of(args.label, "label", sorted({*map(str, docs["label"].dropna().unique()),
+                                            *engine.segment_labels()["label"]}))  # fmt: skip
     except ParameterError as exc:
-        raise ParameterError(f"--label: {exc}") from None
+        raise ParameterError(f"--label: {exc} (file-name labels and segment labels)") from None
     actors = None
     if args.actors is not None:
         if "actor" not in docs.columns:
@@ -39,11 +40,13 @@ def run_template_learn(args) -> None:
     delta = default("search_template", "delta")
     dont_care = float((template.quantised(delta) == DONT_CARE).mean())
     n = template.n_examples
+    meta = template.meta
     print(f"template {template.label!r} of {db.path} ({', '.join(actors) if actors else 'every actor'}): "
-          f"{plural(n, 'example')}, {plural(len(template.values), 'frame')} x {len(template.features)} features of the "
+          f"{plural(n, 'example')} ({plural(meta['file_examples'], 'document')} with that file-name label, "
+          f"{plural(meta['segment_examples'], 'segment label')}), {plural(len(template.values), 'frame')} x "
+          f"{len(template.features)} features of the "
           f"{args.relational_set} set, {dont_care:.0%} don't care (δ = {delta}), {plural(template.iterations, 'iteration')}, "
           f"{seconds:.1f} s")  # fmt: skip
-    meta = template.meta
     print(f"its examples' own best matches cost up to {meta['example_threshold']:.3f} per frame; its learned threshold "
           f"is {meta['threshold']:.3f} (`--max-cost {meta['threshold']:.3f}`: the cost that best separates them from "
           f"the {meta['negatives']} clips of other labels, the nearest of which costs "

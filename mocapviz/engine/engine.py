@@ -380,13 +380,15 @@ class Engine:
 
     @checked("query")
     def query(self, example, *, frames=None, features=..., mode=..., mismatches=..., relational_set=...,
-              allowed=...) -> pd.DataFrame:  # fmt: skip
+              allowed=..., exclude_document=...) -> pd.DataFrame:  # fmt: skip
         """Query by example (Müller et al. 2005 §5): the stretches whose feature progression on ``features``
         agrees with the example's (``mode``: exact, fuzzy, adaptive or mismatch with up to ``mismatches``
         disagreeing segments, at ``allowed`` when given), ranked by score, then doc id and start, the segments
-        numbered in the whole database. ``example``: a doc id, a Motion or a motion file; ``frames``: [a, b)."""
+        numbered in the whole database. ``example``: a doc id, a Motion or a motion file; ``frames``: [a, b);
+        ``exclude_document``: leave out the hits in the example's own document (a doc id's)."""
         from ..relational.query import check_example_query, relational_example
 
+        own = int(example) if exclude_document and _is_doc_id(example) else None
         example = self._motion(example, frames)
         check_example_query(self.db, example, features, mode, mismatches, relational_set)
         t0 = time.perf_counter()
@@ -397,6 +399,9 @@ class Engine:
             for column in ("first_segment", "last_segment"):
                 pack["columns"][column] = pack["columns"][column].astype(np.int64) + offset
             offset += pack["attrs"].pop("group_segments")
+            if own is not None:
+                keep = pack["columns"]["doc_id"] != own
+                pack["columns"] = {c: v[keep] for c, v in pack["columns"].items()}
         table = self._merged(packs, ["score", "doc_id", "start"], None, t0)
         table.attrs["group_segments"] = offset
         return table
@@ -412,7 +417,7 @@ class Engine:
         from ..relational.suggestion import suggest_query
 
         motion, own = self._motion(example, frames), None
-        if isinstance(example, (int, np.integer)) and not isinstance(example, bool):
+        if _is_doc_id(example):
             own = int(np.flatnonzero(self.db.documents["doc_id"].to_numpy() == int(example))[0])
         values, names, _, _ = relational_example(motion, relational_set)
         return suggest_query(values, names, self.indexes(relational_set), relational_set, own_row=own)
@@ -575,6 +580,25 @@ class Engine:
         from ..db.segments import SegmentLabels, read_labels
 
         return SegmentLabels(self.db).add_many(read_labels(self.db, path), author=_author(author))
+
+    @checked("segment_labels")
+    def label_quality(self, hits, *, label=...) -> dict:
+        """How well a ranked hit table finds ``label``, judged by its segment labels (manual, accepted, imported)
+        and the documents of that file-name label: a hit is relevant when it overlaps an item not found by an
+        earlier hit (:func:`mocapviz.experiments.evaluation.segment_relevance`). Returns ``ranking`` (with
+        ``precision`` and ``recall`` after each rank), ``relevant`` (the items), ``precision`` (over every hit),
+        ``average_precision``."""
+        from ..db.segments import POSITIVE, SegmentLabels
+        from ..experiments.evaluation import average_precision, precision_recall, segment_relevance
+
+        if label is None:
+            raise ParameterError("label_quality needs a label")
+        docs = self.db.documents
+        file_labels = docs.set_index("doc_id")["label"].astype("string") if "label" in docs.columns else None
+        ranking, n = segment_relevance(hits, SegmentLabels(self.db).table(label, POSITIVE), label, file_labels)
+        return {"ranking": precision_recall(ranking, n), "relevant": n,
+                "precision": float(ranking["relevant"].mean()) if len(ranking) else float("nan"),
+                "average_precision": average_precision(ranking, n)}  # fmt: skip
 
     @checked("segment_labels")
     def with_label(self, hits, *, label=...) -> pd.DataFrame:
@@ -777,6 +801,11 @@ class _ShardedIndex:
         distances, frames = self.sharded.knn(x, k=k, numeric_set=self.numeric_set, radius=radius, eps=eps,
                                              exclude=exclude)
         return (distances[0], frames[0]) if np.ndim(x) == 1 else (distances, frames)
+
+
+def _is_doc_id(example) -> bool:
+    """Whether a use case's ``example`` names a document of the database (an int), not a Motion or a file."""
+    return isinstance(example, (int, np.integer)) and not isinstance(example, bool)
 
 
 def _work_added(table: pd.DataFrame, packs: list) -> pd.DataFrame:

@@ -14,6 +14,7 @@ one). It is judged against the query document's label:
   stopping early). mAP is the mean AP over queries; R-precision is precision@(number of relevant documents).
 
 relevance        ranked document ids -> the judged ranking (doc_id, relevant) without the query document.
+segment_relevance  a ranked hit table judged against segment labels (and file-name labels) of a class.
 precision_recall that ranking -> precision and recall after every rank (the curve of the dashboard and notebooks).
 average_precision, precision_at   single numbers from a judged ranking.
 """
@@ -91,6 +92,57 @@ def relevance(ranked_docs, labels: pd.Series, query_doc: int | None, candidates=
         relevant = relevant & np.isin(docs, np.asarray(pool.index))  # (to_numpy may give a read-only view)
     ranking = pd.DataFrame({"rank": np.arange(1, len(docs) + 1), "doc_id": docs, "relevant": relevant})
     return ranking, n_relevant
+
+
+def segment_relevance(hits: pd.DataFrame, segments: pd.DataFrame, label, labels: pd.Series | None = None
+                      ) -> tuple[pd.DataFrame, int]:  # fmt: skip
+    """Judge a ranked hit table by segment labels: the relevant items are the segments of ``label`` (and the
+    documents whose file-name label is ``label``); a hit is relevant when it overlaps (at least one frame in common,
+    half-open) a relevant item that no earlier hit overlapped, which it then counts as found. So every item counts
+    once, as a document does in :func:`relevance`, and precision, recall and AP keep their meaning.
+
+    Parameters
+    ----------
+    hits : pandas.DataFrame
+        ``doc_id``, ``start``, ``end`` (a hit table), best first.
+    segments : pandas.DataFrame
+        ``doc_id``, ``start``, ``end`` of the segments of the class (say, the manual, accepted and imported ones:
+        :data:`mocapviz.db.segments.POSITIVE`).
+    label : str
+        The class (for ``labels``).
+    labels : pandas.Series, optional
+        File-name label of every document, by doc_id: the documents of ``label`` are relevant items, whole.
+
+    Returns
+    -------
+    ranking : pandas.DataFrame, ``rank``, ``doc_id``, ``start``, ``end``, ``relevant`` per hit.
+    n_relevant : int, the relevant items.
+
+    Examples
+    --------
+    >>> hits = pd.DataFrame({"doc_id": [4, 4, 4, 9], "start": [0, 5, 50, 0], "end": [10, 12, 60, 30]})
+    >>> segments = pd.DataFrame({"doc_id": [4, 4], "start": [8, 100], "end": [20, 120]})
+    >>> ranking, n = segment_relevance(hits, segments, "kick")
+    >>> ranking["relevant"].tolist(), n  # the second hit overlaps the segment the first found already
+    ([True, False, False, False], 2)
+    """
+    items = [(int(d), int(a), int(b)) for d, a, b in zip(segments["doc_id"], segments["start"], segments["end"])]
+    if labels is not None:
+        items += [(int(d), 0, np.iinfo(np.int64).max) for d in labels.index[labels.eq(label).fillna(False).to_numpy(bool)]]
+    found = np.zeros(len(items), dtype=bool)
+    by_doc: dict = {}
+    for i, (d, _, _) in enumerate(items):
+        by_doc.setdefault(d, []).append(i)
+    relevant = []
+    for d, a, b in zip(hits["doc_id"], hits["start"], hits["end"]):
+        fresh = [i for i in by_doc.get(int(d), []) if not found[i] and items[i][1] < b and a < items[i][2]]
+        if fresh:
+            found[fresh[0]] = True
+        relevant.append(bool(fresh))
+    ranking = pd.DataFrame({"rank": np.arange(1, len(hits) + 1), "doc_id": np.asarray(hits["doc_id"], np.int64),
+                            "start": np.asarray(hits["start"], np.int64), "end": np.asarray(hits["end"], np.int64),
+                            "relevant": np.array(relevant, dtype=bool)})  # fmt: skip
+    return ranking, len(items)
 
 
 def precision_recall(ranking: pd.DataFrame, n_relevant: int) -> pd.DataFrame:
