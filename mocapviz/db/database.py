@@ -41,7 +41,7 @@ import pandas as pd
 
 from .. import store
 from ..checked_map import open_checked
-from ..errors import MotionDBError, ParameterError, UnknownKeyError
+from ..errors import MotionDBError, ParameterError, StaleDataError, UnknownKeyError
 from ..motion import Motion
 from ..motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
 from ..store import atomic_file, atomic_write, check_format, stamp
@@ -331,6 +331,61 @@ class MotionDB:
         starts = self.documents["start"].to_numpy()
         idx = np.searchsorted(starts, np.asarray(frames), side="right") - 1
         return self.documents["doc_id"].to_numpy()[idx]
+
+    def prefix_digest(self, n_documents: int) -> str:
+        """sha256 of the first ``n_documents`` documents in storage order (their ids, frame counts, rates and the
+        sha256 of their files): what derived data record of the documents they were computed from, so that after
+        an ingest (which only appends documents) they can be extended with the new ones rather than rebuilt.
+
+        Parameters
+        ----------
+        n_documents : int
+            Documents counted from the first, 0 <= n_documents <= len(self).
+
+        Returns
+        -------
+        str
+            64 hex digits; equal for two generations whose first ``n_documents`` documents are the same.
+
+        Examples
+        --------
+        >>> db = MotionDB.sample()
+        >>> db.prefix_digest(3) == db.prefix_digest(3) != db.prefix_digest(4)
+        True
+        """
+        docs = self.documents.sort_values("start").iloc[: int(n_documents)]
+        h = hashlib.sha256()
+        for row in docs[["doc_id", "n_frames", "fps", "sha256"]].itertuples(index=False):
+            h.update(f"{int(row.doc_id)}|{int(row.n_frames)}|{float(row.fps)!r}|{row.sha256}\n".encode())
+        return h.hexdigest()
+
+    def added_since(self, n_documents, n_frames, digest) -> np.ndarray:
+        """The documents appended after those derived data were computed from (their :meth:`prefix_digest`).
+
+        Parameters
+        ----------
+        n_documents, n_frames : int
+            The documents and frames the derived data cover (as recorded with them).
+        digest : str
+            Their :meth:`prefix_digest` as recorded.
+
+        Returns
+        -------
+        np.ndarray [shape=(n,)], int64
+            The doc ids after the first ``n_documents``, in storage order (empty when nothing was added).
+
+        Raises
+        ------
+        StaleDataError
+            The derived data were not computed from the first documents of this database (another database, an
+            older record without the digest, or more documents than it holds): they must be computed again whole.
+        """
+        docs = self.documents.sort_values("start")
+        if not isinstance(n_documents, int) or not 0 <= n_documents <= len(docs) or digest is None \
+                or int(docs["n_frames"].iloc[:n_documents].sum()) != n_frames or self.prefix_digest(n_documents) != digest:
+            raise StaleDataError(f"{self.path}: derived data computed from other documents than the first "
+                                 f"{n_documents} of the database; compute them again")  # fmt: skip
+        return docs["doc_id"].to_numpy(np.int64)[n_documents:]
 
     def select(self, **criteria) -> pd.DataFrame:
         """Documents whose columns match: ``db.select(label="kickLFront1Reps", actor=["bd", "mm"])``.

@@ -1,12 +1,14 @@
 """The engine: one object over a MotionDB (:class:`Engine`) through which every front asks every use case, its
 database split into shards in this process or on a Dask cluster (:mod:`~mocapviz.engine.shard`), every parameter
-declared once (:mod:`~mocapviz.engine.parameters`), and what the fronts may use of the library (:mod:`~.library`)."""
+declared once (:mod:`~mocapviz.engine.parameters`), its stored derived data kept up to date after an ingest
+(:mod:`~.derived`), and what the fronts may use of the library (:mod:`~.library`)."""
 from __future__ import annotations
 
 from .._lazy import lazy_exports
 
 __getattr__, __dir__ = lazy_exports(__name__, {"Engine": ".engine", "ShardedDB": ".engine", "Shard": ".shard",
                                                "PARAMETERS": ".parameters", "Parameter": ".parameters",
+                                               "stored_sets": ".derived", "update_derived": ".derived",
                                                **dict.fromkeys([
     # library.py's names: what the fronts (the runners) may use of the library below the engine
     "CANONICAL_JOINTS", "CANONICAL_PARENTS", "DEFAULT_K", "DELTA", "DELTA_RANGE", "DONT_CARE", "Description",

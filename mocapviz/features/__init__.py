@@ -12,8 +12,9 @@ window_offsets    frame offsets of the windowed sets' samples (0.3 s window) at 
 fit_pca           PCAModel of body-frame poses of a reference set (the Fp baselines, §3.1).
 PCAModel          mean, principal axes, variances; project / reconstruct; save / load (.npz).
 store_numeric     compute numeric sets of a MotionDB and store them in <db>/features/.
+extend_numeric    stored numeric sets extended with the documents appended since (after an ingest).
 load_numeric      a stored numeric set, memory-mapped (MotionDBError when missing or stale).
-numeric_of        a MotionDB's numeric set: stored when current, else computed.
+numeric_of        a MotionDB's numeric set: stored when current, else extended, else computed.
 NUMERIC_SETS      the numeric feature set names.
 
 The set names are defined here and the rest is imported when first used (``mocapviz._lazy``): the command line's
@@ -27,7 +28,7 @@ RELATIONAL_SETS = ("2005", "2006")
 """The relational feature sets: Müller, Röder & Clausen 2005 (31 features) and Müller & Röder 2006 (39)."""
 
 __getattr__, __dir__ = lazy_exports(__name__, {
-    **dict.fromkeys(["PCAModel", "fit_pca", "load_numeric", "numeric_columns", "numeric_features", "numeric_of",
+    **dict.fromkeys(["PCAModel", "extend_numeric", "fit_pca", "load_numeric", "numeric_columns", "numeric_features", "numeric_of",
                      "store_numeric", "window_offsets"], ".numeric"),
     **dict.fromkeys(["feature_groups", "feature_names", "feature_table", "relational_features"], ".relational"),
     "NUMERIC_SETS": ".numeric", "RELATIONAL_SETS": ".relational",
@@ -37,6 +38,7 @@ __all__ = [
     "NUMERIC_SETS",
     "RELATIONAL_SETS",
     "PCAModel",
+    "extend_numeric",
     "feature_groups",
     "feature_names",
     "feature_table",

@@ -12,6 +12,7 @@ window_offsets    the frame offsets of the windowed sets' samples at a frame rat
 fit_pca           PCAModel of body-frame poses of a reference set (the Fp_n baselines).
 PCAModel          mean, principal axes and variances; project / reconstruct; save / load as .npz.
 store_numeric     compute feature sets of a MotionDB and store them beside it (``<db>/features/``).
+extend_numeric    stored sets of an earlier generation extended with the documents appended since.
 load_numeric      a stored set, memory-mapped; MotionDBError when missing or stale.
 numeric_of        a MotionDB's set: the stored one when current, else computed (nothing written).
 default_pca       a MotionDB's PCA reference: its stored pca.npz, else fitted on it.
@@ -85,6 +86,7 @@ __all__ = [
     "NUMERIC_SETS",
     "PCAModel",
     "default_pca",
+    "extend_numeric",
     "fit_pca",
     "load_numeric",
     "numeric_columns",
@@ -664,39 +666,130 @@ def _store_numeric(db: MotionDB, specs: dict, pca: PCAModel | None, progress: bo
                 "n_frames": pca.n_frames,
                 "fitted_on_this_database": fitted_here,
             }
-    fps_values = sorted({float(f) for f in db.documents["fps"]})
     for name, spec in specs.items():
-        data_path, header_path = layout.numeric_data(db.path, name), layout.numeric_header(db.path, name)
-        header = {
-            **stamp(_HEADER_FORMAT, _HEADER_VERSION),
-            "set": name,
-            "dims": spec.dims,
-            "dtype": "float32",
-            "generation": db.manifest["generation"],
-            "n_frames": db.n_frames,
-            "n_documents": len(db),
-            "columns": numeric_columns(name),
-            "window": None
-            if spec.samples == 1
-            else {
-                "seconds": WINDOW_SECONDS,
-                "samples": spec.samples,
-                "offsets_frames": {f"{f:g}": window_offsets(spec.samples, f).tolist() for f in fps_values},
-            },
-            "pca": pca_header if spec.pcs else None,
-            "paper": "Krüger, Tautges, Weber, Zinke 2010, §3.2" if not spec.pcs else "Krüger et al. 2010, §3.1",
-        }
-        with temporary_file(data_path) as tmp:
-            out = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.float32, shape=(db.n_frames, spec.dims))
-            _fill(db, name, pca, out, progress, threads, client)
-            out.flush()
-            del out
-            header["data"] = fingerprint(tmp)
-            with locked(folder):  # readers pair a header with its data under the shared lock
-                header_path.unlink(missing_ok=True)  # no header = missing: never an old header on new data
-                commit(tmp, data_path)
-                atomic_write(header_path, json.dumps(header, indent=1).encode())
+        _write_set(db, name, _header(db, name, pca_header if spec.pcs else None),
+                   lambda out, name=name: _fill(db, name, pca, out, progress, threads, client))
     return {name: load_numeric(db, name) for name in names}
+
+
+def _header(db: MotionDB, numeric_set: str, pca_header: dict | None) -> dict:
+    """The header of a numeric set of ``db`` as stored (without its data file's fingerprint): the database's
+    generation, frames and documents it describes (their :meth:`~mocapviz.db.database.MotionDB.prefix_digest`, so
+    that :func:`extend_numeric` can tell an appended database), columns, window offsets per frame rate, the PCA."""
+    spec = _spec(numeric_set)
+    fps_values = sorted({float(f) for f in db.documents["fps"]})
+    return {
+        **stamp(_HEADER_FORMAT, _HEADER_VERSION),
+        "set": numeric_set,
+        "dims": spec.dims,
+        "dtype": "float32",
+        "generation": db.manifest["generation"],
+        "n_frames": db.n_frames,
+        "n_documents": len(db),
+        "documents": db.prefix_digest(len(db)),
+        "columns": numeric_columns(numeric_set),
+        "window": None
+        if spec.samples == 1
+        else {
+            "seconds": WINDOW_SECONDS,
+            "samples": spec.samples,
+            "offsets_frames": {f"{f:g}": window_offsets(spec.samples, f).tolist() for f in fps_values},
+        },
+        "pca": pca_header,
+        "paper": "Krüger, Tautges, Weber, Zinke 2010, §3.2" if not spec.pcs else "Krüger et al. 2010, §3.1",
+    }
+
+
+def _write_set(db: MotionDB, numeric_set: str, header: dict, fill: Callable[[np.ndarray], None]) -> None:
+    """Store a numeric set: ``fill(out)`` writes the (N, d) values into a new temporary file, which then replaces
+    the data file and its header together, under the features' lock (a reader's memory map of the old file stays
+    valid)."""
+    data_path, header_path = layout.numeric_data(db.path, numeric_set), layout.numeric_header(db.path, numeric_set)
+    with temporary_file(data_path) as tmp:
+        out = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.float32, shape=(db.n_frames, header["dims"]))
+        fill(out)
+        out.flush()
+        del out
+        header["data"] = fingerprint(tmp)
+        with locked(header_path.parent):  # readers pair a header with its data under the shared lock
+            header_path.unlink(missing_ok=True)  # no header = missing: never an old header on new data
+            commit(tmp, data_path)
+            atomic_write(header_path, json.dumps(header, indent=1).encode())
+
+
+def extend_numeric(db: MotionDB, numeric_sets=None, progress: bool = False, threads: int | None = None
+                   ) -> dict[str, np.ndarray]:  # fmt: skip
+    """Stored numeric sets of an earlier generation of a MotionDB brought up to date incrementally: only the
+    documents appended since they were stored are computed (a frame's values read its own document only), their
+    rows appended to the stored ones, the header's generation advanced. Equal to :func:`store_numeric` of the whole
+    database; an Fp set keeps the stored PCA model (``pca.npz``, the reference it was computed with, even when it
+    was fitted on an earlier generation of this database: ``mocapviz features DB`` fits it again).
+
+    Parameters
+    ----------
+    db : MotionDB
+        The database, grown by an ingest since the sets were stored; its folder writable.
+    numeric_sets : str or list of str, optional
+        Default: every stored set (:func:`mocapviz.db.layout.numeric_sets`).
+    progress : bool
+        Progress bar over the new documents.
+    threads : int, optional
+        Threads over batches of the new documents.
+
+    Returns
+    -------
+    dict
+        Set name -> np.ndarray [shape=(N, d)], float32 memory map of the stored file (:func:`load_numeric`).
+
+    Raises
+    ------
+    mocapviz.MotionDBError
+        A set not stored, or stored for other documents than the first of this database (another database, one
+        stored before headers recorded their documents, or its PCA model replaced: a
+        :class:`~mocapviz.errors.StaleDataError`); store it whole (:func:`store_numeric`).
+    """
+    from ..db.shards import shard_view
+
+    names = (layout.numeric_sets(db.path) if numeric_sets is None else [numeric_sets] if isinstance(numeric_sets, str)
+             else list(numeric_sets))  # fmt: skip
+    for name in names:
+        header, old = _stored_set(db, name)
+        added = db.added_since(header.get("n_documents"), header.get("n_frames"), header.get("documents"))
+        pca = None
+        if _spec(name).pcs:
+            pca = PCAModel.load(layout.pca_file(db.path))
+            if _file_sha256(layout.pca_file(db.path)) != (header.get("pca") or {}).get("sha256"):
+                raise StaleDataError(f"{db.path}: numeric feature set {name}: pca.npz replaced since it was stored")
+        view = shard_view(db, added, labels=False) if len(added) else None
+
+        def fill(out, old=old, view=view, name=name, pca=pca):
+            n_old = old.shape[0]
+            for s in range(0, n_old, 1 << 18):
+                out[s : min(s + (1 << 18), n_old)] = old[s : min(s + (1 << 18), n_old)]
+            if view is not None:
+                _fill(view, name, pca, out[n_old:], progress, threads)
+
+        _write_set(db, name, _header(db, name, header.get("pca")), fill)
+    return {name: load_numeric(db, name) for name in names}
+
+
+def _stored_set(db: MotionDB, numeric_set: str) -> tuple[dict, np.ndarray]:
+    """The stored header and data (memory-mapped, its size checked) of a numeric set, whatever database state they
+    describe; MotionDBError when not stored or unreadable."""
+    data_path, header_path = layout.numeric_data(db.path, numeric_set), layout.numeric_header(db.path, numeric_set)
+    if not header_path.is_file():
+        raise MotionDBError(f"{db.path}: numeric feature set {numeric_set} is not stored; {_STALE_HINT}")
+    with locked(header_path.parent, shared=True):
+        try:
+            header = check_format(json.loads(header_path.read_text()), _HEADER_FORMAT, _HEADER_VERSION, header_path)
+            verify(data_path, header.get("data"), rebuild=_STALE_HINT)
+            data = np.load(data_path, mmap_mode="r", allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise MotionDBError(f"{header_path.parent}: numeric feature set {numeric_set} unreadable ({exc}); "
+                                f"{_STALE_HINT}") from None  # fmt: skip
+    if data.shape != (header.get("n_frames"), _spec(numeric_set).dims):
+        raise StaleDataError(f"{data_path}: holds {data.shape}, its header says {header.get('n_frames')} frames")
+    return header, data
 
 
 def _own_pca(db: MotionDB, progress: bool, threads: int | None, client=None) -> PCAModel:
@@ -810,7 +903,9 @@ def add_block_checksums(db: MotionDB, numeric_set: str) -> bool:
 
 
 def numeric_of(db: MotionDB, numeric_set: str, pca: PCAModel | None = None, progress: bool = False) -> np.ndarray:
-    """A MotionDB's numeric feature set: the stored one when it is current, else computed now (nothing written).
+    """A MotionDB's numeric feature set: the stored one when it is current; else, when it was stored for the
+    database before documents were appended, extended with theirs and stored (:func:`extend_numeric`); else
+    computed now (nothing written).
 
     Parameters
     ----------
@@ -837,11 +932,15 @@ def numeric_of(db: MotionDB, numeric_set: str, pca: PCAModel | None = None, prog
     """
     if _spec(numeric_set).pcs and pca is not None:
         return numeric_features(db, numeric_set, pca=pca, progress=progress)
-    return load_or_build(  # not stored, or stale: computed instead
-        lambda: load_numeric(db, numeric_set),
-        lambda: numeric_features(db, numeric_set, pca=default_pca(db, progress) if _spec(numeric_set).pcs else None,
-                                 progress=progress),
-    )
+
+    def extended_or_computed() -> np.ndarray:
+        try:
+            return extend_numeric(db, numeric_set, progress=progress)[numeric_set]
+        except (MotionDBError, OSError):  # not stored for a first part of this database, or a read-only folder
+            pca = default_pca(db, progress) if _spec(numeric_set).pcs else None
+            return numeric_features(db, numeric_set, pca=pca, progress=progress)
+
+    return load_or_build(lambda: load_numeric(db, numeric_set), extended_or_computed)
 
 
 def default_pca(db: MotionDB, progress: bool = False) -> PCAModel:

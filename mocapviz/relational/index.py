@@ -16,6 +16,8 @@ InvertedIndex                 the index of one feature set; query methods:
 feature_group_values          the columns of each feature group of a set's values.
 build(db, relational_set)     one index per feature group (lower, upper, mix) over a MotionDB, saved with it.
 load(db, relational_set)      the saved indexes of a MotionDB (checked to be current).
+extend(db, relational_set)    the saved indexes of an earlier generation extended with the documents appended since.
+load_or_build(db, ...)        the saved indexes when current, else extended, else built.
 """
 from __future__ import annotations
 
@@ -356,6 +358,44 @@ class InvertedIndex:
         seq = segment(values, doc_starts)
         first = np.append(np.searchsorted(seq.starts, doc_starts), seq.codes.shape[0])
         return cls(seq, first, feature_names, meta)
+
+    def appended(self, other: InvertedIndex, frames: int, meta=None) -> InvertedIndex:
+        """This index followed by ``other``'s documents: the index of the two feature sequences concatenated.
+
+        A document's segments depend on its own frames only (§4: segments never cross a document boundary), so the
+        index of a database that grew by some documents is the old one with the new documents' segments after its
+        own: every inverted list gains the new segments' positions (all after its old ones) at its end.
+
+        Parameters
+        ----------
+        other : InvertedIndex
+            An index of the same features over the documents that follow (its frames counted from 0).
+        frames : int
+            The frames this index covers: ``other``'s frame 0 becomes frame ``frames``.
+        meta : dict, optional
+            The new index's meta (default: this one's).
+
+        Returns
+        -------
+        InvertedIndex
+            Equal to the index built over all the documents at once.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> a, b = np.array([[0], [1], [1]], bool), np.array([[1], [0]], bool)
+        >>> both = InvertedIndex.from_features(a).appended(InvertedIndex.from_features(b), 3)
+        >>> whole = InvertedIndex.from_features(np.concatenate([a, b]), doc_starts=[0, 3])
+        >>> both.positions.tolist() == whole.positions.tolist(), both.starts.tolist(), both.doc_first_segment.tolist()
+        (True, [0, 1, 3, 4], [0, 2, 4])
+        """
+        if other.feature_names != self.feature_names:
+            raise ParameterError(f"cannot append an index of {other.feature_names} to one of {self.feature_names}")
+        sequence = FeatureSequence(np.concatenate([self.codes, other.codes]),
+                                   np.concatenate([self.starts, other.starts + int(frames)]),
+                                   np.concatenate([self.lengths, other.lengths]), self.n_features)  # fmt: skip
+        first = np.concatenate([self.doc_first_segment[:-1], other.doc_first_segment + self.n_segments])
+        return InvertedIndex(sequence, first, self.feature_names, self.meta if meta is None else meta)
 
     # ------------------------------------------------------------------ lists
     @property
@@ -839,9 +879,7 @@ def build(db, relational_set: str = "2005", progress: bool = True, values: np.nd
     doc_starts = db.documents["start"].to_numpy()
     out = {}
     for group, (members, group_values) in feature_group_values(values, relational_set).items():
-        meta = {"generation": db.manifest["generation"], "n_frames": db.n_frames, "relational_set": relational_set,
-                "group": group}  # fmt: skip
-        index = InvertedIndex.from_features(group_values, doc_starts, members, meta)
+        index = InvertedIndex.from_features(group_values, doc_starts, members, _meta(db, relational_set, group))
         if save:
             index.save(index_path(db, relational_set, group))
         out[group] = index
@@ -849,8 +887,10 @@ def build(db, relational_set: str = "2005", progress: bool = True, values: np.nd
 
 
 def load_or_build(db, relational_set: str = "2005", save: bool = True, progress: bool = False) -> dict:
-    """The saved indexes of a MotionDB when current (:func:`load`), else built now (:func:`build`), and saved
-    unless ``save`` is False (then nothing is written: a read-only database can be queried).
+    """The saved indexes of a MotionDB when current (:func:`load`), else extended with the documents appended since
+    they were built (:func:`extend`), else built now (:func:`build`); saved unless ``save`` is False (then nothing
+    is written: a read-only database can be queried) or the stored ones are of a later generation (this ``db`` is
+    an older reader's).
 
     Parameters
     ----------
@@ -868,8 +908,102 @@ def load_or_build(db, relational_set: str = "2005", save: bool = True, progress:
     dict
         Group name -> InvertedIndex.
     """
-    return store.load_or_build(lambda: load(db, relational_set),
-                               lambda: build(db, relational_set, progress=progress, save=save))
+    def extended_or_built() -> dict:
+        try:
+            return extend(db, relational_set, save=save, progress=progress)
+        except MotionDBError:  # none stored, or not over the first documents of this database: built whole
+            return build(db, relational_set, progress=progress, save=save and not _newer(db, relational_set))
+
+    return store.load_or_build(lambda: load(db, relational_set), extended_or_built)
+
+
+def _meta(db, relational_set: str, group: str) -> dict:
+    """What an index records of the database it was built for: its generation, frames and documents (their
+    :meth:`~mocapviz.db.database.MotionDB.prefix_digest`, so that :func:`extend` can tell an appended database)."""
+    return {"generation": db.manifest["generation"], "n_frames": db.n_frames, "n_documents": len(db),
+            "documents": db.prefix_digest(len(db)), "relational_set": relational_set, "group": group}  # fmt: skip
+
+
+def _newer(db, relational_set: str) -> bool:
+    """Whether a stored index of the set was built for a later generation than ``db``'s (a reader of an older
+    generation that builds its own must not replace it)."""
+    from ..features import feature_groups
+
+    path = index_path(db, relational_set, next(iter(feature_groups(relational_set))))
+    try:
+        return InvertedIndex.load(path).meta.get("generation", -1) > db.manifest["generation"]
+    except MotionDBError:
+        return False
+
+
+def extend(db, relational_set: str = "2005", save: bool = True, progress: bool = False) -> dict:
+    """The saved indexes of an earlier generation of a MotionDB brought up to date incrementally: the documents
+    appended since they were built are computed alone, their segments appended (:meth:`InvertedIndex.appended`),
+    the recorded generation advanced. Equal to :func:`build` of the whole database.
+
+    Parameters
+    ----------
+    db : MotionDB
+        The database, grown by an ingest since the indexes were built (or not: then they are only re-stamped).
+    relational_set : {"2005", "2006"}
+        The relational set.
+    save : bool
+        Write the extended indexes (atomically, each group's file replaced whole: a reader's copy stays intact).
+    progress : bool
+        Progress bar while the new documents' features are computed.
+
+    Returns
+    -------
+    dict
+        Group name -> InvertedIndex over the whole database.
+
+    Raises
+    ------
+    MotionDBError
+        No index stored, or one that was not built over the first documents of this database (another database,
+        or one built before indexes recorded their documents: a :class:`~mocapviz.errors.StaleDataError`); build
+        it whole (:func:`build`).
+
+    Examples
+    --------
+    >>> import tempfile, shutil
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.io import datasets
+    >>> amc = sorted((datasets.sample() / "hdm05-cut" / "amc").glob("*.amc"))
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     db = MotionDB.ingest(amc[:3], f"{tmp}/db.mdb", progress=False)
+    ...     _ = build(db, progress=False)
+    ...     db = db.append(amc[3:5], progress=False)  # two more documents: the indexes are stale
+    ...     grown = extend(db)  # their frames alone computed and appended
+    ...     whole = build(db, save=False, progress=False)
+    ...     print(all((grown[g].positions == whole[g].positions).all() for g in whole), load(db)["lower"].meta["n_documents"])
+    True 5
+    """
+    from ..db.shards import shard_view
+    from ..features import feature_groups, relational_features
+
+    stored = {group: InvertedIndex.load(index_path(db, relational_set, group)) for group in feature_groups(relational_set)}
+    metas = [index.meta for index in stored.values()]
+    if any((m.get("n_documents"), m.get("documents")) != (metas[0].get("n_documents"), metas[0].get("documents"))
+           for m in metas):  # fmt: skip
+        raise StaleDataError(f"{db.path}: the {relational_set} indexes of the groups were built for different documents")
+    added = db.added_since(metas[0].get("n_documents"), metas[0].get("n_frames"), metas[0].get("documents"))
+    old_frames = int(metas[0]["n_frames"])
+    new = {}
+    if len(added):
+        view = shard_view(db, added, labels=False)
+        new = build(view, relational_set, progress=progress, save=False,
+                    values=relational_features(view, relational_set, progress=progress)[0])
+    out = {}
+    for group, index in stored.items():
+        meta = _meta(db, relational_set, group)
+        if new:
+            index = index.appended(new[group], old_frames, meta)
+        index.meta = meta
+        out[group] = index
+        if save:
+            out[group].save(index_path(db, relational_set, group))
+    return out
 
 
 def load(db, relational_set: str = "2005") -> dict:
@@ -909,4 +1043,4 @@ def load(db, relational_set: str = "2005") -> dict:
     return out
 
 
-__all__ = ["InvertedIndex", "build", "decode", "index_path", "load", "merge_adjacent"]
+__all__ = ["InvertedIndex", "build", "decode", "extend", "index_path", "load", "merge_adjacent"]
