@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..engine import NUMERIC_SETS, Engine, MotionDB, PCAModel, layout, load_numeric
+from ..engine import NUMERIC_SETS, Engine, MotionDB, PCAModel, layout, load_numeric, stored_sets, update_derived
 from ..engine.parameters import arguments
 from ..errors import MocapvizError, ParameterError
 from ..validation import plural
@@ -24,8 +24,19 @@ PCA_SETS = tuple(n for n in NUMERIC_SETS if n.startswith("Fp"))
 def run_features(args) -> None:
     engine = Engine(args.db)
     db = engine.db
-    names = args.numeric_sets
-    reference = _pca_reference(args.pca, names)
+    names = list(args.numeric_sets or NUMERIC_SETS)
+    reference = _pca_reference(args.pca, args.numeric_sets)
+    if reference is None:  # sets stored before an ingest: extended with the new documents
+        stale = [n for n in names if n in stored_sets(db)["numeric"]]
+        table = update_derived(db, [], stale, progress=not args.quiet, rebuild=False)
+        extended = table[table["how"] == "extended"]
+        if len(extended):
+            print(f"{db}: {plural(len(extended), 'numeric feature set')} in {layout.features_folder(db.path)} "
+                  f"extended with the {plural(extended['documents'].iloc[0], 'document')} "
+                  f"({plural(extended['frames'].iloc[0], 'frame')}) added since they were stored, in {extended['seconds'].sum():.1f} s")  # fmt: skip
+        names = [n for n in names if n not in set(extended["set"])]
+        if not names:
+            return
     t0 = time.perf_counter()
     stored = engine.store_numeric(names, pca=reference, progress=not args.quiet, scheduler=scheduler_of(args))
     print(f"{db}: {len(stored)} numeric feature sets in {time.perf_counter() - t0:.1f} s, "
