@@ -16,6 +16,9 @@
     mocapviz template learn DB --label CLASS [--actors A,B,...] [--relational-set 2005|2006] [--max-examples 16]
                                [--iterations 10] [--out FILE]
     mocapviz template search DB FILE_OR_NAME [-K 20] [--delta 0.2] [--max-cost C] [--csv FILE] [--prefilter]
+    mocapviz labels DB add --doc ID --frames A:B --label NAME [--author NAME] [--source S] [--note TEXT]
+    mocapviz labels DB list [--label NAME] [--csv FILE] | remove ID | undo [--change N] | history
+    mocapviz labels DB export [--format csv|babel] --out FILE | import FILE [--author NAME]
     mocapviz export DB (--hits HITS.csv | --doc ID [--frames A:B]) --format bvh|amc|glb [--rig source|canonical]
                        --out DIR [--search TEXT]
     mocapviz reproduce NAME|all [--full] --out DIR   (NAME: an experiment, e.g. rank_correlations, reconstruction)
