@@ -44,6 +44,7 @@ from tornado.web import RequestHandler
 
 from ..errors import MocapvizError, ParameterError
 from ..validation import parse_port, plural
+from .auth import Login, signed_in_line
 from .backend import Backend, answers_in_memory
 from .jobs import on_session_closed, release_memory
 from .state import Selection
@@ -111,7 +112,8 @@ def dashboard(db_path, scheduler=None) -> pn.viewable.Viewable:
     db = backend.db
     header = pn.pane.Markdown(
         f"## mocapviz · {db.path.name}\n{plural(len(db), 'document')} · {plural(db.n_frames, 'frame')} · "
-        + (f"{db.fps:g} fps" if db.fps else "mixed frame rates"), css_classes=["mv-header"], margin=(0, 10))
+        + (f"{db.fps:g} fps" if db.fps else "mixed frame rates") + signed_in_line(), css_classes=["mv-header"],
+        margin=(0, 10))
     layout = pn.Column(header, tabs, sizing_mode="stretch_width")
     _DASHBOARDS.add(layout)
     return layout
@@ -382,7 +384,7 @@ class _Refuse(RequestHandler):
 
 
 def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, start: bool = True,
-          allow_origin=(), scheduler=None, ready=None):
+          allow_origin=(), scheduler=None, ready=None, auth=None, cookie_secret_file=None):
     """Serve the dashboard of the MotionDB at ``db_path`` on http://address:port/ until interrupted.
 
     The database is opened (and checked), one dashboard built and :func:`warm_up` run before the server listens, so
@@ -395,7 +397,9 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, s
     localhost, ::1) exposes the database to the network: ``allow_origin`` must then list the addresses (``HOST:PORT``)
     users open it at, and a warning says who can reach it. With ``scheduler`` (a Dask scheduler's address, or
     "local") every session's searches run sharded on that cluster (:class:`mocapviz.sharded.ShardedDB`, one for the
-    server), with the same answers. ``ready(url)`` (e.g. a print) is called from the server's event loop once it is
+    server), with the same answers. With ``auth`` (a users file, :mod:`mocapviz.users`) every request needs a user
+    signed in at ``/login`` (:class:`mocapviz.app.auth.Login`; the cookie secret from ``cookie_secret_file``, else the
+    environment, else new). ``ready(url)`` (e.g. a print) is called from the server's event loop once it is
     listening and answering requests: what ``mocapviz serve`` reports as "ready". With ``start=False`` the server is
     returned bound to its port but not started; called in a running event loop (Jupyter), it starts the server on
     that loop and returns it.
@@ -408,6 +412,7 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, s
         Not loopback and no ``allow_origin``, or a malformed origin (:func:`websocket_origins`).
     """
     origins = websocket_origins(address, port, allow_origin)
+    login = None if auth is None else Login(auth, cookie_secret_file)
     log_to_stderr()
     dashboard(db_path, scheduler)  # once before listening: the first visitor then finds numba kernels, the EGL
     # context,
@@ -418,9 +423,13 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, s
     # e.g. a button of a page just opened, clicked before anything else changed on the page; the server then warns
     # that it knows the model already, and goes on with the one it has: harmless, and nothing a page can change
     warnings.filterwarnings("ignore", message="reference already known", category=BokehUserWarning)
-    if not is_loopback(address):
+    if not is_loopback(address) and login is None:
         warnings.warn(f"serving on {address}: anyone who can reach this machine's port {port} can browse "
-                      f"{db_path} (pages of {', '.join(origins)} may use it)", UserWarning, stacklevel=2)
+                      f"{db_path} (pages of {', '.join(origins)} may use it); --auth FILE (auth= in Python) asks "
+                      f"for a user name and password", UserWarning, stacklevel=2)
+    elif not is_loopback(address):
+        warnings.warn(f"serving on {address} over plain HTTP: passwords and sign-in cookies cross the network "
+                      f"unencrypted unless a TLS proxy is in front", UserWarning, stacklevel=2)
     pn.extension("tabulator", notifications=False)
     path = Path(db_path)
     # Bokeh's own origin list, consulted after ours, cannot parse a bracketed IPv6 name (ours holds them); Panel's
@@ -428,11 +437,14 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, s
     server = pn.serve({"/": lambda: dashboard(path, scheduler)}, port=port, address=address, show=show, start=False,
                       verbose=False, websocket_origin=[o for o in origins if not o.startswith("[")], location=False,
                       title=f"{TITLE} · {path.name}", check_unused_sessions_milliseconds=CLOSED_SESSION_CHECK_MS,
-                      unused_session_lifetime_milliseconds=CLOSED_SESSION_LIFETIME_MS)
+                      unused_session_lifetime_milliseconds=CLOSED_SESSION_LIFETIME_MS,
+                      **(login.options() if login else {}))
     # The refusal is the first rule of the tornado application's router (where tornado's Application.add_handlers
     # puts rules of its own), ahead of every page, static file and WebSocket route of Bokeh and Panel. Bokeh's Server
     # keeps that application as _tornado, as Panel reads it; nothing outside this server changes.
     server._tornado.default_router.rules.insert(0, Rule(_Refused(origins), _Refuse))
+    if login is not None:  # then, with --auth, every request of a visitor not signed in
+        server._tornado.default_router.rules.insert(1, login.rule())
     if start:
         server.start()  # its socket is bound and listening since it was made; the loop answers on it
         if ready is not None:

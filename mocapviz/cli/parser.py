@@ -15,6 +15,7 @@ from ..engine import FPS_RANGE, NUMERIC_SETS
 from ..engine.parameters import PARAMETERS as P
 from ..engine.parameters import RULES, add_options, default
 from ..errors import ParameterError
+from ..users import COOKIE_SECRET_ENV, COOKIE_SECRET_LENGTH, ROLES
 from ..validation import parse_integers, parse_names, parse_port, parse_span
 from .options import CSV_HELP, Parser, cluster_options, count_check, number_check, option, search_scheduler
 
@@ -264,8 +265,35 @@ def build_parser() -> argparse.ArgumentParser:
                     "myhost.example.org:5006 (repeatable; needed with an --address other than loopback; never '*'). "
                     "Any other Host header, or WebSocket Origin (a WebSocket needs one), gets a 403")
     sv.add_argument("--show", action="store_true", help="open the dashboard in a web browser")
+    sv.add_argument("--auth", metavar="FILE", help="ask for a user name and password (the users of FILE: mocapviz "
+                    "users); every page, static file and WebSocket needs a signed-in user, whose role says what they "
+                    "may do (docs/dashboard.md)")  # fmt: skip
+    sv.add_argument("--cookie-secret-file", metavar="FILE", help="with --auth: sign the login cookies with the secret "
+                    f"in FILE (at least {COOKIE_SECRET_LENGTH} characters; or the environment variable "
+                    f"{COOKIE_SECRET_ENV}), so that users stay signed in when the server restarts (default: a new "
+                    "secret each start)")  # fmt: skip
     search_scheduler(sv)
     sv.set_defaults(func=_serve)
+
+    us = sub.add_parser("users", help="the users of `mocapviz serve --auth FILE`: add, list, remove, set a role or a "
+                        "password (stored as salted scrypt hashes, never in clear)")  # fmt: skip
+    us.add_argument("file", help="the users file (created by add; mode 0600)")
+    usub = us.add_subparsers(dest="action", required=True)
+    ua = usub.add_parser("add", help="add a user; the password is read twice from the terminal (or two lines of "
+                         "standard input when it is not a terminal), never from the command line")  # fmt: skip
+    ua.add_argument("name", help="the user name (letters, digits, . _ @ -; at most 64)")
+    ua.add_argument("--role", required=True, choices=ROLES, help="read: search and download; annotate: also label "
+                    "segments; admin: also add takes")  # fmt: skip
+    ul = usub.add_parser("list", help="the users and their roles (never a hash)")
+    ur = usub.add_parser("remove", help="remove a user (its sessions end when their browsers close; none starts again)")
+    ur.add_argument("name")
+    uo = usub.add_parser("role", help="give a user another role (from its next session)")
+    uo.add_argument("name")
+    uo.add_argument("role", choices=ROLES)
+    up = usub.add_parser("password", help="set a user's password (read as for add)")
+    up.add_argument("name")
+    for action in (ua, ul, ur, uo, up):
+        action.set_defaults(func=_users)
 
     ds = sub.add_parser("datasets", help="list the registered motion-capture datasets (the shared archives and the "
                         "embedded sample and demo) with sizes, licences and sources, or fetch one")
@@ -382,6 +410,12 @@ def _serve(args):
     from . import serve
 
     return serve.run_serve(args)
+
+
+def _users(args):
+    from . import users
+
+    return users.run_users(args)
 
 
 def _datasets(args):
