@@ -133,13 +133,13 @@ class Login:
 
 
 class _SignedOut(Matcher):
-    """Matches a request without a valid sign-in cookie, other than for the login and logout pages."""
+    """Matches a request without a valid sign-in cookie, other than for the login and logout pages and the icon."""
 
     def __init__(self, login: Login):
         self.login = login
 
     def match(self, request):
-        if request.path in (LOGIN, LOGOUT):
+        if request.path in (LOGIN, LOGOUT, "/favicon.ico"):  # (Bokeh's icon: a browser asks for it on any page)
             return None
         morsel = request.cookies.get(COOKIE)
         return None if self.login.signed_in(morsel and morsel.value) else {}
