@@ -77,8 +77,11 @@ def _shown_count(page) -> int:
 
 
 def _expected_hits(db, doc: int, span, features, mode: str, m: int = 1):
-    return query_by_example(db, db.motion(doc)[span[0]:span[1] + 1], features, MODES[mode], m,
+    """The library's hits of the page's query, without the query's own document (the engine's default, as on
+    every page: exclude_document)."""
+    hits = query_by_example(db, db.motion(doc)[span[0]:span[1] + 1], features, MODES[mode], m,
                             indexes=index.load(db))
+    return hits[hits["doc_id"] != doc].reset_index(drop=True)
 
 
 QUERIES = {

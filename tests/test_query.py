@@ -233,10 +233,14 @@ def test_cli_index_and_query_print_the_library_answer(db, tmp_path, capsys):
     assert "lower" in out and "upper" in out and "mix" in out
     doc = int(copy.select(label="squat1Reps")["doc_id"].iloc[0])
     assert main(["query", str(copy.path), "--example", str(doc), "--frames", "0:", "--features",
-                 "rknee_bent,lknee_bent"]) == 0  # fmt: skip
+                 "rknee_bent,lknee_bent", "--no-exclude-document"]) == 0  # fmt: skip
     first = capsys.readouterr().out.splitlines()[0]
     hits = query_by_example(copy, copy.motion(doc), ["rknee_bent", "lknee_bent"])
     assert first.startswith(plural(len(hits), "hit") + " ")
+    assert main(["query", str(copy.path), "--example", str(doc), "--features", "rknee_bent,lknee_bent",
+                 "--csv", str(tmp_path / "other.csv")]) == 0  # fmt: skip  (by default without its own document)
+    capsys.readouterr()
+    assert pd.read_csv(tmp_path / "other.csv")["doc_id"].tolist() == hits.loc[hits["doc_id"] != doc, "doc_id"].tolist()
     assert main(["query", str(copy.path), "--example", str(doc), "--features", "bogus"]) == 1
     assert "unknown feature" in capsys.readouterr().err
     assert main(["query", str(copy.path), "--example", str(doc), "--features", ""]) == 1

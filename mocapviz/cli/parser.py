@@ -84,6 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
     option(q, "-K", "--matches", "--top", check=count_check(least=1), dest="rows", default=20,
            help="hits to print (default 20; --top: its old name)")
     q.add_argument("--csv", help=CSV_HELP)
+    add_options(q, "query")  # --exclude-document / --no-exclude-document
     search_scheduler(q)
     q.set_defaults(func=_query)
 

@@ -48,8 +48,9 @@ def run_query(args) -> None:
         mode, m = suggested.mode, suggested.mismatches
     t0 = time.perf_counter()
     with engine:
-        hits = engine.query(motion, features=features, mode=mode, mismatches=m, relational_set=args.relational_set,
-                            allowed=args.allowed)  # fmt: skip
+        hits = engine.query(example, frames=args.frames, features=features, mode=mode, mismatches=m,
+                            relational_set=args.relational_set, allowed=args.allowed,
+                            exclude_document=args.exclude_document)  # fmt: skip
     ms = 1000 * (time.perf_counter() - t0)
     how = f"{mode}, m = {m}" if mode == "mismatch" else mode
     chosen = "suggested features" if suggested is not None else "features"

@@ -234,7 +234,7 @@ USES = {
     "match": {"numeric_set": "numeric_set", "method": "method", "n_matches": "n_matches", "k": "k", "radius": "radius",
               "eps": "eps", "exclude_document": "exclude_document", "paths": "paths", "min_length": "min_length"},
     "query": {"features": "features", "mode": "query_mode", "mismatches": "mismatches",
-              "relational_set": "relational_set", "allowed": "allowed"},
+              "relational_set": "relational_set", "allowed": "allowed", "exclude_document": "exclude_document"},
     "suggest_query": {"relational_set": "relational_set"},
     "find": {"template_cost": "template_cost", "overlapping": "overlapping"},
     "learn_template": {"relational_set": "relational_set", "max_examples": "max_examples", "iterations": "iterations"},
