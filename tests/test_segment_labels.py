@@ -288,3 +288,26 @@ def test_a_template_learned_from_segment_labels_finds_its_class_where_nothing_is
     assert first_other >= 20 and len(new) >= 6  # of bk's and tr's 11 kicks (measured: 24 and 6, rank 17 the first)
     under = hits[hits["normalised_cost"] <= template.meta["threshold"]]
     assert is_kick[: len(under)].mean() >= 0.95  # its learned threshold (measured: 24 of 25 kicks, then grabHighR)
+
+
+def test_search_and_find_keep_the_hits_of_a_label(db, tmp_path, capsys):
+    """`mocapviz find/search --label NAME`: exactly the hits (of every hit, or of every document's best clip) that
+    overlap a segment of NAME or lie in a document of that file-name label, ranked again; an emptied answer says
+    why. The two front kicks of CMU 135_04 at 30 Hz, frames 87-101 and 137-154, found by reading the right ankle's
+    height (above 30 cm) frame by frame."""
+    for frames in ("87:101", "137:154"):
+        assert main(["labels", str(db.path), "add", "--doc", "45", "--frames", frames, "--label", "front kick"]) == 0
+    every = Engine(db).find("kick_right | kick_left", n_matches=None)
+    assert main(["find", str(db.path), "kick_right | kick_left", "--label", "front kick", "--csv",
+                 str(tmp_path / "k.csv")]) == 0  # fmt: skip
+    kept = pd.read_csv(tmp_path / "k.csv")
+    labelled = every[(every["doc_id"] == 45) & (every["start"] < 154) & (every["end"] > 87)
+                     & ~((every["start"] >= 101) & (every["end"] <= 137))]  # fmt: skip
+    assert kept[["doc_id", "start", "end"]].values.tolist() == labelled[["doc_id", "start", "end"]].values.tolist()
+    assert kept["rank"].tolist() == list(range(1, len(kept) + 1)) and len(kept) == 2
+    assert main(["find", str(db.path), "squat", "--label", "front kick"]) == 0
+    assert "no hit: none of its" in capsys.readouterr().out
+    assert main(["search", str(db.path), "--example", "5", "-K", "3", "--label", "kickLFront1Reps", "--csv",
+                 str(tmp_path / "c.csv")]) == 0  # fmt: skip
+    clips = pd.read_csv(tmp_path / "c.csv")
+    assert sorted(clips["doc_id"]) == [16, 27, 38]  # the other three actors' kicks, whatever their rank before

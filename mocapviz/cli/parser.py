@@ -26,6 +26,11 @@ MAX_JOBS = 256
 NUMERIC_SPELLINGS = {"numeric_set": ("--numeric-set", "--features")}  # --features: the option's old name
 
 
+LABEL_HELP = ("keep the hits that overlap a stretch of this label: a segment label (mocapviz labels) or a document "
+              "of that file-name label")
+STRETCH_POOL = 20  # search --stretches --label: the label is looked for among the best 20 x K stretches
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The parser of the ``mocapviz`` command: every sub-command, its options (the search options from the engine's
     parameter table) and its handler, a stub below that imports the command's module when the command runs."""
@@ -107,6 +112,7 @@ def build_parser() -> argparse.ArgumentParser:
     fd.add_argument("--explain", action="store_true", help="print the description as read, the hits of each part "
                     "and where each hit's parts matched")  # fmt: skip
     fd.add_argument("--list", action="store_true", help="list the shipped named descriptions and exit")
+    fd.add_argument("--label", type=P["label"].reader("--label"), help=LABEL_HELP)
     fd.add_argument("--csv", help=CSV_HELP)
     fd.add_argument("--template-file", action="append", dest="template_files", metavar="NAME=FILE",
                     help="read template:NAME from this template file (.npz, `mocapviz template learn --out`) instead "
@@ -161,6 +167,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="with --stretches: " + P["min_length"].help())
     add_options(se, "clips", NUMERIC_SPELLINGS)
     add_options(se, "stretches")
+    se.add_argument("--label", type=P["label"].reader("--label"), help=LABEL_HELP + " (clips: among every document's "
+                    f"best clip; stretches: among the best {STRETCH_POOL} x K)")
     se.add_argument("--csv", help=CSV_HELP)
     search_scheduler(se)
     se.set_defaults(func=_search)

@@ -89,13 +89,19 @@ def run_find(args) -> None:
     csv_folder(args.csv)
     given = _template_files(args.template_files)
     with engine_of(args) as engine:
-        hits = engine.find(text, n_matches=args.n_matches, relational_set=args.relational_set,
-                           template_cost=args.template_cost, templates=given or None)  # fmt: skip
+        hits = engine.find(text, n_matches=args.n_matches if args.label is None else None,
+                           relational_set=args.relational_set, template_cost=args.template_cost,
+                           templates=given or None)  # fmt: skip
+        if args.label is not None:
+            found, hits = len(hits), engine.with_label(hits, label=args.label).head(args.n_matches)
+            if hits.empty and found:
+                hits.attrs["empty_reason"] = f"none of its {plural(found, 'hit')} overlaps a stretch of {args.label!r}"
     if args.explain:
         print(hits.attrs["description"])
         print("matched: " + "; ".join(f"{label}: {n}" for label, n in hits.attrs["counts"]))
     print(f"{plural(len(hits), 'hit')} in {hits.attrs['ms']:.1f} ms ({hits.attrs['candidates']} before overlaps were "
-          f"resolved; {hits.attrs['relational_set']} set)")  # fmt: skip
+          f"resolved; {hits.attrs['relational_set']} set" + ("" if args.label is None else
+                                                             f"; those overlapping label {args.label!r}") + ")")  # fmt: skip
     if hits.empty:
         print(f"no hit: {hits.attrs['empty_reason']}")
         write_csv(hits, args.csv)

@@ -16,6 +16,7 @@ from ..validation import plural
 from .inputs import engine_of, example_of
 from .options import scheduler_of
 from .output import csv_folder, print_paths, print_ranked, printed, write_csv
+from .parser import STRETCH_POOL
 
 PCA_SETS = tuple(n for n in NUMERIC_SETS if n.startswith("Fp"))
 """The numeric sets made by PCA (``features --pca``)."""
@@ -116,15 +117,20 @@ def run_search(args) -> None:
     csv_folder(args.csv)
     with engine_of(args) as engine:
         example = example_of(engine.db, args.example)
+        pool = {} if args.label is None else {"n_matches": STRETCH_POOL * args.n_matches if args.stretches else
+                                                            max(len(engine.db), 1)}  # fmt: skip
         if args.stretches:
             table = engine.stretches(example, frames=args.frames, **arguments(
-                args, "stretches", min_length=... if args.min_length is None else args.min_length))
+                args, "stretches", min_length=... if args.min_length is None else args.min_length, **pool))
         else:
-            table = engine.clips(example, frames=args.frames, **arguments(args, "clips"))
+            table = engine.clips(example, frames=args.frames, **arguments(args, "clips", **pool))
+        if args.label is not None:
+            table = engine.with_label(table, label=args.label).head(args.n_matches)
     what = ("stretch", "stretches") if args.stretches else ("clip", "clips")
     print(f"{plural(len(table), *what)} like {args.example} ({plural(table.attrs['query_frames'], 'frame')}) by DTW on {args.numeric_set}"
           f", {args.mode} mode, in {table.attrs['ms']:.1f} ms" + (" (its own document excluded)" if
-                                                                 args.exclude_document else ""))  # fmt: skip
+                                                                 args.exclude_document else "")
+          + ("" if args.label is None else f"; those overlapping label {args.label!r}"))  # fmt: skip
     print_ranked(table, args.n_matches, "the query's own document is the only one long enough; try whole clips, a "
                   "shorter --frames span or a smaller --min-length" if args.stretches else "no other document to "
                   "compare")  # fmt: skip
