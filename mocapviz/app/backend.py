@@ -1,35 +1,47 @@
 """The dashboard's back end: one opened MotionDB and everything its pages compute from it, cached per database.
 
 A :class:`Backend` is shared by every browser session showing the same database (``Backend.open`` keeps one per
-database path and generation, so an ingest that adds documents gives a fresh one). Its results are computed once,
-under a lock per result, and kept: a second session, or the same page opened again, gets them at once. The derived
-data of the whole database (indexes, feature sets, kd-trees: its :class:`~mocapviz.engine.Engine`'s, and the jobs'
-tables, :data:`DERIVED`) stay for the life of the server, one copy for all sessions; the answers to single queries (a search, a kNN, a template's hits, ...) are
-kept :data:`ANSWERS_KEPT` per kind, the least recently used forgotten first, so the server's memory does not grow
-with every query ever asked.
+database path and scheduler). Its results are computed once, under a lock per result, and kept: a second session,
+or the same page opened again, gets them at once. The derived data of the whole database (indexes, feature sets,
+kd-trees: its :class:`~mocapviz.engine.Engine`'s, and the jobs' tables, :data:`DERIVED`) stay for the life of the
+generation served, one copy for all sessions; the answers to single queries (a search, a kNN, a template's hits,
+...) are kept :data:`ANSWERS_KEPT` per kind, the least recently used forgotten first, so the server's memory does
+not grow with every query ever asked.
+
+A served Backend follows its database (:meth:`Backend.follow`): when ``mocapviz ingest`` commits a new generation
+(documents appended), it opens it, makes a new Engine with the derived data the old one held (stored indexes and
+feature sets extended with the new documents if the ingest has not yet: :func:`mocapviz.engine.update_derived`),
+then switches to it: new answers come from the new generation, the kept ones are dropped, and the callbacks of
+:meth:`Backend.on_new_documents` (every session's document pickers) are told. A query already running finishes
+on the generation it started on: its engine keeps the memory maps it reads, whose files a commit keeps.
 """
 
 from __future__ import annotations
 
+import json
+import logging
 import sys
 import threading
+import time
+import weakref
 from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..engine import Engine, MotionDB
+from ..engine import NUMERIC_SETS, RELATIONAL_SETS, Engine, MotionDB, layout
 from ..errors import MotionDBError
 from .documents import document_table, picker_options
 
-_BACKENDS: dict = {}
-_BY_MANIFEST: dict = {}  # (path, manifest's (mtime, size), scheduler) -> Backend: a session's open reads no table
+LOG = logging.getLogger("mocapviz.app")
+_BACKENDS: dict = {}  # (folder, scheduler) -> the Backend that serves it
 _OPEN_LOCK = threading.Lock()
 # kinds of results (a key's first element) computed over the whole database: kept while the server runs
 DERIVED = frozenset({"relational", "statistics", "correlations", "retrieval"})
 ANSWERS_KEPT = {"recon-prior": 4, "reconstruction": 16}  # answers kept of these kinds (each holds kd-trees, clips)
 DEFAULT_ANSWERS_KEPT = 256  # answers kept of any other kind (hit tables, neighbours, images: small)
+FOLLOW_SECONDS = 2.0  # a served Backend reads its database's manifest this often for a new generation
 
 
 def _size(value, depth: int = 1) -> int:
@@ -63,6 +75,21 @@ def answers_kept(key) -> int | None:
     return ANSWERS_KEPT.get(kind, DEFAULT_ANSWERS_KEPT)
 
 
+def _used(results: dict, locks: dict, recent: dict, key) -> None:
+    """An answer just used becomes the most recent of its kind; the least recent beyond the bound go (called under
+    the Backend's guard, with the dicts of one generation)."""
+    most = answers_kept(key)
+    if most is None:
+        return
+    kind = recent.setdefault(key[0] if isinstance(key, tuple) else key, OrderedDict())
+    kind[key] = None
+    kind.move_to_end(key)
+    while len(kind) > most:
+        old, _ = kind.popitem(last=False)
+        results.pop(old, None)
+        locks.pop(old, None)
+
+
 class Backend:
     """A MotionDB with cached derived data for the dashboard.
 
@@ -78,85 +105,138 @@ class Backend:
     """
 
     def __init__(self, db: MotionDB, scheduler=None):
-        self.db = db
         self.scheduler = scheduler
-        self.engine = Engine(db, scheduler=scheduler)  # every search and the derived data of the whole database
-        self.documents = db.documents
-        self.fps = db.typical_fps
-        self._results: dict = {}
-        self._locks: dict = {}
-        self._recent: dict = {}  # kind -> OrderedDict of its answers' keys, least recently used first
         self._guard = threading.Lock()
+        self._switching = threading.Lock()  # one switch to a new generation at a time
+        self._watchers: list = []  # weak references to the callbacks of on_new_documents
+        self._use(db, Engine(db, scheduler=scheduler))  # every search and the derived data of the whole database
+
+    def _use(self, db: MotionDB, engine: Engine) -> None:
+        """Serve ``db`` through ``engine`` from now on, with no answer kept (new dicts: an answer of the previous
+        generation still being computed goes to the old ones)."""
+        with self._guard:
+            self.db, self.engine, self.documents, self.fps = db, engine, db.documents, db.typical_fps
+            self._results, self._locks, self._recent = {}, {}, {}  # _recent: kind -> OrderedDict, least recent first
 
     def fps_of(self, doc_id: int) -> float:
         """The frame rate of document ``doc_id`` (frames per second)."""
         return float(self.db.document(doc_id)["fps"])
 
+    @property
+    def generation(self) -> int:
+        """The generation of the database served (its manifest's)."""
+        return int(self.db.manifest["generation"])
+
     @classmethod
     def open(cls, path, scheduler=None) -> Backend:
-        """The Backend of the MotionDB at ``path`` (one per database path, generation and scheduler, shared); with a
-        ``scheduler`` (a Dask scheduler's address, or "local") its searches run sharded on that cluster.
+        """The Backend of the MotionDB at ``path`` (one per database path and scheduler, shared, following the
+        database: :meth:`follow`); with a ``scheduler`` (a Dask scheduler's address, or "local") its searches run
+        sharded on that cluster.
 
-        The database is opened (and checked) once per state of its manifest: a new browser session of an unchanged
-        database gets the shared Backend without reading its documents table again.
+        The database is opened (and checked) once; a new browser session gets the shared Backend, switched to the
+        database's newest generation first (waiting for a switch under way), without reading its documents table
+        again.
 
         Raises
         ------
         MotionDBError
             Not a MotionDB, or an empty one (nothing to show).
         """
-        folder = str(Path(path).resolve())
-        try:
-            manifest = (Path(path) / "manifest.json").stat()
-            seen = (folder, manifest.st_mtime_ns, manifest.st_size, scheduler)
-        except OSError:  # no manifest: MotionDB.open says what is wrong
-            seen = None
+        key = (str(Path(path).resolve()), scheduler)
         with _OPEN_LOCK:
-            if seen in _BY_MANIFEST:
-                return _BY_MANIFEST[seen]
+            backend = _BACKENDS.get(key)
+        if backend is not None:
+            backend.follow()
+            return backend
         db = MotionDB.open(path)
         if len(db) == 0:
             raise MotionDBError(f"{path}: the database holds no documents; ingest some first (`mocapviz ingest`)")
-        key = (folder, db.manifest.get("generation"), scheduler)
         with _OPEN_LOCK:
             if key not in _BACKENDS:
-                _BACKENDS[key] = cls(db, scheduler)
-            if seen is not None:
-                _BY_MANIFEST[seen] = _BACKENDS[key]
+                _BACKENDS[key] = backend = cls(db, scheduler)
+                threading.Thread(target=backend._poll, name="mocapviz-follow", daemon=True).start()
             return _BACKENDS[key]
+
+    # ------------------------------------------------------------------ following the database
+    def follow(self) -> bool:
+        """Switch to the newest generation of the database if one was committed since (an ingest while serving).
+
+        The new generation is opened and its Engine made with the derived data this one holds (indexes, numeric
+        sets and kd-trees: stored ones loaded, or extended with the new documents and stored), all before the
+        switch, so that sessions keep their answers from the old generation until the new one is ready; then the
+        kept answers are dropped and the :meth:`on_new_documents` callbacks called. A query running on the old
+        Engine finishes there (its memory maps stay valid: a commit keeps the previous generation's files).
+
+        Returns
+        -------
+        bool
+            Whether it switched.
+        """
+        with self._switching:
+            try:
+                newest = json.loads(layout.manifest_file(self.db.path).read_text())["generation"]
+            except (OSError, ValueError, KeyError, TypeError):  # being replaced, or gone: looked at again later
+                return False
+            if not isinstance(newest, int) or newest <= self.generation:
+                return False
+            t0, old = time.perf_counter(), self.engine
+            db = MotionDB.open(self.db.path)
+            engine = Engine(db, scheduler=self.scheduler,
+                            numeric_sets=[n for n in NUMERIC_SETS if old.holds("search", n)],
+                            relational_sets=[r for r in RELATIONAL_SETS if old.holds("indexes", r)])  # fmt: skip
+            added = len(db) - len(self.db)
+            self._use(db, engine)
+        LOG.info("%s: generation %d, %d documents (%+d), followed in %.1f s", db.path, db.manifest["generation"],
+                 len(db), added, time.perf_counter() - t0)
+        self._notify()
+        return True
+
+    def on_new_documents(self, callback) -> None:
+        """Call ``callback(backend)`` after each switch to a new generation (:meth:`follow`), on the thread that
+        switched. A bound method is held weakly (a closed session's widgets are not kept alive by it), a function
+        strongly."""
+        ref = weakref.WeakMethod(callback) if hasattr(callback, "__self__") else (lambda: callback)
+        with self._guard:
+            self._watchers = [w for w in self._watchers if w() is not None] + [ref]
+
+    def _notify(self) -> None:
+        with self._guard:
+            callbacks = [c for c in (w() for w in self._watchers) if c is not None]
+        for callback in callbacks:
+            try:
+                callback(self)
+            except Exception:  # one session's widget must not stop the others'
+                LOG.exception("a new-documents callback failed")
+
+    def _poll(self) -> None:
+        """Follow the database every :data:`FOLLOW_SECONDS` (the thread of a served Backend)."""
+        while True:
+            time.sleep(FOLLOW_SECONDS)
+            try:
+                self.follow()
+            except Exception:  # a damaged new generation: said in the log, the old one still served
+                LOG.exception("%s: cannot follow the database", self.db.path)
 
     def cached(self, key, compute):
         """``compute()``'s result, computed once per ``key`` (a hashable) and kept (answers: the
-        :func:`answers_kept` most recent of their kind); concurrent callers wait."""
+        :func:`answers_kept` most recent of their kind); concurrent callers wait. A result computed while the
+        Backend switched generation is returned but kept with the old generation's."""
         with self._guard:
-            if key in self._results:
-                self._used(key)
-                return self._results[key]
-            lock = self._locks.setdefault(key, threading.Lock())
+            results, locks, recent = self._results, self._locks, self._recent
+            if key in results:
+                _used(results, locks, recent, key)
+                return results[key]
+            lock = locks.setdefault(key, threading.Lock())
         with lock:
             with self._guard:
-                if key in self._results:  # computed by the caller this one waited for
-                    self._used(key)
-                    return self._results[key]
+                if key in results:  # computed by the caller this one waited for
+                    _used(results, locks, recent, key)
+                    return results[key]
             result = compute()
             with self._guard:
-                self._results[key] = result
-                self._used(key)
+                results[key] = result
+                _used(results, locks, recent, key)
             return result
-
-    def _used(self, key) -> None:
-        """An answer just used becomes the most recent of its kind; the least recent beyond the bound go (under the
-        guard)."""
-        most = answers_kept(key)
-        if most is None:
-            return
-        recent = self._recent.setdefault(key[0] if isinstance(key, tuple) else key, OrderedDict())
-        recent[key] = None
-        recent.move_to_end(key)
-        while len(recent) > most:
-            old, _ = recent.popitem(last=False)
-            self._results.pop(old, None)
-            self._locks.pop(old, None)
 
     def is_cached(self, key) -> bool:
         return key in self._results

@@ -157,7 +157,9 @@ class DocumentPicker(pn.widgets.AutocompleteInput):
     Enter. ``value`` is the chosen document's id (an int), as a Select's would be.
 
     The whole list goes to the browser once (about 75 bytes per document) and is filtered there as the user types;
-    typed text that names no document changes nothing (the page keeps the last chosen one).
+    typed text that names no document changes nothing (the page keeps the last chosen one). When the database grows
+    while it is served (an ingest), the new documents join the list (:meth:`Backend.on_new_documents
+    <mocapviz.app.backend.Backend.on_new_documents>`).
 
     Parameters
     ----------
@@ -175,3 +177,8 @@ class DocumentPicker(pn.widgets.AutocompleteInput):
         super().__init__(label=label, options=backend.doc_options(), value=int(value), search_strategy="includes",
                          case_sensitive=False, min_characters=1, restrict=True,
                          placeholder="type a part of a name, label, performer or archive", **params)
+        backend.on_new_documents(self._new_documents)
+
+    def _new_documents(self, backend) -> None:
+        """The database served grew: its documents, the new ones too, are the choices."""
+        self.options = backend.doc_options()
