@@ -23,7 +23,8 @@
                        --out DIR [--search TEXT]
     mocapviz reproduce NAME|all [--full] --out DIR   (NAME: an experiment, e.g. rank_correlations, reconstruction)
     mocapviz serve [DB] [--port 5006] [--address 127.0.0.1 | --address ADDRESS --allow-origin HOST:PORT...] [--show]
-                                                                                (no DB: the embedded demo)
+                   [--auth USERS [--cookie-secret-file FILE]]                  (no DB: the embedded demo)
+    mocapviz users USERS add NAME --role read|annotate|admin | list | remove NAME | role NAME ROLE | password NAME
     mocapviz datasets list
     mocapviz datasets fetch NAME        (NAME: a shared archive, or ``sample`` / ``demo``, embedded)
 
