@@ -1,5 +1,6 @@
-"""The database commands: ``mocapviz ingest`` (files into a MotionDB), ``mocapviz info`` (its summary) and
-``mocapviz check`` (every file of it read back and verified)."""
+"""The database commands: ``mocapviz ingest`` (files into a MotionDB, its stored indexes and feature sets then
+brought up to date), ``mocapviz info`` (its summary) and ``mocapviz check`` (every file of it read back and
+verified)."""
 from __future__ import annotations
 
 import contextlib
@@ -10,10 +11,11 @@ from pathlib import Path
 import pandas as pd
 
 from .. import io as readers  # lazy: the ASF reader (and numba) load only for --asf
-from ..engine import CANONICAL_JOINTS, MotionDB, expand_paths
+from ..engine import CANONICAL_JOINTS, MotionDB, expand_paths, stored_sets, update_derived
 from ..errors import MocapvizError, MotionDBError, ParameterError
 from ..integrity import check, rebuild_commands
 from ..parallel import LOCAL, dask_client
+from ..validation import plural
 from .options import scheduler_of
 from .output import printed
 
@@ -41,6 +43,18 @@ def run_ingest(args) -> None:
                              skip_bad=args.skip_bad, threads=args.jobs, progress=not args.quiet,
                              scheduler=scheduler, **options)
     print(db)
+    _update_derived(db, progress=not args.quiet)
+
+
+def _update_derived(db: MotionDB, progress: bool) -> None:
+    """The derived data stored with ``db`` (indexes, numeric sets) brought up to date after an ingest, the new
+    documents' frames alone computed (:func:`mocapviz.engine.update_derived`); one line per set."""
+    if not any(stored_sets(db).values()):
+        return
+    for row in update_derived(db, progress=progress).to_dict("records"):
+        done = f" ({plural(row['documents'], 'document')}, {plural(row['frames'], 'frame')}, {row['seconds']:.1f} s)" \
+            if row["how"] in ("extended", "rebuilt") else ""
+        print(f"{row['kind']} {row['set']}: {row['how']}{done}")
 
 
 def _mapping(path: str) -> dict[str, str]:
