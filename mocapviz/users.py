@@ -40,6 +40,10 @@ PASSWORD_LENGTH = (8, 1024)
 """A password's least and most characters."""
 NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._@-]{0,63}")
 """A user name: a letter or digit, then up to 63 letters, digits or ``. _ @ -`` (it is a label's author too)."""
+COOKIE_SECRET_ENV = "MOCAPVIZ_COOKIE_SECRET"
+"""The environment variable that may hold the secret the server signs its login cookies with."""
+COOKIE_SECRET_LENGTH = 32
+"""A cookie secret's least characters."""
 
 
 def read_users(path: str | os.PathLike) -> dict[str, dict]:
@@ -198,6 +202,32 @@ def hashed(password: str) -> dict:
                              + (f"; this one has {len(password)}" if isinstance(password, str) else ""))
     salt = secrets.token_bytes(SALT_BYTES)
     return {"kdf": "scrypt", **SCRYPT, "salt": salt.hex(), "hash": _scrypt(password, salt, SCRYPT).hex()}
+
+
+def cookie_secret(path: str | os.PathLike | None = None) -> str:
+    """The secret a server signs its login cookies with: the content of the file ``path`` (white space around it
+    left out), else the environment variable :data:`COOKIE_SECRET_ENV`, else a new random one (43 characters, 256
+    bits: every cookie of an earlier start is then void). Never printed, never logged.
+
+    Raises
+    ------
+    ParameterError
+        The secret given is shorter than :data:`COOKIE_SECRET_LENGTH` characters, or the file cannot be read (the
+        message names the file or variable, never the secret).
+    """
+    if path is not None:
+        try:
+            given, where = Path(path).read_text(encoding="utf-8").strip(), str(path)
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ParameterError(f"--cookie-secret-file {path}: cannot read it ({exc})") from None
+    else:
+        given, where = os.environ.get(COOKIE_SECRET_ENV, ""), COOKIE_SECRET_ENV
+        if not given:
+            return secrets.token_urlsafe(32)
+    if len(given) < COOKIE_SECRET_LENGTH:
+        raise ParameterError(f"{where}: a cookie secret needs at least {COOKIE_SECRET_LENGTH} characters, this one "
+                             f"has {len(given)} (e.g. python -c 'import secrets; print(secrets.token_urlsafe(32))')")
+    return given
 
 
 def _scrypt(password: str, salt: bytes, cost: dict) -> bytes:
