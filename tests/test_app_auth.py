@@ -4,9 +4,9 @@ the login page.
 
 What a visitor not signed in gets, for every kind of request (the page, Bokeh's and Panel's static files, the
 WebSocket handshake, a POST): a redirect to /login or a 403, never a page with a session token. A cookie is accepted
-only when signed with the server's secret and naming a user the file still holds. The server's own start (the
-sample ingested, warmed up) is shared with the other dashboard tests' fixture machinery; the tests themselves take
-~15 s.
+only when signed with the server's secret and naming a user the file still holds, and while the file can be read.
+~11 s of tests after the server's start (15-21 s on the loaded 2 cores: the sample ingested, if no other test did,
+then warmed up).
 """
 from __future__ import annotations
 
@@ -109,12 +109,46 @@ def test_sign_in_then_removed(server):
     for static in STATIC:
         assert _request(port, "GET", static, cookie)[0] == 200
     assert _handshake(port, cookie, token) == 101
+    content = path.read_bytes()
+    path.write_text("{damaged")  # a users file that cannot be read signs everybody out, until it is put back
+    _refused(_request(port, "GET", "/", cookie))
+    path.write_bytes(content)
+    assert _request(port, "GET", "/", cookie)[0] == 200
     users.remove_user(path, "carol")  # her cookie is signed and unexpired, but she is no user any more
     _refused(_request(port, "GET", "/", cookie))
     assert _handshake(port, cookie, token) == 403
     text = log.read_text()
     assert "sign-in refused: user 'carol'" in text and "signed in: carol (admin)" in text
+    assert f"users file unusable, nobody is signed in: {path}: not a users file (not JSON" in text
     assert USERS["carol"][0] not in text and "bob's passphrase" not in text
+
+
+def test_serve_refuses_bad_auth_options_before_serving(sample_db, tmp_path, capsys):
+    from mocapviz.cli import main
+
+    assert main(["serve", str(sample_db.path), "--auth", str(tmp_path / "missing.json")]) == 1
+    assert "missing.json: no such users file" in capsys.readouterr().err
+    assert main(["serve", str(sample_db.path), "--cookie-secret-file", str(tmp_path / "secret")]) == 1
+    assert "give --auth FILE too" in capsys.readouterr().err
+    one, empty = tmp_path / "one.json", tmp_path / "empty.json"
+    for path in (one, empty):
+        users.add_user(path, "alice", USERS["alice"][0], "read")
+    users.remove_user(empty, "alice")
+    (tmp_path / "short").write_text("too short\n")
+    for options, says in ((["--auth", str(empty)], "holds no users"),
+                          (["--auth", str(one), "--cookie-secret-file", str(tmp_path / "short")],
+                           "a cookie secret needs at least 32 characters, this one has 9")):
+        assert main(["serve", str(sample_db.path), *options]) == 1
+        assert says in capsys.readouterr().err
+
+
+def test_without_auth_a_session_may_do_everything():
+    from mocapviz.app.auth import SessionUser, can, session_user
+
+    assert session_user() == SessionUser(None, "admin")
+    assert all(can(None, action) for action in ("search", "download", "annotate", "add takes"))
+    assert [can(SessionUser("bob", "read"), a) for a in ("search", "annotate")] == [True, False]
+    assert not can(SessionUser("gone", None), "search")  # a user removed from the file since
 
 
 def test_browser_login_and_logout(server, page):

@@ -51,7 +51,7 @@ def session_user() -> SessionUser:
     if login is None:
         return SessionUser(None, "admin")
     name = pn.state.user
-    return SessionUser(name, login.roles().get(name))
+    return SessionUser(name, login.role_of(name))
 
 
 def can(user: SessionUser | None, action: str) -> bool:
@@ -104,13 +104,18 @@ class Login:
             self._roles, self._stat = users.roles(self.path), key
         return self._roles
 
-    def known(self, name: str | None) -> bool:
-        """Whether ``name`` is a user of the users file now (False, logged, when the file cannot be read)."""
+    def role_of(self, name: str | None) -> str | None:
+        """The role of the user ``name`` in the users file now; None for a name it does not hold, and when the file
+        cannot be read (logged: nobody is signed in then)."""
         try:
-            return name is not None and name in self.roles()
+            return None if name is None else self.roles().get(name)
         except (OSError, UsersFileError) as exc:
             LOG.error("users file unusable, nobody is signed in: %s", exc)
-            return False
+            return None
+
+    def known(self, name: str | None) -> bool:
+        """Whether ``name`` is a user of the users file now (:meth:`role_of`)."""
+        return self.role_of(name) is not None
 
     def signed_in(self, cookie: str | None) -> str | None:
         """The user whose name ``cookie`` (the ``user`` cookie's value) carries, signed with this server's secret
