@@ -573,7 +573,7 @@ def test_values_in_range_are_applied_exactly(demo_db, capsys):
     features = ["rknee_bent", "lknee_bent"]
     hits = query_by_example(db, db.motion(11), features, mode="mismatch", mismatches=3, allowed=[0, 3])
     assert main(["query", str(demo_db), "--example", "11", "--features", ",".join(features), "--mismatch", "3",
-                 "--mismatch-at", "0,3", "-K", "100000"]) == 0  # fmt: skip
+                 "--mismatch-at", "0,3", "-K", "100000", "--no-exclude-document"]) == 0  # fmt: skip (the kernel's hits)
     text = capsys.readouterr().out
     assert text.startswith(f"{len(hits)} hits in ") and "(mismatch, " in text
     assert len(_table(text)) == len(hits) > 2  # -K 100000: every hit, none cut

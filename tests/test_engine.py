@@ -123,7 +123,8 @@ def test_the_issues_sharded_query_keeps_every_hit(hdm05_db30, tmp_path, capsys):
     from mocapviz.relational.index import load_or_build
     from mocapviz.relational.query import query_by_example
 
-    args = ["query", str(hdm05_db30.path), "--example", "100", "--features", "rknee_bent,lknee_bent", "-K", "20"]
+    args = ["query", str(hdm05_db30.path), "--example", "100", "--features", "rknee_bent,lknee_bent", "-K", "20",
+            "--no-exclude-document"]  # as the library's kernel, its own document kept
     expected = query_by_example(hdm05_db30, hdm05_db30.motion(100), ["rknee_bent", "lknee_bent"], mode="adaptive",
                                 indexes=load_or_build(hdm05_db30, "2005"))  # fmt: skip
     for scheduler in ([], ["--scheduler", "local"]):

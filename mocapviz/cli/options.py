@@ -11,6 +11,7 @@ from ..errors import ParameterError
 from ..parallel import LOCAL  # light: dask itself is imported by dask_client
 from ..validation import parse_count, parse_number
 
+STRETCH_POOL = 20  # search --stretches --label: the label is looked for among the best 20 x K stretches
 CSV_HELP = ("also write the ranked hit table to this CSV file (columns and frames as docs/glossary.md, Results: start "
             "and end within the document, half-open)")
 """``--csv FILE`` of every command that prints hits."""

@@ -17,7 +17,16 @@ from ..engine.parameters import RULES, add_options, default
 from ..errors import ParameterError
 from ..users import COOKIE_SECRET_ENV, COOKIE_SECRET_LENGTH, ROLES
 from ..validation import parse_integers, parse_names, parse_port, parse_span
-from .options import CSV_HELP, Parser, cluster_options, count_check, number_check, option, search_scheduler
+from .options import (
+    CSV_HELP,
+    STRETCH_POOL,
+    Parser,
+    cluster_options,
+    count_check,
+    number_check,
+    option,
+    search_scheduler,
+)
 
 MAX_JOBS = 256
 """``ingest --jobs``: worker processes or reader threads at most."""
@@ -28,7 +37,6 @@ NUMERIC_SPELLINGS = {"numeric_set": ("--numeric-set", "--features")}  # --featur
 
 LABEL_HELP = ("keep the hits that overlap a stretch of this label: a segment label (mocapviz labels) or a document "
               "of that file-name label")
-STRETCH_POOL = 20  # search --stretches --label: the label is looked for among the best 20 x K stretches
 
 
 def build_parser() -> argparse.ArgumentParser:

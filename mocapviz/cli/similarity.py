@@ -14,9 +14,8 @@ from ..engine.parameters import arguments
 from ..errors import MocapvizError, ParameterError
 from ..validation import plural
 from .inputs import engine_of, example_of
-from .options import scheduler_of
+from .options import STRETCH_POOL, scheduler_of
 from .output import csv_folder, print_paths, print_ranked, printed, write_csv
-from .parser import STRETCH_POOL
 
 PCA_SETS = tuple(n for n in NUMERIC_SETS if n.startswith("Fp"))
 """The numeric sets made by PCA (``features --pca``)."""
