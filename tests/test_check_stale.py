@@ -75,7 +75,9 @@ def test_an_ingest_leaves_stale_derived_data_that_the_printed_commands_rebuild(i
     cli = _mocapviz("check", indexed.path)
     assert cli.returncode == 3, cli.stderr
     assert "DAMAGED" not in cli.stdout and cli.stdout.count(" stale ") == len(derived)
-    assert "nothing is damaged" in cli.stderr and cli.stderr.strip().splitlines()[-2:] == [f"  {c}" for c in commands]
+    assert f"{len(derived)} files of {len(report)} are stale derived data" in cli.stderr
+    assert "nothing is damaged); compute them again" in cli.stderr
+    assert cli.stderr.strip().splitlines()[-2:] == [f"  {c}" for c in commands]
     for command in commands:  # the commands as printed (in this process, on threads: no cluster to start)
         assert main([*shlex.split(command)[1:], "--no-cluster", "--quiet"]) == 0, command
     after = _mocapviz("check", indexed.path)
@@ -98,7 +100,7 @@ def test_a_flipped_byte_is_damaged_even_in_stale_data(indexed, new_files):
     cli = _mocapviz("check", indexed.path)
     assert cli.returncode == 1 and "DAMAGED" in cli.stdout and "numeric-F15E.npy" in cli.stdout
     err = cli.stderr.strip().splitlines()
-    assert err[0].startswith(f"mocapviz: error: {indexed.path}: 1 of ") and "files are damaged; 4 stale" in err[0]
+    assert err[0].startswith(f"mocapviz: error: {indexed.path}: 1 file of ") and " is damaged; 4 stale" in err[0]
     assert "Traceback" not in cli.stderr
 
 
@@ -169,3 +171,19 @@ def test_checks_beside_a_running_ingest_never_say_damaged(indexed, new_files):
     assert set(final["status"]) == {"ok", "stale"}  # the numeric sets are stale, the index of the last round not
     assert (final["what"].str.startswith("markers of document")).sum() == 2 and final.loc[
         final["what"].str.startswith("markers"), "ok"].all()
+
+
+@pytest.mark.parametrize(("stale", "line"), [(1, "1 file of 3 is stale derived data"), (2, "2 files of 3 are stale")])
+def test_the_stale_line_counts_in_number(stale, line, monkeypatch, capsys):
+    """mocapviz check's line on stale derived data agrees with its count ("1 file of 3 is ... compute it again")."""
+    import pandas as pd
+
+    from mocapviz.cli import database
+
+    rows = [{"file": f"index/relational-2005-{g}.npz", "what": "index", "status": "stale" if i < stale else "ok",
+             "ok": i >= stale, "detail": "", "rebuild": "mocapviz index DB" if i < stale else ""}
+            for i, g in enumerate(("lower", "upper", "mix"))]  # fmt: skip
+    monkeypatch.setattr(database, "check", lambda path: pd.DataFrame(rows))
+    assert main(["check", "DB"]) == 3
+    err = capsys.readouterr().err
+    assert line in err and f"compute {'it' if stale == 1 else 'them'} again with:" in err

@@ -2,6 +2,7 @@
 ingests beside successful ones, and every kind of corrupted file — all with real processes on the embedded
 sample's real clips (no shared archives needed)."""
 
+import argparse
 import json
 import os
 import shutil
@@ -17,6 +18,7 @@ import pandas as pd
 import pytest
 
 from mocapviz import MotionDB, MotionDBError
+from mocapviz.cli.database import run_check
 from mocapviz.io import datasets
 
 
@@ -258,6 +260,8 @@ def test_damaged_derived_files_are_named_never_answered(derived):
     assert report.loc["index/relational-2005-lower.npz", "rebuild"] == f"mocapviz index {derived.path}"
     assert report.loc["features/numeric-Fp8.npy", "rebuild"] == f"mocapviz features {derived.path} --numeric-sets Fp8"
     assert report.loc["index/relational-2005-mix.npz", "ok"] and report.loc["features/pca.npz", "ok"]
+    with pytest.raises(MotionDBError, match=rf": 4 files of {len(report)} are damaged \(see above\)"):
+        run_check(argparse.Namespace(db=derived.path))  # the count and its words agree (1: the next test)
 
 
 def test_mocapviz_check_prints_every_file_and_fails_on_a_damaged_one(derived, capsys):
@@ -273,4 +277,4 @@ def test_mocapviz_check_prints_every_file_and_fails_on_a_damaged_one(derived, ca
     assert main(["check", str(derived.path)]) == 1
     out, err = capsys.readouterr()
     assert "DAMAGED" in out and arr.name in out
-    assert err.count("\n") == 1 and "1 of 1 files are damaged" in err
+    assert err.count("\n") == 1 and "1 file of 1 is damaged" in err

@@ -108,10 +108,12 @@ def run_check(args) -> int:
     rebuild = "".join(f"\n  {command}" for command in rebuild_commands(report))
     also = f"; {stale} stale" if stale else ""
     if damaged:
-        raise MotionDBError(f"{args.db}: {damaged} of {len(report)} files are damaged{also} (see above)" +
+        raise MotionDBError(f"{args.db}: {plural(damaged, 'file')} of {len(report)} "
+                            f"{plural(damaged, 'is', 'are', number=False)} damaged{also} (see above)" +
                             (f"; derived data is computed again by:{rebuild}" if rebuild else ""))  # fmt: skip
     if stale:
-        print(f"mocapviz: {args.db}: {stale} of {len(report)} files are stale derived data (intact, computed before "
-              f"the database last changed; nothing is damaged); compute them again with:{rebuild}", file=sys.stderr)
+        print(f"mocapviz: {args.db}: {plural(stale, 'file')} of {len(report)} {plural(stale, 'is', 'are', number=False)}"
+              f" stale derived data (intact, computed before the database last changed; nothing is damaged); compute "
+              f"{plural(stale, 'it', 'them', number=False)} again with:{rebuild}", file=sys.stderr)
         return 3
     return 0
