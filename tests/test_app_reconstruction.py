@@ -36,7 +36,7 @@ def _open_page(page, url: str) -> None:
     """Load the dashboard and show the Reconstruction tab."""
     open_dashboard(page, url)
     open_tab(page, "Reconstruction")
-    page.locator(".mv-recon-run button").wait_for()
+    page.locator(ERROR).get_by_text("mean error").wait_for(timeout=180_000)  # the session's clip, on opening
 
 
 def _expected_mean_cm(db, doc: int) -> float:
@@ -57,7 +57,7 @@ def test_reconstruct_a_clip(page, sample_dashboard, sample_db, screenshot):
     page.locator(".mv-recon-prior select").select_option(label="without the test clip's actor")
     screenshot("options")
     ms = timed(lambda: page.locator(".mv-recon-run button").click(),
-               lambda: page.locator(ERROR).get_by_text("mean error").wait_for(timeout=180_000))
+               lambda: page.locator(".mv-recon-summary", has_text="without actor dg's clips").wait_for(timeout=180_000))
     record_timing("reconstruction_sample_doc3_ms", ms, "ms")
     shown = page.locator(ERROR).inner_text()
     assert f"mean error {_expected_mean_cm(sample_db, TEST_DOC):.2f} cm" in shown, shown

@@ -41,9 +41,11 @@ KNEES = ["rknee_bent", "lknee_bent"]
 
 
 def _open_page(page, url: str) -> None:
-    """Open the Relational query tab and wait until its indexes are loaded (Run enabled)."""
+    """Open the Relational query tab and wait for its first answer (the session clip's suggested query, run on
+    opening once the indexes are loaded) and Run enabled."""
     open_dashboard(page, url)
     open_tab(page, "Relational query")
+    page.locator(".mv-hit-count", has_text=re.compile(r"hits? for ")).wait_for(timeout=600_000)
     page.locator(".mv-run button:not([disabled])").wait_for(timeout=600_000)
 
 

@@ -87,10 +87,9 @@ def test_eight_sessions_get_their_own_answers_and_share_the_servers_memory(serve
     record_figures("sessions_8_p95_s", {k: eight.percentile(k, 95) for k in KINDS}, "s, 95th percentile, 8 sessions")
 
     # 2 s after the last session was dropped: no dashboard of theirs in the server's memory (no reference kept)
-    text = _log_until(log, ALL_GONE, times=2)
+    _log_until(log, ALL_GONE, times=2)
     rss["closed"] = rss_mb(pid)
     record_figures("server_rss_mb", rss, "MB resident (VmRSS) of the mocapviz serve process")
-    assert "job started" not in text, "opening Index statistics or Correlations started a computation"
     assert rss["eight_sessions"] <= RSS_RATIO * rss["one_session"], rss
 
 
@@ -112,8 +111,7 @@ def test_jobs_wait_their_turn_and_stop_when_cancelled_or_abandoned(served, brows
     a.locator(".mv-job-cancel button").wait_for()
     a.get_by_text(re.compile(r"Table 3: random queries on the upper index … \d+ %")).wait_for()
     # ... so another session's job waits, its place shown
-    open_tab(b, "Correlations")
-    b.locator(".mv-compute button").click()
+    open_tab(b, "Correlations")  # opening the tab queues its default computation
     b.get_by_text("Pose-based, 6 measures: waiting, number 1 in the queue").wait_for()
     # Cancel stops the running job between two of its steps; the waiting one then runs
     t0 = time.perf_counter()

@@ -15,6 +15,7 @@ from browser_helpers import open_dashboard, open_tab, record_timing, run_in_thre
 from playwright.sync_api import expect
 
 from mocapviz.app.pages import templates as page_mod
+from mocapviz.app.state import Selection
 from mocapviz.db.hits import database_frames
 from mocapviz.errors import ParameterError
 from mocapviz.features import relational_features
@@ -174,7 +175,7 @@ def test_the_boxes_are_the_librarys_ranges_and_a_failed_run_clears_the_hits(back
     """δ and the max cost are bounded by the library's own ranges (DELTA_RANGE, MAX_COST_RANGE): δ = 0 (every
     entry don't care, every stretch a perfect hit) cannot be entered; a max cost of 5 becomes 1, -1 becomes 0 and an
     emptied box means none, each shown. A run that fails leaves no hits of the previous run on the page."""
-    page = page_mod.TemplatesPage(backend, None)
+    page = page_mod.TemplatesPage(backend, Selection())
     assert (page.delta.start, page.delta.end) == DELTA_RANGE.closed(page_mod.STEP) == (0.01, 0.49)
     assert (page.max_cost.start, page.max_cost.end) == (MAX_COST_RANGE.low, MAX_COST_RANGE.high) == (0, 1)
     page.delta.value = 0.0
@@ -197,10 +198,10 @@ def test_the_boxes_are_the_librarys_ranges_and_a_failed_run_clears_the_hits(back
 
 def test_a_database_without_classes_says_so_in_one_line():
     backend = SimpleNamespace(documents=pd.DataFrame({"doc_id": [0, 1], "name": ["a", "b"]}))
-    view = page_mod.TemplatesPage(backend, None).__panel__()
+    view = page_mod.TemplatesPage(backend, Selection()).__panel__()
     assert "its documents have no label" in view.object
     backend = SimpleNamespace(documents=pd.DataFrame({"doc_id": [0, 1], "label": ["x", "y"]}))
-    assert "no label is shared by two" in page_mod.TemplatesPage(backend, None).__panel__().object
+    assert "no label is shared by two" in page_mod.TemplatesPage(backend, Selection()).__panel__().object
 
 
 # ============================================================================ the page in the browser
@@ -237,10 +238,11 @@ def _set(page, css: str, value) -> None:
 def test_templates_page_shows_the_library_hits_and_plays_one(page, sample_dashboard, sample_db, features, screenshot):
     open_dashboard(page, sample_dashboard)
     open_tab(page, TAB)
+    page.locator(".mv-templates-count", has_text="template in the whole database").wait_for()  # the opening answer
     page.locator(".mv-templates-class select").select_option(KICK)
     assert page.locator(".mv-templates-k input").input_value() == "20"
     assert page.locator(".mv-templates-delta input").input_value() == f"{page_mod.DEFAULT_DELTA:g}"
-    count = page.locator(".mv-templates-count", has_text="hits")
+    count = page.locator(".mv-templates-count", has_text=f"of the {KICK} template")
     ms = timed(page.locator(".mv-templates-run button").click, count.wait_for)
     record_timing("templates_learn_search_ms", ms, "ms")
 

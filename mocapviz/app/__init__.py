@@ -48,6 +48,7 @@ from .auth import Login, signed_in_line
 from .backend import Backend, answers_in_memory
 from .jobs import on_session_closed, release_memory
 from .state import Selection
+from .widgets import when_drawn
 
 LOG = logging.getLogger("mocapviz.app")
 LOCAL = "127.0.0.1"
@@ -77,12 +78,14 @@ def _pages():
 def dashboard(db_path, scheduler=None) -> pn.viewable.Viewable:
     """One session's dashboard over the MotionDB at ``db_path``: a header and one tab per page.
 
-    Pages are built when their tab is first opened (the first page at once), so the first page shows quickly. When
-    the browser session closes, its jobs are cancelled (:mod:`mocapviz.app.jobs`) and the memory of its pages
-    returned (:func:`session_closed`).
+    Pages are built when their tab is first opened (the first page at once), so the first page shows quickly; a
+    page then answers its default question at once (its ``first_answer``: the session's clip searched, ... behind
+    its progress bar), so no page opens empty, and no query runs for a page not yet shown. When the browser session
+    closes, its jobs are cancelled (:mod:`mocapviz.app.jobs`) and the memory of its pages returned
+    (:func:`session_closed`).
     """
     backend = Backend.open(db_path, scheduler)
-    selection = Selection(doc=int(backend.documents["doc_id"].iloc[0]))
+    selection = Selection(doc=first_document(backend))
     pages = _pages()
     built: dict[int, object] = {}
 
@@ -97,11 +100,12 @@ def dashboard(db_path, scheduler=None) -> pn.viewable.Viewable:
     def show(event=None):
         i = tabs.active
         holder = tabs[i]
-        if not len(holder):
-            holder.append(build(i))
-        page = built[i]
+        first, page = not len(holder), build(i)
         if hasattr(page, "activate"):
             page.activate()
+        if first:
+            marker = when_drawn(page.first_answer) if hasattr(page, "first_answer") else None
+            holder.extend([page] + ([marker] if marker is not None else []))  # one change: the page drawn once
 
     tabs.param.watch(show, "active")
     show()
@@ -117,6 +121,11 @@ def dashboard(db_path, scheduler=None) -> pn.viewable.Viewable:
     layout = pn.Column(header, tabs, sizing_mode="stretch_width")
     _DASHBOARDS.add(layout)
     return layout
+
+
+def first_document(backend: Backend) -> int:
+    """The document a new session starts at (the first of the database)."""
+    return int(backend.documents["doc_id"].iloc[0])
 
 
 # a session without a browser connected (gone away, or not yet connected: a busy server may take seconds between
@@ -165,7 +174,7 @@ def warm_up(backend: Backend) -> dict[str, float]:
     - Describe page: a shipped scene description found through the 2005 indexes (the ranking kernel loaded).
     - Motion templates page: the relational features of every frame in the 2006 set, which every template is
       learned from and searched in (8 s on every shared archive at 30 Hz, 446,551 frames), and the page's first
-      answer: the template of its default class learned and searched with the page's defaults (the search kernel
+      answer: the template of the first clip's class learned and searched with the page's defaults (the search kernel
       loaded, the answer kept).
 
     The small queries use a few frames of the longest document; their results are not kept. A step the database
@@ -219,12 +228,13 @@ def warm_up(backend: Backend) -> dict[str, float]:
 
 
 def _first_template(backend: Backend) -> None:
-    """The Motion templates page's first answer (its default class, every actor, its defaults), kept in
-    ``backend``'s caches; only the 2006 features of every frame when no class has two documents."""
+    """The Motion templates page's first answer for a new session (the class of the session's first clip, every
+    actor, its defaults: :func:`~.pages.templates.opening_class`), kept in ``backend``'s caches; only the 2006
+    features of every frame when no class has two documents."""
     from .pages import templates
 
     backend.engine.relational_values("2006")
-    label = templates.default_class(backend.documents)
+    label = templates.opening_class(backend.documents, first_document(backend))
     if label is not None:
         templates.learn_and_search(backend, label, (), "2006", templates.DEFAULT_DELTA, templates.DEFAULT_MATCHES,
                                    None)  # fmt: skip

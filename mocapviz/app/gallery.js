@@ -10,11 +10,14 @@
 //
 // For tests the canvas carries data-cells (cells on the page), data-drawn (cells drawn so far), data-hover (the
 // cell under the pointer, -1 for none), data-hover-frame (the frame it shows), data-selected (the selected rows on
-// the page, comma separated) and data-loads (pages received so far).
+// the page, comma separated), data-loads (pages received so far) and data-cut (the cells whose title did not fit its
+// lines and ends in "…"; the full title shows on hover as the canvas's tooltip).
 
 const PAD = 6;  // px around a cell's skeleton
 const ZOOM = 1.2;  // the cell's camera box a little larger than the cell: the box holds the floor and a margin
 const BACKGROUND = { plain: "#ffffff", hover: "#f1f1f1", selected: "#dde9f8" };
+const LINE = 13;  // px of a label line (11 px text)
+const BREAKS = "_ -.";  // a title breaks after one of these where it can (a name's parts stay whole), else anywhere
 
 function ellipsis(ctx, text, width) {
   if (ctx.measureText(text).width <= width) {
@@ -27,6 +30,26 @@ function ellipsis(ctx, text, width) {
   return `${text.slice(0, cut)}…`;
 }
 
+// `text` in lines of at most `width` px, at most `most` of them (the last cut with "…" when it is longer still)
+function wrapped(ctx, text, width, most) {
+  const lines = [];
+  let rest = text;
+  while (lines.length < most - 1 && ctx.measureText(rest).width > width) {
+    let cut = rest.length;
+    while (cut > 1 && ctx.measureText(rest.slice(0, cut)).width > width) {
+      cut -= 1;
+    }
+    const soft = Math.max(...[...BREAKS].map((c) => rest.lastIndexOf(c, cut - 1)));
+    if (soft >= cut / 2) {
+      cut = soft + 1;
+    }
+    lines.push(rest.slice(0, cut));
+    rest = rest.slice(cut);
+  }
+  lines.push(ellipsis(ctx, rest, width));
+  return lines;
+}
+
 export function render({ model, el }) {
   const root = element("div", "mvg");
   const canvas = element("canvas", "mv-gallery-canvas");
@@ -37,7 +60,7 @@ export function render({ model, el }) {
   const st = {
     cells: [], lengths: [], rates: [], rows: [], labels: [], bounds: [], parents: [], sides: [], nJoints: 0,
     columns: 1, cellW: 150, cellH: 150, labelH: 30, selected: new Set(), hover: -1, hoverStart: 0, hoverFrame: -1,
-    drawn: 0, loads: 0, frameRequest: null, removed: false,
+    drawn: 0, loads: 0, frameRequest: null, removed: false, cut: new Set(),
   };
 
   function load() {
@@ -101,9 +124,13 @@ export function render({ model, el }) {
     ctx.textBaseline = "top";
     const [title, seconds] = st.labels[i] || ["", ""];
     ctx.font = "bold 11px sans-serif";
-    ctx.fillText(ellipsis(ctx, title, w - 8), x + 4, y + h - labelH + 2);
+    const lines = wrapped(ctx, title, w - 8, Math.max(1, Math.floor(labelH / LINE) - 1));
+    lines.forEach((line, k) => ctx.fillText(line, x + 4, y + h - labelH + 2 + k * LINE));
+    if (lines.join("") !== title) {
+      st.cut.add(i);
+    }
     ctx.font = "11px sans-serif";
-    ctx.fillText(seconds, x + 4, y + h - labelH / 2 + 1);
+    ctx.fillText(seconds, x + 4, y + h - LINE - 2);
     ctx.strokeStyle = selected ? "#1f5fa8" : "#dddddd";
     ctx.lineWidth = selected ? 3 : 1;
     ctx.strokeRect(x + 0.5, y + 0.5, w - 1, h - 1);
@@ -116,9 +143,11 @@ export function render({ model, el }) {
     ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
     ctx.fillStyle = BACKGROUND.plain;
     ctx.fillRect(0, 0, canvas.width / dpr, canvas.height / dpr);
+    st.cut = new Set();
     st.cells.forEach((_, i) => drawCell(i, i === st.hover && st.hoverFrame >= 0 ? st.hoverFrame : middle(i)));
     canvas.dataset.selected = st.rows.filter((row) => st.selected.has(row)).join(",");
     canvas.dataset.hover = String(st.hover);
+    canvas.dataset.cut = [...st.cut].join(",");
   }
 
   // ---------------------------------------------------------------------------------------------- hover: play
@@ -150,6 +179,7 @@ export function render({ model, el }) {
       drawCell(before, middle(before));
     }
     canvas.dataset.hover = String(i);
+    canvas.title = i >= 0 ? (st.labels[i] || []).join(" · ") : "";
     if (i >= 0) {
       st.hoverStart = performance.now();
       if (st.frameRequest == null) {

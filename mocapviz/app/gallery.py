@@ -6,7 +6,8 @@ A :class:`HitGallery` puts a "Table | Gallery" toggle over a result table (the r
 the size of the result: only the shown page's cells are built and sent) on one canvas (:class:`GalleryView`, code in
 ``gallery.js`` after the ``skeleton.js`` it shares with the player). Each cell is a skeleton seen by a fixed camera,
 drawn from a low-rate copy of its hit (:func:`cell_frames`), showing the hit's middle key pose, with its rank, document
-name and seconds under it; the cell under the pointer plays. A click makes the cell's row the table's selection, so
+name (in up to three lines: a long name in full, its class not cut off) and seconds under it; the cell under the
+pointer plays. A click makes the cell's row the table's selection, so
 the page plays it in its aligned player as after a click in the table; a ctrl-, cmd- or shift-click adds the row to the
 selection or removes it, and the download under the table exports the selected hits. The two selections are one: the
 table's shows in the gallery and the gallery's is the table's.
@@ -35,8 +36,11 @@ from .player import component_code, joint_sides, recentred, scene_box
 
 PAGE_SIZE = 24  # cells per page
 COLUMNS = 8  # cells per line
-CELL = (150, 150)  # (width, height) of a cell in px, its labels included
-LABEL_HEIGHT = 30  # px of the two label lines under a cell's skeleton
+CELL = (150, 176)  # (width, height) of a cell in px, its labels included
+# px of the label lines under a cell's skeleton: the title (rank and document name) in up to 3 lines of 13 px, broken
+# after "_" where it can, then the seconds: an HDM05 name (HDM_bd_elbowToKnee1RepsLelbowStart_001_120) in full, so
+# the class it names shows
+LABEL_HEIGHT = 56
 MAX_FPS = 10.0  # the highest rate of a cell's frames, Hz
 MAX_FRAMES = 40  # the most frames of a cell (a longer hit is shown at a lower rate)
 MODES = ("Table", "Gallery")

@@ -1,5 +1,6 @@
-"""Widgets every page builds the same way: the primary button that starts a computation, the table of results and
-the number boxes that keep their bounds (:class:`BoundedIntInput`, :class:`BoundedFloatInput`)."""
+"""Widgets every page builds the same way: the primary button that starts a computation, the table of results,
+the number boxes that keep their bounds (:class:`BoundedIntInput`, :class:`BoundedFloatInput`), and
+:func:`when_drawn`, which runs a page's first answer once the browser has drawn the page."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ import math
 
 import pandas as pd
 import panel as pn
+import param
+from panel.custom import JSComponent
 
 from ..engine.parameters import PARAMETERS, default
 
@@ -220,3 +223,28 @@ def results_table(value: pd.DataFrame, css_class: str, titles: dict | None = Non
                                 configuration={"renderVertical": "basic",
                                                **({"columnDefaults": {"tooltip": True}} if tooltips else {})},
                                 **params)
+
+
+class Drawn(JSComponent):
+    """An empty component whose browser side sets ``drawn`` once it is drawn: appended to a layout, after the
+    layout's other views (its module loads after theirs are built)."""
+
+    drawn = param.Boolean(default=False, doc="the browser has drawn the component")
+    _esm = "export function render({ model }) { model.drawn = true; }"
+
+
+def when_drawn(callback) -> Drawn | None:
+    """A marker to put after a page just built: once the browser has drawn it, ``callback`` (sync or async, no
+    argument) runs; outside a browser session ``callback`` runs at once (and None is returned).
+
+    A page's first answer starts here rather than when the page is built: updates to the widgets of a page the
+    browser has not drawn yet (its Run button disabled, its progress bar moved) reached views without their elements
+    ("Cannot read properties of undefined (reading 'setAttribute')" in Bokeh's and Panel's code).
+    """
+    doc = pn.state.curdoc
+    if doc is None or doc.session_context is None:
+        pn.state.execute(callback)
+        return None
+    marker = Drawn(width=0, height=0, margin=0)
+    marker.param.watch(lambda event: pn.state.execute(callback) if event.new else None, "drawn")
+    return marker

@@ -17,6 +17,7 @@ import pandas as pd
 import panel as pn
 
 from ...engine import available_measures, correlation_sample, pose_correlations, pose_limits, segment_correlations
+from ...validation import plural
 from ...viz.correlation import correlation_heatmap
 from ..jobs import JobTask
 from ..widgets import BoundedIntInput, action_button, notes
@@ -82,11 +83,11 @@ def segment_problem(db, clips: int, n_first: int) -> str:
     sample, why = sample_of(db, clips)
     if sample is None:
         return (f"**Segment-based comparisons need several clips per class**, and this database cannot give a "
-                f"sample of {clips} clips per class: {why}. Lower *clips per class* (at least 2), or open a labelled "
+                f"sample of {plural(clips, 'clip')} per class: {why}. Lower *clips per class* (at least 2), or open a labelled "
                 f"database with more takes per class (the paper: {PAPER_CLIPS} per class).")
     if not 2 <= n_first < len(sample):
-        return (f"*first n* must be between 2 and {len(sample) - 1} (the sample's {len(sample)} clips less the "
-                f"query clip); it is {n_first}.")
+        return (f"*first n* must be between 2 and {len(sample) - 1} (the sample's {plural(len(sample), 'clip')} less "
+                f"the query clip); it is {n_first}.")
     return ""
 
 
@@ -158,7 +159,6 @@ class CorrelationsPage(pn.viewable.Viewer):
                                        css_classes=["mv-paper-settings"])  # fmt: skip
         self.paper.on_click(lambda event: self.paper_settings())
         self.pose_task, self.segment_task = JobTask(), JobTask()
-        self.pose_task.status.object = "Choose the settings and press **Compute**."
         self.pose, self.segment = MatrixView("pose"), MatrixView("segment")
         self.segment_note = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-segment-problem"])
 
@@ -208,6 +208,11 @@ class CorrelationsPage(pn.viewable.Viewer):
                 and not segment_problem(self.backend.db, clips, n_first)):
             self._show_segment(segment_matrix(self.backend, measures, clips, n_first))
 
+    async def first_answer(self) -> None:
+        """The page's answer when it is first shown: both matrices with the default settings, as jobs (Cancel
+        stops them)."""
+        await self._compute()
+
     def settings(self) -> tuple[tuple, int, int, int, int]:
         """(measures in Fig. 2's order, queries, k, clips per class, first n) as chosen."""
         chosen = [m for m in self.measures.options if m in self.measures.value]
@@ -222,7 +227,7 @@ class CorrelationsPage(pn.viewable.Viewer):
             return
         self.button.disabled = True
         try:
-            pose = await self.pose_task.run(f"Pose-based, {len(measures)} measures", pose_matrix, self.backend,
+            pose = await self.pose_task.run(f"Pose-based, {plural(len(measures), 'measure')}", pose_matrix, self.backend,
                                             measures, n_queries, k, clips, stale=[self.pose.layout])  # fmt: skip
             if pose is not None:
                 self._show_pose(pose, clips)
@@ -234,7 +239,7 @@ class CorrelationsPage(pn.viewable.Viewer):
                 self.segment.hide()
                 self.segment_task.status.object = ""
                 return
-            segment = await self.segment_task.run(f"Segment-based, {len(measures)} measures", segment_matrix,
+            segment = await self.segment_task.run(f"Segment-based, {plural(len(measures), 'measure')}", segment_matrix,
                                                   self.backend, measures, clips, n_first,
                                                   stale=[self.segment.layout])  # fmt: skip
             if segment is not None:
@@ -251,13 +256,14 @@ class CorrelationsPage(pn.viewable.Viewer):
     @staticmethod
     def _pose_caption(matrix: pd.DataFrame, sampled: bool) -> str:
         a = matrix.attrs
-        clips = f"the sample's {a['documents']} clips" if sampled else f"all {a['documents']} documents (no sample)"
-        return (f"{a['n_queries']} random query frames of {clips} ({a['frames']:,} frames), their k = {a['k']} "
-                f"nearest frames by the row measure.")
+        clips = f"the sample's {plural(a['documents'], 'clip')}" if sampled else \
+            f"all {plural(a['documents'], 'document')} (no sample)"
+        return (f"{plural(a['n_queries'], 'random query frame')} of {clips} ({plural(a['frames'], 'frame')}), their "
+                f"k = {a['k']} nearest {plural(a['k'], 'frame', number=False)} by the row measure.")
 
     @staticmethod
     def _segment_caption(matrix: pd.DataFrame) -> str:
         a = matrix.attrs
-        return (f"DTW between all pairs of the {a['clips']} clips ({a['frames']:,} frames); ρ over the first "
-                f"{a['n_first']} clips of each ranking. *precision*: the share of those with the clip's own class "
+        return (f"DTW between all pairs of the {plural(a['clips'], 'clip')} ({plural(a['frames'], 'frame')}); ρ over "
+                f"the first {plural(a['n_first'], 'clip')} of each ranking. *precision*: the share of those with the clip's own class "
                 f"(a random ranking: {a['chance']:.3f}).")

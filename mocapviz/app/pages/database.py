@@ -21,8 +21,10 @@ from ..state import half_open, inclusive
 from ..widgets import results_table
 
 TABLE_TITLES = {"doc_id": "id", "n_frames": "frames"}
-NARROW_COLUMNS = {"doc_id": 56, "label": 150, "performer": 92, "archive": 112, "seconds": 80, "n_frames": 72,
-                  "fps": 48}  # pixels
+# pixels: each title in full beside its sort arrow (at 1280 pixels too: "perfor…", "seco…" were cut at 92 and 80)
+NARROW_COLUMNS = {"doc_id": 56, "performer": 104, "archive": 112, "seconds": 94, "n_frames": 84, "fps": 58}
+CHAR_PX, LABEL_PX = 8, (100, 280)  # a label's width per character (Tabulator's 14 px font) and its column's bounds
+SAME_FOR_ALL = ("archive", "fps")  # columns left out when every document has the same value (the count line says it)
 PAGE_ROWS = 12  # documents per page of the table (beside the player)
 
 
@@ -47,8 +49,10 @@ class DatabasePage(pn.viewable.Viewer):
                                                     value=(0.0, max(longest, 0.1)), step=0.1, width=220)
         # the columns share the table's width (the player takes the rest of a 1400-pixel screen): long names end in
         # "…" and show in full on hover, rather than the last columns being cut off
+        self.same = {c: docs[c].iloc[0] for c in SAME_FOR_ALL if docs[c].nunique() == 1 and docs[c].notna().all()}
         self.table = results_table(docs, "mv-documents", TABLE_TITLES, page_size=PAGE_ROWS, selectable=True,
-                                   layout="fit_columns", widths=NARROW_COLUMNS, tooltips=True)
+                                   layout="fit_columns", widths=column_widths(docs), tooltips=True,
+                                   hidden_columns=list(self.same))  # fmt: skip
         self.count = pn.pane.Markdown("", css_classes=["mv-doc-count"])
         for w in (self.label_filter, self.performer_filter, self.archive_filter, self.length_filter):
             w.param.watch(self._filter, "value")
@@ -99,7 +103,8 @@ class DatabasePage(pn.viewable.Viewer):
         shown = filter_documents(t, self.label_filter.value, self.performer_filter.value, self.archive_filter.value,
                                  self.text_filter.value_input or "", self.length_filter.value)
         self.table.value = shown
-        self.count.object = f"{len(shown)} of {plural(len(t), 'document')}"
+        self.count.object = f"{len(shown)} of {plural(len(t), 'document')}" + "".join(
+            f" · all {value:g} fps" if c == "fps" else f" · all from {value}" for c, value in self.same.items())
 
     async def _on_select(self, event) -> None:
         if event.new:
@@ -201,7 +206,7 @@ class DatabasePage(pn.viewable.Viewer):
         values, names = self.backend.clip_relational(self.doc)
         a, b = self.selection.span
         self.timeline_info.object = (
-            f"{len(names)} features of the 2005 set ({legend(PARTS, PART_NAMES, 'feature groups')}), "
+            f"{plural(len(names), 'feature')} of the 2005 set ({legend(PARTS, PART_NAMES, 'feature groups')}), "
             f"{plural(len(segment(values).starts), 'segment')} in the clip, {len(segment(values[a:b]).starts):,} "
             f"in the span {a}..{b - 1}")
 
@@ -231,6 +236,13 @@ class DatabasePage(pn.viewable.Viewer):
     def _curves_frame(self, name: str, doc: int, fps: float, span) -> hv.Overlay:
         X = self.backend.engine.numeric(name)[self.backend.db.frames(doc)]
         return _framewise(numeric_curves(X, numeric_columns(name), fps, title=f"{name} (cm, body frame)"), span, fps)
+
+
+def column_widths(docs: pd.DataFrame) -> dict:
+    """The fixed widths (pixels) of the documents table's columns: :data:`NARROW_COLUMNS`, and the label's as wide as
+    the longest label (within :data:`LABEL_PX`), so that no class is cut; the name takes the rest (in full on hover)."""
+    longest = int(docs["label"].dropna().astype(str).str.len().max()) if docs["label"].notna().any() else 0
+    return {**NARROW_COLUMNS, "label": min(max(CHAR_PX * longest + 12, LABEL_PX[0]), LABEL_PX[1])}
 
 
 def _framewise(plot: hv.Overlay, span, fps: float) -> hv.Overlay:

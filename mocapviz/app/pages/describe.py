@@ -351,6 +351,7 @@ class DescribePage(pn.viewable.Viewer):
         super().__init__()
         self.backend, self.selection = backend, selection
         self.hits, self.description = pd.DataFrame(), None
+        self.answered = False  # first_answer has started (it loads the indexes itself)
         self._typed = 0  # keystrokes so far (the debounce keeps the last one's check only)
         self.relational_set = pn.widgets.RadioButtonGroup(options=RELATIONAL_SETS, value="2005", width=120,
                                                           css_classes=["mv-describe-set"])
@@ -408,8 +409,16 @@ class DescribePage(pn.viewable.Viewer):
         """When the tab is shown: list the stored templates again (some may have been stored since) and load the
         relational indexes of the set in the background (Find waits for them)."""
         self._refresh_templates()
-        if not self.backend.engine.holds("indexes", self.relational_set.value):
+        if self.answered and not self.backend.engine.holds("indexes", self.relational_set.value):
             pn.state.execute(self._load_indexes)
+
+    async def first_answer(self) -> None:
+        """The page's answer when it is first shown: the indexes loaded, then the example description
+        (:data:`EXAMPLE`, the editor's text) found with the page's K."""
+        self.answered = True
+        if not self.backend.engine.holds("indexes", self.relational_set.value):
+            await self._load_indexes()
+        await self._on_find()
 
     async def _load_indexes(self) -> None:
         await self.task.run("Loading the relational indexes", self.backend.engine.indexes, self.relational_set.value,

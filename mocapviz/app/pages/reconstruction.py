@@ -37,6 +37,7 @@ from ...engine import (
     reconstruction_errors,
 )
 from ...errors import ParameterError
+from ...validation import plural
 from ...viz.reconstruction import error_curves, joint_error_bars
 from ..documents import DocumentPicker
 from ..player import SkeletonPlayer
@@ -207,7 +208,7 @@ class ReconstructionPage(pn.viewable.Viewer):
         self.run_button = action_button("Reconstruct", "mv-recon-run", self._run, width=140)
         self.message = pn.pane.Alert("", alert_type="warning", visible=False, css_classes=["mv-recon-message"])
         self.task = Task()
-        self.summary = pn.pane.Markdown("Choose a clip and press **Reconstruct**.", css_classes=["mv-recon-summary"])
+        self.summary = pn.pane.Markdown("", css_classes=["mv-recon-summary"])
         self.error_text = pn.pane.Markdown("", css_classes=["mv-recon-error"], styles={"font-size": "1.2em"})
         self.player = SkeletonPlayer(size=(760, 420))
         self.caption = pn.pane.Markdown("", css_classes=["mv-recon-caption"])
@@ -235,6 +236,10 @@ class ReconstructionPage(pn.viewable.Viewer):
         if self.selection.doc != self._followed:
             self._followed = self.selection.doc
             self.clip.value = self.selection.doc
+
+    async def first_answer(self) -> None:
+        """The page's answer when it is first shown: the session's clip reconstructed with the page's defaults."""
+        await self._run()
 
     def _bound_k(self) -> None:
         """k from 1 to the frames of the chosen prior (the database without the test clip, or its actor)."""
@@ -267,13 +272,13 @@ class ReconstructionPage(pn.viewable.Viewer):
         markers = (f"real markers (its C3D marker clusters), against {truth_name}" if source == "real" else
                    f"noise ± {noise:g} cm")
         self.summary.object = (
-            f"**{name}** · {len(result['truth'])} frames · prior: {result['prior_frames']:,} frames without "
+            f"**{name}** · {plural(len(result['truth']), 'frame')} · prior: {plural(result['prior_frames'], 'frame')} without "
             f"{result['left_out']} · {numeric_set} · k = {k:,} · {markers} · "
             f"computed in {result['seconds']:.1f} s")
         self.error_text.object = (f"**mean error {err['mean_cm']:.2f} cm** per joint · worst frame "
                                   f"{err['max_cm']:.2f} cm · bone length error {err['bone_cm']:.2f} cm")
         self.player.load([result["truth"], result["estimate"]], titles=["original", "reconstruction"], fps=fps)
-        self.caption.object = f"left: original · right: reconstruction from {len(MARKERS)} markers"
+        self.caption.object = f"left: original · right: reconstruction from {plural(len(MARKERS), 'marker')}"
         joints, frames = error_tables(err, f"without {result['left_out']}", fps)
         # one prior: the summary names it, a legend would only cover bars
         self.joints.object = joint_error_bars(joints, width=1150, height=300).opts(show_legend=False,

@@ -25,7 +25,7 @@ from ..documents import DocumentPicker
 from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
-from ..progress import Task
+from ..progress import Task, in_thread
 from ..state import half_open, inclusive
 from ..widgets import BoundedIntInput, action_button, clear, hit_columns, hit_titles, notes, results_table
 
@@ -161,6 +161,7 @@ class RelationalPage(pn.viewable.Viewer):
         self.has_labels = "label" in backend.documents and backend.documents["label"].notna().any()
         self._syncing = False
         self.hits, self.shown_query = pd.DataFrame(), None
+        self.answered = False  # first_answer has started (it loads the indexes itself)
         self.doc = DocumentPicker(backend, "query clip", selection.doc, width=420, css_classes=["mv-query-doc"])
         self.span = pn.widgets.IntRangeSlider(label="query span (frames)", start=0, end=1, value=(0, 1), width=420,
                                               css_classes=["mv-query-span"])
@@ -217,8 +218,27 @@ class RelationalPage(pn.viewable.Viewer):
         """Take the session's clip and span (the Database page may have changed them) when the tab is shown."""
         if (self.selection.doc, tuple(self.selection.span)) != (self.doc.value, half_open(self.span.value)):
             self._set_query(self.selection.doc, inclusive(self.selection.span))
-        if not self.backend.engine.holds("indexes", RELATIONAL_SET):
+        if self.answered and not self.backend.engine.holds("indexes", RELATIONAL_SET):
             pn.state.execute(self._load_indexes)
+
+    async def first_answer(self) -> None:
+        """The page's answer when it is first shown: the relational indexes loaded (built the first time), then the
+        session's clip queried by :func:`first_query` (its widgets set to that query) and the hits shown. A span
+        narrower than the clip, chosen on the Database page, is queried as it is, with its :func:`suggested_query`."""
+        self.answered = True
+        if not self.backend.engine.holds("indexes", RELATIONAL_SET):
+            await self._load_indexes()
+        first, last = inclusive(self.selection.span)
+        self._pose(await in_thread(suggested_query, self.backend, self.selection.doc, first, last))
+        await self._on_run()
+
+    def _pose(self, q: dict) -> None:
+        """Set the widgets to the query ``q`` (as :meth:`query` returns it)."""
+        self._set_query(q["doc"], inclusive(q["span"]))
+        for w in self.features.values():
+            w.value = [name for name in w.options if name in q["features"]]
+        self.mode.value = next(label for label, mode in MODES.items() if mode == q["mode"])
+        self.mismatches.set_bounds(0, self.query_segments() - 1, q["mismatches"])
 
     async def _load_indexes(self) -> None:
         """Load (or build, the first time) the relational indexes behind the progress bar; Run waits for them."""
@@ -374,7 +394,7 @@ class RelationalPage(pn.viewable.Viewer):
         curve = precision_recall(hits["doc_id"], self.backend.documents, q["doc"])
         n_rel = curve.attrs["n_relevant"]
         rule = (f"Documents are ranked by their first hit; one is relevant when it is labelled *{label}*; the query's "
-                f"own document is left out; recall counts the {n_rel} other document(s) with that label.")
+                f"own document is left out; recall counts the {plural(n_rel, 'other document')} with that label.")
         if curve.empty:
             self.quality.object = f"No hit outside the query's document. {rule}"
             self.curve.visible = False

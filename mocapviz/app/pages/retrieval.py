@@ -130,6 +130,11 @@ class RetrievalPage(pn.viewable.Viewer):
                                    margin=0),
                          self.count, self.summary, self.figures, sizing_mode="stretch_width")
 
+    async def first_answer(self) -> None:
+        """The page's answer when it is first shown: the default methods evaluated on the default queries, as a
+        job (Cancel stops it)."""
+        await self._evaluate()
+
     def _bound_queries(self, event=None) -> None:
         """At most as many queries as documents carry the chosen label."""
         docs = self.backend.documents

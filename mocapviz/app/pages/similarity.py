@@ -211,7 +211,7 @@ def similarity_result(backend, name: str, doc: int, span: tuple[int, int], k: in
     n = sum(backend.db.frames(d).stop - backend.db.frames(d).start for d in database_docs)
     if (end - start) * n > MAX_MATRIX_CELLS:
         raise ParameterError(f"the matrix would have {end - start} x {n:,} cells (at most {MAX_MATRIX_CELLS:,}); "
-                             f"choose a span of at most {MAX_MATRIX_CELLS // n} frames")
+                             f"choose a span of at most {plural(MAX_MATRIX_CELLS // n, 'frame')}")
     return similarity_matrices(backend.db, doc, (start, end), database_docs, numeric_sets=(name,), k=k)
 
 
@@ -336,6 +336,11 @@ class SimilarityPage(pn.viewable.Viewer):
                              f"{start / fps:.2f}–{end / fps:.2f} s). "
                              "Choose the document, frame and span on the Database page.")
 
+    async def first_answer(self) -> None:
+        """The page's answer when it is first shown: the DTW search of the session's span with the page's defaults
+        (the other sections wait for their buttons)."""
+        await self._run_search()
+
     def _found_by(self, which: str) -> str:
         """The search of the hits shown in a table ("search" or "match"), in words (written into exported files)."""
         doc, (start, end) = getattr(self, f"{which}_query", None) or (None, (0, 0))
@@ -366,7 +371,7 @@ class SimilarityPage(pn.viewable.Viewer):
         ms = found.attrs.get("ms")
         self.search_count.object = (f"**{plural(len(found), *what)}** like document {doc} frames {_frames(*span)} by {name}, "
                                     f"{mode} DTW (K = {n_matches})" + (", its own document excluded" if own else "")
-                                    + (f"; search {ms:.0f} ms, {found.attrs.get('aligned', 0)} alignments"
+                                    + (f"; search {ms:.0f} ms, {plural(found.attrs.get('aligned', 0), 'alignment')}"
                                        if ms is not None else ""))  # fmt: skip
 
     def _on_search_select(self, event) -> None:
@@ -378,7 +383,7 @@ class SimilarityPage(pn.viewable.Viewer):
         self.search_playing.object = (f"Playing the query (document {doc}, frames {_frames(*span)}) beside result "
                                       f"{row['rank']} (document {row['doc_id']}, {row['name']}, frames "
                                       f"{_frames(row['start'], row['end'])}), aligned by its DTW warping path "
-                                      f"({len(row['path'])} steps).")
+                                      f"({plural(len(row['path']), 'step')}).")
 
     def _play(self, player, box, doc: int, span: tuple[int, int], hit, title: str) -> None:
         """Load the query span (frames start:end of ``doc``) beside the hit ``hit`` (a row of a hit table, with its
@@ -447,7 +452,7 @@ class SimilarityPage(pn.viewable.Viewer):
                                    + (f"(the span's first {LNG_MAX_SECONDS:g} s: the graph looks up the k nearest "
                                       "frames of every query frame) " if cut else "")
                                    + f"(k = {k}, K = {n_matches}), each at least {share:g} × the span long "
-                                   f"({shortest_match(share, span[1] - span[0])} frames)"
+                                   f"({plural(shortest_match(share, span[1] - span[0]), 'frame')})"
                                    + (", its own document excluded" if own else "")
                                    + ("; try a larger k" if found.empty else ""))
 
@@ -460,7 +465,7 @@ class SimilarityPage(pn.viewable.Viewer):
         self.playing.object = (f"Playing the query (document {doc}, frames {_frames(*span)}) beside match "
                                f"{match['rank']} (document {match['doc_id']}, {match['name']}, frames "
                                f"{_frames(match['start'], match['end'])}), aligned by its warping path "
-                               f"({len(match['path'])} steps).")
+                               f"({plural(len(match['path']), 'step')}).")
 
     # ------------------------------------------------------------------ Fig. 3
     def _similarity(self, key: tuple, k: int):

@@ -151,6 +151,11 @@ class StatisticsPage(pn.viewable.Viewer):
         if self.backend.is_cached(("statistics", "table1", knn_queries, repeats)) and not len(self.table1):
             self.table1[:] = self._table1_view(table1(self.backend, knn_queries, repeats), knn_queries)
 
+    async def first_answer(self) -> None:
+        """The page's answer when it is first shown: the three tables at the quick size, as jobs (Cancel stops
+        them; tables computed already by any session show at once)."""
+        await self._compute()
+
     def _cached_table3(self) -> bool:
         """Show Table 3 of the chosen index and size if it was computed already; False when it was not."""
         group, (queries, _, _) = self.group.value, SIZES[self.size.value]

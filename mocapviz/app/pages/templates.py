@@ -78,6 +78,14 @@ def default_class(documents: pd.DataFrame) -> str | None:
     return max(classes, key=lambda c: (sizes[c], -classes.index(c)))
 
 
+def opening_class(documents: pd.DataFrame, doc: int) -> str | None:
+    """The class the page opens with for a session at document ``doc``: its own class when a template can be
+    learned from it (:func:`class_options`), else :func:`default_class`."""
+    own = documents.loc[documents["doc_id"] == doc, "label"] if "label" in documents else pd.Series(dtype=object)
+    label = str(own.iloc[0]) if len(own) and pd.notna(own.iloc[0]) else None
+    return label if label in class_options(documents) else default_class(documents)
+
+
 def actors_of(documents: pd.DataFrame, label: str) -> list[str]:
     """The ``actor`` values of the documents of class ``label``, sorted (empty without an ``actor`` column)."""
     if "actor" not in documents or "label" not in documents:
@@ -249,7 +257,8 @@ class TemplatesPage(pn.viewable.Viewer):
         docs = backend.documents
         self.classes = class_options(docs)
         self.template, self.hits, self.delta_used = None, None, DEFAULT_DELTA
-        self.label = pn.widgets.Select(label="class", options=self.classes, value=default_class(docs), width=260,
+        self.label = pn.widgets.Select(label="class", options=self.classes, value=opening_class(docs, selection.doc),
+                                       width=260,
                                        css_classes=["mv-templates-class"])
         self.actors = pn.widgets.MultiChoice(label="actors to learn from (none = all)", width=240,
                                              visible="actor" in docs, css_classes=["mv-templates-actors"])
@@ -286,7 +295,10 @@ class TemplatesPage(pn.viewable.Viewer):
         if not self.classes:
             why = "its documents have no label" if "label" not in self.backend.documents else \
                 "no label is shared by two or more of its documents"  # fmt: skip
-            return pn.pane.Markdown(f"No motion template can be learned from this database: {why}.",
+            return pn.pane.Markdown(f"No motion template can be learned from this database: {why}. Ingest the "
+                                    "motions with a label table (`mocapviz ingest FOLDER --labels TABLE`: a TSV/CSV "
+                                    "with a 'file' and a 'class' column, two files or more per class; a `labels.tsv`"
+                                    " beside the files is read by itself) and open that database.",
                                     css_classes=["mv-templates-none"], margin=(0, 10))
         intro = pn.pane.Markdown(INTRO, margin=(0, 10), sizing_mode="stretch_width")
         inputs = pn.Row(self.label, self.actors, pn.Column("relational set", self.relational_set, margin=(0, 5)),
@@ -298,6 +310,13 @@ class TemplatesPage(pn.viewable.Viewer):
         return pn.Column(intro, inputs, notes(self.delta, self.n_matches, self.max_cost), task, self.summary,
                          self.count, self.gallery, self.download.panel(), pn.Row(template, playing),
                          sizing_mode="stretch_width")
+
+    async def first_answer(self) -> None:
+        """The page's answer when it is first shown: the template of the session clip's class (or the default
+        class, :func:`opening_class`) learned and searched with the page's defaults; nothing without classes (the
+        page says what to do)."""
+        if self.classes:
+            await self._run()
 
     def _found_by(self) -> str:
         """The template of the hits shown, in words (written into exported files)."""
@@ -362,7 +381,7 @@ class TemplatesPage(pn.viewable.Viewer):
         name = self.backend.db.document(example)["name"]
         self.playing.object = (f"Playing training example document {example} ({name}) beside hit {hit['rank']} "
                                f"(document {doc}, {hit['name']}, frames {start}:{end}), aligned by "
-                               f"DTW of their relational features ({len(path)} steps).")
+                               f"DTW of their relational features ({plural(len(path), 'step')}).")
 
 
 PLAY_HINT = ("Click a hit to play it beside a training example of the template, aligned by DTW of their relational "
