@@ -3,7 +3,8 @@
 Each experiment of :mod:`mocapviz.experiments` (the table in docs/architecture.md) has a runner here that chooses its
 database and settings, calls the experiment function and turns the result into named tables (pandas DataFrames,
 written as CSV) and figures (HoloViews objects from :mod:`mocapviz.viz`, written as PNG with the matplotlib
-backend and as self-contained HTML with the bokeh backend). A runner's name is the experiment function's name.
+backend and as self-contained HTML with the bokeh backend). A runner's name is the experiment function's name, but
+``annotation``'s (:func:`mocapviz.experiments.annotation.simulated_annotation`).
 
 Settings: without ``full`` every experiment runs in minutes on the shared HDM05 cut clips (287 clips, 70,996 frames at
 120 Hz / 17,878 at 30 Hz), with fewer random queries where the paper uses thousands. With ``full`` the query counts
@@ -395,6 +396,33 @@ def _descriptions(data: _Data) -> Result:
     return Result(tables=tables, figures={"precision_recall": bars}, settings=settings)
 
 
+def _annotation(data: _Data) -> Result:
+    from .engine import Engine, simulated_annotation
+    from .viz.paper import curves
+
+    # HDM05 cut at 30 Hz: every actor hidden in turn (about 35 s each); Bandai Namco 1 at 30 Hz: the style
+    # "normal" (the only one holding all 16 contents: its 21 clips are the 11 of the 10 contents every style has,
+    # and 10 of contents no other style has, which no template is learned for), with full every style in turn
+    hdm05, bandai = data.hdm05(30.0), data._ingest(("bandai-namco-1",), 30.0)
+    styles = sorted(bandai.documents["style"].unique()) if data.full else ["normal"]
+    runs = {"hdm05": (hdm05, "actor", sorted(hdm05.documents["actor"].unique())), "bandai": (bandai, "style", styles)}
+    tables, figures, settings = {}, {}, {}
+    for name, (db, group, hidden) in runs.items():
+        parts = [simulated_annotation(db, h, Engine, data.folder / "annotation" / f"{name}-{h}", group=group)
+                 for h in hidden]  # fmt: skip
+        for table in parts[0]:
+            tables[f"{name}_{table}"] = pd.concat([p[table] for p in parts], ignore_index=True)
+        for part, h in zip(parts, hidden):
+            panels = [curves(part["curves"][part["curves"]["method"] == method], "reviewed", "share", "class",
+                             title=f"{name}, {group} {h} hidden: {method}", xlabel="hits reviewed",
+                             ylabel="hidden clips labelled (share)", markers=False)
+                      for method in ("loop, one by one", "document order")]  # fmt: skip
+            figures[f"{name}_{h}"] = (panels[0] + panels[1]).cols(1)
+        settings[name] = {"database": data.describe(db), "group": group, "hidden": list(map(str, hidden)),
+                          "page": 20, "target": 0.9, "max_examples": 16}  # fmt: skip
+    return Result(tables=tables, figures=figures, settings=settings)
+
+
 EXPERIMENTS: dict[str, Callable[[_Data], Result]] = {
     "index_statistics": _index_statistics,
     "query_statistics": _query_statistics,
@@ -410,6 +438,7 @@ EXPERIMENTS: dict[str, Callable[[_Data], Result]] = {
     "retrieval_quality": _retrieval_quality,
     "template_quality": _template_quality,
     "descriptions": _descriptions,
+    "annotation": _annotation,
 }
 
 
