@@ -398,7 +398,6 @@ def _descriptions(data: _Data) -> Result:
 
 def _annotation(data: _Data) -> Result:
     from .engine import Engine, simulated_annotation
-    from .viz.paper import curves
 
     # HDM05 cut at 30 Hz: every actor hidden in turn (about 35 s each); Bandai Namco 1 at 30 Hz: the style
     # "normal" (the only one holding all 16 contents: its 21 clips are the 11 of the 10 contents every style has,
@@ -413,14 +412,35 @@ def _annotation(data: _Data) -> Result:
         for table in parts[0]:
             tables[f"{name}_{table}"] = pd.concat([p[table] for p in parts], ignore_index=True)
         for part, h in zip(parts, hidden):
-            panels = [curves(part["curves"][part["curves"]["method"] == method], "reviewed", "share", "class",
-                             title=f"{name}, {group} {h} hidden: {method}", xlabel="hits reviewed",
-                             ylabel="hidden clips labelled (share)", markers=False)
-                      for method in ("loop, one by one", "document order")]  # fmt: skip
-            figures[f"{name}_{h}"] = (panels[0] + panels[1]).cols(1)
+            figures[f"{name}_{h}"] = _annotation_curves(part["curves"], f"{name}, {group} {h} hidden: the loop "
+                                                        "(solid, one by one) against document order (dashed)")
         settings[name] = {"database": data.describe(db), "group": group, "hidden": list(map(str, hidden)),
                           "page": 20, "target": 0.9, "max_examples": 16}  # fmt: skip
     return Result(tables=tables, figures=figures, settings=settings)
+
+
+def _annotation_curves(table: pd.DataFrame, title: str):
+    """Hits reviewed against the share of the class's hidden clips labelled, a colour per class: the loop reviewing
+    one by one (solid, in the legend) and the document order (dashed)."""
+    import holoviews as hv
+    import holoviews.plotting.bokeh  # registers the backends the options are checked against
+    import holoviews.plotting.mpl
+    from matplotlib import colormaps
+    from matplotlib.colors import to_hex
+
+    layers = []
+    for i, (label, part) in enumerate(table.groupby("class", sort=False)):
+        colour = to_hex(colormaps["tab20"](i % 20))
+        for method, dash in (("loop, one by one", "solid"), ("document order", "dashed")):
+            rows = part[part["method"] == method]
+            line = hv.Curve(rows, hv.Dimension("reviewed", label="hits reviewed"),
+                            hv.Dimension("share", label="hidden clips labelled (share)", range=(0, 1.02)),
+                            label=label if dash == "solid" else "")  # fmt: skip
+            line = line.opts(color=colour, line_dash=dash, line_width=2, backend="bokeh")
+            layers.append(line.opts(color=colour, linestyle=dash, linewidth=1.5, backend="matplotlib"))
+    overlay = hv.Overlay(layers).opts(width=900, height=420, title=title, legend_position="right", backend="bokeh")
+    return overlay.opts(fig_size=250, aspect=2.2, title=title, legend_position="right", fontsize={"title": 9},
+                        backend="matplotlib")
 
 
 EXPERIMENTS: dict[str, Callable[[_Data], Result]] = {
