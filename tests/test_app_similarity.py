@@ -437,3 +437,24 @@ def test_the_graphs_k_grows_with_the_database_beyond_the_papers_size(sample_db):
     assert graph_k(446_551, 30.0) == round(LNG_K_AT_30HZ * 446_551 / LNG_REFERENCE_FRAMES) == 1143
     assert graph_k(4 * 446_551, 120.0) == round(1024 * 446_551 / LNG_REFERENCE_FRAMES)  # the same at 4 times the rate
     assert graph_k(100, 30.0) == 100
+
+
+@pytest.mark.parametrize("steps", [1, 2])
+def test_the_playing_captions_count_the_warping_paths_steps_in_number(backend, sample_db, steps):
+    """issue 39: a warping path of one step read "(1 steps)"; the search's and the matching's captions agree."""
+    from types import SimpleNamespace
+
+    from mocapviz.app.pages.similarity import SimilarityPage
+    from mocapviz.app.state import Selection
+
+    doc = int(sample_db.documents.loc[sample_db.documents["name"].str.startswith(QUERY_NAME), "doc_id"].iloc[0])
+    page = SimilarityPage(backend, Selection(doc=doc, span=(0, steps)))
+    hit = pd.DataFrame([{"rank": 1, "doc_id": doc, "name": QUERY_NAME, "start": 0, "end": steps,
+                         "path": np.array([[i, i] for i in range(steps)])}])  # fmt: skip
+    words = "(1 step)." if steps == 1 else "(2 steps)."
+    page.results, page.search_query = hit, (doc, (0, steps))
+    page._on_search_select(SimpleNamespace(new=[0]))
+    assert page.search_playing.object.endswith(words), page.search_playing.object
+    page.matches, page.match_query = hit, (doc, (0, steps))
+    page._on_match_select(SimpleNamespace(new=[0]))
+    assert page.playing.object.endswith(words), page.playing.object

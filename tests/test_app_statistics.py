@@ -302,3 +302,18 @@ def test_table1_wide_keeps_the_papers_order():
     wide = stats_page.table1_wide(long)
     assert list(wide.columns) == ["set", "d", "ours, k=16", "P, k=16"]
     assert list(wide["set"]) == ["F15E", "Fp8"] and list(wide["P, k=16"]) == [1.1, 0.19]
+
+
+@pytest.mark.parametrize("n", [1, 2])
+def test_the_correlation_captions_count_in_number(n):
+    """issue 39: the captions of the two matrices and the task's label write each count with its word in number."""
+    matrix = pd.DataFrame([[1.0]], index=["F15E"], columns=["F15E"])
+    matrix.attrs = {"n_queries": n, "documents": n, "frames": n, "k": n, "clips": n, "n_first": n, "chance": 0.5}
+    s = "" if n == 1 else "s"
+    pose = corr_page.CorrelationsPage._pose_caption(matrix, sampled=True)
+    assert pose.startswith(f"{n} random query frame{s} of the sample's {n} clip{s} ({n} frame{s}), their k = {n} "
+                           f"nearest frame{s}"), pose
+    assert f"all {n} document{s} (no sample)" in corr_page.CorrelationsPage._pose_caption(matrix, sampled=False)
+    segment = corr_page.CorrelationsPage._segment_caption(matrix)
+    assert segment.startswith(f"DTW between all pairs of the {n} clip{s} ({n} frame{s}); ρ over the first {n} "
+                              f"clip{s} of each ranking."), segment

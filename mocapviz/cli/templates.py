@@ -44,12 +44,12 @@ def run_template_learn(args) -> None:
     print(f"template {template.label!r} of {db.path} ({', '.join(actors) if actors else 'every actor'}): "
           f"{plural(n, 'example')} ({plural(meta['file_examples'], 'document')} with that file-name label, "
           f"{plural(meta['segment_examples'], 'segment label')}), {plural(len(template.values), 'frame')} x "
-          f"{len(template.features)} features of the "
+          f"{plural(len(template.features), 'feature')} of the "
           f"{args.relational_set} set, {dont_care:.0%} don't care (δ = {delta}), {plural(template.iterations, 'iteration')}, "
           f"{seconds:.1f} s")  # fmt: skip
     print(f"its examples' own best matches cost up to {meta['example_threshold']:.3f} per frame; its learned threshold "
           f"is {meta['threshold']:.3f} (`--max-cost {meta['threshold']:.3f}`: the cost that best separates them from "
-          f"the {meta['negatives']} clips of other labels, the nearest of which costs "
+          f"the {plural(meta['negatives'], 'clip')} of other labels, the nearest of which costs "
           + ("-" if meta["nearest_negative"] is None else f"{meta['nearest_negative']:.3f}") + ")")
     print(f"stored in {stored} (search it: `mocapviz template search {db.path} {stored.stem}`)")
     if args.out:
@@ -75,6 +75,6 @@ def run_template_search(args) -> None:
     if args.max_cost is not None:
         empty = "try a larger --max-cost" + ("" if own is None else f"; the template's learned threshold is {own:.3f}")
     else:
-        empty = f"no document holds the template's shortest instance, {shortest_instance(template)} frames"
+        empty = f"no document holds the template's shortest instance, {plural(shortest_instance(template), 'frame')}"
     print_ranked(table, args.n_matches, empty)
     write_csv(table, args.csv)

@@ -124,7 +124,7 @@ def check_settings(db, doc: int, kind: str, k: int, noise_cm: float, source: str
     if k is None or k < 1:
         return "k must be a positive whole number of neighbours."
     if k > n:
-        return f"k = {k:,} is larger than the prior ({n:,} frames without {left_out}): choose k ≤ {n:,}."
+        return f"k = {k:,} is larger than the prior ({plural(n, 'frame')} without {left_out}): choose k ≤ {n:,}."
     try:
         NOISE_RANGE_CM.check(noise_cm, "the marker noise (± cm)")
     except ParameterError as exc:

@@ -223,7 +223,7 @@ class StatisticsPage(pn.viewable.Viewer):
                                                   f"random queries, L = {', '.join(map(str, SCATTER_LENGTHS))})")
         queries = int(table.groupby(["mode", "L"])["queries"].sum().iloc[0])
         note = pn.pane.Markdown(f"Fuzzy queries are adaptive, 64 alternatives per set (§6.2). µh, σh: mean and "
-                                f"standard deviation of the hit count; µt: mean time per query. {queries:,} queries "
+                                f"standard deviation of the hit count; µt: mean time per query. {plural(queries, 'query', 'queries')} "
                                 f"per (mode, L); the paper's 10,000 on I_u^180.")
         return [_table(table, "mv-table3"), note,
                 pn.Row(pn.pane.HoloViews(mean, css_classes=["mv-table3-curves"]),
@@ -234,8 +234,8 @@ class StatisticsPage(pn.viewable.Viewer):
                                 height=320, ylabel="ms per query", title=f"k = {k}").opts(**LEGEND_OUTSIDE)
                 for k in sorted(set(long["k"]))]
         note = pn.pane.Markdown(
-            f"Mean milliseconds per exact k-NN query (scipy cKDTree, one thread; {queries:,} queries) on this "
-            f"database's {self.backend.db.n_frames:,} frames; the paper (ANN library, 2010): HDM05 380,813 and CMU "
+            f"Mean milliseconds per exact k-NN query (scipy cKDTree, one thread; {plural(queries, 'query', 'queries')}) on this "
+            f"database's {plural(self.backend.db.n_frames, 'frame')}; the paper (ANN library, 2010): HDM05 380,813 and CMU "
             f"1,038,388 frames at 30 Hz.", css_classes=["mv-table1-note"])
         return [_table(table1_wide(long), "mv-table1"), note,
                 # not linked: each log axis starts below its own bars (linked, k = 256's bars would float above the
