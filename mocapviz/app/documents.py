@@ -23,6 +23,7 @@ from ..io.datasets import ARCHIVES
 NO_PERFORMER = "—"  # the performer of a document whose archive names none (Bandai Namco)
 TABLE_COLUMNS = ("doc_id", "name", "label", "performer", "archive", "seconds", "n_frames", "fps")
 MAX_COMPLETIONS = 50  # matches the picker lists at once (type more to narrow them)
+UPLOADED = -1  # a picker's value for the session's uploaded take (mocapviz.app.upload; no document has a negative id)
 _CMU_TRIAL = re.compile(r"^(\d+)_\d+$")  # a CMU trial's file name: subject_trial, "135_02"
 
 
@@ -159,7 +160,8 @@ class DocumentPicker(pn.widgets.AutocompleteInput):
     The whole list goes to the browser once (about 75 bytes per document) and is filtered there as the user types;
     typed text that names no document changes nothing (the page keeps the last chosen one). When the database grows
     while it is served (an ingest), the new documents join the list (:meth:`Backend.on_new_documents
-    <mocapviz.app.backend.Backend.on_new_documents>`).
+    <mocapviz.app.backend.Backend.on_new_documents>`). Given the session's ``selection``, the picker of a query page
+    lists the take the user uploaded first, as "uploaded: NAME (T frames)", value :data:`UPLOADED`.
 
     Parameters
     ----------
@@ -169,16 +171,31 @@ class DocumentPicker(pn.widgets.AutocompleteInput):
         The box's title.
     value : int
         The document shown first.
+    selection : mocapviz.app.state.Selection, optional
+        The session's choices: its uploaded take (``selection.upload``) is offered too.
     """
 
     max_completions = param.Integer(default=MAX_COMPLETIONS, bounds=(1, None), doc="matches listed at once")
 
-    def __init__(self, backend, label: str, value: int, **params):
-        super().__init__(label=label, options=backend.doc_options(), value=int(value), search_strategy="includes",
+    def __init__(self, backend, label: str, value: int, selection=None, **params):
+        self._upload = None if selection is None else selection.upload
+        super().__init__(label=label, options=self._choices(backend), value=int(value), search_strategy="includes",
                          case_sensitive=False, min_characters=1, restrict=True,
                          placeholder="type a part of a name, label, performer or archive", **params)
         backend.on_new_documents(self._new_documents)
+        if selection is not None:
+            selection.param.watch(lambda event: self._offer(backend, event.new), "upload")
+
+    def _choices(self, backend) -> dict:
+        """{option label: value}: the uploaded take (if any) first, then the database's documents."""
+        upload = {} if self._upload is None else {self._upload.title: UPLOADED}
+        return {**upload, **backend.doc_options()}
+
+    def _offer(self, backend, upload) -> None:
+        """The session uploaded a take: it is a choice (instead of the one before)."""
+        self._upload = upload
+        self.options = self._choices(backend)
 
     def _new_documents(self, backend) -> None:
         """The database served grew: its documents, the new ones too, are the choices."""
-        self.options = backend.doc_options()
+        self.options = self._choices(backend)

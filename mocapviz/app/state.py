@@ -1,5 +1,6 @@
 """What one browser session has chosen, shared by its pages: the clip, the frame the player shows and the span
-(from the Database page's player) that the query pages take as their example."""
+(from the Database page's player) that the query pages take as their example, or a take the user uploaded
+(:mod:`mocapviz.app.upload`) and its span."""
 
 from __future__ import annotations
 
@@ -17,6 +18,16 @@ class Selection(param.Parameterized):
     doc = param.Integer(default=0, doc="document id")
     frame = param.Integer(default=0, bounds=(0, None), doc="frame within the document")
     span = param.Tuple(default=(0, 1), length=2, doc="(start, end) frames within the document, half-open")
+    upload = param.Parameter(default=None, doc="the session's uploaded take (mocapviz.app.upload.Upload), or None")
+    use_upload = param.Boolean(default=False, doc="the uploaded take, not the document, is the query clip")
+    upload_span = param.Tuple(default=(0, 1), length=2, doc="(start, end) frames of the uploaded take, half-open")
+
+    def query(self) -> tuple:
+        """The query clip of the query pages: (document id or the uploaded take, span, frame), the span half-open
+        and the frame within that clip (an upload's: the first of its span)."""
+        if self.use_upload and self.upload is not None:
+            return self.upload, tuple(self.upload_span), int(self.upload_span[0])
+        return int(self.doc), tuple(self.span), int(self.frame)
 
 
 def half_open(value) -> tuple[int, int]:

@@ -217,23 +217,29 @@ class Engine:
         return example_features(self.db, self.numeric(numeric_set), example, frames, numeric_set)
 
     def _motion(self, example, frames):
-        """An example as a Motion cut to ``frames`` ([a, b) or a slice; None: all): a doc id, a Motion or a file."""
+        """An example as a Motion cut to ``frames`` ([a, b) or a slice; None: all): a doc id, or a Motion or a file
+        at the database's rate (:func:`~mocapviz.similarity.search.example_motion`, as the numeric searches take it)."""
         from ..motion import Motion
+        from ..similarity.search import example_motion
 
         if isinstance(example, (int, np.integer)) and not isinstance(example, bool):
             motion, what = self.db.motion(int(self.db.document(int(example))["doc_id"])), f"document {example}"
         elif isinstance(example, Motion):
-            motion, what = example, "the example"
+            motion, what = example_motion(self.db, example), "the example"
         elif isinstance(example, (str, Path)):
-            from ..io import load
-
-            motion, what = load(example), str(example)
+            motion, what = example_motion(self.db, example), str(example)
         else:
             return example  # a RelationalExample: its values, as given
         if isinstance(frames, slice):
             frames = (frames.start, frames.stop)
         a, b = frame_span(frames, motion.n_frames, what, "frames")
         return motion[a:b]
+
+    def example(self, example, *, frames=None):
+        """The example as every use case reads it, a Motion: a doc id's clip, or a Motion or a motion file (BVH,
+        ASF + AMC, C3D, read as ingest reads them) resampled to the database's typical rate; cut to ``frames``
+        ([a, b) of it). What a front reads an uploaded take with, so that its frames are those the use cases count."""
+        return self._motion(example, frames)
 
     # ------------------------------------------------------------------ use cases
     @checked("knn")

@@ -495,15 +495,7 @@ def example_features(db, features: np.ndarray, example, frames=None, numeric_set
         a, b = _span(frames, n, f"document {doc_id}", option)
         values = features[start + a : start + b]
     else:
-        if isinstance(example, (str, os.PathLike)):
-            from ..io import load
-
-            example = load(Path(example))
-        if not isinstance(example, Motion):
-            raise ParameterError(f"example must be a doc id, a Motion or a motion file; got {type(example).__name__}")
-        rate = db.typical_fps
-        if rate and abs(example.fps - rate) > 1e-6:
-            example = example.resample(rate)
+        example = example_motion(db, example)
         a, b = _span(frames, example.n_frames, str(example.source or "the example"), option)
         pca = default_pca(db) if numeric_set.startswith("Fp") else None
         try:
@@ -514,6 +506,47 @@ def example_features(db, features: np.ndarray, example, frames=None, numeric_set
     if bad.any():
         raise ParameterError(f"the query's {numeric_set} features are not finite at frame {a + int(np.argmax(bad))}")
     return Query(np.ascontiguousarray(values, dtype=np.float32), doc_id)
+
+
+def example_motion(db, example) -> Motion:
+    """An example other than a document, as every use case queries it: a motion file read with
+    :func:`mocapviz.load` (BVH, ASF + AMC, C3D: the readers ingest uses), or a Motion; resampled to the database's
+    typical rate (:attr:`MotionDB.typical_fps`) when it differs, so that its frames count as the database's do.
+
+    Parameters
+    ----------
+    db : MotionDB
+    example : Motion, str or os.PathLike
+
+    Returns
+    -------
+    Motion
+        Its source joints (the use cases map them to the canonical ones), at ``db.typical_fps``.
+
+    Raises
+    ------
+    ParameterError
+        ``example`` is neither a Motion nor a path.
+    MocapFormatError
+        The file cannot be read (naming it and the line).
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.io import datasets
+    >>> db = MotionDB.demo()
+    >>> m = example_motion(db, datasets.sample() / "hdm05-cut/amc/HDM_mm_kickLFront1Reps_023_120.amc")
+    >>> m.fps, m.n_frames  # 130 frames at 120 Hz: 33 at 30 Hz
+    (30.0, 33)
+    """
+    if isinstance(example, (str, os.PathLike)):
+        from ..io import load
+
+        example = load(Path(example))
+    if not isinstance(example, Motion):
+        raise ParameterError(f"example must be a doc id, a Motion or a motion file; got {type(example).__name__}")
+    rate = db.typical_fps
+    return example.resample(rate) if rate and abs(example.fps - rate) > 1e-6 else example
 
 
 _SPANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

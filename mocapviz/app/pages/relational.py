@@ -18,15 +18,16 @@ import numpy as np
 import pandas as pd
 import panel as pn
 
-from ...engine import database_frames, feature_groups, query_segmentation
+from ...engine import feature_groups, query_segmentation
 from ...validation import plural
 from ...viz.query import precision_recall, precision_recall_plot
-from ..documents import DocumentPicker
+from ..documents import UPLOADED, DocumentPicker
 from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task, in_thread
 from ..state import half_open, inclusive
+from ..upload import Upload, UploadBox, cache_key, example, query_clip, query_fps, query_frames, query_name
 from ..widgets import BoundedIntInput, action_button, clear, hit_columns, hit_titles, notes, results_table
 
 RELATIONAL_SET = "2005"
@@ -54,8 +55,8 @@ def suggested_query(backend, doc: int, first: int, last: int) -> dict:
     Parameters
     ----------
     backend : Backend
-    doc : int
-        Document id.
+    doc : int or Upload
+        Document id, or the session's uploaded take.
     first, last : int
         Frames of the document, inclusive.
 
@@ -63,12 +64,12 @@ def suggested_query(backend, doc: int, first: int, last: int) -> dict:
     -------
     dict, as :meth:`RelationalPage.query` (span half-open).
     """
-    doc, first, last = int(doc), int(first), int(last)
+    first, last = int(first), int(last)
     q = {"doc": doc, "span": (first, last + 1), "features": list(DEFAULT_FEATURES), "mode": MODES[DEFAULT_MODE],
          "mismatches": 0}
     if last > first:
-        suggested = backend.cached(("relational suggestion", RELATIONAL_SET, doc, first, last),
-                                   lambda: backend.engine.suggest_query(doc, frames=(first, last + 1),
+        suggested = backend.cached(("relational suggestion", RELATIONAL_SET, cache_key(doc), first, last),
+                                   lambda: backend.engine.suggest_query(example(doc), frames=(first, last + 1),
                                                                         relational_set=RELATIONAL_SET))
         q.update(features=list(suggested.features), mode=suggested.mode, mismatches=int(suggested.mismatches))
     return q
@@ -101,9 +102,9 @@ def span_features(backend, doc: int, first: int, last: int) -> tuple[np.ndarray,
     >>> values.shape == (215, len(names)), values.dtype
     (True, dtype('bool'))
     """
-    doc, first, last = int(doc), int(first), int(last)
-    return backend.cached(("relational span", RELATIONAL_SET, doc, first, last),
-                          lambda: backend.engine.clip_relational(doc, frames=(first, last + 1),
+    first, last = int(first), int(last)
+    return backend.cached(("relational span", RELATIONAL_SET, cache_key(doc), first, last),
+                          lambda: backend.engine.clip_relational(example(doc), frames=(first, last + 1),
                                                                  relational_set=RELATIONAL_SET))
 
 
@@ -122,10 +123,10 @@ def search(backend, q: dict) -> pd.DataFrame:
     -------
     pd.DataFrame, the hit table, best first (start, end: frames of the document, half-open), with ``score``.
     """
-    key = ("relational query", RELATIONAL_SET, q["doc"], tuple(q["span"]), tuple(sorted(q["features"])), q["mode"],
+    key = ("relational query", RELATIONAL_SET, cache_key(q["doc"]), tuple(q["span"]), tuple(sorted(q["features"])), q["mode"],
            q["mismatches"] if q["mode"] == "mismatch" else 0)
     start, end = q["span"]
-    return backend.cached(key, lambda: backend.engine.query(q["doc"], frames=(start, end), features=q["features"],
+    return backend.cached(key, lambda: backend.engine.query(example(q["doc"]), frames=(start, end), features=q["features"],
                                                             mode=q["mode"], mismatches=q["mismatches"],
                                                             relational_set=RELATIONAL_SET))  # fmt: skip
 
@@ -162,7 +163,9 @@ class RelationalPage(pn.viewable.Viewer):
         self._syncing = False
         self.hits, self.shown_query = pd.DataFrame(), None
         self.answered = False  # first_answer has started (it loads the indexes itself)
-        self.doc = DocumentPicker(backend, "query clip", selection.doc, width=420, css_classes=["mv-query-doc"])
+        self.doc = DocumentPicker(backend, "query clip", selection.doc, selection, width=420,
+                                  css_classes=["mv-query-doc"])
+        self.upload = UploadBox(backend, selection)
         self.span = pn.widgets.IntRangeSlider(label="query span (frames)", start=0, end=1, value=(0, 1), width=420,
                                               css_classes=["mv-query-span"])
         self.first = BoundedIntInput("first frame", 0, 0, 1, width=140, css_classes=["mv-query-first"])
@@ -188,11 +191,12 @@ class RelationalPage(pn.viewable.Viewer):
         self.player = SkeletonPlayer(size=(640, 360))
         self.player_caption = pn.pane.Markdown("", css_classes=["mv-hit-caption"])
         self._watch()
-        self._set_query(selection.doc, inclusive(selection.span))
+        query, span, _ = selection.query()
+        self._set_query(query, inclusive(span))
 
     def __panel__(self):
         features = pn.Row(*[pn.Column(f"**{GROUP_TITLES[g]}**", w) for g, w in self.features.items()])
-        query = pn.Column("### Query", self.doc, self.span, pn.Row(self.first, self.last),
+        query = pn.Column("### Query", self.doc, self.upload, self.span, pn.Row(self.first, self.last),
                           notes(self.first, self.last), self.span_info,
                           "**Features** (unticked ones are \"don't care\"; a new clip ticks its suggested query: the "
                           "most specific choice of one group's features that finds 5 other clips)", features,
@@ -212,12 +216,19 @@ class RelationalPage(pn.viewable.Viewer):
         for w in self.features.values():
             w.param.watch(lambda e: self._bound_mismatches(), "value")
         self.table.param.watch(self._on_select, "selection")
+        self.selection.param.watch(self._on_upload, "upload")
+
+    def _on_upload(self, event) -> None:
+        """A take was uploaded (on this page or another): it is the query clip, all of it."""
+        if event.new is not None:
+            self._set_query(event.new, (0, event.new.n_frames - 1))
 
     # ------------------------------------------------------------------ the query clip and span
     def activate(self) -> None:
         """Take the session's clip and span (the Database page may have changed them) when the tab is shown."""
-        if (self.selection.doc, tuple(self.selection.span)) != (self.doc.value, half_open(self.span.value)):
-            self._set_query(self.selection.doc, inclusive(self.selection.span))
+        query, span, _ = self.selection.query()
+        if (query, span) != (self._query(), half_open(self.span.value)):
+            self._set_query(query, inclusive(span))
         if self.answered and not self.backend.engine.holds("indexes", RELATIONAL_SET):
             pn.state.execute(self._load_indexes)
 
@@ -228,8 +239,8 @@ class RelationalPage(pn.viewable.Viewer):
         self.answered = True
         if not self.backend.engine.holds("indexes", RELATIONAL_SET):
             await self._load_indexes()
-        first, last = inclusive(self.selection.span)
-        self._pose(await in_thread(suggested_query, self.backend, self.selection.doc, first, last))
+        query, span, _ = self.selection.query()
+        self._pose(await in_thread(suggested_query, self.backend, query, *inclusive(span)))
         await self._on_run()
 
     def _pose(self, q: dict) -> None:
@@ -246,13 +257,13 @@ class RelationalPage(pn.viewable.Viewer):
                             busy=self.run)
 
     def _set_query(self, doc: int, span) -> None:
-        """Show document ``doc`` and ``span`` (first, last frames, inclusive, as the slider and the boxes show it;
-        clipped to the document)."""
-        n = int(self.backend.db.document(doc)["n_frames"])
+        """Show document ``doc`` (or the uploaded take) and ``span`` (first, last frames, inclusive, as the slider
+        and the boxes show it; clipped to the clip)."""
+        n = query_frames(self.backend, doc)
         first, last = sorted(min(max(int(v), 0), n - 1) for v in span)
         self._syncing = True
         try:
-            self.doc.value = doc
+            self.doc.value = UPLOADED if isinstance(doc, Upload) else doc
             self.span.param.update(start=0, end=max(n - 1, 1), value=(first, last))
             self.first.set_bounds(0, n - 1, first)
             self.last.set_bounds(0, n - 1, last)
@@ -269,12 +280,16 @@ class RelationalPage(pn.viewable.Viewer):
 
     def _on_doc(self, event) -> None:
         if not self._syncing:
-            n = int(self.backend.db.document(event.new)["n_frames"])
-            self._set_query(event.new, (0, n - 1))
+            query = self._query()
+            self._set_query(query, (0, query_frames(self.backend, query) - 1))
+
+    def _query(self):
+        """The query clip chosen: a document id, or the session's uploaded take."""
+        return self.selection.upload if self.doc.value == UPLOADED else int(self.doc.value)
 
     def _on_span(self, event) -> None:
         if not self._syncing:
-            self._set_query(self.doc.value, event.new)
+            self._set_query(self._query(), event.new)
 
     def _on_bound(self, event) -> None:
         """The first or last frame box changed (a value out of the clip was already moved into it by the box); a
@@ -282,7 +297,7 @@ class RelationalPage(pn.viewable.Viewer):
         first, last = self.first.value, self.last.value
         if self._syncing or (first, last) == tuple(self.span.value):
             return
-        self._set_query(self.doc.value, (first, last))
+        self._set_query(self._query(), (first, last))
         if first > last:
             box = event.obj
             other, where = ("last", "after") if box is self.first else ("first", "before")
@@ -292,9 +307,11 @@ class RelationalPage(pn.viewable.Viewer):
 
     def _span_changed(self) -> None:
         """Tell the Selection, describe the span and show it in the player."""
-        doc, (first, last) = self.doc.value, self.span.value
-        if (self.selection.doc, tuple(self.selection.span)) != (doc, (first, last + 1)):
-            self.selection.param.update(doc=doc, frame=first, span=(first, last + 1))
+        doc, (first, last) = self._query(), self.span.value
+        if isinstance(doc, Upload):
+            self.selection.param.update(use_upload=True, upload_span=(first, last + 1))
+        elif self.selection.query()[:2] != (doc, (first, last + 1)):
+            self.selection.param.update(doc=doc, frame=first, span=(first, last + 1), use_upload=False)
         fps = self._doc_fps(doc)
         self.span_info.object = (f"{plural(last - first + 1, 'frame')} · {first / fps:.2f}–{(last + 1) / fps:.2f} s "
                                  f"of {self._doc_name(doc)}")
@@ -314,7 +331,7 @@ class RelationalPage(pn.viewable.Viewer):
 
     def _span_features(self) -> tuple[np.ndarray, list[str]]:
         """The relational features of the query span (:func:`span_features`)."""
-        return span_features(self.backend, self.doc.value, *self.span.value)
+        return span_features(self.backend, self._query(), *self.span.value)
 
     def _bound_mismatches(self) -> None:
         """m from 0 to the query's segments less one (more would be capped to that by the library)."""
@@ -325,7 +342,7 @@ class RelationalPage(pn.viewable.Viewer):
         """The query the widgets describe: doc, span (start, end: frames of the document, half-open), features
         (names), mode, mismatches."""
         features = [n for w in self.features.values() for n in w.value]
-        return {"doc": int(self.doc.value), "span": half_open(self.span.value), "features": features,
+        return {"doc": self._query(), "span": half_open(self.span.value), "features": features,
                 "mode": MODES[self.mode.value], "mismatches": int(self.mismatches.value)}
 
     def problem(self, q: dict) -> str | None:
@@ -365,7 +382,8 @@ class RelationalPage(pn.viewable.Viewer):
         """The query of the hits shown, in words (written into exported files)."""
         q = self.shown_query or {}
         start, end = q.get("span", (0, 0))
-        return (f"relational query by example ({q.get('mode')}, {RELATIONAL_SET} set): document {q.get('doc')} "
+        what = query_name(self.backend, q["doc"]) if "doc" in q else "nothing"
+        return (f"relational query by example ({q.get('mode')}, {RELATIONAL_SET} set): {what} "
                 f"frames {start}:{end}, features {', '.join(q.get('features', []))}")
 
     def _show_hits(self, q: dict, hits: pd.DataFrame) -> None:
@@ -386,7 +404,8 @@ class RelationalPage(pn.viewable.Viewer):
     async def _show_quality(self, q: dict, hits: pd.DataFrame) -> None:
         """Precision and recall against the query document's label, as numbers and over the rank (the numbers reach
         the browser first: the plot of a large result's thousands of documents takes a second to build)."""
-        label = self.backend.db.document(q["doc"])["label"] if self.has_labels else None
+        uploaded = isinstance(q["doc"], Upload)  # no document: no label to judge the hits by
+        label = self.backend.db.document(q["doc"])["label"] if self.has_labels and not uploaded else None
         if label is None or pd.isna(label):
             self.quality.object = "*No label on the query clip: the hits cannot be judged.*"
             self.curve.visible = False
@@ -422,13 +441,13 @@ class RelationalPage(pn.viewable.Viewer):
                                       "(end excluded, as in the table)")
 
     # ------------------------------------------------------------------ helpers
-    def _clip(self, doc: int, start: int, end: int):
-        """Frames start:end (half-open) of document ``doc``: (T, 24, 3) cm."""
-        return self.backend.db.positions[database_frames(self.backend.db, doc, start, end)]
+    def _clip(self, doc, start: int, end: int):
+        """Frames start:end (half-open) of document ``doc`` (or the uploaded take): (T, 24, 3) cm."""
+        return query_clip(self.backend, doc, start, end)
 
-    def _doc_fps(self, doc: int) -> float:
-        return float(self.backend.db.document(int(doc))["fps"])
+    def _doc_fps(self, doc) -> float:
+        return query_fps(self.backend, doc)
 
-    def _doc_name(self, doc: int) -> str:
-        return str(self.backend.db.document(int(doc))["name"])
+    def _doc_name(self, doc) -> str:
+        return doc.title if isinstance(doc, Upload) else str(self.backend.db.document(int(doc))["name"])
 
