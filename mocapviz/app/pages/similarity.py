@@ -27,10 +27,12 @@ from ...validation import count, plural
 from ...viz.matching import similarity_layout
 from ...viz.palette import OTHERS, SIDE_NAMES, SIDES, legend
 from ...viz.skeleton import neighbour_poses, png_bytes
+from ..documents import UPLOADED, DocumentPicker
 from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task
+from ..upload import Upload, UploadBox, cache_key, example, query_clip, query_fps, query_name
 from ..widgets import (
     MAX_MATCHES,
     BoundedIntInput,
@@ -84,6 +86,7 @@ def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own
     frame within its document, end = start + 1) with ``distance``, nearest first; ``attrs["neighbours"]`` the
     neighbours found (more than the rows when ``per_document``).
     """
+    _document_only(doc, "the nearest neighbours of a frame")
     own = backend.db.frames(doc)  # the one "no such document" error
     if not 0 <= frame < own.stop - own.start:
         raise ParameterError(f"frame {frame} is outside document {doc} (frames 0..{own.stop - own.start - 1})")
@@ -128,7 +131,7 @@ def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, n_ma
     """
     k = count(k, "k", 1, backend.db.n_frames)
     n_matches = count(n_matches, "K", 1, MAX_MATCHES)
-    return backend.engine.match(doc, frames=span, numeric_set=name, method="lng", n_matches=n_matches, k=k,
+    return backend.engine.match(example(doc), frames=span, numeric_set=name, method="lng", n_matches=n_matches, k=k,
                                 exclude_document=exclude_own, paths=True)
 
 
@@ -157,7 +160,7 @@ def search_span(backend, name: str, doc: int, span: tuple[int, int], kind: str, 
     if kind not in SEARCH_KINDS.values():
         raise ParameterError(f"kind must be one of {', '.join(SEARCH_KINDS.values())}; got {kind!r}")
     run = backend.engine.clips if kind == "clips" else backend.engine.stretches
-    return run(doc, frames=span, numeric_set=name, n_matches=n_matches, mode=mode, exclude_document=exclude_own,
+    return run(example(doc), frames=span, numeric_set=name, n_matches=n_matches, mode=mode, exclude_document=exclude_own,
                paths=True)
 
 
@@ -205,6 +208,7 @@ def similarity_result(backend, name: str, doc: int, span: tuple[int, int], k: in
     ParameterError
         No document to compare with, or a matrix of more than MAX_MATRIX_CELLS cells (shorten the span).
     """
+    _document_only(doc, "the similarity matrix")
     start, end = int(span[0]), int(span[1])  # the span match_span checked
     if not database_docs:
         raise ParameterError("no match to compare with: the span matched nothing")
@@ -223,6 +227,10 @@ class SimilarityPage(pn.viewable.Viewer):
         super().__init__()
         self.backend, self.selection = backend, selection
         self.query = pn.pane.Markdown("", css_classes=["mv-similarity-query"], margin=(0, 10))
+        self.clip = DocumentPicker(backend, "query clip", selection.doc, selection, width=420,
+                                   css_classes=["mv-similarity-doc"])
+        self.clip.param.watch(self._on_clip, "value")
+        self.upload = UploadBox(backend, selection, "mv-similarity-upload")
         self.numeric_set = pn.widgets.Select(label="numeric set", options=SEARCH_SETS,
                                              value=default("clips", "numeric_set"), width=160)
         self.exclude_own = pn.widgets.Checkbox(label="exclude the query's own document", width=260,
@@ -232,7 +240,8 @@ class SimilarityPage(pn.viewable.Viewer):
         self._build_knn()
         self._build_match()
         self._build_matrix()
-        selection.param.watch(lambda *events: self.activate(), ["doc", "frame", "span"])
+        selection.param.watch(lambda *events: self.activate(), ["doc", "frame", "span", "upload", "use_upload",
+                                                                "upload_span"])
         self.activate()
 
     def _build_search(self) -> None:
@@ -322,19 +331,29 @@ class SimilarityPage(pn.viewable.Viewer):
                            pn.pane.Markdown(MATRIX_LEGEND, margin=(0, 10)), pn.Row(self.matrix_k, self.matrix_button),
                            notes(self.matrix_k), _scoped(self.matrix_task, "mv-matrix-task"), self.matrix,
                            sizing_mode="stretch_width")
-        return pn.Column(pn.Row(self.numeric_set, self.exclude_own), self.query, search, knn, match, matrix,
+        return pn.Column(pn.Row(self.clip, self.upload), pn.Row(self.numeric_set, self.exclude_own), self.query,
+                         search, knn, match, matrix,
                          sizing_mode="stretch_width")
 
     def activate(self) -> None:
         """Show the Database page's current example (called when the tab is shown and when the example changes)."""
-        s = self.selection
-        row = self.backend.db.document(s.doc)
-        fps = float(row["fps"])
-        start, end = s.span
-        self.query.object = (f"**Query**: document {s.doc} ({row['name']}), frame {s.frame} ({s.frame / fps:.2f} s); "
+        query, (start, end), frame = self.selection.query()
+        fps = query_fps(self.backend, query)
+        self.clip.value = UPLOADED if isinstance(query, Upload) else query
+        self.query.object = (f"**Query**: {query_name(self.backend, query)}, frame {frame} ({frame / fps:.2f} s); "
                              f"span {_frames(start, end)} ({plural(end - start, 'frame')}, "
                              f"{start / fps:.2f}–{end / fps:.2f} s). "
-                             "Choose the document, frame and span on the Database page.")
+                             "Choose the frame and span on the Database page (a document's) or the Relational query "
+                             "page.")
+
+    def _on_clip(self, event) -> None:
+        """A query clip chosen in the picker: the uploaded take, or a document, all of it."""
+        s = self.selection
+        if event.new == UPLOADED:
+            s.use_upload = True
+        elif s.query()[0] != event.new:
+            n = int(self.backend.db.document(int(event.new))["n_frames"])
+            s.param.update(doc=int(event.new), frame=0, span=(0, n), use_upload=False)
 
     async def first_answer(self) -> None:
         """The page's answer when it is first shown: the DTW search of the session's span with the page's defaults
@@ -345,18 +364,19 @@ class SimilarityPage(pn.viewable.Viewer):
         """The search of the hits shown in a table ("search" or "match"), in words (written into exported files)."""
         doc, (start, end) = getattr(self, f"{which}_query", None) or (None, (0, 0))
         how = ("similarity search (DTW)" if which == "search" else "motion matching (lazy neighbourhood graph)")
-        return f"{how} on {self.numeric_set.value}: document {doc} frames {start}:{end}"
+        what = "nothing" if doc is None else query_name(self.backend, doc)
+        return f"{how} on {self.numeric_set.value}: {what} frames {start}:{end}"
 
     # ------------------------------------------------------------------ DTW search
     def _search_key(self) -> tuple:
         """(numeric set, document, span, kind, mode, K, exclude own) of the search the widgets ask for."""
-        s = self.selection
-        return (self.numeric_set.value, s.doc, tuple(s.span), SEARCH_KINDS[self.search_kind.value],
+        query, span, _ = self.selection.query()
+        return (self.numeric_set.value, query, span, SEARCH_KINDS[self.search_kind.value],
                 self.search_mode.value, self.search_k.value, self.exclude_own.value)
 
     async def _run_search(self, event=None) -> None:
         key = self._search_key()
-        found = await self.search_task.run("Searching", self.backend.cached, ("similarity.search", *key),
+        found = await self.search_task.run("Searching", self.backend.cached, ("similarity.search", *_keyed(key)),
                                            lambda: search_span(self.backend, *key), busy=self.search_button,
                                            stale=(self.search_count, self.search_table, self.search_player_box,
                                                   self.search_playing))
@@ -369,8 +389,8 @@ class SimilarityPage(pn.viewable.Viewer):
         self.search_player_box.visible, self.search_playing.object = False, SEARCH_PLAY_HINT
         what = ("clip", "clips") if kind == "clips" else ("stretch", "stretches")
         ms = found.attrs.get("ms")
-        self.search_count.object = (f"**{plural(len(found), *what)}** like document {doc} frames {_frames(*span)} by {name}, "
-                                    f"{mode} DTW (K = {n_matches})" + (", its own document excluded" if own else "")
+        self.search_count.object = (f"**{plural(len(found), *what)}** like {query_name(self.backend, doc)} frames {_frames(*span)} by {name}, "
+                                    f"{mode} DTW (K = {n_matches})" + (", its own document excluded" if own and not isinstance(doc, Upload) else "")
                                     + (f"; search {ms:.0f} ms, {plural(found.attrs.get('aligned', 0), 'alignment')}"
                                        if ms is not None else ""))  # fmt: skip
 
@@ -380,7 +400,7 @@ class SimilarityPage(pn.viewable.Viewer):
         row = self.results.iloc[event.new[0]]
         doc, span = self.search_query
         self._play(self.search_player, self.search_player_box, doc, span, row, f"result {row['rank']}")
-        self.search_playing.object = (f"Playing the query (document {doc}, frames {_frames(*span)}) beside result "
+        self.search_playing.object = (f"Playing the query ({query_name(self.backend, doc)}, frames {_frames(*span)}) beside result "
                                       f"{row['rank']} (document {row['doc_id']}, {row['name']}, frames "
                                       f"{_frames(row['start'], row['end'])}), aligned by its DTW warping path "
                                       f"({plural(len(row['path']), 'step')}).")
@@ -388,22 +408,19 @@ class SimilarityPage(pn.viewable.Viewer):
     def _play(self, player, box, doc: int, span: tuple[int, int], hit, title: str) -> None:
         """Load the query span (frames start:end of ``doc``) beside the hit ``hit`` (a row of a hit table, with its
         ``path``) into ``player``, played along the hit's warping path."""
-        db = self.backend.db
-        positions = db.positions
         hit_doc = int(hit["doc_id"])
-        clips = [positions[database_frames(db, doc, *span)],
-                 positions[database_frames(db, hit_doc, int(hit["start"]), int(hit["end"]))]]
-        player.load(clips, titles=[f"query: document {doc}", f"{title}: document {hit_doc}"],
-                    fps=self.backend.fps_of(doc), alignment=match_alignment(hit["path"], int(hit["start"])))
+        clips = [query_clip(self.backend, doc, *span), query_clip(self.backend, hit_doc, int(hit["start"]), int(hit["end"]))]
+        player.load(clips, titles=[f"query: {query_name(self.backend, doc)}", f"{title}: document {hit_doc}"],
+                    fps=query_fps(self.backend, doc), alignment=match_alignment(hit["path"], int(hit["start"])))
         box.visible = True
 
     # ------------------------------------------------------------------ kNN
     async def _search(self, event=None) -> None:
         """The neighbours table as soon as the kNN is done; the Fig. 1 picture (slower to render) after it."""
-        s = self.selection
-        name, doc, frame, k, own = self.numeric_set.value, s.doc, s.frame, self.knn_k.value, self.exclude_own.value
+        doc, _, frame = self.selection.query()
+        name, k, own = self.numeric_set.value, self.knn_k.value, self.exclude_own.value
         each = self.knn_per_document.value
-        key = ("similarity.knn", name, doc, frame, k, own, each)
+        key = ("similarity.knn", name, cache_key(doc), frame, k, own, each)
         shown = (self.knn_count, self.knn_table, self.knn_poses)
         table = await self.knn_task.run("Searching", self.backend.cached, key,
                                         lambda: nearest_frames(self.backend, name, doc, frame, k, own, each),
@@ -413,7 +430,7 @@ class SimilarityPage(pn.viewable.Viewer):
         self.knn_table.value = hit_columns(table, KNN_TITLES, KNN_DECIMALS)
         found = table.attrs.get("neighbours", len(table))
         self.knn_count.object = (f"**{plural(found, 'neighbour')}** of document {doc} frame {frame} by {name}"
-                                 + (", its own document excluded" if own else "")
+                                 + (", its own document excluded" if own and not isinstance(doc, Upload) else "")
                                  + (f"; one row per document: the nearest in each of {len(table)}" if each else ""))
         image = await self.knn_task.run("Drawing the neighbours", self.backend.cached, (*key, "png"),
                                         lambda: neighbours_png(self.backend, doc, frame, table),
@@ -425,16 +442,16 @@ class SimilarityPage(pn.viewable.Viewer):
     def _match_key(self) -> tuple:
         """(numeric set, document, span, k, K, exclude own) of the matching the widgets ask for: the span's first
         :data:`LNG_MAX_SECONDS` (:func:`graph_span`)."""
-        s = self.selection
-        return (self.numeric_set.value, s.doc, graph_span(s.span, self.backend.fps_of(s.doc)), self.match_k.value,
+        query, span, _ = self.selection.query()
+        return (self.numeric_set.value, query, graph_span(span, query_fps(self.backend, query)), self.match_k.value,
                 self.match_count_k.value, self.exclude_own.value)
 
     def _cached_matches(self, key: tuple) -> pd.DataFrame:
         """The matches of ``key`` (see :meth:`_match_key`), computed once per database."""
-        return self.backend.cached(("similarity.lng", *key), lambda: match_span(self.backend, *key))
+        return self.backend.cached(("similarity.lng", *_keyed(key)), lambda: match_span(self.backend, *key))
 
     async def _match(self, event=None) -> None:
-        key, asked = self._match_key(), tuple(self.selection.span)
+        key, asked = self._match_key(), self.selection.query()[1]
         found = await self.match_task.run("Matching", self._cached_matches, key, busy=self.match_button,
                                           stale=(self.match_count, self.match_table, self.player_box, self.playing,
                                                  self.matrix))
@@ -448,12 +465,12 @@ class SimilarityPage(pn.viewable.Viewer):
         self.player_box.visible, self.playing.object, self.matrix.object = False, MATCH_PLAY_HINT, None
         share = found.attrs["min_length"]
         cut = asked != span
-        self.match_count.object = (f"**{plural(len(found), 'match', 'matches')}** of document {doc} frames {_frames(*span)} by {name} "
+        self.match_count.object = (f"**{plural(len(found), 'match', 'matches')}** of {query_name(self.backend, doc)} frames {_frames(*span)} by {name} "
                                    + (f"(the span's first {LNG_MAX_SECONDS:g} s: the graph looks up the k nearest "
                                       "frames of every query frame) " if cut else "")
                                    + f"(k = {k}, K = {n_matches}), each at least {share:g} × the span long "
                                    f"({plural(shortest_match(share, span[1] - span[0]), 'frame')})"
-                                   + (", its own document excluded" if own else "")
+                                   + (", its own document excluded" if own and not isinstance(doc, Upload) else "")
                                    + ("; try a larger k" if found.empty else ""))
 
     def _on_match_select(self, event) -> None:
@@ -462,7 +479,7 @@ class SimilarityPage(pn.viewable.Viewer):
         match = self.matches.iloc[event.new[0]]
         doc, span = self.match_query
         self._play(self.player, self.player_box, doc, span, match, f"match {match['rank']}")
-        self.playing.object = (f"Playing the query (document {doc}, frames {_frames(*span)}) beside match "
+        self.playing.object = (f"Playing the query ({query_name(self.backend, doc)}, frames {_frames(*span)}) beside match "
                                f"{match['rank']} (document {match['doc_id']}, {match['name']}, frames "
                                f"{_frames(match['start'], match['end'])}), aligned by its warping path "
                                f"({plural(len(match['path']), 'step')}).")
@@ -473,7 +490,7 @@ class SimilarityPage(pn.viewable.Viewer):
         with ``k`` neighbours per query frame."""
         name, doc, span = key[:3]
         docs = matrix_docs(self._cached_matches(key))
-        result = self.backend.cached(("similarity.matrix", name, doc, span, k, tuple(docs)),
+        result = self.backend.cached(("similarity.matrix", name, cache_key(doc), span, k, tuple(docs)),
                                      lambda: similarity_result(self.backend, name, doc, span, k, docs))
         return similarity_layout(result, cols=2, width=560, height=360)
 
@@ -497,6 +514,19 @@ MATRIX_LEGEND = ("The span against the documents of its best matches (at most th
                  "distances the graph computed (darker = more similar); blue: cells it never computed; red: its "
                  "warping paths; orange: document boundaries. Second panel: subsequence DTW on the point-cloud "
                  "distance Dpc1, computed in full.")
+
+
+def _keyed(key: tuple) -> tuple:
+    """A page's key of a computation as the Backend keeps its answer: an uploaded take by its checksum
+    (:func:`~mocapviz.app.upload.cache_key`)."""
+    return tuple(cache_key(part) if isinstance(part, Upload) else part for part in key)
+
+
+def _document_only(query, what: str) -> None:
+    """Refuse ``what`` for an uploaded take: it compares the query frame or span with database documents only."""
+    if isinstance(query, Upload):
+        raise ParameterError(f"{what} takes a document of the database as the query; choose one in the query clip "
+                             f"picker ({query.name} is the uploaded take)")
 
 
 def _frames(start: int, end: int) -> str:
