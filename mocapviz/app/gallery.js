@@ -12,12 +12,19 @@
 // cell under the pointer, -1 for none), data-hover-frame (the frame it shows), data-selected (the selected rows on
 // the page, comma separated), data-loads (pages received so far) and data-cut (the cells whose title did not fit its
 // lines and ends in "…"; the full title shows on hover as the canvas's tooltip).
+//
+// Review (model.reviewing, a user who may annotate): every cell has a ✓ and a ✗ button in its top right corner
+// (REVIEW_BOX px each, ✗ in the corner); a click on one sets model.verdict = {row, verdict: "accept"|"reject", n}
+// (n counts the clicks, so the same verdict twice is two changes) and selects nothing. model.states gives each cell's
+// review ("accepted": ✓ filled green, "rejected": ✗ filled red); data-states lists them, comma separated.
 
 const PAD = 6;  // px around a cell's skeleton
 const ZOOM = 1.2;  // the cell's camera box a little larger than the cell: the box holds the floor and a margin
 const BACKGROUND = { plain: "#ffffff", hover: "#f1f1f1", selected: "#dde9f8" };
 const LINE = 13;  // px of a label line (11 px text)
-const BREAKS = "_ -.";  // a title breaks after one of these where it can (a name's parts stay whole), else anywhere
+const BREAKS = "_ -.";
+const REVIEW_BOX = 18;  // px of a cell's ✓ and ✗ buttons (gallery.py REVIEW_BOX)
+const REVIEW_COLOURS = { accepted: "#2e8b57", rejected: "#c0392b" };  // a title breaks after one of these where it can (a name's parts stay whole), else anywhere
 
 function ellipsis(ctx, text, width) {
   if (ctx.measureText(text).width <= width) {
@@ -131,6 +138,9 @@ export function render({ model, el }) {
     }
     ctx.font = "11px sans-serif";
     ctx.fillText(seconds, x + 4, y + h - LINE - 2);
+    if (model.reviewing) {
+      drawButtons(x, y, (model.states || [])[i] || "");
+    }
     ctx.strokeStyle = selected ? "#1f5fa8" : "#dddddd";
     ctx.lineWidth = selected ? 3 : 1;
     ctx.strokeRect(x + 0.5, y + 0.5, w - 1, h - 1);
@@ -138,6 +148,46 @@ export function render({ model, el }) {
     st.drawn += 1;
     canvas.dataset.drawn = String(st.drawn);
   }
+
+  // the ✓ (accept) and ✗ (reject) boxes of the cell at (x, y): [verdict, left, top] each
+  function buttonBoxes(x, y) {
+    const top = y + 4;
+    return [["accept", x + st.cellW - 2 * REVIEW_BOX - 8, top], ["reject", x + st.cellW - REVIEW_BOX - 4, top]];
+  }
+
+  function drawButtons(x, y, state) {
+    ctx.font = "bold 13px sans-serif";
+    ctx.textBaseline = "middle";
+    ctx.textAlign = "center";
+    for (const [verdict, left, top] of buttonBoxes(x, y)) {
+      const on = (verdict === "accept" && state === "accepted") || (verdict === "reject" && state === "rejected");
+      ctx.fillStyle = on ? REVIEW_COLOURS[state] : "#ffffff";
+      ctx.fillRect(left, top, REVIEW_BOX, REVIEW_BOX);
+      ctx.strokeStyle = "#999999";
+      ctx.lineWidth = 1;
+      ctx.strokeRect(left + 0.5, top + 0.5, REVIEW_BOX - 1, REVIEW_BOX - 1);
+      ctx.fillStyle = on ? "#ffffff" : verdict === "accept" ? REVIEW_COLOURS.accepted : REVIEW_COLOURS.rejected;
+      ctx.fillText(verdict === "accept" ? "✓" : "✗", left + REVIEW_BOX / 2, top + REVIEW_BOX / 2 + 1);
+    }
+    ctx.textAlign = "left";
+    ctx.textBaseline = "top";
+  }
+
+  // the verdict of the button under a click on cell i, or null
+  function buttonAt(i, event) {
+    if (!model.reviewing) {
+      return null;
+    }
+    const box = canvas.getBoundingClientRect();
+    const px = event.clientX - box.left;
+    const py = event.clientY - box.top;
+    const x = (i % st.columns) * st.cellW;
+    const y = Math.floor(i / st.columns) * st.cellH;
+    const hit = buttonBoxes(x, y).find(([, l, t]) => px >= l && px < l + REVIEW_BOX && py >= t && py < t + REVIEW_BOX);
+    return hit ? hit[0] : null;
+  }
+
+  let verdicts = 0;
 
   function drawAll() {
     ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
@@ -148,6 +198,7 @@ export function render({ model, el }) {
     canvas.dataset.selected = st.rows.filter((row) => st.selected.has(row)).join(",");
     canvas.dataset.hover = String(st.hover);
     canvas.dataset.cut = [...st.cut].join(",");
+    canvas.dataset.states = (model.states || []).join(",");
   }
 
   // ---------------------------------------------------------------------------------------------- hover: play
@@ -204,6 +255,12 @@ export function render({ model, el }) {
       return;
     }
     const row = st.rows[i];
+    const verdict = buttonAt(i, event);
+    if (verdict) {
+      verdicts += 1;
+      model.verdict = { row, verdict, n: verdicts };
+      return;
+    }
     let selection = [row];
     if (event.ctrlKey || event.metaKey || event.shiftKey) {
       selection = (model.selection || []).filter((r) => r !== row);
@@ -227,6 +284,7 @@ export function render({ model, el }) {
       });
     }
   });
+  model.on(["states", "reviewing"], () => drawAll());
   model.on("selection", () => {
     st.selected = new Set(model.selection || []);
     drawAll();

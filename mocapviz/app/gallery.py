@@ -12,6 +12,12 @@ the page plays it in its aligned player as after a click in the table; a ctrl-, 
 selection or removes it, and the download under the table exports the selected hits. The two selections are one: the
 table's shows in the gallery and the gallery's is the table's.
 
+A session whose user may annotate (:func:`mocapviz.app.auth.can`) reviews hits there too (:class:`HitReview`, made by
+every :class:`HitGallery`): a ✓ and a ✗ button on every row of the table and in every cell of the gallery write the
+hit as a segment label of the label in the page's "label" box, source ``accepted hit`` or ``rejected hit``; the
+table's ``review`` column and the cell's buttons show each hit's state (read from the database's labels, so another
+session's reviews show too); "accept page" accepts every shown hit at once, "undo" undoes the user's last change.
+
 Wire format (one message per page, :func:`gallery_page`): ``positions`` is the float32 little-endian bytes of every
 cell's (n_i, 24, 3) positions in cm, concatenated (frames of ``db.positions``, each cell moved along the floor so that
 its first root position is above the origin); n_i ≤ :data:`MAX_FRAMES` frames at ≤ :data:`MAX_FPS` Hz, so at most
@@ -31,7 +37,10 @@ import param
 from panel.custom import JSComponent
 
 from ..engine import CANONICAL_PARENTS, first_frames
+from ..errors import MocapvizError
+from ..validation import plural
 from ..viz.palette import SIDES
+from .auth import can, session_user
 from .player import component_code, joint_sides, recentred, scene_box
 
 PAGE_SIZE = 24  # cells per page
@@ -44,6 +53,11 @@ LABEL_HEIGHT = 56
 MAX_FPS = 10.0  # the highest rate of a cell's frames, Hz
 MAX_FRAMES = 40  # the most frames of a cell (a longer hit is shown at a lower rate)
 MODES = ("Table", "Gallery")
+VERDICTS = {"accept": "accepted hit", "reject": "rejected hit"}  # a review button -> the source of the label written
+STATES = {"accepted hit": "accepted", "rejected hit": "rejected"}  # a label's source -> the hit's state shown
+REVIEW = "review"  # the table's column of the hits' states
+BUTTONS = {"accept": "✓", "reject": "✗"}  # the table's review buttons (Tabulator button columns)
+REVIEW_BOX = 18  # px of a gallery cell's ✓ and ✗ buttons, in its top right corner (✗ in the corner, ✓ left of it)
 
 
 def cell_frames(start: int, end: int, fps: float) -> np.ndarray:
@@ -123,6 +137,28 @@ def gallery_page(db, hits: pd.DataFrame, page: int, page_size: int = PAGE_SIZE) 
     return positions, meta
 
 
+def review_states(labels: pd.DataFrame, hits: pd.DataFrame) -> list[str]:
+    """Each hit's review: "accepted" or "rejected" when a segment label of ``labels`` with that source (``accepted
+    hit``, ``rejected hit``) covers exactly its frames (the latest such label), else "".
+
+    Parameters
+    ----------
+    labels : pandas.DataFrame
+        Segment labels of one label (:meth:`mocapviz.engine.Engine.segment_labels`: doc_id, start, end, source,
+        label_id).
+    hits : pandas.DataFrame
+        A hit table's rows (doc_id, start, end: frames of the document, half-open).
+
+    Returns
+    -------
+    list of str, one per hit.
+    """
+    reviewed = labels[labels["source"].isin(list(STATES))].sort_values("label_id")
+    last = {(int(d), int(a), int(b)): STATES[s]
+            for d, a, b, s in zip(reviewed["doc_id"], reviewed["start"], reviewed["end"], reviewed["source"])}
+    return [last.get((int(d), int(a), int(b)), "") for d, a, b in zip(hits["doc_id"], hits["start"], hits["end"])]
+
+
 def _rows(selection) -> list[int]:
     """A selection (row numbers of a table) as plain ints, as both sides of the gallery keep it."""
     return [int(i) for i in selection]
@@ -134,6 +170,9 @@ class GalleryView(JSComponent):
     positions = param.Bytes(default=None, doc="float32 little-endian (sum n_i, 24, 3) cm: the page's cells")
     meta = param.Dict(default={}, doc="lengths, rates, rows, labels, bounds, bone tree, layout")
     selection = param.List(default=[], item_type=int, doc="the selected rows of the table (synced both ways)")
+    reviewing = param.Boolean(default=False, doc="the cells show their ✓ and ✗ buttons (the user may annotate)")
+    states = param.List(default=[], doc="the review of each cell of the page: 'accepted', 'rejected' or ''")
+    verdict = param.Dict(default={}, doc="set by a click on a cell's button: {row, verdict ('accept'|'reject'), n}")
 
     _esm = component_code("gallery.js")
 
@@ -155,17 +194,20 @@ class HitGallery(pn.viewable.Viewer):
     css_class : str
         The gallery's class; its toggle is ``css_class-mode``, its page buttons ``css_class-previous`` and
         ``css_class-next`` (for the browser tests).
+    selection : mocapviz.app.state.Selection, optional
+        The session's clip: the review's label box starts with its class (:meth:`HitReview.suggest`).
 
     Attributes
     ----------
     page : int parameter, the shown page (from 0; one past the last shows the last).
     mode : RadioButtonGroup, "Table" or "Gallery".
     view : GalleryView, the browser component.
+    review : HitReview or None, the ✓ / ✗ review (None when the session's user may not annotate).
     """
 
     page = param.Integer(default=0, bounds=(0, None))
 
-    def __init__(self, backend, table: pn.widgets.Tabulator, css_class: str):
+    def __init__(self, backend, table: pn.widgets.Tabulator, css_class: str, selection=None):
         super().__init__()
         self.backend, self.table = backend, table
         table.selectable = True
@@ -180,12 +222,41 @@ class HitGallery(pn.viewable.Viewer):
         self.next.on_click(lambda event: self.go(self.page + 1))
         self.mode.param.watch(self._on_mode, "value")
         self.param.watch(lambda event: self.go(event.new), "page")
-        table.param.watch(lambda event: self.go(0), "value")
+        table.param.watch(self._on_value, "value")
         table.param.watch(lambda event: setattr(self.view, "selection", _rows(event.new)), "selection")
         self.view.param.watch(lambda event: setattr(self.table, "selection", _rows(event.new)), "selection")
+        self._reviewed = False  # the table's value was set by the review (its column of states): stay on the page
+        self.review = HitReview(backend, self, css_class) if can(None, "annotate") else None
+        if self.review is not None and selection is not None:
+            self.review.follow(selection)
 
     def __panel__(self):
-        return pn.Column(self.mode, self.table, self.box, margin=0, sizing_mode="stretch_width")
+        review = [] if self.review is None else [self.review]
+        return pn.Column(pn.Row(self.mode, *review), self.table, self.box, margin=0, sizing_mode="stretch_width")
+
+    def _on_value(self, event) -> None:
+        """New hits: the first page, with their review states; the states only (the review's): the same page."""
+        if self._reviewed:
+            self.go(self.page)
+        elif self.review is not None and self.n_hits:
+            self.review.refresh()  # sets the value again, with its column of states (then shows page 0)
+            self.go(0)
+        else:
+            self.go(0)
+
+    def shown_rows(self) -> list[int]:
+        """The rows of the table shown now: the gallery's page, or the table's."""
+        size = PAGE_SIZE if self.mode.value == "Gallery" else self.table.page_size
+        page = self.page if self.mode.value == "Gallery" else max(0, self.table.page - 1)
+        return list(range(page * size, min(self.n_hits, (page + 1) * size)))
+
+    def show_states(self, states: list[str]) -> None:
+        """Put the hits' review ``states`` into the table's column and the shown cells, staying on the page."""
+        self._reviewed = True
+        try:
+            self.table.value = self.table.value.assign(**{REVIEW: states})
+        finally:
+            self._reviewed = False
 
     @property
     def n_hits(self) -> int:
@@ -221,8 +292,133 @@ class HitGallery(pn.viewable.Viewer):
         positions, meta = gallery_page(self.backend.db, self.table.value, self.page) if n else (b"", {})
         lines = max(1, math.ceil(len(meta.get("rows", ())) / COLUMNS))
         self.view.param.update(positions=positions, meta=meta, selection=_rows(self.table.selection),
-                               height=lines * CELL[1])
+                               height=lines * CELL[1], reviewing=self.review is not None,
+                               states=[str(s) for s in self.table.value[REVIEW].iloc[meta["rows"]]]
+                               if n and REVIEW in self.table.value else [])
         self.previous.disabled, self.next.disabled = self.page == 0, self.page >= self.n_pages - 1
         self.caption.object = (f"hits {first + 1}–{min(n, first + PAGE_SIZE)} of {n:,} · page {self.page + 1} of "
                                f"{self.n_pages} · hover a hit to play it, click to open it, ctrl- or shift-click to "
                                "select several for the download") if n else "No hit to show."
+
+
+class HitReview(pn.viewable.Viewer):
+    """Accept or reject the hits of a :class:`HitGallery` as segment labels, one click each.
+
+    A ✓ / ✗ button column in the table and two buttons in every gallery cell write the hit (doc_id, start, end) as
+    a segment label of :attr:`label`'s text (:meth:`mocapviz.engine.Engine.add_labels`), source ``accepted hit``
+    or ``rejected hit``, authored by the session's user (:func:`mocapviz.app.auth.session_user`; without
+    ``--auth`` the operating system's user); a hit reviewed the other way before loses that label first. "accept
+    page" accepts every shown hit in one call; "undo" undoes the user's last change
+    (:meth:`~mocapviz.engine.Engine.undo_label`). Made by a HitGallery only for a user who may annotate.
+
+    Parameters
+    ----------
+    backend : mocapviz.app.backend.Backend
+    gallery : HitGallery
+    css_class : str
+        The gallery's class: the label box is ``css_class-label``, the buttons ``css_class-accept-page`` and
+        ``css_class-undo``, the status line ``css_class-review-status``.
+    """
+
+    def __init__(self, backend, gallery: HitGallery, css_class: str):
+        super().__init__()
+        self.backend, self.gallery, self.table = backend, gallery, gallery.table
+        self.label = pn.widgets.TextInput(name="label", placeholder="the label of the hits you accept", width=220,
+                                          css_classes=[f"{css_class}-label"])
+        self.accept_page = pn.widgets.Button(name="accept page", width=110, align="end",
+                                             css_classes=[f"{css_class}-accept-page"])
+        self.undo = pn.widgets.Button(name="undo", width=70, align="end", css_classes=[f"{css_class}-undo"])
+        self.status = pn.pane.Markdown("", margin=(0, 10), align="end", css_classes=[f"{css_class}-review-status"])
+        self._suggesting = False
+        self._typed = False  # the user wrote the label: the page's suggestions no longer replace it
+        self.table.param.update(buttons=dict(BUTTONS), widths={**self.table.widths, **dict.fromkeys(BUTTONS, 34)})
+        self.table.on_click(self._on_cell)
+        gallery.view.param.watch(self._on_verdict, "verdict")
+        self.accept_page.on_click(lambda event: self.judge(self.gallery.shown_rows(), "accept"))
+        self.undo.on_click(self._undo)
+        self.label.param.watch(self._on_label, "value")
+
+    def __panel__(self):
+        return pn.Row(self.label, self.accept_page, self.undo, self.status, margin=0)
+
+    def suggest(self, label) -> None:
+        """Make ``label`` (a class; None or empty: none) the label box's text, unless the user wrote one."""
+        if not self._typed:
+            self._suggesting = True
+            try:
+                self.label.value = "" if label is None or pd.isna(label) else str(label)
+            finally:
+                self._suggesting = False
+
+    def follow(self, selection) -> None:
+        """Suggest the class of the session's clip (``selection.doc``), now and when it changes."""
+        def class_of(*events) -> None:
+            docs = self.backend.documents
+            own = docs.loc[docs["doc_id"] == selection.doc, "label"] if "label" in docs else pd.Series(dtype=object)
+            self.suggest(own.iloc[0] if len(own) else None)
+
+        selection.param.watch(class_of, "doc")
+        class_of()
+
+    def _on_label(self, event) -> None:
+        self._typed = self._typed or not self._suggesting
+        self.refresh()
+
+    def refresh(self) -> None:
+        """Read the hits' states again from the database's labels and show them."""
+        value = self.table.value
+        if value is None or "doc_id" not in value or not len(value):
+            return
+        label = self.label.value.strip()
+        labels = self.backend.engine.segment_labels(label=label) if label else None
+        self.gallery.show_states(review_states(labels, value) if labels is not None else [""] * len(value))
+
+    def _on_cell(self, event) -> None:
+        if event.column in VERDICTS:
+            self.judge([event.row], event.column)
+
+    def _on_verdict(self, event) -> None:
+        if event.new.get("verdict") in VERDICTS:
+            self.judge([int(event.new["row"])], event.new["verdict"])
+
+    def judge(self, rows, verdict: str) -> list[int]:
+        """Write the hits at ``rows`` of the table as segment labels of the box's label, source
+        :data:`VERDICTS` [``verdict``]; hits already so reviewed are left, a label of the other verdict on the same
+        frames removed first. Returns the new labels' ids (an error goes to the status line: none written)."""
+        value = self.table.value
+        hits = value.iloc[[r for r in rows if 0 <= r < len(value)]]
+        label, source = self.label.value.strip(), VERDICTS[verdict]
+        if not label:
+            self.tell("Write the **label** the hits are reviewed for first.", error=True)
+            return []
+        engine, author = self.backend.engine, session_user().name
+        try:
+            labels = engine.segment_labels(label=label)
+            states = review_states(labels, hits)
+            todo = hits[[s != STATES[source] for s in states]]
+            other = labels[(labels["source"] != source) & labels["source"].isin(list(STATES))]
+            keys = set(zip(todo["doc_id"].astype(int), todo["start"].astype(int), todo["end"].astype(int)))
+            for label_id, d, a, b in zip(other["label_id"], other["doc_id"], other["start"], other["end"]):
+                if (int(d), int(a), int(b)) in keys:
+                    engine.remove_label(int(label_id), author=author)
+            ids = engine.add_labels(todo, label=label, author=author, source=source) if len(todo) else []
+        except MocapvizError as exc:
+            self.tell(f"Not written: {exc}", error=True)
+            return []
+        self.tell(f"{plural(len(ids), 'hit')} {STATES[source]} as **{label}**"
+                  + (f" ({len(hits) - len(ids)} already were)" if len(hits) > len(ids) else ""))
+        self.refresh()
+        return ids
+
+    def _undo(self, event=None) -> None:
+        try:
+            change = self.backend.engine.undo_label(author=session_user().name)
+        except MocapvizError as exc:
+            self.tell(f"Nothing undone: {exc}", error=True)
+            return
+        self.tell(f"Change {change} undid your last change.")
+        self.refresh()
+
+    def tell(self, text: str, error: bool = False) -> None:
+        """Show ``text`` (Markdown) on the status line, red when ``error``."""
+        self.status.object = f'<span style="color:#c0392b">{text}</span>' if error else text

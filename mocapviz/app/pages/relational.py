@@ -186,7 +186,7 @@ class RelationalPage(pn.viewable.Viewer):
         self.quality = pn.pane.Markdown("", css_classes=["mv-hit-quality"])
         self.table = results_table(pd.DataFrame(columns=list(HIT_TITLES)), "mv-hits", HIT_TITLES, selectable=True)
         self.download = table_download(backend, self.table, self._found_by, "mv-hits-download")
-        self.gallery = HitGallery(backend, self.table, "mv-hits-gallery")
+        self.gallery = HitGallery(backend, self.table, "mv-hits-gallery", selection)
         self.curve = pn.pane.HoloViews(None, visible=False, css_classes=["mv-precision-recall"])
         self.player = SkeletonPlayer(size=(640, 360))
         self.player_caption = pn.pane.Markdown("", css_classes=["mv-hit-caption"])

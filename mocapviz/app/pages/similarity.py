@@ -260,7 +260,7 @@ class SimilarityPage(pn.viewable.Viewer):
         self.search_table.param.watch(self._on_search_select, "selection")
         self.search_download = table_download(self.backend, self.search_table, lambda: self._found_by("search"),
                                               "mv-search-download")  # fmt: skip
-        self.search_gallery = HitGallery(self.backend, self.search_table, "mv-search-gallery")
+        self.search_gallery = HitGallery(self.backend, self.search_table, "mv-search-gallery", self.selection)
         self.results = None
         self.search_playing = pn.pane.Markdown(SEARCH_PLAY_HINT, margin=(0, 10), css_classes=["mv-search-playing"])
         self.search_player = SkeletonPlayer(size=(760, 380))
@@ -295,7 +295,7 @@ class SimilarityPage(pn.viewable.Viewer):
         self.match_table.param.watch(self._on_match_select, "selection")
         self.match_download = table_download(self.backend, self.match_table, lambda: self._found_by("match"),
                                              "mv-match-download")  # fmt: skip
-        self.match_gallery = HitGallery(self.backend, self.match_table, "mv-match-gallery")
+        self.match_gallery = HitGallery(self.backend, self.match_table, "mv-match-gallery", self.selection)
         self.matches = self.match_key = None  # the matches shown in the table and the matching that found them
         self.playing = pn.pane.Markdown(MATCH_PLAY_HINT, margin=(0, 10), css_classes=["mv-match-playing"])
         self.player = SkeletonPlayer(size=(760, 380))
