@@ -23,8 +23,9 @@ __getattr__, __dir__ = lazy_exports(__name__, {"Engine": ".engine", "ShardedDB":
     "marker_reconstruction", "mueller2005_table2", "mueller2005_table3", "named_descriptions", "numeric_columns",
     "numerical_search", "paper_claims", "parse_description", "pose_correlations", "pose_limits", "query_segmentation",
     "query_statistics", "rank_correlations", "read_annotations", "real_marker_clip", "reconstruct", "reconstruction",
-    "reconstruction_errors", "relational_query", "retrieval_quality", "scaled_k", "segment", "segment_correlations",
+    "reconstruction_errors", "relational_query", "retrieval_quality", "review_page", "scaled_k", "segment",
+    "segment_correlations",
     "shortest_instance", "shortest_match", "similarity_matrices", "simulated_annotation", "store_template", "stored_templates",
     "summarize_accuracy", "template_distance", "template_names", "template_path", "template_quality", "vocabulary_of",
-    "vocabulary_table", "walk", "zipped",
+    "unlabelled_documents", "vocabulary_table", "walk", "zipped",
 ], ".library")})  # fmt: skip

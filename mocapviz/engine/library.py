@@ -53,7 +53,7 @@ __getattr__, __dir__ = lazy_exports(__package__, {
     **dict.fromkeys(["DEFAULT_K", "MARKERS", "NOISE_RANGE_CM", "PosePrior", "reconstruct", "reconstruction_errors"],
                     "..similarity.reconstruction"),
     # experiments: the papers' tables and figures, and the data they are made from
-    "simulated_annotation": "..experiments.annotation",
+    **dict.fromkeys(["review_page", "simulated_annotation", "unlabelled_documents"], "..experiments.annotation"),
     **dict.fromkeys(["available_measures", "correlation_sample", "paper_claims", "pose_correlations", "pose_limits",
                      "rank_correlations", "segment_correlations"], "..experiments.correlation"),
     **dict.fromkeys(["clip_quality", "cmu_sequence_quality", "composite_quality", "event_quality",
@@ -84,8 +84,8 @@ __all__ = ["CANONICAL_JOINTS", "CANONICAL_PARENTS", "DEFAULT_K", "DELTA", "DELTA
            "mueller2005_table3", "named_descriptions", "numeric_columns", "numerical_search", "paper_claims",
            "parse_description", "pose_correlations", "pose_limits", "query_segmentation", "query_statistics",
            "rank_correlations", "read_annotations", "real_marker_clip", "reconstruct", "reconstruction",
-           "reconstruction_errors", "relational_query", "retrieval_quality", "scaled_k", "segment",
+           "reconstruction_errors", "relational_query", "retrieval_quality", "review_page", "scaled_k", "segment",
            "segment_correlations", "shortest_instance", "shortest_match", "similarity_matrices", "simulated_annotation",
            "store_template",
            "stored_templates", "summarize_accuracy", "template_distance", "template_names", "template_path",
-           "template_quality", "vocabulary_of", "vocabulary_table", "walk", "zipped"]  # fmt: skip
+           "template_quality", "unlabelled_documents", "vocabulary_of", "vocabulary_table", "walk", "zipped"]  # fmt: skip

@@ -23,6 +23,8 @@ the position at which the target is reached, :func:`order_cost`) and in random o
 
 annotator_view        db, hidden documents -> a copy of the database whose hidden documents carry no class.
 annotation_loop       engine, oracle, class -> one row per reviewed hit.
+review_page           engine, template, class -> a round's page: the best hit of each document not yet labelled.
+unlabelled_documents  db -> the doc ids without a file-name label.
 order_cost            the cost of reviewing documents in a given order until the target.
 expected_random_cost  the same in random order, its expectation.
 simulated_annotation  db, hidden group -> {"per_class", "trace", "summary"}: every class, both variants, the
@@ -42,7 +44,8 @@ import pandas as pd
 from ..errors import ParameterError
 from ..validation import count, one_of
 
-__all__ = ["annotation_loop", "annotator_view", "expected_random_cost", "order_cost", "simulated_annotation"]
+__all__ = ["annotation_loop", "annotator_view", "expected_random_cost", "order_cost", "review_page",
+           "simulated_annotation", "unlabelled_documents"]
 
 PAGE = 20
 """The hits the annotator reviews per round: a page of the gallery."""
@@ -128,14 +131,14 @@ def annotation_loop(engine, truth: pd.Series, label: str, *, variant: str = "one
     """
     variant = one_of(variant, "variant", VARIANTS)
     page = count(page, "page")
-    unlabelled = _unlabelled(engine.db)
+    unlabelled = unlabelled_documents(engine.db)
     of_class = unlabelled[(truth.reindex(unlabelled) == label).fillna(False).to_numpy(bool)]
     needed = _needed(len(of_class), target)
     rows, labelled = [], set()
     round_ = 0
     while len(labelled) < needed:  # each round reviews at least one document not reviewed before
         round_ += 1
-        hits = _page(engine, engine.learn_template(label), unlabelled, label, page)
+        hits = review_page(engine, engine.learn_template(label), unlabelled, label, page)
         if hits.empty:
             break
         correct = (truth.reindex(hits["doc_id"]) == label).fillna(False).to_numpy(bool)
@@ -163,7 +166,7 @@ _TRACE = ["class", "variant", "round", "rank", "doc_id", "start", "end", "normal
           "reviewed", "labelled"]  # fmt: skip
 
 
-def _unlabelled(db) -> np.ndarray:
+def unlabelled_documents(db) -> np.ndarray:
     """The doc ids without a file-name label, in document order."""
     docs = db.documents
     return docs.loc[docs["label"].isna().to_numpy(bool), "doc_id"].to_numpy(np.int64)
@@ -176,10 +179,10 @@ def _needed(n: int, target: float) -> int:
     return math.ceil(round(target * n, 9))
 
 
-def _page(engine, template, unlabelled: np.ndarray, label: str, size: int) -> pd.DataFrame:
-    """The best hit of each of the first ``size`` documents among ``unlabelled`` that carry no segment label of
-    ``label`` yet (accepted or rejected), in the search's order: the search asks for more instances until it has
-    them or has no more."""
+def review_page(engine, template, unlabelled: np.ndarray, label: str, size: int) -> pd.DataFrame:
+    """A page to review (the loop's, and the Motion templates page's "review round"): the best hit of each of the
+    first ``size`` documents among ``unlabelled`` that carry no segment label of ``label`` yet (accepted or
+    rejected), in the search's order: the search asks for more instances until it has them or has no more."""
     seen = set(engine.segment_labels(label=label)["doc_id"].astype(int))
     open_ = np.setdiff1d(unlabelled, list(seen))
     n = 4 * size
@@ -293,7 +296,7 @@ def simulated_annotation(db, hidden, make_engine: Callable, work, *, group: str 
     work = Path(work)
     work.mkdir(parents=True, exist_ok=True)
     view = annotator_view(db, hidden_ids, work / "view.mdb")
-    order = truth.reindex(_unlabelled(view)).tolist()
+    order = truth.reindex(unlabelled_documents(view)).tolist()
     traces, rows = [], {c: _baselines(order, c, target) for c in classes}
     for variant in variants:
         engine = make_engine(MotionDB.open(shutil.copytree(view.path, work / f"{variant.replace(' ', '_')}.mdb")))

@@ -1,18 +1,28 @@
 """Database page: the document browser (filter by label, performer, archive, text and length; paged on the server, so
 a database of thousands of documents sends one page), the 3D skeleton player of the chosen clip with the query span,
 and beneath it the clip's relational feature timelines (Müller et al. 2005 §3-4) and numeric feature curves (Krüger
-et al. 2010 §3.2)."""
+et al. 2010 §3.2).
+
+Segment labels (:meth:`mocapviz.engine.Engine.segment_labels`) show here too: the table counts each document's (its
+"segment labels" column: labels of any name, rejected hits left out), a strip above the timelines draws the clip's as
+coloured spans with their names, and a user who may annotate labels the player's span ("label this span": a
+``manual`` label by the session's user). The table follows the database: documents added while serving
+(:meth:`mocapviz.app.backend.Backend.on_new_documents`) appear in an open session's table and filters."""
 
 from __future__ import annotations
+
+import html
 
 import holoviews as hv
 import pandas as pd
 import panel as pn
 
 from ...engine import NUMERIC_SETS, feature_groups, numeric_columns, segment
+from ...errors import MocapvizError
 from ...validation import plural
-from ...viz.palette import PART_NAMES, PARTS, legend
+from ...viz.palette import PART_NAMES, PARTS, SERIES, legend
 from ...viz.timeline import numeric_curves, relational_timeline
+from ..auth import can, session_user
 from ..documents import filter_documents
 from ..downloads import HitDownload
 from ..player import SkeletonPlayer
@@ -21,8 +31,11 @@ from ..state import half_open, inclusive
 from ..widgets import results_table
 
 TABLE_TITLES = {"doc_id": "id", "n_frames": "frames"}
+LABELS = "segment labels"  # the table's column: each document's segment labels (rejected hits left out)
+LANE_PX = 22  # height of a lane of the segment label strip (overlapping labels take the lanes below)
 # pixels: each title in full beside its sort arrow (at 1280 pixels too: "perfor…", "seco…" were cut at 92 and 80)
-NARROW_COLUMNS = {"doc_id": 56, "performer": 104, "archive": 112, "seconds": 94, "n_frames": 84, "fps": 58}
+NARROW_COLUMNS = {"doc_id": 56, "performer": 104, "archive": 112, "seconds": 94, "n_frames": 84, "fps": 58,
+                  LABELS: 132}
 CHAR_PX, LABEL_PX = 8, (100, 280)  # a label's width per character (Tabulator's 14 px font) and its column's bounds
 SAME_FOR_ALL = ("archive", "fps")  # columns left out when every document has the same value (the count line says it)
 PAGE_ROWS = 12  # documents per page of the table (beside the player)
@@ -35,7 +48,7 @@ class DatabasePage(pn.viewable.Viewer):
         super().__init__()
         self.backend, self.selection = backend, selection
         self._loading = False
-        self.table_data = docs = backend.document_table()
+        self.table_data = docs = label_counts(backend.document_table(), backend.engine.segment_labels())
         self.label_filter = pn.widgets.MultiChoice(label="label", options=_choices(docs["label"]), width=260,
                                                    css_classes=["mv-filter-label"])
         self.performer_filter = pn.widgets.MultiChoice(label="performer", options=_choices(docs["performer"]),
@@ -67,6 +80,13 @@ class DatabasePage(pn.viewable.Viewer):
         self.span_start.on_click(lambda e: self._set_span(self.player.frames()[0], None))
         self.span_end.on_click(lambda e: self._set_span(None, self.player.frames()[0]))
         self.span.param.watch(self._on_span, "value_throttled")
+        self.span_label = pn.widgets.TextInput(name="label", placeholder="what the span is", width=200,
+                                               css_classes=["mv-span-label"])
+        self.label_span = pn.widgets.Button(label="label this span", width=130, align="end",
+                                            css_classes=["mv-label-span"])
+        self.label_span.on_click(self._label_span)
+        self.label_status = pn.pane.Markdown("", margin=(0, 10), css_classes=["mv-label-span-status"])
+        self.strip = pn.pane.HTML("", sizing_mode="stretch_width", css_classes=["mv-segment-labels"])
         self.download = HitDownload(backend, self._clip, lambda: "the Database page's player (the query span)",
                                     "mv-clip-download", noun="clip")  # fmt: skip
         selection.param.watch(lambda *events: self.download.refresh(), ["doc", "span"])
@@ -86,15 +106,17 @@ class DatabasePage(pn.viewable.Viewer):
         self.show_document(selection.doc)
         pn.state.onload(self._first_plots)
         selection.param.watch(self._follow, ["doc", "span"])
+        backend.on_new_documents(self._new_documents)
 
     def __panel__(self):
         filters = pn.Column(pn.Row(self.label_filter, self.performer_filter, self.archive_filter),
                             pn.Row(self.text_filter, self.length_filter), margin=0)
         left = pn.Column("### Documents", filters, self.count, self.table, sizing_mode="stretch_width")
+        labelling = [pn.Row(self.span_label, self.label_span), self.label_status] if can(None, "annotate") else []
         right = pn.Column("### Player", self.player, self.span, pn.Row(self.span_start, self.span_end),
-                          self.download.panel())
-        return pn.Column(pn.Row(left, right, sizing_mode="stretch_width"), "### Relational features", self.timeline_info,
-                         self.timeline,
+                          *labelling, self.download.panel())
+        return pn.Column(pn.Row(left, right, sizing_mode="stretch_width"), "### Segment labels", self.strip,
+                         "### Relational features", self.timeline_info, self.timeline,
                          "### Numeric features", self.numeric_set, self.curves, sizing_mode="stretch_width")
 
     # ------------------------------------------------------------------ table
@@ -105,6 +127,40 @@ class DatabasePage(pn.viewable.Viewer):
         self.table.value = shown
         self.count.object = f"{len(shown)} of {plural(len(t), 'document')}" + "".join(
             f" · all {value:g} fps" if c == "fps" else f" · all from {value}" for c, value in self.same.items())
+
+    def _new_documents(self, backend) -> None:
+        """Documents were added while serving: the table and the filters' options hold them (called by the
+        Backend's thread, as the pickers' :meth:`~mocapviz.app.documents.DocumentPicker._new_documents`)."""
+        self.table_data = docs = label_counts(backend.document_table(), backend.engine.segment_labels())
+        for w, column in ((self.label_filter, "label"), (self.performer_filter, "performer"),
+                          (self.archive_filter, "archive")):
+            w.options = _choices(docs[column])
+        self._filter()
+
+    def _labels_changed(self) -> None:
+        """The segment labels changed: the table's counts and the clip's strip show them."""
+        self.table_data = label_counts(self.table_data.drop(columns=[LABELS]), self.backend.engine.segment_labels())
+        self._filter()
+        self._draw_labels()
+
+    def _label_span(self, event=None) -> None:
+        """Write the player's span as a ``manual`` segment label of the label box's text, by the session's user."""
+        start, end = self.selection.span
+        label = self.span_label.value.strip()
+        try:
+            label_id = self.backend.engine.add_label(self.doc, frames=(start, end), label=label,
+                                                     author=session_user().name, source="manual")
+        except MocapvizError as exc:
+            self.label_status.object = f'<span style="color:#c0392b">Not labelled: {exc}</span>'
+            return
+        self.label_status.object = (f"Frames {start}:{end} of document {self.doc} labelled **{label}** "
+                                    f"(label {label_id}).")
+        self._labels_changed()
+
+    def _draw_labels(self) -> None:
+        """The strip of the clip's segment labels."""
+        labels = self.backend.engine.segment_labels()
+        self.strip.object = segment_strip(labels[labels["doc_id"] == self.doc], self.n_frames, self.doc_fps)
 
     async def _on_select(self, event) -> None:
         if event.new:
@@ -145,6 +201,7 @@ class DatabasePage(pn.viewable.Viewer):
             self._loading = False
         self.player.load([self.backend.db.positions[self.backend.db.frames(doc)]], titles=[str(row["name"])],
                          fps=self.doc_fps)
+        self._draw_labels()
         if self._loaded:
             self._draw_timeline()
             self._draw_curves()
@@ -259,6 +316,61 @@ def _framewise(plot: hv.Overlay, span, fps: float) -> hv.Overlay:
 
 def _stretch_width(plot, element) -> None:
     plot.state.sizing_mode = "stretch_width"
+
+
+def label_counts(docs: pd.DataFrame, labels: pd.DataFrame) -> pd.DataFrame:
+    """The documents table with its :data:`LABELS` column: each document's segment labels of ``labels``
+    (:meth:`mocapviz.engine.Engine.segment_labels`), rejected hits left out (they say what a stretch is not)."""
+    kept = labels.loc[labels["source"] != "rejected hit", "doc_id"].astype(int)
+    return docs.assign(**{LABELS: docs["doc_id"].map(kept.value_counts()).fillna(0).astype(int)})
+
+
+def lanes(starts, ends) -> list[int]:
+    """The lane of each span (start, end half-open; in the given order) so that spans of one lane do not overlap:
+    each the first lane free at its start, spans taken by start.
+
+    Examples
+    --------
+    >>> lanes([0, 5, 12, 3], [10, 15, 20, 4])
+    [0, 1, 0, 2]
+    """
+    ends_of: list[int] = []  # the end of each lane's last span
+    lane = [0] * len(starts)
+    for i in sorted(range(len(starts)), key=lambda i: (starts[i], i)):
+        free = next((k for k, end in enumerate(ends_of) if end <= starts[i]), len(ends_of))
+        ends_of[free:free + 1] = [ends[i]]
+        lane[i] = free
+    return lane
+
+
+def segment_strip(labels: pd.DataFrame, n_frames: int, fps: float) -> str:
+    """HTML: a clip's segment labels as coloured spans with their names along the clip (0 to ``n_frames``,
+    left to right), one colour per label name (:data:`mocapviz.viz.palette.SERIES`, names in sorted order),
+    overlapping spans in lanes below each other; rejected hits left out. Each span's element carries
+    ``data-label``, ``data-start``, ``data-end`` (frames, half-open) and a tooltip naming its frames, seconds,
+    author and source."""
+    shown = labels[labels["source"] != "rejected hit"].sort_values(["start", "label_id"])
+    if shown.empty:
+        return '<div class="mv-no-labels">No segment label in this clip.</div>'
+    names = sorted(shown["label"].astype(str).unique())
+    colour = {n: SERIES[i % len(SERIES)] for i, n in enumerate(names)}
+    starts, ends = shown["start"].astype(int).tolist(), shown["end"].astype(int).tolist()
+    lane = lanes(starts, ends)
+    spans = []
+    for (_, row), a, b, k in zip(shown.iterrows(), starts, ends, lane):
+        name = html.escape(str(row["label"]))
+        tip = html.escape(f"{row['label']}: frames {a}:{b} ({a / fps:.2f}–{b / fps:.2f} s) · {row['author']} · "
+                          f"{row['source']}", quote=True)
+        spans.append(f'<div class="mv-segment" data-label="{name}" data-start="{a}" data-end="{b}" title="{tip}" '
+                     f'style="position:absolute;left:{100 * a / n_frames:.3f}%;width:{100 * (b - a) / n_frames:.3f}%;'
+                     f'top:{k * LANE_PX}px;height:{LANE_PX - 3}px;background:{colour[str(row["label"])]};color:#fff;'
+                     f'font:12px sans-serif;overflow:hidden;white-space:nowrap;border-radius:3px;padding:2px 4px;'
+                     f'box-sizing:border-box">{name}</div>')
+    height = (max(lane) + 1) * LANE_PX
+    scale = (f'<div style="display:flex;justify-content:space-between;font:11px sans-serif;color:#666">'
+             f'<span>0 s</span><span>{plural(n_frames, "frame")} · {n_frames / fps:.2f} s</span></div>')
+    return (f'<div style="position:relative;height:{height}px;background:#f4f4f4;width:100%">{"".join(spans)}</div>'
+            + scale)
 
 
 def _choices(column: pd.Series) -> list[str]:
