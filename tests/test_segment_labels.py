@@ -311,3 +311,23 @@ def test_search_and_find_keep_the_hits_of_a_label(db, tmp_path, capsys):
                  str(tmp_path / "c.csv")]) == 0  # fmt: skip
     clips = pd.read_csv(tmp_path / "c.csv")
     assert sorted(clips["doc_id"]) == [16, 27, 38]  # the other three actors' kicks, whatever their rank before
+
+
+def test_no_segment_labelled_document_is_a_negative_when_the_examples_are_capped(db, monkeypatch):
+    """learn_class with max_examples below the examples: the documents of the segments left out by the cap are still
+    of the class, so none is judged a negative of its threshold (they were: only the kept examples' documents were
+    left out of the negatives)."""
+    from mocapviz.db.segments import POSITIVE
+    from mocapviz.relational import templates
+
+    engine = Engine(db)
+    kicks = [5, 16, 27, 38]  # the demo's four HDM05 kicks (file label kickLFront1Reps), labelled 'kick' as segments
+    for doc in kicks:
+        engine.add_label(doc, frames=(0, 20), label="kick", author="ann")
+    judged = []
+    real = templates._negative_costs
+    monkeypatch.setattr(templates, "_negative_costs",
+                        lambda t, values, others: judged.append(set(others["doc_id"])) or real(t, values, others))
+    template = templates.learn_class(db, "kick", max_examples=2,
+                                     segments=engine.segment_labels(label="kick").query("source in @POSITIVE"))
+    assert template.n_examples == 2 and judged and not judged[0] & set(kicks)

@@ -976,7 +976,7 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
         raise ParameterError(f"no document of {db.path} has label {label!r}"
                              + (f" and {group} in {list(actors)}" if actors is not None else "")
                              + f", nor any segment label; labels: {known}")  # fmt: skip
-    of_class = len(chosen)
+    of_class, class_docs = len(chosen), chosen["doc_id"].to_numpy()  # every example's document: never a negative
     if max_examples is not None and of_class > count(max_examples, "max_examples"):
         chosen = chosen.iloc[np.linspace(0, of_class - 1, max_examples).round().astype(np.int64)]
     if values is None:
@@ -988,7 +988,7 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     if by_group and group in docs.columns and chosen[group].notna().all():
         groups = chosen[group].astype(str).tolist()
     template = learn_template(examples, names, str(label), iterations, groups=groups)
-    others = docs["label"].notna().to_numpy() & ~labelled & ~docs["doc_id"].isin(chosen["doc_id"]).to_numpy()
+    others = docs["label"].notna().to_numpy() & ~labelled & ~docs["doc_id"].isin(class_docs).to_numpy()
     if actors is not None:
         others &= docs[group].astype("string").isin([str(a) for a in actors]).to_numpy(bool)
     negatives = _negative_costs(template, values, docs[others])
