@@ -328,6 +328,6 @@ def test_no_segment_labelled_document_is_a_negative_when_the_examples_are_capped
     real = templates._negative_costs
     monkeypatch.setattr(templates, "_negative_costs",
                         lambda t, values, others: judged.append(set(others["doc_id"])) or real(t, values, others))
-    template = templates.learn_class(db, "kick", max_examples=2,
-                                     segments=engine.segment_labels(label="kick").query("source in @POSITIVE"))
+    segments = engine.segment_labels(label="kick")
+    template = templates.learn_class(db, "kick", max_examples=2, segments=segments[segments["source"].isin(POSITIVE)])
     assert template.n_examples == 2 and judged and not judged[0] & set(kicks)
