@@ -8,6 +8,14 @@ class, actors and set), computes the database's relational features of the set (
 instances by subsequence DTW (:func:`mocapviz.relational.templates.search_template`). The template is drawn as the paper draws
 it (features × time, white 0, black 1, grey don't care; or its averaged values); a chosen hit plays beside one
 training example of the template, the two aligned by DTW of their relational features.
+
+The labelling loop (issue 40 item 4; the protocol :mod:`mocapviz.experiments.annotation` measures with a simulated
+annotator, its calls the same): "Review round" learns the class's template from its documents and its segment labels
+(:meth:`mocapviz.engine.Engine.learn_template`), shows the best hit of each of the first K documents without a class
+that nobody reviewed for it yet (:func:`mocapviz.experiments.annotation.review_page`), which the user accepts or
+rejects (✓ / ✗ on the table or the gallery: segment labels), then learns again. After each round the rounds' table
+shows each round's template's quality: of its K best hits in documents without a class (one per document), how many
+were reviewed and accepted, precision = accepted / reviewed (:func:`reviewed_precision`).
 """
 
 from __future__ import annotations
@@ -25,7 +33,9 @@ from ...engine import (
     database_frames,
     dtw,
     feature_names,
+    review_page,
     template_distance,
+    unlabelled_documents,
 )
 from ...engine.parameters import default
 from ...validation import count, plural
@@ -105,6 +115,12 @@ def _actors_key(actors) -> tuple[str, ...] | None:
     return tuple(sorted({str(a) for a in actors})) if actors else None
 
 
+def labels_version(backend) -> int:
+    """The number of changes of the database's segment labels: a template learned before a change is learned again
+    (it learns from the labels too)."""
+    return len(backend.engine.label_history())
+
+
 def learn(backend, label: str, actors, relational_set: str) -> MotionTemplate:
     """The motion template of class ``label`` (:func:`mocapviz.relational.templates.learn_class`) from at most
     :data:`MAX_EXAMPLES` of its documents, cached per (label, actors, set).
@@ -121,7 +137,7 @@ def learn(backend, label: str, actors, relational_set: str) -> MotionTemplate:
     MotionTemplate, values (K, f) in [0, 1]; ``meta["doc_ids"]`` the training documents.
     """
     key = _actors_key(actors)
-    return backend.cached(("templates.template", str(label), key, str(relational_set)),
+    return backend.cached(("templates.template", str(label), key, str(relational_set), labels_version(backend)),
                           lambda: backend.engine.learn_template(str(label), actors=None if key is None else list(key),
                                                                 relational_set=str(relational_set)))  # fmt: skip
 
@@ -154,8 +170,56 @@ def learn_and_search(backend, label: str, actors, relational_set: str, delta: fl
                      max_cost: float | None) -> tuple[MotionTemplate, pd.DataFrame]:  # fmt: skip
     """:func:`learn` then :func:`search_template` (the page's button); the hits cached per all the arguments."""
     template = learn(backend, label, actors, relational_set)
-    key = ("templates.hits", str(label), _actors_key(actors), str(relational_set), delta, n_matches, max_cost)
+    key = ("templates.hits", str(label), _actors_key(actors), str(relational_set), delta, n_matches, max_cost,
+           labels_version(backend))
     return template, backend.cached(key, lambda: search_template(backend, template, delta, n_matches, max_cost))
+
+
+def review_round(backend, label: str, relational_set: str, n_matches: int) -> tuple:
+    """One round of the labelling loop: the template of ``label`` learned from its documents and segment labels now,
+    the page to review (:func:`mocapviz.experiments.annotation.review_page`: the best hit of each of the first
+    ``n_matches`` documents without a class and without a review for ``label``), as the annotation experiment
+    calls them, and the template's :func:`best_documents`. Returns (template, page, documents)."""
+    engine = backend.engine
+    template = engine.learn_template(str(label), relational_set=str(relational_set))
+    page = review_page(engine, template, unlabelled_documents(backend.db), str(label), int(n_matches))
+    return template, page, best_documents(backend, template, n_matches)
+
+
+def best_documents(backend, template: MotionTemplate, n_matches: int) -> set[int]:
+    """The documents without a class of a template's ``n_matches`` best hits, one hit per document (searched once
+    per round: the reviews change, the template's hits do not)."""
+    unlabelled = unlabelled_documents(backend.db)
+    found = backend.engine.search_template(template, n_matches=4 * int(n_matches))  # enough for n documents
+    return set(found.loc[found["doc_id"].isin(unlabelled), "doc_id"].drop_duplicates().head(n_matches).astype(int))
+
+
+def reviewed_precision(backend, label: str, docs: set[int]) -> dict:
+    """The quality of a round's template by the reviews so far: of ``docs`` (its :func:`best_documents`), the
+    ones reviewed for ``label`` (an accepted or a rejected hit of it) and the ones accepted.
+
+    Returns
+    -------
+    dict: ``hits``, ``reviewed``, ``accepted`` (counts of documents), ``precision`` (accepted / reviewed; NaN when
+    none is reviewed).
+    """
+    labels = backend.engine.segment_labels(label=label)
+    accepted = docs & set(labels.loc[labels["source"] == "accepted hit", "doc_id"].astype(int))
+    reviewed = docs & set(labels.loc[labels["source"].isin(["accepted hit", "rejected hit"]), "doc_id"].astype(int))
+    return {"hits": len(docs), "reviewed": len(reviewed), "accepted": len(accepted),
+            "precision": len(accepted) / len(reviewed) if reviewed else float("nan")}
+
+
+def rounds_table(rounds: list[dict]) -> str:
+    """The rounds of the loop as a Markdown table: round, examples learned from, the template's hits (documents),
+    reviewed, accepted and precision (:func:`reviewed_precision`)."""
+    lines = ["| round | examples | hits | reviewed | accepted | precision |", "|---:|---:|---:|---:|---:|---:|"]
+    for r in rounds:
+        q = r["quality"]
+        precision = "–" if q["reviewed"] == 0 else f"{q['precision']:.2f}"
+        lines.append(f"| {r['round']} | {r['examples']} | {q['hits']} | {q['reviewed']} | {q['accepted']} | "
+                     f"{precision} |")
+    return "\n".join(lines)
 
 
 def hits_view(hits: pd.DataFrame) -> pd.DataFrame:
@@ -271,6 +335,9 @@ class TemplatesPage(pn.viewable.Viewer):
         self.max_cost = parameter_box("max cost / frame", "max_cost", "search_template", width=210,
                                       css_classes=["mv-templates-max-cost"])
         self.button = action_button("Learn and search", "mv-templates-run", self._run, width=150)
+        self.round_button = action_button("Review round", "mv-templates-round", self._round, width=150)
+        self.rounds: list[dict] = []  # the loop's rounds: round, label, examples, documents, quality
+        self.rounds_view = pn.pane.Markdown("", css_classes=["mv-templates-rounds"], margin=(0, 10))
         self.task = Task()
         self.summary = pn.pane.Markdown("", css_classes=["mv-templates-summary"], margin=(0, 10))
         self.view = pn.widgets.RadioButtonGroup(options=list(VIEWS), value="quantised", width=220,
@@ -289,6 +356,8 @@ class TemplatesPage(pn.viewable.Viewer):
         self.table.param.watch(self._on_select, "selection")
         self.download = table_download(backend, self.table, self._found_by, "mv-templates-download")
         self.gallery = HitGallery(backend, self.table, "mv-templates-gallery")
+        if self.gallery.review is not None:
+            self.table.param.watch(lambda event: self._show_rounds(), "value")  # a review changed the states
         self._on_class()
 
     def __panel__(self):
@@ -302,13 +371,13 @@ class TemplatesPage(pn.viewable.Viewer):
                                     css_classes=["mv-templates-none"], margin=(0, 10))
         intro = pn.pane.Markdown(INTRO, margin=(0, 10), sizing_mode="stretch_width")
         inputs = pn.Row(self.label, self.actors, pn.Column("relational set", self.relational_set, margin=(0, 5)),
-                        self.delta, self.n_matches, self.max_cost, self.button)
+                        self.delta, self.n_matches, self.max_cost, self.button, self.round_button)
         # the hits table takes the page's width; the template is drawn below it, beside the hit playing
         template = pn.Column(self.view, self.image, self.legend)
         playing = pn.Column(self.playing, self.player_box)
         task = pn.Column(self.task, css_classes=["mv-templates-task"], margin=0, sizing_mode="stretch_width")
         return pn.Column(intro, inputs, notes(self.delta, self.n_matches, self.max_cost), task, self.summary,
-                         self.count, self.gallery, self.download.panel(), pn.Row(template, playing),
+                         self.count, self.rounds_view, self.gallery, self.download.panel(), pn.Row(template, playing),
                          sizing_mode="stretch_width")
 
     async def first_answer(self) -> None:
@@ -330,6 +399,8 @@ class TemplatesPage(pn.viewable.Viewer):
         """Offer the actors of the chosen class only (every choice then has an example to learn from)."""
         options = actors_of(self.backend.documents, self.label.value) if self.label.value else []
         self.actors.param.update(options=options, value=[a for a in self.actors.value if a in options])
+        if self.gallery.review is not None:
+            self.gallery.review.suggest(self.label.value)
 
     def _inputs(self) -> tuple:
         """(label, actors, set, δ, K, max cost) the widgets ask for."""
@@ -356,6 +427,37 @@ class TemplatesPage(pn.viewable.Viewer):
                              + tie_note(self.hits, delta))  # fmt: skip
         await asyncio.sleep(0)  # let the hits and their count reach the browser before the template is drawn
         self._draw()
+
+    async def _round(self, event=None) -> None:
+        """A round of the labelling loop (:func:`review_round`): the class's template learned from every label so
+        far, the page of documents to review in the table and the gallery, the round added to the rounds' table."""
+        label, relational_set, n_matches = self.label.value, self.relational_set.value, self.n_matches.value
+        result = await self.task.run("Learning from the labels and finding documents to review", review_round,
+                                     self.backend, label, relational_set, n_matches, busy=self.round_button,
+                                     stale=(self.summary, self.count, self.table, self.image, self.legend,
+                                            self.player_box))  # fmt: skip
+        if result is None:
+            return
+        self.template, self.hits, best = result
+        self.delta_used = default("search_template", "delta")
+        self.rounds.append({"round": len(self.rounds) + 1, "label": label, "examples": self.template.n_examples,
+                            "documents": best})
+        self.summary.object = template_summary(self.template, self.delta_used)
+        self.table.param.update(selection=[], value=hits_view(self.hits))
+        n = len(self.hits)
+        self.count.object = (f"**Round {len(self.rounds)}**: {plural(n, 'document')} without a class to review for "
+                             f"**{label}**, the best hit of each (✓ accepts it, ✗ rejects it; then the next round "
+                             "learns from them)" if n else f"**Round {len(self.rounds)}**: no document without a "
+                             f"class is left to review for **{label}**")
+        self._show_rounds()
+        await asyncio.sleep(0)
+        self._draw()
+
+    def _show_rounds(self) -> None:
+        """The rounds' table, the quality of each round's template by the reviews so far."""
+        for r in self.rounds:
+            r["quality"] = reviewed_precision(self.backend, r["label"], r["documents"])
+        self.rounds_view.object = rounds_table(self.rounds) if self.rounds else ""
 
     def _draw(self) -> None:
         if self.template is not None:
