@@ -48,6 +48,7 @@ from .auth import Login, signed_in_line
 from .backend import Backend, answers_in_memory
 from .jobs import on_session_closed, release_memory
 from .state import Selection
+from .upload import UPLOAD_MESSAGE_BYTES
 from .widgets import when_drawn
 
 LOG = logging.getLogger("mocapviz.app")
@@ -448,6 +449,7 @@ def serve(db_path, port: int = 5006, address: str = LOCAL, show: bool = False, s
                       verbose=False, websocket_origin=[o for o in origins if not o.startswith("[")], location=False,
                       title=f"{TITLE} · {path.name}", check_unused_sessions_milliseconds=CLOSED_SESSION_CHECK_MS,
                       unused_session_lifetime_milliseconds=CLOSED_SESSION_LIFETIME_MS,
+                      websocket_max_message_size=UPLOAD_MESSAGE_BYTES,
                       **(login.options() if login else {}))
     # The refusal is the first rule of the tornado application's router (where tornado's Application.add_handlers
     # puts rules of its own), ahead of every page, static file and WebSocket route of Bokeh and Panel. Bokeh's Server

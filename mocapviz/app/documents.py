@@ -182,6 +182,7 @@ class DocumentPicker(pn.widgets.AutocompleteInput):
         super().__init__(label=label, options=self._choices(backend), value=int(value), search_strategy="includes",
                          case_sensitive=False, min_characters=1, restrict=True,
                          placeholder="type a part of a name, label, performer or archive", **params)
+        self._session = pn.state.curdoc  # the session's document (None outside a served session)
         backend.on_new_documents(self._new_documents)
         if selection is not None:
             selection.param.watch(lambda event: self._offer(backend, event.new), "upload")
@@ -197,5 +198,11 @@ class DocumentPicker(pn.widgets.AutocompleteInput):
         self.options = self._choices(backend)
 
     def _new_documents(self, backend) -> None:
-        """The database served grew: its documents, the new ones too, are the choices."""
-        self.options = self._choices(backend)
+        """The database served grew: its documents, the new ones too, are the choices (set on the session's event
+        loop: the switch happens on another thread, and a change sent from there can reach the browser's menu half
+        made)."""
+        options = self._choices(backend)
+        if self._session is None or self._session.session_context is None:
+            self.options = options
+        else:
+            self._session.add_next_tick_callback(lambda: setattr(self, "options", options))

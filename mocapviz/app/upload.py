@@ -263,7 +263,7 @@ class UploadBox(pn.viewable.Viewer):
         self.limits = pn.pane.Markdown(f"**Your take as the query** — {LIMITS}.", margin=(0, 10))
         self.task = Task()
         self.info = pn.pane.Markdown("", margin=(0, 10), css_classes=[f"{css_prefix}-info"])
-        self.add = pn.widgets.Button(name="Add to the database", button_type="default", visible=False, width=180,
+        self.add = pn.widgets.Button(label="Add to the database", visible=False, width=180,
                                      css_classes=[f"{css_prefix}-add"])
         self.input.param.watch(self._on_files, "value")
         self.add.on_click(self._on_add)
@@ -271,7 +271,7 @@ class UploadBox(pn.viewable.Viewer):
         self._show()
 
     def __panel__(self):
-        return pn.Column(self.limits, self.input, self.task, pn.Row(self.info, self.add), margin=0)
+        return pn.Column(self.limits, self.input, self.task, self.info, self.add, margin=0)
 
     def _show(self) -> None:
         upload = self.selection.upload
@@ -286,14 +286,16 @@ class UploadBox(pn.viewable.Viewer):
             return
         values = values if isinstance(values, list) else [values]
         names = names if isinstance(names, list) else [names]
-        old = _FOLDERS.get(self.selection)
-        folder = session_folder(self.selection)
-        if old is not None:  # the session's previous take goes: one take kept per session
-            shutil.rmtree(folder / "uploads", ignore_errors=True)
+        where = Path(tempfile.mkdtemp(dir=session_folder(self.selection)))
         upload = await self.task.run(f"Reading {', '.join(names)}", read_upload, self.backend.engine,
-                                     list(zip(names, values)), folder)
-        if upload is not None:
-            self.selection.param.update(upload=upload, use_upload=True, upload_span=(0, upload.n_frames))
+                                     list(zip(names, values)), where)
+        previous = self.selection.upload
+        if upload is None:  # refused: the take before stays the query, with its files
+            shutil.rmtree(where, ignore_errors=True)
+            return
+        if previous is not None:  # one take kept per session: the one before goes
+            shutil.rmtree(previous.path.parent.parent, ignore_errors=True)
+        self.selection.param.update(upload=upload, use_upload=True, upload_span=(0, upload.n_frames))
 
     async def _on_add(self, event) -> None:
         upload = self.selection.upload
