@@ -4,7 +4,7 @@ and beneath it the clip's relational feature timelines (Müller et al. 2005 §3-
 et al. 2010 §3.2).
 
 Segment labels (:meth:`mocapviz.engine.Engine.segment_labels`) show here too: the table counts each document's (its
-"segment labels" column: labels of any name, rejected hits left out), a strip above the timelines draws the clip's as
+"segment labels" column, once the database has some: labels of any name, rejected hits left out), a strip above the timelines draws the clip's as
 coloured spans with their names, and a user who may annotate labels the player's span ("label this span": a
 ``manual`` label by the session's user). The table follows the database: documents added while serving
 (:meth:`mocapviz.app.backend.Backend.on_new_documents`) appear in an open session's table and filters."""
@@ -31,7 +31,8 @@ from ..state import half_open, inclusive
 from ..widgets import results_table
 
 TABLE_TITLES = {"doc_id": "id", "n_frames": "frames"}
-LABELS = "segment labels"  # the table's column: each document's segment labels (rejected hits left out)
+LABELS = "segment labels"  # the table's column: each document's segment labels (rejected hits left out; the column
+# is left out while the database has none: the documents table then fits beside the player at 1400 pixels)
 LANE_PX = 22  # height of a lane of the segment label strip (overlapping labels take the lanes below)
 # pixels: each title in full beside its sort arrow (at 1280 pixels too: "perfor…", "seco…" were cut at 92 and 80)
 NARROW_COLUMNS = {"doc_id": 56, "performer": 104, "archive": 112, "seconds": 94, "n_frames": 84, "fps": 58,
@@ -124,7 +125,7 @@ class DatabasePage(pn.viewable.Viewer):
         t = self.table_data
         shown = filter_documents(t, self.label_filter.value, self.performer_filter.value, self.archive_filter.value,
                                  self.text_filter.value_input or "", self.length_filter.value)
-        self.table.value = shown
+        self.table.param.update(value=shown, hidden_columns=list(self.same) + ([] if t[LABELS].any() else [LABELS]))
         self.count.object = f"{len(shown)} of {plural(len(t), 'document')}" + "".join(
             f" · all {value:g} fps" if c == "fps" else f" · all from {value}" for c, value in self.same.items())
 
