@@ -17,7 +17,7 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 import pytest
-from browser_helpers import assert_no_exception_names, open_dashboard, open_tab, pick_document, text_of
+from browser_helpers import assert_no_exception_names, in_own_loop, open_dashboard, open_tab, pick_document, text_of
 from playwright.sync_api import expect
 
 from mocapviz import MotionDB
@@ -183,3 +183,19 @@ def test_the_add_button_is_absent_without_the_role(tmp_path, monkeypatch, peer_b
         box = UploadBox(backend, selection)
         selection.upload = take
         assert box.add.visible is role_allows
+
+
+def test_describe_this_clip_describes_the_uploaded_take(tmp_path, peer_bvh):
+    from mocapviz.app.pages.describe import DescribePage
+    from mocapviz.engine import describe_clip
+
+    backend = Backend(MotionDB.demo())
+    selection = Selection(doc=0)
+    describe = DescribePage(backend, selection)
+    take = read_upload(backend.engine, [(BVH, peer_bvh.read_bytes())], tmp_path)
+    selection.param.update(upload=take, use_upload=True, upload_span=(10, 90))
+    assert describe.clip_note.object.endswith(f"uploaded {BVH}, frames 10:90")
+    in_own_loop(describe._on_describe_clip())
+    values, names = Engine(backend.db).clip_relational(str(peer_bvh), frames=(10, 90), relational_set="2005")
+    assert describe.editor.value == describe_clip(values, names, f"uploaded {BVH}")
+    assert "described from the template 'uploaded animdraw_cmu1_jumping_jacks.bvh'" in describe.editor.value

@@ -698,6 +698,45 @@ def _feature_runs(column: np.ndarray) -> list[list]:
     return out
 
 
+def describe_clip(values, names, label: str = "clip", delta: float = 0.1) -> str:
+    """A clip as an editable scene description: :func:`describe` of the motion template of this one example
+    (:func:`mocapviz.relational.templates.learn_template`), what the dashboard's "Describe this clip" writes.
+
+    Parameters
+    ----------
+    values : np.ndarray [shape=(T, f)], bool
+        The clip's relational features (:meth:`mocapviz.engine.Engine.clip_relational`: a document, an uploaded
+        take, a span of either).
+    names : list of str [length f]
+        Their names: every feature of the 2005 or 2006 set.
+    label : str
+        The clip's name, in the description's comment line.
+    delta : float
+        As :func:`describe` (a template of one example has no don't-care entry: every feature's course is kept).
+
+    Returns
+    -------
+    str
+        The description (:func:`find` reads it); a clip whose features never change and change back gives one
+        with no progression, which :func:`find` refuses by saying so.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> from mocapviz.engine import Engine
+    >>> engine = Engine(MotionDB.demo())
+    >>> values, names = engine.clip_relational(5, relational_set="2005")  # a kick of the left foot
+    >>> text = describe_clip(values, names, "kick")
+    >>> "lfoot: lowered raised lowered" in text
+    True
+    >>> 5 in engine.find(text, n_matches=10, relational_set="2005")["doc_id"].tolist()  # the clip itself is found
+    True
+    """
+    from .templates import learn_template
+
+    return describe(learn_template([np.asarray(values)], list(names), label=str(label)), delta=delta)
+
+
 def describe(template, delta: float = 0.1, progressions: int = 4, longest: int = 5) -> str:
     """A motion template as an editable scene description (the paper's future work: descriptions learned from
     examples).

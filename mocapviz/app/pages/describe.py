@@ -50,6 +50,7 @@ from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task, in_thread
+from ..upload import UploadBox, example, query_name
 from ..widgets import MAX_MATCHES, action_button, hit_columns, hit_titles, notes, parameter_box, results_table
 
 RELATIONAL_SETS = ["2005", "2006"]
@@ -285,6 +286,17 @@ def search(backend, text: str, relational_set: str, n_matches: int) -> pd.DataFr
     return backend.cached(key, lambda: backend.engine.find(text, n_matches=n_matches, relational_set=relational_set))
 
 
+def describe_query(backend, query, span, relational_set: str) -> str:
+    """The description of a query clip (a document id or an uploaded take, frames ``span`` half-open) in the words
+    of ``relational_set``: :func:`mocapviz.relational.scene.describe_clip` of its relational features, what
+    "Describe this clip" writes."""
+    from ...engine import describe_clip
+
+    relational_set = one_of(str(relational_set), "relational set", RELATIONAL_SETS)
+    values, names = backend.engine.clip_relational(example(query), frames=tuple(span), relational_set=relational_set)
+    return describe_clip(values, names, label=query_name(backend, query), delta=DELTA)
+
+
 def describe_template(backend, name: str, delta: float = DELTA) -> tuple[str, str]:
     """(description text, relational set) of the template stored as ``name`` with the Backend's database
     (:func:`mocapviz.relational.scene.describe`)."""
@@ -367,6 +379,12 @@ class DescribePage(pn.viewable.Viewer):
         self.describe = action_button("Describe this template", "mv-describe-template-run", self._on_describe,
                                       width=200)
         self.templates_note = pn.pane.Markdown("", margin=(0, 10), width=640, css_classes=["mv-describe-template-note"])
+        self.describe_clip = action_button("Describe this clip", "mv-describe-clip-run", self._on_describe_clip,
+                                           width=180)
+        self.clip_note = pn.pane.Markdown("", margin=(0, 10), width=460, css_classes=["mv-describe-clip-note"])
+        self.upload = UploadBox(backend, selection, "mv-describe-upload")
+        selection.param.watch(lambda *events: self._show_clip(), ["doc", "span", "upload", "use_upload", "upload_span"])
+        self._show_clip()
         self.task = Task()
         self.names = results_table(names_view("2005"), "mv-describe-names", {"name": "name",
                                    "description": "description (click: add the name)"}, page_size=16,
@@ -397,7 +415,8 @@ class DescribePage(pn.viewable.Viewer):
         editor = pn.Column(
             "### Description", pn.Row(pn.pane.Markdown("relational set", margin=(8, 10)), self.relational_set),
             self.editor, self.status, pn.Row(self.n_matches, self.find), notes(self.n_matches),
-            pn.Row(self.templates, self.describe), self.templates_note, self.task, width=660)
+            pn.Row(self.templates, self.describe), self.templates_note, pn.Row(self.describe_clip, self.clip_note),
+            self.upload, self.task, width=660)
         words = pn.Tabs(("Named descriptions", self.names), ("Parts and states", self.words), dynamic=False,
                         sizing_mode="stretch_width", css_classes=["mv-describe-words"])
         results = pn.Column("### Hits", self.count, self.gallery, self.download.panel(), sizing_mode="stretch_width")
@@ -478,6 +497,19 @@ class DescribePage(pn.viewable.Viewer):
         self.templates_note.object = "" if names else (
             "*No template is stored with this database: `mocapviz template learn DB --label CLASS` stores one; "
             "then \"Describe this template\" writes its description here.*")
+
+    def _show_clip(self) -> None:
+        query, (start, end), _ = self.selection.query()
+        self.clip_note.object = f"the session's query clip: {query_name(self.backend, query)}, frames {start}:{end}"
+
+    async def _on_describe_clip(self, event=None) -> None:
+        """Write the description of the session's query clip (a document's span, or the uploaded take) in the
+        page's relational set."""
+        query, span, _ = self.selection.query()
+        text = await self.task.run(f"Describing {query_name(self.backend, query)}", describe_query, self.backend,
+                                   query, span, self.relational_set.value, busy=[self.describe_clip, self.find])
+        if text is not None:
+            self._set_text(text)
 
     async def _on_describe(self, event=None) -> None:
         name = self.templates.value
