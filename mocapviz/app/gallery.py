@@ -235,12 +235,11 @@ class HitGallery(pn.viewable.Viewer):
         return pn.Column(pn.Row(self.mode, *review), self.table, self.box, margin=0, sizing_mode="stretch_width")
 
     def _on_value(self, event) -> None:
-        """New hits: the first page, with their review states; the states only (the review's): the same page."""
+        """New hits: the first page, with their review states (the states alone: :meth:`show_states`)."""
         if self._reviewed:
-            self.go(self.page)
-        elif self.review is not None and self.n_hits:
-            self.review.refresh()  # sets the value again, with its column of states (then shows page 0)
-            self.go(0)
+            return
+        if self.review is not None and self.n_hits:
+            self.review.refresh(page=0)  # sets the value again, with its column of states
         else:
             self.go(0)
 
@@ -250,13 +249,18 @@ class HitGallery(pn.viewable.Viewer):
         page = self.page if self.mode.value == "Gallery" else max(0, self.table.page - 1)
         return list(range(page * size, min(self.n_hits, (page + 1) * size)))
 
-    def show_states(self, states: list[str]) -> None:
-        """Put the hits' review ``states`` into the table's column and the shown cells, staying on the page."""
+    def show_states(self, states: list[str], page: int | None = None) -> None:
+        """Put the hits' review ``states`` into the table's column, then show page ``page`` of new hits, or (None)
+        only the new states of the cells shown (a review: no cell sent again)."""
         self._reviewed = True
         try:
             self.table.value = self.table.value.assign(**{REVIEW: states})
         finally:
             self._reviewed = False
+        if page is not None:
+            self.go(page)
+        elif self.mode.value == "Gallery":
+            self.view.states = [str(states[r]) for r in self.view.meta.get("rows", []) if r < len(states)]
 
     @property
     def n_hits(self) -> int:
@@ -364,14 +368,15 @@ class HitReview(pn.viewable.Viewer):
         self._typed = self._typed or not self._suggesting
         self.refresh()
 
-    def refresh(self) -> None:
-        """Read the hits' states again from the database's labels and show them."""
+    def refresh(self, page: int | None = None) -> None:
+        """Read the hits' states again from the database's labels and show them (:meth:`HitGallery.show_states`:
+        ``page`` None stays on the page shown)."""
         value = self.table.value
         if value is None or "doc_id" not in value or not len(value):
             return
         label = self.label.value.strip()
         labels = self.backend.engine.segment_labels(label=label) if label else None
-        self.gallery.show_states(review_states(labels, value) if labels is not None else [""] * len(value))
+        self.gallery.show_states(review_states(labels, value) if labels is not None else [""] * len(value), page)
 
     def _on_cell(self, event) -> None:
         if event.column in VERDICTS:
