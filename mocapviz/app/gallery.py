@@ -327,12 +327,14 @@ class HitReview(pn.viewable.Viewer):
     def __init__(self, backend, gallery: HitGallery, css_class: str):
         super().__init__()
         self.backend, self.gallery, self.table = backend, gallery, gallery.table
-        self.label = pn.widgets.TextInput(name="label", placeholder="the label of the hits you accept", width=220,
+        # no title over the box (its placeholder says what it is): the row is as high as the Table | Gallery toggle,
+        # so the table and the gallery stay where they were
+        self.label = pn.widgets.TextInput(placeholder="label of the hits reviewed", width=220,
                                           css_classes=[f"{css_class}-label"])
-        self.accept_page = pn.widgets.Button(name="accept page", width=110, align="end",
+        self.accept_page = pn.widgets.Button(name="accept page", width=110,
                                              css_classes=[f"{css_class}-accept-page"])
-        self.undo = pn.widgets.Button(name="undo", width=70, align="end", css_classes=[f"{css_class}-undo"])
-        self.status = pn.pane.Markdown("", margin=(0, 10), align="end", css_classes=[f"{css_class}-review-status"])
+        self.undo = pn.widgets.Button(name="undo", width=70, css_classes=[f"{css_class}-undo"])
+        self.status = pn.pane.Markdown("", margin=(0, 10), css_classes=[f"{css_class}-review-status"])
         self._suggesting = False
         self._typed = False  # the user wrote the label: the page's suggestions no longer replace it
         self.table.param.update(buttons=dict(BUTTONS), widths={**self.table.widths, **dict.fromkeys(BUTTONS, 34)})
