@@ -227,11 +227,11 @@ def query_fps(backend, query) -> float:
     return query.fps if isinstance(query, Upload) else backend.fps_of(int(query))
 
 
-def query_name(backend, query) -> str:
-    """A query as captions name it: "document 7 (NAME)" or "uploaded NAME"."""
+def query_name(backend, query, named: bool = False) -> str:
+    """A query as captions name it: "document 7" ("document 7 (NAME)" when ``named``) or "uploaded NAME"."""
     if isinstance(query, Upload):
         return f"uploaded {query.name}"
-    return f"document {int(query)} ({backend.db.document(int(query))['name']})"
+    return f"document {int(query)}" + (f" ({backend.db.document(int(query))['name']})" if named else "")
 
 
 def add_to_database(backend, upload: Upload) -> list[int]:
@@ -262,6 +262,7 @@ class UploadBox(pn.viewable.Viewer):
         self.input = pn.widgets.FileInput(accept=",".join(ACCEPTED), multiple=True, css_classes=[f"{css_prefix}-input"])
         self.limits = pn.pane.Markdown(f"**Your take as the query** — {LIMITS}.", margin=(0, 10))
         self.task = Task()
+        self.task.error.css_classes = [f"{css_prefix}-error"]  # told apart from the page's own task's error
         self.info = pn.pane.Markdown("", margin=(0, 10), css_classes=[f"{css_prefix}-info"])
         self.add = pn.widgets.Button(label="Add to the database", visible=False, width=180,
                                      css_classes=[f"{css_prefix}-add"])

@@ -294,7 +294,7 @@ def describe_query(backend, query, span, relational_set: str) -> str:
 
     relational_set = one_of(str(relational_set), "relational set", RELATIONAL_SETS)
     values, names = backend.engine.clip_relational(example(query), frames=tuple(span), relational_set=relational_set)
-    return describe_clip(values, names, label=query_name(backend, query), delta=DELTA)
+    return describe_clip(values, names, label=query_name(backend, query, named=True), delta=DELTA)
 
 
 def describe_template(backend, name: str, delta: float = DELTA) -> tuple[str, str]:
@@ -500,7 +500,8 @@ class DescribePage(pn.viewable.Viewer):
 
     def _show_clip(self) -> None:
         query, (start, end), _ = self.selection.query()
-        self.clip_note.object = f"the session's query clip: {query_name(self.backend, query)}, frames {start}:{end}"
+        self.clip_note.object = (f"the session's query clip: {query_name(self.backend, query, named=True)}, frames "
+                                 f"{start}:{end}")
 
     async def _on_describe_clip(self, event=None) -> None:
         """Write the description of the session's query clip (a document's span, or the uploaded take) in the

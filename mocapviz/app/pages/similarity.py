@@ -340,7 +340,7 @@ class SimilarityPage(pn.viewable.Viewer):
         query, (start, end), frame = self.selection.query()
         fps = query_fps(self.backend, query)
         self.clip.value = UPLOADED if isinstance(query, Upload) else query
-        self.query.object = (f"**Query**: {query_name(self.backend, query)}, frame {frame} ({frame / fps:.2f} s); "
+        self.query.object = (f"**Query**: {query_name(self.backend, query, named=True)}, frame {frame} ({frame / fps:.2f} s); "
                              f"span {_frames(start, end)} ({plural(end - start, 'frame')}, "
                              f"{start / fps:.2f}–{end / fps:.2f} s). "
                              "Choose the frame and span on the Database page (a document's) or the Relational query "
