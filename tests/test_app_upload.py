@@ -197,3 +197,19 @@ def test_describe_this_clip_describes_the_uploaded_take(tmp_path, peer_bvh):
     values, names = Engine(backend.db).clip_relational(str(peer_bvh), frames=(10, 90), relational_set="2005")
     assert describe.editor.value == describe_clip(values, names, f"uploaded {BVH}")
     assert "described from the template 'uploaded animdraw_cmu1_jumping_jacks.bvh'" in describe.editor.value
+
+
+def test_the_neighbours_of_an_uploaded_frame_are_the_engines(tmp_path, peer_bvh):
+    """The Similarity page's kNN takes an uploaded take's frame (it was refused): the library's neighbours of that
+    frame of the same file, and the Fig. 1 picture drawn with the take's pose; a frame outside the take is refused
+    naming it."""
+    from mocapviz.app.pages.similarity import nearest_frames, neighbours_png
+
+    backend = Backend(MotionDB.demo())
+    take = read_upload(backend.engine, [(BVH, peer_bvh.read_bytes())], tmp_path)
+    table = nearest_frames(backend, "F15E", take, 30, 6, exclude_own=True)
+    expected = Engine(backend.db).neighbours(str(peer_bvh), 30, k=6)
+    assert table[["doc_id", "start", "end"]].equals(expected[["doc_id", "start", "end"]])
+    assert neighbours_png(backend, take, 30, table).startswith(b"\x89PNG")
+    with pytest.raises(ParameterError, match=f"frame {take.n_frames} is outside uploaded {BVH}"):
+        nearest_frames(backend, "F15E", take, take.n_frames, 6, exclude_own=True)

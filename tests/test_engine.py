@@ -164,3 +164,18 @@ def test_indexes_built_on_demand_show_progress_when_asked(tmp_path, capsys):
     assert "relational features" in capsys.readouterr().err
     again = Engine(MotionDB.open(tmp_path / "db.mdb")).indexes("2005", progress=True)
     assert capsys.readouterr().err == "" and sorted(again) == sorted(built)
+
+
+def test_the_neighbours_of_a_file_frame_are_those_of_its_document(sample_db):
+    """kNN of a frame of a take that is no document (an uploaded take, the Similarity page's kNN): the source file of a
+    document, read as every use case reads an example, has the neighbours of that document's frame with its own
+    document kept (the same rows, the same distances); a frame outside the take is refused naming its range."""
+    engine = Engine(sample_db)
+    path = sample_db.document(7)["path"]
+    for frame in (0, 40, int(sample_db.document(7)["n_frames"]) - 1):
+        from_file = engine.neighbours(path, frame, k=8)
+        own = engine.neighbours(7, frame, k=8, exclude_document=False)
+        assert from_file[["doc_id", "start", "end"]].equals(own[["doc_id", "start", "end"]])
+        assert np.allclose(from_file["distance"], own["distance"], atol=1e-4)
+    with pytest.raises(MocapvizError, match="the example has frames 0.."):
+        engine.neighbours(path, 10_000, k=2)

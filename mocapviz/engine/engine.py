@@ -285,9 +285,11 @@ class Engine:
     @checked("neighbours")
     def neighbours(self, doc_id: int, frame: int, *, k=..., numeric_set=..., radius=..., eps=...,
                    exclude_document=..., per_document=...) -> pd.DataFrame:  # fmt: skip
-        """The k nearest frames of the database to frame ``frame`` of document ``doc_id`` (in-document, from 0), as
-        a hit table of one-frame stretches (:func:`~mocapviz.similarity.knn.describe_frames`; ``distance``
-        column), nearest first; ``per_document``: the nearest frame of each document.
+        """The k nearest frames of the database to frame ``frame`` of document ``doc_id`` (in-document, from 0), or
+        of a Motion or a motion file given instead (an uploaded take: read as every use case reads an example, at
+        the database's rate; nothing to exclude), as a hit table of one-frame stretches
+        (:func:`~mocapviz.similarity.knn.describe_frames`; ``distance`` column), nearest first; ``per_document``:
+        the nearest frame of each document.
 
         Examples
         --------
@@ -300,13 +302,19 @@ class Engine:
         """
         from ..similarity.knn import describe_frames
 
-        span = self.db.frames(int(doc_id))
-        if not 0 <= frame < span.stop - span.start:
-            raise ParameterError(f"document {doc_id} has frames 0..{span.stop - span.start - 1}; asked for {frame}")
+        if _is_doc_id(doc_id):
+            span = self.db.frames(int(doc_id))
+            if not 0 <= frame < span.stop - span.start:
+                raise ParameterError(f"document {doc_id} has frames 0..{span.stop - span.start - 1}; asked for {frame}")
+            row, own = self.numeric(numeric_set)[span.start + frame], (span.start, span.stop) if exclude_document else None
+        else:  # a take that is no document: its frames' values computed as a search's query's
+            values = self._query(self._motion(doc_id, None), None, numeric_set).values
+            if not 0 <= frame < len(values):
+                raise ParameterError(f"the example has frames 0..{len(values) - 1}; asked for {frame}")
+            row, own = values[frame], None
         t0 = time.perf_counter()
-        own = (span.start, span.stop) if exclude_document else None
-        distances, frames = self.knn(self.numeric(numeric_set)[span.start + frame], k=k, numeric_set=numeric_set,
-                                     radius=radius, eps=eps, exclude=own)  # fmt: skip
+        distances, frames = self.knn(row, k=k, numeric_set=numeric_set, radius=radius, eps=eps,
+                                     exclude=own)  # fmt: skip
         table = describe_frames(self.db, frames[0], distances[0], per_document=per_document)
         table.attrs.update(ms=1e3 * (time.perf_counter() - t0), found=int((frames[0] >= 0).sum()))
         return table

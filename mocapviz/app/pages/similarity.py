@@ -32,7 +32,7 @@ from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task
-from ..upload import Upload, UploadBox, cache_key, example, query_clip, query_fps, query_name
+from ..upload import Upload, UploadBox, cache_key, example, query_clip, query_fps, query_frames, query_name
 from ..widgets import (
     MAX_MATCHES,
     BoundedIntInput,
@@ -75,7 +75,8 @@ def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own
     ----------
     backend : Backend
     name : str, numeric set (distances in its units, cm for F15E).
-    doc, frame : the query frame, ``frame`` counted within document ``doc``.
+    doc, frame : the query frame, ``frame`` counted within document ``doc`` (or within an uploaded take, an
+        :class:`~mocapviz.app.upload.Upload`: nothing to exclude).
     k : int, 1 <= k <= min(MAX_NEIGHBOURS, indexed frames).
     exclude_own : bool, leave out the frames of the query's own document.
     per_document : bool, one row per document: its nearest of the k neighbours.
@@ -86,12 +87,11 @@ def nearest_frames(backend, name: str, doc: int, frame: int, k: int, exclude_own
     frame within its document, end = start + 1) with ``distance``, nearest first; ``attrs["neighbours"]`` the
     neighbours found (more than the rows when ``per_document``).
     """
-    _document_only(doc, "the nearest neighbours of a frame")
-    own = backend.db.frames(doc)  # the one "no such document" error
-    if not 0 <= frame < own.stop - own.start:
-        raise ParameterError(f"frame {frame} is outside document {doc} (frames 0..{own.stop - own.start - 1})")
+    n = query_frames(backend, doc)  # an uploaded take's, or a document's (the one "no such document" error)
+    if not 0 <= frame < n:
+        raise ParameterError(f"frame {frame} is outside {query_name(backend, doc)} (frames 0..{n - 1})")
     k = count(k, "k", 1, min(MAX_NEIGHBOURS, backend.db.n_frames))
-    table = backend.engine.neighbours(doc, frame, k=k, numeric_set=name, exclude_document=exclude_own,
+    table = backend.engine.neighbours(example(doc), frame, k=k, numeric_set=name, exclude_document=exclude_own,
                                       per_document=per_document)  # fmt: skip
     table.attrs["neighbours"] = table.attrs["found"]
     return table
@@ -104,9 +104,8 @@ def neighbours_png(backend, doc: int, frame: int, neighbours: pd.DataFrame) -> b
     db = backend.db
     rows = [database_frames(db, d, s, e).start for d, s, e in zip(neighbours["doc_id"], neighbours["start"],
                                                                    neighbours["end"])]  # fmt: skip
-    positions = db.positions
-    query = positions[database_frames(db, doc, frame, frame + 1).start]
-    return png_bytes(neighbour_poses(query, positions[np.asarray(rows, dtype=np.int64)]))
+    query = query_clip(backend, doc, frame, frame + 1)[0]  # a document's frame, or an uploaded take's
+    return png_bytes(neighbour_poses(query, db.positions[np.asarray(rows, dtype=np.int64)]))
 
 
 def match_span(backend, name: str, doc: int, span: tuple[int, int], k: int, n_matches: int,
@@ -429,7 +428,8 @@ class SimilarityPage(pn.viewable.Viewer):
             return
         self.knn_table.value = hit_columns(table, KNN_TITLES, KNN_DECIMALS)
         found = table.attrs.get("neighbours", len(table))
-        self.knn_count.object = (f"**{plural(found, 'neighbour')}** of document {doc} frame {frame} by {name}"
+        self.knn_count.object = (f"**{plural(found, 'neighbour')}** of {query_name(self.backend, doc)} frame {frame} "
+                                 f"by {name}"
                                  + (", its own document excluded" if own and not isinstance(doc, Upload) else "")
                                  + (f"; one row per document: the nearest in each of {len(table)}" if each else ""))
         image = await self.knn_task.run("Drawing the neighbours", self.backend.cached, (*key, "png"),
