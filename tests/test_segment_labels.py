@@ -331,3 +331,20 @@ def test_no_segment_labelled_document_is_a_negative_when_the_examples_are_capped
     segments = engine.segment_labels(label="kick")
     template = templates.learn_class(db, "kick", max_examples=2, segments=segments[segments["source"].isin(POSITIVE)])
     assert template.n_examples == 2 and judged and not judged[0] & set(kicks)
+
+
+def test_a_take_given_as_an_example_is_learned_as_its_document_would_be(db, tmp_path, capsys):
+    """learn_template(examples=[file]) (the Templates page's uploaded take, `template learn --example FILE`): a
+    document's own source file, read as an example at the database's rate, gives the template its whole-document
+    segment label gives; a label nothing has yet is allowed with a take."""
+    engine = Engine(db)
+    paths = [db.document(doc)["path"] for doc in (5, 16)]
+    from_files = engine.learn_template("kick", examples=paths)
+    for doc in (5, 16):
+        engine.add_label(doc, frames=(0, int(db.document(doc)["n_frames"])), label="kick", author="ann")
+    from_labels = engine.learn_template("kick")
+    assert np.array_equal(from_files.values, from_labels.values) and from_files.n_examples == 2
+    assert from_files.meta["extra_examples"] == 2 and from_files.meta["segment_examples"] == 0
+    assert main(["template", "learn", str(db.path), "--label", "new class", "--example", paths[0]]) == 0
+    assert "1 example (0 documents with that file-name label, 0 segment labels, 1 take given with --example)" in \
+        capsys.readouterr().out

@@ -190,6 +190,9 @@ def build_parser() -> argparse.ArgumentParser:
     tl.add_argument("--label", required=True, help="the class: a value of the documents' label column")
     tl.add_argument("--actors", help="comma-separated actors: learn from their documents only (default all)")
     add_options(tl, "learn_template")
+    tl.add_argument("--example", action="append", dest="examples", metavar="FILE", help="a motion file (BVH, ASF + "
+                    "AMC, C3D; read as ingest reads it, at the database's rate) learned from as one more example beside "
+                    "the label's documents and segments (repeatable; with it, a label nothing has yet is allowed)")
     tl.add_argument("--out", help="also write the template to this file (.npz)")
     tl.set_defaults(func=_template_learn)
     ts = tsub.add_parser("search", help="the stretches of the DB that match a template, best first",

@@ -20,9 +20,11 @@ def run_template_learn(args) -> None:
     engine = engine_of(args)
     db = engine.db
     docs = db.documents
+    examples = args.examples or []
     try:
-        one_of(args.label, "label", sorted({*map(str, docs["label"].dropna().unique()),
-                                            *engine.segment_labels()["label"]}))  # fmt: skip
+        if not examples:  # takes given: the label may be new
+            one_of(args.label, "label", sorted({*map(str, docs["label"].dropna().unique()),
+                                                *engine.segment_labels()["label"]}))  # fmt: skip
     except ParameterError as exc:
         raise ParameterError(f"--label: {exc} (file-name labels and segment labels)") from None
     actors = None
@@ -34,7 +36,8 @@ def run_template_learn(args) -> None:
         except ParameterError as exc:
             raise ParameterError(f"--actors: {exc}") from None
     t0 = time.perf_counter()
-    template = engine.learn_template(args.label, actors=actors, **arguments(args, "learn_template"))
+    template = engine.learn_template(args.label, actors=actors, examples=examples,
+                                     **arguments(args, "learn_template"))  # fmt: skip
     seconds = time.perf_counter() - t0
     stored = store_template(db, template)
     delta = default("search_template", "delta")
@@ -43,7 +46,9 @@ def run_template_learn(args) -> None:
     meta = template.meta
     print(f"template {template.label!r} of {db.path} ({', '.join(actors) if actors else 'every actor'}): "
           f"{plural(n, 'example')} ({plural(meta['file_examples'], 'document')} with that file-name label, "
-          f"{plural(meta['segment_examples'], 'segment label')}), {plural(len(template.values), 'frame')} x "
+          f"{plural(meta['segment_examples'], 'segment label')}"
+          + (f", {plural(meta['extra_examples'], 'take')} given with --example" if examples else "")
+          + f"), {plural(len(template.values), 'frame')} x "
           f"{plural(len(template.features), 'feature')} of the "
           f"{args.relational_set} set, {dont_care:.0%} don't care (δ = {delta}), {plural(template.iterations, 'iteration')}, "
           f"{seconds:.1f} s")  # fmt: skip

@@ -467,18 +467,23 @@ class Engine:
         return table
 
     @checked("learn_template")
-    def learn_template(self, label: str, *, actors=None, relational_set=..., max_examples=..., iterations=...):
+    def learn_template(self, label: str, *, actors=None, relational_set=..., max_examples=..., iterations=...,
+                       examples=None):
         """The motion template of the documents labelled ``label`` and of the stretches with that segment label
         (manual, accepted or imported: :meth:`segment_labels`; of ``actors`` only, when given), from at most
         ``max_examples`` of them spread over the class (Müller & Röder 2006 §3; documents without a label are of
-        no class). Returns a :class:`~mocapviz.relational.templates.MotionTemplate` (not stored: see
+        no class), and of ``examples``: takes that are no documents (Motions or motion files, an uploaded take,
+        read as every use case reads an example), each always learned from. Returns a
+        :class:`~mocapviz.relational.templates.MotionTemplate` (not stored: see
         :func:`~mocapviz.relational.templates.store_template`)."""
         from ..db.segments import POSITIVE, SegmentLabels
         from ..relational.templates import learn_class
 
         segments = SegmentLabels(self.db).table(str(label), POSITIVE)
+        extra = [self.clip_relational(e, relational_set=relational_set)[0] for e in examples or ()]
         return learn_class(self.db, str(label), actors, relational_set, values=self.relational_values(relational_set),
-                           iterations=iterations, max_examples=max_examples, segments=segments)  # fmt: skip
+                           iterations=iterations, max_examples=max_examples, segments=segments,
+                           extra=extra)  # fmt: skip
 
     @checked("search_template")
     def search_template(self, template, *, n_matches=..., delta=..., max_cost=..., prefilter=...) -> pd.DataFrame:

@@ -902,9 +902,10 @@ def classify(values: np.ndarray, templates, delta: float = DELTA) -> pd.DataFram
 
 def learn_class(db, label: str, actors=None, relational_set: str = "2006", values: np.ndarray | None = None,
                 iterations: int = ITERATIONS, group: str = "actor", by_group: bool = True,
-                max_examples: int | None = None, segments: pd.DataFrame | None = None) -> MotionTemplate:  # fmt: skip
-    """Learn the template of the documents of a MotionDB with ``label`` (of ``actors`` only, when given), and of
-    the stretches labelled so (``segments``).
+                max_examples: int | None = None, segments: pd.DataFrame | None = None,
+                extra: list | None = None) -> MotionTemplate:  # fmt: skip
+    """Learn the template of the documents of a MotionDB with ``label`` (of ``actors`` only, when given), of the
+    stretches labelled so (``segments``), and of clips that are no documents (``extra``: an uploaded take).
 
     Parameters
     ----------
@@ -936,13 +937,17 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
         (:meth:`mocapviz.db.segments.SegmentLabels.table`): each stretch is an example beside the documents whose
         file-name label is ``label`` (spread over with them by ``max_examples``), and their documents are no
         negatives.
+    extra : list of np.ndarray [shape=(T_i, f)], bool, optional
+        The relational features (``relational_set``) of more examples that are no documents of ``db`` (a take of
+        the user's, :meth:`mocapviz.engine.Engine.clip_relational`), each always learned from (``max_examples``
+        spreads over the database's examples only), in a group of its own when learned by group.
 
     Returns
     -------
     MotionTemplate
         ``meta`` holds the relational set, the example doc ids, the class's documents and segments
         (``class_documents``, more than the examples with ``max_examples``; of the examples, ``file_examples``
-        documents and ``segment_examples`` segments), the actors, the database path and its
+        documents and ``segment_examples`` segments, and ``extra_examples``), the actors, the database path and its
         ``generation`` (``db.manifest["generation"]``: the state of the database it was learned from),
         ``groups`` when learned by group, and the learned ``threshold`` (:func:`separating_threshold` of the
         examples' costs, judged as unseen when learned by group, and the best costs of the documents of other
@@ -966,12 +971,12 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     """
     docs = db.documents
     labelled = docs["label"].astype("string").isin([str(label)]).to_numpy(bool)  # an unlabelled document: False
-    chosen = _class_examples(docs, labelled, segments)
+    chosen, extra = _class_examples(docs, labelled, segments), list(extra or [])
     if actors is not None:
         if group not in docs.columns:
             raise ParameterError(f"{db.path}: the documents have no {group} column; leave actors out")
         chosen = chosen[chosen[group].astype("string").isin([str(a) for a in actors])]
-    if chosen.empty:
+    if chosen.empty and not extra:
         known = ", ".join(sorted(map(str, docs["label"].dropna().unique()))[:20])
         raise ParameterError(f"no document of {db.path} has label {label!r}"
                              + (f" and {group} in {list(actors)}" if actors is not None else "")
@@ -984,10 +989,15 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
     else:
         names = feature_names(relational_set)
     examples = [values[s : s + n] for s, n in zip(chosen["start"], chosen["n_frames"])]
+    for i, clip in enumerate(extra):
+        if np.ndim(clip) != 2 or np.shape(clip)[1] != len(names) or len(clip) < 2:
+            raise ParameterError(f"extra example {i}: {np.shape(clip)} values, not (T >= 2, {len(names)}) of the "
+                                 f"{relational_set} set")  # fmt: skip
     groups = None
     if by_group and group in docs.columns and chosen[group].notna().all():
-        groups = chosen[group].astype(str).tolist()
-    template = learn_template(examples, names, str(label), iterations, groups=groups)
+        groups = chosen[group].astype(str).tolist() + [f"extra {i}" for i in range(len(extra))]
+    template = learn_template(examples + [np.asarray(c, dtype=bool) for c in extra], names, str(label), iterations,
+                              groups=groups)  # fmt: skip
     others = docs["label"].notna().to_numpy() & ~labelled & ~docs["doc_id"].isin(class_docs).to_numpy()
     if actors is not None:
         others &= docs[group].astype("string").isin([str(a) for a in actors]).to_numpy(bool)
@@ -997,7 +1007,7 @@ def learn_class(db, label: str, actors=None, relational_set: str = "2006", value
                       "nearest_negative": float(negatives.min()) if len(negatives) else None}  # fmt: skip
     template.meta |= {"relational_set": str(relational_set), "doc_ids": chosen["doc_id"].astype(int).tolist(),
                       "class_documents": of_class, "segment_examples": int(chosen["segment"].sum()),
-                      "file_examples": int((~chosen["segment"]).sum()),
+                      "file_examples": int((~chosen["segment"]).sum()), "extra_examples": len(extra),
                      "database": str(db.path), "generation": db.manifest["generation"],
                      "actors": None if actors is None else [str(a) for a in actors]}
     return template
