@@ -7,21 +7,25 @@ Similarity table and gallery, "accept page", "undo", "label this span" on the Da
 two sessions labelling at once, no button for a reader, and the labelling loop of the Motion templates page: two
 review rounds of kickLFront1Reps by the true classes, the second round's template more precise among the reviewed
 documents (1 of 2, then 2 of 3; measured beforehand with the annotation experiment's calls: review_page, K = 3).
+The browser tests take about 45 s with the server's start (marked slow); one fast test without a browser checks the
+Database page's count column, its strip and that an open page's table follows a clip added to its database.
 """
 
 from __future__ import annotations
 
 import re
+import shutil
 
 import pytest
 from browser_helpers import open_tab
 from playwright.sync_api import expect
 
 from mocapviz import Engine, MotionDB, users
+from mocapviz.app.backend import Backend
 from mocapviz.app.gallery import CELL, REVIEW_BOX
+from mocapviz.app.pages.database import LABELS, DatabasePage, lanes, segment_strip
+from mocapviz.app.state import Selection
 from mocapviz.experiments.annotation import annotator_view
-
-pytestmark = pytest.mark.slow
 
 HIDDEN = ("mm", "tr")  # the actors whose clips carry no class in the served copy
 CLASS, K = "kickLFront1Reps", 3  # the loop's class and page size
@@ -90,6 +94,7 @@ def _cell_button(i: int, verdict: str) -> dict:
     return {"x": x + REVIEW_BOX / 2, "y": (i // 8) * CELL[1] + 4 + REVIEW_BOX / 2}
 
 
+@pytest.mark.slow
 def test_accept_reject_accept_page_and_undo_on_the_similarity_page(lab, page):
     url, db, truth = lab
     _sign_in(page, url, "alice")
@@ -124,6 +129,7 @@ def test_accept_reject_accept_page_and_undo_on_the_similarity_page(lab, page):
     assert last["author"] == "alice" and last["undoes"] == len(Engine(MotionDB.open(db)).label_history()) - 1
 
 
+@pytest.mark.slow
 def test_label_a_span_on_the_database_page(lab, page):
     url, db, _ = lab
     _sign_in(page, url, "alice")
@@ -146,6 +152,7 @@ def test_label_a_span_on_the_database_page(lab, page):
     expect(count).to_have_text(str(int(((every["doc_id"] == 0) & (every["source"] != "rejected hit")).sum())))
 
 
+@pytest.mark.slow
 def test_two_sessions_label_at_once(lab, page, browser):
     url, db, _ = lab
     other = browser.new_context(viewport={"width": 1400, "height": 1000}).new_page()
@@ -166,6 +173,7 @@ def test_two_sessions_label_at_once(lab, page, browser):
     assert _reviews(db, "two sessions") == {hits[4]: ("accepted hit", "alice"), hits[5]: ("rejected hit", "carol")}
 
 
+@pytest.mark.slow
 def test_a_reader_sees_no_review_buttons(lab, page):
     url, _, _ = lab
     _sign_in(page, url, "bob")
@@ -177,6 +185,7 @@ def test_a_reader_sees_no_review_buttons(lab, page):
     assert page.locator(".mv-search-gallery-accept-page").count() == 0
 
 
+@pytest.mark.slow
 def test_the_loop_on_the_templates_page_raises_the_reviewed_precision(lab, page):
     url, db, truth = lab
     _sign_in(page, url, "alice")
@@ -201,3 +210,27 @@ def test_the_loop_on_the_templates_page_raises_the_reviewed_precision(lab, page)
         expect(table.nth(round_ - 1).locator("td").last).to_have_text(precision)
     reviews = _reviews(db, CLASS)
     assert all((truth[d] == CLASS) == (s == "accepted hit") for (d, _, _), (s, _) in reviews.items())
+
+
+def test_the_database_table_counts_labels_and_follows_new_documents(tmp_path):
+    """Without a browser: the documents table's count column, the strip's spans, and an open page's table and
+    filters after a clip is added to the database it shows (Backend.follow, as while serving)."""
+    db = MotionDB.open(shutil.copytree(MotionDB.demo().path, tmp_path / "demo.mdb"))
+    engine = Engine(db)
+    engine.add_label(3, frames=(2, 12), label="reach", author="ann")
+    engine.add_label(3, frames=(5, 9), label="grab", author="ann")
+    engine.add_label(5, frames=(0, 4), label="reach", author="ann", source="rejected hit")  # not counted
+    backend = Backend.open(db.path)
+    page = DatabasePage(backend, Selection(doc=3))
+    counts = page.table.value.set_index("doc_id")[LABELS]
+    assert (counts[3], counts[5], int(counts.sum())) == (2, 0, 2)
+    strip = segment_strip(engine.segment_labels().query("doc_id == 3"), 19, 30.0)
+    assert strip.count('class="mv-segment"') == 2 and 'data-start="5" data-end="9"' in strip
+    assert lanes([2, 5], [12, 9]) == [0, 1]  # the two overlap: one under the other
+
+    n = len(page.table.value)
+    row = db.documents.iloc[0].to_dict()
+    meta = {k: v for k, v in row.items() if k not in ("doc_id", "start", "n_frames", "fps")} | {"label": "a new class"}
+    db.append_motions([db.motion(0)], [meta])
+    assert backend.follow()
+    assert len(page.table.value) == n + 1 and "a new class" in page.label_filter.options
