@@ -179,6 +179,7 @@ def test_the_describe_pages_hits_as_a_gallery(sample_dashboard, page, kicks):
     n = min(len(kicks), PAGE_SIZE)
     expect(canvas).to_have_attribute("data-cells", str(n))
     expect(page.locator(".mv-describe-hits")).to_be_hidden()
+    canvas.scroll_into_view_if_needed()  # (below the upload box and the review controls: past 1000 px)
 
     def pixels(i):
         return canvas.evaluate(_CELL_PIXELS, [i, *CELL, COLUMNS, LABEL_HEIGHT])
