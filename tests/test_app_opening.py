@@ -6,6 +6,7 @@ label or gallery name is cut ("perfor…", "seco…", a gallery name ending befo
 from __future__ import annotations
 
 import shutil
+import threading
 import time
 
 import pytest
@@ -74,7 +75,25 @@ def test_every_page_opens_answered_and_cuts_no_header_or_name_at_1280(hdm05_dash
 # ============================================================================ without a browser
 def test_a_page_answers_when_first_shown_and_not_before(sample_db, monkeypatch, tmp_path):
     """The dashboard builds and answers the first page only; the Relational page, shown, poses :func:`first_query`
-    of the session's clip and shows its hits (the library's); Similarity search, shown, its DTW search."""
+    of the session's clip and shows its hits (the library's); Similarity search, shown, its DTW search. Run in a
+    thread of its own: without an event loop there a page's first answer runs to its end when the tab is shown
+    (after a browser test, Playwright's loop belongs to this thread and the answer would only be scheduled)."""
+    failed = []
+    thread = threading.Thread(target=lambda: _first_shown(sample_db, monkeypatch, tmp_path, failed))
+    thread.start()
+    thread.join()
+    if failed:
+        raise failed[0]
+
+
+def _first_shown(sample_db, monkeypatch, tmp_path, failed: list) -> None:
+    try:
+        _answers_when_first_shown(sample_db, monkeypatch, tmp_path)
+    except BaseException as exc:  # noqa: BLE001 - re-raised in the test's own thread
+        failed.append(exc)
+
+
+def _answers_when_first_shown(sample_db, monkeypatch, tmp_path) -> None:
     from mocapviz import app
     from mocapviz.app.pages.relational import first_query, search
     from mocapviz.app.pages.similarity import SEARCH_KINDS, search_span
