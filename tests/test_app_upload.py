@@ -16,6 +16,7 @@ import zipfile
 from pathlib import Path
 from urllib.parse import urlsplit
 
+import numpy as np
 import pytest
 from browser_helpers import assert_no_exception_names, in_own_loop, open_dashboard, open_tab, pick_document, text_of
 from playwright.sync_api import expect
@@ -213,3 +214,25 @@ def test_the_neighbours_of_an_uploaded_frame_are_the_engines(tmp_path, peer_bvh)
     assert neighbours_png(backend, take, 30, table).startswith(b"\x89PNG")
     with pytest.raises(ParameterError, match=f"frame {take.n_frames} is outside uploaded {BVH}"):
         nearest_frames(backend, "F15E", take, take.n_frames, 6, exclude_own=True)
+
+
+def test_the_templates_page_learns_from_the_uploaded_take_too(tmp_path, peer_bvh):
+    """Motion templates with "learn from the uploaded take too": the class's documents and the take, as
+    Engine.learn_template(examples=[file]) learns them; without the box ticked, the documents alone."""
+    from mocapviz.app.pages.templates import TemplatesPage
+
+    backend = Backend(MotionDB.demo())
+    selection = Selection(doc=5)  # bd's kick: the page opens on kickLFront1Reps
+    templates = TemplatesPage(backend, selection)
+    take = read_upload(backend.engine, [(BVH, peer_bvh.read_bytes())], tmp_path)
+    selection.param.update(upload=take, use_upload=True)
+    in_own_loop(templates._run())
+    alone = templates.template
+    assert alone.meta["extra_examples"] == 0 and "uploaded take" not in templates.count.object
+    templates.with_take.value = True
+    in_own_loop(templates._run())
+    label = templates.label.value
+    expected = Engine(backend.db).learn_template(label, examples=[str(peer_bvh)])
+    assert templates.template.meta["extra_examples"] == 1 and templates.template.n_examples == alone.n_examples + 1
+    assert np.array_equal(templates.template.values, expected.values)
+    assert "the uploaded take among its examples" in templates.count.object

@@ -21,6 +21,7 @@ were reviewed and accepted, precision = accepted / reviewed (:func:`reviewed_pre
 from __future__ import annotations
 
 import asyncio
+import functools
 
 import numpy as np
 import pandas as pd
@@ -44,6 +45,7 @@ from ..downloads import table_download
 from ..gallery import HitGallery
 from ..player import SkeletonPlayer
 from ..progress import Task, in_thread
+from ..upload import UploadBox, cache_key, example
 from ..widgets import MAX_MATCHES, action_button, hit_titles, notes, parameter_box, results_table
 
 RELATIONAL_SETS = ["2006", "2005"]  # the 39 features of Müller & Röder 2006 (the paper's), or the 31 of 2005
@@ -121,9 +123,10 @@ def labels_version(backend) -> int:
     return len(backend.engine.label_history())
 
 
-def learn(backend, label: str, actors, relational_set: str) -> MotionTemplate:
+def learn(backend, label: str, actors, relational_set: str, take=None) -> MotionTemplate:
     """The motion template of class ``label`` (:func:`mocapviz.relational.templates.learn_class`) from at most
-    :data:`MAX_EXAMPLES` of its documents, cached per (label, actors, set).
+    :data:`MAX_EXAMPLES` of its documents, and the session's uploaded ``take`` too when given (an example that is
+    no document: ``Engine.learn_template(examples=...)``), cached per (label, actors, set, take).
 
     Parameters
     ----------
@@ -131,15 +134,19 @@ def learn(backend, label: str, actors, relational_set: str) -> MotionTemplate:
     label : str, a ``label`` of the documents.
     actors : sequence of str; empty or None: the class's documents of every actor.
     relational_set : {"2006", "2005"}
+    take : Upload, optional, the session's uploaded take, learned from as one more example.
 
     Returns
     -------
-    MotionTemplate, values (K, f) in [0, 1]; ``meta["doc_ids"]`` the training documents.
+    MotionTemplate, values (K, f) in [0, 1]; ``meta["doc_ids"]`` the training documents (``meta["extra_examples"]``:
+    1 with the take).
     """
     key = _actors_key(actors)
-    return backend.cached(("templates.template", str(label), key, str(relational_set), labels_version(backend)),
+    taken = None if take is None else cache_key(take)
+    return backend.cached(("templates.template", str(label), key, str(relational_set), taken, labels_version(backend)),
                           lambda: backend.engine.learn_template(str(label), actors=None if key is None else list(key),
-                                                                relational_set=str(relational_set)))  # fmt: skip
+                                                                relational_set=str(relational_set),
+                                                                examples=None if take is None else [example(take)]))  # fmt: skip
 
 
 def search_template(backend, template: MotionTemplate, delta: float, n_matches: int,
@@ -167,11 +174,12 @@ def search_template(backend, template: MotionTemplate, delta: float, n_matches: 
 
 
 def learn_and_search(backend, label: str, actors, relational_set: str, delta: float, n_matches: int,
-                     max_cost: float | None) -> tuple[MotionTemplate, pd.DataFrame]:  # fmt: skip
-    """:func:`learn` then :func:`search_template` (the page's button); the hits cached per all the arguments."""
-    template = learn(backend, label, actors, relational_set)
+                     max_cost: float | None, take=None) -> tuple[MotionTemplate, pd.DataFrame]:  # fmt: skip
+    """:func:`learn` (with the uploaded ``take`` as an example when given) then :func:`search_template` (the page's
+    button); the hits cached per all the arguments."""
+    template = learn(backend, label, actors, relational_set, take)
     key = ("templates.hits", str(label), _actors_key(actors), str(relational_set), delta, n_matches, max_cost,
-           labels_version(backend))
+           None if take is None else cache_key(take), labels_version(backend))
     return template, backend.cached(key, lambda: search_template(backend, template, delta, n_matches, max_cost))
 
 
@@ -336,6 +344,9 @@ class TemplatesPage(pn.viewable.Viewer):
                                       css_classes=["mv-templates-max-cost"])
         self.button = action_button("Learn and search", "mv-templates-run", self._run, width=150)
         self.round_button = action_button("Review round", "mv-templates-round", self._round, width=150)
+        self.upload = UploadBox(backend, selection, "mv-templates-upload")
+        self.with_take = pn.widgets.Checkbox(name="learn from the uploaded take too", value=False,
+                                             css_classes=["mv-templates-with-take"])
         self.rounds: list[dict] = []  # the loop's rounds: round, label, examples, documents, quality
         self.rounds_view = pn.pane.Markdown("", css_classes=["mv-templates-rounds"], margin=(0, 10))
         self.task = Task()
@@ -376,7 +387,8 @@ class TemplatesPage(pn.viewable.Viewer):
         template = pn.Column(self.view, self.image, self.legend)
         playing = pn.Column(self.playing, self.player_box)
         task = pn.Column(self.task, css_classes=["mv-templates-task"], margin=0, sizing_mode="stretch_width")
-        return pn.Column(intro, inputs, notes(self.delta, self.n_matches, self.max_cost), task, self.summary,
+        return pn.Column(intro, inputs, pn.Row(self.upload, self.with_take),
+                         notes(self.delta, self.n_matches, self.max_cost), task, self.summary,
                          self.count, self.rounds_view, self.gallery, self.download.panel(), pn.Row(template, playing),
                          sizing_mode="stretch_width")
 
@@ -409,7 +421,9 @@ class TemplatesPage(pn.viewable.Viewer):
 
     async def _run(self, event=None) -> None:
         inputs = self._inputs()
-        result = await self.task.run("Learning and searching", learn_and_search, self.backend, *inputs,
+        take = self.selection.upload if self.with_take.value else None
+        result = await self.task.run("Learning and searching", functools.partial(learn_and_search, take=take),
+                                     self.backend, *inputs,
                                      busy=self.button, stale=(self.summary, self.count, self.table, self.image,
                                                               self.legend, self.player_box))  # fmt: skip
         if result is None:
@@ -424,6 +438,7 @@ class TemplatesPage(pn.viewable.Viewer):
         self.count.object = (f"**{plural(n, 'hit')}** of the {label} template in the whole database "
                              f"(K = {n_matches}" + (f", cost / frame ≤ {max_cost:g}" if max_cost is not None else "")
                              + ")" + ("; try a larger max cost" if self.hits.empty else "")
+                             + ("; the uploaded take among its examples" if take is not None else "")
                              + tie_note(self.hits, delta))  # fmt: skip
         await asyncio.sleep(0)  # let the hits and their count reach the browser before the template is drawn
         self._draw()
