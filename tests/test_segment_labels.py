@@ -12,6 +12,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -348,3 +349,21 @@ def test_a_take_given_as_an_example_is_learned_as_its_document_would_be(db, tmp_
     assert main(["template", "learn", str(db.path), "--label", "new class", "--example", paths[0]]) == 0
     assert "1 example (0 documents with that file-name label, 0 segment labels, 1 take given with --example)" in \
         capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_four_command_line_writers_at_once_all_land(db):
+    """The issue's "4 concurrent CLI writers": four shells each running `mocapviz labels DB add` 4 times at the same
+    time; all 16 labels are there afterwards with their authors, and one undo per author restores each one's last."""
+    script = ('for i in 1 2 3 4; do "$MOCAPVIZ" labels "$DB" add --doc $((i * 5)) --frames 0:$((i + 4)) '
+              '--label "take $i" --author "$WHO" > /dev/null || exit 1; done')  # fmt: skip
+    env = dict(os.environ, MOCAPVIZ=str(Path(sys.executable).parent / "mocapviz"), DB=str(db.path))
+    shells = [subprocess.Popen(["bash", "-ec", script], env=dict(env, WHO=f"writer{w}")) for w in range(4)]
+    assert [s.wait(timeout=300) for s in shells] == [0] * 4
+    table = SegmentLabels(db).table()
+    assert len(table) == 16 and table.groupby("author").size().to_dict() == {f"writer{w}": 4 for w in range(4)}
+    assert sorted(zip(table["doc_id"], table["end"])) == sorted((i * 5, i + 4) for i in range(1, 5) for _ in range(4))
+    for w in range(4):
+        assert main(["labels", str(db.path), "undo", "--author", f"writer{w}"]) == 0
+    after = SegmentLabels(db).table()
+    assert len(after) == 12 and (after["label"] == "take 4").sum() == 0
