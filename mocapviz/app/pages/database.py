@@ -332,8 +332,8 @@ def lanes(starts, ends) -> list[int]:
 
     Examples
     --------
-    >>> lanes([0, 5, 12, 3], [10, 15, 20, 4])
-    [0, 1, 0, 2]
+    >>> lanes([0, 5, 12, 3], [10, 15, 20, 4])  # 3:4 ends before 5:15 begins: they share lane 1
+    [0, 1, 0, 1]
     """
     ends_of: list[int] = []  # the end of each lane's last span
     lane = [0] * len(starts)
