@@ -13,7 +13,7 @@ import warnings
 from pathlib import Path
 
 import pytest
-from browser_helpers import ARTIFACTS, free_port  # screenshots and measured round trips go to ARTIFACTS
+from browser_helpers import ARTIFACTS, free_port, tabulator_column_race  # screenshots, round trips: ARTIFACTS
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -267,19 +267,11 @@ def page(browser):
     pg.console_errors = errors
     yield pg
     context.close()
-    raced = [e for e in errors if _tabulator_data_race(e)]
+    raced = [e for e in errors if tabulator_column_race(e)]
     for error in raced:
-        warnings.warn(f"Tabulator's setData race, tolerated: {error}", stacklevel=1)
+        warnings.warn(f"Tabulator's column race, tolerated: {error}", stacklevel=1)
     rest = [e for e in errors if e not in raced]
     assert not rest, "browser console errors:\n" + "\n".join(rest)
-
-
-def _tabulator_data_race(error: str) -> bool:
-    """Tabulator's own race between two data loads in quick succession (a page's opening answer, then the test's
-    Run; cf. tabulator-tables issue 4800: a setData before the previous finished): thrown inside Tabulator's code,
-    the table then showing the later data, which the tests check. Seen rarely, on a loaded machine only."""
-    return error.startswith("uncaught: Cannot read properties of null (reading 'firstChild')") and \
-        "tabulator" in error.lower()
 
 
 @pytest.fixture
