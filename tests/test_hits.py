@@ -134,8 +134,8 @@ def test_cli_csv_is_the_library_table(mixed, tmp_path, capsys, command):
             expected = match_motion(db, doc, span, n_matches=3, exclude_document=True,
                                     k=graph_k(db.n_frames, db.typical_fps))  # the engine's default k
         elif command == "query":
-            args = ["--example", str(doc), "--features", ",".join(FEATURES)]
-            expected = query_by_example(db, db.motion(doc), FEATURES)
+            args = ["--example", str(doc), "--features", ",".join(FEATURES), "--no-exclude-document"]
+            expected = query_by_example(db, db.motion(doc), FEATURES)  # (the kernel keeps the own document)
         else:
             args = ["--frame", f"{doc}:{n // 2}", "-k", "5", "--quiet", "--no-exclude-document"]
             features = SimilaritySearch(db, "F15E").features

@@ -130,7 +130,7 @@ def test_the_database_mixes_labels_rigs_and_rates(mixed, ids, capsys):
 # ============================================================================================== relational query
 def test_query_by_a_labelled_and_an_unlabelled_example(mixed, ids, tmp_path, capsys):
     out = tmp_path / "kick.csv"
-    rc, printed = _run(capsys, "query", mixed.path, "--example", ids[KICKS[0]], "--features",
+    rc, printed = _run(capsys, "query", mixed.path, "--no-exclude-document", "--example", ids[KICKS[0]], "--features",
                        "rknee_bent,lknee_bent", "-K", 30, "--csv", out)  # fmt: skip
     assert rc == 0
     kick = _csv(out)
@@ -138,7 +138,7 @@ def test_query_by_a_labelled_and_an_unlabelled_example(mixed, ids, tmp_path, cap
     _assert_clean(kick, mixed)
 
     out = tmp_path / "own.csv"
-    rc, printed = _run(capsys, "query", mixed.path, "--example", ids["135_08"], "--features",
+    rc, printed = _run(capsys, "query", mixed.path, "--no-exclude-document", "--example", ids["135_08"], "--features",
                        "rknee_bent,lknee_bent", "-K", 30, "--csv", out)  # fmt: skip
     assert rc == 0
     own = _csv(out)
@@ -147,10 +147,10 @@ def test_query_by_a_labelled_and_an_unlabelled_example(mixed, ids, tmp_path, cap
     _assert_clean(own, mixed)
     _assert_printed_clean(printed)
 
-    rc, printed = _run(capsys, "query", mixed.path, "--example", ids[BANDAI[0]], "--relational-set", "2006",
+    rc, printed = _run(capsys, "query", mixed.path, "--no-exclude-document", "--example", ids[BANDAI[0]], "--relational-set", "2006",
                        "--mismatch", 1)  # a 30 Hz document without actor  # fmt: skip
     assert rc == 0 and printed.splitlines()[2].split()[1:3] == [str(ids[BANDAI[0]]), BANDAI[0]]
-    rc, printed = _run(capsys, "query", mixed.path, "--example", ids["cmu_07_01"], "--mode", "exact",
+    rc, printed = _run(capsys, "query", mixed.path, "--no-exclude-document", "--example", ids["cmu_07_01"], "--mode", "exact",
                        "--features", "rknee_bent")  # fmt: skip
     assert rc == 0 and printed.splitlines()[2].split()[1:3] == [str(ids["cmu_07_01"]), "cmu_07_01"]
     _assert_printed_clean(printed)
