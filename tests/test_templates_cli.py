@@ -73,7 +73,8 @@ def test_learn_via_the_cli_equals_learn_class_and_is_stored(db, tmp_path, capsys
     _same(load_template(db, "squat1Reps-dg"), expected)
     assert expected.meta["doc_ids"] == [11] and expected.meta["generation"] == db.manifest["generation"]
     dont_care = (expected.quantised(default("search_template", "delta")) == 0.5).mean()  # at the δ it is searched with
-    assert f"1 example, {len(expected.values)} frames x 39 features" in printed
+    assert (f"1 example (1 document with that file-name label, 0 segment labels), {len(expected.values)} frames x 39 "
+            "features") in printed
     assert f"{dont_care:.0%} don't care" in printed and plural(expected.iterations, "iteration") in printed
     assert str(template_path(db, "squat1Reps-dg")) in printed and f"written to {out}" in printed
 

@@ -571,7 +571,8 @@ class Engine:
 
     def label_history(self) -> pd.DataFrame:
         """Every change of the segment labels, in order: change, op (add, remove, edit), label_id, author, time,
-        undoes (the change an undo reverts) and the row it leaves (:meth:`SegmentLabels.history`)."""
+        undoes (the change an undo reverts) and the row it leaves
+        (:meth:`mocapviz.db.segments.SegmentLabels.history`)."""
         from ..db.segments import SegmentLabels
 
         return SegmentLabels(self.db).history()
