@@ -214,8 +214,8 @@ def test_round_trip_on_hdm05(hdm05_db30, hdm05_dashboard, page, screenshot):
 def test_a_new_clip_ticks_its_suggested_query(sample_db):
     """Before the indexes are loaded a new clip ticks the kick features; once they are, a new clip ticks its
     suggested query (:meth:`mocapviz.engine.Engine.suggest_query` of the clip) and m; a narrower span of the same
-    clip keeps them."""
-    backend = Backend.open(sample_db.path)
+    clip keeps them. (A Backend of its own: the one Backend.open shares may hold the indexes already.)"""
+    backend = Backend(sample_db)
     page = RelationalPage(backend, Selection(doc=10, span=(0, 215)))
     assert sorted(page.query()["features"]) == sorted(DEFAULT_FEATURES)
     backend.engine.indexes("2005")
