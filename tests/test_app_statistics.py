@@ -110,6 +110,10 @@ def test_correlations_recompute_with_other_measures(sample_db, sample_dashboard,
     page.locator(".mv-values-pose").first.wait_for(timeout=WAIT_MS)
     page.locator(".mv-values-segment").first.wait_for(timeout=WAIT_MS)
     six = _heatmap_box(page, "pose")
+    deadline = time.monotonic() + WAIT_MS / 1000
+    while six is None and time.monotonic() < deadline:  # (the page answered on opening: Compute redraws it)
+        time.sleep(0.5)
+        six = _heatmap_box(page, "pose")
     chooser = page.locator(".mv-measures")
     for name in ("Fp16", "F30E", "F39E", "F15x3E"):
         chooser.locator(f".choices__item[data-value='{name}'] .choices__button").click()
