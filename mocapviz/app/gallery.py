@@ -238,10 +238,18 @@ class HitGallery(pn.viewable.Viewer):
         """New hits: the first page, with their review states (the states alone: :meth:`show_states`)."""
         if self._reviewed:
             return
-        if self.review is not None and self.n_hits:
+        if self.review is not None and self.n_hits and REVIEW not in event.new.columns:
             self.review.refresh(page=0)  # sets the value again, with its column of states
         else:
             self.go(0)
+
+    def show_hits(self, value: pd.DataFrame) -> None:
+        """The page's new hits, nothing selected, with their review states in the same value: one change of the
+        table's columns (a second one right after made Tabulator 6.4's ``setColumns`` fail while it was still
+        building the table, under load, and the states' column was then missing)."""
+        if self.review is not None and value is not None and "doc_id" in value and len(value):
+            value = value.assign(**{REVIEW: self.review.states(value)})
+        self.table.param.update(selection=[], value=value)
 
     def shown_rows(self) -> list[int]:
         """The rows of the table shown now: the gallery's page, or the table's."""
@@ -376,9 +384,13 @@ class HitReview(pn.viewable.Viewer):
         value = self.table.value
         if value is None or "doc_id" not in value or not len(value):
             return
+        self.gallery.show_states(self.states(value), page)
+
+    def states(self, hits: pd.DataFrame) -> list[str]:
+        """The review states of the rows of a hit table, read from the database's labels of the box's label."""
         label = self.label.value.strip()
         labels = self.backend.engine.segment_labels(label=label) if label else None
-        self.gallery.show_states(review_states(labels, value) if labels is not None else [""] * len(value), page)
+        return review_states(labels, hits) if labels is not None else [""] * len(hits)
 
     def _on_cell(self, event) -> None:
         if event.column in VERDICTS:

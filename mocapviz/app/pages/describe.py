@@ -539,7 +539,7 @@ class DescribePage(pn.viewable.Viewer):
             return
         self.hits = hits
         self.description = parse_description(text, hits.attrs.get("relational_set", relational_set))
-        self.table.param.update(selection=[], value=hit_columns(hits, HIT_TITLES, HIT_DECIMALS))
+        self.gallery.show_hits(hit_columns(hits, HIT_TITLES, HIT_DECIMALS))
         n = len(hits)
         if n:
             self.count.object = (f"<b>{plural(n, 'hit')}</b> (K = {n_matches}; score: the hit's length "

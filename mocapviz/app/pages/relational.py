@@ -388,7 +388,7 @@ class RelationalPage(pn.viewable.Viewer):
 
     def _show_hits(self, q: dict, hits: pd.DataFrame) -> None:
         self.hits, self.shown_query = hits, q
-        self.table.param.update(selection=[], value=hit_columns(hits, HIT_TITLES, HIT_DECIMALS))
+        self.gallery.show_hits(hit_columns(hits, HIT_TITLES, HIT_DECIMALS))
         kind = f"{q['mode']} hits" + (f" with m = {q['mismatches']}" if q["mode"] == "mismatch" else "")
         self.count.object = f"**{plural(len(hits), 'hit')}** for {plural(len(q['features']), 'feature')}, " \
                             f"{kind} (score: seconds of segment-length difference, §6.2; lower " \

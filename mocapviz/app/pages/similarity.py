@@ -384,7 +384,7 @@ class SimilarityPage(pn.viewable.Viewer):
             return
         name, doc, span, kind, mode, n_matches, own = key
         self.results, self.search_query = found, (doc, span)
-        self.search_table.param.update(selection=[], value=hit_columns(found, SEARCH_TITLES, SEARCH_DECIMALS))
+        self.search_gallery.show_hits(hit_columns(found, SEARCH_TITLES, SEARCH_DECIMALS))
         self.search_player_box.visible, self.search_playing.object = False, SEARCH_PLAY_HINT
         what = ("clip", "clips") if kind == "clips" else ("stretch", "stretches")
         ms = found.attrs.get("ms")
@@ -461,7 +461,7 @@ class SimilarityPage(pn.viewable.Viewer):
             return
         name, doc, span, k, n_matches, own = key
         self.matches, self.match_query, self.match_key = found, (doc, span), key
-        self.match_table.param.update(selection=[], value=hit_columns(found, MATCH_TITLES, MATCH_DECIMALS))
+        self.match_gallery.show_hits(hit_columns(found, MATCH_TITLES, MATCH_DECIMALS))
         self.player_box.visible, self.playing.object, self.matrix.object = False, MATCH_PLAY_HINT, None
         share = found.attrs["min_length"]
         cut = asked != span

@@ -432,7 +432,7 @@ class TemplatesPage(pn.viewable.Viewer):
         label, _, _, delta, n_matches, max_cost = inputs
         self.template, self.hits, self.delta_used = *result, delta
         self.summary.object = template_summary(self.template, delta)
-        self.table.param.update(selection=[], value=hits_view(self.hits))
+        self.gallery.show_hits(hits_view(self.hits))
         self.player_box.visible, self.playing.object = False, PLAY_HINT
         n = len(self.hits)
         self.count.object = (f"**{plural(n, 'hit')}** of the {label} template in the whole database "
@@ -458,7 +458,7 @@ class TemplatesPage(pn.viewable.Viewer):
         self.rounds.append({"round": len(self.rounds) + 1, "label": label, "examples": self.template.n_examples,
                             "documents": best})
         self.summary.object = template_summary(self.template, self.delta_used)
-        self.table.param.update(selection=[], value=hits_view(self.hits))
+        self.gallery.show_hits(hits_view(self.hits))
         n = len(self.hits)
         self.count.object = (f"**Round {len(self.rounds)}**: {plural(n, 'document')} without a class to review for "
                              f"**{label}**, the best hit of each (✓ accepts it, ✗ rejects it; then the next round "
