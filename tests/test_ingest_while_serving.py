@@ -34,7 +34,7 @@ FEATURES = ["rknee_bent", "lknee_bent", "rhand_fast"]
 
 @pytest.fixture
 def demo_copy(tmp_path):
-    """A copy of the demo (56 documents at 30 Hz) with its 2005 relational index stored."""
+    """A copy of the demo (54 documents at 30 Hz) with its 2005 relational index stored."""
     db = MotionDB.open(shutil.copytree(MotionDB.demo().path, tmp_path / "demo.mdb"))
     build(db, "2005", progress=False)
     return db

@@ -107,7 +107,7 @@ class _Model:
             self.rows[label_id] = row
 
 
-_STEP = st.one_of(st.tuples(st.just("add"), st.integers(0, 55), st.integers(0, 15), st.integers(1, 15),
+_STEP = st.one_of(st.tuples(st.just("add"), st.integers(0, 53), st.integers(0, 15), st.integers(1, 15),
                             st.sampled_from(["kick", "hop", "front kick"])),
                   st.tuples(st.just("remove"), st.integers(0, 10)), st.tuples(st.just("undo")))  # fmt: skip
 

@@ -471,8 +471,8 @@ class MotionDB:
 
     @classmethod
     def demo(cls) -> MotionDB:
-        """The embedded demo as a MotionDB at 30 Hz: 44 HDM05 clips (4 actors x 11 classes), 10 CMU trials (9 of
-        martial arts) and 2 C3D takes, document ids in the order of
+        """The embedded demo as a MotionDB at 30 Hz: 44 HDM05 clips (4 actors x 11 classes), 8 CMU martial-arts
+        trials and 2 C3D takes, document ids in the order of
         :data:`mocapviz.io.datasets.DEMO_ORDER` (the HDM05 clips first); what ``make demo`` serves.
 
         Built once beside the unpacked demo (:func:`mocapviz.io.datasets.demo`, under ``$MOCAPVIZ_HOME``) and opened
@@ -487,7 +487,7 @@ class MotionDB:
         --------
         >>> db = MotionDB.demo()
         >>> len(db), db.fps, int((db.documents["label"] == "kickLFront1Reps").sum())
-        (56, 30.0, 4)
+        (54, 30.0, 4)
         """
         from ..io import datasets
 

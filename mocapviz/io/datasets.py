@@ -13,7 +13,7 @@ The archives repackage public data (``Archive.source``: HDM05, the CMU Graphics 
 Namco Research motion dataset), each under its own licence (``Archive.licence``).
 
 ``sample()`` (also ``fetch("sample")``) and ``demo()`` (``fetch("demo")``) need no download: they unpack the
-small sample (22 HDM05 clips, 2 CMU trials) and the demo (44 HDM05 clips, 10 CMU trials, 2 C3D takes) shipped
+small sample (22 HDM05 clips, 2 CMU trials) and the demo (44 HDM05 clips, 8 CMU trials, 2 C3D takes) shipped
 inside the package (:data:`EMBEDDED`). Every unpack goes to a temporary folder renamed into place at the
 end, so an interrupted unpack never leaves a folder that a later call would take for complete. Besides the
 sha256, every member is checked as it is unpacked (tarfile's ``data`` filter and :func:`_refusal`): a member with
@@ -215,11 +215,11 @@ EMBEDDED: dict[str, Embedded] = {
         Embedded(
             name=DEMO,
             description=(
-                "embedded demo: 44 HDM05 cut clips (4 actors x 11 classes), 10 CMU trials (9 martial arts: kicks, "
+                "embedded demo: 44 HDM05 cut clips (4 actors x 11 classes), 8 CMU martial-arts trials (kicks, "
                 "punches, kata), 2 C3D takes (CMU, HDM05)"
             ),
-            files="44 HDM05 AMC + 10 CMU AMC + their 6 ASF + 2 C3D",
-            frames=32_097,
+            files="44 HDM05 AMC + 8 CMU AMC + their 5 ASF + 2 C3D",
+            frames=28_643,
             licence=_HDM05_CMU_LICENCE,
             source=(
                 "embedded in the package (mocapviz/data/demo.tar.xz), cut from hdm05-cut, cmu-asfamc and c3d-markers"
@@ -363,8 +363,8 @@ def demo() -> Path:
     """Unpack the demo shipped inside the package, once, and return its folder.
 
     The demo holds real files, unchanged, chosen so that each headline feature has something to find: every HDM05
-    class from four actors (the shortest clip of each, 44 clips), nine CMU martial-arts trials (front, round and
-    side kicks, lunge punches, two kata) and a CMU walk, and two C3D takes of marker trajectories (CMU subject 85's
+    class from four actors (the shortest clip of each, 44 clips), eight CMU martial-arts trials (front, round and
+    side kicks, lunge punches, two kata) and two C3D takes of marker trajectories (CMU subject 85's
     jump twist, the HDM05 locomotion scene 01-02 of actor bd), with their ASF skeletons, ``labels.tsv`` tables,
     ``LICENSE.md`` and ``README.md``.
 
