@@ -28,17 +28,6 @@ def in_own_loop(coroutine):
     return out["result"], out["thread"]
 
 
-def tabulator_column_race(error: str) -> bool:
-    """An uncaught error (with its stack) thrown inside Tabulator 6.4's ``setColumns`` when Panel changes a table's
-    columns while Tabulator is still building it, its header not there yet ("Cannot read properties of null (reading
-    'firstChild')"): a page's opening answer, then the next answer or the review column added just after it, change
-    a table's columns in quick succession on a loaded machine (8 sessions at once: a few per round). The later columns
-    and data are then shown, as the tests check; the browser tests report it as a warning, every other error fails
-    them. (Left to fix: one column set from a table's first value on, the review column included.)"""
-    return ("Cannot read properties of null (reading 'firstChild')" in error and "setColumns" in error
-            and "tabulator" in error.lower())
-
-
 def free_port() -> int:
     """A TCP port of 127.0.0.1 that nothing listens on now."""
     import socket

@@ -11,12 +11,10 @@ import asyncio
 import re
 import threading
 import time
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from browser_helpers import tabulator_column_race
 
 KINDS = ("open", "row_click", "search", "knn", "relational", "template", "describe")
 TIMEOUT_MS = 600_000  # a loaded 2-core machine serving 8 sessions answers slowly: measured, not bounded here
@@ -61,15 +59,6 @@ async def _timed(rounds: Rounds, kind: str, action, shown) -> None:
     rounds.seconds[kind].append(time.perf_counter() - t0)
 
 
-def _uncaught(rounds: Rounds, error: str) -> None:
-    """An uncaught error of a session: Tabulator's column race (:func:`browser_helpers.tabulator_column_race`) a
-    warning, any other an error of the round."""
-    if tabulator_column_race(error):
-        warnings.warn(f"Tabulator's column race, tolerated: {error}", stacklevel=1)
-    else:
-        rounds.errors.append(error)
-
-
 async def session_round(browser, url: str, q: Query, rounds: Rounds) -> None:
     """One session: open the dashboard, choose ``q``'s document, search its whole clip (DTW) and the kNN of its first
     frame, run the relational query by example on it, learn and search the template of ``q.template_label``, find the
@@ -81,7 +70,7 @@ async def session_round(browser, url: str, q: Query, rounds: Rounds) -> None:
     page = await context.new_page()
     page.set_default_timeout(TIMEOUT_MS)
     who = f"session of document {q.doc_id}"
-    page.on("pageerror", lambda e: _uncaught(rounds, f"{who}: uncaught {e}\n{e.stack}"))
+    page.on("pageerror", lambda e: rounds.errors.append(f"{who}: uncaught {e}\n{e.stack}"))
     page.on("console", lambda m: rounds.errors.append(f"{who}: console {m.text} at {m.location.get('url')}")
             if m.type == "error" else None)  # fmt: skip
 

@@ -308,7 +308,7 @@ class Engine:
                 raise ParameterError(f"document {doc_id} has frames 0..{span.stop - span.start - 1}; asked for {frame}")
             row, own = self.numeric(numeric_set)[span.start + frame], (span.start, span.stop) if exclude_document else None
         else:  # a take that is no document: its frames' values computed as a search's query's
-            values = self._query(self._motion(doc_id, None), None, numeric_set).values
+            values = self._query(doc_id, None, numeric_set).values  # (read and resampled there)
             if not 0 <= frame < len(values):
                 raise ParameterError(f"the example has frames 0..{len(values) - 1}; asked for {frame}")
             row, own = values[frame], None
