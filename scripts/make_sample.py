@@ -143,17 +143,20 @@ def _choose_cmu(table: pd.DataFrame, root: Path) -> list[str]:
     """``131_01`` and the shortest martialwalk trial, with their ASF files."""
     candidates = sorted(root.glob(CMU_SHORTEST_OF))
     shortest = min(candidates, key=lambda p: (_amc_frames(p), p.name))
-    clips = [*CMU_CLIPS, shortest.relative_to(root).as_posix()]
-    rows = table[table["file"].isin(clips)]
-    return sorted(set(rows["asf"])) + sorted(clips)
+    return _with_asf(table, [*CMU_CLIPS, shortest.relative_to(root).as_posix()])
 
 
 def _choose_demo_cmu(table: pd.DataFrame, root: Path) -> list[str]:
     """The demo's CMU trials (:data:`DEMO_CMU_CLIPS`) with their ASF files."""
-    rows = table[table["file"].isin(DEMO_CMU_CLIPS)]
-    if len(rows) != len(DEMO_CMU_CLIPS):
-        sys.exit(f"cmu-asfamc/labels.tsv lacks some of {', '.join(DEMO_CMU_CLIPS)}")
-    return sorted(set(rows["asf"])) + sorted(DEMO_CMU_CLIPS)
+    return _with_asf(table, list(DEMO_CMU_CLIPS))
+
+
+def _with_asf(table: pd.DataFrame, clips: list[str]) -> list[str]:
+    """The ASF files of CMU ``clips`` (from ``labels.tsv``), then the clips, each sorted."""
+    rows = table[table["file"].isin(clips)]
+    if len(rows) != len(clips):
+        sys.exit(f"cmu-asfamc/labels.tsv lacks some of {', '.join(clips)}")
+    return sorted(set(rows["asf"])) + sorted(clips)
 
 
 def _dataset_members(top: str, name: str, root: Path, table: pd.DataFrame, files: list[str]) -> dict[str, bytes]:
