@@ -85,7 +85,13 @@ def open_tab(page, name: str) -> None:
 
 def pick_document(page, css: str, doc: int) -> None:
     """Choose document ``doc`` in the document picker of css class ``css`` (mocapviz.app.documents.DocumentPicker):
-    type its id as the list writes it ("7: ") and click the match that starts with it."""
+    type its id as the list writes it ("7: ") and click the match that starts with it. Typing starts once the page
+    holds a picker offering the document (choices that change while the menu is open make BokehJS throw), with the
+    mouse away from where the menu opens: a menu item under a resting pointer takes the hover, and BokehJS throws when
+    the next key narrows the menu below it (``_bump_hover``, ``change_input``)."""
+    page.wait_for_function("""(prefix) => window.Bokeh && Bokeh.documents.some((d) => [...d.all_models].some(
+        (m) => Array.isArray(m.completions) && m.completions.some((c) => c.startsWith(prefix))))""", arg=f"{doc}: ")
+    page.mouse.move(0, 0)
     box = page.locator(f"{css} input")
     box.fill("")
     box.press_sequentially(f"{doc}: ")

@@ -150,7 +150,6 @@ def test_add_to_the_database_ingests_the_take(page, sample_db, serve_dashboard, 
     db = MotionDB.open(copy)
     assert len(db) == len(sample_db) + 1 and db.document(doc)["name"] == peer_bvh.stem
     assert db.document(doc)["n_frames"] == Engine(sample_db).example(str(peer_bvh)).n_frames  # at the DB's 120 Hz
-    time.sleep(2)  # picked at once, the player of the page threw in the browser once (play of undefined), not since
     pick_document(page, ".mv-query-doc", doc)  # the picker lists the new document (the server followed)
     expect(page.locator(".mv-query-span-info")).to_contain_text(f"of {peer_bvh.stem}")
 

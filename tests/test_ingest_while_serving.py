@@ -59,11 +59,11 @@ def test_a_served_database_shows_a_take_ingested_meanwhile(demo_copy, take, serv
     open_dashboard(page, url)
     open_tab(page, "Relational query")  # an open session, its document picker made before the ingest
     page.locator(".mv-run button:not([disabled])").wait_for(timeout=300_000)
-    out = _ingest(take, demo_copy)
-    assert "57 documents" in out  # its index extended by the ingest, or already by the server that followed first
-    assert re.search(r"relational index 2005: (extended \(1 document, \d+ frames|current)", out), out
-    assert load_index(MotionDB.open(demo_copy.path), "2005")["lower"].meta["n_documents"] == 57
     new = len(demo_copy)  # the id of the new document (ids count from 0)
+    out = _ingest(take, demo_copy)
+    assert f"{new + 1} documents" in out  # its index extended by the ingest, or already by the server that followed
+    assert re.search(r"relational index 2005: (extended \(1 document, \d+ frames|current)", out), out
+    assert load_index(MotionDB.open(demo_copy.path), "2005")["lower"].meta["n_documents"] == new + 1
     _offered(page, new, "md_03")  # (a): the open session's picker offers it once the server has followed
     expect(page.locator(".mv-query-span-info")).to_contain_text("of md_03")  # the session's clip now
     open_tab(page, "Similarity search")  # a search of the new take, its own document allowed, finds it first
@@ -99,6 +99,7 @@ def _offered(page, doc: int, name: str) -> None:
 
 def test_a_query_running_while_the_ingest_commits_answers_from_the_old_generation(demo_copy, take, monkeypatch):
     backend = Backend(demo_copy)
+    new = len(demo_copy)  # the id the ingested take gets
     picker = DocumentPicker(backend, "query clip", 0)
     example = load(take).canonical()[0:60]
     before = backend.engine.query(example, features=FEATURES, mode="adaptive")
@@ -121,9 +122,9 @@ def test_a_query_running_while_the_ingest_commits_answers_from_the_old_generatio
     commit_done.set()
     running.join(120)
     monkeypatch.setattr(relational_query, "example_hits", original)
-    assert answer["hits"].equals(before) and (answer["hits"]["doc_id"] < 56).all()
+    assert answer["hits"].equals(before) and (answer["hits"]["doc_id"] < new).all()
     after = backend.engine.query(example, features=FEATURES, mode="adaptive")
-    assert 56 in set(after["doc_id"]) and set(before["doc_id"]) <= set(after["doc_id"])
-    assert len(backend.documents) == 57 and picker.options == backend.doc_options()  # the picker told
-    assert load_index(backend.db, "2005")["lower"].meta["n_documents"] == 57  # the ingest extended the stored index
+    assert new in set(after["doc_id"]) and set(before["doc_id"]) <= set(after["doc_id"])
+    assert len(backend.documents) == new + 1 and picker.options == backend.doc_options()  # the picker told
+    assert load_index(backend.db, "2005")["lower"].meta["n_documents"] == new + 1  # the ingest extended the stored index
     assert not backend.follow()  # nothing newer
