@@ -181,6 +181,20 @@ def build_parser() -> argparse.ArgumentParser:
     search_scheduler(se)
     se.set_defaults(func=_search)
 
+    au = sub.add_parser("audit", help="every pair of stretches that are near-copies (mirrored, re-timed, trimmed, "
+                        "retargeted), clusters of copies, and a test split's leakage into train")  # fmt: skip
+    au.add_argument("db")
+    au.add_argument("--against", help="a second MotionDB: pairs between the two collections only")
+    au.add_argument("--split", help="a CSV of doc (id or name) and split (train / val / test): report every test "
+                    "stretch with a near-copy in train")  # fmt: skip
+    add_options(au, "audit")
+    au.add_argument("--csv", help="write every pair to this CSV file")
+    au.add_argument("--leakage-csv", help="with --split: write the leakage report to this CSV file")
+    au.add_argument("--keep-one", help="write the documents a clean set keeps (one of each cluster) to this CSV file")
+    au.add_argument("--quiet", action="store_true", help="no progress bar")
+    search_scheduler(au)
+    au.set_defaults(func=_audit)
+
     tp = sub.add_parser("template", help="motion templates (Müller & Röder 2006): learn a class from its labelled "
                         "documents, stored with the DB; find its instances")  # fmt: skip
     tsub = tp.add_subparsers(dest="action", required=True)
@@ -394,6 +408,12 @@ def _search(args):
     from . import similarity
 
     return similarity.run_search(args)
+
+
+def _audit(args):
+    from . import audit
+
+    return audit.run_audit(args)
 
 
 def _template_learn(args):

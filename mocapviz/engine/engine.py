@@ -513,6 +513,74 @@ class Engine:
         except ParameterError as exc:  # not a stored name either
             raise ParameterError(f"{template}: no such template file, and {exc}") from None
 
+    @checked("audit")
+    def audit(self, other=None, *, numeric_set=..., min_length=..., threshold=..., max_scale=..., mirrored=...,
+              progress: bool = False) -> pd.DataFrame:
+        """Every pair of stretches of this database (or between it and ``other``) that are near-copies: the same
+        motion again, its left/right mirror, at another rate, trimmed, time-scaled within ``max_scale`` or on
+        other bones (:mod:`mocapviz.similarity.audit`, docs/audit.md), each at least ``min_length`` seconds.
+
+        Parameters
+        ----------
+        other : MotionDB or path, optional
+            A second collection: pairs between the two only (its frames compared at this database's typical rate).
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per pair (:data:`~mocapviz.similarity.audit.PAIR_COLUMNS`), best first; attrs ``threshold``
+            (cm) and ``threshold_how`` (given, or how it was learned), ``rate`` (Hz), ``candidates``.
+
+        Examples
+        --------
+        >>> from mocapviz import MotionDB
+        >>> pairs = Engine(MotionDB.sample()).audit(threshold=5.0)
+        >>> list(pairs.columns[:4])
+        ['doc_a', 'name_a', 'start_a', 'end_a']
+        """
+        from ..similarity.audit import Collection, audit_pairs, learn_threshold
+
+        rate = float(self.db.typical_fps or 30.0)
+        first = self._audit_collection(self.db, numeric_set, rate, None, progress)
+        second = None
+        if other is not None:
+            other_db = other.db if isinstance(other, Engine) else other if isinstance(other, MotionDB) else \
+                MotionDB.open(other)  # fmt: skip
+            second = Collection(other_db, numeric_set, rate, body=first.body, progress=progress)
+        min_frames = max(2, int(round(min_length * rate)))
+        how = "given"
+        if threshold is None:
+            learned = learn_threshold(first, min_frames)
+            threshold, how = learned["threshold"], learned["how"]
+        pairs = audit_pairs(first, second, min_frames=min_frames, threshold=threshold, max_scale=max_scale,
+                            mirrored=mirrored, progress=progress)  # fmt: skip
+        pairs.attrs.update(threshold=float(threshold), threshold_how=how, rate=rate, min_length=float(min_length))
+        return pairs
+
+    def _audit_collection(self, db, numeric_set: str, rate: float, body, progress: bool):
+        """This database's audit features (kept: a second audit with another threshold reads them again)."""
+        from ..similarity.audit import Collection
+
+        key = ("audit", numeric_set, rate)
+        if key not in self._features:
+            self._features[key] = Collection(db, numeric_set, rate, body=body, progress=progress)
+        return self._features[key]
+
+    def leakage(self, pairs: pd.DataFrame, split) -> pd.DataFrame:
+        """The pairs of an :meth:`audit` that leak a test document into a train one, the test side first;
+        ``split``: a CSV file of ``doc`` (id or name) and ``split`` (train / val / test), or {doc_id: split}."""
+        from ..similarity.audit import leakage, read_split
+
+        split = pd.Series(split) if isinstance(split, dict) else read_split(split, self.db.documents)
+        return leakage(pairs, split)
+
+    def keep_one(self, pairs: pd.DataFrame) -> pd.DataFrame:
+        """The documents left when each cluster of copies of an :meth:`audit` keeps one (its longest): a clean
+        training set (rows of ``db.documents``)."""
+        from ..similarity.audit import keep_one
+
+        return keep_one(pairs, self.db.documents)
+
     def quality(self, methods=None, **options) -> dict:
         """Retrieval quality of search methods on the database's labels
         (:func:`mocapviz.experiments.retrieval.retrieval_quality`, its options; the relational methods use this

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 
 from .. import validation
 from ..errors import ParameterError
-from ..features import NUMERIC_SETS, RELATIONAL_SETS
+from ..features import NUMERIC_SETS, POSITION_SETS, RELATIONAL_SETS
 from ..validation import MIN_LENGTH, MIN_LENGTH_RANGE, count, number, one_of, parse_count, parse_names, parse_number
 
 __all__ = ["PARAMETERS", "USE_DEFAULTS", "Parameter", "checked", "markdown", "parameter"]
@@ -203,6 +203,15 @@ PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
     _p("source", "choice", "manual", "where a segment label comes from (a rejected hit says the stretch is not of "
        "its label)", choices=("manual", "accepted hit", "rejected hit", "imported")),  # db.segments.SOURCES
     _p("note", "text", None, "a note kept with a segment label", high=1000, optional=True, none_means="no note"),
+    _p("audit_set", "choice", "F15E", "the audit's numeric feature set: body-frame joint positions (Krüger et al. "
+       "2010 §3.2; no PCA set)", choices=POSITION_SETS, flags=("--numeric-set",)),
+    _p("audit_length", "float", 1.0, "the shortest stretch of a pair of copies, seconds", low=0.1, high=60.0,
+       flags=("--min-length",)),
+    _p("threshold", "float", None, "the largest mean DTW cost of a pair of copies (cm on the common body)", low=0.0,
+       low_open=True, optional=True, none_means="learned from the collection's own copies (docs/audit.md)"),
+    _p("max_scale", "float", 1.25, "time scalings of a copy within [1 / max_scale, max_scale]", low=1.0,
+       high=4.0),
+    _p("mirrored", "bool", True, "also find left/right-mirrored copies", flags=("--mirrored",)),
     _p("label_format", "choice", "csv", "segment labels' file: CSV with the hit table's columns, or BABEL-style "
        "JSON (per sequence, segments in seconds with action names)", choices=("csv", "babel"), flags=("--format",)),
 ]}
@@ -245,6 +254,8 @@ USES = {
     "undo_label": {"author": "author"},
     "export_labels": {"format": "label_format", "label": "label"},
     "import_labels": {"author": "author"},
+    "audit": {"numeric_set": "audit_set", "min_length": "audit_length", "threshold": "threshold",
+              "max_scale": "max_scale", "mirrored": "mirrored"},
 }  # fmt: skip
 """Each use case's keyword arguments and the declared parameter each one is (most have its name): the engine
 checks them (:func:`checked`), the command line offers them (:func:`add_options`, :func:`arguments`)."""

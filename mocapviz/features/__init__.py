@@ -16,6 +16,7 @@ extend_numeric    stored numeric sets extended with the documents appended since
 load_numeric      a stored numeric set, memory-mapped (MotionDBError when missing or stale).
 numeric_of        a MotionDB's numeric set: stored when current, else extended, else computed.
 NUMERIC_SETS      the numeric feature set names.
+POSITION_SETS     those of joint positions in the body frame (not the PCA sets).
 
 The set names are defined here and the rest is imported when first used (``mocapviz._lazy``): the command line's
 parser lists the sets without loading numba, pandas or the feature modules.
@@ -24,6 +25,8 @@ from .._lazy import lazy_exports
 
 NUMERIC_SETS = ("F15E", "F30E", "F39E", "F15x3E", "F15x5E", "F30x3E", "Fp8", "Fp16", "Fp25")
 """The numeric feature sets, in the order of ``numeric.py`` (which defines each)."""
+POSITION_SETS = tuple(name for name in NUMERIC_SETS if not name.startswith("Fp"))
+"""The numeric sets of joint positions in the body frame (the PCA sets are fitted to one database)."""
 RELATIONAL_SETS = ("2005", "2006")
 """The relational feature sets: Müller, Röder & Clausen 2005 (31 features) and Müller & Röder 2006 (39)."""
 
@@ -36,6 +39,7 @@ __getattr__, __dir__ = lazy_exports(__name__, {
 
 __all__ = [
     "NUMERIC_SETS",
+    "POSITION_SETS",
     "RELATIONAL_SETS",
     "PCAModel",
     "extend_numeric",

@@ -799,3 +799,63 @@ def mirror(motion: Motion) -> Motion:
     if motion.quaternions is not None:
         quat = motion.quaternions[:, swap] * np.array([1.0, 1.0, -1.0, -1.0], dtype=np.float32)
     return replace(motion, positions=pos, quaternions=quat)
+
+
+def bone_lengths(positions: np.ndarray) -> np.ndarray:
+    """Each canonical joint's distance to its parent (0 for the root), the median over the given frames.
+
+    Parameters
+    ----------
+    positions : np.ndarray [shape=(T, 24, 3)]
+        Canonical joints, cm.
+
+    Returns
+    -------
+    np.ndarray [shape=(24,)], float64
+        cm.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> lengths = bone_lengths(MotionDB.sample().motion(0).positions)
+    >>> lengths.shape, float(lengths[0])
+    ((24,), 0.0)
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    parents = np.maximum(CANONICAL_PARENTS, 0)
+    return np.median(np.linalg.norm(p - p[:, parents], axis=-1), axis=0)
+
+
+def retarget(motion: Motion, lengths) -> Motion:
+    """The same movement on a body of other bone lengths: each bone (joint minus its parent) scaled to its new
+    length on every frame, the root's path kept; what a copy of a take retargeted to another actor looks like.
+
+    Parameters
+    ----------
+    motion : Motion
+        Canonical joints (any other skeleton is mapped first).
+    lengths : array_like [shape=(24,)]
+        The new body's bone lengths, cm (:func:`bone_lengths` of another actor's clip).
+
+    Returns
+    -------
+    Motion
+        Positions (T, 24, 3) on the new bones; quaternions (the joints' rotations) unchanged.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> db = MotionDB.sample()
+    >>> other = bone_lengths(db.motion(12).positions)
+    >>> moved = retarget(db.motion(0), other)
+    >>> bool(np.allclose(bone_lengths(moved.positions)[1:], other[1:], rtol=1e-3))
+    True
+    """
+    motion = to_canonical(motion)
+    p = np.asarray(motion.positions, dtype=np.float64)
+    ratio = np.asarray(lengths, dtype=np.float64) / np.maximum(bone_lengths(p), 1e-9)
+    out = p.copy()
+    for j in range(1, len(CANONICAL_JOINTS)):  # parents come before their children
+        parent = CANONICAL_PARENTS[j]
+        out[:, j] = out[:, parent] + (p[:, j] - p[:, parent]) * ratio[j]
+    return replace(motion, positions=out.astype(np.float32))
