@@ -547,7 +547,7 @@ class Engine:
             other_db = other.db if isinstance(other, Engine) else other if isinstance(other, MotionDB) else \
                 MotionDB.open(other)  # fmt: skip
             second = Collection(other_db, numeric_set, rate, body=first.body, progress=progress)
-        min_frames = max(2, int(round(min_length * rate)))
+        min_frames = max(2, round(min_length * rate))
         how = "given"
         if threshold is None:
             learned = learn_threshold(first, min_frames)

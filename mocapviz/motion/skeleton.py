@@ -826,6 +826,9 @@ def bone_lengths(positions: np.ndarray) -> np.ndarray:
     return np.median(np.linalg.norm(p - p[:, parents], axis=-1), axis=0)
 
 
+_SHORTEST_BONE_CM = 2.0  # retarget: a bone shorter than this is not scaled
+
+
 def retarget(motion: Motion, lengths) -> Motion:
     """The same movement on a body of other bone lengths: each bone (joint minus its parent) scaled to its new
     length on every frame, the root's path kept; what a copy of a take retargeted to another actor looks like.
@@ -840,7 +843,8 @@ def retarget(motion: Motion, lengths) -> Motion:
     Returns
     -------
     Motion
-        Positions (T, 24, 3) on the new bones; quaternions (the joints' rotations) unchanged.
+        Positions (T, 24, 3) on the new bones; quaternions (the joints' rotations) unchanged. A bone shorter than
+        2 cm in ``motion`` keeps its length (its direction is not defined).
 
     Examples
     --------
@@ -853,7 +857,10 @@ def retarget(motion: Motion, lengths) -> Motion:
     """
     motion = to_canonical(motion)
     p = np.asarray(motion.positions, dtype=np.float64)
-    ratio = np.asarray(lengths, dtype=np.float64) / np.maximum(bone_lengths(p), 1e-9)
+    own = bone_lengths(p)
+    ratio = np.where(own > _SHORTEST_BONE_CM, np.asarray(lengths, dtype=np.float64) / np.maximum(own, 1e-3), 1.0)
+    # a bone of (almost) no length, such as a clavicle some rigs put at the neck, has no direction to scale (or only
+    # the direction of its markers' noise): it stays as it is
     out = p.copy()
     for j in range(1, len(CANONICAL_JOINTS)):  # parents come before their children
         parent = CANONICAL_PARENTS[j]
