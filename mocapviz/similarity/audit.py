@@ -239,7 +239,7 @@ def audit_pairs(first: Collection, second: Collection | None, *, min_frames: int
     for doc_a, doc_b, flip, i0, i1, j0, j1 in progress_bar(candidates, desc="audit: verifying", unit="candidate",
                                                           disable=not progress):  # fmt: skip
         rows.extend(_verified(first, other, doc_a, doc_b, flip, i0, i1, j0, j1, min_frames, threshold, max_scale))
-    return _table(first, other, _deduplicated(rows))
+    return _table(first, other, _deduplicated(rows, min_frames // 2))
 
 
 def _candidates(first, other, self_join, min_frames, threshold, mirrored, k) -> list[tuple]:
@@ -299,7 +299,7 @@ def _verified(first, other, pa, pb, flip, i0, i1, j0, j1, min_frames, threshold,
     ok = np.concatenate([[False], smooth <= threshold, [False]])
     edges = np.flatnonzero(np.diff(ok.astype(np.int8)))
     out = []
-    for s, e in zip(edges[::2], edges[1::2]):
+    for s, e in _joined(list(zip(edges[::2], edges[1::2])), local, min_frames, threshold):
         s, e = _trimmed(path, local, s, e, threshold)
         ia, ib = path[s:e, 0], path[s:e, 1]
         na, nb = int(ia[-1] - ia[0] + 1), int(ib[-1] - ib[0] + 1)
@@ -308,6 +308,18 @@ def _verified(first, other, pa, pb, flip, i0, i1, j0, j1, min_frames, threshold,
             continue
         out.append({"pa": pa, "pb": pb, "a0": a0 + int(ia[0]), "a1": a0 + int(ia[-1]) + 1, "b0": b0 + int(ib[0]),
                     "b1": b0 + int(ib[-1]) + 1, "cost": cost, "mirrored": flip, "scale": nb / na})  # fmt: skip
+    return out
+
+
+def _joined(runs: list, local: np.ndarray, gap: int, threshold: float) -> list:
+    """Runs [s, e) of path steps, each joined with the next when fewer than ``gap`` steps lie between them and the
+    joined run's mean local cost stays at most ``threshold`` (one copy whose noise crossed the threshold briefly)."""
+    out: list = []
+    for s, e in runs:
+        if out and s - out[-1][1] < gap and local[out[-1][0]:e].mean() <= threshold:
+            out[-1] = (out[-1][0], e)
+        else:
+            out.append((s, e))
     return out
 
 
@@ -331,15 +343,36 @@ def _trimmed(path: np.ndarray, local: np.ndarray, s: int, e: int, threshold: flo
     return s, e
 
 
-def _deduplicated(rows: list[dict]) -> list[dict]:
-    """Best first; a pair overlapping a better one of the same two documents by more than half of either side
-    (in both documents) is dropped (the same copy found twice, e.g. mirrored and not for a symmetric motion)."""
+def _deduplicated(rows: list[dict], gap: int) -> list[dict]:
+    """The maximal pairs, best first: a pair that overlaps a longer one of the same two documents by more than half
+    of the shorter on both sides is dropped (a part of the same copy, or the copy found twice, e.g. mirrored and
+    not for a symmetric motion); then pairs that continue each other across fewer than ``gap`` frames joined."""
     kept: list[dict] = []
-    for r in sorted(rows, key=lambda r: (r["cost"], r["pa"], r["pb"], r["a0"], r["b0"])):
+    longest = sorted(rows, key=lambda r: (-min(r["a1"] - r["a0"], r["b1"] - r["b0"]), r["cost"], r["pa"], r["pb"],
+                                          r["a0"], r["b0"]))  # fmt: skip
+    for r in longest:
         if not any(k["pa"] == r["pa"] and k["pb"] == r["pb"] and _overlap(k["a0"], k["a1"], r["a0"], r["a1"]) > 0.5
                    and _overlap(k["b0"], k["b1"], r["b0"], r["b1"]) > 0.5 for k in kept):  # fmt: skip
             kept.append(r)
-    return kept
+    return sorted(_merged(kept, gap), key=lambda r: (r["cost"], r["pa"], r["pb"], r["a0"], r["b0"]))
+
+
+def _merged(rows: list[dict], gap: int) -> list[dict]:
+    """Pairs of the same two documents (and mirroring) that continue each other (the next starts less than ``gap``
+    frames after the one before ends, in both documents) as one: found in two candidates, one copy is one pair (its cost the mean over
+    both, weighted by their frames)."""
+    out: list[dict] = []
+    for r in sorted(rows, key=lambda r: (r["pa"], r["pb"], r["mirrored"], r["a0"], r["b0"])):
+        last = out[-1] if out else None
+        if (last is not None and (last["pa"], last["pb"], last["mirrored"]) == (r["pa"], r["pb"], r["mirrored"])
+                and r["a0"] <= last["a1"] + gap and r["b0"] <= last["b1"] + gap and r["a1"] > last["a1"]
+                and r["b1"] > last["b1"] and r["b0"] >= last["b0"]):  # fmt: skip
+            n_last, n_r = last["a1"] - last["a0"], r["a1"] - r["a0"]
+            last.update(a1=r["a1"], b1=r["b1"], cost=(last["cost"] * n_last + r["cost"] * n_r) / (n_last + n_r))
+            last["scale"] = (last["b1"] - last["b0"]) / (last["a1"] - last["a0"])
+        else:
+            out.append(dict(r))
+    return out
 
 
 def _overlap(a0, a1, b0, b1) -> float:
