@@ -16,7 +16,8 @@ pages/         one module per page: database (documents, player, timelines, curv
                method: mAP, per-class AP, P/R curves), templates (motion templates, Müller & Röder 2006: a class
                learned from its examples, drawn, its instances found and played), describe (scene descriptions,
                Müller et al. 2005 §6.3: written, read as typed, found; a hit's features drawn, the hit played),
-               correlations (Fig. 2), statistics (Müller Tables 2-3, Krüger Table 1), reconstruction (Krüger §5.2).
+               correlations (Fig. 2), statistics (Müller Tables 2-3, Krüger Table 1), reconstruction (Krüger §5.2),
+               audit (the near-copies of the database: pairs, clusters, a pair played, keep one of each cluster).
 
 :func:`dashboard` builds one session's page; :func:`warm_up` runs a small one of each slow first action so that the
 first click answers at once; :func:`serve` runs the server (bound to 127.0.0.1 unless told otherwise);
@@ -58,6 +59,7 @@ TITLE = "mocapviz"
 
 def _pages():
     from .pages import (
+        audit,
         correlations,
         database,
         describe,
@@ -73,7 +75,8 @@ def _pages():
             ("Similarity search", similarity.SimilarityPage), ("Retrieval quality", retrieval.RetrievalPage),
             ("Motion templates", templates.TemplatesPage), ("Describe", describe.DescribePage),
             ("Correlations", correlations.CorrelationsPage),
-            ("Index statistics", statistics.StatisticsPage), ("Reconstruction", reconstruction.ReconstructionPage)]
+            ("Index statistics", statistics.StatisticsPage), ("Reconstruction", reconstruction.ReconstructionPage),
+            ("Audit", audit.AuditPage)]
 
 
 def dashboard(db_path, scheduler=None) -> pn.viewable.Viewable:

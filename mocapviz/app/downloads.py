@@ -5,7 +5,8 @@ Under every result table (Relational query, Similarity, Motion templates, Descri
 the selected hit as one file, several selected hits (ctrl- or shift-click in the table or its gallery,
 :mod:`mocapviz.app.gallery`) or every hit of the table (none selected) as one zip archive; under the player it gives
 the clip's query span. The file is made when the button is clicked, in memory, from the server's database and (for
-the source rig) the ingested source file.
+the source rig) the ingested source file. A table that is not a hit table (the Audit page's pairs, the documents
+it keeps) downloads as CSV (:func:`csv_download`).
 """
 
 from __future__ import annotations
@@ -105,3 +106,16 @@ def table_download(backend, table: pn.widgets.Tabulator, search: Callable[[], st
     download = HitDownload(backend, lambda: table_hits(table), search, css_class)
     table.param.watch(lambda *events: download.refresh(), ["value", "selection"])  # one call per batch of changes
     return download
+
+
+def csv_download(table: Callable[[], pd.DataFrame | None], filename: str, label: str,
+                 css_class: str) -> pn.widgets.FileDownload:
+    """A button downloading ``table()`` (asked when it is clicked; None: nothing to download, nothing sent) as the CSV
+    file ``filename``: UTF-8, a header line, no index."""
+
+    def data() -> io.BytesIO | None:
+        frame = table()
+        return None if frame is None else io.BytesIO(frame.to_csv(index=False).encode("utf-8"))
+
+    return _Download(callback=data, filename=filename, label=label, auto=True, width=330, align="end",
+                     css_classes=[css_class])
