@@ -518,7 +518,7 @@ class Engine:
               progress: bool = False) -> pd.DataFrame:
         """Every pair of stretches of this database (or between it and ``other``) that are near-copies: the same
         motion again, its left/right mirror, at another rate, trimmed, time-scaled within ``max_scale`` or on
-        other bones (:mod:`mocapviz.similarity.audit`, docs/audit.md), each at least ``min_length`` seconds.
+        other bones (``mocapviz.similarity.audit``, docs/audit.md), each at least ``min_length`` seconds.
 
         Parameters
         ----------
@@ -528,7 +528,7 @@ class Engine:
         Returns
         -------
         pandas.DataFrame
-            One row per pair (:data:`~mocapviz.similarity.audit.PAIR_COLUMNS`), best first; attrs ``threshold``
+            One row per pair (``mocapviz.similarity.audit.PAIR_COLUMNS``), best first; attrs ``threshold``
             (cm) and ``threshold_how`` (given, or how it was learned), ``rate`` (Hz), ``candidates``.
 
         Examples

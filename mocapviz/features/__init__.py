@@ -39,7 +39,6 @@ __getattr__, __dir__ = lazy_exports(__name__, {
 
 __all__ = [
     "NUMERIC_SETS",
-    "POSITION_SETS",
     "RELATIONAL_SETS",
     "PCAModel",
     "extend_numeric",
