@@ -15,7 +15,7 @@ __getattr__, __dir__ = lazy_exports(__name__, {"Engine": ".engine", "ShardedDB":
     "Event", "FPS_RANGE", "InvertedIndex", "MARKERS", "MAX_COST_RANGE", "METHODS", "METHOD_LABELS", "Motion",
     "MotionDB", "MotionTemplate", "NOISE_RANGE_CM", "NUMERIC_SETS", "Named", "PAPER_SECONDS", "PAPER_SPEARMAN",
     "PCAModel", "PosePrior", "Progression", "RELATIONAL_SETS", "add_block_checksums", "aligned_takes", "alignment",
-    "available_measures", "base_pose_experiment", "clip_quality", "cmu_sequence_quality", "composite_quality",
+    "audit_quality", "available_measures", "base_pose_experiment", "clip_quality", "cmu_sequence_quality", "composite_quality",
     "correlation_sample", "database_frames", "declared_set", "describe", "describe_clip", "dtw", "event_quality", "expand_paths",
     "feature_groups", "feature_names", "first_frames", "frame_actors", "graph_k", "index_statistics",
     "is_template_name", "knn_timings", "krueger2010_table1", "krueger2010_table2", "krueger2010_table3",

@@ -55,6 +55,7 @@ __getattr__, __dir__ = lazy_exports(__package__, {
                     "..similarity.reconstruction"),
     # experiments: the papers' tables and figures, and the data they are made from
     **dict.fromkeys(["review_page", "simulated_annotation", "unlabelled_documents"], "..experiments.annotation"),
+    "audit_quality": "..experiments.audit",
     **dict.fromkeys(["available_measures", "correlation_sample", "paper_claims", "pose_correlations", "pose_limits",
                      "rank_correlations", "segment_correlations"], "..experiments.correlation"),
     **dict.fromkeys(["clip_quality", "cmu_sequence_quality", "composite_quality", "event_quality",
@@ -76,7 +77,7 @@ __all__ = ["CANONICAL_JOINTS", "CANONICAL_PARENTS", "DEFAULT_K", "DELTA", "DELTA
            "MARKERS", "MAX_COST_RANGE", "METHODS", "METHOD_LABELS", "NOISE_RANGE_CM", "NUMERIC_SETS", "PAPER_SECONDS",
            "PAPER_SPEARMAN", "RELATIONAL_SETS", "Description", "Event", "InvertedIndex", "Motion", "MotionDB",
            "MotionTemplate", "Named", "PCAModel", "PosePrior", "Progression", "add_block_checksums", "aligned_takes",
-           "alignment", "available_measures", "base_pose_experiment", "clip_quality", "cmu_sequence_quality",
+           "alignment", "audit_quality", "available_measures", "base_pose_experiment", "clip_quality", "cmu_sequence_quality",
            "composite_quality", "correlation_sample", "database_frames", "declared_set", "describe", "describe_clip", "dtw",
            "event_quality", "expand_paths", "feature_groups", "feature_names", "first_frames", "frame_actors",
            "graph_k", "index_statistics", "is_template_name", "knn_timings", "krueger2010_table1",
