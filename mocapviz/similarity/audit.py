@@ -52,6 +52,7 @@ PAIR_COLUMNS = ["doc_a", "name_a", "start_a", "end_a", "doc_b", "name_b", "start
 _NOISE_CM = 1.0  # the copies' marker noise when learning the threshold (each joint, 3D standard deviation)
 _STRETCH = 0.2  # and their time scaling, up to ±20 %
 _SMOOTH_S = 0.1  # the joints' moving average before the features, seconds
+_MOVING_CM = 0.5  # a frame whose features move more than this (cm per frame at the common rate) is moving
 
 
 class Collection:
@@ -298,17 +299,30 @@ def _verified(first, other, pa, pb, flip, i0, i1, j0, j1, min_frames, threshold,
     smooth = np.convolve(local, np.ones(w) / w, mode="same")
     ok = np.concatenate([[False], smooth <= threshold, [False]])
     edges = np.flatnonzero(np.diff(ok.astype(np.int8)))
+    speed = np.linalg.norm(np.diff(xa, axis=0), axis=1)
+    moving = np.concatenate([speed, speed[-1:]]) > _MOVING_CM
     out = []
     for s, e in _joined(list(zip(edges[::2], edges[1::2])), local, min_frames, threshold):
         s, e = _trimmed(path, local, s, e, threshold)
         ia, ib = path[s:e, 0], path[s:e, 1]
         na, nb = int(ia[-1] - ia[0] + 1), int(ib[-1] - ib[0] + 1)
         cost = float(local[s:e].mean())
-        if min(na, nb) < min_frames or not (1 / max_scale <= nb / na <= max_scale) or cost > threshold:
+        scale = _time_scale(ia, ib, moving, min_frames)
+        if min(na, nb) < min_frames or not (1 / max_scale <= scale <= max_scale) or cost > threshold:
             continue
         out.append({"pa": pa, "pb": pb, "a0": a0 + int(ia[0]), "a1": a0 + int(ia[-1]) + 1, "b0": b0 + int(ib[0]),
-                    "b1": b0 + int(ib[-1]) + 1, "cost": cost, "mirrored": flip, "scale": nb / na})  # fmt: skip
+                    "b1": b0 + int(ib[-1]) + 1, "cost": cost, "mirrored": flip, "scale": scale})  # fmt: skip
     return out
+
+
+def _time_scale(ia: np.ndarray, ib: np.ndarray, moving: np.ndarray, min_frames: int) -> float:
+    """b's frames over a's along a run of the path, between its first and last steps where ``a`` moves (a standing
+    pose at either end can align at any pace: it does not tell the copy's time scale); the whole run when fewer than
+    half the shortest stretch move."""
+    steps = np.flatnonzero(moving[ia])
+    if len(steps) >= max(2, min_frames // 2) and ia[steps[-1]] > ia[steps[0]]:
+        ia, ib = ia[steps[0]:steps[-1] + 1], ib[steps[0]:steps[-1] + 1]
+    return (int(ib[-1] - ib[0]) + 1) / (int(ia[-1] - ia[0]) + 1)
 
 
 def _joined(runs: list, local: np.ndarray, gap: int, threshold: float) -> list:
