@@ -52,6 +52,8 @@ PAIR_COLUMNS = ["doc_a", "name_a", "start_a", "end_a", "doc_b", "name_b", "start
 _NOISE_CM = 1.0  # the copies' marker noise when learning the threshold (each joint, 3D standard deviation)
 _STRETCH = 0.2  # and their time scaling, up to ±20 %
 _SMOOTH_S = 0.1  # the joints' moving average before the features, seconds
+_HALF_STEPS = ((1, 1, 1.0), (1, 0, 1.0), (0, 1, 1.0), (1, 2, 1.0))  # DTW steps (a, b's half frames, weight): the
+# basic steps and one frame of each, so that a copy at the same pace steps over b's midpoints instead of visiting them
 _MOVING_CM = 0.5  # a frame whose features move more than this (cm per frame at the common rate) is moving
 
 
@@ -157,10 +159,21 @@ def _resampled(values: np.ndarray, fps: float, rate: float) -> np.ndarray:
     return ((1 - w) * values[lo] + w * values[lo + 1]).astype(np.float32)
 
 
-def _mean_cost(a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
-    """DTW of a and b: the mean local cost along the optimal path (cm) and the path."""
-    total, path = dtw(a, b)
-    return total / max(len(path), 1), path
+def _half_frames(x: np.ndarray) -> np.ndarray:
+    """Rows with the midpoint of each two neighbours between them (2 T - 1 rows): a copy re-timed by a factor
+    that is no whole number has poses between the original's frames, and at 30 Hz a fast movement moves far in one
+    frame; aligned to half frames, such a copy costs what its noise costs."""
+    out = np.empty((max(2 * len(x) - 1, 0), x.shape[1]), dtype=x.dtype)
+    out[0::2] = x
+    out[1::2] = (x[:-1] + x[1:]) / 2
+    return out
+
+
+def _mean_cost(a: np.ndarray, b: np.ndarray) -> float:
+    """DTW of a and b's half frames (:func:`_half_frames`, :data:`_HALF_STEPS`): the mean local cost along the
+    optimal path, cm."""
+    total, path = dtw(a, _half_frames(b), steps=_HALF_STEPS)
+    return total / max(len(path), 1)
 
 
 def learn_threshold(collection: Collection, min_frames: int, n_copies: int = 200, seed: int = 0) -> dict:
@@ -199,7 +212,7 @@ def learn_threshold(collection: Collection, min_frames: int, n_copies: int = 200
         stretch = 1.0 + rng.uniform(-_STRETCH, _STRETCH)
         x, y = (audit_features(m, numeric_set, collection.body) for m in (piece, copy))
         costs.append(_mean_cost(_resampled(x, motion.fps, collection.rate),
-                                _resampled(y, motion.fps * stretch, collection.rate))[0])  # fmt: skip
+                                _resampled(y, motion.fps * stretch, collection.rate)))  # fmt: skip
     p99 = float(np.percentile(costs, 99))
     return {"threshold": p99, "copies_p99": p99, "n_copies": n_copies, "costs": np.array(costs),
             "sources": np.array(sources),
@@ -292,8 +305,8 @@ def _verified(first, other, pa, pb, flip, i0, i1, j0, j1, min_frames, threshold,
     if min(a1 - a0, b1 - b0) < min_frames:
         return []
     xa = (first.mirrored if flip else first.x)[a0:a1]
-    xb = other.x[b0:b1]
-    _, path = dtw(xa, xb)
+    xb = _half_frames(other.x[b0:b1])
+    _, path = dtw(xa, xb, steps=_HALF_STEPS)  # b's index counts half frames
     local = np.linalg.norm(xa[path[:, 0]] - xb[path[:, 1]], axis=1)
     w = min(min_frames, len(local))
     smooth = np.convolve(local, np.ones(w) / w, mode="same")
@@ -304,25 +317,26 @@ def _verified(first, other, pa, pb, flip, i0, i1, j0, j1, min_frames, threshold,
     out = []
     for s, e in _joined(list(zip(edges[::2], edges[1::2])), local, min_frames, threshold):
         s, e = _trimmed(path, local, s, e, threshold)
-        ia, ib = path[s:e, 0], path[s:e, 1]
-        na, nb = int(ia[-1] - ia[0] + 1), int(ib[-1] - ib[0] + 1)
+        ia, ib = path[s:e, 0], path[s:e, 1] / 2.0
+        first_b, last_b = int(np.floor(ib[0])), int(np.ceil(ib[-1]))
+        na, nb = int(ia[-1] - ia[0] + 1), last_b - first_b + 1
         cost = float(local[s:e].mean())
         scale = _time_scale(ia, ib, moving, min_frames)
         if min(na, nb) < min_frames or not (1 / max_scale <= scale <= max_scale) or cost > threshold:
             continue
-        out.append({"pa": pa, "pb": pb, "a0": a0 + int(ia[0]), "a1": a0 + int(ia[-1]) + 1, "b0": b0 + int(ib[0]),
-                    "b1": b0 + int(ib[-1]) + 1, "cost": cost, "mirrored": flip, "scale": scale})  # fmt: skip
+        out.append({"pa": pa, "pb": pb, "a0": a0 + int(ia[0]), "a1": a0 + int(ia[-1]) + 1, "b0": b0 + first_b,
+                    "b1": b0 + last_b + 1, "cost": cost, "mirrored": flip, "scale": scale})  # fmt: skip
     return out
 
 
 def _time_scale(ia: np.ndarray, ib: np.ndarray, moving: np.ndarray, min_frames: int) -> float:
-    """b's frames over a's along a run of the path, between its first and last steps where ``a`` moves (a standing
+    """b's frames over a's along a run of the path (``ib`` in frames, halves included), between its first and last steps where ``a`` moves (a standing
     pose at either end can align at any pace: it does not tell the copy's time scale); the whole run when fewer than
     half the shortest stretch move."""
     steps = np.flatnonzero(moving[ia])
     if len(steps) >= max(2, min_frames // 2) and ia[steps[-1]] > ia[steps[0]]:
         ia, ib = ia[steps[0]:steps[-1] + 1], ib[steps[0]:steps[-1] + 1]
-    return (int(ib[-1] - ib[0]) + 1) / (int(ia[-1] - ia[0]) + 1)
+    return float(ib[-1] - ib[0] + 1) / float(ia[-1] - ia[0] + 1)
 
 
 def _joined(runs: list, local: np.ndarray, gap: int, threshold: float) -> list:
