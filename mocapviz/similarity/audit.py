@@ -9,20 +9,21 @@ How (docs/audit.md):
    joints are smoothed over 0.1 s and retargeted to the collection's median bone lengths (a copy on another
    actor's bones stays near), resampled to one common rate (the first collection's typical rate); and the same of
    each document's left/right mirror (:func:`mocapviz.motion.skeleton.mirror`).
-2. **Candidates** (the self-join): every 5th frame (of a shortest stretch of 1 s at 30 Hz; a sixth of it) of the first collection, and of its mirror, asks a
-   kd-tree of the other collection's frames (itself for a self-audit) for its ``k`` nearest frames within
-   twice the threshold. Frame pairs of one pair of documents that lie near each other (within half the shortest
-   stretch in both documents' frames) form a candidate; a copy makes a line of them, at any time scaling.
-3. **Verification**: DTW (:func:`mocapviz.match.time_warping.dtw`) of the candidate's box, widened by half the
-   shortest stretch, then the longest runs of its warping path whose local cost, averaged over the shortest
-   stretch, stays under the threshold: each run at least the shortest stretch long in both documents, with a time
-   scaling inside the band, is a pair. Its cost is the path's mean local cost (feature units, cm).
+2. **Candidates** (the self-join): every 5th frame (a sixth of the shortest stretch; 1 s at 30 Hz), and its
+   mirror, asks a kd-tree of the other collection's frames (itself for a self-audit) for its 64 nearest frames
+   within twice the threshold (of another document: a pair is kept whichever of its two documents asked). Frame pairs of one
+   pair of documents that lie near each other (within half the shortest stretch in both documents' frames) form a
+   candidate; a copy makes a line of them, at any time scaling.
+3. **Verification**: DTW (:func:`mocapviz.match.time_warping.dtw`) of the candidate's box, widened by the shortest
+   stretch on every side, against the other side's half frames (a copy re-timed by a factor that is no whole number
+   has poses between the original's frames); then the runs of its warping path whose local cost, averaged over the
+   shortest stretch, stays under the threshold: each run at least the shortest stretch long in both documents, with
+   a time scaling (measured where the stretch moves) inside the band, is a pair. Its cost is the path's mean local
+   cost (feature units, cm).
 4. **The threshold**, when not given, is learned from the collection itself (:func:`learn_threshold`): copies of
    its own stretches made with the transforms a copy goes through (marker noise of 1 cm, a time scaling up to
    ±20 %, another actor's bone lengths on the same kind of rig) and their mean DTW cost to the original: the
-   threshold is their 99th percentile (copies cost 2.5 cm at the median, 5.5 cm at the 99th percentile on all
-   shared archives at 30 Hz; two performances of one HDM05 class by one actor 4.7 cm and more, by two actors 10 cm
-   and more).
+   threshold is their 99th percentile (docs/audit.md: what it separates, measured).
 
 The pairs are one row each (:data:`PAIR_COLUMNS`), the frames of each side in its own document (half-open, at the
 document's own rate), built with :func:`mocapviz.db.hits.hit_table` for either side.
@@ -222,7 +223,7 @@ def learn_threshold(collection: Collection, min_frames: int, n_copies: int = 200
 
 
 def audit_pairs(first: Collection, second: Collection | None, *, min_frames: int, threshold: float,
-                max_scale: float = 1.25, mirrored: bool = True, k: int = 32, progress: bool = False) -> pd.DataFrame:
+                max_scale: float = 1.25, mirrored: bool = True, k: int = 64, progress: bool = False) -> pd.DataFrame:
     """Every maximal pair of near-copy stretches between ``first`` and ``second`` (within ``first`` when None).
 
     Parameters
@@ -271,9 +272,12 @@ def _candidates(first, other, self_join, min_frames, threshold, mirrored, k) -> 
         q, col = np.nonzero(np.isfinite(dist))
         a, b = rows[q], near[q, col]
         da, db_ = first.document_of(a), other.document_of(b)
-        keep = (da != db_) if self_join else np.ones(len(a), bool)
-        if self_join:  # each pair of documents once: the lower position first (a mirror pair is symmetric)
-            keep &= da < db_
+        if self_join:  # each pair of documents once, the lower position first, whichever asked (a document's own
+            keep = da != db_  # frames may crowd out its copy's for one of the two; a mirror pair is symmetric)
+            swap = da > db_
+            da, db_, a, b = np.where(swap, db_, da), np.where(swap, da, db_), np.where(swap, b, a), np.where(swap, a, b)
+        else:
+            keep = np.ones(len(a), bool)
         found.append(np.column_stack([da[keep], db_[keep], np.full(keep.sum(), int(flip)), a[keep], b[keep]]))
     points = np.unique(np.concatenate(found), axis=0) if found else np.zeros((0, 5), np.int64)
     if len(points) == 0:
@@ -299,7 +303,7 @@ def _candidates(first, other, self_join, min_frames, threshold, mirrored, k) -> 
 def _verified(first, other, pa, pb, flip, i0, i1, j0, j1, min_frames, threshold, max_scale) -> list[dict]:
     """The pairs inside one candidate box: DTW of the widened box, then the runs of its path whose local cost,
     averaged over ``min_frames`` steps, stays at most ``threshold``."""
-    pad = min_frames // 2
+    pad = min_frames  # a fast stretch may have no near frame in the sparse index: its box may end early
     a0, a1 = max(i0 - pad, int(first.starts[pa])), min(i1 + pad, int(first.starts[pa + 1]))
     b0, b1 = max(j0 - pad, int(other.starts[pb])), min(j1 + pad, int(other.starts[pb + 1]))
     if min(a1 - a0, b1 - b0) < min_frames:
