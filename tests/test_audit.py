@@ -135,3 +135,18 @@ def test_bad_input_gets_typed_errors(demo, tmp_path):
     done = subprocess.run([sys.executable, "-m", "mocapviz.cli", "audit", str(demo.path), "--split", "/nonexistent.csv"],
                           check=False, capture_output=True, text=True, timeout=120)  # fmt: skip
     assert done.returncode != 0 and "--split /nonexistent.csv: no such file" in done.stderr
+
+
+def test_a_long_copy_is_one_pair_though_aligned_in_tiles(demo, tmp_path):
+    """The HDM05 scene of the demo (document 52, from C3D markers, 24 s at 30 Hz) played 15 % slower: with a shortest
+    stretch of 0.5 s it is over two tiles of 20 shortest stretches long on both sides, aligned tile by tile and
+    reported as one pair."""
+    clip = demo.motion(52)
+    assert clip.n_frames > 2 * 20 * 15
+    slower = replace(clip.resample(clip.fps * 1.15), fps=clip.fps)
+    db = _planted(demo, tmp_path, [slower], ["slower scene"])
+    found = _pair_of(Engine(db).audit(threshold=THRESHOLD, mirrored=False, min_length=0.5), 52, len(demo))
+    assert len(found) == 1, found
+    best = found.iloc[0]
+    assert best["start_a"] <= 6 and best["end_a"] >= clip.n_frames - 6, best.to_dict()
+    assert best["scale"] == pytest.approx(1.15, abs=0.03)

@@ -15,7 +15,7 @@ How (docs/audit.md):
    pair of documents that lie near each other (within half the shortest stretch in both documents' frames) form a
    candidate; a copy makes a line of them, at any time scaling.
 3. **Verification**: DTW (:func:`mocapviz.match.time_warping.dtw`) of the candidate's box, widened by the shortest
-   stretch on every side, against the other side's half frames (a copy re-timed by a factor that is no whole number
+   stretch on every side (a long one in tiles of 20 shortest stretches a side), against the other side's half frames (a copy re-timed by a factor that is no whole number
    has poses between the original's frames); then the runs of its warping path whose local cost, averaged over the
    shortest stretch, stays under the threshold: each run at least the shortest stretch long in both documents, with
    a time scaling (measured where the stretch moves) inside the band, is a pair. Its cost is the path's mean local
@@ -55,6 +55,7 @@ _STRETCH = 0.2  # and their time scaling, up to ±20 %
 _SMOOTH_S = 0.1  # the joints' moving average before the features, seconds
 _HALF_STEPS = ((1, 1, 1.0), (1, 0, 1.0), (0, 1, 1.0), (1, 2, 1.0))  # DTW steps (a, b's half frames, weight): the
 # basic steps and one frame of each, so that a copy at the same pace steps over b's midpoints instead of visiting them
+_TILE = 20  # candidates are aligned in tiles of at most this many shortest stretches a side
 _MOVING_CM = 0.5  # a frame whose features move more than this (cm per frame at the common rate) is moving
 
 
@@ -289,8 +290,15 @@ def _candidates(first, other, self_join, min_frames, threshold, mirrored, k) -> 
     pairs = cKDTree(coords).query_pairs(gap, p=np.inf, output_type="ndarray")
     graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(points), len(points)))
     _, label = connected_components(graph, directed=False)
+    tile = _TILE * min_frames  # a long candidate is aligned in tiles of at most this many frames a side (DTW's
+    # memory is their product); the pairs of neighbouring tiles that continue each other are joined (_merged)
     boxes = pd.DataFrame({"da": points[:, 0], "db": points[:, 1], "flip": points[:, 2], "a": points[:, 3],
-                          "b": points[:, 4], "label": label}).groupby("label").agg(
+                          "b": points[:, 4], "label": label})
+    for side in ("a", "b"):  # each candidate's span cut into equal tiles of about `tile` frames, from its own start
+        first = boxes.groupby("label")[side].transform("min")
+        span = boxes.groupby("label")[side].transform("max") - first + 1
+        boxes["t" + side] = ((boxes[side] - first) * np.maximum(1, np.round(span / tile)) // span).astype(np.int64)
+    boxes = boxes.groupby(["label", "ta", "tb"]).agg(
         da=("da", "first"), db=("db", "first"), flip=("flip", "first"), i0=("a", "min"), i1=("a", "max"),
         j0=("b", "min"), j1=("b", "max"), n=("a", "size"))  # fmt: skip
     least = max(2, min_frames // (2 * step))
