@@ -16,7 +16,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 NAMES = ("io", "dask", "relational", "knn", "match", "search", "templates", "scaling", "startup", "descriptions",
-         "integrity", "dashboard", "engine")
+         "integrity", "dashboard", "engine", "audit")
 
 
 class _Tee(io.TextIOBase):
@@ -50,6 +50,7 @@ def main(argv=None) -> int:
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
 
     from . import (
+        bench_audit,
         bench_dashboard,
         bench_dask,
         bench_descriptions,
@@ -74,7 +75,7 @@ def main(argv=None) -> int:
                              ("match", bench_match), ("search", bench_search), ("templates", bench_templates),
                              ("scaling", bench_scaling), ("startup", bench_startup),
                              ("descriptions", bench_descriptions), ("integrity", bench_integrity),
-                             ("dashboard", bench_dashboard), ("engine", bench_engine))},
+                             ("dashboard", bench_dashboard), ("engine", bench_engine), ("audit", bench_audit))},
     }  # fmt: skip
     status = 0
     for name in args.only or NAMES:

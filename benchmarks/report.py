@@ -36,6 +36,7 @@ SECTIONS = (
     ("integrity", "Checked reads: xxh3 of every block on first read vs sha256 (bench_integrity)"),
     ("dashboard", "The dashboard's answers on every shared archive at 30 Hz (bench_dashboard)"),
     ("engine", "Engine overhead: every use case through Engine(db) vs the library function it wraps (bench_engine)"),
+    ("audit", "Audit of a collection: index self-join vs brute-force subsequence DTW and STUMPY (bench_audit)"),
 )
 NOT_RUN = "not run: "  # how the line of a section with no figures begins
 
