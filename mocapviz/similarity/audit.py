@@ -11,15 +11,15 @@ How (docs/audit.md):
    each document's left/right mirror (:func:`mocapviz.motion.skeleton.mirror`).
 2. **Candidates** (the self-join): every 5th frame (a sixth of the shortest stretch; 1 s at 30 Hz), and its
    mirror, asks a kd-tree of the other collection's frames (itself for a self-audit) for its 64 nearest frames
-   within twice the threshold (of another document: a pair is kept whichever of its two documents asked). Frame pairs of one
-   pair of documents that lie near each other (within half the shortest stretch in both documents' frames) form a
-   candidate; a copy makes a line of them, at any time scaling.
+   within twice the threshold (of another document: a pair is kept whichever of its two documents asked). Frame
+   pairs of two documents in the same or neighbouring cells of half the shortest stretch a side form a candidate;
+   a copy makes a line of them, at any time scaling.
 3. **Verification**: DTW (:func:`mocapviz.match.time_warping.dtw`) of the candidate's box, widened by the shortest
-   stretch on every side (a long one in tiles of 20 shortest stretches a side), against the other side's half frames (a copy re-timed by a factor that is no whole number
-   has poses between the original's frames); then the runs of its warping path whose local cost, averaged over the
-   shortest stretch, stays under the threshold: each run at least the shortest stretch long in both documents, with
-   a time scaling (measured where the stretch moves) inside the band, is a pair. Its cost is the path's mean local
-   cost (feature units, cm).
+   stretch on every side (a long one in tiles of 20 shortest stretches a side), against the other side's half
+   frames (a copy re-timed by a factor that is no whole number has poses between the original's frames); then the
+   runs of its warping path whose local cost, averaged over the shortest stretch, stays under the threshold: each
+   run at least the shortest stretch long in both documents, with a time scaling (measured where the stretch
+   moves) inside the band, is a pair. Its cost is the path's mean local cost (feature units, cm).
 4. **The threshold**, when not given, is learned from the collection itself (:func:`learn_threshold`): copies of
    its own stretches made with the transforms a copy goes through (marker noise of 1 cm, a time scaling up to
    ±20 %, another actor's bone lengths on the same kind of rig) and their mean DTW cost to the original: the
@@ -284,12 +284,7 @@ def _candidates(first, other, self_join, min_frames, threshold, mirrored, k) -> 
     if len(points) == 0:
         return []
     group = np.unique(points[:, :3], axis=0, return_inverse=True)[1].reshape(-1)
-    gap = max(2 * step, min_frames // 2)
-    spread = float(max(len(first.x), len(other.x)) + 10 * gap)
-    coords = np.column_stack([group * spread + points[:, 3], points[:, 4].astype(np.float64)])
-    pairs = cKDTree(coords).query_pairs(gap, p=np.inf, output_type="ndarray")
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(points), len(points)))
-    _, label = connected_components(graph, directed=False)
+    label = _near_groups(group, points[:, 3], points[:, 4], max(2 * step, min_frames // 2))
     tile = _TILE * min_frames  # a long candidate is aligned in tiles of at most this many frames a side (DTW's
     # memory is their product); the pairs of neighbouring tiles that continue each other are joined (_merged)
     boxes = pd.DataFrame({"da": points[:, 0], "db": points[:, 1], "flip": points[:, 2], "a": points[:, 3],
@@ -306,6 +301,30 @@ def _candidates(first, other, self_join, min_frames, threshold, mirrored, k) -> 
                   & (boxes["j1"] - boxes["j0"] + 1 >= min_frames // 2)]  # fmt: skip
     return [(int(r.da), int(r.db), bool(r.flip), int(r.i0), int(r.i1) + step, int(r.j0), int(r.j1) + 1)
             for r in boxes.itertuples()]  # fmt: skip
+
+
+def _near_groups(group: np.ndarray, a: np.ndarray, b: np.ndarray, gap: int) -> np.ndarray:
+    """The connected components of points (a, b) of each group, a point joined to those of its group in the same or
+    a neighbouring cell of ``gap`` x ``gap`` frames (memory of the order of the points: cells, not pairs of points).
+
+    Returns
+    -------
+    np.ndarray [shape=(n,)], int64
+        Each point's component.
+    """
+    ca, cb = a // gap, b // gap
+    width = int(max(ca.max(), cb.max())) + 3  # cell coordinates of one group, shifted by 1, fit in width
+    keys = (group.astype(np.int64) * width + ca + 1) * width + cb + 1
+    cells, cell_of = np.unique(keys, return_inverse=True)
+    sources, targets = [], []
+    for da, db in ((0, 1), (1, -1), (1, 0), (1, 1)):  # each neighbour once (the other half are the reverse)
+        at = np.searchsorted(cells, cells + da * width + db)
+        hit = (at < len(cells)) & (cells[np.minimum(at, len(cells) - 1)] == cells + da * width + db)
+        sources.append(np.flatnonzero(hit))
+        targets.append(at[hit])
+    sources, targets = np.concatenate(sources), np.concatenate(targets)
+    graph = coo_matrix((np.ones(len(sources)), (sources, targets)), shape=(len(cells), len(cells)))
+    return connected_components(graph, directed=False)[1][cell_of.reshape(-1)]
 
 
 def _verified(first, other, pa, pb, flip, i0, i1, j0, j1, min_frames, threshold, max_scale) -> list[dict]:
