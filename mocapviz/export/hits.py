@@ -22,6 +22,7 @@ from .stretch import stretch_files, write_files
 
 _HINT = ("pass the hit table a search returns, or the CSV that `mocapviz search|query|find|match|knn ... --csv FILE` "
          "writes (columns rank, doc_id, name, start, end, ...: frames within the document, half-open)")
+_ZIP_TIME = (1980, 1, 1, 0, 0, 0)  # every member's date in a zip archive: the earliest a zip file can hold
 
 
 def read_hits(db, hits, what: str = "hits") -> pd.DataFrame:
@@ -212,7 +213,8 @@ def hits_zip(db, hits, format: str = "bvh", rig: str | None = None, search: str 
 
 
 def zipped(files: dict[str, bytes]) -> bytes:
-    """Files as one zip archive (deflated), in memory, members in the order given.
+    """Files as one zip archive (deflated), in memory, members in the order given, each dated 1980-01-01 with mode
+    0644: the same files give the same bytes.
 
     Parameters
     ----------
@@ -227,9 +229,13 @@ def zipped(files: dict[str, bytes]) -> bytes:
     --------
     >>> zipfile.ZipFile(io.BytesIO(zipped({"a.bvh": b"1", "b.bvh": b"2"}))).namelist()
     ['a.bvh', 'b.bvh']
+    >>> zipped({"a.bvh": b"1"}) == zipped({"a.bvh": b"1"})  # whenever made
+    True
     """
     out = io.BytesIO()
     with zipfile.ZipFile(out, "w", compression=zipfile.ZIP_DEFLATED) as archive:
-        for name, data in files.items():
-            archive.writestr(name, data)
+        for name, data in files.items():  # a fixed time and mode: the same files, the same bytes (a member named by
+            member = zipfile.ZipInfo(name, date_time=_ZIP_TIME)  # its name alone would carry the time of writing)
+            member.compress_type, member.external_attr = zipfile.ZIP_DEFLATED, 0o644 << 16
+            archive.writestr(member, data)
     return out.getvalue()
