@@ -8,6 +8,7 @@ import io
 import shutil
 import time
 
+import numpy as np
 import pandas as pd
 import pytest
 from browser_helpers import open_dashboard, open_tab, page_text, run_in_thread, text_of
@@ -101,6 +102,8 @@ def test_the_audit_shows_the_planted_mirror_and_keeps_one_of_each_cluster(audit_
     page.locator(".mv-audit-player canvas[data-drawn]").first.wait_for(timeout=WAIT_MS)
     playing = text_of(page, ".mv-audit-playing")
     assert f"document {PLANTED} (135_04)" in playing and "(mirrored)" in playing, playing
+    steps = len(Engine(audit_db).audit_path(pairs.iloc[row]))  # the table shows the pairs in the engine's order
+    assert f"aligned on the pair's warping path ({steps} steps)" in playing, playing
     screenshot("audit")
 
     # a threshold of its own: the table follows the engine's audit with it
@@ -164,6 +167,13 @@ def test_the_widgets_are_the_parameter_tables_and_run_shows_the_engines_audit(au
     assert all(len(k.split(", ")) == 1 for k in clusters["kept"])  # keep-one keeps one document of each cluster
     csv = pd.read_csv(io.BytesIO(page.kept_download.callback().getvalue()))
     assert csv["doc_id"].tolist() == kept["doc_id"].tolist()
+
+    planted = _planted(audit_db)  # a pair chosen plays on the engine's warping path of it
+    row = next(i for i, (a, b) in enumerate(zip(pairs["doc_a"], pairs["doc_b"])) if {a, b} == {PLANTED, planted})
+    page.table.selection = [row]
+    path = Engine(audit_db).audit_path(pairs.iloc[row])
+    assert page.player_box.visible and np.array_equal(page.player._alignment, path)
+    assert f"warping path ({len(path)} steps)" in page.playing.object
 
     page.mirrored.value = False  # the widgets' values are what runs
     run_in_thread(page._run())

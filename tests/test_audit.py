@@ -150,3 +150,40 @@ def test_a_long_copy_is_one_pair_though_aligned_in_tiles(demo, tmp_path):
     best = found.iloc[0]
     assert best["start_a"] <= 6 and best["end_a"] >= clip.n_frames - 6, best.to_dict()
     assert best["scale"] == pytest.approx(1.15, abs=0.03)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(a=st.integers(0, 150), length=st.integers(30, 140), factor=st.floats(0.8, 1.25), mirrored=st.booleans())
+def test_a_pairs_warping_path_follows_the_copys_time_scaling(demo, a, length, factor, mirrored):
+    """Engine.audit_path of a stretch of CMU 135_04 (front kicks) and its copy re-timed by ``factor`` (mirrored or
+    not, appended as a derived copy): every step shows the copy's frame at the source frame × factor, within 1.5 frames
+    (the copy's frames are the source's resampled, so the true time of each is known), from (0, 0) to both ends."""
+    clip = demo.motion(SOURCE)[a:a + length]
+    copy = replace(clip.resample(clip.fps * factor), fps=clip.fps)
+    copy = mirror(copy) if mirrored else copy
+    from mocapviz.similarity.audit import warping_path
+
+    path = warping_path(clip, copy, mirrored=mirrored)
+    assert path[0].tolist() == [0, 0] and path[-1].tolist() == [clip.n_frames - 1, copy.n_frames - 1]
+    assert (np.diff(path, axis=0) >= 0).all() and (np.diff(path, axis=0).sum(axis=1) > 0).all()
+    assert np.abs(path[:, 1] - path[:, 0] * factor).max() <= 1.5
+
+
+def test_audit_path_of_a_pair_in_the_database(demo, tmp_path):
+    """The path of a pair found in a database (the source's stretch and its mirrored copy, 20 % faster) is the path
+    of the two stretches read from it; a bad pair gets a typed error naming what is wrong."""
+    clip = demo.motion(SOURCE)[60:240]
+    copy = mirror(replace(clip.resample(clip.fps / 1.2), fps=clip.fps))
+    db = _planted(demo, tmp_path, [copy], ["faster mirror"])
+    engine = Engine(db)
+    pairs = _pair_of(engine.audit(threshold=THRESHOLD), SOURCE, len(demo))
+    assert len(pairs) == 1 and pairs["mirrored"].iloc[0]
+    pair = pairs.iloc[0]
+    path = engine.audit_path(pair)
+    assert path[-1].tolist() == [pair["end_a"] - pair["start_a"] - 1, pair["end_b"] - pair["start_b"] - 1]
+    source_frame = pair["start_a"] + path[:, 0] - 60  # the clip's frame shown at each step, and the copy's
+    assert np.abs(pair["start_b"] + path[:, 1] - source_frame / 1.2).max() <= 1.5
+    with pytest.raises(ParameterError, match="end_a"):
+        engine.audit_path(pair.drop("end_a"))
+    with pytest.raises(ParameterError, match=r"start_b:end_b"):
+        engine.audit_path(pair.to_dict() | {"end_b": 10_000})

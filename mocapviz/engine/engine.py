@@ -529,7 +529,8 @@ class Engine:
         -------
         pandas.DataFrame
             One row per pair (``mocapviz.similarity.audit.PAIR_COLUMNS``), best first; attrs ``threshold``
-            (cm) and ``threshold_how`` (given, or how it was learned), ``rate`` (Hz), ``candidates``.
+            (cm) and ``threshold_how`` (given, or how it was learned), ``rate`` (Hz), ``min_length`` (s) and
+            ``numeric_set``. :meth:`audit_path` aligns a pair's two stretches.
 
         Examples
         --------
@@ -554,7 +555,8 @@ class Engine:
             threshold, how = learned["threshold"], learned["how"]
         pairs = audit_pairs(first, second, min_frames=min_frames, threshold=threshold, max_scale=max_scale,
                             mirrored=mirrored, progress=progress)  # fmt: skip
-        pairs.attrs.update(threshold=float(threshold), threshold_how=how, rate=rate, min_length=float(min_length))
+        pairs.attrs.update(threshold=float(threshold), threshold_how=how, rate=rate, min_length=float(min_length),
+                           numeric_set=numeric_set)
         return pairs
 
     def _audit_collection(self, db, numeric_set: str, rate: float, body, progress: bool):
@@ -565,6 +567,45 @@ class Engine:
         if key not in self._features:
             self._features[key] = Collection(db, numeric_set, rate, body=body, progress=progress)
         return self._features[key]
+
+    @checked("audit_path")
+    def audit_path(self, pair, *, numeric_set=...) -> np.ndarray:
+        """The warping path of one pair of an :meth:`audit` of this database: the frames of its two stretches that
+        show the same moment, step by step (``mocapviz.similarity.audit.warping_path``: the audit's features, side
+        a mirrored for a mirrored pair), so that a player shows them aligned.
+
+        Parameters
+        ----------
+        pair : mapping or pandas.Series
+            A row of the pair table: ``doc_a``, ``start_a``, ``end_a``, ``doc_b``, ``start_b``, ``end_b`` (frames
+            of each document, half-open) and ``mirrored``.
+
+        Returns
+        -------
+        np.ndarray [shape=(L, 2)], int64
+            Each step's frame of stretch a and of stretch b, from each stretch's start: (0, 0) first,
+            (end_a - start_a - 1, end_b - start_b - 1) last, both non-decreasing.
+
+        Examples
+        --------
+        >>> from mocapviz import MotionDB
+        >>> pair = {"doc_a": 7, "start_a": 0, "end_a": 60, "doc_b": 7, "start_b": 0, "end_b": 60, "mirrored": False}
+        >>> path = Engine(MotionDB.sample()).audit_path(pair)
+        >>> bool((path[:, 0] == path[:, 1]).all()), len(path)
+        (True, 60)
+        """
+        from ..similarity.audit import warping_path
+
+        missing = [k for k in ("doc_a", "start_a", "end_a", "doc_b", "start_b", "end_b", "mirrored") if k not in pair]
+        if missing:
+            raise ParameterError(f"a pair of the audit needs {', '.join(missing)} (a row of the pair table)")
+        sides = []
+        for s in "ab":
+            doc, (a, b) = int(pair[f"doc_{s}"]), (int(pair[f"start_{s}"]), int(pair[f"end_{s}"]))
+            n = int(self.db.document(doc)["n_frames"])  # an unknown document: its typed error
+            frame_span((a, b), n, f"document {doc}", name=f"the pair's start_{s}:end_{s}", least=1)
+            sides.append(self.db.motion(doc)[a:b])
+        return warping_path(*sides, mirrored=bool(pair["mirrored"]), numeric_set=numeric_set)
 
     def leakage(self, pairs: pd.DataFrame, split) -> pd.DataFrame:
         """The pairs of an :meth:`audit` that leak a test document into a train one, the test side first;

@@ -256,6 +256,7 @@ USES = {
     "import_labels": {"author": "author"},
     "audit": {"numeric_set": "audit_set", "min_length": "audit_length", "threshold": "threshold",
               "max_scale": "max_scale", "mirrored": "mirrored"},
+    "audit_path": {"numeric_set": "audit_set"},
 }  # fmt: skip
 """Each use case's keyword arguments and the declared parameter each one is (most have its name): the engine
 checks them (:func:`checked`), the command line offers them (:func:`add_options`, :func:`arguments`)."""

@@ -46,7 +46,8 @@ from ..match.time_warping import dtw
 from ..motion.skeleton import bone_lengths, mirror, retarget
 from ..parallel import progress_bar
 
-__all__ = ["PAIR_COLUMNS", "Collection", "audit_features", "audit_pairs", "clusters_of", "keep_one", "leakage", "learn_threshold", "read_split"]
+__all__ = ["PAIR_COLUMNS", "Collection", "audit_features", "audit_pairs", "clusters_of", "keep_one", "leakage",
+           "learn_threshold", "read_split", "warping_path"]
 
 PAIR_COLUMNS = ["doc_a", "name_a", "start_a", "end_a", "doc_b", "name_b", "start_b", "end_b", "seconds", "cost",
                 "mirrored", "scale", "cluster"]  # fmt: skip
@@ -137,6 +138,51 @@ def audit_features(motion, numeric_set: str, body) -> np.ndarray:
     width = max(1, round(_SMOOTH_S * motion.fps))
     smooth = replace(motion, positions=uniform_filter1d(motion.positions, width, axis=0, mode="nearest"))
     return numeric_features(retarget(smooth, body), numeric_set, progress=False)
+
+
+def warping_path(a, b, *, mirrored: bool = False, numeric_set: str = "F15E") -> np.ndarray:
+    """The DTW warping path of two stretches of a pair, as the audit aligns them: both clips' audit features
+    (:func:`audit_features` on ``a``'s bone lengths; ``a``'s left/right mirror image when ``mirrored``, as a mirrored
+    pair's side a), ``b``'s resampled to ``a``'s rate, aligned by :func:`mocapviz.match.time_warping.dtw`, and each
+    step's row of ``b`` turned back into ``b``'s own frame. Played step by step, the two stretches show the same
+    moment of the motion side by side.
+
+    Parameters
+    ----------
+    a, b : Motion
+        The two stretches (any rates, any skeletons).
+    mirrored : bool
+        The pair is mirrored: ``b`` is a copy of ``a``'s mirror image.
+    numeric_set : str
+        One of :data:`mocapviz.features.POSITION_SETS`.
+
+    Returns
+    -------
+    np.ndarray [shape=(L, 2)], int64
+        Each step's frame of ``a`` and of ``b`` (from each clip's first frame), from (0, 0) to (a.n_frames - 1,
+        b.n_frames - 1), both columns non-decreasing, no step repeated.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> walk = MotionDB.sample().motion(7)[10:70]  # 60 frames at 120 Hz
+    >>> path = warping_path(walk, walk.resample(240.0))  # the same stretch at twice the rate: 119 frames
+    >>> path[:3].tolist(), path[-1].tolist(), len(path)
+    ([[0, 0], [1, 2], [2, 4]], [59, 118], 60)
+    """
+    if a.n_frames == 0 or b.n_frames == 0:
+        raise ParameterError(f"an empty stretch has no warping path ({a.n_frames} and {b.n_frames} frames)")
+    body = bone_lengths(a.canonical().positions[:: max(1, a.n_frames // 8)])
+    xa = audit_features(mirror(a) if mirrored else a, numeric_set, body)
+    xb = _resampled(audit_features(b, numeric_set, body), b.fps, a.fps)
+    _, path = dtw(xa, xb)
+    frames_b = np.minimum(np.round(path[:, 1] * b.fps / a.fps), b.n_frames - 1).astype(np.int64)
+    steps = np.column_stack([path[:, 0].astype(np.int64), frames_b])
+    keep = np.concatenate([[True], (np.diff(steps, axis=0) != 0).any(axis=1)])
+    steps = steps[keep]
+    if (steps[-1] != [a.n_frames - 1, b.n_frames - 1]).any():  # b's last rows at a's rate may stop short of its end
+        steps = np.vstack([steps, [a.n_frames - 1, b.n_frames - 1]])
+    return steps
 
 
 def _document_bones(db) -> np.ndarray:

@@ -10,8 +10,8 @@ copies), and cached per database and settings (:meth:`Backend.cached`).
 Shown: a summary line (pairs, clusters, mirrored pairs, the threshold and how it was set), the table of pairs (best
 first; a mirrored pair says "mirrored") and the clusters of copies (the documents the pairs join, and the one
 :meth:`~mocapviz.engine.Engine.keep_one` keeps). A pair chosen in the table plays its two stretches side by side,
-from their starts, the shorter stretched linearly to the longer's length (the pair's time scale, not its warping
-path, which the audit does not return). Downloads: the pair table as CSV, and the documents left when each cluster
+aligned on the pair's warping path (:meth:`~mocapviz.engine.Engine.audit_path`: each step shows the same moment of
+both; a mirrored pair's side B says so). Downloads: the pair table as CSV, and the documents left when each cluster
 keeps one (a clean training set) as CSV.
 """
 
@@ -38,8 +38,7 @@ PAIR_TITLES = {"cluster": "cluster", "doc_a": "document A", "name_a": "name A", 
 PAIR_DECIMALS = {"seconds": 2, "cost": 2, "scale": 3}
 CLUSTER_TITLES = {"cluster": "cluster", "documents": "documents", "pairs": "pairs", "kept": "kept by keep-one"}
 KEPT_COLUMNS = ["doc_id", "name", "label", "n_frames", "fps"]  # the keep-one download's columns (those the db has)
-PLAY_HINT = ("Click a pair to play its two stretches side by side, from their starts, the shorter stretched linearly "
-             "to the longer's length (the pair's time scale; not aligned by its warping path).")
+PLAY_HINT = "Click a pair to play its two stretches side by side, aligned on the pair's warping path."
 
 
 def run_audit(backend, numeric_set: str, min_length: float, threshold: float | None, max_scale: float,
@@ -70,19 +69,6 @@ def cluster_table(pairs: pd.DataFrame, kept: pd.DataFrame) -> pd.DataFrame:
         rows.append({"cluster": int(cluster), "documents": ", ".join(f"{d} {names[d]}" for d in docs),
                      "pairs": len(group), "kept": ", ".join(f"{d} {names[d]}" for d in docs if d in kept_ids)})
     return pd.DataFrame(rows, columns=list(CLUSTER_TITLES))
-
-
-def pair_alignment(n_a: int, n_b: int) -> np.ndarray:
-    """The player's alignment of two stretches of ``n_a`` and ``n_b`` frames played together from their starts, the
-    shorter stretched linearly to the longer's length: (max(n_a, n_b), 2) int64 frame numbers.
-
-    Examples
-    --------
-    >>> pair_alignment(4, 2).tolist()
-    [[0, 0], [1, 0], [2, 1], [3, 1]]
-    """
-    steps = np.arange(max(n_a, n_b), dtype=np.int64)
-    return np.column_stack([steps * n_a // len(steps), steps * n_b // len(steps)])
 
 
 class AuditPage(pn.viewable.Viewer):
@@ -177,11 +163,11 @@ class AuditPage(pn.viewable.Viewer):
         clips = [query_clip(self.backend, doc, start, end) for doc, _, start, end in sides]
         mirrored = f" ({MIRRORED})" if pair["mirrored"] else ""
         titles = [f"A: document {sides[0][0]} {sides[0][1]}", f"B: document {sides[1][0]} {sides[1][1]}{mirrored}"]
-        alignment = pair_alignment(len(clips[0]), len(clips[1]))
-        self.player.load(clips, titles=titles, alignment=alignment,
-                         fps=self.backend.fps_of(sides[0][0]) * len(alignment) / len(clips[0]))
+        path = self.backend.engine.audit_path(pair, numeric_set=self.pairs.attrs["numeric_set"])
+        self.player.load(clips, titles=titles, alignment=path,
+                         fps=self.backend.fps_of(sides[0][0]) * len(path) / len(clips[0]))  # a in real time
         self.player_box.visible = True
         self.playing.object = (
             f"Playing document {sides[0][0]} ({sides[0][1]}) frames {sides[0][2]}:{sides[0][3]} beside document "
-            f"{sides[1][0]} ({sides[1][1]}) frames {sides[1][2]}:{sides[1][3]}{mirrored}, from their starts, the "
-            f"shorter stretched linearly to the longer's length (not aligned by the pair's warping path).")
+            f"{sides[1][0]} ({sides[1][1]}) frames {sides[1][2]}:{sides[1][3]}{mirrored}, aligned on the pair's warping "
+            f"path ({plural(len(path), 'step')}).")
