@@ -7,19 +7,23 @@ no derived copies, cached under ``.cache/bench``). Three measurements:
    threshold learned from the collection, time scaling within 1.25, mirrored copies too), run ONCE (no repeats:
    it takes minutes) in a fresh Python process, so that its wall time and peak memory (the child's
    ``ru_maxrss``) are the audit's own: pairs, clusters of copies, the learned threshold.
-2. **Brute force on a subset** (``SUBSET`` documents drawn with a fixed seed): every window of the shortest stretch
-   (1 s) starting every 5th frame of every document (the audit's own query stride), and its left/right mirror, is
-   aligned by subsequence DTW (``mocapviz.match.time_warping.subsequence_costs``, the product's numba DTW) to
-   every frame of the subset, on the audit's own features (``mocapviz.similarity.audit.Collection``: retargeted,
-   smoothed F15E at 30 Hz) and with the audit's own cost (DTW against the other side's half frames). In every other document the alignment of least accumulated cost is kept; the window
-   is a copied window (with that document as its partner) when that alignment obeys the audit's rule for a pair
-   (its span at least the shortest stretch and at most ``max_scale`` times it) and its mean local cost along its
-   path (``dtw`` of the window and the span) is at most the threshold learned in 1. Ours on the same subset:
-   ``Engine(subset).audit(threshold=<the same>)`` (features included), its recall of the brute-force windows (a
-   window is found when a pair between its document and its partner covers at least half of it on its
-   document's side) and the speed-up at that recall; and, to show what bounds that recall, the same audit with
-   more nearest frames per query frame than its default (``audit_pairs(k=WIDE_K)``, not a parameter of
-   ``Engine.audit``).
+2. **Brute force on a subset with planted copies** (``SUBSET`` documents drawn with a fixed seed, then
+   ``PLANTED_PER_KIND`` derived copies of each kind of ``mocapviz.experiments.audit.plant_copies`` appended: mirrored,
+   stretched, trimmed, noisy, retargeted, resampled, all together): every window of the shortest stretch (1 s)
+   starting every 5th frame of every document (the audit's own query stride), and its left/right mirror, is
+   aligned by subsequence DTW (``mocapviz.match.time_warping.subsequence_costs``, the product's numba DTW) to every
+   frame of the subset, on the audit's own features (``mocapviz.similarity.audit.Collection``: retargeted, smoothed
+   F15E at 30 Hz) and with the audit's own cost (DTW against the other side's half frames). In every other
+   document the alignment of least accumulated cost is kept; the window is a copied window (with that document as
+   its partner) when that alignment obeys the audit's rule for a pair (its span at least the shortest stretch and
+   at most ``max_scale`` times it) and its mean local cost along its path is at most the threshold learned in 1.
+   Ours on the same subset: ``Engine(subset).audit(threshold=<the same>)`` (features included). Both are scored
+   the same way: a planted copy is found when the copied windows (brute force's, or those a pair of ours covers
+   by at least half) of the copy's document with its source as partner cover at least half of the copy, and those
+   of the source with the copy as partner at least half of the copied span (``_found``): **the speed-up at equal
+   recall of the planted copies**. Also reported: ours' recall of all of brute force's copied windows (real
+   performances included: a window that matches a stretch of a re-performance by itself, while the whole
+   performances' alignment does not, is one brute force finds and ours does not).
 3. **STUMPY** (``stumpy.mstump``, the multidimensional matrix profile) on the same features of the subset's first
    10k and 20k frames (all dimensions, m = 30 frames, one numba thread): its time, the growth exponent and the time extrapolated to
    the whole collection. Its distance is the z-normalised Euclidean distance of every dimension (not ours: no DTW,
@@ -31,7 +35,6 @@ Not measured: the growth to 1M / 4M frames (derived copies), left for a later ru
 
 from __future__ import annotations
 
-import inspect
 import itertools
 import json
 import os
@@ -60,12 +63,12 @@ from .common import (
 )
 from .common import fmt as _f
 
-SUBSET = 150  # documents of the brute-force comparison (30 with --quick)
+SUBSET = 300  # documents of the brute-force comparison (30 with --quick)
+PLANTED_PER_KIND = 5  # derived copies of each kind planted in the subset (1 with --quick)
 SEED = 0
 STEP = 5  # the audit's query stride: a sixth of the shortest stretch of 30 frames
 STUMPY_FRAMES = (10_000, 20_000)  # (2,000 and 4,000 with --quick)
 STUMPY_M = 30
-WIDE_K = 256  # nearest frames per query frame of the diagnostic row (the audit's default: audit_pairs' k)
 
 
 def _duration(seconds: float) -> str:
@@ -164,6 +167,27 @@ def _covered(pairs: pd.DataFrame, collection, m: int) -> set:
     return out
 
 
+def _found(windows: set, truth: pd.DataFrame, collection, m: int) -> int:
+    """The planted copies whose copied windows (``(document position, first row, partner position)``) cover at
+    least half of the copy with its source as partner, and at least half of the copied span of the source with the
+    copy as partner (every document at the common rate: rows = own frames)."""
+    pos_of = {int(d): i for i, d in enumerate(collection.doc_ids)}
+    found = 0
+    for t in truth.itertuples():
+        source, copy = pos_of[int(t.source_doc)], pos_of[int(t.copy_doc)]
+        ok = True
+        for pos, partner, a, b in ((copy, source, t.copy_start, t.copy_end), (source, copy, t.source_start,
+                                                                              t.source_end)):  # fmt: skip
+            first = int(collection.starts[pos])
+            covered = np.zeros(int(b - a), bool)
+            for s in range(first, int(collection.starts[pos + 1]) - m + 1, STEP):
+                if (pos, s, partner) in windows:
+                    covered[max(0, s - first - a):max(0, min(b, s - first + m) - a)] = True
+            ok &= covered.mean() >= 0.5
+        found += bool(ok)
+    return found
+
+
 def _stumpy(x: np.ndarray, sizes) -> list[dict]:
     """Measurement 3: ``stumpy.mstump`` of the first n rows on one thread, timed once per size (after a small
     warm-up). One thread: on a shared 2-core machine numba's parallel loops wait for the busier core (2 threads
@@ -188,7 +212,8 @@ def _stumpy(x: np.ndarray, sizes) -> list[dict]:
 def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> int:
     os.environ.setdefault("MOCAPVIZ_HOME", str(REPO / ".cache" / "mocapviz"))
     from mocapviz.engine import Engine
-    from mocapviz.similarity.audit import Collection, audit_pairs
+    from mocapviz.experiments.audit import plant_copies
+    from mocapviz.similarity.audit import Collection
 
     t_start = time.perf_counter()
     monitor = CpuMonitor()
@@ -202,10 +227,12 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     n_subset = 30 if quick else SUBSET
     with tempfile.TemporaryDirectory() as tmp:
         sub = _subset_db(db, n_subset, Path(tmp) / "subset.mdb")
+        sub, truth = plant_copies(sub, Path(tmp) / "planted.mdb", n_per_kind=1 if quick else PLANTED_PER_KIND,
+                                  seed=SEED)  # fmt: skip
         rate = float(sub.typical_fps)
         m = max(2, round(1.0 * rate))
         max_scale = 1.25
-        log(f"subset: {len(sub)} documents, {sub.n_frames:,} frames; brute force")
+        log(f"subset: {n_subset} documents and {len(truth)} planted copies, {sub.n_frames:,} frames; brute force")
         t0 = time.perf_counter()
         collection = Collection(sub, "F15E", rate)
         t_features = time.perf_counter() - t0
@@ -218,17 +245,13 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
         pairs = Engine(sub).audit(threshold=threshold)
         t_ours = time.perf_counter() - t0
         ours = _covered(pairs, collection, m)
-        t0 = time.perf_counter()
-        wide = audit_pairs(collection, None, min_frames=m, threshold=threshold, max_scale=max_scale, k=WIDE_K)
-        t_wide = time.perf_counter() - t0 + t_features
-        ours_wide = _covered(wide, collection, m)
+        found_brute, found_ours = _found(brute, truth, collection, m), _found(ours, truth, collection, m)
         sub_frames, sub_docs = sub.n_frames, len(sub)
-        x_sub = collection.x
+        x_sub = collection.x[: collection.starts[n_subset]]  # STUMPY on the real documents' frames
         del sub, collection
     recall = len(brute & ours) / len(brute) if brute else float("nan")
-    default_k = inspect.signature(audit_pairs).parameters["k"].default
-    recall_wide = len(brute & ours_wide) / len(brute) if brute else float("nan")
     extra = len(ours - brute)
+    planted = len(truth)
 
     stumpy_version = package_version("stumpy")
     sizes = [min(n, len(x_sub)) for n in ((2_000, 4_000) if quick else STUMPY_FRAMES)]
@@ -245,20 +268,16 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     rows = [
         {"row": "ours, whole collection", "what": "Engine(db).audit(), threshold learned; one run, child process",
          "frames": n_full, "seconds": full["seconds"], "peak_mib": full["max_rss_mib"], "pairs": full["pairs"],
-         "clusters": full["clusters"], "recall": np.nan, "extrapolated": False},
+         "clusters": full["clusters"], "planted": np.nan, "recall": np.nan, "extrapolated": False},
         {"row": "brute force, subset", "what": "subsequence DTW of every 1 s window (+ mirror) every 5th frame",
          "frames": sub_frames, "seconds": t_brute, "peak_mib": np.nan, "pairs": np.nan, "clusters": np.nan,
-         "recall": np.nan, "extrapolated": False},
+         "planted": found_brute / planted, "recall": np.nan, "extrapolated": False},
         {"row": "ours, subset", "what": "Engine(subset).audit(threshold=same)", "frames": sub_frames,
          "seconds": t_ours, "peak_mib": np.nan, "pairs": len(pairs), "clusters": int(pairs["cluster"].nunique()),
-         "recall": recall, "extrapolated": False},
-        {"row": f"ours, subset, k = {WIDE_K}", "what": f"audit_pairs(k={WIDE_K}) on the same features (the default "
-         f"k is {default_k}; features' time added)", "frames": sub_frames, "seconds": t_wide, "peak_mib": np.nan,
-         "pairs": len(wide), "clusters": int(wide["cluster"].nunique()), "recall": recall_wide,
-         "extrapolated": False},
+         "planted": found_ours / planted, "recall": recall, "extrapolated": False},
         {"row": "brute force, whole collection", "what": "the subset's time × (frames ratio)², extrapolated",
          "frames": n_full, "seconds": brute_full_s, "peak_mib": np.nan, "pairs": np.nan, "clusters": np.nan,
-         "recall": np.nan, "extrapolated": True},
+         "planted": np.nan, "recall": np.nan, "extrapolated": True},
     ]  # fmt: skip
     exponent = np.nan
     if len(stump) == 2:
@@ -267,13 +286,13 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     for s in stump:
         rows.append({"row": "STUMPY mstump", "what": f"m = {STUMPY_M}, {x_sub.shape[1]} dimensions, z-normalised",
                      "frames": s["frames"], "seconds": s["seconds"], "peak_mib": np.nan, "pairs": np.nan,
-                     "clusters": np.nan, "recall": np.nan, "extrapolated": False})  # fmt: skip
+                     "clusters": np.nan, "planted": np.nan, "recall": np.nan, "extrapolated": False})  # fmt: skip
     if stump:
         low = stump[0]["seconds"] * (n_full / stump[0]["frames"]) ** 2
         rows.append({"row": "STUMPY mstump, whole collection", "what": f"the {stump[-1]['frames']:,}-frame run's "
                      f"time × (frames ratio)², extrapolated (from the {stump[0]['frames']:,}-frame run: ≈ {low:,.0f} s)", "frames": n_full, "seconds": stump[-1]["seconds"] * (n_full / stump[-1]["frames"]) ** 2,
-                     "peak_mib": np.nan, "pairs": np.nan, "clusters": np.nan, "recall": np.nan,
-                     "extrapolated": True})  # fmt: skip
+                     "peak_mib": np.nan, "pairs": np.nan, "clusters": np.nan, "planted": np.nan,
+                     "recall": np.nan, "extrapolated": True})  # fmt: skip
     table = pd.DataFrame(rows)
 
     notes = [
@@ -285,8 +304,10 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
          f"ru_maxrss (the process's whole peak: Python, the database's arrays, features and kd-tree); "
          f"{full['documents']:,} documents in a pair, {full['mirrored']:,} mirrored pairs; the child process "
          f"took {full['process_s']:.0f} s in all (start-up, opening the database)"),
-        (f"subset: {sub_docs} documents drawn with seed {SEED} ({sub_frames:,} frames), one run each; brute force's "
-         f"time includes the audit features of the subset ({t_features:.1f} s), as ours does"),
+        (f"subset: {n_subset} real documents drawn with seed {SEED} and {planted} DERIVED copies of their clips "
+         f"planted among them (`plant_copies`, {planted // 7} of each kind), {sub_docs} documents, {sub_frames:,} "
+         f"frames; one run each; brute force's time includes the audit features of the subset ({t_features:.1f} s), "
+         "as ours does; STUMPY runs on the real documents' frames only"),
         (f"STUMPY: {stumpy_version}, on ONE thread (`numba.set_num_threads(1)`: with 2 threads on this shared machine "
          "its time grew as n^3 to n^4, waiting for the busier core); compilation (a 500-frame warm-up) not timed; "
          "ours' kd-tree queries use both cores, brute force's subsequence DTW one"),
@@ -296,23 +317,24 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print(header(title, info, ("numpy", "numba", "scipy"), notes))
     print()
     print(markdown(
-        "| row | what | frames | seconds | peak memory MiB | pairs | clusters | recall of brute force's windows |",
-        "|---|---|---:|---:|---:|---:|---:|---:|",
+        "| row | what | frames | seconds | peak memory MiB | pairs | clusters | planted copies found | recall of "
+        "brute force's windows |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|",
         [[r["row"], r["what"], _f(int(r["frames"])), ("≈ " if r["extrapolated"] else "") + _f(r["seconds"], 1),
           _f(r["peak_mib"], 0), _f(r["pairs"], 0), _f(r["clusters"], 0),
-          f"{r['recall']:.1%}" if np.isfinite(r["recall"]) else "—"] for r in rows]))  # fmt: skip
+          *(f"{r[c]:.1%}" if np.isfinite(r[c]) else "—" for c in ("planted", "recall"))] for r in rows]))  # fmt: skip
     print()
-    at = f"{recall:.1%} recall" if brute else "— recall (brute force found no copied window)"
-    print(f"On the subset: brute force {t_brute:.1f} s, ours {t_ours:.2f} s: **{t_brute / t_ours:.0f}× faster at "
-          f"{at}** of brute force's {len(brute):,} copied (window, partner document) of "
-          f"{n_windows:,} windows; ours covers {extra:,} more (a pair's cost is its mean over its whole length, "
-          f"so a window inside a pair may cost more than the threshold on its own). With {WIDE_K} nearest frames "
-          f"per query frame instead of {default_k} the same audit finds {recall_wide:.1%} of them in {t_wide:.2f} s"
-          + (": the candidates' k bounds the recall in a collection of many alike takes"
-             if brute and recall_wide > recall + 0.05 else "")
-          + ". Brute force on the whole "
-          f"collection, extrapolated O(n²): ≈ {_duration(brute_full_s)} against ours' {_duration(full['seconds'])} "
-          "(measured).")
+    speed = t_brute / t_ours
+    equal = "equal recall" if found_ours == found_brute else "a higher recall" if found_ours > found_brute else \
+        "a LOWER recall"  # fmt: skip
+    print(f"On the subset with planted copies: brute force {t_brute:.1f} s, ours {t_ours:.2f} s: **{speed:.0f}× "
+          f"faster at {equal} of the planted copies** (brute force {found_brute} of {planted}, ours {found_ours} of "
+          f"{planted}, scored alike). Of brute force's {len(brute):,} copied (window, partner document) of "
+          f"{n_windows:,} windows, ours covers {recall:.1%} and {extra:,} more (a pair's cost is its mean over its "
+          "whole length, so a window inside a pair may cost more than the threshold on its own); the windows it "
+          "misses are stretches of two performances of one action that match for a second while the performances' "
+          "whole alignment does not. Brute force on the whole collection, extrapolated O(n²): ≈ "
+          f"{_duration(brute_full_s)} against ours' {_duration(full['seconds'])} (measured).")
     if stump:
         print()
         print(f"STUMPY's growth exponent from {stump[0]['frames']:,} to {stump[-1]['frames']:,} frames: "
