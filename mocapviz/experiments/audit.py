@@ -43,7 +43,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ParameterError
-from ..motion.skeleton import _SHORTEST_BONE_CM, bone_lengths, mirror, retarget
+from ..motion.skeleton import SHORTEST_BONE_CM, bone_lengths, mirror, retarget
 from ..validation import count
 
 __all__ = ["KINDS", "audit_quality", "donor_bones", "plant_copies", "planted_quality"]
@@ -199,7 +199,7 @@ def donor_bones(donor, own) -> np.ndarray:
     [0.0, 10.0, 6.0]
     """
     donor, own = np.asarray(donor, dtype=np.float64), np.asarray(own, dtype=np.float64)
-    return np.where(donor > _SHORTEST_BONE_CM, donor, own)
+    return np.where(donor > SHORTEST_BONE_CM, donor, own)
 
 
 def planted_quality(db_or_engine, truth: pd.DataFrame, pairs: pd.DataFrame) -> pd.DataFrame:

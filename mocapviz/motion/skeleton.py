@@ -826,7 +826,8 @@ def bone_lengths(positions: np.ndarray) -> np.ndarray:
     return np.median(np.linalg.norm(p - p[:, parents], axis=-1), axis=0)
 
 
-_SHORTEST_BONE_CM = 2.0  # retarget: a bone shorter than this is not scaled
+SHORTEST_BONE_CM = 2.0
+"""cm: :func:`retarget` keeps the length of a bone this short or shorter (a clavicle some rigs put at the neck)."""
 
 
 def retarget(motion: Motion, lengths) -> Motion:
@@ -858,7 +859,7 @@ def retarget(motion: Motion, lengths) -> Motion:
     motion = to_canonical(motion)
     p = np.asarray(motion.positions, dtype=np.float64)
     own = bone_lengths(p)
-    ratio = np.where(own > _SHORTEST_BONE_CM, np.asarray(lengths, dtype=np.float64) / np.maximum(own, 1e-3), 1.0)
+    ratio = np.where(own > SHORTEST_BONE_CM, np.asarray(lengths, dtype=np.float64) / np.maximum(own, 1e-3), 1.0)
     # a bone of (almost) no length, such as a clavicle some rigs put at the neck, has no direction to scale (or only
     # the direction of its markers' noise): it stays as it is
     out = p.copy()
