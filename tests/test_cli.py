@@ -658,3 +658,13 @@ if __name__ == "__main__":  # count the outcomes: python tests/test_cli.py (buil
             assert run_cli(argv)[0] == 0, argv
         found = tally(bad_value_paths(Path(scratch) / "files", datasets.sample(), db), Path(scratch))
         print(f"{len(BAD_VALUES)} bad-value cases: " + ", ".join(f"{n} {what}" for what, n in found.most_common()))
+
+
+def test_reproduce_help_names_every_experiment():
+    """``mocapviz reproduce --help`` (a light parser that does not import the experiments) names each of them."""
+    from mocapviz.reproduction import EXPERIMENTS
+
+    done = subprocess.run([sys.executable, "-m", "mocapviz.cli", "reproduce", "--help"], capture_output=True, text=True,
+                          check=True)  # fmt: skip
+    text = " ".join(done.stdout.split())
+    assert [name for name in EXPERIMENTS if name not in text] == []

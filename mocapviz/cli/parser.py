@@ -280,7 +280,7 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("names", nargs="+", metavar="NAME", help="experiment function name(s) (index_statistics, "
                     "query_statistics, relational_query, alignment, knn_timings, rank_correlations, "
                     "similarity_matrices, lng_accuracy, numerical_search, reconstruction, base_poses, "
-                    "retrieval_quality, template_quality, annotation) or 'all'")
+                    "retrieval_quality, template_quality, descriptions, annotation, audit) or 'all'")
     rp.add_argument("--out", required=True, help="output folder; each experiment writes OUT/NAME/")
     rp.add_argument("--full", action="store_true", help="the papers' sizes (slow; every shared archive as the "
                     "large database)")  # fmt: skip
