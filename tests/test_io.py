@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 
 from mocapviz.errors import MocapFormatError, MocapFormatWarning
 from mocapviz.io import find_asf, load, read_asf
+from mocapviz.io.bvh import FRAMES_SLACK, read_bvh
 from mocapviz.io.text import scan
 
 CM_PER_INCH = 2.54
@@ -684,9 +685,24 @@ def test_bvh_fewer_frames_than_header(bvh_copy, tmp_path):
 def test_bvh_more_frames_than_header(bvh_copy, tmp_path):
     lines, data = bvh_copy
     n = int(lines[data - 2].split()[1])
-    longer = lines[: data + n] + [lines[data + n - 1]] + lines[data + n :]
+    longer = lines[: data + n] + [lines[data + n - 1]] * (FRAMES_SLACK + 1) + lines[data + n :]
     err = _raises(_write(tmp_path / "long.bvh", longer), data + n + 1)
-    assert str(n + 1) in err.reason
+    assert err.reason.startswith(f"header says {n} frames, the file has {n + FRAMES_SLACK + 1}")
+
+
+@pytest.mark.parametrize("off", [-FRAMES_SLACK, -1, 1, FRAMES_SLACK])
+def test_bvh_frames_line_off_by_a_few_rows_loads_the_rows_with_a_warning(bvh_copy, tmp_path, off):
+    """issue 42 item 3: an exporter's slip (the peer file's Frames: line disagreed with its rows by one) loads every
+    row the file holds, each as the file has it, with a MocapFormatWarning naming both counts and a line."""
+    lines, data = bvh_copy
+    n = int(lines[data - 2].split()[1])
+    rows = lines[data:data + n]
+    whole = read_bvh(_write(tmp_path / "whole.bvh", lines))
+    header = [*lines[:data - 2], f"Frames: {n - off}", *lines[data - 1:data]]
+    with pytest.warns(MocapFormatWarning, match=rf"header says {n - off} frames, the file has {n}: loaded") as seen:
+        got = read_bvh(_write(tmp_path / "off.bvh", header + rows))
+    assert seen[0].message.line >= data
+    np.testing.assert_array_equal(got.positions, whole.positions)
 
 
 def test_bvh_value_missing(bvh_copy, tmp_path):

@@ -25,16 +25,20 @@ Conventions:
 - Values: numbers in plain decimal notation (no ``nan``, ``inf``); frame rate 1 to 10,000 fps; rotation channels
   within ±1e5 degrees; offsets and position channels within ±1e7 file units and positions within ±1e7 cm
   (:mod:`mocapviz.io.checks`).
+- Frame count: a ``Frames:`` line off by at most :data:`FRAMES_SLACK` rows (a common exporter slip) loads the rows
+  the file holds, with a :class:`~mocapviz.errors.MocapFormatWarning` naming both counts; a larger difference (a
+  truncated or damaged file) is refused.
 """
 from __future__ import annotations
 
 import functools
 import os
 import re
+import warnings
 
 import numpy as np
 
-from ..errors import MocapFormatError, ParameterError
+from ..errors import MocapFormatError, MocapFormatWarning, ParameterError
 from ..motion import Motion, rotations
 from .checks import (
     ANGLE_LIMIT_DEG,
@@ -46,6 +50,8 @@ from .checks import (
 )
 from .text import decode, number, read_bytes, scan, words
 
+FRAMES_SLACK = 3
+"""Rows a BVH file may hold more or fewer than its ``Frames:`` line says and still load (with a warning)."""
 _MOTION = re.compile(rb"(?im)^[ \t\r\v\f]*motion(?=[ \t\r\v\f\n]|\Z)")  # as _parse_hierarchy's words see it
 _CACHED_TEXT = 1 << 16  # hierarchies up to this size are parsed once per process (the files of one rig share one)
 
@@ -258,7 +264,8 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
     Raises
     ------
     MocapFormatError
-        Malformed HIERARCHY, unsupported channels, frame count different from the header, wrong number of
+        Malformed HIERARCHY, unsupported channels, a frame count more than :data:`FRAMES_SLACK` rows away from
+        the header's (closer: a MocapFormatWarning, the rows loaded), wrong number of
         values on a line, malformed or non-finite numbers, a frame rate outside 1 to 10,000 fps, values or
         positions beyond the limits of :mod:`mocapviz.io.checks`; the message names the file, the line and the
         value.
@@ -295,6 +302,11 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
         raise MocapFormatError(
             path, f"frame line has {sc.n_values[k]} values, the hierarchy has {n_channels} channels", sc.first_line + int(k)
         )
+    if data.size and data.size != n_frames and abs(data.size - n_frames) <= FRAMES_SLACK:  # an exporter's slip
+        where = sc.first_line + int(data[min(n_frames, data.size - 1)])
+        warnings.warn(MocapFormatWarning(path, f"header says {n_frames} frames, the file has {data.size}: loaded the "
+                                               f"{data.size} it has", line=where), stacklevel=2)  # fmt: skip
+        n_frames = int(data.size)
     if data.size > n_frames:  # named at the first frame line beyond the header's count
         raise MocapFormatError(path, f"header says {n_frames} frames, the file has {data.size}",
                                sc.first_line + int(data[n_frames]))
