@@ -278,6 +278,22 @@ def test_append_motions_adds_derived_clips(sample_dir, tmp_path):
     np.testing.assert_array_equal(grown.positions[: db.n_frames], db.positions)
 
 
+def test_a_new_database_of_clips_without_labels(sample_dir, tmp_path):
+    """Clips held in memory that carry no label (a take loaded without its label table, a derived copy) make a new
+    database whose documents have an empty label (it crashed: KeyError 'label'), and searching it works."""
+    from dataclasses import replace
+
+    from mocapviz.io import load
+
+    clip = load(sample_dir / "hdm05-cut" / "amc" / "HDM_dg_grabHighR_016_120.amc").canonical()
+    clip = replace(clip, labels={})
+    db = MotionDB.create(tmp_path / "unlabelled.mdb").append_motions([clip, clip[10:80]])
+    assert len(db) == 2 and db.documents["label"].isna().all()
+    assert db.documents["n_frames"].tolist() == [clip.n_frames, 70]
+    grown = db.append_motions([clip[:50]], [{"name": "labelled", "label": "walk"}])
+    assert grown.documents["label"].tolist()[2] == "walk" and grown.documents["label"].iloc[:2].isna().all()
+
+
 def test_append_motions_refuses_other_rates_and_skeletons(sample_dir, tmp_path):
     db = MotionDB.ingest(sample_dir / "hdm05-cut", tmp_path / "db", fps=30, progress=False)
     before = _state(db.path)

@@ -911,6 +911,9 @@ def _commit(path: Path, manifest: dict | None, positions: list, quaternions: lis
     docs = pd.concat([old_docs.astype(object), new_docs], ignore_index=True) if len(old_docs) else new_docs
     if docs.empty:
         docs = pd.DataFrame({c: pd.Series(dtype="int64" if c in ("doc_id", "start", "n_frames") else "float64" if "fps" in c else "object") for c in _BASE_COLUMNS})
+    for c in _BASE_COLUMNS:  # a clip without a label (a derived copy, a take from memory) has no label column
+        if c not in docs:
+            docs[c] = None
     docs = docs[_BASE_COLUMNS + [c for c in docs.columns if c not in _BASE_COLUMNS]]
     for c in ("doc_id", "start", "n_frames"):
         docs[c] = docs[c].astype("int64")
