@@ -187,3 +187,25 @@ def test_audit_path_of_a_pair_in_the_database(demo, tmp_path):
         engine.audit_path(pair.drop("end_a"))
     with pytest.raises(ParameterError, match=r"start_b:end_b"):
         engine.audit_path(pair.to_dict() | {"end_b": 10_000})
+
+
+@pytest.mark.slow
+def test_a_copy_inside_a_longer_take_of_a_repeated_movement_is_found(bandai2_dir, tmp_path):
+    """Bandai Namco's feminine left-hand waves 024 and 025 (real takes) and, as derived copies, a stretch of each
+    resampled to 25 Hz and back to 30 Hz (the planted `resampled` kind the full planted-copies run missed): the
+    box of a copy within its source covers the whole repeated wave, so the box's own warping path aligns the copy
+    to the wrong waves; the shorter side aligned within the longer finds each copy where it was cut (within 3
+    frames)."""
+    from mocapviz.io import load
+
+    takes = [load(bandai2_dir / "data" / f"dataset-2_wave-left-hand_feminine_{t}.bvh").canonical().resample(30.0)
+             for t in ("024", "025")]  # fmt: skip
+    spans = [(63, 174), (72, 197)]
+    copies = [take[a:b].resample(25.0).resample(30.0) for take, (a, b) in zip(takes, spans)]
+    db = MotionDB.create(tmp_path / "waves.mdb").append_motions(
+        takes + copies, [{"name": n} for n in ("024", "025", "024 copy", "025 copy")])
+    pairs = Engine(db).audit(threshold=THRESHOLD)
+    for source, (a, b) in enumerate(spans):
+        found = _pair_of(pairs, source, source + 2)
+        assert len(found) == 1, pairs
+        assert abs(found["start_a"].iloc[0] - a) <= 3 and abs(found["end_a"].iloc[0] - b) <= 3, found

@@ -42,7 +42,7 @@ from scipy.spatial import cKDTree
 from ..db.hits import hit_table
 from ..errors import ParameterError
 from ..features.numeric import numeric_columns, numeric_features
-from ..match.time_warping import dtw
+from ..match.time_warping import dtw, subsequence_costs
 from ..motion.skeleton import bone_lengths, mirror, retarget
 from ..parallel import progress_bar
 
@@ -375,34 +375,57 @@ def _near_groups(group: np.ndarray, a: np.ndarray, b: np.ndarray, gap: int) -> n
 
 def _verified(first, other, pa, pb, flip, i0, i1, j0, j1, min_frames, threshold, max_scale) -> list[dict]:
     """The pairs inside one candidate box: DTW of the widened box, then the runs of its path whose local cost,
-    averaged over ``min_frames`` steps, stays at most ``threshold``."""
+    averaged over ``min_frames`` steps, stays at most ``threshold``. When one side of the box is over ``max_scale``
+    times the other's, the shorter side is also aligned as a whole within the longer one (subsequence DTW: free
+    start and end there), since the box's own path must then stall along the longer side, and a copy inside a
+    longer take of a repeated movement (a wave, a walk) is aligned by it to the wrong repetition."""
     pad = min_frames  # a fast stretch may have no near frame in the sparse index: its box may end early
     a0, a1 = max(i0 - pad, int(first.starts[pa])), min(i1 + pad, int(first.starts[pa + 1]))
     b0, b1 = max(j0 - pad, int(other.starts[pb])), min(j1 + pad, int(other.starts[pb + 1]))
     if min(a1 - a0, b1 - b0) < min_frames:
         return []
     xa = (first.mirrored if flip else first.x)[a0:a1]
-    xb = _half_frames(other.x[b0:b1])
-    _, path = dtw(xa, xb, steps=_HALF_STEPS)  # b's index counts half frames
-    local = np.linalg.norm(xa[path[:, 0]] - xb[path[:, 1]], axis=1)
+    xb = other.x[b0:b1]
+    half_b = _half_frames(xb)
+    _, path = dtw(xa, half_b, steps=_HALF_STEPS)  # b's index counts half frames
+    found = _runs(xa, half_b, path, min_frames, threshold, max_scale)
+    if max(len(xa), len(xb)) > max_scale * min(len(xa), len(xb)):
+        swap = len(xb) < len(xa)
+        short, long_ = (xb, xa) if swap else (xa, xb)
+        half = _half_frames(long_)
+        cost, start = subsequence_costs(short, half, steps=_HALF_STEPS)
+        end = int(np.argmin(cost))
+        if np.isfinite(cost[end]):
+            _, sub = dtw(short, half[int(start[end]):end + 1], steps=_HALF_STEPS)
+            runs = _runs(short, half, sub + np.array([0, int(start[end])]), min_frames, threshold, max_scale)
+            found += [(h0, h1, f0, f1, cost, 1.0 / scale) for f0, f1, h0, h1, cost, scale in runs] if swap else runs
+    return [{"pa": pa, "pb": pb, "a0": a0 + f0, "a1": a0 + f1, "b0": b0 + h0, "b1": b0 + h1, "cost": cost,
+             "mirrored": flip, "scale": scale} for f0, f1, h0, h1, cost, scale in found]  # fmt: skip
+
+
+def _runs(xf: np.ndarray, xh: np.ndarray, path: np.ndarray, min_frames: int, threshold: float,
+          max_scale: float) -> list[tuple]:
+    """The pairs along one warping path of full frames ``xf`` and half frames ``xh`` (:func:`_half_frames`):
+    (f0, f1, h0, h1, cost, scale), frames [f0, f1) of ``xf`` and [h0, h1) of the half frames' own rows, the mean
+    local cost and the time scaling (h's frames over f's)."""
+    local = np.linalg.norm(xf[path[:, 0]] - xh[path[:, 1]], axis=1)
     w = min(min_frames, len(local))
     smooth = np.convolve(local, np.ones(w) / w, mode="same")
     ok = np.concatenate([[False], smooth <= threshold, [False]])
     edges = np.flatnonzero(np.diff(ok.astype(np.int8)))
-    speed = np.linalg.norm(np.diff(xa, axis=0), axis=1)
+    speed = np.linalg.norm(np.diff(xf, axis=0), axis=1)
     moving = np.concatenate([speed, speed[-1:]]) > _MOVING_CM
     out = []
     for s, e in _joined(list(zip(edges[::2], edges[1::2])), local, min_frames, threshold):
         s, e = _trimmed(path, local, s, e, threshold)
         ia, ib = path[s:e, 0], path[s:e, 1] / 2.0
-        first_b, last_b = int(np.floor(ib[0])), int(np.ceil(ib[-1]))
-        na, nb = int(ia[-1] - ia[0] + 1), last_b - first_b + 1
+        first_h, last_h = int(np.floor(ib[0])), int(np.ceil(ib[-1]))
+        nf, nh = int(ia[-1] - ia[0] + 1), last_h - first_h + 1
         cost = float(local[s:e].mean())
         scale = _time_scale(ia, ib, moving, min_frames)
-        if min(na, nb) < min_frames or not (1 / max_scale <= scale <= max_scale) or cost > threshold:
+        if min(nf, nh) < min_frames or not (1 / max_scale <= scale <= max_scale) or cost > threshold:
             continue
-        out.append({"pa": pa, "pb": pb, "a0": a0 + int(ia[0]), "a1": a0 + int(ia[-1]) + 1, "b0": b0 + first_b,
-                    "b1": b0 + last_b + 1, "cost": cost, "mirrored": flip, "scale": scale})  # fmt: skip
+        out.append((int(ia[0]), int(ia[-1]) + 1, first_h, last_h + 1, cost, scale))
     return out
 
 
