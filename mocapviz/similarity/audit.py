@@ -19,7 +19,10 @@ How (docs/audit.md):
    frames (a copy re-timed by a factor that is no whole number has poses between the original's frames); then the
    runs of its warping path whose local cost, averaged over the shortest stretch, stays under the threshold: each
    run at least the shortest stretch long in both documents, with a time scaling (measured where the stretch
-   moves) inside the band, is a pair. Its cost is the path's mean local cost (feature units, cm).
+   moves) inside the band, is a pair. Its cost is the path's mean local cost (feature units, cm). A box one side of
+   which is over the band's times the other's is also aligned by subsequence DTW (the shorter side whole, free start
+   and end in the longer: in a take of a repeated movement the box's own path aligns a copy to the wrong
+   repetitions).
 4. **The threshold**, when not given, is learned from the collection itself (:func:`learn_threshold`): copies of
    its own stretches made with the transforms a copy goes through (marker noise of 1 cm, a time scaling up to
    ±20 %, another actor's bone lengths on the same kind of rig) and their mean DTW cost to the original: the
