@@ -73,3 +73,17 @@ def test_png_bytes_round_trip(clip):
     img = render_skeletons([clip[0]], size=(120, 90))
     back = np.asarray(Image.open(io.BytesIO(png_bytes(img))))
     np.testing.assert_array_equal(back, img)
+
+
+@pytest.mark.parametrize("far_cm", [600.0, 1000.0])
+def test_every_drawing_of_a_plotter_draws_its_poses_wherever_they_stand(clip, far_cm):
+    """Poses drawn one after another on the same plotter (a player's frames, a sheet's moments) are each drawn,
+    wherever they stand: after a drawing at the origin, the same pose moved a few metres came out blank, and so
+    did the origin after it (the plotter's later screenshots did not render the scene again)."""
+    pose = clip[0] - clip[0, 0] * np.array([1.0, 0.0, 1.0])
+    moved = pose + np.array([far_cm, 0.0, far_cm])
+    drawn = [render_skeletons([p, p + 1.0], bounds=scene_bounds(p[None], (p + 1.0)[None]), size=(300, 260),
+                              overlay=True) for p in (pose, moved, pose)]  # fmt: skip
+    counts = [int(_red(img).sum()) for img in drawn]
+    assert min(counts) > 50, counts
+    assert abs(counts[2] - counts[0]) <= 0.1 * counts[0], counts  # the origin again as the first time

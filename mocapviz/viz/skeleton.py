@@ -145,6 +145,8 @@ def _render(poses, viewports, bounds, size, colours, opacities, titles, azimuth)
             p.add_text(str(titles[v]), font_size=9, position="upper_left", color="black", name=f"title{v}")
         _camera(p, bounds, azimuth)
     p.set_background("white")
+    p.render()  # a plotter's later screenshots do not render the scene again by themselves: without this, a
+    # drawing after the first came out blank once its poses stood a few metres from the last ones
     return np.asarray(p.screenshot(return_img=True))[..., :3].copy()
 
 
