@@ -1,7 +1,7 @@
 """Sheets for judging the audit's precision by eye (issue 41 item 3; docs/audit.md, "Precision, judged by eye").
 
-Run the planted-copies audit of a database (``mocapviz.experiments.audit.audit_quality``, 20 copies of each kind
-unless ``--per-kind``), then draw, with a fixed seed:
+Plant copies in a copy of a database (``mocapviz.experiments.audit.plant_copies``, 20 of each kind unless
+``--per-kind``), audit it and score the copies (``planted_quality``), then draw, with a fixed seed:
 
 - ``sample``: ``--sample`` pairs at random from all the pairs it reports (real and planted): the precision;
 - ``decoy``: ``--decoys`` pairs that are NOT copies: two performances of one motion (an audit of the database's
@@ -35,7 +35,7 @@ import pandas as pd
 
 from mocapviz import Engine, MotionDB
 from mocapviz.experiments.audit import plant_copies, planted_quality
-from mocapviz.motion.skeleton import CANONICAL_JOINTS, bone_lengths, mirror, retarget
+from mocapviz.motion.skeleton import bone_lengths, heading, mirror, retarget
 from mocapviz.viz.palette import OTHERS
 from mocapviz.viz.skeleton import BY_SIDE, render_skeletons, scene_bounds
 
@@ -45,14 +45,14 @@ KEY_COLUMNS = ["item", "kind", "doc_a", "name_a", "start_a", "end_a", "doc_b", "
 
 
 def _placed(positions: np.ndarray) -> np.ndarray:
-    """A stretch moved and turned about y once, so that its first frame's root is at the origin (on the floor) and
-    its hips face +z (left hip at +x); its later frames keep where they walk and turn."""
-    lhip, rhip = CANONICAL_JOINTS.index("lhip"), CANONICAL_JOINTS.index("rhip")
-    side = positions[0, lhip] - positions[0, rhip]
-    angle = np.arctan2(side[2], side[0])  # turn the hip line onto +x
-    c, s = np.cos(angle), np.sin(angle)
-    turn = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-    out = (positions - positions[0, 0] * np.array([1.0, 0.0, 1.0])) @ turn.T
+    """A stretch moved and turned about y once, as :func:`~mocapviz.motion.skeleton.body_frame` places its first
+    frame (root over the origin, facing +z, left at +x), lifted onto the floor; its later frames keep where they
+    walk and turn."""
+    theta = float(heading(positions[:1])[0])
+    c, s = np.cos(theta), np.sin(theta)
+    centred = positions - positions[0, 0] * np.array([1.0, 0.0, 1.0])
+    x, z = centred[..., 0], centred[..., 2]
+    out = np.stack([x * c - z * s, centred[..., 1], x * s + z * c], axis=-1)  # body_frame's turn, by -theta
     out[..., 1] -= out[..., 1].min()
     return out
 

@@ -20,7 +20,7 @@ from mocapviz import MotionDB
 from mocapviz.engine import Engine
 from mocapviz.errors import ParameterError
 from mocapviz.motion.skeleton import bone_lengths, mirror, retarget
-from mocapviz.similarity.audit import PAIR_COLUMNS, read_split
+from mocapviz.similarity.audit import PAIR_COLUMNS, read_split, warping_path
 
 SOURCE = 45  # CMU 135_04 in the demo: 9.8 s of front kicks at 30 Hz
 THRESHOLD = 6.0  # cm: above every planted copy's cost here, below two performances of one class (docs/audit.md)
@@ -161,8 +161,6 @@ def test_a_pairs_warping_path_follows_the_copys_time_scaling(demo, a, length, fa
     clip = demo.motion(SOURCE)[a:a + length]
     copy = replace(clip.resample(clip.fps * factor), fps=clip.fps)
     copy = mirror(copy) if mirrored else copy
-    from mocapviz.similarity.audit import warping_path
-
     path = warping_path(clip, copy, mirrored=mirrored)
     assert path[0].tolist() == [0, 0] and path[-1].tolist() == [clip.n_frames - 1, copy.n_frames - 1]
     assert (np.diff(path, axis=0) >= 0).all() and (np.diff(path, axis=0).sum(axis=1) > 0).all()

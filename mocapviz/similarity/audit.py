@@ -396,11 +396,12 @@ def _verified(first, other, pa, pb, flip, i0, i1, j0, j1, min_frames, threshold,
         swap = len(xb) < len(xa)
         short, long_ = (xb, xa) if swap else (xa, xb)
         half = _half_frames(long_)
-        cost, start = subsequence_costs(short, half, steps=_HALF_STEPS)
-        end = int(np.argmin(cost))
-        if np.isfinite(cost[end]):
-            _, sub = dtw(short, half[int(start[end]):end + 1], steps=_HALF_STEPS)
-            runs = _runs(short, half, sub + np.array([0, int(start[end])]), min_frames, threshold, max_scale)
+        accumulated, begins = subsequence_costs(short, half, steps=_HALF_STEPS)
+        end = int(np.argmin(accumulated))
+        if np.isfinite(accumulated[end]):
+            begin = int(begins[end])
+            _, sub = dtw(short, half[begin:end + 1], steps=_HALF_STEPS)
+            runs = _runs(short, half, sub + np.array([0, begin]), min_frames, threshold, max_scale)
             found += [(h0, h1, f0, f1, cost, 1.0 / scale) for f0, f1, h0, h1, cost, scale in runs] if swap else runs
     return [{"pa": pa, "pb": pb, "a0": a0 + f0, "a1": a0 + f1, "b0": b0 + h0, "b1": b0 + h1, "cost": cost,
              "mirrored": flip, "scale": scale} for f0, f1, h0, h1, cost, scale in found]  # fmt: skip
