@@ -1,6 +1,6 @@
 """The real motion-capture archives mocapviz is tested and benchmarked on, fetched on demand.
 
-Four ``.tar.xz`` archives (see ``ARCHIVES``) are looked up under one base location, checked against their
+Six ``.tar.xz`` archives (see ``ARCHIVES``) are looked up under one base location, checked against their
 sha256 and unpacked once into a local cache:
 
 - base location: the environment variable ``MOCAPVIZ_DATA_URL``, an ``http(s)://`` URL, a ``file://`` URL or
@@ -174,6 +174,28 @@ ARCHIVES: dict[str, Archive] = {
                 "Biomechanical-ToolKit/BTKData @ 6aee093"
             ),
         ),
+        Archive(
+            name="peer-readers",
+            description=(
+                "Files other tools wrote, for the readers' conformance tests (docs/conformance.md): 6 BVH, "
+                "8 C3D, 6 FBX (CMU 01_01 in BVH and FBX, Vicon, BTS, Kistler, Optotrak, DEC floats, FBX 6.1-7.5)"
+            ),
+            files="6 BVH, 8 C3D, 6 FBX + MANIFEST.md (source, licence, sha256, frames, what each tests) + licenses/",
+            frames=9_108,  # the BVH files' rows; the manifest lists each file's
+            fps=120,
+            licence=(
+                "per file in licenses/: BSD-3-Clause (assimp, IsaacGymEnvs), MIT (AnimatedDrawings, bvhio, PyMO), "
+                "MIT or Unlicense (ufbx); the C3D files are GPL-3.0 test data (pyomeca/ezc3d-testFiles): test "
+                "input only, never in the package"
+            ),
+            sha256="781e2fbef69134ec327ad377358a239fe4685815eb73161081d0a4312c228504",
+            size=5_261_968,
+            source=(
+                "github.com/assimp/assimp @ 21bea12f, facebookresearch/AnimatedDrawings @ 74ee7f00, "
+                "Wasserwecken/bvhio @ d5bd7a54, omimo/PyMO @ ba24f5f8, pyomeca/ezc3d-testFiles @ e40a8f8e, "
+                "isaac-sim/IsaacGymEnvs @ aeed2986, ufbx/ufbx @ fcc5d6ba"
+            ),
+        ),
     )
 }
 
@@ -248,7 +270,7 @@ def names() -> list[str]:
     Examples
     --------
     >>> names()
-    ['hdm05-cut', 'cmu-asfamc', 'bandai-namco-1', 'bandai-namco-2', 'c3d-markers']
+    ['hdm05-cut', 'cmu-asfamc', 'bandai-namco-1', 'bandai-namco-2', 'c3d-markers', 'peer-readers']
     """
     return list(ARCHIVES)
 
