@@ -84,7 +84,7 @@ docs: $(VENV)/.docs
 # every test, the docstrings' Examples as doctests; the notebooks are executed once, by the documentation site's
 # build in tests/test_docs_site.py (a cell's error fails it, naming the notebook), not a second time by nbmake
 test: $(VENV)/.docs $(CHROMIUM) $(GLTF_VALIDATOR)
-	MOCAPVIZ_REQUIRE_BROWSER=1 $(PY) -m pytest --doctest-modules mocapviz tests
+	MOCAPVIZ_REQUIRE_BROWSER=1 $(PY) -m pytest --doctest-modules --durations=40 mocapviz tests
 
 test-fast: install
 	$(PY) -m pytest --doctest-modules mocapviz tests -m "not slow"
