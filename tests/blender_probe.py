@@ -8,15 +8,17 @@ file's y up, -z forward -> Blender's z up, y forward: a file point ``(x, y, z)``
 (a BVH's centimetres become Blender units as numbers; a glTF's metres stay metres):
 
 - BVH: ``bpy.ops.import_anim.bvh`` with ``update_scene_fps`` (the scene takes the file's rate, rounded to whole
-  frames per second, the rest in ``fps_base``), frame 1 the file's first. Every bone of the armature is a joint: its world head ``matrix_world @ head``.
+  frames per second, the rest in ``fps_base``); the file's first frame at scene frame 1. Every bone of the armature
+  is a joint: its world head ``matrix_world @ head``.
 - glTF binary: ``bpy.ops.import_scene.gltf`` after the scene's rate is set to FPS (glTF keys are seconds, which the
-  importer turns into frames at the scene's rate). A glTF without a skin is imported as empties, one per node: a
-  joint's world position is its empty's ``matrix_world`` translation.
+  importer turns into frames at the scene's rate: key ``k / FPS`` at frame ``k``). A glTF without a skin is imported
+  as empties, one per node: a joint's world position is its empty's ``matrix_world`` translation.
 
-Every frame from the first key frame to the last is set in turn (``scene.frame_set``). OUT.npz holds ``positions`` [frames, joints,
-3] (Blender world coordinates), ``tails`` (a BVH bone's tail, the End Site of a leaf; NaN for glTF), ``names``,
-``parents`` (index, -1 for a root), ``fps`` and ``fps_base`` (the scene's rate is fps / fps_base), ``frames`` (the
-scene frames stepped through) and ``keys`` (every key frame of every animation curve, distinct).
+Every frame from the first key frame to the last is set in turn (``scene.frame_set``). OUT.npz holds ``positions``
+[frames, joints, 3] (Blender world coordinates), ``tails`` (a BVH bone's tail, the End Site of a leaf; NaN for
+glTF), ``names``, ``parents`` (index, -1 for a root), ``fps`` and ``fps_base`` (the scene's rate is fps /
+fps_base), ``frames`` (the scene frames stepped through) and ``keys`` (every key frame of every animation curve,
+distinct).
 """
 from __future__ import annotations
 

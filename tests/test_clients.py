@@ -17,6 +17,7 @@ import functools
 import http.server
 import json
 import os
+import re
 import shutil
 import subprocess
 import threading
@@ -38,9 +39,10 @@ THREE = REPO / ".cache" / "threejs" / "node_modules" / "three"
 PLAYER = Path(__file__).with_name("three_player.html")
 TOLERANCE_CM = 0.01  # 0.1 mm
 
-# (database, document, stretch): an HDM05 kick whole, a CMU trial cut, a CMU trial of the 30 Hz demo whole
+# (database, document, stretch): an HDM05 kick whole, a CMU trial cut, a CMU trial of the 30 Hz demo whole, a Bandai
+# Namco BVH (a file of another exporter: its own header and frame lines on the source rig)
 CLIPS = {"sample-hdm05-kick": ("sample", 7, None), "sample-cmu-135_08": ("sample", 0, (40, 291)),
-         "demo30-cmu-135_04": ("demo", 45, None)}
+         "demo30-cmu-135_04": ("demo", 45, None), "bandai1-bow": ("bandai", 0, (10, 120))}
 
 
 def _installed(path: Path, message: str) -> Path:
@@ -66,10 +68,16 @@ def three() -> Path:
                              "three)")
 
 
-def _clip(name: str):
+@pytest.fixture(scope="module")
+def bandai_db(bandai1_files, tmp_path_factory):
+    """The first Bandai Namco 1 file (30 Hz, centimetres) as a MotionDB (skips without the shared archive)."""
+    return MotionDB.ingest(bandai1_files[:1], tmp_path_factory.mktemp("bandai") / "db", progress=False)
+
+
+def _clip(name: str, request):
     """(db, document row, start, end) of one of CLIPS."""
     which, doc, span = CLIPS[name]
-    db = MotionDB.sample() if which == "sample" else MotionDB.demo()
+    db = {"sample": MotionDB.sample, "demo": MotionDB.demo}.get(which, lambda: request.getfixturevalue("bandai_db"))()
     row = db.document(doc)
     start, end = span or (0, int(row["n_frames"]))
     return db, row, start, end
@@ -83,15 +91,22 @@ def _exported(db, row, start, end, format, rig, folder: Path) -> Path:
 
 
 def _expected(db, row, start, end, rig):
-    """What mocapviz has for the exported file's joints: (names, parent names, positions [T, J, 3] cm y up, leaf end
-    positions or None, rate). Canonical: the database's frames. Source (an AMC on its ASF rig): a BVH joint sits
-    where its bone starts, at the tip of its parent bone (the root at the root), as the AMC reads; a leaf's End Site
-    at its bone's tip."""
+    """What mocapviz has for the exported file's joints: (names, parents, positions [T, J, 3] cm y up, (leaves, their
+    End Sites' positions) or None, rate). Canonical: the database's frames. Source BVH: the source file's frames as
+    mocapviz reads them, its End Sites (joints ``<parent>_end`` to mocapviz, a bone's tail to Blender) left out.
+    Source AMC (a BVH on its ASF rig): a BVH joint sits where its bone starts, at the tip of its parent bone (the
+    root at the root), as the AMC reads; a leaf's End Site at its bone's tip."""
     if rig == "canonical":
         names, parents = list(CANONICAL_JOINTS), list(CANONICAL_PARENTS)
         return names, parents, db.positions[db.frames(int(row["doc_id"]))][start:end], None, float(row["fps"])
     a, b = source_frames(row, start, end)
     src = load(row["path"])[a:b]
+    if row["format"] == "bvh":
+        names, parents = src.joint_names, src.parents
+        joints = [j for j, n in enumerate(names) if not (parents[j] >= 0 and n == f"{names[parents[j]]}_end")]
+        kept = [names[j] for j in joints]
+        parents = [kept.index(names[parents[j]]) if parents[j] >= 0 else -1 for j in joints]
+        return kept, parents, src.positions[:, joints], None, float(src.fps)
     heads = src.positions[:, np.maximum(src.parents, 0)]
     leaves = [j for j in range(len(src.parents)) if not np.any(src.parents == j)]
     return list(src.joint_names), list(src.parents), heads, (leaves, src.positions[:, leaves]), float(src.fps)
@@ -110,14 +125,14 @@ def _parent_names(names, parents) -> dict:
 # ------------------------------------------------------------------------------------------------------ Blender
 @pytest.mark.parametrize("clip", list(CLIPS))
 @pytest.mark.parametrize("format, rig", [("bvh", "source"), ("bvh", "canonical"), ("glb", "canonical")])
-def test_blender_imports_the_joints_where_mocapviz_has_them(blender_python, clip, format, rig, tmp_path):
-    db, row, start, end = _clip(clip)
+def test_blender_imports_the_joints_where_mocapviz_has_them(blender_python, clip, format, rig, tmp_path, request):
+    db, row, start, end = _clip(clip, request)
     path = _exported(db, row, start, end, format, rig, tmp_path)
     names, parents, want, leaves, rate = _expected(db, row, start, end, rig)
     out = tmp_path / "blender.npz"
     rate_arg = [str(rate)] if format == "glb" else []  # glTF keys are seconds: the scene's rate is set first
     run = subprocess.run([str(blender_python), str(PROBE), str(path), str(out), *rate_arg], capture_output=True,
-                         text=True, timeout=600)
+                         text=True, timeout=600, check=False)
     assert run.returncode == 0, run.stdout + run.stderr
     got = np.load(out)
     got_names = [str(n) for n in got["names"]]
@@ -127,9 +142,11 @@ def test_blender_imports_the_joints_where_mocapviz_has_them(blender_python, clip
     # one key per frame of the file, on consecutive scene frames: BVH from frame 1, glTF key k / rate at frame k
     first = 1 if format == "bvh" else 0
     np.testing.assert_allclose(got["keys"], np.arange(first, first + n), rtol=0, atol=1e-4)  # glTF: float32 times
-    if format == "bvh":  # the scene takes the file's rate: whole frames per second, the rest in fps_base
-        assert int(got["fps"]) == round(rate) and abs(got["fps"] / got["fps_base"] - rate) < 1e-6 * rate
-    cm = 1.0 if format == "bvh" else 100.0  # BVH centimetres as Blender units at scale 1; glTF metres
+    if format == "bvh":  # the scene takes the file's rate (whole frames per second, the rest in fps_base)
+        file_rate = 1.0 / float(re.search(rb"(?im)^\s*frame time\s*:\s*(\S+)", path.read_bytes()).group(1))
+        assert abs(file_rate - rate) < 1e-5 * rate  # the file's Frame Time is mocapviz's rate, to its digits
+        assert int(got["fps"]) == round(file_rate) and abs(got["fps"] / got["fps_base"] - file_rate) < 1e-6 * rate
+    cm = 1.0 if format == "bvh" else 100.0  # BVH centimetres (every file here) as Blender units at scale 1; glTF metres
     err = np.abs(_y_up(got["positions"][:, order]) * cm - want).max()
     assert err < TOLERANCE_CM, f"{path.name}: Blender's joints {err:.2e} cm from mocapviz's"
     if leaves is not None:  # the End Sites of a source rig: Blender's leaf bones end there
@@ -218,10 +235,10 @@ def _agreement(red: np.ndarray, camera: dict, joints: np.ndarray) -> tuple[float
 
 
 @pytest.mark.parametrize("clip", ["sample-hdm05-kick", "demo30-cmu-135_04"])
-def test_threejs_plays_the_glb_with_the_joints_where_mocapviz_has_them(page, served, clip, tmp_path):
+def test_threejs_plays_the_glb_with_the_joints_where_mocapviz_has_them(page, served, clip, tmp_path, request):
     from PIL import Image
 
-    db, row, start, end = _clip(clip)
+    db, row, start, end = _clip(clip, request)
     glb = _exported(db, row, start, end, "glb", "canonical", tmp_path)
     names, parents, want, _, rate = _expected(db, row, start, end, "canonical")
     want_m = want / 100.0  # glTF: metres, y up, as three.js' world
