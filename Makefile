@@ -22,7 +22,8 @@ GLTF_VALIDATOR := .cache/gltf/node_modules/gltf-validator
 # the clients that open exported files in tests/test_clients.py, under .cache (not in git): Blender as the bpy wheel
 # (CPython 3.11 only; its own venv, so that its numpy pin stays out of .venv) and three.js (npm)
 BPY_VERSION := 5.0.1
-BLENDER_PY := .cache/blender/bin/python
+BLENDER_VENV := .cache/blender
+BLENDER_PY := $(BLENDER_VENV)/bin/python
 THREE_VERSION := 0.187.0
 THREEJS := .cache/threejs/node_modules/three
 
@@ -63,15 +64,15 @@ gltf-validator: $(GLTF_VALIDATOR)
 
 # a half-made venv is removed, so that the tests see Blender installed or not at all
 $(BLENDER_PY):
-	@rm -rf .cache/blender; if ! { $(PYTHON) -m venv .cache/blender && \
-	  .cache/blender/bin/pip install --quiet bpy==$(BPY_VERSION); }; then rm -rf .cache/blender; \
-	  echo "bpy $(BPY_VERSION) did not install (it needs CPython 3.11 as $(PYTHON)); the Blender tests skip without it" >&2; fi
+	@rm -rf $(BLENDER_VENV); if ! { $(PYTHON) -m venv $(BLENDER_VENV) && \
+	  $(BLENDER_VENV)/bin/pip install --quiet bpy==$(BPY_VERSION); }; then rm -rf $(BLENDER_VENV); \
+	  echo "bpy $(BPY_VERSION) did not install (it needs CPython 3.11 as $(PYTHON)); tests/test_clients.py skips (under make test: fails) its Blender tests without it" >&2; fi
 
 blender: $(BLENDER_PY)
 
 $(THREEJS):
 	@if command -v npm >/dev/null; then npm install --silent --prefix .cache/threejs three@$(THREE_VERSION); else \
-	  echo "three.js needs node and npm (apt-get install nodejs npm); its test skips without them" >&2; fi
+	  echo "three.js needs node and npm (apt-get install nodejs npm); tests/test_clients.py skips (under make test: fails) its three.js tests without it" >&2; fi
 
 threejs: $(THREEJS)
 
