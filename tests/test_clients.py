@@ -7,8 +7,8 @@ threejs``: npm ``three`` under .cache/threejs) in headless Chromium loads the gl
 AnimationMixer (tests/three_player.html): node world positions at chosen frames within 0.1 mm, and a rendered frame
 whose red joints lie where mocapviz's joints project through the same camera, which another frame's do not.
 
-Real clips through mocapviz's export path: an HDM05 kick and a CMU trial of the embedded sample (120 Hz) and a CMU
-trial of the embedded demo (30 Hz, resampled from 120 Hz files). Without a client these tests skip, saying how to
+Real clips through mocapviz's export path: an HDM05 kick and a CMU trial of the embedded sample (120 Hz), a CMU trial
+of the embedded demo (30 Hz, resampled from 120 Hz files) and a Bandai Namco BVH (30 Hz; needs the shared archive). Without a client these tests skip, saying how to
 install it; under MOCAPVIZ_REQUIRE_BROWSER=1 (``make test``, which installs both) they fail instead.
 """
 from __future__ import annotations
