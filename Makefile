@@ -19,8 +19,15 @@ CHROMIUM := /usr/bin/chromium
 SYSTEM_PACKAGES := chromium libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6
 # the Khronos glTF validator (npm) for the glTF export's test (tests/test_export.py), under .cache (not in git)
 GLTF_VALIDATOR := .cache/gltf/node_modules/gltf-validator
+# the clients that open exported files in tests/test_clients.py, under .cache (not in git): Blender as the bpy wheel
+# (CPython 3.11 only; its own venv, so that its numpy pin stays out of .venv) and three.js (npm)
+BPY_VERSION := 5.0.1
+BLENDER_VENV := .cache/blender
+BLENDER_PY := $(BLENDER_VENV)/bin/python
+THREE_VERSION := 0.187.0
+THREEJS := .cache/threejs/node_modules/three
 
-.PHONY: install demo lab docs test test-fast gltf-validator notebooks-full reproduce bench clean
+.PHONY: install demo lab docs test test-fast gltf-validator blender threejs notebooks-full reproduce bench clean
 
 # the checkout on sys.path through a .pth file (setuptools' compat editable mode), not an import hook: a script run
 # from the folder above a checkout named mocapviz/ would otherwise import that folder as an empty namespace package
@@ -55,6 +62,20 @@ $(GLTF_VALIDATOR):
 
 gltf-validator: $(GLTF_VALIDATOR)
 
+# a half-made venv is removed, so that the tests see Blender installed or not at all
+$(BLENDER_PY):
+	@rm -rf $(BLENDER_VENV); if ! { $(PYTHON) -m venv $(BLENDER_VENV) && \
+	  $(BLENDER_VENV)/bin/pip install --quiet bpy==$(BPY_VERSION); }; then rm -rf $(BLENDER_VENV); \
+	  echo "bpy $(BPY_VERSION) did not install (it needs CPython 3.11 as $(PYTHON)); tests/test_clients.py skips (under make test: fails) its Blender tests without it" >&2; fi
+
+blender: $(BLENDER_PY)
+
+$(THREEJS):
+	@if command -v npm >/dev/null; then npm install --silent --prefix .cache/threejs three@$(THREE_VERSION); else \
+	  echo "three.js needs node and npm (apt-get install nodejs npm); tests/test_clients.py skips (under make test: fails) its three.js tests without it" >&2; fi
+
+threejs: $(THREEJS)
+
 # the embedded demo (or ARCHIVES) as a MotionDB at 30 Hz with its relational indexes and numeric feature sets, then
 # the dashboard on http://127.0.0.1:$(PORT)/ (Ctrl-C stops it). The demo's folders go in in DEMO_ORDER (HDM05
 # first); a file that cannot be read is skipped with a warning naming it. Ingesting again adds nothing new.
@@ -83,7 +104,7 @@ docs: $(VENV)/.docs
 
 # every test, the docstrings' Examples as doctests; the notebooks are executed once, by the documentation site's
 # build in tests/test_docs_site.py (a cell's error fails it, naming the notebook), not a second time by nbmake
-test: $(VENV)/.docs $(CHROMIUM) $(GLTF_VALIDATOR)
+test: $(VENV)/.docs $(CHROMIUM) $(GLTF_VALIDATOR) $(BLENDER_PY) $(THREEJS)
 	MOCAPVIZ_REQUIRE_BROWSER=1 $(PY) -m pytest --doctest-modules --durations=40 mocapviz tests
 
 test-fast: install

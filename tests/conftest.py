@@ -15,6 +15,7 @@ import pytest
 from browser_helpers import ARTIFACTS, free_port  # screenshots and measured round trips go to ARTIFACTS
 
 REPO = Path(__file__).resolve().parent.parent
+collect_ignore = ["blender_probe.py"]  # run by Blender's Python (tests/test_clients.py); it imports bpy, which .venv lacks
 
 
 def pytest_configure(config):
@@ -127,8 +128,10 @@ def cmu_db30(cmu_dir, tmp_path_factory):
 
 # ---------------------------------------------------------------------------------------------- dashboard (browser)
 CHROMIUM = Path("/usr/bin/chromium")  # Debian's package; never `playwright install` (../shared/design/STACK.md)
+# --enable-unsafe-swiftshader: WebGL on the CPU (SwiftShader) with no GPU, which Chromium otherwise stops falling back
+# to; three.js draws with it in tests/test_clients.py (the dashboard itself draws with Canvas 2D)
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync"]
+                 "--disable-component-update", "--disable-sync", "--enable-unsafe-swiftshader"]
 
 
 @pytest.fixture(scope="session")
