@@ -171,7 +171,7 @@ def _fuzz(peer, tmp_path, names, cases):
 
 
 def test_damaged_small_fbx_files_load_or_are_refused(peer, tmp_path):
-    _fuzz(peer, tmp_path, SAUSAGE, 60)
+    _fuzz(peer, tmp_path, SAUSAGE, 25)
 
 
 @pytest.mark.slow

@@ -45,7 +45,7 @@ from .isolated import read_isolated
 _MEMORY_FIXED, _MEMORY_PER_BYTE = 512 * 2**20, 64
 _TIMEOUT_FIXED_S, _TIMEOUT_BYTES_PER_S = 60.0, 2**17
 _AXIS_VECTORS = {0: (1, 0, 0), 1: (-1, 0, 0), 2: (0, 1, 0), 3: (0, -1, 0), 4: (0, 0, 1), 5: (0, 0, -1)}  # ufbx axes
-_MAX_FRAMES = 10_000_000  # a take longer than this (at its rate) is a damaged time span, not a capture
+_MAX_FRAMES = 1_000_000  # a take longer than this (2.3 hours at 120 fps) is a damaged time span, not a capture
 _IGNORE_PARENT_SCALE = 1  # ufbx.InheritMode: the node ignores its parent's own scale (Maya's segment scale compensate)
 
 
