@@ -243,7 +243,7 @@ def _take_of(scene, take: str | None, handle: _Handles) -> dict:
     if not (np.isfinite(span) and 0 <= span < _MAX_FRAMES):
         return {"problem": f"take {stack.name!r} spans {describe(start)} s to {describe(end)} s at "
                            f"{describe(fps)} fps"}  # fmt: skip
-    times = start + np.arange(int(round(span)) + 1) / fps
+    times = start + np.arange(round(span) + 1) / fps
     # the joints and every node above them, parents first (ufbx lists a node after its parent)
     needed = set()
     for j in joints:
