@@ -1,14 +1,15 @@
 """Readers: one entry point, :func:`load`, for every supported motion file.
 
-load          path -> Motion (ASF/AMC, BVH, C3D markers), dispatching on the file extension.
+load          path -> Motion (ASF/AMC, BVH, C3D markers, FBX), dispatching on the file extension.
 file_format   the extension a file name ends in, as load reads it ('....bvh', '.x.bvh', '.bvh': '.bvh').
 find_asf      the ASF skeleton of an AMC file, by the CMU and HDM05 folder conventions.
-read_asf, read_amc, read_bvh, read_c3d   the format readers (``asfamc``, ``bvh``, ``c3d`` modules).
+read_asf, read_amc, read_bvh, read_c3d, read_fbx   the format readers (``asfamc``, ``bvh``, ``c3d``, ``fbx``
+              modules).
 
 The writers, for :mod:`mocapviz.export`: ``bvh_writer`` (a posed rig, an AMC on its ASF rig, a stretch of a BVH
 file), ``amc_writer`` (a stretch of an AMC file), ``gltf_writer`` (a posed rig as glTF binary).
 
-The readers (and numba, which they compile with; ezc3d, which reads C3D) are imported when first used: opening a
+The readers (and numba, which they compile with; ezc3d, which reads C3D; ufbx, which reads FBX) are imported when first used: opening a
 MotionDB, which imports this package through ingest, reads no motion file.
 """
 from __future__ import annotations
@@ -22,7 +23,7 @@ from ..errors import MocapFormatError
 from ..motion import Motion
 
 _getattr, _readers = lazy_exports(__name__, {"AsfSkeleton": ".asfamc", "read_amc": ".asfamc", "read_asf": ".asfamc",
-                                             "read_bvh": ".bvh", "read_c3d": ".c3d"})  # fmt: skip
+                                             "read_bvh": ".bvh", "read_c3d": ".c3d", "read_fbx": ".fbx"})  # fmt: skip
 __getattr__ = _getattr
 
 
@@ -30,7 +31,7 @@ def __dir__():
     return sorted({*globals(), *_readers()})
 
 
-FORMATS = (".amc", ".bvh", ".c3d")
+FORMATS = (".amc", ".bvh", ".c3d", ".fbx")
 
 
 def file_format(path) -> str:
@@ -114,23 +115,27 @@ def find_asf(amc_path) -> Path:
     return _find_asf(Path(amc_path).resolve())  # found paths are cached; failures are looked up again
 
 
-def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: float | None = None) -> Motion:
+def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: float | None = None,
+         take: str | None = None) -> Motion:
     """Read a motion file.
 
     Parameters
     ----------
     path : str or os.PathLike
-        An ``.amc`` (with its ASF skeleton), ``.bvh`` or ``.c3d`` file.
+        An ``.amc`` (with its ASF skeleton), ``.bvh``, ``.c3d`` or ``.fbx`` file.
     asf : str or os.PathLike, optional
         The ASF skeleton of an AMC file; default :func:`find_asf`.
     fps : float, optional
         AMC: the capture rate in frames per second (default 120, as CMU and HDM05). BVH: ignored (the file
         states it).
     up : {"auto", "y", "z"}
-        BVH and C3D: the file's up axis (:func:`mocapviz.io.bvh.read_bvh`, :func:`mocapviz.io.c3d.read_c3d`); the
-        Motion is always y up.
+        BVH, C3D and FBX: the file's up axis (:func:`mocapviz.io.bvh.read_bvh`, :func:`mocapviz.io.c3d.read_c3d`,
+        :func:`mocapviz.io.fbx.read_fbx`); the Motion is always y up.
     scale : float, optional
-        BVH only: centimetres per file unit; default guessed from the figure's height.
+        BVH and FBX: centimetres per file unit; default guessed from the figure's height (BVH), the file's unit
+        (FBX).
+    take : str, optional
+        FBX only: the take (animation stack) to read; default the file's first.
 
     Returns
     -------
@@ -144,7 +149,7 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
     ------
     MocapFormatError
         Unsupported extension, unreadable or malformed file (naming the file and line; for a malformed ASF, the
-        AMC too), or a value beyond the limits of :mod:`mocapviz.io.checks`.
+        AMC too), an FBX take the file does not have, or a value beyond the limits of :mod:`mocapviz.io.checks`.
     ParameterError
         ``fps`` outside 1 to 10,000, or a bad ``up`` or ``scale``.
 
@@ -184,7 +189,12 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
         from .c3d import read_c3d
 
         return read_c3d(path, up=up)
+    if ext == ".fbx":
+        from .fbx import read_fbx
+
+        return read_fbx(path, take=take, up=up, scale=scale)
     raise MocapFormatError(path, f"unsupported file type {ext or '(none)'!r}; supported: {', '.join(FORMATS)}")
 
 
-__all__ = ["FORMATS", "AsfSkeleton", "file_format", "find_asf", "load", "read_amc", "read_asf", "read_bvh", "read_c3d"]
+__all__ = ["FORMATS", "AsfSkeleton", "file_format", "find_asf", "load", "read_amc", "read_asf", "read_bvh", "read_c3d",
+           "read_fbx"]
