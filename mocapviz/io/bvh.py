@@ -9,8 +9,10 @@ Conventions:
 - A position channel replaces that component of the joint's OFFSET (the MotionBuilder convention; files
   whose root OFFSET is zero read the same under the other convention).
 - ``End Site`` blocks become joints named ``<parent>_end``, without channels.
-- Units: a figure between 0.5 and 3 units tall is taken to be in metres, between 500 and 3000 in
-  millimetres, otherwise centimetres; pass ``scale`` (centimetres per file unit) to override.
+- Units: guessed from the figure's size in the first frame (:func:`mocapviz.io.checks.figure_unit`): metres,
+  millimetres, centimetres, inches or CMU's 0.45-inch units (the cgspeed conversions of CMU), the last two and a
+  size that is no person's with a :class:`~mocapviz.errors.MocapFormatWarning`; pass ``scale`` (centimetres per
+  file unit) to override.
 - Up axis: y; with ``up="auto"`` (default) a file whose figure stands along z (head above hips on z) is
   turned to y up, keeping it right-handed; ``up="z"`` forces the conversion, ``up="y"`` prevents it. "auto" looks
   at the rest pose (the OFFSETs chained, every rotation zero) when its head is clearly above its root along y or z
@@ -46,7 +48,9 @@ from .checks import (
     check_frame_rate,
     checked_forward_kinematics,
     describe,
+    figure_unit,
     first_outside,
+    format_warning,
 )
 from .text import decode, number, read_bytes, scan, words
 
@@ -347,8 +351,10 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
         # the figure's size without its root: a root may stay at the world origin, metres away from the
         # figure (Bandai Namco's joint_Root)
         body = h.parents >= 0
-        height = np.ptp(first[body] if body.sum() > 1 else first, axis=0).max()
-        return 100.0 if 0.5 <= height <= 3.0 else 0.1 if 500.0 <= height <= 3000.0 else 1.0
+        cm, said = figure_unit(float(np.ptp(first[body] if body.sum() > 1 else first, axis=0).max()))
+        if said is not None:
+            format_warning(path, said)
+        return cm
 
     positions, q_local, scale = checked_forward_kinematics(
         n_frames, h.parents, h.orders, block, names=h.names, path=path,

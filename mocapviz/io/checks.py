@@ -6,6 +6,8 @@ FPS_RANGE            frames per second a file may state: 1 to 10,000 (:data:`moc
 ANGLE_LIMIT_DEG      |rotation| at most 100,000 degrees (about 278 turns).
 DISTANCE_LIMIT_CM    |position|, |translation|, |offset| and bone lengths at most 1e7 cm (100 km).
 DIRECTION_TOLERANCE  an ASF bone direction is a unit vector: its length within 1 ± 0.05 (normalised to 1).
+FIGURE_UNITS         the length units a figure's size tells apart (m, mm, cm, inch, CMU's 0.45 inch), by size.
+figure_unit          the unit a file's figure is in, guessed from its size, and whether to say so.
 check_frame_rate     a frame rate inside FPS_RANGE.
 first_outside        the first value of a block beyond a limit (or not finite), for a reader to name its line.
 unit_directions      ASF bone directions, normalised; zero or far from unit length refused (bone and line named).
@@ -46,6 +48,51 @@ __all__ = ["ANGLE_LIMIT_DEG", "DIRECTION_TOLERANCE", "DISTANCE_LIMIT_CM", "FPS_R
 ANGLE_LIMIT_DEG = 1e5
 DISTANCE_LIMIT_CM = 1e7
 DIRECTION_TOLERANCE = 0.05
+FIGURE_UNITS = (  # (name, centimetres per unit, smallest and largest size of a person in that unit)
+    ("metres", 100.0, 0.5, 3.0),
+    ("millimetres", 0.1, 500.0, 3000.0),
+    ("centimetres", 1.0, 90.0, 300.0),
+    ("inches", 2.54, 35.0, 90.0),  # the textbook BVH example (66 units), PyMO's sample (60)
+    ("CMU units of 0.45 inch", 2.54 / 0.45, 15.0, 35.0),  # the cgspeed BVH conversions of CMU (26 units)
+)
+
+
+def figure_unit(size: float) -> tuple[float, str | None]:
+    """The length unit of a file that does not state one, from its figure's size: the first of
+    :data:`FIGURE_UNITS` in whose range of a person's size it lies, else centimetres.
+
+    The size is the largest extent of the figure's joints within one frame (its height standing, its arm span in a
+    T pose): 100 to 190 cm for the adults of the archives here. Metres, millimetres and centimetres are taken
+    silently; inches, CMU's units and a size that is no person's in any unit come with a sentence to say
+    (a :class:`~mocapviz.errors.MocapFormatWarning`), naming the size and ``scale=`` to override.
+
+    Parameters
+    ----------
+    size : float
+        The figure's size in file units.
+
+    Returns
+    -------
+    (float, str or None)
+        Centimetres per file unit, and the sentence to warn (None for m, mm and cm).
+
+    Examples
+    --------
+    >>> figure_unit(1.7), figure_unit(170.0), figure_unit(1700.0)
+    ((100.0, None), (1.0, None), (0.1, None))
+    >>> cm, said = figure_unit(26.2)  # a cgspeed BVH of a CMU take
+    >>> round(cm, 3), said
+    (5.644, 'a figure 26.2 units tall: read as CMU units of 0.45 inch (148 cm); pass scale= (cm per unit) to override')
+    >>> figure_unit(8.0)[1]
+    'a figure 8 units tall is no person in m, mm, cm, inches or CMU units: read as cm; pass scale= if it is one'
+    """
+    for name, cm, low, high in FIGURE_UNITS:
+        if low <= size <= high:
+            return cm, (None if cm in (100.0, 1.0, 0.1) else
+                        f"a figure {size:.3g} units tall: read as {name} ({size * cm:.0f} cm); pass scale= (cm per "
+                        "unit) to override")
+    return 1.0, (f"a figure {size:.3g} units tall is no person in m, mm, cm, inches or CMU units: read as cm; pass "
+                 "scale= if it is one")
 _UNBOUNDED = {"inf": np.inf, "-inf": -np.inf}  # the ASF specification's words for no limit
 _collected: contextvars.ContextVar[list | None] = contextvars.ContextVar("mocapviz_format_warnings", default=None)
 _BLOCK = 1 << 16  # joint-frames per forward-kinematics block: about 12 MB of temporaries
