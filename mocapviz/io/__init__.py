@@ -4,6 +4,7 @@ load          path -> Motion (ASF/AMC, BVH, C3D markers), dispatching on the fil
 file_format   the extension a file name ends in, as load reads it ('....bvh', '.x.bvh', '.bvh': '.bvh').
 find_asf      the ASF skeleton of an AMC file, by the CMU and HDM05 folder conventions.
 read_asf, read_amc, read_bvh, read_c3d   the format readers (``asfamc``, ``bvh``, ``c3d`` modules).
+read_marker_mapping, relabel             C3D marker mapping files (``marker_mapping``).
 
 The writers, for :mod:`mocapviz.export`: ``bvh_writer`` (a posed rig, an AMC on its ASF rig, a stretch of a BVH
 file), ``amc_writer`` (a stretch of an AMC file), ``gltf_writer`` (a posed rig as glTF binary).
@@ -22,7 +23,9 @@ from ..errors import MocapFormatError
 from ..motion import Motion
 
 _getattr, _readers = lazy_exports(__name__, {"AsfSkeleton": ".asfamc", "read_amc": ".asfamc", "read_asf": ".asfamc",
-                                             "read_bvh": ".bvh", "read_c3d": ".c3d"})  # fmt: skip
+                                             "read_bvh": ".bvh", "read_c3d": ".c3d",
+                                             "read_marker_mapping": ".marker_mapping",
+                                             "relabel": ".marker_mapping"})  # fmt: skip
 __getattr__ = _getattr
 
 
@@ -114,7 +117,8 @@ def find_asf(amc_path) -> Path:
     return _find_asf(Path(amc_path).resolve())  # found paths are cached; failures are looked up again
 
 
-def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: float | None = None) -> Motion:
+def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: float | None = None,
+         marker_mapping=None) -> Motion:
     """Read a motion file.
 
     Parameters
@@ -131,6 +135,9 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
         Motion is always y up.
     scale : float, optional
         BVH only: centimetres per file unit; default guessed from the figure's height.
+    marker_mapping : str, os.PathLike or dict, optional
+        C3D only: a mapping file renaming the file's marker labels onto a marker set's names
+        (:mod:`mocapviz.io.marker_mapping`), or its dict.
 
     Returns
     -------
@@ -183,8 +190,9 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
     if ext == ".c3d":
         from .c3d import read_c3d
 
-        return read_c3d(path, up=up)
+        return read_c3d(path, up=up, marker_mapping=marker_mapping)
     raise MocapFormatError(path, f"unsupported file type {ext or '(none)'!r}; supported: {', '.join(FORMATS)}")
 
 
-__all__ = ["FORMATS", "AsfSkeleton", "file_format", "find_asf", "load", "read_amc", "read_asf", "read_bvh", "read_c3d"]
+__all__ = ["FORMATS", "AsfSkeleton", "file_format", "find_asf", "load", "read_amc", "read_asf", "read_bvh", "read_c3d",
+           "read_marker_mapping", "relabel"]
