@@ -69,11 +69,13 @@ def read_marker_mapping(path) -> dict[str, str]:
         raise MocapFormatError(path, f"the mapping file is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     mapping: dict[str, str] = {}
     by_name: dict[str, str] = {}
+    first = True
     for number, line in enumerate(text.splitlines(), start=1):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
         cells = [c.strip() for c in next(csv.reader(io.StringIO(line), skipinitialspace=True))]
-        if tuple(c.lower() for c in cells) == _HEADER and not mapping:
+        header, first = first and tuple(c.lower() for c in cells) == _HEADER, False
+        if header:
             continue
         if len(cells) != 2 or not all(cells):
             raise MocapFormatError(path, f"expected 'label,marker' (two non-empty cells), got {line.strip()!r}", number)
