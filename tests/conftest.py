@@ -79,6 +79,13 @@ def c3d_dir() -> Path:
 
 
 @pytest.fixture(scope="session")
+def peer_readers_dir() -> Path:
+    """The unpacked files other tools wrote (``bvh/``, ``c3d/``, ``fbx/``, ``MANIFEST.md``); its C3D files are GPL
+    test data: read them in tests, never copy them into the package."""
+    return _fetch("peer-readers")
+
+
+@pytest.fixture(scope="session")
 def round3(tmp_path_factory) -> Path:
     """The reproducers of ``../shared/reliability/round3.tar.xz`` (damaged C3D files, hostile descriptions, export
     tables, fake schedulers), unpacked once: the folder holding ``README.md``, ``c3d/``, ``descriptions/``,

@@ -24,7 +24,7 @@ from mocapviz.errors import MocapFormatError, MocapFormatWarning, ParameterError
 from mocapviz.io import c3d as c3d_module
 from mocapviz.io import load
 from mocapviz.io.c3d import read_c3d
-from mocapviz.io.c3d_layout import check_layout
+from mocapviz.io.c3d_layout import Layout, check_layout
 from mocapviz.io.isolated import read_isolated
 from mocapviz.motion.markers import MARKER_SETS, marker_gaps
 
@@ -172,7 +172,8 @@ def test_round3_reproducers_refused_naming_the_field_and_both_values(round3):
 def _edited(source: Path, edits: dict) -> bytes:
     """The bytes of ``source`` with fields (labels of tests/test_fuzz_c3d.Field) set; a callable value gets the old."""
     data = source.read_bytes()
-    for label, value in edits.items():
+    data = data[: len(data) - edits.get("_cut", 0)]  # "_cut": bytes cut off the end
+    for label, value in ((k, v) for k, v in edits.items() if k != "_cut"):
         (f,) = [f for f in c3d_fields(data) if f.label == label]
         data = f.write(data, value(f.read(data)) if callable(value) else value)
     return data
@@ -214,8 +215,8 @@ REFUSED = [
     ("cmu_07_12.c3d", {"POINT:DATA_START": 17}, r"the header's data block 16 but POINT:DATA_START 17"),
     ("cmu_07_12.c3d", {"POINT:DATA_START": 3, "header word 9 (data block)": 3},
      r"the header's data block 3 \(byte 1024\) starts inside the parameter section \(it ends at byte \d+\)"),
-    ("cmu_07_12.c3d", {"POINT:FRAMES": 300, "header word 5 (last frame)": 501},
-     r"truncated or damaged: 300 frames of 42 points from block 16 need 209280 bytes, the file has 184416"),
+    ("cmu_07_12.c3d", {"POINT:FRAMES": 300, "header word 5 (last frame)": 501, "_cut": 100},
+     r"truncated or damaged: 300 frames of 42 points from block 16 need 209280 bytes, the file has 184316"),
 ]  # fmt: skip
 
 
@@ -238,6 +239,10 @@ LOADED = [
     ("cmu_07_12.c3d", {"ANALOG:RATE": 0.0}, None),  # no analog channels: their rate is not used
     ("btk_FunctionalWalk.c3d", {"ANALOG:GEN_SCALE": np.nan, "ANALOG:SCALE[0]": 0.0, "ANALOG:OFFSET[3]": 7}, None),
     ("cmu_07_12.c3d", {"header word 6 (interpolation gap)": 65535, "POINT:MOVIE_DELAY": np.inf}, None),
+    ("cmu_07_12.c3d", {"POINT:FRAMES": 300, "header word 5 (last frame)": 501},  # stopped early, at a whole frame
+     "the header says 300 frames but the file holds 263 (its data ends after frame 263, at byte 184416): read the "
+     "263 frames it holds"),
+    ("cmu_07_12.c3d", {"POINT:DATA_START": 0}, None),  # 0: not stated (ezc3d reads the header's data block)
 ]  # fmt: skip
 
 
@@ -305,7 +310,8 @@ def test_frames_stored_as_a_float_or_absent_or_beyond_the_header(c3d_dir, motion
 
 def test_real_files_pass_the_checks_without_a_note(c3d_dir, manifest):
     for name in manifest:
-        assert check_layout(str(c3d_dir / name)) == [], name
+        layout = check_layout(str(c3d_dir / name))
+        assert layout == Layout((), manifest[name]["first"]), name
 
 
 # ------------------------------------------------------------------------------------------------------ isolation
@@ -321,7 +327,7 @@ def test_reading_in_a_helper_changes_nothing(c3d_dir, manifest, motions, monkeyp
 @pytest.fixture
 def crashing(round3, monkeypatch) -> Path:
     """The reproducer ezc3d segfaults on, with the checks that refuse it switched off (in this process)."""
-    monkeypatch.setattr(c3d_module, "check_layout", lambda path: [])
+    monkeypatch.setattr(c3d_module, "check_layout", lambda path: Layout((), 1))
     return round3 / "c3d" / "analog_used_1_cmu_07_12.c3d"
 
 
@@ -368,7 +374,7 @@ def test_ingest_skips_a_file_that_crashes_ezc3d(crashing, c3d_dir, tmp_path):
 
 def _without_checks() -> bool:
     """On a Dask worker: switch the C3D checks off there (what the ``crashing`` fixture does in this process)."""
-    c3d_module.check_layout = lambda path: []
+    c3d_module.check_layout = lambda path: Layout((), 1)
     return True
 
 

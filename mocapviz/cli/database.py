@@ -30,6 +30,11 @@ def run_ingest(args) -> None:
         except (MocapvizError, OSError) as exc:
             raise ParameterError(f"--asf: {exc}") from None
     options = {k: v for k, v in (("asf", args.asf), ("up", args.up)) if v is not None}
+    if args.marker_mapping:  # read once here: a bad mapping file is one error, not every C3D file failing with it
+        try:
+            options["marker_mapping"] = readers.read_marker_mapping(args.marker_mapping)
+        except MocapvizError as exc:
+            raise ParameterError(f"--marker-mapping: {exc}") from None
     scheduler = scheduler_of(args)
     if args.jobs is not None and scheduler not in (None, LOCAL):
         raise ParameterError("--jobs sizes the local cluster (or, with --no-cluster, the reader threads); the "

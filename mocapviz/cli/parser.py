@@ -53,6 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
     ing.add_argument("--labels", help="label table (TSV/CSV with a 'file' column); default: tables beside the data")
     ing.add_argument("--mapping", help="JSON file {canonical joint: joint name} for rigs the rules cannot map")
     ing.add_argument("--asf", help="ASF skeleton for all AMC files (default: found beside each)")
+    P["marker_mapping"].add_to(ing)
     ing.add_argument("--up", choices=["auto", "y", "z"], help="up axis of BVH files (default auto)")
     ing.add_argument("--skip-bad", action="store_true", help="skip unreadable files with a warning")
     cluster_options(ing)
@@ -73,6 +74,16 @@ def build_parser() -> argparse.ArgumentParser:
                                        "printed)")  # fmt: skip
     chk.add_argument("db")
     chk.set_defaults(func=_check)
+
+    c3 = sub.add_parser("c3d", help="C3D marker files: the labels of one and the marker set they match")
+    c3sub = c3.add_subparsers(dest="action", required=True)
+    cm = c3sub.add_parser("markers", help="print each marker label (subject prefix cut; with --mapping, the marker "
+                          "name it is mapped to), its percentage of gap frames, and the marker set the labels match "
+                          "(cmu: CMU/HDM05; plug-in gait: full or lower body, with or without head markers) or, for "
+                          "none, the markers the closest set lacks")  # fmt: skip
+    cm.add_argument("file", help="a .c3d file")
+    P["marker_mapping"].add_to(cm, "--mapping")
+    cm.set_defaults(func=_c3d_markers)
 
     idx = sub.add_parser("index", help="compute relational features and build the inverted indexes of a MotionDB")
     idx.add_argument("db")
@@ -366,6 +377,12 @@ def _check(args):
     from . import database
 
     return database.run_check(args)
+
+
+def _c3d_markers(args):
+    from . import c3d
+
+    return c3d.run_markers(args)
 
 
 def _index(args):

@@ -20,7 +20,7 @@ __getattr__, __dir__ = lazy_exports(__name__, {"Engine": ".engine", "ShardedDB":
     "feature_groups", "feature_names", "first_frames", "frame_actors", "graph_k", "index_statistics",
     "is_template_name", "knn_timings", "krueger2010_table1", "krueger2010_table2", "krueger2010_table3",
     "krueger2010_table4", "layout", "lng_accuracy", "load_markers", "load_numeric", "marker_clip", "marker_comparison",
-    "marker_reconstruction", "mueller2005_table2", "mueller2005_table3", "named_descriptions", "numeric_columns",
+    "marker_gaps", "marker_reconstruction", "match_set", "mueller2005_table2", "mueller2005_table3", "named_descriptions", "numeric_columns",
     "numerical_search", "paper_claims", "parse_description", "pose_correlations", "pose_limits", "query_segmentation",
     "query_statistics", "rank_correlations", "read_annotations", "real_marker_clip", "reconstruct", "reconstruction",
     "reconstruction_errors", "relational_query", "retrieval_quality", "review_page", "scaled_k", "segment",

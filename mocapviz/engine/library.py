@@ -21,6 +21,8 @@ __getattr__, __dir__ = lazy_exports(__package__, {
     # motion: the clip type, the canonical joints, the frame rates a clip may have
     **dict.fromkeys(["FPS_RANGE", "Motion"], "..motion"),
     **dict.fromkeys(["CANONICAL_JOINTS", "CANONICAL_PARENTS"], "..motion.joints"),
+    # motion: marker clips, which marker set they carry (mocapviz c3d markers)
+    **dict.fromkeys(["marker_gaps", "match_set"], "..motion.markers"),
     # db: the database type, frame conversions of the hit table's convention
     "MotionDB": "..db.database",
     "expand_paths": "..db.ingest",
@@ -82,7 +84,8 @@ __all__ = ["CANONICAL_JOINTS", "CANONICAL_PARENTS", "DEFAULT_K", "DELTA", "DELTA
            "event_quality", "expand_paths", "feature_groups", "feature_names", "first_frames", "frame_actors",
            "graph_k", "index_statistics", "is_template_name", "knn_timings", "krueger2010_table1",
            "krueger2010_table2", "krueger2010_table3", "krueger2010_table4", "layout", "lng_accuracy", "load_markers",
-           "load_numeric", "marker_clip", "marker_comparison", "marker_reconstruction", "mueller2005_table2",
+           "load_numeric", "marker_clip", "marker_comparison", "marker_gaps", "marker_reconstruction", "match_set",
+           "mueller2005_table2",
            "mueller2005_table3", "named_descriptions", "numeric_columns", "numerical_search", "paper_claims",
            "parse_description", "pose_correlations", "pose_limits", "query_segmentation", "query_statistics",
            "rank_correlations", "read_annotations", "real_marker_clip", "reconstruct", "reconstruction",

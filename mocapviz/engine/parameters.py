@@ -212,6 +212,9 @@ PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
     _p("max_scale", "float", 1.25, "time scalings of a copy within [1 / max_scale, max_scale]", low=1.0,
        high=4.0),
     _p("mirrored", "bool", True, "also find left/right-mirrored copies", flags=("--mirrored",)),
+    _p("marker_mapping", "text", None, "C3D marker mapping file: CSV lines 'label,marker' renaming a lab's marker "
+       "labels onto a marker set's names (docs/c3d.md)", high=4096, optional=True, none_means="the file's labels",
+       flags=("--marker-mapping",)),
     _p("label_format", "choice", "csv", "segment labels' file: CSV with the hit table's columns, or BABEL-style "
        "JSON (per sequence, segments in seconds with action names)", choices=("csv", "babel"), flags=("--format",)),
 ]}

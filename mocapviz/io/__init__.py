@@ -5,6 +5,7 @@ file_format   the extension a file name ends in, as load reads it ('....bvh', '.
 find_asf      the ASF skeleton of an AMC file, by the CMU and HDM05 folder conventions.
 read_asf, read_amc, read_bvh, read_c3d, read_fbx   the format readers (``asfamc``, ``bvh``, ``c3d``, ``fbx``
               modules).
+read_marker_mapping, relabel             C3D marker mapping files (``marker_mapping``).
 
 The writers, for :mod:`mocapviz.export`: ``bvh_writer`` (a posed rig, an AMC on its ASF rig, a stretch of a BVH
 file), ``amc_writer`` (a stretch of an AMC file), ``gltf_writer`` (a posed rig as glTF binary).
@@ -23,7 +24,9 @@ from ..errors import MocapFormatError
 from ..motion import Motion
 
 _getattr, _readers = lazy_exports(__name__, {"AsfSkeleton": ".asfamc", "read_amc": ".asfamc", "read_asf": ".asfamc",
-                                             "read_bvh": ".bvh", "read_c3d": ".c3d", "read_fbx": ".fbx"})  # fmt: skip
+                                             "read_bvh": ".bvh", "read_c3d": ".c3d", "read_fbx": ".fbx",
+                                             "read_marker_mapping": ".marker_mapping",
+                                             "relabel": ".marker_mapping"})  # fmt: skip
 __getattr__ = _getattr
 
 
@@ -116,7 +119,7 @@ def find_asf(amc_path) -> Path:
 
 
 def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: float | None = None,
-         take: str | None = None) -> Motion:
+         take: str | None = None, marker_mapping=None) -> Motion:
     """Read a motion file.
 
     Parameters
@@ -136,6 +139,9 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
         (FBX).
     take : str, optional
         FBX only: the take (animation stack) to read; default the file's first.
+    marker_mapping : str, os.PathLike or dict, optional
+        C3D only: a mapping file renaming the file's marker labels onto a marker set's names
+        (:mod:`mocapviz.io.marker_mapping`), or its dict.
 
     Returns
     -------
@@ -188,7 +194,7 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
     if ext == ".c3d":
         from .c3d import read_c3d
 
-        return read_c3d(path, up=up)
+        return read_c3d(path, up=up, marker_mapping=marker_mapping)
     if ext == ".fbx":
         from .fbx import read_fbx
 
@@ -197,4 +203,4 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
 
 
 __all__ = ["FORMATS", "AsfSkeleton", "file_format", "find_asf", "load", "read_amc", "read_asf", "read_bvh", "read_c3d",
-           "read_fbx"]
+           "read_fbx", "read_marker_mapping", "relabel"]

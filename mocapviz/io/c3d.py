@@ -16,7 +16,8 @@ Conventions:
 - Gaps: a sample whose residual is negative (the C3D "invalid" flag, which ezc3d reads as NaN) or whose three
   coordinates are exactly 0 is NaN; :func:`mocapviz.motion.markers.marker_gaps` gives the share of gap frames
   per marker.
-- Units: POINT:UNITS ``mm`` (also when absent), ``cm`` or ``m``; the Motion is in centimetres.
+- Units: POINT:UNITS ``mm`` (also when absent or empty), ``cm`` or ``m``, one for all points or one per point (as
+  Optotrak writes it); the Motion is in centimetres.
 - Up axis: the Motion is y up, right-handed. POINT:X_SCREEN and POINT:Y_SCREEN (``+X``, ``-Z``, ...) say which
   file axes point right and up on screen; the file's Y_SCREEN axis becomes y, its X_SCREEN axis x. Without them
   (``up="auto"``) the file axis (y or z) along which the markers spread most in a frame (median over frames: a
@@ -27,7 +28,11 @@ Conventions:
   parameters (points, frames, rates, scale, analog samples, data block, the file's size) and refuses a file that
   cannot be read right, naming the field and both values; ezc3d then reads in a helper process
   (:func:`mocapviz.io.isolated.read_isolated`), so that a crash inside it is a MocapFormatError, not the end of the
-  calling process (an ingest, a Dask worker, the dashboard's server).
+  calling process (an ingest, a Dask worker, the dashboard's server). A file that stops with a whole frame before
+  the frames its header states loads the frames it holds, with a MocapFormatWarning naming both counts; a file of
+  analog channels or rotations only is refused saying so.
+- First frame: ``labels["first_frame"]`` is the header's first frame number as written (1 mostly; 0 for some
+  writers; a take cut from a longer one keeps its number).
 """
 from __future__ import annotations
 
@@ -40,6 +45,7 @@ from ..motion import Motion
 from .c3d_layout import check_layout
 from .checks import DISTANCE_LIMIT_CM, check_frame_rate, describe, first_outside, format_warning
 from .isolated import read_isolated
+from .marker_mapping import read_marker_mapping, relabel
 
 _CM_PER_UNIT = {"mm": 0.1, "cm": 1.0, "m": 100.0}
 _AXES = {"X": 0, "Y": 1, "Z": 2}
@@ -51,7 +57,7 @@ _MEMORY_FIXED, _MEMORY_PER_BYTE = 512 * 2**20, 64
 _TIMEOUT_FIXED_S, _TIMEOUT_BYTES_PER_S = 60.0, 2**20
 
 
-def read_c3d(path, up: str = "auto") -> Motion:
+def read_c3d(path, up: str = "auto", marker_mapping=None) -> Motion:
     """Read the labelled marker trajectories of a C3D file.
 
     Parameters
@@ -60,11 +66,15 @@ def read_c3d(path, up: str = "auto") -> Motion:
         A ``.c3d`` file.
     up : {"auto", "y", "z"}
         The file's up axis; "auto" reads POINT:Y_SCREEN, else the data (module docstring). The Motion is y up.
+    marker_mapping : str, os.PathLike or dict, optional
+        A mapping file (:mod:`mocapviz.io.marker_mapping`), or its dict: the file's labels (prefix cut) renamed onto
+        a marker set's names, e.g. ``{"r asis": "RASI"}``.
 
     Returns
     -------
     Motion
-        A marker Motion: ``joint_names`` the M marker labels (prefix cut, unlabelled points dropped), positions
+        A marker Motion: ``joint_names`` the M marker labels (prefix cut, unlabelled points dropped, renamed by
+        ``marker_mapping``), positions
         [shape=(T, M, 3)] float32 in cm, y up, NaN in gaps; ``parents`` all -1, no quaternions; ``fps`` from
         POINT:RATE; ``labels["first_frame"]``: the header's first frame number.
 
@@ -72,16 +82,18 @@ def read_c3d(path, up: str = "auto") -> Motion:
     ------
     MocapFormatError
         Naming the file: a header and parameters that disagree or do not fit the file (naming the field and both
-        values, :func:`mocapviz.io.c3d_layout.check_layout`), ezc3d crashing, hanging or failing on it (the signal,
+        values, :func:`mocapviz.io.c3d_layout.check_layout`), a file without marker trajectories (saying what it
+        holds: ``analog data only``, ``rotations only``), ezc3d crashing, hanging or failing on it (the signal,
         or the reason ezc3d gives), no labelled points, unknown POINT:UNITS, a frame rate outside 1 to 10,000 fps,
         or a coordinate beyond ±1e7 cm or infinite (naming the frame and marker).
     ParameterError
-        A bad ``up``.
+        A bad ``up``; a ``marker_mapping`` giving two markers one name.
 
     Warns
     -----
     MocapFormatWarning
-        A frame rate of 0 (or none) in the header or in POINT:RATE, the other one used.
+        A frame rate of 0 (or none) in the header or in POINT:RATE, the other one used; a file that ends with a whole
+        frame before the frames its header states (naming both counts), the frames it holds read.
 
     References
     ----------
@@ -96,8 +108,11 @@ def read_c3d(path, up: str = "auto") -> Motion:
     """
     if up not in ("auto", "y", "z"):
         raise ParameterError(f"up must be 'auto', 'y' or 'z', got {up!r}")
+    if marker_mapping is not None and not isinstance(marker_mapping, dict):
+        marker_mapping = read_marker_mapping(marker_mapping)
     path = os.fspath(path)
-    for note in check_layout(path):
+    layout = check_layout(path)
+    for note in layout.notes:
         format_warning(path, note)
     size = os.path.getsize(path)
     point, xyz, header = read_isolated(_ezc3d_points, path, reader="the C3D reader (ezc3d)", preload=("ezc3d",),
@@ -105,15 +120,14 @@ def read_c3d(path, up: str = "auto") -> Motion:
                                        timeout=_TIMEOUT_FIXED_S + size / _TIMEOUT_BYTES_PER_S)  # fmt: skip
     xyz = xyz.astype(np.float64)  # (3, P, T)
     fps = _rate(point, header, path)
-    cm = _CM_PER_UNIT.get(_text(point, "UNITS", "mm").lower())
-    if cm is None:
-        raise MocapFormatError(path, f"POINT:UNITS {_text(point, 'UNITS', '')!r} is not one of mm, cm, m")
+    cm = _units(point, xyz.shape[1], path)
     names, keep = _labels(point, xyz.shape[1])
+    names = relabel(names, marker_mapping, path) if marker_mapping else names
     if xyz.shape[2] == 0:
         raise MocapFormatError(path, "no frames of point data")
     if not keep:
         raise MocapFormatError(path, f"no labelled points (of {xyz.shape[1]} points)")
-    pos = xyz[:, keep].transpose(2, 1, 0) * cm  # (T, M, 3)
+    pos = (xyz * cm[None, :, None])[:, keep].transpose(2, 1, 0)  # (T, M, 3)
     pos[(pos == 0).all(axis=2)] = np.nan
     bad = first_outside(np.where(np.isnan(pos), 0.0, pos).reshape(len(pos), -1), DISTANCE_LIMIT_CM)
     if bad is not None:
@@ -122,7 +136,20 @@ def read_c3d(path, up: str = "auto") -> Motion:
                                      f"beyond ±{DISTANCE_LIMIT_CM:g} cm or not finite")  # fmt: skip
     turn = _turn(point, pos, up, path)
     return Motion(positions=(pos @ turn.T).astype(np.float32), fps=fps, joint_names=names,
-                  parents=np.full(len(names), -1), source=path, labels={"first_frame": int(header["first_frame"]) + 1})
+                  parents=np.full(len(names), -1), source=path, labels={"first_frame": layout.first_frame})
+
+
+def _units(point: dict, n_points: int, path) -> np.ndarray:
+    """Centimetres per file unit of each point [shape=(P,)]: POINT:UNITS one for all (``mm`` when absent or empty)
+    or one per point."""
+    units = [str(v).strip() for v in point.get("UNITS", {}).get("value", [])] or ["mm"]
+    if len(units) != 1 and len(units) < n_points:
+        raise MocapFormatError(path, f"POINT:UNITS holds {len(units)} units for {n_points} points (one for all, or "
+                                     "one per point)")  # fmt: skip
+    cm = [_CM_PER_UNIT.get((u or "mm").lower()) for u in units[:n_points]]
+    if None in cm:
+        raise MocapFormatError(path, f"POINT:UNITS {units[cm.index(None)]!r} is not one of mm, cm, m")
+    return np.resize(np.array(cm, dtype=np.float64), n_points)
 
 
 def _ezc3d_points(path: str) -> tuple[dict, np.ndarray, dict]:

@@ -1,8 +1,10 @@
 """The layout of a C3D file, checked in Python before ezc3d reads it.
 
 check_layout   the header and the parameter section walked, and checked against each other: what cannot be read
-               right is refused with a MocapFormatError naming the field and both values; what is certain is read
-               with a note (a MocapFormatWarning, issued by the reader) saying what was used instead.
+               right is refused with a MocapFormatError naming the field and both values, a file without marker
+               trajectories with one saying what it holds instead; what is certain is read with a note (a
+               MocapFormatWarning, issued by the reader) saying what was used instead.
+Layout         what the check found: its notes and the header's first frame number.
 
 A C3D file states its layout twice: in the 512-byte header (16-bit words: 2 points, 3 analog samples per frame of all
 channels, 4-5 first and last frame, 7-8 scale, 9 data block, 10 analog samples per frame of one channel, 11-12 frame
@@ -13,6 +15,8 @@ scale's sign for the analog samples); a file whose two copies disagree is damage
 the wrong one (POINT:USED 43 in a file of 42 points shifts every marker by a sample; ANALOG:USED 1 where the header
 has no analog samples crashes ezc3d). Checked:
 
+- the file holds marker trajectories: a file of 0 points is refused saying what it holds instead (analog channels
+  only: a force-plate or EMG recording; a ROTATION group only: a markerless system's segment poses);
 - POINT:USED equals the header's point count (and is not 0);
 - the header's first frame is not after its last; POINT:FRAMES (when stated and not 0) equals last - first + 1, or,
   beyond 65,535 frames, exceeds it while the header's 16-bit last frame is 65,535;
@@ -24,8 +28,12 @@ has no analog samples crashes ezc3d). Checked:
   ANALOG:SCALE and OFFSET hold a value per channel; without analog channels ANALOG:RATE is still finite, not
   negative and at most one sample per frame per byte of the file (ezc3d allocates that many per frame);
 - the parameters ezc3d indexes (POINT USED, SCALE, RATE, FRAMES; ANALOG USED, RATE, GEN_SCALE) hold a value;
-- the header's data block equals POINT:DATA_START and starts after the parameter section; the point and analog
-  data of every frame fit in the file.
+- the header's data block equals POINT:DATA_START (when stated and not 0: ezc3d reads the header's) and starts
+  after the parameter section; the point and analog data of every frame fit in the file, or the file ends with a
+  whole frame before the frames stated (a writer that stated the frames it meant to record and stopped early): the
+  frames it holds are read, with a note naming both counts. A file that ends inside a frame is refused.
+- the parameter groups: every parameter in a group the section defines (group numbers need not be 1 to N: BTS
+  numbers an empty group 20).
 
 References
 ----------
@@ -45,7 +53,7 @@ from ..errors import MocapFormatError
 from ..motion import fps_problem
 from .checks import describe
 
-__all__ = ["check_layout"]
+__all__ = ["Layout", "check_layout"]
 
 _BLOCK = 512
 _PROCESSORS = {84: "<", 85: "<", 86: ">"}  # Intel, DEC (little-endian words), MIPS (big-endian)
@@ -68,7 +76,25 @@ class _Header:
     rate: float
 
 
-def check_layout(path) -> list[str]:
+@dataclass(frozen=True)
+class Layout:
+    """What :func:`check_layout` found in a C3D file that reads right.
+
+    Attributes
+    ----------
+    notes : tuple of str
+        What was read otherwise than the file states it (a frame rate of 0 replaced by the other copy's, the frames a
+        truncated file holds), for the reader to warn; empty for a consistent file.
+    first_frame : int
+        The header's first frame number as the writer stored it (1 for most, 0 for some, 1166 for a take cut from a
+        longer one).
+    """
+
+    notes: tuple
+    first_frame: int
+
+
+def check_layout(path) -> Layout:
     """Check a C3D file's header and parameters against each other and against the file's size.
 
     Parameters
@@ -78,16 +104,16 @@ def check_layout(path) -> list[str]:
 
     Returns
     -------
-    list of str
-        Notes on what was read otherwise than the file states it (a frame rate of 0 replaced by the other copy's),
-        for the reader to warn; empty for a consistent file.
+    Layout
+        The notes (empty for a consistent file) and the first frame number.
 
     Raises
     ------
     MocapFormatError
         Naming the file, the field and both values: no C3D header, a parameter section not laid out as the format
-        says, header and parameters that disagree, a scale that is 0 or not finite, data that would end beyond the
-        file.
+        says, header and parameters that disagree, a scale that is 0 or not finite, data that ends inside a frame;
+        a file without marker trajectories saying what it holds (``analog data only: no marker trajectories``,
+        ``rotations only: no marker trajectories``).
     """
     try:
         with open(path, "rb") as fh:
@@ -112,14 +138,15 @@ def check_layout(path) -> list[str]:
         for name in names:
             if params.entry(group, name) and not len(params.numbers(group, name)):
                 raise MocapFormatError(path, f"{group}:{name} holds no value")
+    _markers(path, header, params)
     notes = []
     frames = _frames(path, header, params)
     fps = _rate(path, header, params, notes)
     _points(path, header, params)
     _scale(path, header, params)
     _analog(path, header, params, fps, frames, len(data))
-    _data_block(path, header, params, end, frames, len(data))
-    return notes
+    _data_block(path, header, params, end, frames, data, notes)
+    return Layout(tuple(notes), header.first)
 
 
 class _Parameters:
@@ -212,11 +239,11 @@ def _walk_parameters(path, data: bytes, at: int, end: int, order: str) -> tuple[
 
 
 def _named(path, groups: dict, params: dict) -> dict:
-    """{(GROUP, NAME): entry} of {(group number, NAME): entry}, every group numbered 1 to N and defined."""
+    """{(GROUP, NAME): entry} of {(group number, NAME): entry}, every parameter's group defined."""
     used = {g for g, _ in params}
-    if used - set(groups) or set(groups) != set(range(1, len(groups) + 1)):
+    if used - set(groups):
         raise MocapFormatError(path, f"parameter section: groups {sorted(groups)} defined, parameters in groups "
-                                     f"{sorted(used)} (C3D writers number the groups 1, 2, 3, ...)")  # fmt: skip
+                                     f"{sorted(used)} (group {min(used - set(groups))} is not defined)")  # fmt: skip
     return {(groups[g], name): value for (g, name), value in params.items()}
 
 
@@ -254,6 +281,24 @@ def _rate(path, header: _Header, params: _Parameters, notes: list) -> float:
         return header.rate
     raise MocapFormatError(path, f"POINT:RATE {shown} and the header's {describe(header.rate)} fps: "
                                  f"{fps_problem(stated or 0.0) or fps_problem(header.rate)}")  # fmt: skip
+
+
+def _markers(path, header: _Header, params: _Parameters) -> None:
+    """A file of 0 points (in the header and POINT:USED) refused saying what it holds instead of markers."""
+    if header.points or params.count("POINT", "USED"):
+        return
+    point = "no POINT group" if params.entry("POINT", "USED") is None else "POINT:USED 0"
+    rotations, channels = params.count("ROTATION", "USED"), params.count("ANALOG", "USED")
+    if rotations:
+        rate = params.first("ROTATION", "RATE")
+        raise MocapFormatError(path, f"rotations only: no marker trajectories (0 points, {point}; ROTATION:USED "
+                                     f"{rotations} segment rotations{'' if rate is None else f' at {describe(rate)} Hz'}"
+                                     ": a markerless system's poses, which mocapviz does not read)")  # fmt: skip
+    if channels:
+        rate = params.first("ANALOG", "RATE")
+        raise MocapFormatError(path, f"analog data only: no marker trajectories (0 points, {point}; ANALOG:USED "
+                                     f"{channels} channels{'' if rate is None else f' at {describe(rate)} Hz'}: "
+                                     "force plates, EMG or other analog signals)")  # fmt: skip
 
 
 def _points(path, header: _Header, params: _Parameters) -> None:
@@ -311,15 +356,23 @@ def _analog(path, header: _Header, params: _Parameters, fps: float, frames: int,
                                      f"frame at {describe(fps)} fps: more than the file holds")  # fmt: skip
 
 
-def _data_block(path, header: _Header, params: _Parameters, end: int, frames: int, size: int) -> None:
-    """The header's data block = POINT:DATA_START, after the parameter section; every frame's data in the file."""
-    stated = params.count("POINT", "DATA_START")
-    if stated is not None and stated != header.block:
+def _data_block(path, header: _Header, params: _Parameters, end: int, frames: int, data: bytes, notes: list) -> None:
+    """The header's data block = POINT:DATA_START (0: not stated), after the parameter section; every frame's data
+    in the file, or a file ending with a whole frame before the frames stated (ezc3d reads the whole frames there
+    are: a note naming both counts)."""
+    stated, size = params.count("POINT", "DATA_START"), len(data)
+    if stated and stated != header.block:
         raise MocapFormatError(path, f"the header's data block {header.block} but POINT:DATA_START {stated}")
     if (header.block - 1) * _BLOCK < end:
         raise MocapFormatError(path, f"the header's data block {header.block} (byte {(header.block - 1) * _BLOCK}) "
                                      f"starts inside the parameter section (it ends at byte {end})")  # fmt: skip
-    need = (header.block - 1) * _BLOCK + frames * (4 * header.points + header.analog) * (4 if header.scale < 0 else 2)
-    if need > size:
+    start, frame = (header.block - 1) * _BLOCK, (4 * header.points + header.analog) * (4 if header.scale < 0 else 2)
+    need = start + frames * frame
+    if need <= size:
+        return
+    held, rest = divmod(max(0, size - start), frame)
+    if not held or any(data[size - rest :]):
         raise MocapFormatError(path, f"truncated or damaged: {frames} frames of {header.points} points from block "
                                      f"{header.block} need {need} bytes, the file has {size}")  # fmt: skip
+    notes.append(f"the header says {frames} frames but the file holds {held} (its data ends after frame {held}, "
+                 f"at byte {size}): read the {held} frames it holds")  # fmt: skip

@@ -4,6 +4,8 @@ is_marker_motion   whether a Motion holds marker trajectories (a C3D file's: no 
 marker_gaps        the share of gap (NaN) frames per marker.
 fill_gaps          short gaps filled by linear interpolation (at most ``max_gap_s``, default 0.25 s).
 marker_set         which marker set a clip carries ("cmu" or "plug-in gait").
+match_set          how a clip matches its set: the markers the joints use, those missing, the variant (full or
+                   lower body, head markers or not).
 rigid_fill         gaps of a marker of a rigid cluster (the four head markers) placed from the others seen.
 marker_joints      a marker Motion on the canonical joints (what :meth:`Motion.canonical` does with one).
 
@@ -39,12 +41,13 @@ Plug-in Gait as gait labs record it (:data:`PLUG_IN_GAIT_NAMES`, :data:`PLUG_IN_
   estimated from the legs (hip to ankle centre = 0.491 H, Winter 2009);
 - without all four head markers, head and headtop lie on the trunk's axis (root to neck) 0.07 H and 0.18 H above
   the neck (skull base 0.89 H, vertex 1.0 H, jugular notch 0.82 H);
-- a lower-body clip (no upper-body marker seen): the trunk, arms and head are not measured; they are placed in the
-  pelvis frame (up, to the side) from the mid-hip point at Winter's heights (neck 0.29 H above it, chest 0.19,
+- a lower-body clip (no arm marker seen: LELB RELB LWRA RWRA; trunk markers such as C7 or LSHO may be there, as in
+  the Davis protocol's lower-body set): the trunk, arms and head are not measured; they are placed in the pelvis frame (up, to the side) from the mid-hip point at Winter's heights (neck 0.29 H above it, chest 0.19,
   shoulders 0.27 and 0.12 H to the side, elbows 0.10, wrists -0.045, fingers -0.10, 0.13 H to the side; head 0.36,
   headtop 0.47): a standing upper body carried by the pelvis.
 
-Each of these is said in one :class:`~mocapviz.errors.MocapFormatWarning` per clip, with the gaps filled.
+Marker names are matched as written, then upper-cased (a lab writing ``lasi`` or ``Lasi`` for LASI). Each of these
+is said in one :class:`~mocapviz.errors.MocapFormatWarning` per clip, with the gaps filled.
 
 Gaps (NaN samples of a marker, :func:`marker_gaps`), in this order, said in the warning (marker, frames):
 
@@ -77,7 +80,7 @@ References
 from __future__ import annotations
 
 import warnings
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -109,9 +112,10 @@ PLUG_IN_GAIT_NAMES = {"SACR": "VSAC", "LTIB": "LSHA", "RTIB": "RSHA", "CLAV": "I
 a single wrist marker WRI, the shank wand SHA, the virtual sacrum VSAC, the jugular notch IJ, the xiphoid PX."""
 _HEAD = ("LFHD", "RFHD", "LBHD", "RBHD")
 _UPPER = ("C7", "CLAV", "STRN", "LSHO", "LELB", "LWRA", "RSHO", "RELB", "RWRA")
+_ARMS = ("LELB", "RELB", "LWRA", "RWRA")
 PLUG_IN_GAIT_OPTIONAL = _HEAD + ("T10", "LWRB", "RWRB", "LFIN", "RFIN")
 """Plug-in Gait markers placed by a stated rule when the clip lacks them (or never sees them): see the module
-docstring. Without every upper-body marker (:data:`_UPPER` and these), a clip is lower-body Plug-in Gait."""
+docstring. Without an arm marker seen (LELB RELB LWRA RWRA), a clip is lower-body Plug-in Gait."""
 # Heights of body landmarks as fractions of the body height H (Winter 2009, fig. 4.1): hip 0.530 (greater
 # trochanter), ankle 0.039, so a leg (hip to ankle centre) is 0.491 H; the offsets below are (up, lateral) from the
 # mid-hip point in H: shoulder 0.818 (acromion; the joint centre 0.02 H lower), elbow 0.630, wrist 0.485, knuckles
@@ -223,8 +227,119 @@ def marker_set(names, aliases: dict | None = None) -> str:
     str
         A key of :data:`MARKER_SETS`.
     """
-    have = set(names) | set((aliases or {}).keys())
+    have = {n.upper() for n in names} | set((aliases or {}).keys())
     return "plug-in gait" if {"LASI", "RASI"} <= have else "cmu"
+
+
+@dataclass(frozen=True)
+class SetMatch:
+    """How a marker clip matches the marker set of its names (:func:`match_set`).
+
+    Attributes
+    ----------
+    kind : str
+        The set, a key of :data:`MARKER_SETS`.
+    body : str
+        "full body", or "lower body" (Plug-in Gait without an arm marker seen: the upper body placed by rule).
+    head : bool
+        Whether the four head markers are seen.
+    needed : tuple of str
+        The markers of the set the joints are placed from.
+    missing : tuple of str
+        Those of ``needed`` the clip lacks or never sees: the joints cannot be placed unless empty.
+    index : dict
+        Marker of the set -> the clip's column for it (older names, aliases and upper-cased names resolved).
+    notes : tuple of str
+        The rules applied for markers a Plug-in Gait clip lacks (said in :func:`marker_joints`' warning).
+    """
+
+    kind: str
+    body: str
+    head: bool
+    needed: tuple
+    missing: tuple
+    index: dict
+    notes: tuple
+
+    def describe(self) -> str:
+        """One line: the set and its variant, or what it lacks.
+
+        Examples
+        --------
+        >>> SetMatch("plug-in gait", "lower body", False, (), (), {}, ()).describe()
+        'plug-in gait, lower body, no head markers'
+        >>> SetMatch("cmu", "full body", False, ("LFHD", "C7"), ("LFHD", "C7"), {}, ()).describe()
+        'none: closest cmu, which lacks LFHD, C7'
+        """
+        if self.missing:
+            return f"none: closest {self.kind}, which lacks {', '.join(self.missing)}"
+        return f"{self.kind}, {self.body}, {'with' if self.head else 'no'} head markers"
+
+
+def match_set(motion: Motion, aliases: dict | None = None) -> SetMatch:
+    """Which marker set a marker clip carries, in which variant, and which markers of it are missing.
+
+    Parameters
+    ----------
+    motion : Motion
+        A marker Motion (:func:`is_marker_motion`).
+    aliases : dict, optional
+        Marker of :data:`MARKER_SETS` -> the clip's name for it.
+
+    Returns
+    -------
+    SetMatch
+        The set (:func:`marker_set`), the markers the joints need, those missing; for Plug-in Gait the markers of
+        :data:`PLUG_IN_GAIT_OPTIONAL` the clip lacks are not needed, nor the upper body of a lower-body clip.
+
+    Raises
+    ------
+    ParameterError
+        Aliases naming markers the clip does not have.
+
+    Examples
+    --------
+    >>> from mocapviz.motion import Motion
+    >>> names = ("lasi", "RASI", "SACR") + tuple(s + m for s in "LR" for m in ("THI", "KNE", "TIB", "ANK", "TOE"))
+    >>> match = match_set(Motion(np.ones((2, len(names), 3)), 100.0, names, [-1] * len(names)))
+    >>> match.describe(), match.index["LASI"], match.index["LPSI"] == match.index["SACR"]
+    ('plug-in gait, lower body, no head markers', 0, True)
+    """
+    aliases = dict(aliases or {})
+    unknown = {k: v for k, v in aliases.items() if v not in motion.joint_names}
+    if unknown:
+        raise ParameterError(f"aliases {unknown} name markers {motion.source or 'the motion'} does not have; "
+                             f"it has {', '.join(motion.joint_names)}")  # fmt: skip
+    kind = marker_set(motion.joint_names, aliases)
+    index = {n: k for k, n in enumerate(motion.joint_names)}
+    for k, n in enumerate(motion.joint_names):
+        index.setdefault(n.upper(), k)
+    if kind == "plug-in gait":
+        index.update({m: index[old] for m, old in PLUG_IN_GAIT_NAMES.items() if m not in index and old in index})
+    index.update({k: index[v] for k, v in aliases.items()})
+    if kind == "plug-in gait" and "SACR" in index and not {"LPSI", "RPSI"} <= set(index):
+        index["LPSI"] = index["RPSI"] = index["SACR"]
+    seen = ~np.isnan(motion.positions).any(axis=2)  # (T, M)
+    have = {m for m in MARKER_SETS[kind] if m in index and (seen[:, index[m]].any() or not motion.n_frames)}
+    needed, notes, body = list(MARKER_SETS[kind]), [], "full body"
+    if kind == "plug-in gait":
+        upper = set(_UPPER + PLUG_IN_GAIT_OPTIONAL)
+        if not have & set(_ARMS):
+            trunk = [m for m in MARKER_SETS[kind] if m in upper and m in have]
+            what = (f"no arm marker seen (a lower-body Plug-in Gait clip; {', '.join(trunk)} not used)" if trunk else
+                    "no upper-body marker seen (a lower-body Plug-in Gait clip)")  # fmt: skip
+            notes.append(f"{what}: the trunk, arms and head are not measured, they stand on the pelvis in a standing "
+                         "posture (Winter 2009 proportions)")
+            skip, body = upper, "lower body"
+        else:
+            skip = {m for m in PLUG_IN_GAIT_OPTIONAL if m not in have} | (set() if set(_HEAD) <= have else set(_HEAD))
+            if skip:
+                notes.append(f"{', '.join(m for m in PLUG_IN_GAIT_OPTIONAL if m in skip)} not used (absent, or "
+                             f"not all four head markers): {_ESTIMATED_WHEN_ABSENT}")
+        needed = [m for m in needed if m not in skip]
+    missing = tuple(m for m in needed if m not in have)
+    return SetMatch(kind, body, set(_HEAD) <= have and body == "full body", tuple(needed), missing, index,
+                    tuple(notes))  # fmt: skip
 
 
 def marker_joints(motion: Motion, aliases: dict | None = None, max_gap_s: float = MAX_GAP_S) -> Motion:
@@ -278,36 +393,12 @@ def marker_joints(motion: Motion, aliases: dict | None = None, max_gap_s: float 
     mocapviz.errors.SkeletonMappingError: walk.c3d: the cmu marker set lacks LBHD, RBHD, C7, ...
     """
     max_gap_s = number(max_gap_s, "max_gap_s", low=0)
-    aliases = dict(aliases or {})
-    unknown = {k: v for k, v in aliases.items() if v not in motion.joint_names}
-    if unknown:
-        raise ParameterError(f"aliases {unknown} name markers {motion.source or 'the motion'} does not have; "
-                             f"it has {', '.join(motion.joint_names)}")  # fmt: skip
-    kind = marker_set(motion.joint_names, aliases)
-    index = {n: k for k, n in enumerate(motion.joint_names)}
-    if kind == "plug-in gait":
-        index.update({m: index[old] for m, old in PLUG_IN_GAIT_NAMES.items() if m not in index and old in index})
-    index.update({k: index[v] for k, v in aliases.items()})
-    if kind == "plug-in gait" and "SACR" in index and not {"LPSI", "RPSI"} <= set(index):
-        index["LPSI"] = index["RPSI"] = index["SACR"]
+    match = match_set(motion, aliases)
+    kind, index, needed, notes = match.kind, match.index, list(match.needed), list(match.notes)
+    if match.missing:
+        raise _missing_error(motion, kind, list(match.missing), index)
     seen = ~np.isnan(motion.positions).any(axis=2)  # (T, M)
-    have = {m for m in MARKER_SETS[kind] if m in index and (seen[:, index[m]].any() or not motion.n_frames)}
-    needed, notes = list(MARKER_SETS[kind]), []
-    if kind == "plug-in gait":
-        upper = set(_UPPER + PLUG_IN_GAIT_OPTIONAL)
-        if not have & upper:
-            notes.append("no upper-body marker seen (a lower-body Plug-in Gait clip): the trunk, arms and head are "
-                         "not measured, they stand on the pelvis in a standing posture (Winter 2009 proportions)")
-            skip = upper
-        else:
-            skip = {m for m in PLUG_IN_GAIT_OPTIONAL if m not in have} | (set() if set(_HEAD) <= have else set(_HEAD))
-            if skip:
-                notes.append(f"{', '.join(m for m in PLUG_IN_GAIT_OPTIONAL if m in skip)} not used (absent, or "
-                             f"not all four head markers): {_ESTIMATED_WHEN_ABSENT}")
-        needed = [m for m in needed if m not in skip]
-    missing = [m for m in needed if m not in have]
-    if missing:
-        raise _missing_error(motion, kind, missing, index)
+    have = {m for m in needed if seen[:, index[m]].any() or not motion.n_frames}
     name = lambda m: m if motion.joint_names[index[m]] == m else f"{m} ({motion.joint_names[index[m]]})"
     columns = sorted({index[m] for m in needed})
     rows = np.flatnonzero(seen[:, columns].any(axis=1))
