@@ -1,6 +1,7 @@
 """Readers: one entry point, :func:`load`, for every supported motion file.
 
-load          path -> Motion (ASF/AMC, BVH, C3D markers), dispatching on the file extension.
+load          path -> Motion (ASF/AMC, BVH, C3D markers; a ``.npy`` joint array of a stated layout), dispatching on
+              the file extension.
 file_format   the extension a file name ends in, as load reads it ('....bvh', '.x.bvh', '.bvh': '.bvh').
 find_asf      the ASF skeleton of an AMC file, by the CMU and HDM05 folder conventions.
 read_asf, read_amc, read_bvh, read_c3d   the format readers (``asfamc``, ``bvh``, ``c3d`` modules).
@@ -18,8 +19,10 @@ import os
 from pathlib import Path
 
 from .._lazy import lazy_exports
-from ..errors import MocapFormatError
+from ..errors import MocapFormatError, ParameterError
 from ..motion import Motion
+from ..validation import one_of
+from .humanml3d import LAYOUTS
 
 _getattr, _readers = lazy_exports(__name__, {"AsfSkeleton": ".asfamc", "read_amc": ".asfamc", "read_asf": ".asfamc",
                                              "read_bvh": ".bvh", "read_c3d": ".c3d"})  # fmt: skip
@@ -31,6 +34,9 @@ def __dir__():
 
 
 FORMATS = (".amc", ".bvh", ".c3d")
+"""The motion files ingest finds in a folder. :func:`load` also reads ``.npy`` joint arrays of a layout it is told
+(:data:`LAYOUTS`): an array's file does not say what its joints are."""
+ARRAY = ".npy"
 
 
 def file_format(path) -> str:
@@ -114,23 +120,27 @@ def find_asf(amc_path) -> Path:
     return _find_asf(Path(amc_path).resolve())  # found paths are cached; failures are looked up again
 
 
-def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: float | None = None) -> Motion:
+def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: float | None = None,
+         layout: str | None = None) -> Motion:
     """Read a motion file.
 
     Parameters
     ----------
     path : str or os.PathLike
-        An ``.amc`` (with its ASF skeleton), ``.bvh`` or ``.c3d`` file.
+        An ``.amc`` (with its ASF skeleton), ``.bvh`` or ``.c3d`` file, or a ``.npy`` joint array of ``layout``.
     asf : str or os.PathLike, optional
         The ASF skeleton of an AMC file; default :func:`find_asf`.
     fps : float, optional
-        AMC: the capture rate in frames per second (default 120, as CMU and HDM05). BVH: ignored (the file
-        states it).
+        AMC: the capture rate in frames per second (default 120, as CMU and HDM05). ``.npy``: the array's (default
+        20 for ``humanml3d``). BVH: ignored (the file states it).
     up : {"auto", "y", "z"}
         BVH and C3D: the file's up axis (:func:`mocapviz.io.bvh.read_bvh`, :func:`mocapviz.io.c3d.read_c3d`); the
         Motion is always y up.
     scale : float, optional
         BVH only: centimetres per file unit; default guessed from the figure's height.
+    layout : {"humanml3d"}, optional
+        ``.npy`` only, and needed there: what the array's joints are (:data:`LAYOUTS`). ``"humanml3d"``: (T, 22, 3)
+        in metres, y up (:func:`mocapviz.io.humanml3d.read_joint_array`), read onto the 24 canonical joints.
 
     Returns
     -------
@@ -146,7 +156,8 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
         Unsupported extension, unreadable or malformed file (naming the file and line; for a malformed ASF, the
         AMC too), or a value beyond the limits of :mod:`mocapviz.io.checks`.
     ParameterError
-        ``fps`` outside 1 to 10,000, or a bad ``up`` or ``scale``.
+        ``fps`` outside 1 to 10,000, or a bad ``up`` or ``scale``; ``layout`` missing or unknown for a ``.npy`` file,
+        or given for another file.
 
     See Also
     --------
@@ -165,6 +176,14 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
     """
     path = os.fspath(path)
     ext = file_format(path)
+    if layout is not None and ext != ARRAY:
+        raise ParameterError(f"{path}: layout={layout!r} is for {ARRAY} joint arrays; a {ext or '(none)'} file "
+                             "says what its joints are")  # fmt: skip
+    if ext == ARRAY:
+        if layout is None:
+            raise ParameterError(f"{path}: a {ARRAY} array does not say what its joints are; pass layout= one of "
+                                 f"{', '.join(LAYOUTS)}")  # fmt: skip
+        one_of(layout, "layout", LAYOUTS)
     if not os.path.isfile(path):
         raise MocapFormatError(path, "no such file")
     if ext == ".amc":
@@ -184,7 +203,12 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
         from .c3d import read_c3d
 
         return read_c3d(path, up=up)
-    raise MocapFormatError(path, f"unsupported file type {ext or '(none)'!r}; supported: {', '.join(FORMATS)}")
+    if ext == ARRAY:
+        from .humanml3d import read_joint_array
+
+        return read_joint_array(path, fps)
+    raise MocapFormatError(path, f"unsupported file type {ext or '(none)'!r}; supported: {', '.join(FORMATS)} "
+                           f"(and {ARRAY} joint arrays with layout=)")
 
 
-__all__ = ["FORMATS", "AsfSkeleton", "file_format", "find_asf", "load", "read_amc", "read_asf", "read_bvh", "read_c3d"]
+__all__ = ["ARRAY", "FORMATS", "LAYOUTS", "AsfSkeleton", "file_format", "find_asf", "load", "read_amc", "read_asf", "read_bvh", "read_c3d"]
