@@ -261,14 +261,17 @@ def read_joint_array(path, fps: float | None = None) -> Motion:
     if problem:
         raise ParameterError(f"fps: {problem}")
     path = os.fspath(path)
+    with open(path, "rb") as f:
+        magic = f.read(6)
+    if magic != b"\x93NUMPY" and not magic.startswith(b"PK\x03\x04"):  # neither .npy nor .npz
+        raise MocapFormatError(path, "not a NumPy .npy array (it does not start with the .npy magic bytes)")
     try:
         array = np.load(path, allow_pickle=False)
-    except ValueError as exc:
-        pickled = "pickle" in str(exc)
-        raise MocapFormatError(path, "holds pickled Python objects, which are not read (a joint array is plain "
-                               "floats)" if pickled else f"not a NumPy .npy array ({exc})") from None
+    except ValueError as exc:  # an object array: pickled Python objects
+        raise MocapFormatError(path, f"holds pickled Python objects, which are not read (a joint array is plain "
+                               f"floats): {exc}") from None
     except (OSError, EOFError) as exc:
-        raise MocapFormatError(path, f"not a NumPy .npy array ({exc})") from None
+        raise MocapFormatError(path, f"not a readable NumPy .npy array ({exc})") from None
     if not isinstance(array, np.ndarray):  # an .npz archive
         array.close()
         raise MocapFormatError(path, "an .npz archive, not one .npy array of shape (T, 22, 3)")
