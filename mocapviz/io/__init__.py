@@ -1,7 +1,6 @@
 """Readers: one entry point, :func:`load`, for every supported motion file.
 
-load          path -> Motion (ASF/AMC, BVH, C3D markers; a ``.npy`` joint array of a stated layout), dispatching on
-              the file extension.
+load          path -> Motion (ASF/AMC, BVH, C3D markers, ``.npy`` joint arrays of a given layout), by extension.
 file_format   the extension a file name ends in, as load reads it ('....bvh', '.x.bvh', '.bvh': '.bvh').
 find_asf      the ASF skeleton of an AMC file, by the CMU and HDM05 folder conventions.
 read_asf, read_amc, read_bvh, read_c3d   the format readers (``asfamc``, ``bvh``, ``c3d`` modules).
