@@ -1,5 +1,6 @@
 """Downloads of what the dashboard shows: the hits of a result table and the clip under the player, as motion files
-(BVH or glTF binary, on the canonical skeleton or the source file's own rig; :mod:`mocapviz.export`).
+(BVH or glTF binary, on the canonical skeleton or the source file's own rig, or HumanML3D's joint arrays with their
+manifest; :mod:`mocapviz.export`).
 
 Under every result table (Relational query, Similarity, Motion templates, Describe) a :class:`HitDownload` gives
 the selected hit as one file, several selected hits (ctrl- or shift-click in the table or its gallery,
@@ -17,10 +18,15 @@ from collections.abc import Callable
 import pandas as pd
 import panel as pn
 
+from ..engine.parameters import parameter
 from ..errors import MocapvizError
 
-FORMATS = {"BVH": "bvh", "glTF (.glb)": "glb"}
-RIGS = {"canonical skeleton": "canonical", "source rig": "source"}
+_NAMES = {"bvh": "BVH", "glb": "glTF (.glb)", "humanml3d": "HumanML3D joints (.npy)", "canonical": "canonical skeleton",
+          "source": "source rig"}  # fmt: skip
+FORMATS = {_NAMES.get(f, f): f for f in parameter("export_format").choices if f != "amc"}  # amc: source rig only
+RIGS = {_NAMES.get(r, r): r for r in reversed(parameter("rig").choices)}
+ONE_FILE = ("bvh", "glb")
+"""Formats that export one hit as one file (an array comes with its manifest: a zip archive)."""
 
 
 class _Download(pn.widgets.FileDownload):
@@ -78,10 +84,12 @@ class HitDownload:
         """The button's label and file name for the hits as they are now (disabled when there are none)."""
         n = len(self.hits())
         ext = self.format.value
+        one = n == 1 and ext in ONE_FILE
         self.button.disabled = n == 0
-        self.button.label = (f"Download this {self.noun} (.{ext})" if n == 1 else
+        self.button.label = (f"Download this {self.noun} (.{ext})" if one else
+                             f"Download this {self.noun} (.zip)" if n == 1 else
                              f"Download {n} {self.noun}s (.zip)" if n else f"No {self.noun} to download")
-        self.button.filename = f"{self.noun}.{ext}" if n == 1 else f"{self.noun}s.zip"
+        self.button.filename = f"{self.noun}.{ext}" if one else f"{self.noun}s.zip"
 
     def _file(self) -> io.BytesIO | None:
         from ..engine import zipped

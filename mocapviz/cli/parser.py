@@ -268,7 +268,7 @@ def build_parser() -> argparse.ArgumentParser:
         action.set_defaults(func=_labels)
 
     ex = sub.add_parser("export", help="write the stretches a search found (--hits, its --csv file) or one stretch "
-                        "of a document (--doc) as motion files: BVH, AMC or glTF binary, one per hit")  # fmt: skip
+                        "of a document (--doc) as motion files: BVH, AMC, glTF binary or HumanML3D joint arrays, one per hit")  # fmt: skip
     ex.add_argument("db")
     what = ex.add_mutually_exclusive_group(required=True)
     what.add_argument("--hits", metavar="HITS.csv", help="the hit table a search wrote with --csv FILE (columns rank, "
@@ -276,11 +276,8 @@ def build_parser() -> argparse.ArgumentParser:
     option(what, "--doc", check=count_check(least=0), metavar="ID", help="one document (a doc id)")
     option(ex, "--frames", check=parse_span, metavar="A:B", help="with --doc: frames A:B of it (B excluded; "
            "default: all)")  # fmt: skip
-    ex.add_argument("--format", required=True, choices=["bvh", "amc", "glb"], help="bvh (BVH), amc (AMC with its "
-                    "ASF; ASF/AMC sources only) or glb (glTF binary)")  # fmt: skip
-    ex.add_argument("--rig", choices=["source", "canonical"], help="source: the source file's frames on its own rig; "
-                    "canonical: the 24 canonical joints posed to the database's frames (default: canonical for glb, "
-                    "source otherwise)")  # fmt: skip
+    ex.add_argument("--format", required=True, choices=P["export_format"].choices, help=P["export_format"].doc)
+    ex.add_argument("--rig", choices=P["rig"].choices, help=P["rig"].help())
     ex.add_argument("--out", required=True, help="output folder (created if missing; an existing one keeps its other "
                     "files). Written all or nothing: on any failure, the folder as it was")  # fmt: skip
     ex.add_argument("--search", help="what found the hits, written into every file (default: the hits file's name)")

@@ -747,7 +747,8 @@ class Engine:
         kept.attrs = dict(hits.attrs)
         return kept.reset_index(drop=True)
 
-    def export(self, hits, out, *, format: str = "bvh", rig: str | None = None, search: str | None = None) -> list:
+    @checked("export")
+    def export(self, hits, out, *, format=..., rig=..., search: str | None = None) -> list:
         """Every row of a hit table (or its CSV file) written into the folder ``out`` as motion files, all or
         nothing (:func:`mocapviz.export.export_hits`)."""
         from ..export import export_hits
@@ -814,16 +815,17 @@ class Engine:
 
         return PosePrior(self.db)
 
-    def export_files(self, hits, *, format: str = "bvh", rig: str | None = None, search: str | None = None) -> dict:
+    @checked("export")
+    def export_files(self, hits, *, format=..., rig=..., search: str | None = None) -> dict:
         """What :meth:`export` writes, in memory: each hit's files of a hit table or its CSV file.
 
         Parameters
         ----------
         hits : pandas.DataFrame or str or os.PathLike
             A hit table or its CSV file.
-        format : {"bvh", "amc", "glb"}
+        format : {"bvh", "amc", "glb", "humanml3d"}
         rig : {"source", "canonical"}, optional
-            Default: canonical for glb, source otherwise.
+            Default: canonical for glb and humanml3d, source otherwise.
         search : str, optional
             What found the hits, written into every file.
 
@@ -836,8 +838,8 @@ class Engine:
 
         return hit_files(self.db, hits, format, rig, search)
 
-    def export_stretch(self, doc_id: int, out, *, frames=None, format: str = "bvh", rig: str | None = None,
-                       search: str | None = None) -> list:
+    @checked("export")
+    def export_stretch(self, doc_id: int, out, *, frames=None, format=..., rig=..., search: str | None = None) -> list:
         """One stretch of a document written into the folder ``out`` as motion files, all or nothing (``mocapviz
         export --doc``; :func:`mocapviz.export.export_stretch`).
 

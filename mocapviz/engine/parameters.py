@@ -17,7 +17,9 @@ from dataclasses import dataclass, field, replace
 
 from .. import validation
 from ..errors import ParameterError
+from ..export.formats import FORMATS, RIGS
 from ..features import NUMERIC_SETS, POSITION_SETS, RELATIONAL_SETS
+from ..io.humanml3d import LAYOUTS
 from ..validation import MIN_LENGTH, MIN_LENGTH_RANGE, count, number, one_of, parse_count, parse_names, parse_number
 
 __all__ = ["PARAMETERS", "USE_DEFAULTS", "Parameter", "checked", "markdown", "parameter"]
@@ -217,6 +219,14 @@ PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
        flags=("--marker-mapping",)),
     _p("label_format", "choice", "csv", "segment labels' file: CSV with the hit table's columns, or BABEL-style "
        "JSON (per sequence, segments in seconds with action names)", choices=("csv", "babel"), flags=("--format",)),
+    _p("export_format", "choice", "bvh", "exported files: bvh (BVH), amc (AMC with its ASF; ASF/AMC sources only), "
+       "glb (glTF binary) or humanml3d (HumanML3D's joints: one (T, 22, 3) .npy per hit at 20 fps in metres, and "
+       "manifest.csv)", choices=FORMATS, flags=("--format",)),
+    _p("rig", "choice", None, "exported skeleton: source (the source file's frames on its own rig) or canonical "
+       "(the 24 canonical joints posed to the database's frames)", choices=RIGS, optional=True,
+       none_means="canonical for glb and humanml3d, source otherwise"),
+    _p("layout", "choice", None, "what the joints of a .npy array are: humanml3d (HumanML3D's 22 joints, (T, 22, 3) "
+       "in metres, y up, 20 fps)", choices=LAYOUTS, optional=True, none_means="none: a .npy file needs one"),
 ]}
 """The table, by name."""
 
@@ -260,6 +270,7 @@ USES = {
     "audit": {"numeric_set": "audit_set", "min_length": "audit_length", "threshold": "threshold",
               "max_scale": "max_scale", "mirrored": "mirrored"},
     "audit_path": {"numeric_set": "audit_set"},
+    "export": {"format": "export_format", "rig": "rig"},
 }  # fmt: skip
 """Each use case's keyword arguments and the declared parameter each one is (most have its name): the engine
 checks them (:func:`checked`), the command line offers them (:func:`add_options`, :func:`arguments`)."""

@@ -18,6 +18,7 @@ import pandas as pd
 from ..db.hits import COLUMNS, hit_table
 from ..errors import ParameterError
 from ..validation import integer_columns
+from .joint_arrays import MANIFEST, merged_manifest
 from .stretch import stretch_files, write_files
 
 _HINT = ("pass the hit table a search returns, or the CSV that `mocapviz search|query|find|match|knn ... --csv FILE` "
@@ -84,10 +85,10 @@ def hit_files(db, hits, format: str = "bvh", rig: str | None = None, search: str
         The database.
     hits : pandas.DataFrame or str or os.PathLike
         A hit table or its CSV file (:func:`read_hits`).
-    format : {"bvh", "amc", "glb"}
+    format : {"bvh", "amc", "glb", "humanml3d"}
         The file format.
     rig : {"source", "canonical"}, optional
-        The rig (default: canonical for glb, source otherwise).
+        The rig (default: canonical for glb and humanml3d, source otherwise).
     search : str, optional
         What found the hits, written into every file (default: the CSV file's name, if one is given).
 
@@ -95,7 +96,8 @@ def hit_files(db, hits, format: str = "bvh", rig: str | None = None, search: str
     -------
     dict
         File name -> bytes, in the table's order; the search's own columns of each hit (cost, score, ...) are
-        written into its files too. Each hit has its own files (:func:`mocapviz.export.stretch.file_stem`).
+        written into its files too. Each hit has its own files (:func:`mocapviz.export.stretch.file_stem`);
+        ``humanml3d``: one ``.npy`` per hit, then one ``manifest.csv`` of every hit.
 
     Raises
     ------
@@ -113,9 +115,15 @@ def _each_hit(db, hits, format: str, rig: str | None, search: str | None) -> Ite
     _one_row_per_hit(table, "hits" if isinstance(hits, pd.DataFrame) else f"hits {hits}")
     own = [c for c in table.columns if c not in COLUMNS and c not in db.label_columns and c != "path"]
     digits = max(3, len(str(int(table["rank"].max()))))
+    manifests = []  # humanml3d: each hit's row of the manifest, written once after every array
     for r in table.to_dict("records"):
-        yield stretch_files(db, r["doc_id"], r["start"], r["end"], format, rig, rank=r["rank"], search=search,
-                            scores={c: r[c] for c in own}, digits=digits)  # fmt: skip
+        files = stretch_files(db, r["doc_id"], r["start"], r["end"], format, rig, rank=r["rank"], search=search,
+                              scores={c: r[c] for c in own}, digits=digits)  # fmt: skip
+        if MANIFEST in files:
+            manifests.append(files.pop(MANIFEST))
+        yield files
+    if manifests:
+        yield {MANIFEST: merged_manifest(manifests)}
 
 
 def _one_row_per_hit(table: pd.DataFrame, what: str) -> None:
@@ -155,7 +163,8 @@ def export_hits(db, hits, out_dir, format: str = "bvh", rig: str | None = None, 
     Returns
     -------
     list of pathlib.Path
-        The files written, in the table's order: as many as its rows (an AMC: two per row).
+        The files written, in the table's order: as many as its rows (an AMC: two per row; HumanML3D: one per row
+        and the manifest last).
 
     Raises
     ------

@@ -14,6 +14,8 @@ bvh       source       BVH source: its header and exactly its frame lines; AMC s
 amc       source       the AMC's header and frame blocks (renumbered from 1), beside a copy of its ASF
 glb       source       the source file's joints posed to the source's positions (glTF binary)
 bvh, glb  canonical    the 24 canonical joints (upright T-pose at rest) posed to the database's positions (0.01 cm)
+humanml3d canonical    HumanML3D's 22 joints, (T, 22, 3) float32 ``.npy`` at 20 fps in metres, and ``manifest.csv``
+                       (:mod:`mocapviz.export.joint_arrays`)
 ========= ============ =================================================================================================
 """
 from __future__ import annotations
@@ -33,16 +35,9 @@ from .. import store
 from .._version import __version__
 from ..errors import ParameterError, SourceFileError
 from ..validation import frame_span, one_of
+from .formats import CANONICAL_ONLY, EXTENSIONS, FORMATS, RIGS, default_rig
 
-FORMATS = ("bvh", "amc", "glb")
-RIGS = ("source", "canonical")
 STAGING = ".export"  # the suffix of the hidden folder an export is written into before it is moved into place
-
-
-def default_rig(format: str) -> str:
-    """The rig a format is exported on when none is asked for: ``canonical`` for glTF (24 named joints any viewer
-    shows alike), ``source`` for BVH and AMC (the captured file itself)."""
-    return "canonical" if format == "glb" else "source"
 
 
 def source_frames(row, start: int, end: int) -> tuple[int, int]:
@@ -113,7 +108,7 @@ def file_stem(rank: int, digits: int, doc_id: int, name: str, start: int, end: i
     start, end : int
         Its frames, half-open.
     format : str
-        The extension without its dot (``bvh``, ``amc``, ``asf``, ``glb``: three letters).
+        The extension without its dot (``bvh``, ``amc``, ``asf``, ``glb``, ``npy``: three letters).
 
     Returns
     -------
@@ -154,10 +149,12 @@ def stretch_files(db, doc_id: int, start: int | None = None, end: int | None = N
         The document.
     start, end : int, optional
         Frames within the document at the database's rate, half-open (default: all).
-    format : {"bvh", "amc", "glb"}
-        BVH, AMC (with its ASF; an ASF/AMC source only) or glTF binary.
+    format : {"bvh", "amc", "glb", "humanml3d"}
+        BVH, AMC (with its ASF; an ASF/AMC source only), glTF binary or HumanML3D's joint array (canonical rig
+        only; :mod:`mocapviz.export.joint_arrays`).
     rig : {"source", "canonical"}, optional
-        The source file's own rig, or the 24 canonical joints; default :func:`default_rig`.
+        The source file's own rig, or the 24 canonical joints; default
+        :func:`~mocapviz.export.formats.default_rig`.
     rank : int
         The hit's rank: the file names start with it (``001_...``).
     search : str, optional
@@ -171,15 +168,15 @@ def stretch_files(db, doc_id: int, start: int | None = None, end: int | None = N
     -------
     dict
         File name -> bytes: ``<rank>_doc<doc_id>_<name>_<start>-<end>.<format>`` (and the ``.asf`` of an AMC;
-        :func:`file_stem`, at most 255 bytes). Each file names its source document, frames, rig and search: a
-        ``# mocapviz export: {JSON}`` comment line (BVH, AMC), the same JSON object as ``asset.extras`` and scene
-        ``extras`` (glTF).
+        ``.npy`` and ``manifest.csv`` for ``humanml3d``; :func:`file_stem`, at most 255 bytes). Each file names its
+        source document, frames, rig and search: a ``# mocapviz export: {JSON}`` comment line (BVH, AMC), the same
+        JSON object as ``asset.extras`` and scene ``extras`` (glTF), the manifest's row (HumanML3D).
 
     Raises
     ------
     ParameterError
         An unknown document, format or rig, frames outside the document, AMC asked of a BVH source or of the canonical
-        rig.
+        rig, HumanML3D asked on the source rig.
     SourceFileError
         ``rig="source"`` and the source file is gone or changed since it was ingested.
 
@@ -198,6 +195,9 @@ def stretch_files(db, doc_id: int, start: int | None = None, end: int | None = N
         raise ParameterError(f"format 'amc' copies the frames of an ASF/AMC source on its own rig; document "
                              f"{int(doc_id)} is {row['format']!r}{' on the canonical rig' if rig == 'canonical' else ''}: "
                              "export it as 'bvh' or 'glb'")  # fmt: skip
+    if format in CANONICAL_ONLY and rig != "canonical":
+        raise ParameterError(f"format {format!r} is made from the database's 24 canonical joints; export it with "
+                             "rig='canonical' (--rig canonical, the default for it)")  # fmt: skip
     if format == "bvh" and rig == "source" and row["format"] == "c3d":
         raise ParameterError(f"document {int(doc_id)} was read from a C3D file: markers, no rig to write as BVH; "
                              "export it on the canonical rig (rig='canonical', --rig canonical) or as 'glb' on its "
@@ -208,8 +208,12 @@ def stretch_files(db, doc_id: int, start: int | None = None, end: int | None = N
             "frames": [start, end], "fps": float(row["fps"]), "source_frames": [a, b],
             "source_fps": float(row["source_fps"]), "format": format, "rig": rig, "rank": int(rank),
             "search": search, "scores": {k: _plain(v) for k, v in (scores or {}).items()}}  # fmt: skip
-    stem = file_stem(rank, digits, doc_id, row["name"], start, end, format)
+    stem = file_stem(rank, digits, doc_id, row["name"], start, end, EXTENSIONS[format])
     notes = [f"mocapviz export: {json.dumps(meta)}"]
+    if format == "humanml3d":
+        from .joint_arrays import array_files
+
+        return array_files(db.motion(int(doc_id))[start:end], stem, meta)
     if rig == "canonical":
         return {f"{stem}.{format}": _canonical(db, int(doc_id), start, end, format, notes, meta)}
     return _source(_checked_source(row), stem, a, b, format, notes, meta)
@@ -269,7 +273,7 @@ def export_stretch(db, doc_id: int, out_dir, start: int | None = None, end: int 
         The folder (created if missing), written all or nothing (:func:`write_files`).
     start, end : int, optional
         Frames at the database's rate, half-open (default: the whole document).
-    format : {"bvh", "amc", "glb"}
+    format : {"bvh", "amc", "glb", "humanml3d"}
         See :func:`stretch_files`.
     rig : {"source", "canonical"}, optional
         See :func:`stretch_files`.

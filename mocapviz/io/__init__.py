@@ -1,6 +1,7 @@
 """Readers: one entry point, :func:`load`, for every supported motion file.
 
-load          path -> Motion (ASF/AMC, BVH, C3D markers, FBX), dispatching on the file extension.
+load          path -> Motion (ASF/AMC, BVH, C3D markers, FBX, ``.npy`` joint arrays of a given layout), by
+              extension.
 file_format   the extension a file name ends in, as load reads it ('....bvh', '.x.bvh', '.bvh': '.bvh').
 find_asf      the ASF skeleton of an AMC file, by the CMU and HDM05 folder conventions.
 read_asf, read_amc, read_bvh, read_c3d, read_fbx   the format readers (``asfamc``, ``bvh``, ``c3d``, ``fbx``
@@ -20,8 +21,10 @@ import os
 from pathlib import Path
 
 from .._lazy import lazy_exports
-from ..errors import MocapFormatError
+from ..errors import MocapFormatError, ParameterError
 from ..motion import Motion
+from ..validation import one_of
+from .humanml3d import LAYOUTS
 
 _getattr, _readers = lazy_exports(__name__, {"AsfSkeleton": ".asfamc", "read_amc": ".asfamc", "read_asf": ".asfamc",
                                              "read_bvh": ".bvh", "read_c3d": ".c3d", "read_fbx": ".fbx",
@@ -35,6 +38,9 @@ def __dir__():
 
 
 FORMATS = (".amc", ".bvh", ".c3d", ".fbx")
+"""The motion files ingest finds in a folder. :func:`load` also reads ``.npy`` joint arrays of a layout it is told
+(:data:`LAYOUTS`): an array's file does not say what its joints are."""
+ARRAY = ".npy"
 
 
 def file_format(path) -> str:
@@ -119,18 +125,19 @@ def find_asf(amc_path) -> Path:
 
 
 def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: float | None = None,
-         take: str | None = None, marker_mapping=None) -> Motion:
+         take: str | None = None, marker_mapping=None, layout: str | None = None) -> Motion:
     """Read a motion file.
 
     Parameters
     ----------
     path : str or os.PathLike
-        An ``.amc`` (with its ASF skeleton), ``.bvh``, ``.c3d`` or ``.fbx`` file.
+        An ``.amc`` (with its ASF skeleton), ``.bvh``, ``.c3d`` or ``.fbx`` file, or a ``.npy`` joint array of
+        ``layout``.
     asf : str or os.PathLike, optional
         The ASF skeleton of an AMC file; default :func:`find_asf`.
     fps : float, optional
-        AMC: the capture rate in frames per second (default 120, as CMU and HDM05). BVH: ignored (the file
-        states it).
+        AMC: the capture rate in frames per second (default 120, as CMU and HDM05). ``.npy``: the array's (default
+        20 for ``humanml3d``). BVH: ignored (the file states it).
     up : {"auto", "y", "z"}
         BVH, C3D and FBX: the file's up axis (:func:`mocapviz.io.bvh.read_bvh`, :func:`mocapviz.io.c3d.read_c3d`,
         :func:`mocapviz.io.fbx.read_fbx`); the Motion is always y up.
@@ -142,6 +149,9 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
     marker_mapping : str, os.PathLike or dict, optional
         C3D only: a mapping file renaming the file's marker labels onto a marker set's names
         (:mod:`mocapviz.io.marker_mapping`), or its dict.
+    layout : {"humanml3d"}, optional
+        ``.npy`` only, and needed there: what the array's joints are (:data:`LAYOUTS`). ``"humanml3d"``: (T, 22, 3)
+        in metres, y up (:func:`mocapviz.io.humanml3d.read_joint_array`), read onto the 24 canonical joints.
 
     Returns
     -------
@@ -157,7 +167,8 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
         Unsupported extension, unreadable or malformed file (naming the file and line; for a malformed ASF, the
         AMC too), an FBX take the file does not have, or a value beyond the limits of :mod:`mocapviz.io.checks`.
     ParameterError
-        ``fps`` outside 1 to 10,000, or a bad ``up`` or ``scale``.
+        ``fps`` outside 1 to 10,000, or a bad ``up`` or ``scale``; ``layout`` missing or unknown for a ``.npy`` file,
+        or given for another file.
 
     See Also
     --------
@@ -176,6 +187,14 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
     """
     path = os.fspath(path)
     ext = file_format(path)
+    if layout is not None and ext != ARRAY:
+        raise ParameterError(f"{path}: layout={layout!r} is for {ARRAY} joint arrays; a {ext or '(none)'} file "
+                             "says what its joints are")  # fmt: skip
+    if ext == ARRAY:
+        if layout is None:
+            raise ParameterError(f"{path}: a {ARRAY} array does not say what its joints are; pass layout= one of "
+                                 f"{', '.join(LAYOUTS)}")  # fmt: skip
+        one_of(layout, "layout", LAYOUTS)
     if not os.path.isfile(path):
         raise MocapFormatError(path, "no such file")
     if ext == ".amc":
@@ -199,8 +218,13 @@ def load(path, *, asf=None, fps: float | None = None, up: str = "auto", scale: f
         from .fbx import read_fbx
 
         return read_fbx(path, take=take, up=up, scale=scale)
-    raise MocapFormatError(path, f"unsupported file type {ext or '(none)'!r}; supported: {', '.join(FORMATS)}")
+    if ext == ARRAY:
+        from .humanml3d import read_joint_array
+
+        return read_joint_array(path, fps)
+    raise MocapFormatError(path, f"unsupported file type {ext or '(none)'!r}; supported: {', '.join(FORMATS)} "
+                           f"(and {ARRAY} joint arrays with layout=)")
 
 
-__all__ = ["FORMATS", "AsfSkeleton", "file_format", "find_asf", "load", "read_amc", "read_asf", "read_bvh", "read_c3d",
-           "read_fbx", "read_marker_mapping", "relabel"]
+__all__ = ["ARRAY", "FORMATS", "LAYOUTS", "AsfSkeleton", "file_format", "find_asf", "load", "read_amc", "read_asf",
+           "read_bvh", "read_c3d", "read_fbx", "read_marker_mapping", "relabel"]
