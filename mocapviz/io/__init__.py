@@ -1,18 +1,16 @@
 """Readers: one entry point, :func:`load`, for every supported motion file.
 
-load          path -> Motion (ASF/AMC, BVH, C3D markers, FBX, ``.npy`` joint arrays of a given layout), by
-              extension.
+load          path -> Motion (ASF/AMC, BVH, C3D markers, FBX; ``.npy`` joint arrays of a layout), by extension.
 file_format   the extension a file name ends in, as load reads it ('....bvh', '.x.bvh', '.bvh': '.bvh').
 find_asf      the ASF skeleton of an AMC file, by the CMU and HDM05 folder conventions.
-read_asf, read_amc, read_bvh, read_c3d, read_fbx   the format readers (``asfamc``, ``bvh``, ``c3d``, ``fbx``
-              modules).
-read_marker_mapping, relabel             C3D marker mapping files (``marker_mapping``).
+read_*        the format readers: read_asf, read_amc (``asfamc``), read_bvh, read_c3d, read_fbx (modules named so).
+relabel       C3D labels renamed by a marker mapping file (``marker_mapping``: read_marker_mapping reads one).
 
 The writers, for :mod:`mocapviz.export`: ``bvh_writer`` (a posed rig, an AMC on its ASF rig, a stretch of a BVH
 file), ``amc_writer`` (a stretch of an AMC file), ``gltf_writer`` (a posed rig as glTF binary).
 
-The readers (and numba, which they compile with; ezc3d, which reads C3D; ufbx, which reads FBX) are imported when first used: opening a
-MotionDB, which imports this package through ingest, reads no motion file.
+The readers (and numba, which they compile with; ezc3d, which reads C3D; ufbx, which reads FBX) are imported when
+first used: opening a MotionDB, which imports this package through ingest, reads no motion file.
 """
 from __future__ import annotations
 

@@ -37,7 +37,7 @@ import numpy as np
 
 from ..errors import MocapFormatError, ParameterError
 from ..motion import Motion, rotations
-from .checks import DISTANCE_LIMIT_CM, check_frame_rate, describe, first_outside
+from .checks import DISTANCE_LIMIT_CM, FIGURE_UNITS, check_frame_rate, describe, first_outside, format_warning
 from .isolated import read_isolated
 
 # ufbx in its helper process: at most this memory and time (it needs about 10 times the file's size, and reads the
@@ -116,9 +116,23 @@ def read_fbx(path, take: str | None = None, up: str = "auto", scale: float | Non
         raise MocapFormatError(path, f"frame {t}: joint {names[k // 3]!r} at {describe(positions[t, k // 3, k % 3])} "
                                      f"cm, beyond ±{DISTANCE_LIMIT_CM:g} cm or not finite")  # fmt: skip
     parents = np.asarray(scene["parents"], dtype=np.int64)
+    if scale is None:
+        _say_an_odd_size(path, positions[0, parents >= 0] if (parents >= 0).sum() > 1 else positions[0], cm)
     quaternions = _rest_relative(world[..., :3], scene["rest"], parents, turn)
     return Motion(positions=positions.astype(np.float32), fps=fps, joint_names=names, parents=parents,
                   quaternions=quaternions.astype(np.float32), source=path, labels={"take": scene["take"]})
+
+
+def _say_an_odd_size(path: str, first: np.ndarray, cm: float) -> None:
+    """Warn when the figure, in the unit the file states, is no person's size (:data:`FIGURE_UNITS`' centimetre
+    range): an exporter's unit slip (the CMU FBX of the peer files says centimetres and is 26 m tall), or not a
+    person. ``first``: the first frame's joints without a root [shape=(J, 3)], cm."""
+    size = float(np.ptp(first, axis=0).max())
+    low, high = next((low, high) for name, unit, low, high in FIGURE_UNITS if unit == 1.0)
+    if not low <= size <= high:
+        shown = f"{size:,.0f}" if size >= 10 else f"{size:.2g}"
+        format_warning(path, f"a figure {shown} cm tall in the unit the file states ({cm:g} cm): no person's size; "
+                             "pass scale= (cm per file unit) if that unit is wrong")
 
 
 def _turn(axes: tuple, up: str) -> np.ndarray:
