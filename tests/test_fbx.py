@@ -225,3 +225,22 @@ def test_not_an_fbx_file_is_refused(tmp_path):
     path.write_bytes(b"Kaydara FBX Binary  \x00\x1a\x00" + bytes(100))
     with pytest.raises(MocapFormatError, match="empty.fbx"):
         load(path)
+
+
+
+def test_ingest_reads_the_take_asked_for(peer, tmp_path, capsys):
+    """``mocapviz ingest --take NAME`` reads that take of each FBX file (the CMU file's only take is "01_01|01_01");
+    a take a file does not have is refused, naming the file and its takes, and no database is made."""
+    from mocapviz.cli import main
+
+    folder = tmp_path / "takes"
+    folder.mkdir()
+    (folder / "cmu_01_01.fbx").write_bytes((peer / "fbx/isaac_01_01_cmu.fbx").read_bytes())
+    assert main(["ingest", str(folder), "--out", str(tmp_path / "bad"), "--take", "walk", "--fps", "30",
+                 "--no-cluster", "--quiet"]) != 0
+    said = capsys.readouterr().err
+    assert "cmu_01_01.fbx" in said and "no take 'walk'" in said and "'01_01|01_01'" in said
+    assert not (tmp_path / "bad").exists() or not any((tmp_path / "bad").iterdir())
+    assert main(["ingest", str(folder), "--out", str(tmp_path / "db"), "--take", "01_01|01_01", "--fps", "30",
+                 "--no-cluster", "--quiet"]) == 0
+    assert MotionDB.open(tmp_path / "db").documents["n_frames"].tolist() == [688]

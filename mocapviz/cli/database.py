@@ -29,7 +29,7 @@ def run_ingest(args) -> None:
             readers.read_asf(args.asf)
         except (MocapvizError, OSError) as exc:
             raise ParameterError(f"--asf: {exc}") from None
-    options = {k: v for k, v in (("asf", args.asf), ("up", args.up)) if v is not None}
+    options = {k: v for k, v in (("asf", args.asf), ("up", args.up), ("take", args.take)) if v is not None}
     if args.marker_mapping:  # read once here: a bad mapping file is one error, not every C3D file failing with it
         try:
             options["marker_mapping"] = readers.read_marker_mapping(args.marker_mapping)

@@ -45,7 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog="mocapviz", description="Content-based retrieval in motion-capture databases.")
     sub = p.add_subparsers(dest="command", required=True)
 
-    ing = sub.add_parser("ingest", help="read ASF/AMC and BVH files into a MotionDB (creates or appends)")
+    ing = sub.add_parser("ingest", help="read ASF/AMC, BVH, C3D and FBX files into a MotionDB (creates or appends)")
     ing.add_argument("paths", nargs="+", help="files, folders (searched recursively) or glob patterns")
     ing.add_argument("--out", required=True, help="MotionDB directory")
     option(ing, "--fps", check=number_check(low=FPS_RANGE[0], high=FPS_RANGE[1]),
@@ -54,6 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     ing.add_argument("--mapping", help="JSON file {canonical joint: joint name} for rigs the rules cannot map")
     ing.add_argument("--asf", help="ASF skeleton for all AMC files (default: found beside each)")
     P["marker_mapping"].add_to(ing)
+    P["take"].add_to(ing)
     ing.add_argument("--up", choices=["auto", "y", "z"], help="up axis of BVH files (default auto)")
     ing.add_argument("--skip-bad", action="store_true", help="skip unreadable files with a warning")
     cluster_options(ing)
