@@ -631,3 +631,29 @@ def test_bandai2_keeps_its_mapping(bandai2_dir):
     for path in paths:
         motion = load(path)
         assert guess_mapping(motion) == _bandai_mapping(motion), path.name
+
+
+# the joint names of other pipelines, on the cgspeed CMU rig of the peer file assimp_01_01.bvh (renamed copies of a
+# real take: the names change, the motion does not): Mixamo's prefix, OptiTrack Motive's bone names with its asset
+# prefix, Vicon Shogun's names (Spine1..3, Neck1)
+_MOTIVE = {"Hips": "Hip", "LeftUpLeg": "LThigh", "RightUpLeg": "RThigh", "LeftLeg": "LShin", "RightLeg": "RShin",
+           "LeftFoot": "LFoot", "RightFoot": "RFoot", "LeftToeBase": "LToe", "RightToeBase": "RToe", "LowerBack": "Ab",
+           "Spine": "Chest", "LeftShoulder": "LShoulder", "RightShoulder": "RShoulder", "LeftArm": "LUArm",
+           "RightArm": "RUArm", "LeftForeArm": "LFArm", "RightForeArm": "RFArm", "LeftHand": "LHand",
+           "RightHand": "RHand"}  # fmt: skip
+_SHOGUN = {"LowerBack": "Spine", "Spine": "Spine1", "Spine1": "Spine2", "LHipJoint": "LeftHipJoint",
+           "RHipJoint": "RightHipJoint"}  # fmt: skip
+RENAMED = {"mixamo": lambda n: f"mixamorig:{n}", "motive": lambda n: f"Skeleton_{_MOTIVE.get(n, n)}",
+           "shogun": lambda n: _SHOGUN.get(n, n)}
+
+
+@pytest.mark.parametrize("pipeline", sorted(RENAMED))
+def test_other_pipelines_joint_names_map_like_the_original(fetch_archive, pipeline):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the file's unit (CMU's), said in a warning
+        motion = load(fetch_archive("peer-readers") / "bvh" / "assimp_01_01.bvh")
+    renamed = dataclasses.replace(motion, joint_names=tuple(map(RENAMED[pipeline], motion.joint_names)))
+    assert set(renamed.joint_names).isdisjoint(motion.joint_names) or pipeline == "shogun"
+    mapping = guess_mapping(renamed)
+    assert {c: motion.joint_names[renamed.joint_names.index(j)] for c, j in mapping.items()} == guess_mapping(motion)
+    np.testing.assert_array_equal(renamed.canonical().positions, motion.canonical().positions)
