@@ -55,9 +55,9 @@ def test_datasets_list_and_fetch_sample(capsys):
     "argv, needle",
     [
         (["info", "/nonexistent/db"], "/nonexistent/db: does not exist"),
-        (["ingest", "/nonexistent/*.amc", "--out", "{tmp}/db"], "no .amc, .bvh or .c3d file matches this pattern"),
+        (["ingest", "/nonexistent/*.amc", "--out", "{tmp}/db"], "no .amc, .bvh, .c3d or .fbx file matches this pattern"),
         (["ingest", "/nonexistent", "--out", "{tmp}/db"], "/nonexistent: does not exist"),
-        (["ingest", "{tmp}/empty", "--out", "{tmp}/db"], "empty: no .amc, .bvh or .c3d files in this folder"),
+        (["ingest", "{tmp}/empty", "--out", "{tmp}/db"], "empty: no .amc, .bvh, .c3d or .fbx files in this folder"),
         (["datasets", "fetch", "no-such-archive"], "no-such-archive"),
         (["ingest", "{bad}", "--out", "{tmp}/db2", "--quiet"], "line 4: OFFSET needs three"),
     ],

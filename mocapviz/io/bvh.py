@@ -348,10 +348,15 @@ def read_bvh(path, up: str = "auto", scale: float | None = None) -> Motion:
         return euler.reshape(b - a, n_joints, 3), translations.reshape(b - a, n_joints, 3)
 
     def guess_scale(first: np.ndarray) -> float:
-        # the figure's size without its root: a root may stay at the world origin, metres away from the
-        # figure (Bandai Namco's joint_Root)
+        # the figure's size without its root (a root may stay at the world origin, metres away from the figure:
+        # Bandai Namco's joint_Root), the larger of its first frame's and its rest pose's (the OFFSETs chained): a
+        # take may begin lying or crouching, a rest pose may be folded
         body = h.parents >= 0
-        cm, said = figure_unit(float(np.ptp(first[body] if body.sum() > 1 else first, axis=0).max()))
+        rest = np.zeros_like(first)
+        for j, p in enumerate(h.parents):  # parents come first
+            rest[j] = h.offsets[j] + (rest[p] if p >= 0 else 0.0)
+        size = max(np.ptp(pose[body] if body.sum() > 1 else pose, axis=0).max() for pose in (first, rest))
+        cm, said = figure_unit(float(size))
         if said is not None:
             format_warning(path, said)
         return cm
