@@ -47,7 +47,7 @@ from ..motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
 from ..store import atomic_file, atomic_write, check_format, stamp
 from ..validation import renamed
 from .ingest import BASE_COLUMNS as _BASE_COLUMNS
-from .ingest import IngestOptions, expand_paths, read_new
+from .ingest import IngestOptions, expand_paths, held_documents, read_new
 from .layout import generation_file, generation_of, manifest_file
 
 __all__ = ["FORMAT", "VERSION", "MotionDB"]
@@ -694,7 +694,7 @@ class MotionDB:
                 raise MotionDBError(f"{current.path}: documents are at {current.fps} fps; cannot append at {fps} fps")
             if fps is None and current.fps is not None and len(current):
                 options = dataclasses.replace(options, fps=current.fps)
-            positions, quaternions, metas = read_new(files, set(current.documents["sha256"]), options)
+            positions, quaternions, metas = read_new(files, held_documents(current.documents), options)
             if positions:
                 _commit(current.path, current.manifest, positions, quaternions, metas)
         db = MotionDB.open(self.path)
