@@ -122,8 +122,9 @@ def read_fbx(path, take: str | None = None, up: str = "auto", scale: float | Non
 def take_names(path) -> tuple[str, ...]:
     """The takes (animation stacks) of an FBX file, in the file's order: what ``read_fbx(path, take=NAME)`` reads.
 
-    Only the file's structure is read (no frame is evaluated: 3 ms for a file of two takes of 22 joints, against
-    0.2 s to read one of its takes), in the helper process that :func:`read_fbx` uses.
+    Only the file's structure is read, no frame evaluated, in the helper process that :func:`read_fbx` uses: 11 ms
+    for the CMU file of the peer files (1.2 s to read its take), 8 ms for a file of two 30 Hz takes of 22 joints
+    (23 ms to read its first take of 128 frames); docs/fbx.md.
 
     Parameters
     ----------
