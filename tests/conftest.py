@@ -15,7 +15,7 @@ import pytest
 from browser_helpers import ARTIFACTS, free_port  # screenshots and measured round trips go to ARTIFACTS
 
 REPO = Path(__file__).resolve().parent.parent
-collect_ignore = ["blender_probe.py"]  # run by Blender's Python (tests/test_clients.py); it imports bpy, which .venv lacks
+collect_ignore = ["blender_probe.py", "blender_takes.py"]  # run by Blender's Python (tests/test_clients.py, test_fbx_takes.py); they import bpy, which .venv lacks
 
 
 def pytest_configure(config):

@@ -167,6 +167,7 @@ def test_ingest_of_a_folder_with_an_fbx_file(peer, tmp_path):
     db = MotionDB.ingest(folder, tmp_path / "db", fps=30, progress=False)
     docs = db.documents
     assert len(docs) == 1 and docs["path"].iloc[0].endswith("cmu_01_01.fbx")
+    assert docs["name"].tolist() == ["cmu_01_01"] and docs["fbx_take"].tolist() == ["01_01|01_01"]  # its one take
     assert int(docs["n_frames"].iloc[0]) == 688  # 2,752 frames at 120 Hz resampled to 30 Hz (22.925 s)
 
 

@@ -47,7 +47,7 @@ from ..motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
 from ..store import atomic_file, atomic_write, check_format, stamp
 from ..validation import renamed
 from .ingest import BASE_COLUMNS as _BASE_COLUMNS
-from .ingest import IngestOptions, expand_paths, read_new
+from .ingest import IngestOptions, expand_paths, held_documents, read_new
 from .layout import generation_file, generation_of, manifest_file
 
 __all__ = ["FORMAT", "VERSION", "MotionDB"]
@@ -569,14 +569,15 @@ class MotionDB:
                **load_options) -> MotionDB:
         """Read motion files into the MotionDB at ``out``, creating it or appending to it.
 
-        Files already in the database (same sha256) are skipped, so re-running an interrupted ingest
+        Every take of an FBX file is a document (only ``take`` if given; docs/fbx.md). Documents already in the
+        database (same file sha256, and same take of an FBX file) are skipped, so re-running an interrupted ingest
         continues where it stopped. Nothing is written until every file has been read; then the new
         documents are committed at once (atomically).
 
         Parameters
         ----------
         paths : str, os.PathLike or list of them
-            Files, folders (searched recursively for .amc / .bvh / .c3d) or glob patterns.
+            Files, folders (searched recursively for .amc / .bvh / .c3d / .fbx) or glob patterns.
         out : str or os.PathLike
             The database directory.
         fps : float, optional
@@ -604,7 +605,7 @@ class MotionDB:
             threads in this process. The results are committed here, in input order, whatever order the tasks
             finish in.
         **load_options
-            Passed to :func:`mocapviz.load` (``asf``, ``up``, ``scale``).
+            Passed to :func:`mocapviz.load` (``asf``, ``up``, ``scale``, ``take``: that take of each FBX file).
 
         Returns
         -------
@@ -694,7 +695,7 @@ class MotionDB:
                 raise MotionDBError(f"{current.path}: documents are at {current.fps} fps; cannot append at {fps} fps")
             if fps is None and current.fps is not None and len(current):
                 options = dataclasses.replace(options, fps=current.fps)
-            positions, quaternions, metas = read_new(files, set(current.documents["sha256"]), options)
+            positions, quaternions, metas = read_new(files, held_documents(current.documents), options)
             if positions:
                 _commit(current.path, current.manifest, positions, quaternions, metas)
         db = MotionDB.open(self.path)

@@ -2,11 +2,17 @@
 
 expand_paths    files, folders and glob patterns -> the motion files they name, once each.
 file_checksum   the sha256 that identifies a file in a database (an AMC with its ASF).
-read_document   one file -> a canonical Motion at the target rate, and its document row.
+held_documents  what a database holds, as ingest skips it: each file's sha256 -> its takes held.
+read_document   one file (one take of an FBX file) -> a canonical Motion at the target rate, and its document row.
 IngestOptions   what an ingest was asked to do (rate, labels, mapping, skip_bad, threads, progress, scheduler).
 read_new        the files a database does not hold yet, read on threads or Dask workers, in input order.
 
-Each file is read in an independent task (:func:`read_document`), run in chunks of files on threads of this
+A document is a file, or one take of an FBX file: without the load option ``take``, every take of an FBX file
+becomes a document (named ``<stem>`` when the file has one take, ``<stem>#<take>`` when it has several; the take in
+the column ``fbx_take``, docs/fbx.md); its identity is the file's sha256 and its take, so a file's takes not held
+yet are read again and those held are skipped.
+
+Each file is read in an independent task (:func:`read_document` per document), run in chunks of files on threads of this
 process or as Dask tasks (``scheduler=``, see :mod:`mocapviz.parallel`) by :func:`mocapviz.parallel.map_ordered`;
 the commit is done by :class:`~mocapviz.db.database.MotionDB`, in input order, once every file has been read.
 See ``docs/architecture.md`` (the db layer).
@@ -31,10 +37,11 @@ from ..io.labels import MAIN_LABEL_COLUMNS, labels_for, read_labels_tsv
 from ..motion import Motion
 from ..parallel import map_ordered, optional_client, parallelism
 
-__all__ = ["IngestOptions", "ReadJob", "expand_paths", "file_checksum", "read_document", "read_new"]
+__all__ = ["IngestOptions", "ReadJob", "expand_paths", "file_checksum", "held_documents", "read_document", "read_new"]
 
 _CHUNK_MAX_BYTES = 64 << 20  # an ingest task reads at most this many bytes of motion files (or one file)
 BASE_COLUMNS = ["doc_id", "name", "path", "format", "start", "n_frames", "fps", "source_fps", "sha256", "label"]
+TAKE_COLUMN = "fbx_take"  # the take of an FBX file's document (a label-like column: missing for other formats)
 _BASE_COLUMNS = BASE_COLUMNS
 
 
@@ -130,9 +137,41 @@ def file_checksum(path, asf=None) -> str:
     return h.hexdigest()
 
 
+def held_documents(documents: pd.DataFrame) -> dict[str, set]:
+    """What a database holds, as ingest skips it: the sha256 of each document's file -> the takes held of it.
+
+    A document's identity is its file's sha256 and, for an FBX file's take, the take (column ``fbx_take``); a
+    document without a take (another format, or an FBX file ingested before documents recorded their take) holds
+    its whole file: its take is None.
+
+    Parameters
+    ----------
+    documents : pandas.DataFrame
+        ``db.documents``.
+
+    Returns
+    -------
+    dict
+        sha256 -> set of takes (str), or {None} for a file held whole.
+
+    Examples
+    --------
+    >>> from mocapviz import MotionDB
+    >>> docs = MotionDB.sample().documents
+    >>> held = held_documents(docs)
+    >>> len(held) == len(docs), held[docs["sha256"].iloc[0]]
+    (True, {None})
+    """
+    takes = documents[TAKE_COLUMN] if TAKE_COLUMN in documents else [None] * len(documents)
+    held: dict[str, set] = {}
+    for sha256, take in zip(documents["sha256"], takes):
+        held.setdefault(sha256, set()).add(None if pd.isna(take) else str(take))
+    return held
+
+
 def read_document(path, fps: float | None = None, labels: dict | None = None, mapping: dict | None = None,
-                  sha256: str | None = None, **load_options) -> tuple[Motion, dict]:
-    """One ingest task: read a file, map it to the canonical skeleton, resample, describe it.
+                  sha256: str | None = None, name: str | None = None, **load_options) -> tuple[Motion, dict]:
+    """One ingest task: read a file (one take of an FBX file), map it to the canonical skeleton, resample, describe it.
 
     Parameters
     ----------
@@ -145,25 +184,29 @@ def read_document(path, fps: float | None = None, labels: dict | None = None, ma
         Canonical joint -> joint name, overriding the automatic mapping.
     sha256 : str, optional
         The file's :func:`file_checksum`, if the caller has it already.
+    name : str, optional
+        The document's name; default the file's name without its extension.
     **load_options
-        Passed to :func:`mocapviz.load`.
+        Passed to :func:`mocapviz.load` (``take``: the FBX take to read, default the file's first).
 
     Returns
     -------
     motion : Motion
         Canonical joints, at ``fps``.
     meta : dict
-        name, path, format, n_frames, fps, source_fps, sha256 and the labels.
+        name, path, format, n_frames, fps, source_fps, sha256, the labels, and for an FBX file ``fbx_take``: the
+        take read.
     """
     path = Path(path)
     motion = load(path, **load_options)
     source_fps = motion.fps
+    take = motion.labels.get("take") if file_format(path) == ".fbx" else None
     motion = motion.canonical(mapping)
     if fps is not None:
         motion = motion.resample(fps)
     labels = labels_for(path) if labels is None else dict(labels)
     meta = {
-        "name": path.stem,
+        "name": path.stem if name is None else name,
         "path": str(path),
         "format": file_format(path).lstrip("."),
         "n_frames": motion.n_frames,
@@ -173,6 +216,8 @@ def read_document(path, fps: float | None = None, labels: dict | None = None, ma
         "label": labels.pop("label", None),
         **{k: v for k, v in labels.items() if k not in _BASE_COLUMNS},
     }
+    if take is not None:
+        meta[TAKE_COLUMN] = take
     return motion, meta
 
 
@@ -217,6 +262,8 @@ class ReadJob:
         Canonical joint -> joint name overrides.
     load_options : dict
         Passed to :func:`mocapviz.io.load`.
+    held : frozenset of str
+        The takes of this (FBX) file the database holds already (not read again).
     """
 
     path: str
@@ -225,25 +272,45 @@ class ReadJob:
     labels: dict | None
     mapping: dict | None
     load_options: dict
+    held: frozenset = frozenset()
 
 
-def _read_task(job: ReadJob) -> tuple[np.ndarray, np.ndarray | None, dict, list[tuple]] | _ReadFailure:
-    """Reading one file (on a thread of this process or a Dask worker).
+def _documents_of(job: ReadJob) -> list[tuple[str | None, str | None]]:
+    """(take, name) of each document to read from ``job``'s file: ``(None, None)`` for a file of another format (one
+    document, named after the file); for an FBX file the take the load option ``take`` asks for, else each take the
+    database does not hold, named ``<stem>`` when the file has one take, ``<stem>#<take>`` when it has several."""
+    if file_format(job.path) != ".fbx":
+        return [(None, None)]
+    from ..io.fbx import take_names  # here, not at import: opening a MotionDB loads no reader
 
-    Returns (positions [shape=(T, 24, 3)] cm, quaternions [shape=(T, 24, 4)] or None, meta) of
-    :func:`read_document` and the file's format warnings (``(path, reason, line)`` of each
-    :class:`~mocapviz.errors.MocapFormatWarning`, for the caller to issue, naming the file), or a
-    :class:`_ReadFailure` for a file that fails to read, so that the caller decides (raise it, or skip it with
-    ``skip_bad``).
+    takes = take_names(job.path)
+    asked = job.load_options.get("take")
+    stem = Path(job.path).stem
+    return [(take, stem if len(takes) == 1 else f"{stem}#{take}")
+            for take in ([asked] if asked is not None else takes) if take not in job.held]  # fmt: skip
+
+
+def _read_task(job: ReadJob) -> list[tuple[np.ndarray, np.ndarray | None, dict, list[tuple]]] | _ReadFailure:
+    """Reading one file (on a thread of this process or a Dask worker): each of its documents (:func:`_documents_of`).
+
+    Returns, per document, (positions [shape=(T, 24, 3)] cm, quaternions [shape=(T, 24, 4)] or None, meta) of
+    :func:`read_document` and its format warnings (``(path, reason, line)`` of each
+    :class:`~mocapviz.errors.MocapFormatWarning`, for the caller to issue, naming the file); or a
+    :class:`_ReadFailure` for a file that fails to read (any of its takes), so that the caller decides (raise it,
+    or skip the file with ``skip_bad``).
     """
     from ..io.checks import collect_format_warnings  # here, not at import: opening a MotionDB loads no reader
 
+    out = []
     try:
-        with collect_format_warnings() as notes:
-            motion, meta = read_document(job.path, job.fps, job.labels, job.mapping, job.sha256, **job.load_options)
+        for take, name in _documents_of(job):
+            options = job.load_options if take is None else {**job.load_options, "take": take}
+            with collect_format_warnings() as notes:
+                motion, meta = read_document(job.path, job.fps, job.labels, job.mapping, job.sha256, name, **options)
+            out.append((motion.positions, motion.quaternions, meta, notes))
     except MocapvizError as exc:  # a malformed file, an unmappable rig, a bad label file beside the data, ...
         return _ReadFailure.of(exc)
-    return motion.positions, motion.quaternions, meta, notes
+    return out
 
 
 def _read_chunk(chunk: list[ReadJob]) -> list:
@@ -331,24 +398,25 @@ class IngestOptions:
     load_options: dict = field(default_factory=dict)
 
 
-def read_new(files: list[Path], known: set, options: IngestOptions) -> tuple[list, list, list[dict]]:
-    """Read the ``files`` whose sha256 is not in ``known``, in parallel, results in input order.
+def read_new(files: list[Path], known: dict, options: IngestOptions) -> tuple[list, list, list[dict]]:
+    """Read the documents of ``files`` that ``known`` does not hold, in parallel, results in input order.
 
     Parameters
     ----------
     files : list of pathlib.Path
         Motion files (:func:`expand_paths`).
-    known : set of str
-        The sha256 of the documents the database holds (their files are skipped).
+    known : dict
+        What the database holds (:func:`held_documents`): a file held whole is skipped; of an FBX file, the takes
+        held are (the file is listed for its other takes).
     options : IngestOptions
         ``fps`` is the rate to resample to (already reconciled with the database's).
 
     Returns
     -------
     positions, quaternions : list of np.ndarray
-        Per new file: (T, 24, 3) float32 cm and (T, 24, 4) float32 or None.
+        Per new document: (T, 24, 3) float32 cm and (T, 24, 4) float32 or None.
     metas : list of dict
-        Per new file: its document row (:func:`read_document`).
+        Per new document: its row (:func:`read_document`), a file's documents in the order of its takes.
 
     Raises
     ------
@@ -372,10 +440,11 @@ def read_new(files: list[Path], known: set, options: IngestOptions) -> tuple[lis
                 raise
             warnings.warn(f"skipped {exc}", stacklevel=3)
             continue
-        if sha256 in known:
+        held = known.get(sha256, set())
+        if None in held or load_options.get("take") in held:
             continue
         labels = None if table is None else table.get(str(f), table.get(f.name, {}))
-        todo.append(ReadJob(str(f), sha256, options.fps, labels, options.mapping, load_options))
+        todo.append(ReadJob(str(f), sha256, options.fps, labels, options.mapping, load_options, frozenset(held)))
     positions, quaternions, metas = [], [], []
     with optional_client(options.scheduler if todo else None) as client:
         chunks = _chunks(todo, 4 * parallelism(options.threads, client))
@@ -393,9 +462,10 @@ def read_new(files: list[Path], known: set, options: IngestOptions) -> tuple[lis
                         raise res.error()
                     warnings.warn(f"skipped {res.message}", stacklevel=3)
                     continue
-                for note in res[3]:
-                    warnings.warn(MocapFormatWarning(*note), stacklevel=3)
-                positions.append(res[0])
-                quaternions.append(res[1])
-                metas.append(res[2])
+                for document in res:
+                    for note in document[3]:
+                        warnings.warn(MocapFormatWarning(*note), stacklevel=3)
+                    positions.append(document[0])
+                    quaternions.append(document[1])
+                    metas.append(document[2])
     return positions, quaternions, metas

@@ -217,8 +217,8 @@ PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
     _p("marker_mapping", "text", None, "C3D marker mapping file: CSV lines 'label,marker' renaming a lab's marker "
        "labels onto a marker set's names (docs/c3d.md)", high=4096, optional=True, none_means="the file's labels",
        flags=("--marker-mapping",)),
-    _p("take", "text", None, "FBX: the take (animation stack) to read from each FBX file (docs/fbx.md)", high=1024,
-       optional=True, none_means="each file's first take"),
+    _p("take", "text", None, "FBX: the take (animation stack) to read from each FBX file, one document per file "
+       "(docs/fbx.md)", high=1024, optional=True, none_means="every take, a document each"),
     _p("label_format", "choice", "csv", "segment labels' file: CSV with the hit table's columns, or BABEL-style "
        "JSON (per sequence, segments in seconds with action names)", choices=("csv", "babel"), flags=("--format",)),
     _p("export_format", "choice", "bvh", "exported files: bvh (BVH), amc (AMC with its ASF; ASF/AMC sources only), "

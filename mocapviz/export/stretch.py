@@ -10,9 +10,11 @@ What each combination writes (docs/export.md):
 ========= ============ =================================================================================================
 format    rig          file(s)
 ========= ============ =================================================================================================
-bvh       source       BVH source: its header and exactly its frame lines; AMC source: a BVH on the ASF rig
+bvh       source       BVH source: its header and exactly its frame lines; AMC source: a BVH on the ASF rig; FBX
+                       source: its joints posed to the document's take (as glb)
 amc       source       the AMC's header and frame blocks (renumbered from 1), beside a copy of its ASF
-glb       source       the source file's joints posed to the source's positions (glTF binary)
+glb       source       the source file's joints posed to the source's positions (glTF binary; FBX: the document's
+                       take, ``fbx_take``)
 bvh, glb  canonical    the 24 canonical joints (upright T-pose at rest) posed to the database's positions (0.01 cm)
 humanml3d canonical    HumanML3D's 22 joints, (T, 22, 3) float32 ``.npy`` at 20 fps in metres, and ``manifest.csv``
                        (:mod:`mocapviz.export.joint_arrays`)
@@ -216,7 +218,8 @@ def stretch_files(db, doc_id: int, start: int | None = None, end: int | None = N
         return array_files(db.motion(int(doc_id))[start:end], stem, meta)
     if rig == "canonical":
         return {f"{stem}.{format}": _canonical(db, int(doc_id), start, end, format, notes, meta)}
-    return _source(_checked_source(row), stem, a, b, format, notes, meta)
+    take = row.get("fbx_take")  # an FBX document's take; a missing cell (another format) is no str
+    return _source(_checked_source(row), take if isinstance(take, str) else None, stem, a, b, format, notes, meta)
 
 
 def _posed(motion, a: int, b: int, rest: np.ndarray, format: str, notes: list, meta: dict) -> bytes:
@@ -239,7 +242,9 @@ def _canonical(db, doc_id: int, start: int, end: int, format: str, notes: list, 
     return _posed(motion, start, end, canonical_rest(motion.positions), format, notes, meta)
 
 
-def _source(path: Path, stem: str, a: int, b: int, format: str, notes: list, meta: dict) -> dict[str, bytes]:
+def _source(path: Path, take: str | None, stem: str, a: int, b: int, format: str, notes: list,
+            meta: dict) -> dict[str, bytes]:  # fmt: skip
+    """The files of source frames a:b of ``path`` (of FBX take ``take``) on the source's own rig."""
     from ..io import find_asf, load, read_asf
     from ..io.amc_writer import cut_amc
     from ..io.bvh_writer import asf_bvh, cut_bvh
@@ -252,11 +257,11 @@ def _source(path: Path, stem: str, a: int, b: int, format: str, notes: list, met
         return {f"{stem}.amc": cut_amc(read_bytes(path), a, b, notes, path), f"{stem}.asf": read_bytes(asf)}
     if format == "bvh" and amc:
         return {f"{stem}.bvh": asf_bvh(load(path)[a:b], read_asf(find_asf(path)), notes)}
-    if format == "bvh":
+    if format == "bvh" and path.suffix.lower() == ".bvh":
         return {f"{stem}.bvh": cut_bvh(read_bytes(path), a, b, notes, path)}
-    motion = load(path)
+    motion = load(path, take=take)
     rest = motion.positions[0] - motion.positions[0, np.maximum(motion.parents, 0)]  # the source's first frame
-    return {f"{stem}.glb": _posed(motion, a, b, rest, format, notes, meta)}
+    return {f"{stem}.{format}": _posed(motion, a, b, rest, format, notes, meta)}
 
 
 def export_stretch(db, doc_id: int, out_dir, start: int | None = None, end: int | None = None, format: str = "bvh",

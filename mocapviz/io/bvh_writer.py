@@ -50,7 +50,9 @@ def bvh_bytes(names, parents, offsets, channels, values, fps: float, end_sites=N
     channels : sequence of sequence of str [length J]
         Each joint's channel names in file order (``Xposition``, ``Zrotation``, ...).
     values : array_like [shape=(T, C)]
-        The channel values of every frame, joints in order, each joint's channels in its order (degrees, file units).
+        The channel values of every frame, joints in index order, each joint's channels in its order (degrees, file
+        units). The file lists them in the hierarchy's depth-first order (a rig listed breadth first, as an FBX
+        scene lists its nodes, is reordered).
     fps : float
         Frames per second (``Frame Time: 1/fps``).
     end_sites : dict, optional
@@ -94,8 +96,10 @@ def bvh_bytes(names, parents, offsets, channels, values, fps: float, end_sites=N
     offsets = np.asarray(offsets, dtype=np.float64)
     end_sites = end_sites or {}
     lines = ["HIERARCHY", *_comment_lines(comments)]
+    written: list[int] = []  # the joints in the order the hierarchy lists them
 
     def joint(j: int, depth: int) -> None:
+        written.append(j)
         pad = "  " * depth
         lines.append(f"{pad}{'ROOT' if parents[j] < 0 else 'JOINT'} {names[j]}")
         lines.append(pad + "{")
@@ -110,7 +114,10 @@ def bvh_bytes(names, parents, offsets, channels, values, fps: float, end_sites=N
         lines.append(pad + "}")
 
     joint(0, 0)
-    values = np.asarray(values, dtype=np.float64).reshape(-1, sum(len(c) for c in channels))
+    widths = [len(c) for c in channels]
+    first = np.concatenate([[0], np.cumsum(widths)])
+    order = np.array([c for j in written for c in range(first[j], first[j + 1])], dtype=np.int64)
+    values = np.asarray(values, dtype=np.float64).reshape(-1, first[-1])[:, order]
     lines += ["MOTION", f"Frames: {len(values)}", f"Frame Time: {1.0 / fps:.10f}", ""]
     out = io.BytesIO()
     out.write("\n".join(lines).encode("utf-8"))

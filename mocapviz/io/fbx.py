@@ -2,6 +2,7 @@
 
 read_fbx      FBX file -> Motion of one take (animation stack): the skeleton's joints, world positions, local
               quaternions, as a BVH file gives them.
+take_names    the names of an FBX file's takes, in the file's order (ingest makes a document of each).
 
 Conventions:
 
@@ -94,12 +95,7 @@ def read_fbx(path, take: str | None = None, up: str = "auto", scale: float | Non
         raise ParameterError(f"up must be 'auto', 'y' or 'z', got {up!r}")
     if scale is not None and not (isinstance(scale, (int, float, np.number)) and 0 < scale < float("inf")):
         raise ParameterError(f"scale (centimetres per file unit) must be a positive number, got {scale!r}")
-    if not os.path.isfile(path):
-        raise MocapFormatError(path, "no such file")
-    size = os.path.getsize(path)
-    scene = read_isolated(_ufbx_take, path, take, reader="the FBX reader (ufbx)", preload=("ufbx",),
-                          memory=_MEMORY_FIXED + _MEMORY_PER_BYTE * size,
-                          timeout=_TIMEOUT_FIXED_S + size / _TIMEOUT_BYTES_PER_S)  # fmt: skip
+    scene = _in_helper(_ufbx_take, path, take)
     if "problem" in scene:
         raise MocapFormatError(path, scene["problem"])
     fps = check_frame_rate(scene["fps"], path, None, f"the file's frame rate {describe(scene['fps'])} fps")
@@ -121,6 +117,53 @@ def read_fbx(path, take: str | None = None, up: str = "auto", scale: float | Non
     quaternions = _rest_relative(world[..., :3], scene["rest"], parents, turn)
     return Motion(positions=positions.astype(np.float32), fps=fps, joint_names=names, parents=parents,
                   quaternions=quaternions.astype(np.float32), source=path, labels={"take": scene["take"]})
+
+
+def take_names(path) -> tuple[str, ...]:
+    """The takes (animation stacks) of an FBX file, in the file's order: what ``read_fbx(path, take=NAME)`` reads.
+
+    Only the file's structure is read, no frame evaluated, in the helper process that :func:`read_fbx` uses: 11 ms
+    for the CMU file of the peer files (1.2 s to read its take), 8 ms for a file of two 30 Hz takes of 22 joints
+    (23 ms to read its first take of 128 frames); docs/fbx.md.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A ``.fbx`` file.
+
+    Returns
+    -------
+    tuple of str
+        The takes' names (at least one).
+
+    Raises
+    ------
+    MocapFormatError
+        Naming the file: no such file, not an FBX file, damaged (ufbx crashed, hung or ran out of its memory), or
+        no take in it.
+
+    Examples
+    --------
+    >>> from mocapviz.io import datasets
+    >>> take_names(datasets.fetch("peer-readers") / "fbx/isaac_01_01_cmu.fbx")  # doctest: +SKIP
+    ('01_01|01_01',)
+    """
+    path = os.fspath(path)
+    names = _in_helper(_ufbx_take_names, path)
+    if not names:
+        raise MocapFormatError(path, "no take (animation stack) in the file")
+    return tuple(names)
+
+
+def _in_helper(function, path: str, *args):
+    """``function(path, *args)`` run by ufbx in the helper process, within its memory and time for the file's size
+    (MocapFormatError naming the file when it is missing or the reader fails)."""
+    if not os.path.isfile(path):
+        raise MocapFormatError(path, "no such file")
+    size = os.path.getsize(path)
+    return read_isolated(function, path, *args, reader="the FBX reader (ufbx)", preload=("ufbx",),
+                         memory=_MEMORY_FIXED + _MEMORY_PER_BYTE * size,
+                         timeout=_TIMEOUT_FIXED_S + size / _TIMEOUT_BYTES_PER_S)  # fmt: skip
 
 
 def _say_an_odd_size(path: str, first: np.ndarray, cm: float) -> None:
@@ -201,6 +244,11 @@ class _Handles:
         return obj
 
 
+def _ufbx_take_names(path: str) -> list[str]:
+    """The names of the file's animation stacks: what runs in the helper process for :func:`take_names`."""
+    return _with_scene(path, lambda scene, handle: [handle(s).name for s in scene.anim_stacks])
+
+
 def _ufbx_take(path: str, take: str | None) -> dict:
     """One take of an FBX file as plain arrays: what runs in the helper process.
 
@@ -212,6 +260,12 @@ def _ufbx_take(path: str, take: str | None) -> dict:
         units), ``rest`` [shape=(J, 3, 3)] (the rest pose's world rotation-scale); or ``problem``: why the file
         gives no Motion (no take, an unknown take, no joints, a bad time span).
     """
+    return _with_scene(path, lambda scene, handle: _take_of(scene, take, handle))
+
+
+def _with_scene(path: str, read):
+    """``read(scene, handle)`` of the file's ufbx scene (geometry skipped), with the collector off and a
+    :class:`_Handles` kept until the scene is freed."""
     import gc
 
     import ufbx
@@ -221,7 +275,7 @@ def _ufbx_take(path: str, take: str | None) -> dict:
     try:
         scene = ufbx.load_file(path, ignore_geometry=True, ignore_embedded=True)
         try:
-            return _take_of(scene, take, _Handles())
+            return read(scene, _Handles())
         finally:
             scene.free()
     finally:
