@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from .. import errors as errors_module
-from ..errors import LabelTableError, MocapFormatError, MocapFormatWarning, MocapvizError
+from ..errors import LabelTableError, MocapFormatError, MocapFormatWarning, MocapvizError, SkeletonMappingError
 from ..io import FORMATS, file_format, find_asf, load
 from ..io.labels import MAIN_LABEL_COLUMNS, labels_for, read_labels_tsv
 from ..motion import Motion
@@ -131,7 +131,7 @@ def file_checksum(path, asf=None) -> str:
 
 
 def read_document(path, fps: float | None = None, labels: dict | None = None, mapping: dict | None = None,
-                  sha256: str | None = None, **load_options) -> tuple[Motion, dict]:
+                  sha256: str | None = None, markers_only: str = "refuse", **load_options) -> tuple[Motion, dict]:
     """One ingest task: read a file, map it to the canonical skeleton, resample, describe it.
 
     Parameters
@@ -145,22 +145,33 @@ def read_document(path, fps: float | None = None, labels: dict | None = None, ma
         Canonical joint -> joint name, overriding the automatic mapping.
     sha256 : str, optional
         The file's :func:`file_checksum`, if the caller has it already.
+    markers_only : {"refuse", "keep"}
+        A C3D file whose markers match no marker set: refused (SkeletonMappingError), or kept as it was read (a
+        marker-only document, :mod:`mocapviz.db.marker_documents`: at the file's rate, NaN in gaps).
     **load_options
         Passed to :func:`mocapviz.load`.
 
     Returns
     -------
     motion : Motion
-        Canonical joints, at ``fps``.
+        Canonical joints, at ``fps``; or, for a marker-only document, the markers.
     meta : dict
-        name, path, format, n_frames, fps, source_fps, sha256 and the labels.
+        name, path, format, n_frames, fps, source_fps, sha256 and the labels; ``markers_only`` True for a
+        marker-only document.
     """
     path = Path(path)
     motion = load(path, **load_options)
     source_fps = motion.fps
-    motion = motion.canonical(mapping)
-    if fps is not None:
-        motion = motion.resample(fps)
+    try:
+        motion = motion.canonical(mapping)
+    except SkeletonMappingError:
+        if markers_only != "keep" or file_format(path) != ".c3d":
+            raise
+        only = {"markers_only": True}
+    else:
+        only = {}
+        if fps is not None:
+            motion = motion.resample(fps)
     labels = labels_for(path) if labels is None else dict(labels)
     meta = {
         "name": path.stem,
@@ -172,6 +183,7 @@ def read_document(path, fps: float | None = None, labels: dict | None = None, ma
         "sha256": sha256 or file_checksum(path, load_options.get("asf")),
         "label": labels.pop("label", None),
         **{k: v for k, v in labels.items() if k not in _BASE_COLUMNS},
+        **only,
     }
     return motion, meta
 
@@ -217,6 +229,8 @@ class ReadJob:
         Canonical joint -> joint name overrides.
     load_options : dict
         Passed to :func:`mocapviz.io.load`.
+    markers_only : {"refuse", "keep"}
+        A C3D file that matches no marker set (:func:`read_document`).
     """
 
     path: str
@@ -225,6 +239,7 @@ class ReadJob:
     labels: dict | None
     mapping: dict | None
     load_options: dict
+    markers_only: str = "refuse"
 
 
 def _read_task(job: ReadJob) -> tuple[np.ndarray, np.ndarray | None, dict, list[tuple]] | _ReadFailure:
@@ -240,9 +255,12 @@ def _read_task(job: ReadJob) -> tuple[np.ndarray, np.ndarray | None, dict, list[
 
     try:
         with collect_format_warnings() as notes:
-            motion, meta = read_document(job.path, job.fps, job.labels, job.mapping, job.sha256, **job.load_options)
+            motion, meta = read_document(job.path, job.fps, job.labels, job.mapping, job.sha256, job.markers_only,
+                                         **job.load_options)
     except MocapvizError as exc:  # a malformed file, an unmappable rig, a bad label file beside the data, ...
         return _ReadFailure.of(exc)
+    if meta.get("markers_only"):
+        meta["markers"] = list(motion.joint_names)
     return motion.positions, motion.quaternions, meta, notes
 
 
@@ -319,6 +337,8 @@ class IngestOptions:
         Read as Dask tasks.
     load_options : dict
         Passed to :func:`mocapviz.io.load`. (See :meth:`mocapviz.db.database.MotionDB.ingest` for each in full.)
+    markers_only : {"refuse", "keep"}
+        A C3D file whose markers match no marker set: refused, or kept as a marker-only document.
     """
 
     fps: float | None = None
@@ -329,6 +349,7 @@ class IngestOptions:
     progress: bool = True
     scheduler: object = None
     load_options: dict = field(default_factory=dict)
+    markers_only: str = "refuse"
 
 
 def read_new(files: list[Path], known: set, options: IngestOptions) -> tuple[list, list, list[dict]]:
@@ -346,7 +367,8 @@ def read_new(files: list[Path], known: set, options: IngestOptions) -> tuple[lis
     Returns
     -------
     positions, quaternions : list of np.ndarray
-        Per new file: (T, 24, 3) float32 cm and (T, 24, 4) float32 or None.
+        Per new file: (T, 24, 3) float32 cm and (T, 24, 4) float32 or None; for a marker-only document (its meta's
+        ``markers_only``, with ``markers``: its labels) the markers (T, M, 3), NaN in gaps, and None.
     metas : list of dict
         Per new file: its document row (:func:`read_document`).
 
@@ -375,7 +397,7 @@ def read_new(files: list[Path], known: set, options: IngestOptions) -> tuple[lis
         if sha256 in known:
             continue
         labels = None if table is None else table.get(str(f), table.get(f.name, {}))
-        todo.append(ReadJob(str(f), sha256, options.fps, labels, options.mapping, load_options))
+        todo.append(ReadJob(str(f), sha256, options.fps, labels, options.mapping, load_options, options.markers_only))
     positions, quaternions, metas = [], [], []
     with optional_client(options.scheduler if todo else None) as client:
         chunks = _chunks(todo, 4 * parallelism(options.threads, client))

@@ -32,7 +32,10 @@ from ..store import check_format, stamp
 from .layout import marker_documents_file, markers_file, markers_folder
 from .markers import read_markers, save_markers
 
-__all__ = ["COLUMNS", "MarkerDocuments", "add_marker_documents", "marker_documents"]
+__all__ = ["COLUMNS", "MARKERS_ONLY", "MarkerDocuments", "add_marker_documents", "marker_documents"]
+
+MARKERS_ONLY = ("refuse", "keep")
+"""What ingest does with a C3D file whose markers match no marker set (the parameter ``markers_only``)."""
 
 FORMAT, VERSION = "mocapviz.MarkerDocuments", 1
 COLUMNS = ["doc_id", "name", "path", "format", "n_frames", "fps", "source_fps", "sha256", "label", "markers"]
@@ -183,7 +186,7 @@ def add_marker_documents(db_path, motions, metas) -> list[int]:
                 continue
             known.add(meta["sha256"])
             save_markers(markers_file(db_path, meta["sha256"]), m, meta["name"])
-            rows.append({**{k: _plain(v) for k, v in meta.items()}, "doc_id": next_id, "n_frames": m.n_frames,
+            rows.append({**{k: _plain(v) for k, v in meta.items() if k != "markers_only"}, "doc_id": next_id, "n_frames": m.n_frames,
                          "fps": float(m.fps), "markers": list(m.joint_names),
                          "format": meta.get("format", "c3d"), "source_fps": float(meta.get("source_fps", m.fps)),
                          "label": meta.get("label")})  # fmt: skip

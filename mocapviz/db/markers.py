@@ -73,13 +73,17 @@ def store_markers(db, doc_ids=None) -> list[Path]:
         if not path.is_file() or file_checksum(path) != row.sha256:
             raise MotionDBError(f"{path}: the C3D file of document {row.doc_id} ({row.name}) is gone or changed since "
                                 "it was ingested; its markers cannot be stored")  # fmt: skip
-        save_markers(target, read_c3d(path), row.name)
+        motion = read_c3d(path)
+        target.parent.mkdir(exist_ok=True)
+        with store.locked(target.parent):
+            save_markers(target, motion, row.name)
         written.append(target)
     return written
 
 
 def save_markers(target: Path, motion: Motion, doc_name: str) -> None:
-    """Write a marker Motion to ``target`` (under the markers folder's lock): positions with gaps as a mask.
+    """Write a marker Motion to ``target`` atomically, positions with gaps as a mask (the caller holds the markers
+    folder's lock, :func:`mocapviz.store.locked`).
 
     Parameters
     ----------
@@ -95,9 +99,7 @@ def save_markers(target: Path, motion: Motion, doc_name: str) -> None:
               "present": present}  # fmt: skip
     header = {"doc_name": doc_name, "source": str(motion.source), "fps": motion.fps,
               "markers": list(motion.joint_names), "labels": motion.labels}  # fmt: skip
-    target.parent.mkdir(exist_ok=True)
-    with store.locked(target.parent):
-        save_arrays(target, arrays, header, FORMAT, VERSION)
+    save_arrays(target, arrays, header, FORMAT, VERSION)
 
 
 def load_markers(db, doc_id: int) -> Motion:
