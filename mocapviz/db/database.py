@@ -45,11 +45,11 @@ from ..errors import MotionDBError, ParameterError, StaleDataError, UnknownKeyEr
 from ..motion import Motion
 from ..motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
 from ..store import atomic_file, atomic_write, check_format, stamp
-from ..validation import one_of, renamed
+from ..validation import MARKERS_ONLY, one_of, renamed
 from .ingest import BASE_COLUMNS as _BASE_COLUMNS
 from .ingest import IngestOptions, expand_paths, read_new
 from .layout import generation_file, generation_of, manifest_file
-from .marker_documents import MARKERS_ONLY, MarkerDocuments, add_marker_documents, marker_documents
+from .marker_documents import MarkerDocuments, add_marker_documents, marker_documents
 
 __all__ = ["FORMAT", "VERSION", "MotionDB"]
 

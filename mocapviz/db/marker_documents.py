@@ -32,10 +32,7 @@ from ..store import check_format, stamp
 from .layout import marker_documents_file, markers_file, markers_folder
 from .markers import read_markers, save_markers
 
-__all__ = ["COLUMNS", "MARKERS_ONLY", "MarkerDocuments", "add_marker_documents", "marker_documents"]
-
-MARKERS_ONLY = ("refuse", "keep")
-"""What ingest does with a C3D file whose markers match no marker set (the parameter ``markers_only``)."""
+__all__ = ["COLUMNS", "MarkerDocuments", "add_marker_documents", "marker_documents"]
 
 FORMAT, VERSION = "mocapviz.MarkerDocuments", 1
 COLUMNS = ["doc_id", "name", "path", "format", "n_frames", "fps", "source_fps", "sha256", "label", "markers"]
