@@ -38,7 +38,7 @@ from ..db.shards import split_documents
 from ..errors import ClusterError, MocapvizError, ParameterError
 from ..match.time_warping import check_query_length, shortest_match
 from ..parallel import dask_client
-from ..validation import count, frame_span
+from ..validation import count, frame_span, plural
 from .parameters import PARAMETERS, checked
 from .shard import Shard
 
@@ -88,7 +88,9 @@ class Engine:
         self._features: dict[str, np.ndarray] = {}
         self._marker_only = len(self.db.marker_documents)  # marker-only documents: no canonical search sees them
         try:
-            if scheduler is None:
+            if self.db.documents.empty and self._marker_only:  # nothing to shard: marker_stretches alone answers
+                self.shards, self.actors = [], []
+            elif scheduler is None:
                 self.shards = shards or split_documents(self.db, count(n_shards, "n_shards") if n_shards else 1)
                 generation = self.db.manifest.get("generation")
                 self.actors = [_Here(Shard(self.db, ids.tolist(), generation)) for ids in self.shards]
@@ -134,6 +136,10 @@ class Engine:
     def _fan(self, method: str, *args, **kwargs) -> list:
         """``method(*args, **kwargs)`` on every shard at once; on a cluster, a shard whose worker failed is started
         again on a live worker and asked once more; then a ClusterError."""
+        if not self.actors:  # a database of marker-only documents alone
+            raise ParameterError(f"{self.db.path} holds no document with canonical joints, only "
+                                 f"{plural(self._marker_only, 'marker-only document')}: search them with "
+                                 "marker_stretches (mocapviz markers)")  # fmt: skip
         if self.client is None:
             return [getattr(actor.shard, method)(*args, **kwargs) for actor in self.actors]
         calls = []
