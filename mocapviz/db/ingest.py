@@ -165,8 +165,8 @@ def read_document(path, fps: float | None = None, labels: dict | None = None, ma
     try:
         motion = motion.canonical(mapping)
     except SkeletonMappingError:
-        if markers_only != "keep" or file_format(path) != ".c3d":
-            raise
+        if markers_only != "keep" or file_format(path) != ".c3d" or not np.isfinite(motion.positions).all(axis=2).any():
+            raise  # (a file whose markers are never seen has nothing to keep)
         only = {"markers_only": True}
     else:
         only = {}
