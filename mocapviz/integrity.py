@@ -24,6 +24,7 @@ never calls intact data damaged).
 
 from __future__ import annotations
 
+import contextlib
 import shlex
 from pathlib import Path
 
@@ -84,8 +85,18 @@ def check(path) -> pd.DataFrame:
         rows.append(_row(pca, path, "PCA model", lambda db: PCAModel.load(pca), db))
     for name, f in layout.template_files(path).items():
         rows.append(_row(f, path, f"motion template {name}", lambda db, f=f: MotionTemplate.load(f), db))
+    only = {}  # marker-only documents (mocapviz.db.marker_documents): their table, then each one's markers
+    if layout.marker_documents_file(path).is_file():
+        rows.append(_row(layout.marker_documents_file(path), path, "marker-only documents",
+                         lambda db: db.marker_documents, db))  # fmt: skip
+        with contextlib.suppress(MocapvizError):  # (a damaged table is the row above)
+            only = dict(zip(db.marker_documents.documents["sha256"], db.marker_documents.documents["doc_id"]))
     by_sha = dict(zip(db.documents["sha256"], db.documents["doc_id"]))
     for sha, f in layout.markers_files(path).items():
+        if sha in only:
+            rows.append(_row(f, path, f"markers of marker-only document {only[sha]}",
+                             lambda db, doc=only[sha]: db.marker_documents.motion(doc), db))  # fmt: skip
+            continue
         if sha not in by_sha:  # (a document an ingest added since the check opened the database?)
             documents = MotionDB.open(path).documents
             by_sha.update(zip(documents["sha256"], documents["doc_id"]))

@@ -515,6 +515,7 @@ class Interval:
 
 MIN_LENGTH = 0.5  # the shortest match of a search, a share of the query's frames: half as long as the query
 MIN_LENGTH_RANGE = Interval(0.0, 1.0, low_open=True)
+MARKERS_ONLY = ("refuse", "keep")  # ingest of a C3D file of no known marker set (mocapviz.db.marker_documents)
 
 
 def parse_number(text: str, name: str, low: float | None = None, high: float | None = None, low_open: bool = False,

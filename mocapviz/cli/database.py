@@ -46,8 +46,10 @@ def run_ingest(args) -> None:
             scheduler = stack.enter_context(dask_client(LOCAL, n_workers=args.jobs))
         db = MotionDB.ingest(args.paths, args.out, fps=args.fps, labels=args.labels, mapping=mapping,
                              skip_bad=args.skip_bad, threads=args.jobs, progress=not args.quiet,
-                             scheduler=scheduler, **options)
+                             scheduler=scheduler, markers_only=args.markers_only, **options)
     print(db)
+    if len(db.marker_documents):
+        print(f"and {plural(len(db.marker_documents), 'marker-only document')} (no canonical joints)")
     _update_derived(db, progress=not args.quiet)
 
 
@@ -100,6 +102,13 @@ def run_info(args) -> None:
         if args.documents:
             cols = [c for c in db.documents.columns if c not in ("path", "sha256")]
             print(printed(db.documents[cols]))
+        only = db.marker_documents.documents
+        if len(only):
+            print(f"{plural(len(only), 'marker-only document')} (no canonical joints; `mocapviz markers` searches "
+                  "them)")  # fmt: skip
+            if args.documents:
+                print(printed(only[["doc_id", "name", "n_frames", "fps", "label"]].assign(
+                    markers=only["markers"].map(len))))  # fmt: skip
 
 
 def run_check(args) -> int:

@@ -8,6 +8,7 @@ import pandas as pd
 
 from ..errors import ParameterError
 from ..store import atomic_write
+from ..validation import plural
 
 
 def printed(table: pd.DataFrame) -> str:
@@ -40,7 +41,11 @@ def print_paths(table: pd.DataFrame, paths: bool) -> None:
 
 
 def print_ranked(table: pd.DataFrame, n_rows: int, empty: str) -> None:
-    """A ranked result table without its path column, or one line saying there is none and what to try."""
+    """A ranked result table without its path column, or one line saying there is none and what to try; and the
+    marker-only documents the search did not look at (attrs ``marker_only_skipped``)."""
+    if table.attrs.get("marker_only_skipped"):
+        print(f"(not searched: {plural(table.attrs['marker_only_skipped'], 'marker-only document')}, which have no "
+              "canonical joints; `mocapviz markers` searches them)")
     if table.empty:
         print(f"no matches ({empty})")
         return

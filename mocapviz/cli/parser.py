@@ -55,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
     ing.add_argument("--asf", help="ASF skeleton for all AMC files (default: found beside each)")
     P["marker_mapping"].add_to(ing)
     P["take"].add_to(ing)
+    P["markers_only"].add_to(ing)
     ing.add_argument("--up", choices=["auto", "y", "z"], help="up axis of BVH files (default auto)")
     ing.add_argument("--skip-bad", action="store_true", help="skip unreadable files with a warning")
     cluster_options(ing)
@@ -192,6 +193,17 @@ def build_parser() -> argparse.ArgumentParser:
     se.add_argument("--csv", help=CSV_HELP)
     search_scheduler(se)
     se.set_defaults(func=_search)
+
+    mk = sub.add_parser("markers", help="the stretches of the DB's marker-only documents (C3D files of no known "
+                        "marker set, ingested with --markers-only keep) whose markers move most like an example's, "
+                        "among those of the same marker labels and rate, by subsequence DTW on the marker numeric set")
+    mk.add_argument("db")
+    mk.add_argument("--example", required=True, help="a marker-only document's id (negative, as `mocapviz info "
+                    "--documents` lists them) or a C3D file")  # fmt: skip
+    option(mk, "--frames", check=parse_span, help="frame span A:B of the example, B excluded (default: all of it)")
+    add_options(mk, "marker_stretches")
+    mk.add_argument("--csv", help=CSV_HELP)
+    mk.set_defaults(func=_markers)
 
     au = sub.add_parser("audit", help="every pair of stretches that are near-copies (mirrored, re-timed, trimmed, "
                         "retargeted), clusters of copies, and a test split's leakage into train")  # fmt: skip
@@ -423,6 +435,12 @@ def _search(args):
     from . import similarity
 
     return similarity.run_search(args)
+
+
+def _markers(args):
+    from . import similarity
+
+    return similarity.run_markers(args)
 
 
 def _audit(args):

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from .. import io as readers  # lazy: a reader loads when a file is given
 from ..engine import NUMERIC_SETS, Engine, MotionDB, PCAModel, layout, load_numeric, stored_sets, update_derived
 from ..engine.parameters import arguments
 from ..errors import MocapvizError, ParameterError
@@ -108,6 +109,32 @@ def run_match(args) -> None:
                   if args.method == "lng" else "no document long enough outside the query's own")  # fmt: skip
     print_paths(table, args.paths)
     write_csv(table, args.csv)
+
+
+def run_markers(args) -> None:
+    csv_folder(args.csv)
+    engine = Engine(args.db)
+    example = _marker_example(engine.db, args.example)
+    table = engine.marker_stretches(example, frames=args.frames, **arguments(args, "marker_stretches"))
+    left = [plural(table.attrs[k], "marker-only document") + why for k, why in
+            (("other_markers", " of other marker labels"), ("other_rate", " at another frame rate")) if table.attrs[k]]
+    print(f"{plural(len(table), 'stretch', 'stretches')} like {args.example} "
+          f"({plural(table.attrs['query_frames'], 'frame')}) by DTW on the marker numeric set, among "
+          f"{plural(table.attrs['searched'], 'marker-only document')}, in {table.attrs['ms']:.1f} ms"
+          + (" (its own document excluded)" if args.exclude_document else "")
+          + (f"; not compared: {', '.join(left)}" if left else ""))  # fmt: skip
+    print_ranked(table, args.n_matches, "no marker-only document of the example's marker labels and rate is long "
+                 "enough: try a shorter --frames span or --no-exclude-document")  # fmt: skip
+    write_csv(table, args.csv)
+
+
+def _marker_example(db: MotionDB, text: str):
+    """``markers --example``: a marker-only document's id (a negative integer) or a C3D file (its markers)."""
+    if text.startswith("-") and text[1:].isdigit():
+        return int(text)
+    if Path(text).is_file():
+        return readers.load(text)
+    raise ParameterError(f"--example {text} is neither a marker-only document id (negative) of {db.path} nor a file")
 
 
 def run_search(args) -> None:

@@ -45,10 +45,11 @@ from ..errors import MotionDBError, ParameterError, StaleDataError, UnknownKeyEr
 from ..motion import Motion
 from ..motion.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS
 from ..store import atomic_file, atomic_write, check_format, stamp
-from ..validation import renamed
+from ..validation import MARKERS_ONLY, one_of, renamed
 from .ingest import BASE_COLUMNS as _BASE_COLUMNS
 from .ingest import IngestOptions, expand_paths, held_documents, read_new
 from .layout import generation_file, generation_of, manifest_file
+from .marker_documents import MarkerDocuments, add_marker_documents, marker_documents
 
 __all__ = ["FORMAT", "VERSION", "MotionDB"]
 
@@ -237,6 +238,10 @@ class MotionDB:
         """
         rows = self.documents[self.documents["doc_id"] == doc_id]
         if rows.empty:
+            only = self.marker_documents.documents
+            if doc_id in set(only["doc_id"]):  # marker-only: searched by its markers (mocapviz.similarity.marker_search)
+                raise UnknownKeyError(f"{self.path}: document {doc_id} is a marker-only document (no canonical joints): "
+                                      "search it with Engine.marker_stretches (mocapviz markers)")
             raise UnknownKeyError(f"{self.path}: no document {doc_id} (doc ids {self.documents['doc_id'].min()}..{self.documents['doc_id'].max()})")
         return rows.iloc[0]
 
@@ -301,6 +306,12 @@ class MotionDB:
             source=row["path"],
             labels=labels,
         )
+
+    @property
+    def marker_documents(self) -> MarkerDocuments:
+        """The marker-only documents stored beside the database (:mod:`mocapviz.db.marker_documents`): C3D files
+        whose markers match no marker set, ingested with ``markers_only="keep"``; never in :attr:`documents`."""
+        return marker_documents(self.path)
 
     @property
     def label_columns(self) -> list[str]:
@@ -566,7 +577,7 @@ class MotionDB:
     @renamed(n_jobs="threads")
     def ingest(cls, paths, out, fps: float | None = None, labels=None, mapping: dict | None = None,
                skip_bad: bool = False, threads: int | None = None, progress: bool = True, scheduler=None,
-               **load_options) -> MotionDB:
+               markers_only: str = "refuse", **load_options) -> MotionDB:
         """Read motion files into the MotionDB at ``out``, creating it or appending to it.
 
         Every take of an FBX file is a document (only ``take`` if given; docs/fbx.md). Documents already in the
@@ -604,6 +615,10 @@ class MotionDB:
             (its workers must see the same paths), a Client is used as it is. None (default): on ``threads``
             threads in this process. The results are committed here, in input order, whatever order the tasks
             finish in.
+        markers_only : {"refuse", "keep"}
+            A C3D file whose markers match no marker set: refused like any unmappable file (default), or kept as a
+            marker-only document (:mod:`mocapviz.db.marker_documents`: its markers stored at the file's rate, a row
+            in their own table, no canonical frames; :attr:`marker_documents`).
         **load_options
             Passed to :func:`mocapviz.load` (``asf``, ``up``, ``scale``, ``take``: that take of each FBX file).
 
@@ -641,7 +656,8 @@ class MotionDB:
         """
         out = Path(out)
         files = expand_paths(paths)
-        options = IngestOptions(fps, labels, mapping, skip_bad, threads, progress, scheduler, load_options)
+        options = IngestOptions(fps, labels, mapping, skip_bad, threads, progress, scheduler, load_options,
+                                one_of(markers_only, "markers_only", MARKERS_ONLY))
         retries = 2  # again when a concurrent failed ingest removed the empty database it created
         while True:
             created = False
@@ -665,7 +681,7 @@ class MotionDB:
 
     def append(self, paths, fps: float | None = None, labels=None, mapping: dict | None = None,
                skip_bad: bool = False, threads: int | None = None, progress: bool = True, scheduler=None,
-               **load_options) -> MotionDB:
+               markers_only: str = "refuse", **load_options) -> MotionDB:
         """Add motion files to this database; see :meth:`ingest`.
 
         The writer lock is held for the whole transaction (what the database holds is read, the files are read,
@@ -676,7 +692,7 @@ class MotionDB:
         ----------
         paths : str, os.PathLike or list of them
             Files, folders or glob patterns, as for :meth:`ingest`.
-        fps, labels, mapping, skip_bad, threads, progress, scheduler, **load_options
+        fps, labels, mapping, skip_bad, threads, progress, scheduler, markers_only, **load_options
             As for :meth:`ingest`.
 
         Returns
@@ -684,7 +700,8 @@ class MotionDB:
         MotionDB
             The database reopened at its new generation (this object is left as it was).
         """
-        options = IngestOptions(fps, labels, mapping, skip_bad, threads, progress, scheduler, load_options)
+        options = IngestOptions(fps, labels, mapping, skip_bad, threads, progress, scheduler, load_options,
+                                one_of(markers_only, "markers_only", MARKERS_ONLY))
         return self._append_files(expand_paths(paths), options)
 
     def _append_files(self, files: list[Path], options: IngestOptions) -> MotionDB:
@@ -695,7 +712,16 @@ class MotionDB:
                 raise MotionDBError(f"{current.path}: documents are at {current.fps} fps; cannot append at {fps} fps")
             if fps is None and current.fps is not None and len(current):
                 options = dataclasses.replace(options, fps=current.fps)
-            positions, quaternions, metas = read_new(files, held_documents(current.documents), options)
+            known = held_documents(current.documents)
+            for sha256 in current.marker_documents.documents["sha256"]:  # marker-only documents: files held whole
+                known.setdefault(sha256, set()).add(None)
+            positions, quaternions, metas = read_new(files, known, options)
+            only = {i for i, meta in enumerate(metas) if meta.get("markers_only")}
+            if only:  # their own table, never the frame arrays (mocapviz.db.marker_documents)
+                add_marker_documents(current.path, [_marker_motion(positions[i], metas[i]) for i in sorted(only)],
+                                     [metas[i] for i in sorted(only)])  # fmt: skip
+                positions, quaternions, metas = ([x for i, x in enumerate(xs) if i not in only]
+                                                 for xs in (positions, quaternions, metas))  # fmt: skip
             if positions:
                 _commit(current.path, current.manifest, positions, quaternions, metas)
         db = MotionDB.open(self.path)
@@ -762,6 +788,12 @@ class MotionDB:
 
 
 # ---------------------------------------------------------------------- storage helpers
+def _marker_motion(positions: np.ndarray, meta: dict) -> Motion:
+    """A marker-only document as ingest read it (:func:`mocapviz.db.ingest.read_new`): a marker Motion."""
+    return Motion(positions=positions, fps=float(meta["fps"]), joint_names=tuple(meta["markers"]),
+                  parents=np.full(positions.shape[1], -1, dtype=np.int64), source=meta["path"])  # fmt: skip
+
+
 def _locked(path: Path):
     """The database's writer lock (:func:`mocapviz.store.locked`): one writer at a time, a second one waits."""
     if not manifest_file(path).is_file():

@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from .. import errors as errors_module
-from ..errors import LabelTableError, MocapFormatError, MocapFormatWarning, MocapvizError
+from ..errors import LabelTableError, MocapFormatError, MocapFormatWarning, MocapvizError, SkeletonMappingError
 from ..io import FORMATS, file_format, find_asf, load
 from ..io.labels import MAIN_LABEL_COLUMNS, labels_for, read_labels_tsv
 from ..motion import Motion
@@ -170,7 +170,8 @@ def held_documents(documents: pd.DataFrame) -> dict[str, set]:
 
 
 def read_document(path, fps: float | None = None, labels: dict | None = None, mapping: dict | None = None,
-                  sha256: str | None = None, name: str | None = None, **load_options) -> tuple[Motion, dict]:
+                  sha256: str | None = None, name: str | None = None, markers_only: str = "refuse",
+                  **load_options) -> tuple[Motion, dict]:
     """One ingest task: read a file (one take of an FBX file), map it to the canonical skeleton, resample, describe it.
 
     Parameters
@@ -186,24 +187,34 @@ def read_document(path, fps: float | None = None, labels: dict | None = None, ma
         The file's :func:`file_checksum`, if the caller has it already.
     name : str, optional
         The document's name; default the file's name without its extension.
+    markers_only : {"refuse", "keep"}
+        A C3D file whose markers match no marker set: refused (SkeletonMappingError), or kept as it was read (a
+        marker-only document, :mod:`mocapviz.db.marker_documents`: at the file's rate, NaN in gaps).
     **load_options
         Passed to :func:`mocapviz.load` (``take``: the FBX take to read, default the file's first).
 
     Returns
     -------
     motion : Motion
-        Canonical joints, at ``fps``.
+        Canonical joints, at ``fps``; or, for a marker-only document, the markers.
     meta : dict
-        name, path, format, n_frames, fps, source_fps, sha256, the labels, and for an FBX file ``fbx_take``: the
-        take read.
+        name, path, format, n_frames, fps, source_fps, sha256, the labels, for an FBX file ``fbx_take``: the
+        take read; ``markers_only`` True for a marker-only document.
     """
     path = Path(path)
     motion = load(path, **load_options)
     source_fps = motion.fps
     take = motion.labels.get("take") if file_format(path) == ".fbx" else None
-    motion = motion.canonical(mapping)
-    if fps is not None:
-        motion = motion.resample(fps)
+    try:
+        motion = motion.canonical(mapping)
+    except SkeletonMappingError:
+        if markers_only != "keep" or file_format(path) != ".c3d" or not np.isfinite(motion.positions).all(axis=2).any():
+            raise  # (a file whose markers are never seen has nothing to keep)
+        only = {"markers_only": True}
+    else:
+        only = {}
+        if fps is not None:
+            motion = motion.resample(fps)
     labels = labels_for(path) if labels is None else dict(labels)
     meta = {
         "name": path.stem if name is None else name,
@@ -215,6 +226,7 @@ def read_document(path, fps: float | None = None, labels: dict | None = None, ma
         "sha256": sha256 or file_checksum(path, load_options.get("asf")),
         "label": labels.pop("label", None),
         **{k: v for k, v in labels.items() if k not in _BASE_COLUMNS},
+        **only,
     }
     if take is not None:
         meta[TAKE_COLUMN] = take
@@ -264,6 +276,8 @@ class ReadJob:
         Passed to :func:`mocapviz.io.load`.
     held : frozenset of str
         The takes of this (FBX) file the database holds already (not read again).
+    markers_only : {"refuse", "keep"}
+        A C3D file that matches no marker set (:func:`read_document`).
     """
 
     path: str
@@ -273,6 +287,7 @@ class ReadJob:
     mapping: dict | None
     load_options: dict
     held: frozenset = frozenset()
+    markers_only: str = "refuse"
 
 
 def _documents_of(job: ReadJob) -> list[tuple[str | None, str | None]]:
@@ -306,7 +321,10 @@ def _read_task(job: ReadJob) -> list[tuple[np.ndarray, np.ndarray | None, dict, 
         for take, name in _documents_of(job):
             options = job.load_options if take is None else {**job.load_options, "take": take}
             with collect_format_warnings() as notes:
-                motion, meta = read_document(job.path, job.fps, job.labels, job.mapping, job.sha256, name, **options)
+                motion, meta = read_document(job.path, job.fps, job.labels, job.mapping, job.sha256, name,
+                                             job.markers_only, **options)
+            if meta.get("markers_only"):
+                meta["markers"] = list(motion.joint_names)
             out.append((motion.positions, motion.quaternions, meta, notes))
     except MocapvizError as exc:  # a malformed file, an unmappable rig, a bad label file beside the data, ...
         return _ReadFailure.of(exc)
@@ -386,6 +404,8 @@ class IngestOptions:
         Read as Dask tasks.
     load_options : dict
         Passed to :func:`mocapviz.io.load`. (See :meth:`mocapviz.db.database.MotionDB.ingest` for each in full.)
+    markers_only : {"refuse", "keep"}
+        A C3D file whose markers match no marker set: refused, or kept as a marker-only document.
     """
 
     fps: float | None = None
@@ -396,6 +416,7 @@ class IngestOptions:
     progress: bool = True
     scheduler: object = None
     load_options: dict = field(default_factory=dict)
+    markers_only: str = "refuse"
 
 
 def read_new(files: list[Path], known: dict, options: IngestOptions) -> tuple[list, list, list[dict]]:
@@ -414,7 +435,8 @@ def read_new(files: list[Path], known: dict, options: IngestOptions) -> tuple[li
     Returns
     -------
     positions, quaternions : list of np.ndarray
-        Per new document: (T, 24, 3) float32 cm and (T, 24, 4) float32 or None.
+        Per new document: (T, 24, 3) float32 cm and (T, 24, 4) float32 or None; for a marker-only document (its
+        meta's ``markers_only``, with ``markers``: its labels) the markers (T, M, 3), NaN in gaps, and None.
     metas : list of dict
         Per new document: its row (:func:`read_document`), a file's documents in the order of its takes.
 
@@ -444,7 +466,8 @@ def read_new(files: list[Path], known: dict, options: IngestOptions) -> tuple[li
         if None in held or load_options.get("take") in held:
             continue
         labels = None if table is None else table.get(str(f), table.get(f.name, {}))
-        todo.append(ReadJob(str(f), sha256, options.fps, labels, options.mapping, load_options, frozenset(held)))
+        todo.append(ReadJob(str(f), sha256, options.fps, labels, options.mapping, load_options, frozenset(held),
+                            options.markers_only))
     positions, quaternions, metas = [], [], []
     with optional_client(options.scheduler if todo else None) as client:
         chunks = _chunks(todo, 4 * parallelism(options.threads, client))

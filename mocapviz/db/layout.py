@@ -12,6 +12,7 @@
     DB/features/pca.npz                     pca_file
     DB/templates/<name>.npz                 template_file; template_files   (mocapviz.relational.templates)
     DB/markers/<sha256 of the file>.npz     markers_file; markers_files     (mocapviz.db.markers)
+    DB/markers/documents.json               marker_documents_file           (mocapviz.db.marker_documents)
     DB/labels/changes.json                  labels_file                     (mocapviz.db.segments)
 
 The folders (``index_folder``, ``features_folder``, ``templates_folder``, ``markers_folder``,
@@ -34,7 +35,7 @@ from pathlib import Path
 
 __all__ = [
     "features_folder", "generation_file", "generation_of", "index_file", "index_files", "index_folder",
-    "labels_file", "labels_folder", "manifest_file", "markers_file", "markers_files", "markers_folder",
+    "labels_file", "labels_folder", "manifest_file", "marker_documents_file", "markers_file", "markers_files", "markers_folder",
     "numeric_data", "numeric_header", "numeric_sets", "pca_file", "template_file", "template_files", "templates_folder",
 ]  # fmt: skip
 
@@ -143,6 +144,11 @@ def markers_file(db_path: str | os.PathLike, sha256: str) -> Path:
 def markers_files(db_path: str | os.PathLike) -> dict[str, Path]:
     """The stored markers, the checksum of their file -> :func:`markers_file`, in name order."""
     return dict(sorted((f.stem, f) for f in markers_folder(db_path).glob("*.npz")))
+
+
+def marker_documents_file(db_path: str | os.PathLike) -> Path:
+    """``DB/markers/documents.json``: the table of the marker-only documents (:mod:`mocapviz.db.marker_documents`)."""
+    return markers_folder(db_path) / "documents.json"
 
 
 def labels_folder(db_path: str | os.PathLike) -> Path:

@@ -9,6 +9,8 @@ stored as a mask, not as NaN (no non-finite value is stored), and come back as N
 store_markers   read the C3D documents' files once more and store their markers (ingest does it for new ones).
 load_markers    a document's markers as a marker Motion (NaN in gaps), checked against its checksum.
 has_markers     whether a document's markers are stored.
+save_markers    write a marker Motion (also the marker-only documents', :mod:`mocapviz.db.marker_documents`).
+read_markers    read one back.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from ..motion import Motion
 from .arrays import load_arrays, save_arrays
 from .layout import markers_file
 
-__all__ = ["has_markers", "load_markers", "markers_path", "store_markers"]
+__all__ = ["has_markers", "load_markers", "markers_path", "read_markers", "save_markers", "store_markers"]
 
 FORMAT, VERSION = "mocapviz-markers", 1
 _REBUILD = "delete it and store the markers again from the C3D file (mocapviz.db.markers.store_markers)"
@@ -72,16 +74,32 @@ def store_markers(db, doc_ids=None) -> list[Path]:
             raise MotionDBError(f"{path}: the C3D file of document {row.doc_id} ({row.name}) is gone or changed since "
                                 "it was ingested; its markers cannot be stored")  # fmt: skip
         motion = read_c3d(path)
-        present = np.isfinite(motion.positions).all(axis=2)
-        arrays = {"positions": np.where(present[..., None], motion.positions, 0.0).astype(np.float32),
-                  "present": present}  # fmt: skip
-        header = {"doc_name": row.name, "source": str(path), "fps": motion.fps, "markers": list(motion.joint_names),
-                  "labels": motion.labels}  # fmt: skip
         target.parent.mkdir(exist_ok=True)
         with store.locked(target.parent):
-            save_arrays(target, arrays, header, FORMAT, VERSION)
+            save_markers(target, motion, row.name)
         written.append(target)
     return written
+
+
+def save_markers(target: Path, motion: Motion, doc_name: str) -> None:
+    """Write a marker Motion to ``target`` atomically, positions with gaps as a mask (the caller holds the markers
+    folder's lock, :func:`mocapviz.store.locked`).
+
+    Parameters
+    ----------
+    target : pathlib.Path
+        ``DB/markers/<sha256>.npz`` (:func:`mocapviz.db.layout.markers_file`).
+    motion : Motion
+        A marker Motion [shape=(T, M, 3)], cm, NaN in gaps.
+    doc_name : str
+        The document's name, kept in the header.
+    """
+    present = np.isfinite(motion.positions).all(axis=2)
+    arrays = {"positions": np.where(present[..., None], motion.positions, 0.0).astype(np.float32),
+              "present": present}  # fmt: skip
+    header = {"doc_name": doc_name, "source": str(motion.source), "fps": motion.fps,
+              "markers": list(motion.joint_names), "labels": motion.labels}  # fmt: skip
+    save_arrays(target, arrays, header, FORMAT, VERSION)
 
 
 def load_markers(db, doc_id: int) -> Motion:
@@ -108,6 +126,12 @@ def load_markers(db, doc_id: int) -> Motion:
     if not path.is_file():
         raise MotionDBError(f"{db.path}: no markers stored for {what}: only documents read from C3D files have "
                             "them (stored at ingest, or by mocapviz.db.markers.store_markers)")  # fmt: skip
+    return read_markers(path, what)
+
+
+def read_markers(path: Path, what: str) -> Motion:
+    """The marker Motion stored in ``path`` by :func:`save_markers` (NaN in gaps), checked against its checksum;
+    ``what``: the document, for the messages (MotionDBError when damaged)."""
     arrays, header = load_arrays(path, FORMAT, VERSION, f"markers file of {what}", _REBUILD)
     positions = np.where(arrays["present"][..., None], arrays["positions"], np.nan).astype(np.float32)
     n = positions.shape[1]

@@ -38,7 +38,7 @@ from ..db.shards import split_documents
 from ..errors import ClusterError, MocapvizError, ParameterError
 from ..match.time_warping import check_query_length, shortest_match
 from ..parallel import dask_client
-from ..validation import count, frame_span
+from ..validation import count, frame_span, plural
 from .parameters import PARAMETERS, checked
 from .shard import Shard
 
@@ -86,8 +86,11 @@ class Engine:
         self.client = None
         self._stack = contextlib.ExitStack()
         self._features: dict[str, np.ndarray] = {}
+        self._marker_only = len(self.db.marker_documents)  # marker-only documents: no canonical search sees them
         try:
-            if scheduler is None:
+            if self.db.documents.empty and self._marker_only:  # nothing to shard: marker_stretches alone answers
+                self.shards, self.actors = [], []
+            elif scheduler is None:
                 self.shards = shards or split_documents(self.db, count(n_shards, "n_shards") if n_shards else 1)
                 generation = self.db.manifest.get("generation")
                 self.actors = [_Here(Shard(self.db, ids.tolist(), generation)) for ids in self.shards]
@@ -133,6 +136,10 @@ class Engine:
     def _fan(self, method: str, *args, **kwargs) -> list:
         """``method(*args, **kwargs)`` on every shard at once; on a cluster, a shard whose worker failed is started
         again on a live worker and asked once more; then a ClusterError."""
+        if not self.actors:  # a database of marker-only documents alone
+            raise ParameterError(f"{self.db.path} holds no document with canonical joints, only "
+                                 f"{plural(self._marker_only, 'marker-only document')}: search them with "
+                                 "marker_stretches (mocapviz markers)")  # fmt: skip
         if self.client is None:
             return [getattr(actor.shard, method)(*args, **kwargs) for actor in self.actors]
         calls = []
@@ -350,6 +357,20 @@ class Engine:
         limit = self._limit("stretches", numeric_set, query, "cost", mode, options)
         tables = self._fan("stretches", numeric_set, query, mode=mode, paths=paths, limit=limit, **options)
         return _work_added(self._merged(tables, ["cost", "_last"], n_matches, t0), tables)
+
+    @checked("marker_stretches")
+    def marker_stretches(self, example, *, frames=None, n_matches=..., min_length=..., exclude_document=...
+                         ) -> pd.DataFrame:  # fmt: skip
+        """The K best non-overlapping stretches of the marker-only documents of the example's marker label set and
+        rate, by subsequence DTW on the marker numeric set
+        (:func:`mocapviz.similarity.marker_search.marker_stretches`; attrs ``searched``, ``other_markers``,
+        ``other_rate``). Answered here, not by the shards: they hold the canonical documents only."""
+        from ..similarity.marker_search import marker_stretches
+
+        t0 = time.perf_counter()
+        table = marker_stretches(self.db, example, frames, n_matches, min_length, exclude_document)
+        table.attrs["ms"] = 1e3 * (time.perf_counter() - t0)
+        return table
 
     def _limit(self, method: str, numeric_set: str, query, column: str, mode: str, options: dict) -> float | None:
         """The K-th best cost shared by every shard in exact mode (:func:`mocapviz.match.pruned.search_ranges`): a
@@ -762,7 +783,7 @@ class Engine:
         again, with the shards' column order."""
         packs = [p for p in packs if p is not None]
         if not packs:
-            return hit_table(self.db, [], [], [])
+            return self._noted(hit_table(self.db, [], [], []))
         data = {c: np.concatenate([p["columns"][c] for p in packs]).astype(  # int32 on the wire, as they were
                     np.result_type(*(p["dtypes"][c] for p in packs)), copy=False) for c in packs[0]["columns"]}
         first = first_frames(self.db, data["doc_id"])
@@ -776,7 +797,14 @@ class Engine:
             merged = merged[order]
         merged.attrs.update({k: v for k, v in packs[0]["attrs"].items() if isinstance(v, (str, int, float))})
         merged.attrs.update(shards=len(self.shards), ms=1e3 * (time.perf_counter() - t0))
-        return merged
+        return self._noted(merged)
+
+    def _noted(self, table: pd.DataFrame) -> pd.DataFrame:
+        """A search's table saying, where the database holds marker-only documents, that it did not search them
+        (attrs ``marker_only_skipped``: they have no canonical joints, :mod:`mocapviz.db.marker_documents`)."""
+        if self._marker_only:
+            table.attrs["marker_only_skipped"] = self._marker_only
+        return table
 
     # ------------------------------------------------------------------ for the fronts
     def clip_relational(self, example, *, frames=None, relational_set: str = "2005") -> tuple[np.ndarray, list[str]]:

@@ -20,7 +20,17 @@ from ..errors import ParameterError
 from ..export.formats import FORMATS, RIGS
 from ..features import NUMERIC_SETS, POSITION_SETS, RELATIONAL_SETS
 from ..io.humanml3d import LAYOUTS
-from ..validation import MIN_LENGTH, MIN_LENGTH_RANGE, count, number, one_of, parse_count, parse_names, parse_number
+from ..validation import (
+    MARKERS_ONLY,
+    MIN_LENGTH,
+    MIN_LENGTH_RANGE,
+    count,
+    number,
+    one_of,
+    parse_count,
+    parse_names,
+    parse_number,
+)
 
 __all__ = ["PARAMETERS", "USE_DEFAULTS", "Parameter", "checked", "markdown", "parameter"]
 
@@ -217,6 +227,9 @@ PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
     _p("marker_mapping", "text", None, "C3D marker mapping file: CSV lines 'label,marker' renaming a lab's marker "
        "labels onto a marker set's names (docs/c3d.md)", high=4096, optional=True, none_means="the file's labels",
        flags=("--marker-mapping",)),
+    _p("markers_only", "choice", "refuse", "a C3D file whose markers match no marker set: refuse it, or keep it as a "
+       "marker-only document (its markers stored, no canonical joints; searched by its markers only: docs/c3d.md)",
+       choices=MARKERS_ONLY),
     _p("take", "text", None, "FBX: the take (animation stack) to read from each FBX file, one document per file "
        "(docs/fbx.md)", high=1024, optional=True, none_means="every take, a document each"),
     _p("label_format", "choice", "csv", "segment labels' file: CSV with the hit table's columns, or BABEL-style "
@@ -273,6 +286,7 @@ USES = {
               "max_scale": "max_scale", "mirrored": "mirrored"},
     "audit_path": {"numeric_set": "audit_set"},
     "export": {"format": "export_format", "rig": "rig"},
+    "marker_stretches": {"n_matches": "n_matches", "min_length": "min_length", "exclude_document": "exclude_document"},
 }  # fmt: skip
 """Each use case's keyword arguments and the declared parameter each one is (most have its name): the engine
 checks them (:func:`checked`), the command line offers them (:func:`add_options`, :func:`arguments`)."""
