@@ -2,6 +2,7 @@
 
     .cache/blender/bin/python tests/blender_probe.py IN.bvh OUT.npz
     .cache/blender/bin/python tests/blender_probe.py IN.glb OUT.npz FPS
+    .cache/blender/bin/python tests/blender_probe.py IN.fbx OUT.npz
 
 An empty factory scene imports the file with Blender's bundled importers and their default axis conversion (the
 file's y up, -z forward -> Blender's z up, y forward: a file point ``(x, y, z)`` lands at ``(x, -z, y)``), at scale 1
@@ -13,6 +14,9 @@ file's y up, -z forward -> Blender's z up, y forward: a file point ``(x, y, z)``
 - glTF binary: ``bpy.ops.import_scene.gltf`` after the scene's rate is set to FPS (glTF keys are seconds, which the
   importer turns into frames at the scene's rate: key ``k / FPS`` at frame ``k``). A glTF without a skin is imported
   as empties, one per node: a joint's world position is its empty's ``matrix_world`` translation.
+
+- FBX (files other tools wrote, to check mocapviz's FBX reader against another): ``bpy.ops.import_scene.fbx`` with
+  its defaults (the file's unit scale and axes applied; the scene takes the file's rate). Every bone is a joint.
 
 Every frame from the first key frame to the last is set in turn (``scene.frame_set``). OUT.npz holds ``positions``
 [frames, joints, 3] (Blender world coordinates), ``tails`` (a BVH bone's tail, the End Site of a leaf; NaN for
@@ -57,6 +61,22 @@ def joints_of_bvh(path: str):
     return names, parents, now
 
 
+def joints_of_fbx(path: str):
+    """Import an FBX file (Blender's importer, its defaults: the file's unit and axes applied, the scene taking the
+    file's rate); (names, parents, a function returning the heads and tails of every bone now)."""
+    bpy.ops.import_scene.fbx(filepath=path, use_anim=True)
+    [armature] = [o for o in bpy.context.scene.objects if o.type == "ARMATURE"]
+    bones = list(armature.pose.bones)
+    names = [b.name for b in bones]
+    parents = [names.index(b.parent.name) if b.parent else -1 for b in bones]
+
+    def now():
+        world = armature.matrix_world
+        return [tuple(world @ b.head) for b in bones], [tuple(world @ b.tail) for b in bones]
+
+    return names, parents, now
+
+
 def joints_of_glb(path: str, fps: float):
     """Import a glTF binary at ``fps`` (an integer rate); (names, parents, a function returning the empties' world
     positions now)."""
@@ -81,6 +101,8 @@ def probe(path: str, out: str, fps: float | None = None) -> None:
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if path.lower().endswith(".bvh"):
         names, parents, now = joints_of_bvh(path)
+    elif path.lower().endswith(".fbx"):
+        names, parents, now = joints_of_fbx(path)
     else:
         names, parents, now = joints_of_glb(path, fps)
     scene = bpy.context.scene
