@@ -49,7 +49,7 @@ from ..validation import MARKERS_ONLY, one_of, renamed
 from .ingest import BASE_COLUMNS as _BASE_COLUMNS
 from .ingest import IngestOptions, expand_paths, held_documents, read_new
 from .layout import generation_file, generation_of, manifest_file
-from .marker_documents import MarkerDocuments, add_marker_documents, marker_documents
+from .marker_documents import MarkerDocuments, add_marker_documents, read_marker_documents
 
 __all__ = ["FORMAT", "VERSION", "MotionDB"]
 
@@ -311,7 +311,7 @@ class MotionDB:
     def marker_documents(self) -> MarkerDocuments:
         """The marker-only documents stored beside the database (:mod:`mocapviz.db.marker_documents`): C3D files
         whose markers match no marker set, ingested with ``markers_only="keep"``; never in :attr:`documents`."""
-        return marker_documents(self.path)
+        return read_marker_documents(self.path)
 
     @property
     def label_columns(self) -> list[str]:

@@ -13,7 +13,7 @@ Its ids are negative (-1, -2, ... in the order stored), so that no id names both
 (:mod:`mocapviz.similarity.marker_search`).
 
 MarkerDocuments         the table of a database's marker-only documents (a view a hit table can be made from).
-marker_documents        that table, as stored now.
+read_marker_documents   that table, as stored now.
 add_marker_documents    store marker Motions as new marker-only documents (ingest does it for the files kept).
 """
 
@@ -32,7 +32,7 @@ from ..store import check_format, stamp
 from .layout import marker_documents_file, markers_file, markers_folder
 from .markers import read_markers, save_markers
 
-__all__ = ["COLUMNS", "MarkerDocuments", "add_marker_documents", "marker_documents"]
+__all__ = ["COLUMNS", "MarkerDocuments", "add_marker_documents", "read_marker_documents"]
 
 FORMAT, VERSION = "mocapviz.MarkerDocuments", 1
 COLUMNS = ["doc_id", "name", "path", "format", "n_frames", "fps", "source_fps", "sha256", "label", "markers"]
@@ -54,7 +54,7 @@ class MarkerDocuments:
     ----------
     path : str or os.PathLike
     rows : list of dict
-        The stored rows (:func:`marker_documents` reads them).
+        The stored rows (:func:`read_marker_documents` reads them).
     """
 
     def __init__(self, path, rows: list[dict]):
@@ -100,7 +100,7 @@ class MarkerDocuments:
                       source=motion.source, labels={**motion.labels, **labels})  # fmt: skip
 
 
-def marker_documents(db_path) -> MarkerDocuments:
+def read_marker_documents(db_path) -> MarkerDocuments:
     """The marker-only documents stored beside the database at ``db_path`` (none when it holds no table).
 
     Parameters
@@ -120,7 +120,7 @@ def marker_documents(db_path) -> MarkerDocuments:
     Examples
     --------
     >>> from mocapviz import MotionDB
-    >>> len(marker_documents(MotionDB.sample().path))
+    >>> len(read_marker_documents(MotionDB.sample().path))
     0
     """
     f = marker_documents_file(db_path)
@@ -174,7 +174,7 @@ def add_marker_documents(db_path, motions, metas) -> list[int]:
     folder.mkdir(exist_ok=True)
     new = []
     with store.locked(folder):
-        held = marker_documents(db_path).documents
+        held = read_marker_documents(db_path).documents
         rows = held[[c for c in held.columns if c != "start"]].to_dict("records")
         known = set(held["sha256"])
         next_id = int(held["doc_id"].min()) - 1 if len(held) else -1
