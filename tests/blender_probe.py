@@ -49,6 +49,11 @@ def key_frames() -> np.ndarray:
 def joints_of_bvh(path: str):
     """Import a BVH; (names, parents, a function returning the heads and tails of every bone now)."""
     bpy.ops.import_anim.bvh(filepath=path, global_scale=1.0, rotate_mode="NATIVE", update_scene_fps=True)
+    return armature_joints()
+
+
+def armature_joints():
+    """The scene's one armature: (names, parents, a function returning the heads and tails of every bone now)."""
     [armature] = [o for o in bpy.context.scene.objects if o.type == "ARMATURE"]
     bones = list(armature.pose.bones)
     names = [b.name for b in bones]
@@ -65,16 +70,7 @@ def joints_of_fbx(path: str):
     """Import an FBX file (Blender's importer, its defaults: the file's unit and axes applied, the scene taking the
     file's rate); (names, parents, a function returning the heads and tails of every bone now)."""
     bpy.ops.import_scene.fbx(filepath=path, use_anim=True)
-    [armature] = [o for o in bpy.context.scene.objects if o.type == "ARMATURE"]
-    bones = list(armature.pose.bones)
-    names = [b.name for b in bones]
-    parents = [names.index(b.parent.name) if b.parent else -1 for b in bones]
-
-    def now():
-        world = armature.matrix_world
-        return [tuple(world @ b.head) for b in bones], [tuple(world @ b.tail) for b in bones]
-
-    return names, parents, now
+    return armature_joints()
 
 
 def joints_of_glb(path: str, fps: float):
