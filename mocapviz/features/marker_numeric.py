@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ParameterError
+from ..motion.markers import fill_gaps
 
 __all__ = ["marker_features", "marker_label_set"]
 
@@ -81,11 +82,8 @@ def marker_features(positions) -> np.ndarray:
     seen = np.isfinite(p).all(axis=2)  # (T, M)
     if not seen.any():
         raise ParameterError("no marker is seen in any frame: no marker features")
-    frames = np.arange(p.shape[0])
     ever = seen.any(axis=0)
-    for j in np.flatnonzero(ever & ~seen.all(axis=0)):  # fill each marker's gaps (ends held)
-        for a in range(3):
-            p[:, j, a] = np.interp(frames, frames[seen[:, j]], p[seen[:, j], j, a])
+    p = fill_gaps(p, 1.0, p.shape[0]).astype(np.float64)  # every gap filled (ends held): one frame a "second"
     centroid = p[:, ever].mean(axis=1, keepdims=True)
     offsets = np.where(ever[None, :, None], p - centroid, 0.0)
     weights = np.arange(p.shape[1]) - (p.shape[1] - 1) / 2.0

@@ -43,7 +43,7 @@ import numpy as np
 from ..errors import MocapFormatError, ParameterError
 from ..motion import Motion
 from .c3d_layout import check_layout
-from .checks import DISTANCE_LIMIT_CM, check_frame_rate, describe, first_outside, format_warning
+from .checks import DISTANCE_LIMIT_CM, check_frame_rate, describe, first_outside, format_warning, numbered
 from .isolated import read_isolated
 from .marker_mapping import read_marker_mapping, relabel
 
@@ -189,15 +189,14 @@ def _labels(point: dict, n_points: int) -> tuple[tuple, list]:
             break
         raw += [str(v) for v in group.get("value", [])]
     outputs = {str(v).strip() for group in _MODEL_OUTPUTS for v in point.get(group, {}).get("value", [])}
-    names, keep, seen = [], [], {}
+    names, keep = [], []
     for i, label in enumerate(raw[:n_points]):
         name = label.strip().rsplit(":", 1)[-1].strip()
         if not name or name.startswith("*") or label.strip() in outputs:
             continue
-        seen[name] = seen.get(name, 0) + 1
-        names.append(name if seen[name] == 1 else f"{name}#{seen[name]}")
+        names.append(name)
         keep.append(i)
-    return tuple(names), keep
+    return numbered(names), keep
 
 
 def _turn(point: dict, pos: np.ndarray, up: str, path) -> np.ndarray:

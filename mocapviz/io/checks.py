@@ -8,6 +8,7 @@ DISTANCE_LIMIT_CM    |position|, |translation|, |offset| and bone lengths at mos
 DIRECTION_TOLERANCE  an ASF bone direction is a unit vector: its length within 1 ± 0.05 (normalised to 1).
 FIGURE_UNITS         the length units a figure's size tells apart (m, mm, cm, inch, CMU's 0.45 inch), by size.
 figure_unit          the unit a file's figure is in, guessed from its size, and whether to say so.
+numbered             names made unique as a Motion needs them: a repeated one numbered (``a``, ``a#2``, ...).
 check_frame_rate     a frame rate inside FPS_RANGE.
 first_outside        the first value of a block beyond a limit (or not finite), for a reader to name its line.
 unit_directions      ASF bone directions, normalised; zero or far from unit length refused (bone and line named).
@@ -55,6 +56,22 @@ FIGURE_UNITS = (  # (name, centimetres per unit, smallest and largest size of a 
     ("inches", 2.54, 35.0, 90.0),  # the textbook BVH example (66 units), PyMO's sample (60)
     ("CMU units of 0.45 inch", 2.54 / 0.45, 15.0, 35.0),  # the cgspeed BVH conversions of CMU (26 units)
 )
+
+
+def numbered(names) -> tuple[str, ...]:
+    """Names made unique, in order: the second ``a`` is ``a#2``, the third ``a#3`` (C3D labels, FBX node names).
+
+    Examples
+    --------
+    >>> numbered(["LFHD", "C7", "LFHD", "LFHD"])
+    ('LFHD', 'C7', 'LFHD#2', 'LFHD#3')
+    """
+    seen: dict[str, int] = {}
+    out = []
+    for name in names:
+        seen[name] = seen.get(name, 0) + 1
+        out.append(name if seen[name] == 1 else f"{name}#{seen[name]}")
+    return tuple(out)
 
 
 def figure_unit(size: float) -> tuple[float, str | None]:

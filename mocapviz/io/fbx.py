@@ -38,7 +38,15 @@ import numpy as np
 
 from ..errors import MocapFormatError, ParameterError
 from ..motion import Motion, rotations
-from .checks import DISTANCE_LIMIT_CM, FIGURE_UNITS, check_frame_rate, describe, first_outside, format_warning
+from .checks import (
+    DISTANCE_LIMIT_CM,
+    FIGURE_UNITS,
+    check_frame_rate,
+    describe,
+    first_outside,
+    format_warning,
+    numbered,
+)
 from .isolated import read_isolated
 
 # ufbx in its helper process: at most this memory and time (it needs about 10 times the file's size, and reads the
@@ -340,7 +348,7 @@ def _take_of(scene, take: str | None, handle: _Handles) -> dict:
         return joints.index(j) if j >= 0 else -1
 
     return {
-        "names": _unique([nodes[j].name for j in joints]),
+        "names": numbered(nodes[j].name for j in joints),
         "parents": [joint_parent(j) for j in joints],
         "fps": fps,
         "unit_meters": float(settings.unit_meters),
@@ -389,13 +397,3 @@ def _columns(matrix) -> np.ndarray:
     m = np.eye(4)
     m[:3, :] = np.array([tuple(matrix.c0), tuple(matrix.c1), tuple(matrix.c2), tuple(matrix.c3)]).T
     return m
-
-
-def _unique(names: list[str]) -> tuple:
-    """Names with repeats numbered: the second ``a`` is ``a#2``."""
-    seen: dict[str, int] = {}
-    out = []
-    for name in names:
-        seen[name] = seen.get(name, 0) + 1
-        out.append(name if seen[name] == 1 else f"{name}#{seen[name]}")
-    return tuple(out)
