@@ -14,10 +14,12 @@ Describe page), each once (no answer cached before), seeded; median, 95th percen
   span's first ``LNG_MAX_SECONDS`` (:func:`~mocapviz.app.pages.similarity.graph_span`) of takes of at least 10 s;
   baseline: their first 10 s (the graph's k-NN of every query frame is most of its time);
 - **relational**: the page's query by example on the whole clip (its suggested features, mode and mismatches);
-- **template**: learn the class's template from at most 16 of its documents and search it (the page's δ and K);
-  baseline: the same template searched by the plain subsequence DTW of Müller & Röder 2006 (every frame aligned,
-  no bound on the template rows per frame: ``find_instances(..., max_rows=0)``, the library's DTW kernel over the
-  full distance matrix);
+- **template**: learn the class's template from at most 16 of its documents and search it (the page's δ and K: the
+  exact search by lower bounds, the library's default); the search alone by lower bounds and, as baselines, by the
+  full pass (``find_instances(..., bounds=False)``) and by the plain subsequence DTW of Müller & Röder 2006 (every
+  frame aligned, no bound on the template rows per frame: ``find_instances(..., max_rows=0, bounds=False)``, the
+  library's DTW kernel over the full distance matrix); and learning from every example of the biggest class
+  (``learn_class`` without ``max_examples``), once;
 - **describe**: each shipped scene description found through the 2005 indexes (the page's K).
 """
 
@@ -68,7 +70,7 @@ def _answers(backend, n_queries: int) -> list[dict]:
     """Every kind of answer, timed: the rows of the report's table."""
     from mocapviz.app.pages import describe, relational, similarity, templates
     from mocapviz.relational.description import named_descriptions
-    from mocapviz.relational.templates import find_instances
+    from mocapviz.relational.templates import find_instances, learn_class
 
     db, rng = backend.db, np.random.default_rng(SEED)
     docs = backend.documents
@@ -100,7 +102,7 @@ def _answers(backend, n_queries: int) -> list[dict]:
     classes = [classes[i] for i in np.sort(rng.choice(len(classes), min(n_queries, len(classes)), replace=False))]
     values, _ = templates.database_features(backend, "2006")
     starts = docs["start"].to_numpy()
-    ours, plain, rows_of = [], [], []
+    ours, plain, full, bounded, rows_of = [], [], [], [], []
     for label in classes:
         t0 = time.perf_counter()
         template, _ = templates.learn_and_search(backend, label, (), "2006", templates.DEFAULT_DELTA,
@@ -108,10 +110,22 @@ def _answers(backend, n_queries: int) -> list[dict]:
         ours.append(time.perf_counter() - t0)
         rows_of.append(len(template.values))
         plain.append(_seconds(lambda t=template: find_instances(t, values, starts, templates.DEFAULT_MATCHES,
-                                                                templates.DEFAULT_DELTA, max_rows=0)))  # fmt: skip
+                                                                templates.DEFAULT_DELTA, max_rows=0, bounds=False)))
+        full.append(_seconds(lambda t=template: find_instances(t, values, starts, templates.DEFAULT_MATCHES,
+                                                               templates.DEFAULT_DELTA, bounds=False)))
+        bounded.append(_seconds(lambda t=template: find_instances(t, values, starts, templates.DEFAULT_MATCHES,
+                                                                  templates.DEFAULT_DELTA)))  # fmt: skip
     size = f"{min(rows_of)}–{max(rows_of)} template rows"
     rows.append(_row("template", f"learn (<= {templates.MAX_EXAMPLES} examples) and search, {size}", ours))
+    rows.append(_row("template", "search alone, by lower bounds (the default; learned template as above)", bounded))
+    rows.append(_row("template", "baseline: search alone, full pass (every frame aligned, same rules)", full))
     rows.append(_row("template", "baseline: search alone by plain subsequence DTW (full distance matrix)", plain))
+    biggest = docs["label"].value_counts()
+    label, n = str(biggest.index[0]), int(biggest.iloc[0])
+    t0 = time.perf_counter()
+    learn_class(db, label, values=values)
+    rows.append(_row("template", f"learn from all {n} examples of the biggest class ({label})",
+                     [time.perf_counter() - t0]))  # fmt: skip
 
     log("descriptions")
     rows.append(_row("describe", "each shipped description, K = 20", [

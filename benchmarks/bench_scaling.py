@@ -19,7 +19,8 @@ DB PLAN OUT``), so that its memory is its own: setup timed once, a warm-up query
 - knn: 16-NN single queries and one batch (``KnnIndex.query``, F15E);
 - search: ``SimilaritySearch.stretches`` (1 s) and ``.clips`` (whole HDM05 clips), exact and fast, K = 10;
 - lng: ``match_motion`` (the lazy neighbourhood graph, k = 256) of 1 s queries;
-- templates: ``search_template(..., prefilter=True)`` of one learned kick template (2006 set);
+- templates: ``search_template(...)`` (the exact search by lower bounds, its default) of one learned kick template
+  (2006 set);
 - sharded: the same queries through ``Engine(db, scheduler="local", n_shards=2)`` (``mocapviz.engine``), and each
   shard's own work (a ``mocapviz.engine.shard.Shard`` in this process, no Dask) with the pickled sizes of what is sent
   to and returned by a shard.
@@ -428,14 +429,13 @@ def _group_templates(db, plan, quick, out):
     template = MotionTemplate.load(plan["template"])
     t0 = time.perf_counter()
     values, _ = relational_features(db, "2006", progress=False)
-    indexes = build(db, "2006", progress=False, values=values, save=False)
+    build(db, "2006", progress=False, values=values, save=False)
     out["setup: relational 2006 features + indexes (s)"] = time.perf_counter() - t0
-    first = search_template(db, template, n_matches=K_SEARCH, prefilter=True, values=values, indexes=indexes)
+    first = search_template(db, template, n_matches=K_SEARCH, values=values)
     out["template: share of frames aligned"] = float(first.attrs.get("aligned", np.nan))
     with AnonPeak() as mem:
-        out["template search, pre-filter (ms)"] = 1e3 * float(np.median(_per_query(
-            lambda _: search_template(db, template, n_matches=K_SEARCH, prefilter=True, values=values,
-                                      indexes=indexes), range(3))))  # fmt: skip
+        out["template search, lower bounds (ms)"] = 1e3 * float(np.median(_per_query(
+            lambda _: search_template(db, template, n_matches=K_SEARCH, values=values), range(3))))  # fmt: skip
     out["mem"] = mem.record()
 
 
@@ -505,8 +505,7 @@ def _group_sharded(db, plan, quick, out):
             "clips, fast": (clips, lambda d: sh.clips(d, n_matches=K_SEARCH, mode="fast", exclude_document=True)),
             "LNG 1 s, k = 256": (lng, lambda e: sh.match(e[0], frames=e[1], method="lng", n_matches=K_SEARCH, k=256,
                                                           exclude_document=True)),
-            "template search, pre-filter": ([template], lambda t: sh.search_template(t, n_matches=K_SEARCH, delta=0.1,
-                                                                                      prefilter=True)),
+            "template search, lower bounds": ([template], lambda t: sh.search_template(t, n_matches=K_SEARCH, delta=0.1)),
         }  # fmt: skip
         for name, (items, fn) in calls.items():
             fn(items[0])  # warm-up: numba in the workers, first use of the shard's data
@@ -548,8 +547,7 @@ def _group_sharded(db, plan, quick, out):
         "clips, exact": (q_clip, lambda q: s.clips("F15E", q, n_matches=K_SEARCH, mode="exact", exclude_document=True)),
         "clips, fast": (q_clip, lambda q: s.clips("F15E", q, n_matches=K_SEARCH, mode="fast", exclude_document=True)),
         "LNG 1 s, k = 256": (q_lng, lambda q: s.knn("F15E", q, 256)),  # the shards' part of LNG: the kNN
-        "template search, pre-filter": ([template], lambda t: s.search_template(t, n_matches=K_SEARCH, delta=0.1,
-                                                                                prefilter=True)),
+        "template search, lower bounds": ([template], lambda t: s.search_template(t, n_matches=K_SEARCH, delta=0.1)),
     }  # fmt: skip
     shard_out = []
     for i, ids in enumerate(parts):
@@ -628,7 +626,7 @@ ROWS = [
     ("clips (whole HDM05 clip), exact (ms)", "search", "clips, exact (ms)", None, True),
     ("clips, fast (ms)", "search", "clips, fast (ms)", None, True),
     ("LNG 1 s, k = 256 (ms)", "lng", "LNG 1 s, k = 256 (ms)", None, True),
-    ("template search, pre-filter (ms)", "templates", "template search, pre-filter (ms)", None, True),
+    ("template search, lower bounds (ms)", "templates", "template search, lower bounds (ms)", None, True),
     ("setup: relational 2005 features + indexes (s)", "relational", "setup: relational 2005 features + indexes (s)",
      None, False),
     ("setup: relational 2006 features + indexes (s)", "templates", "setup: relational 2006 features + indexes (s)",
@@ -639,14 +637,14 @@ ROWS = [
 ]  # fmt: skip
 SHARDED = ["relational exact", "relational fuzzy", "relational mismatch", *[f"scene: {t}" for t in DESCRIPTIONS],
            "16-NN single", "16-NN batched, per query", "stretches 1 s, exact", "stretches 1 s, fast", "clips, exact",
-           "clips, fast", "LNG 1 s, k = 256", "template search, pre-filter"]  # fmt: skip
+           "clips, fast", "LNG 1 s, k = 256", "template search, lower bounds"]  # fmt: skip
 SINGLE_KEY = {"relational exact": "relational exact (ms)", "relational fuzzy": "relational fuzzy (ms)",
               "relational mismatch": "relational mismatch (ms)", **{f"scene: {t}": f"scene: {t} (ms)" for t in DESCRIPTIONS},
               "16-NN single": "16-NN single (ms)", "16-NN batched, per query": "16-NN batched, per query (ms)",
               "stretches 1 s, exact": "stretches 1 s, exact (ms)", "stretches 1 s, fast": "stretches 1 s, fast (ms)",
               "clips, exact": "clips, exact (ms)", "clips, fast": "clips, fast (ms)",
               "LNG 1 s, k = 256": "LNG 1 s, k = 256 (ms)",
-              "template search, pre-filter": "template search, pre-filter (ms)"}  # fmt: skip
+              "template search, lower bounds": "template search, lower bounds (ms)"}  # fmt: skip
 
 
 def _get(results: dict, n: int, group: str, key: str):
@@ -743,7 +741,7 @@ def projection(results, have) -> str:
     head = "| path | b (one process) | " + " | ".join(f"N = {m}: per-shard ms / total ms" for m in (10, 50, 100)) + " |"
     align = "|---|---:|" + "---:|" * 3
     for name in ["relational exact", "scene: kick_right", "16-NN single", "stretches 1 s, exact", "clips, fast",
-                 "LNG 1 s, k = 256", "template search, pre-filter"]:
+                 "LNG 1 s, k = 256", "template search, lower bounds"]:
         group, key = GROUP_OF[name], SINGLE_KEY[name]
         sizes = sorted(results)
         frames = [results[n]["frames"] for n in sizes]
@@ -842,7 +840,7 @@ def render(ctx: dict, big, record: dict, out_dir: Path) -> None:
           f"{len(plan['stretches'])} 1 s stretches and {len(plan['clips'])} whole HDM05 clips, K = {K_SEARCH}, own "
           f"document excluded; LNG: `match_motion(db, doc, (a, a + 120), k = 256, n_matches = {K_SEARCH})` on "
           f"{len(plan['lng'])} 1 s stretches; template: one template learned (2006 set) from the real examples "
-          f"of `{plan.get('template_label', '?')}, actors {', '.join(TRAIN_ACTORS)}), `search_template(..., prefilter=True)` x 3")
+          f"of `{plan.get('template_label', '?')}, actors {', '.join(TRAIN_ACTORS)}), `search_template(...)` (by lower bounds) x 3")
     print(f"- {info['others']}")
     if errors:
         print("- FAILED groups: " + "; ".join(errors))
@@ -861,7 +859,7 @@ def render(ctx: dict, big, record: dict, out_dir: Path) -> None:
           f"{per_size('relational', 'relational mismatch hits', lambda v: f'{v:,.0f}')}; hits of the scenes: "
           + "; ".join(f"`{t}` {per_size('relational', f'scene: {t} hits', lambda v: f'{v:,.0f}')}"
                       for t in DESCRIPTIONS)
-          + f"; share of the frames the template pre-filter leaves to align: "
+          + f"; share of the frames the template search by lower bounds aligns: "
           f"{per_size('templates', 'template: share of frames aligned', lambda v: f'{v:.1%}')}; of the 10 hits of "
           "an exact search, derived copies (mirrored / slower) of the query's own document (median): stretches "
           f"{per_size('search', 'stretches exact: hits of 10 that are derived copies of the query' + chr(39) + 's document (median)', lambda v: f'{v:g}')}, clips "
@@ -900,8 +898,8 @@ def render(ctx: dict, big, record: dict, out_dir: Path) -> None:
               f"peak RSS of the coordinator and its 2 workers (the sum of each process's VmHWM, incl. file-backed pages): "
               f"{sh.get('sharded_peak_rss_MB', 0):,.0f} MB")
         print()
-    print("Library notes: `Engine.search_template(..., prefilter=True)`: each shard pre-filters on its own "
-          "inverted indexes; exact clips and stretches run a fast round on every shard first and share the K-th best "
+    print("Library notes: `Engine.search_template(...)`: each shard aligns its own documents best lower bound "
+          "first until none can hold one of its K best; exact clips and stretches run a fast round on every shard first and share the K-th best "
           "cost it finds as each shard's starting limit (the round's time is in the sharded figure); "
           "`Engine.match` (LNG, `k=256`) asks the shards for the 256 nearest frames of every "
           "query frame and builds the graph at the coordinator: its per-shard work is that kNN "

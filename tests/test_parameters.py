@@ -27,7 +27,7 @@ COMMANDS = [
     (["match"], "match", ["numeric_set", "n_matches", "method", "min_length", "paths"]),
     (["query"], "query", ["query_mode", "relational_set"]),
     (["find"], "find", ["n_matches", "template_cost"]),
-    (["template", "search"], "search_template", ["n_matches", "delta", "max_cost", "prefilter"]),
+    (["template", "search"], "search_template", ["n_matches", "delta", "max_cost", "prefilter", "lower_bounds"]),
     (["template", "learn"], "learn_template", ["relational_set", "max_examples"]),
 ]
 

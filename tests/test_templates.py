@@ -5,6 +5,8 @@ import itertools
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mocapviz import ParameterError
 from mocapviz.match import subsequence_dtw
@@ -387,3 +389,26 @@ def test_learn_class_from_at_most_some_examples_spread_over_the_class(hdm05_db30
     assert every.meta["doc_ids"] == docs["doc_id"].tolist() and every.meta["class_documents"] == n
     with pytest.raises(ParameterError, match="max_examples"):
         learn_class(db, label, values=values, max_examples=0)
+
+
+@settings(max_examples=30, deadline=None)
+@given(data=st.data())
+def test_the_medoids_pair_costs_are_dtws_exactly(data):
+    """The medoid's pair costs (one numba pass over bit-packed frames, issue 43) equal mocapviz.match.dtw's with
+    template_distance over the two lengths, bit for bit, on random boolean examples of 1 to 70 features; so the
+    medoid, and the learned template, are those of the pair-by-pair loop."""
+    from mocapviz.match import dtw
+    from mocapviz.relational.templates import _bit_rows, _pair_costs
+
+    f = data.draw(st.integers(1, 70), label="features")
+    seed = data.draw(st.integers(0, 2**32 - 1), label="seed")
+    rng = np.random.default_rng(seed)
+    xs = [rng.random((int(rng.integers(1, 30)), f)) < rng.random() for _ in range(int(rng.integers(1, 7)))]
+    n = len(xs)
+    want = np.zeros((n, n))
+    for i, j in itertools.combinations(range(n), 2):
+        want[i, j] = dtw(xs[i].astype(np.float64), xs[j], distance=template_distance)[0] / (len(xs[i]) + len(xs[j]))
+    got = np.zeros((n, n))
+    bounds = np.r_[0, np.cumsum([len(x) for x in xs])].astype(np.int64)
+    _pair_costs(_bit_rows(np.concatenate(xs)), bounds, float(f), np.arange(n), got)
+    np.testing.assert_array_equal(got, want)

@@ -507,13 +507,16 @@ class Engine:
                            extra=extra)  # fmt: skip
 
     @checked("search_template")
-    def search_template(self, template, *, n_matches=..., delta=..., max_cost=..., prefilter=...) -> pd.DataFrame:
+    def search_template(self, template, *, n_matches=..., delta=..., max_cost=..., prefilter=...,
+                        lower_bounds=...) -> pd.DataFrame:  # fmt: skip
         """The instances of a motion template (Müller & Röder 2006 §4), by cost, then their last frame in the
         database; ``template``: a MotionTemplate, a template file or the name of one stored with the database;
-        ``prefilter``: each shard aligns only where the template's keyframes occur in its own inverted indexes
-        (attrs ``aligned``: the share of all frames aligned)."""
+        ``prefilter``: each shard aligns only where the template's keyframes occur in its own inverted indexes;
+        ``lower_bounds`` (default): each shard aligns its documents best lower bound first until none can hold one
+        of its K best, the full pass's answer (attrs ``aligned``: the share of all frames aligned)."""
         template = self.template(template)
-        options = {"n_matches": n_matches, "max_cost": max_cost, "prefilter": prefilter, "delta": delta}
+        options = {"n_matches": n_matches, "max_cost": max_cost, "prefilter": prefilter, "delta": delta,
+                   "lower_bounds": lower_bounds}  # fmt: skip
         t0 = time.perf_counter()
         packs = self._fan("search_template", template, **options)
         table = self._merged(packs, ["cost", "_last"], n_matches, t0)

@@ -200,6 +200,9 @@ PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
        none_means="the K best, whatever their cost"),  # relational.templates.MAX_COST_RANGE
     _p("prefilter", "bool", False, "align only where the template's keyframes occur in order in the inverted "
        "indexes (faster; may miss a hit)"),
+    _p("lower_bounds", "bool", True, "align the documents best lower bound first and stop when no other can hold "
+       "one of the K best (the full pass's answer, aligning a fraction of the frames); off: the full pass over every "
+       "frame"),
     _p("max_examples", "int", 16, "learn from at most this many of the class's documents, spread over them (a "
        "template of 16 found 20 of 20 of its class on every shared archive)", low=1),
     _p("iterations", "int", 10, "learning a template: at most this many rounds of warping and averaging the examples "
@@ -275,7 +278,8 @@ USES = {
     "suggest_query": {"relational_set": "relational_set"},
     "find": {"template_cost": "template_cost", "overlapping": "overlapping"},
     "learn_template": {"relational_set": "relational_set", "max_examples": "max_examples", "iterations": "iterations"},
-    "search_template": {"n_matches": "n_matches", "delta": "delta", "max_cost": "max_cost", "prefilter": "prefilter"},
+    "search_template": {"n_matches": "n_matches", "delta": "delta", "max_cost": "max_cost", "prefilter": "prefilter",
+                        "lower_bounds": "lower_bounds"},
     "segment_labels": {"label": "label"},
     "add_label": {"label": "label", "author": "author", "source": "source", "note": "note"},
     "remove_label": {"author": "author"},
@@ -310,7 +314,7 @@ def checked(use: str):
     Examples
     --------
     >>> @checked("search_template")
-    ... def f(*, n_matches=..., delta=..., max_cost=..., prefilter=...):
+    ... def f(*, n_matches=..., delta=..., max_cost=..., prefilter=..., lower_bounds=...):
     ...     return n_matches, delta
     >>> f(), f(n_matches=3)
     ((20, 0.2), (3, 0.2))

@@ -14,7 +14,10 @@ shortest_instance   the fewest frames a match may span (half the fastest example
 steepest_rows       the most template rows one database frame may take in a match (the same rule, frame by frame).
 document_costs      every document's best match cost of a template (for ranking whole clips).
 keyframe_ranges     the frame ranges where a template's keyframes occur, read from the relational indexes (the
-                    pre-filter that spares the full DTW pass over a large database).
+                    pre-filter that spares the full DTW pass over a large database; it may miss a hit).
+document_codes      each document's distinct frame codes and runs of equal codes (FrameCodes), kept per values array.
+row_bounds          per document, a lower bound on any match's cost: each row's least mismatch among its codes, summed.
+run_bounds          a tighter bound that keeps the order: the template aligned to the document's runs of equal frames.
 classify            a clip's (T, f) feature values against several templates: the classes by DTW cost (§6).
 store_template      a template into a MotionDB's derived data, ``DB/templates/<name>.npz`` (template_path).
 stored_templates    the templates stored with a MotionDB, one row each; load_template reads one back, by its
@@ -22,6 +25,25 @@ stored_templates    the templates stored with a MotionDB, one row each; load_tem
 MotionTemplate      the real-valued template, its quantisation and the local cost of matching it.
 template_distance   the masked l1 local cost of template rows against boolean frames, (K, n).
 quantised_distance  the same for a quantised template, its don't-care entries left out (the matching cost).
+
+Exact top-K search by lower bounds (:func:`find_instances` with ``bounds``, the default of :func:`search_template`):
+the documents are aligned in increasing order of a lower bound on their best match cost and the search stops when
+the next bound exceeds the K-th best cost found, so it returns the full pass's matches and costs while aligning a
+fraction of the frames (:func:`_ranked_ends`). Why the bounds hold, for the template DTW as implemented
+(:func:`_bounded_costs` and the unbounded :func:`mocapviz.match.subsequence_costs`): a match is a warping path
+through the cells (template row, database frame) of one document that takes every template row at least once, and
+each cell it takes pays the row's mismatch share against that frame (:func:`quantised_distance`, never negative).
+
+- *Row bound.* The path's cost is at least the sum, over the rows, of each row's least cost against any frame of
+  the document; a frame's cost depends only on its code, so the least over the document's distinct codes is the
+  same number. The rules that restrict a match (:func:`steepest_rows`, :func:`shortest_instance`) only remove
+  paths, so they never lower a document's best cost below it.
+- *Run bound.* Map every frame of the path to its run (consecutive frames of one code): the path becomes a
+  monotone path through (template row, run) cells with the basic steps, covering every row; each distinct cell it
+  keeps costs what the frames' cells cost, and a run of L frames holds at most L times the rows a match may take on
+  one frame. Dropping the repeated cells only removes non-negative terms, so the least such path over the runs
+  costs no more than the match. Runs are fewer than frames (one in six on the shared archives at 120 Hz), so the
+  bound costs a fraction of the alignment it may spare; it is computed only for the documents that come up.
 
 Learning, as implemented here (our reading of the method, written independently): the reference starts as the
 *medoid* example (least summed DTW cost to the others, normalised by the two lengths); each iteration aligns every
@@ -63,6 +85,7 @@ from __future__ import annotations
 
 import re
 import time
+import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -98,6 +121,7 @@ TOL = 1e-6
 MAX_NEGATIVES = 500  # documents of other labels a learned threshold is judged against at most
 _NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,127}")  # a stored template's name: filename-safe
 _SAFE = re.compile(r"[^A-Za-z0-9._-]")
+_CODES: dict[int, tuple] = {}  # id(values) -> (weak reference to values, starts, FrameCodes): document_codes
 
 
 @dataclass
@@ -436,9 +460,14 @@ def steepest_rows(template: MotionTemplate, speed: float = SPEED, min_frames: in
 
 def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_matches: int = 10,
                    delta: float = DELTA, max_cost: float | None = None, ranges=None,
-                   min_frames: int | None = None, max_rows: int | None = None) -> pd.DataFrame:  # fmt: skip
+                   min_frames: int | None = None, max_rows: int | None = None,
+                   bounds: bool = True) -> pd.DataFrame:  # fmt: skip
     """The stretches of a database that match a template: subsequence DTW of the quantised template against the
     frames' relational features with the don't-care entries left out (:func:`quantised_distance`).
+
+    With ``bounds`` (default) the documents are aligned best lower bound first (:func:`_ranked_ends`) and the
+    documents whose bound exceeds the K-th best cost found are never aligned: the answer is the full pass's (the
+    same matches and costs), found aligning a fraction of the frames.
 
     Parameters
     ----------
@@ -463,11 +492,16 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
     max_rows : int, optional
         No database frame of a match takes more template rows (default :func:`steepest_rows` of ``min_frames``); 0:
         any number (the plain subsequence DTW of earlier versions).
+    bounds : bool
+        Align the documents in the order of their lower bounds (:func:`row_bounds`)
+        and stop when no unaligned document can hold one of the ``n_matches`` best (default); False: the full pass
+        over every frame (or every range). Ignored with ``ranges``.
 
     Returns
     -------
     pd.DataFrame, best first: doc_id (the document's position in ``starts``; 0 without), start, end (frames within
     that document, half-open: end is one past the last frame, as every hit table), cost, normalised_cost.
+    ``attrs["aligned"]``: the frames the DTW aligned.
     """
     x = np.asarray(values)
     if x.ndim != 2 or x.shape[1] != len(template.features):
@@ -477,25 +511,102 @@ def find_instances(template: MotionTemplate, values: np.ndarray, starts=None, n_
     # subsequence DTW's pieces, without its rule that a match be at least as long as the query: a template (the
     # medoid example's length) may be longer than a faster instance, which the warping absorbs, down to min_frames
     doc_starts = np.zeros(1, dtype=np.int64) if starts is None else np.asarray(starts, dtype=np.int64)
-    if ranges is None:
-        frames, parts = np.arange(len(x)), starts
+    if ranges is None and bounds:
+        costs, ends, first, aligned = _ranked_ends(template, q, x, doc_starts, n_matches, max_cost, min_frames,
+                                                   max_rows)  # fmt: skip
+        xs = x
     else:
-        ranges = np.asarray(ranges, dtype=np.int64).reshape(-1, 2)
-        if not len(ranges):
-            return pd.DataFrame(columns=["doc_id", "start", "end", "cost", "normalised_cost"])
-        frames = np.concatenate([np.arange(a, b) for a, b in ranges])
-        parts = np.r_[0, np.cumsum(ranges[:, 1] - ranges[:, 0])[:-1]]
-    xs = x[frames]
-    cost, first = _costs(template, q, xs, parts, min_frames, max_rows)
-    ends = best_ends(cost, first, parts, n_matches)
+        if ranges is None:
+            frames, parts = np.arange(len(x)), starts
+        else:
+            ranges = np.asarray(ranges, dtype=np.int64).reshape(-1, 2)
+            if not len(ranges):
+                empty = pd.DataFrame(columns=["doc_id", "start", "end", "cost", "normalised_cost"])
+                empty.attrs["aligned"] = 0
+                return empty
+            frames = np.concatenate([np.arange(a, b) for a, b in ranges])
+            parts = np.r_[0, np.cumsum(ranges[:, 1] - ranges[:, 0])[:-1]]
+        xs = x[frames]
+        cost, first = _costs(template, q, xs, parts, min_frames, max_rows)
+        ends = best_ends(cost, first, parts, n_matches)
+        costs, first, aligned = cost[ends], first[ends], len(frames)
     if max_cost is not None:
-        ends = ends[cost[ends] / len(q) <= max_cost]
-    begin = _tight_starts(q, xs, first[ends], ends, cost[ends], *_limits(template, q, min_frames, max_rows)[::-1])
-    hits = matches_frame(doc_starts, frames[begin], frames[ends], cost[ends], [None] * len(ends))
+        keep = costs / len(q) <= max_cost
+        costs, ends, first = costs[keep], ends[keep], first[keep]
+    begin = _tight_starts(q, xs, first, ends, costs, *_limits(template, q, min_frames, max_rows)[::-1])
+    if ranges is not None or not bounds:
+        begin, ends = frames[begin], frames[ends]
+    hits = matches_frame(doc_starts, begin, ends, costs, [None] * len(ends))
     first = doc_starts[hits["doc_id"].to_numpy()]
     hits = hits.drop(columns="path").assign(start=hits["start"] - first, end=hits["end"] + 1 - first)
     hits["normalised_cost"] = hits["cost"] / len(q)
+    hits.attrs["aligned"] = int(aligned)
     return hits
+
+
+def _ranked_ends(template, q, x, doc_starts, n_matches, max_cost, min_frames, max_rows):
+    """The ``n_matches`` best non-overlapping matches of the full pass (:func:`best_ends` over :func:`_costs` of every
+    frame), found by aligning the documents in increasing order of a lower bound on their best cost
+    (see the module docstring) until the next document's bound exceeds the K-th best cost found
+    (or the largest cost ``max_cost`` keeps), plus :data:`TIE`.
+
+    Every document first gets its row bound (:func:`row_bounds`); the
+    documents that come up for alignment are first bounded again by the run bound
+    (:func:`run_bounds`: ordered, tighter, a fraction of the alignment's work),
+    eight times the frames about to be aligned at a time, and take their place in the order by it. Documents are
+    aligned a batch at a time, each batch up to twice the frames of the one before.
+
+    Matches never cross documents, so the full pass's greedy choice of non-overlapping matches is each document's
+    own greedy choice, merged by (cost, last frame); a document whose bound exceeds the K-th best cost found holds
+    no match that enters the K best, and the best K of each batch are all it can give to the answer. Each aligned
+    document's costs are the full pass's, computed on its frames alone.
+
+    Returns
+    -------
+    (costs, ends, first, aligned) : the matches' costs, their last and first frames of ``x`` (best first, ties by
+    the earlier end, as :func:`best_ends`) and the number of frames aligned.
+    """
+    n = len(x)
+    lengths = np.diff(np.r_[doc_starts, n])
+    least, rows = _limits(template, q, min_frames, max_rows)
+    codes = document_codes(x, doc_starts)
+    bound = row_bounds(q, codes)
+    bound[lengths < least] = np.inf  # no match ends there
+    refined = ~np.isfinite(bound)
+    ceiling = np.inf if max_cost is None else max_cost * len(q)
+    found_cost, found_end, found_first = [np.empty(0)], [np.empty(0, np.int64)], [np.empty(0, np.int64)]
+    best, waiting = np.empty(0), np.isfinite(bound)
+    budget = max(int(np.sort(lengths[waiting])[:n_matches].sum()), n // 256, 1)
+    aligned = 0
+    while True:
+        limit = min(best[n_matches - 1] if len(best) >= n_matches else np.inf, ceiling) + TIE
+        pending = np.flatnonzero(waiting & (bound <= limit))
+        if not len(pending):
+            break
+        pending = pending[np.argsort(bound[pending], kind="stable")]
+        frames_before = np.cumsum(lengths[pending])
+        ahead = pending[: max(1, int(np.searchsorted(frames_before, 8 * budget, side="right")))]
+        fresh = ahead[~refined[ahead]] if np.isfinite(limit) else ahead[:0]
+        if len(fresh):  # bound them by their runs first, then look again
+            bound[fresh] = np.maximum(bound[fresh], run_bounds(q, codes, fresh, rows))
+            refined[fresh] = True
+            continue
+        batch = np.sort(pending[: max(1, int(np.searchsorted(frames_before, budget, side="right")))])
+        waiting[batch] = False
+        size = lengths[batch]
+        frames = np.repeat(doc_starts[batch], size) + (np.arange(size.sum()) - np.repeat(np.cumsum(size) - size, size))
+        parts = np.cumsum(size) - size
+        cost, first = _costs(template, q, x[frames], parts, min_frames, max_rows)
+        ends = best_ends(cost, first, parts, n_matches)
+        found_cost.append(cost[ends])
+        found_end.append(frames[ends])
+        found_first.append(frames[first[ends]])
+        best = np.sort(np.r_[best, cost[ends]])[:n_matches]
+        aligned += len(frames)
+        budget *= 2
+    costs, ends, first = np.concatenate(found_cost), np.concatenate(found_end), np.concatenate(found_first)
+    top = np.lexsort((ends, costs))[:n_matches]
+    return costs[top], ends[top], first[top], aligned
 
 
 def keyframe_ranges(template: MotionTemplate, indexes: dict, doc_starts, n_frames: int, delta: float = DELTA,
@@ -811,6 +922,228 @@ def _latest_run_starts(frames, values, care, cared, bounds, costs, max_rows, lea
             prev[:] = acc
             prev_first[:] = start
     return steps
+
+
+@dataclass(frozen=True)
+class FrameCodes:
+    """The distinct relational codes of each document of a database.
+
+    Attributes
+    ----------
+    codes : np.ndarray [shape=(U, w)], uint64
+        The database's distinct frame codes: bit c of word c // 64 is feature c (:func:`_bit_rows`).
+    ids : np.ndarray [shape=(P,)], int64
+        Row of ``codes`` of each (document, distinct code) pair, the documents in order.
+    offsets : np.ndarray [shape=(B + 1,)], int64
+        Document b's codes are ``ids[offsets[b]:offsets[b + 1]]``.
+    runs : np.ndarray [shape=(R,)], int64
+        Row of ``codes`` of each run of equal consecutive frames, the documents in order.
+    run_lengths : np.ndarray [shape=(R,)], int64
+        The frames of each run.
+    run_offsets : np.ndarray [shape=(B + 1,)], int64
+        Document b's runs are ``runs[run_offsets[b]:run_offsets[b + 1]]``.
+    """
+
+    codes: np.ndarray
+    ids: np.ndarray
+    offsets: np.ndarray
+    runs: np.ndarray
+    run_lengths: np.ndarray
+    run_offsets: np.ndarray
+
+
+def document_codes(values: np.ndarray, starts) -> FrameCodes:
+    """Each document's distinct frame codes, computed once per values array (and kept while that array lives:
+    later calls with the same array object and document starts return the same FrameCodes, so the array must not
+    be changed in place afterwards, as no relational feature array is).
+
+    Parameters
+    ----------
+    values : np.ndarray [shape=(N, f)], bool
+        The relational features of every frame.
+    starts : array_like [shape=(B,)], int
+        The first frame of every document (increasing, the first 0).
+
+    Returns
+    -------
+    FrameCodes
+
+    Examples
+    --------
+    >>> values = np.array([[0, 1], [0, 1], [1, 1], [0, 1], [1, 0]], dtype=bool)  # two documents: 3 + 2 frames
+    >>> fc = document_codes(values, [0, 3])
+    >>> fc.codes[:, 0].tolist()  # bit c is feature c: [0, 1] is 0b10 = 2, [1, 1] is 3, [1, 0] is 1
+    [1, 2, 3]
+    >>> fc.ids.tolist(), fc.offsets.tolist()  # rows of codes: the first document holds 2 and 3, the second 2 and 1
+    ([1, 2, 0, 1], [0, 2, 4])
+    >>> fc.runs.tolist(), fc.run_lengths.tolist(), fc.run_offsets.tolist()  # the first two frames are one run
+    ([1, 2, 1, 0], [2, 1, 1, 1], [0, 2, 4])
+    """
+    starts = np.asarray(starts, dtype=np.int64).reshape(-1)
+    held = _CODES.get(id(values))
+    if held is not None and held[0]() is values and np.array_equal(held[1], starts):
+        return held[2]
+    words = _bit_rows(np.asarray(values))
+    n, w = words.shape
+    if w == 1:
+        codes, inverse = np.unique(words[:, 0], return_inverse=True)
+        codes = codes.reshape(-1, 1)
+    else:
+        keys = np.ascontiguousarray(words).view(np.dtype((np.void, 8 * w))).reshape(-1)
+        _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+        codes = words[first]
+    inverse = inverse.reshape(-1).astype(np.int64)
+    doc = np.repeat(np.arange(len(starts), dtype=np.int64), np.diff(np.r_[starts, n]))
+    pairs = np.unique(doc * len(codes) + inverse)
+    opens = np.ones(n, dtype=bool)
+    opens[1:] = inverse[1:] != inverse[:-1]
+    opens[starts[starts < n]] = True
+    at = np.flatnonzero(opens)
+    found = FrameCodes(codes, pairs % len(codes), np.searchsorted(pairs // len(codes), np.arange(len(starts) + 1)),
+                       inverse[at], np.diff(np.r_[at, n]), np.searchsorted(doc[at], np.arange(len(starts) + 1)))
+    try:
+        key = id(values)
+        _CODES[key] = (weakref.ref(values, lambda _, key=key: _CODES.pop(key, None)), starts, found)
+    except TypeError:  # an object without weak references (a list): not kept
+        pass
+    return found
+
+
+def row_bounds(q: np.ndarray, codes: FrameCodes) -> np.ndarray:
+    """A lower bound on the DTW cost of any match of the quantised template ``q`` in each document: the sum over
+    the template's rows of the row's least mismatch share among the document's distinct codes (see the module
+    docstring).
+
+    Parameters
+    ----------
+    q : np.ndarray [shape=(m, f)]
+        A quantised template (:meth:`MotionTemplate.quantised`: 0, 1 or
+        :data:`DONT_CARE`).
+    codes : FrameCodes
+        The documents' codes (:func:`document_codes`) over the same f features.
+
+    Returns
+    -------
+    np.ndarray [shape=(B,)], float64
+        In the cost's units (a sum of per-row mismatch shares; over ``m``: a normalised cost); inf for a document
+        without frames.
+
+    Examples
+    --------
+    >>> values = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 1]], dtype=bool)
+    >>> q = np.array([[0, 0], [1, 1], [1, DONT_CARE]])  # three rows: 00, 11, 1x
+    >>> row_bounds(q, document_codes(values, [0, 3])).tolist()  # the first holds all three; the second: 01 only
+    [0.0, 2.0]
+    """
+    q = np.asarray(q, dtype=np.float64)
+    values, care = _bit_rows(q == 1.0), _bit_rows(q != DONT_CARE)
+    out = np.empty(len(codes.offsets) - 1)
+    _row_bounds(codes.codes, codes.ids, codes.offsets, values, care, (q != DONT_CARE).sum(axis=1).astype(np.float64),
+                out)  # fmt: skip
+    return out
+
+
+def run_bounds(q: np.ndarray, codes: FrameCodes, documents, max_rows: int = 0) -> np.ndarray:
+    """A lower bound on the DTW cost of any match of the quantised template ``q`` in each of ``documents``: the
+    least cost of aligning every template row, in order, to the document's runs of equal frames (subsequence DTW
+    with the basic steps over the runs, a run of L frames taking at most L × ``max_rows`` rows; see the module
+    docstring), less twice :data:`TIE` per step of the path (the alignment kernel takes
+    costs that close as equal). Never above the document's best match cost.
+
+    Parameters
+    ----------
+    q : np.ndarray [shape=(m, f)]
+        A quantised template.
+    codes : FrameCodes
+        The documents' codes and runs (:func:`document_codes`).
+    documents : array_like [shape=(b,)], int
+        The documents (positions in the database's order) to bound.
+    max_rows : int
+        The most template rows a match aligns to one frame (:func:`steepest_rows`);
+        0: any number.
+
+    Returns
+    -------
+    np.ndarray [shape=(b,)], float64
+        In the cost's units; inf for a document without frames.
+
+    Examples
+    --------
+    >>> values = np.array([[0, 0], [1, 1], [0, 0], [1, 1], [0, 0]], dtype=bool)  # one document: 00 11 00 11 00
+    >>> fc = document_codes(values, [0])
+    >>> q = np.array([[1, 1], [0, 0], [1, 1]])  # 11 00 11: in order, it fits
+    >>> row_bounds(q, fc).tolist(), run_bounds(q, fc, [0]).round(6).tolist()
+    ([0.0], [0.0])
+    >>> fc = document_codes(values[:3], [0])  # 00 11 00 holds no 11 after the 00 that follows its 11
+    >>> row_bounds(q, fc).tolist(), run_bounds(q, fc, [0]).round(6).tolist()  # order counts: one row must pay
+    ([0.0], [1.0])
+    >>> q = np.array([[0, 0], [0, 0], [0, 0], [1, 1]])  # three rows of 00 on one frame, then 11
+    >>> run_bounds(q, fc, [0]).round(6).tolist(), run_bounds(q, fc, [0], max_rows=2).round(6).tolist()
+    ([0.0], [1.0])
+    """
+    q = np.asarray(q, dtype=np.float64)
+    documents = np.asarray(documents, dtype=np.int64).reshape(-1)
+    m = len(q)
+    values, care = _bit_rows(q == 1.0), _bit_rows(q != DONT_CARE)
+    cared = (q != DONT_CARE).sum(axis=1).astype(np.float64)
+    rows = m if max_rows == 0 else min(int(max_rows), m)
+    out = np.empty(len(documents))
+    groups = [g for g in np.array_split(np.arange(len(documents)), 4 * default_threads()) if len(g)]
+    list(map_ordered(lambda g: _run_bounds(codes.codes, codes.runs, codes.run_lengths, codes.run_offsets,
+                                           documents[g], values, care, cared, rows, out, g[0]), groups,
+                     name="mocapviz-bounds"))  # fmt: skip
+    steps = m + codes.run_offsets[documents + 1] - codes.run_offsets[documents]
+    return np.maximum(out - 2 * TIE * steps, 0.0)  # no cost is negative
+
+
+@numba.njit(cache=True, nogil=True)
+def _run_bounds(codes, runs, run_lengths, run_offsets, documents, values, care, cared, max_rows, out,
+                at):  # pragma: no cover  # fmt: skip
+    """:func:`run_bounds` of ``documents`` into ``out[at:]``: per document, run by run, the alignment kernel's frame
+    step (:func:`_bounded_frame`) with the run's code as the frame and at most its
+    frames times ``max_rows`` rows on it; the least cost of the last row over the runs."""
+    m = values.shape[0]
+    total, entry, enter_first = np.empty(m + 1), np.empty(m), np.empty(m, dtype=np.int64)
+    window = np.empty(m, dtype=np.int64)
+    prev, prev_first = np.empty(m), np.empty(m, dtype=np.int64)
+    acc, start = np.empty(m), np.empty(m, dtype=np.int64)
+    for d in range(len(documents)):
+        a, b = run_offsets[documents[d]], run_offsets[documents[d] + 1]
+        best = np.inf
+        for r in range(a, b):
+            _bounded_frame(codes, values, care, cared, runs[r], r > a, True, min(m, run_lengths[r] * max_rows), total,
+                           entry, enter_first, window, prev, prev_first, acc, start)  # fmt: skip
+            best = min(best, acc[m - 1])
+            prev[:] = acc
+            prev_first[:] = start
+        out[at + d] = best
+
+
+@numba.njit(cache=True, nogil=True)
+def _row_bounds(codes, ids, offsets, values, care, cared, out):  # pragma: no cover
+    """:func:`row_bounds` into ``out``: per document, each row's fewest mismatched cared-for bits among its codes,
+    over the row's cared-for features (0 for a row that cares for none), summed over the rows."""
+    m, w = values.shape
+    fewest = np.empty(m, dtype=np.int64)
+    for d in range(len(offsets) - 1):
+        if offsets[d + 1] == offsets[d]:
+            out[d] = np.inf
+            continue
+        fewest[:] = 1 << 62
+        for p in range(offsets[d], offsets[d + 1]):
+            u = ids[p]
+            for i in range(m):
+                if fewest[i] == 0:
+                    continue
+                bad = 0
+                for k in range(w):
+                    bad += _set_bits((codes[u, k] ^ values[i, k]) & care[i, k])
+                fewest[i] = min(fewest[i], bad)
+        total = 0.0
+        for i in range(m):
+            if cared[i] > 0:
+                total += fewest[i] / cared[i]
+        out[d] = total
 
 
 def document_costs(template: MotionTemplate, values: np.ndarray, starts, delta: float = DELTA,
@@ -1216,17 +1549,67 @@ def stored_templates(db) -> pd.DataFrame:
 
 def _medoid(xs: list[np.ndarray]) -> int:
     """Index of the example of least summed normalised DTW cost to the others; ties go to the example that sorts
-    first by (length, content), so that the choice does not depend on the order of the examples."""
+    first by (length, content), so that the choice does not depend on the order of the examples.
+
+    The cost of two examples is :func:`mocapviz.match.dtw`'s with :func:`template_distance` (basic steps; between
+    boolean frames, their differing features over f), over the sum of their lengths: computed by :func:`_pair_costs`
+    on the frames packed into 64-bit words, every pair at once on threads, with the same sums in the same order."""
     n = len(xs)
+    bounds = np.r_[0, np.cumsum([len(x) for x in xs])].astype(np.int64)
+    words = _bit_rows(np.concatenate(xs))
+    costs = np.zeros((n, n))
+    groups = [np.arange(g, n, 4 * default_threads(), dtype=np.int64) for g in range(min(n, 4 * default_threads()))]
+    list(map_ordered(lambda rows: _pair_costs(words, bounds, float(xs[0].shape[1]), rows, costs), groups,
+                     name="mocapviz-medoid"))  # fmt: skip
+    total = _summed(costs)
+    best = np.flatnonzero(np.isclose(total, total.min(), rtol=0, atol=1e-12))
+    return min(best, key=lambda i: (len(xs[i]), xs[i].tobytes()))
+
+
+@numba.njit(cache=True, nogil=True)
+def _pair_costs(words, bounds, f, rows, out):  # pragma: no cover
+    """For each example i of ``rows`` and each later one j (frames ``bounds[i]:bounds[i + 1]`` of ``words``), the DTW
+    cost of i against j over their lengths into ``out[i, j]``: the accumulation of :func:`mocapviz.match.dtw` (basic
+    steps, diagonal first, the least predecessor plus the cell) with the cell cost of :func:`template_distance`,
+    differing bits over ``f``."""
+    n, w = len(bounds) - 1, words.shape[1]
+    for i in rows:
+        a0, m = bounds[i], bounds[i + 1] - bounds[i]
+        prev, cur = np.empty(m), np.empty(m)
+        for j in range(i + 1, n):
+            b0, b1 = bounds[j], bounds[j + 1]
+            for jj in range(b1 - b0):
+                for ii in range(m):
+                    bad = 0
+                    for k in range(w):
+                        bad += _set_bits(words[a0 + ii, k] ^ words[b0 + jj, k])
+                    c = bad / f
+                    if ii == 0 and jj == 0:
+                        cur[ii] = c
+                        continue
+                    best = np.inf
+                    if ii > 0 and jj > 0:
+                        best = prev[ii - 1] + c
+                    if ii > 0 and cur[ii - 1] + c < best:
+                        best = cur[ii - 1] + c
+                    if jj > 0 and prev[ii] + c < best:
+                        best = prev[ii] + c
+                    cur[ii] = best
+                prev, cur = cur, prev
+            out[i, j] = prev[m - 1] / (m + b1 - b0)
+
+
+@numba.njit(cache=True)
+def _summed(costs):  # pragma: no cover
+    """Each example's sum of its pair costs (the upper triangle of ``costs``), added pair by pair in the order
+    i = 0, 1, ..., j > i, as the medoid's definition reads."""
+    n = len(costs)
     total = np.zeros(n)
     for i in range(n):
         for j in range(i + 1, n):
-            c, _ = dtw(xs[i].astype(np.float64), xs[j], distance=template_distance)
-            c /= len(xs[i]) + len(xs[j])
-            total[i] += c
-            total[j] += c
-    best = np.flatnonzero(np.isclose(total, total.min(), rtol=0, atol=1e-12))
-    return min(best, key=lambda i: (len(xs[i]), xs[i].tobytes()))
+            total[i] += costs[i, j]
+            total[j] += costs[i, j]
+    return total
 
 
 def _examples(examples, features) -> list[np.ndarray]:
@@ -1244,7 +1627,7 @@ def _examples(examples, features) -> list[np.ndarray]:
 
 def search_template(db, template: MotionTemplate, n_matches: int = 10, delta: float = DELTA,
                     max_cost: float | None = None, prefilter: bool = False, values: np.ndarray | None = None,
-                    indexes: dict | None = None) -> pd.DataFrame:  # fmt: skip
+                    indexes: dict | None = None, lower_bounds: bool = True) -> pd.DataFrame:  # fmt: skip
     """The instances of a motion template in a MotionDB, ranked, as the one hit table.
 
     Parameters
@@ -1260,19 +1643,23 @@ def search_template(db, template: MotionTemplate, n_matches: int = 10, delta: fl
         Keep only instances whose normalised cost (mean mismatch per template frame, in [0, 1]) is at most this.
     prefilter : bool
         Align only where the template's keyframes occur (:func:`keyframe_ranges` on the relational indexes,
-        built and stored when missing).
+        built and stored when missing): fast where the keyframes are rare, and it may miss a hit.
     values : np.ndarray [shape=(N, f)], bool, optional
         The database's relational features of the template's set, if already computed (default: computed now).
     indexes : dict, optional
         Group -> InvertedIndex for ``prefilter``, if already loaded.
+    lower_bounds : bool
+        Without ``prefilter``: align the documents best lower bound first and stop when no other can hold one of
+        the K best (:func:`find_instances` with ``bounds``; the answer is the full pass's), default; False: the full
+        pass over every frame (Müller & Röder's matching as such).
 
     Returns
     -------
     pandas.DataFrame
         The hit table of :func:`mocapviz.db.hits.hit_table` (``start``, ``end``: frames of the document,
         half-open), with ``cost`` (the DTW cost, a sum of per-frame mean mismatches) and ``normalised_cost``.
-        ``attrs``: ``relational_set``, ``ms`` (search time), ``aligned`` (share of the frames aligned; 1 without
-        the pre-filter).
+        ``attrs``: ``relational_set``, ``ms`` (search time), ``aligned`` (share of the frames aligned: 1 for the
+        full pass).
 
     Raises
     ------
@@ -1316,12 +1703,11 @@ def search_template(db, template: MotionTemplate, n_matches: int = 10, delta: fl
         indexes = load_or_build(db, relational_set) if indexes is None else indexes
         ranges = keyframe_ranges(template, indexes, starts, db.n_frames, delta=delta)
     found = find_instances(template, values, starts, n_matches=n_matches, delta=delta, max_cost=max_cost,
-                           ranges=ranges)  # fmt: skip
+                           ranges=ranges, bounds=lower_bounds)  # fmt: skip
     ms = 1e3 * (time.perf_counter() - t0)
     doc_ids = db.documents["doc_id"].to_numpy(np.int64)[found["doc_id"].to_numpy(np.int64)]
     table = hit_table(db, doc_ids, found["start"].to_numpy(np.int64), found["end"].to_numpy(np.int64),
                       cost=found["cost"].to_numpy(np.float64),
                       normalised_cost=found["normalised_cost"].to_numpy(np.float64))  # fmt: skip
-    aligned = 1.0 if ranges is None else float((ranges[:, 1] - ranges[:, 0]).sum() / max(1, db.n_frames))
-    table.attrs.update(relational_set=relational_set, ms=ms, aligned=aligned)
+    table.attrs.update(relational_set=relational_set, ms=ms, aligned=found.attrs["aligned"] / max(1, db.n_frames))
     return table
