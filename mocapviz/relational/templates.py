@@ -289,6 +289,29 @@ def template_distance(template: np.ndarray, frames: np.ndarray, mask: np.ndarray
     return np.divide(total, cared, out=np.zeros_like(total), where=cared > 0)
 
 
+def _mean_mismatch(template: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """:func:`template_distance` of template rows against boolean frames over every feature, (K, n), in one numba
+    loop (:func:`_mismatch_loop`: each cell's absolute differences summed in feature order, over f) instead of three
+    matrix products: what learning aligns each example to its reference by. The two agree to the last bits or so
+    (tests/test_templates.py); at the sizes of learning (a few hundred frames) the products are slow, slower still
+    when the BLAS threads share their cores."""
+    out = np.empty((len(template), len(frames)))
+    _mismatch_loop(np.asarray(template, dtype=np.float64), np.asarray(frames, dtype=np.float64), out)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _mismatch_loop(a, x, out):  # pragma: no cover
+    """``out[i, j]``: the mean over the features of ``|a[i] - x[j]|``."""
+    f = a.shape[1]
+    for i in range(a.shape[0]):
+        for j in range(x.shape[0]):
+            total = 0.0
+            for k in range(f):
+                total += abs(a[i, k] - x[j, k])
+            out[i, j] = total / f if f else 0.0
+
+
 def quantised_distance(template: np.ndarray, frames: np.ndarray) -> np.ndarray:
     """:func:`template_distance` of quantised template rows (values 0, 1 or :data:`DONT_CARE`), ignoring the
     don't-care entries: the local cost of matching a template, as ``distance=`` of
@@ -373,10 +396,12 @@ def learn_template(examples, features: list[str], label: str = "", iterations: i
     for done in range(1, iterations + 1):
         aligned = []  # each example's columns aligned to the reference
         for x in xs:
-            _, path = dtw(ref, x, distance=template_distance)
-            sums = np.zeros_like(ref)
-            np.add.at(sums, path[:, 0], x[path[:, 1]])
-            aligned.append(sums / np.bincount(path[:, 0], minlength=len(ref))[:, None])
+            _, path = dtw(ref, x, distance=_mean_mismatch)
+            # the path takes every reference column, in order: each column's frames are one stretch of it (sums
+            # of 0/1, exact in any order)
+            opens = np.flatnonzero(np.r_[True, path[1:, 0] != path[:-1, 0]])
+            sums = np.add.reduceat(x[path[:, 1]].astype(np.float64), opens, axis=0)
+            aligned.append(sums / np.diff(np.r_[opens, len(path)])[:, None])
         new = np.sum(aligned, axis=0) / len(xs)
         moved = float(np.abs(new - ref).max())
         ref = new
