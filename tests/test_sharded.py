@@ -458,7 +458,9 @@ def test_random_descriptions_find_the_single_process_table(single, shardings, da
 @settings(max_examples=30, deadline=None)
 @given(data=st.data())
 def test_random_template_searches_are_the_single_process_table(single, shardings, data):
-    """The template of a random label (either set), with and without the keyframe pre-filter."""
+    """The template of a random label (either set), with and without the keyframe pre-filter; the share of the
+    frames aligned is the single process's with the pre-filter (the same ranges) and may differ by lower bounds
+    (each shard aligns until its own K best are certain), the hits never."""
     from mocapviz.relational.templates import search_template
 
     key, relational_set = data.draw(shards_of, label="shards"), data.draw(st.sampled_from(RELATIONAL), label="set")
@@ -471,7 +473,7 @@ def test_random_template_searches_are_the_single_process_table(single, shardings
     one = answer(lambda: search_template(single.db, template, values=single.values[relational_set],
                                          indexes=single.indexes[relational_set], **options))  # fmt: skip
     many = answer(lambda: shardings[key].search_template(template, **options))
-    identical(one, many, ("relational_set", "aligned"))
+    identical(one, many, ("relational_set", "aligned") if options["prefilter"] else ("relational_set",))
 
 
 def test_uneven_shards_are_checked(hdm05, client):
