@@ -12,7 +12,9 @@ Describe page), each once (no answer cached before), seeded; median, 95th percen
 - **kNN**: the 256 nearest frames of the clip's first frame, its own document excluded;
 - **LNG**: the lazy neighbourhood graph with the page's k (:func:`~mocapviz.app.pages.similarity.graph_k`) on the
   span's first ``LNG_MAX_SECONDS`` (:func:`~mocapviz.app.pages.similarity.graph_span`) of takes of at least 10 s;
-  baseline: their first 10 s (the graph's k-NN of every query frame is most of its time);
+  baseline: their first 10 s (the graph's k-NN of every query frame is most of its time); and every such take
+  whole (issue 43), own document excluded, against the old path on the drawn ones (every query frame's
+  neighbourhood searched first, k + 2^ceil(log2(own frames)) neighbours asked), their matches compared;
 - **relational**: the page's query by example on the whole clip (its suggested features, mode and mismatches);
 - **template**: learn the class's template from at most 16 of its documents and search it (the page's δ and K: the
   exact search by lower bounds, the library's default); the search alone by lower bounds and, as baselines, by the
@@ -96,6 +98,7 @@ def _answers(backend, n_queries: int) -> list[dict]:
     rows.append(_row("LNG", f"baseline: their first {LONG_S:g} s", [
         _seconds(similarity.match_span, backend, "F15E", d, (0, round(LONG_S * f)), k, 10, True)
         for d, _, f in spans]))
+    rows += _whole_take_rows(backend, k, docs[docs["n_frames"] >= LONG_S * docs["fps"]], [d for d, _, _ in spans])
 
     log("templates")
     classes = templates.class_options(docs)
@@ -131,6 +134,53 @@ def _answers(backend, n_queries: int) -> list[dict]:
     rows.append(_row("describe", "each shipped description, K = 20", [
         _seconds(describe.search, backend, name, "2005", describe.DEFAULT_MATCHES) for name in sorted(named_descriptions("2005"))]))
     return rows
+
+
+def _paper_order(query, index, k: int, starts, own: tuple[int, int]):
+    """The lazy neighbourhood graph as before issue 43: every query frame's k + 2^ceil(log2(own document frames))
+    nearest frames searched first, the own document's dropped, then the graph (the baseline)."""
+    from mocapviz.match.neighbourhood_graph import graph_matches
+
+    wide = min(k + (1 << int(np.ceil(np.log2(own[1] - own[0])))), index.n_indexed)
+    d, f = index.query(query, wide)
+    keep = (f >= 0) & ~((f >= own[0]) & (f < own[1]))
+    order = np.argsort(~keep, axis=1, kind="stable")[:, :k]
+    kept = np.take_along_axis(keep, order, axis=1)
+    d, f = np.where(kept, np.take_along_axis(d, order, axis=1), np.inf), np.where(kept, np.take_along_axis(f, order, axis=1), -1)
+    return graph_matches(d, f, starts, index.n_frames, 10, paths=True)
+
+
+def _whole_take_rows(backend, k: int, long: pd.DataFrame, drawn: list[int]) -> list[dict]:
+    """Issue 43 item 2: LNG on whole takes of at least LONG_S, own document excluded: the page's
+    :func:`~mocapviz.app.pages.similarity.match_span` on every such take, and on the drawn ones the library's
+    ``lng`` (its default: neighbourhoods searched until no path goes on) against the old path (:func:`_paper_order`)
+    on one kd-tree, their matches compared (documents, frames, costs)."""
+    from mocapviz.app.pages import similarity
+    from mocapviz.match import lng
+    from mocapviz.similarity.knn import KnnIndex
+
+    log("LNG, whole takes")
+    X = np.asarray(backend.engine.numeric("F15E"))
+    starts = backend.db.documents["start"].to_numpy()
+    page = [_seconds(similarity.match_span, backend, "F15E", int(d), (0, int(n)), k, 10, True)
+            for d, n in zip(long["doc_id"], long["n_frames"])]  # fmt: skip
+    index, ours, old, same = KnnIndex(X), [], [], 0
+    for d in drawn:
+        own = backend.db.frames(d)
+        own = (own.start, own.stop)
+        t0 = time.perf_counter()
+        a = lng(X[own[0] : own[1]], index, k=k, starts=starts, n_matches=10, exclude=own)
+        t1 = time.perf_counter()
+        b = _paper_order(X[own[0] : own[1]], index, k, starts, own)
+        ours.append(t1 - t0)
+        old.append(time.perf_counter() - t1)
+        same += a[["doc_id", "start", "end", "cost"]].equals(b[["doc_id", "start", "end", "cost"]])
+    sizes = f"{long['n_frames'].min()}–{long['n_frames'].max()} frames"
+    return [_row("LNG", f"whole takes of >= {LONG_S:g} s (every one, {sizes}), own document excluded, k = {k:,}",
+                 page, "the page's match_span"),
+            _row("LNG", f"the same, {len(drawn)} drawn takes, the library's lng (matches = the baseline's on {same} of "
+                        f"{len(drawn)})", ours),
+            _row("LNG", "baseline: those takes, every neighbourhood first, k + 2^ceil(log2(own frames)) searched", old)]
 
 
 def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> int:

@@ -5,6 +5,9 @@ graph_matches    graph construction and path search on given neighbourhoods: nod
                  DTW steps between them, edge cost the distance of the node entered; one shortest-path pass in
                  topological order, O(k m log k). Returns the top ``n_matches`` non-overlapping matches with their
                  paths, each at least ``min_length`` × the query long (default half, as every search).
+reached_neighbourhoods
+                 the search step a block of query frames at a time, stopping where no path of the graph goes on (no
+                 match then): what lng runs by default.
 lng              both steps: ``lng(query, knn_index, k=..., radius=...)``.
 
 The cost model is subsequence DTW's "basic" step set (:mod:`mocapviz.match.time_warping`): a diagonal step (next query
@@ -33,6 +36,8 @@ from .time_warping import (
     select_matches,
     shortest_match,
 )
+
+FIRST_ROWS = 32  # query frames in the first block that reached_neighbourhoods searches (twice as many each block)
 
 
 def neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: float = 0.0, exclude=None,
@@ -70,6 +75,93 @@ def neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: f
     if exclude is not None:
         exclude = np.broadcast_to(np.asarray(exclude, dtype=np.int64).reshape(-1)[:2], (len(q), 2))
     return knn_index.query(q, k, radius=radius, eps=eps, threads=threads, exclude=exclude)
+
+
+def reached_neighbourhoods(query, knn_index, k: int, radius: float | None = None, eps: float = 0.0, exclude=None,
+                           threads: int | None = None, starts=None) -> tuple[np.ndarray, np.ndarray, int]:  # fmt: skip
+    """:func:`neighbourhoods` a block of query frames at a time (:data:`FIRST_ROWS`, then twice as many each block),
+    stopping after the first query frame whose neighbours no path of the graph reaches: every match is a path
+    through every query frame, so there is then no match, and the neighbourhoods of the frames after it are not
+    searched (left missing). On a whole clip of 10 s or more most paths end within its first few seconds.
+
+    Parameters
+    ----------
+    query, knn_index, k, radius, eps, exclude, threads :
+        As for :func:`neighbourhoods`.
+    starts : np.ndarray [shape=(B,)], int, optional
+        First frame of every document (paths never cross a document boundary); default one document.
+
+    Returns
+    -------
+    distances, frames : np.ndarray [shape=(m, k)]
+        As from :func:`neighbourhoods` up to the last row searched; inf / -1 after it.
+    rows : int
+        Query frames searched (m when some path reaches the last one; the block that ends the search is searched
+        whole).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mocapviz.similarity.knn import KnnIndex
+    >>> x = np.arange(10.0)[:, None]  # one document of 10 frames, 1-D features
+    >>> _, frames, rows = reached_neighbourhoods(np.array([[2.0], [3.0], [8.0], [9.0]]), KnnIndex(x), k=2, radius=1.5)
+    >>> rows, frames[:2].tolist()  # no step leads from frames 2-3 to 7-9: no path through the query
+    (4, [[2, 1], [3, 2]])
+    """
+    q = _sequence(query, "query", knn_index.dim, other="the index")
+    if len(q) < 2:
+        raise ParameterError(f"a query needs at least 2 frames; got {len(q)}")
+    if exclude is not None:
+        exclude = np.asarray(exclude, dtype=np.int64).reshape(-1)[:2]
+    doc_starts = _check_document_starts(starts, knn_index.n_frames)
+    d = np.full((len(q), k), np.inf)
+    f = np.full((len(q), k), -1, dtype=np.int64)
+    a, size, front, front_docs = 0, FIRST_ROWS, None, None
+    while a < len(q):
+        b = min(len(q), a + size)
+        d[a:b], f[a:b] = knn_index.query(q[a:b], k, radius=radius, eps=eps, threads=threads,
+                                         exclude=None if exclude is None else np.broadcast_to(exclude, (b - a, 2)))
+        docs = np.searchsorted(doc_starts, f[a:b], side="right") - 1
+        if front is None:  # the first row: every node starts a path
+            first = np.sort(f[a][f[a] >= 0])
+            front, front_docs = first, np.searchsorted(doc_starts, first, side="right") - 1
+        front, front_docs, _ = _reachable(front, front_docs, f[a + (a == 0) : b], docs[(a == 0) :])
+        if len(front) == 0:
+            return d, f, b
+        a, size = b, 2 * size
+    return d, f, len(q)
+
+
+@numba.njit(cache=True)
+def _reachable(front, front_docs, frames, docs):  # pragma: no cover - compiled
+    """The nodes that paths from the first row reach, row by row (the steps of :func:`_shortest_paths`, no costs).
+
+    front, front_docs (n,): the frames reached in the row before, increasing, and their documents. frames, docs
+    (r, k): the neighbours of the next r rows (-1 where missing) and their documents. Returns the frames reached in
+    the last row handled and their documents (empty at the first row with none reached: the rows after it are not
+    handled), and that row's index (r when every row has some)."""
+    for i in range(frames.shape[0]):
+        n = np.sum(frames[i] >= 0)
+        order = np.argsort(np.where(frames[i] >= 0, frames[i], np.iinfo(np.int64).max))[:n]
+        row, doc = frames[i][order], docs[i][order]
+        reached = np.zeros(n, dtype=np.bool_)
+        p = 0  # first node of the row before whose frame is >= f - 1
+        for c in range(n):
+            f = row[c]
+            while p < len(front) and front[p] < f - 1:
+                p += 1
+            q = p
+            if q < len(front) and front[q] == f - 1:
+                reached[c] = front_docs[q] == doc[c]  # diagonal
+                q += 1
+            if q < len(front) and front[q] == f:  # horizontal
+                reached[c] = True
+            if c > 0 and reached[c - 1] and row[c - 1] == f - 1 and doc[c - 1] == doc[c]:  # vertical
+                reached[c] = True
+        front, front_docs = row[reached], doc[reached]
+        if len(front) == 0:
+            return front, front_docs, i
+    return front, front_docs, frames.shape[0]
 
 
 @numba.njit(cache=True)
@@ -188,7 +280,7 @@ def graph_matches(distances, frames, starts=None, n_frames: int | None = None, n
 @renamed(k_matches="n_matches")
 def lng(query, knn_index, k: int = 64, radius: float | None = None, n_matches: int = 10, starts=None,
         eps: float = 0.0, exclude=None, threads: int | None = None, paths: bool = True,
-        min_length: float | None = MIN_LENGTH) -> pd.DataFrame:  # fmt: skip
+        min_length: float | None = MIN_LENGTH, early_stop: bool = True) -> pd.DataFrame:  # fmt: skip
     """Global motion matching with the lazy neighbourhood graph (Krüger et al. 2010 §4.1): the top ``n_matches``
     non-overlapping stretches of the database that align to the query, ranked by global cost, with their
     alignments, in O(k m log n).
@@ -218,13 +310,17 @@ def lng(query, knn_index, k: int = 64, radius: float | None = None, n_matches: i
     min_length : float, optional
         The shortest match, a share in (0, 1] of the query's frames (default 0.5: half as long), as for
         :func:`graph_matches`; None: any length.
+    early_stop : bool
+        Search the neighbourhoods a block of query frames at a time and stop at the first block with a query frame
+        that no path reaches (:func:`reached_neighbourhoods`: no match then, the answer of the full search); False:
+        every query frame's neighbourhood before the graph, as in the paper. The matches are the same either way.
 
     Returns
     -------
     pandas.DataFrame
         Best first: doc_id (index into ``starts``), start, end (database frames, inclusive), cost (feature
         units), path ((L, 2) int64 (query frame, database frame)). ``attrs["seconds"]`` holds {"knn": ...,
-        "graph": ...}. :func:`mocapviz.similarity.motion_matching.match_motion` gives the matches of a MotionDB
+        "graph": ...}, ``attrs["searched"]`` the query frames whose neighbourhoods were searched. :func:`mocapviz.similarity.motion_matching.match_motion` gives the matches of a MotionDB
         as the hit table.
 
     Raises
@@ -255,8 +351,13 @@ def lng(query, knn_index, k: int = 64, radius: float | None = None, n_matches: i
     """
     check_query_length(len(query), _check_document_starts(starts, knn_index.n_frames), knn_index.n_frames)
     t0 = time.perf_counter()
-    d, f = neighbourhoods(query, knn_index, k, radius, eps, exclude, threads)
+    if early_stop:
+        d, f, searched = reached_neighbourhoods(query, knn_index, k, radius, eps, exclude, threads, starts)
+    else:
+        d, f = neighbourhoods(query, knn_index, k, radius, eps, exclude, threads)
+        searched = len(d)
     t1 = time.perf_counter()
     out = graph_matches(d, f, starts, knn_index.n_frames, n_matches, paths, min_length)
     out.attrs["seconds"] = {"knn": t1 - t0, "graph": time.perf_counter() - t1}
+    out.attrs["searched"] = searched
     return out
