@@ -380,3 +380,68 @@ def search_ranges(q, x, lo, hi, order, bound, rows, n_matches, whole, min_length
         if least < np.inf:
             _insert(best, least / norm)
     return out_s[:n_out], out_e[:n_out], out_c[:n_out], aligned, cells
+
+
+@numba.njit(cache=True)
+def range_costs(q, xt, lo, hi, chunk):  # pragma: no cover
+    """Whole-range DTW costs of the query against every range [lo[r], hi[r]), brute force (every cell), with the
+    local costs of consecutive ranges computed together: short ranges (e.g. the block means of fast mode's coarse
+    pass) cost a few nanoseconds a cell instead of a column kernel's fixed cost per column.
+
+    Compiled (numba): every argument must be given, positionally, with the dtype shown.
+
+    Parameters
+    ----------
+    q : np.ndarray [shape=(m, d)], float32
+        The query's features.
+    xt : np.ndarray [shape=(d, N)], float64
+        The database's features, feature-major (``x.T`` as float64: the local costs are then a loop over frames
+        that the compiler vectorises, each the sum of :func:`_local`, in its order: the same bits).
+    lo, hi : np.ndarray [shape=(R,)], int64
+        The ranges [lo, hi) of the frames, sorted by lo, disjoint, non-empty.
+    chunk : int
+        Frames whose local costs are held at once (m x chunk float64; a longer range is one chunk of its own).
+
+    Returns
+    -------
+    np.ndarray [shape=(R,)], float64
+        The DTW cost (path from the range's first to its last frame, :func:`~mocapviz.match.dtw`'s cost model) of
+        each range: :func:`search_ranges`' whole costs without pruning, to the last bit.
+    """
+    m, d = q.shape
+    n_r = lo.shape[0]
+    out = np.empty(n_r)
+    col = np.empty(m)
+    r0 = 0
+    while r0 < n_r:
+        r1 = r0 + 1  # ranges r0..r1-1 make one chunk of frames [lo[r0], hi[r1 - 1])
+        while r1 < n_r and hi[r1] - lo[r0] <= chunk:
+            r1 += 1
+        a, b = lo[r0], hi[r1 - 1]
+        local = np.zeros((m, b - a))
+        for i in range(m):
+            row = local[i]
+            for t in range(d):
+                v = np.float64(q[i, t])
+                xs = xt[t, a:b]
+                for j in range(b - a):
+                    diff = v - xs[j]
+                    row[j] += diff * diff
+            for j in range(b - a):
+                row[j] = np.sqrt(row[j])
+        for r in range(r0, r1):
+            s = lo[r] - a
+            col[0] = local[0, s]
+            for i in range(1, m):
+                col[i] = col[i - 1] + local[i, s]
+            for j in range(s + 1, hi[r] - a):
+                diag = col[0]
+                col[0] = diag + local[0, j]
+                for i in range(1, m):
+                    left = col[i]
+                    best = min(diag, col[i - 1], left)
+                    col[i] = best + local[i, j]
+                    diag = left
+            out[r] = col[m - 1]
+        r0 = r1
+    return out

@@ -46,7 +46,7 @@ from ..errors import ParameterError
 from ..features import numeric_features, numeric_of
 from ..features.numeric import NUMERIC_SETS, default_pca
 from ..match.bounds import box_rows, range_of, row_bounds
-from ..match.pruned import search_ranges
+from ..match.pruned import range_costs, search_ranges
 from ..match.time_warping import dtw, select_matches, shortest_match
 from ..motion import Motion
 from ..validation import MIN_LENGTH, count, frame_span, number, one_of
@@ -61,6 +61,7 @@ POOL_SECONDS = 0.2  # ... chosen by DTW on the means of 0.2 s blocks of frames (
 WINDOW_SPEED = 2.0  # fast mode, stretches: windows fit a match from 1/2 to 2 x the query's speed ...
 WINDOW_PAD = 0.5  # ... plus this share of the query on both sides; and windows around the
 COARSE_CANDIDATES = 3  # ... 3 K best matches of subsequence DTW on the coarse database
+COARSE_CHUNK = 4096  # whole clips: block means whose local costs are computed at once (query blocks x this, float64)
 
 
 def _mode(mode) -> str:
@@ -146,7 +147,7 @@ class SimilaritySearch:
             if index.n_frames != len(self.features) or not np.array_equal(index.valid, valid):
                 raise ParameterError("index must be a KnnIndex over the searchable frames of the numeric set")
             self._index = index
-        self._coarse = None
+        self._coarse = self._coarse_t = None
         rate = db.typical_fps
         self.pool = max(1, round(POOL_SECONDS * rate))
 
@@ -156,6 +157,7 @@ class SimilaritySearch:
         (N', d) float32, and each document's [lo, hi) rows in it (built on first use)."""
         if self._coarse is None:
             self._coarse = _pooled(self.features, self._lo, self._hi, self.pool)
+            self._coarse_t = np.ascontiguousarray(self._coarse[0].T, dtype=np.float64)  # for range_costs
         return self._coarse
 
     def _coarse_query(self, q: np.ndarray) -> np.ndarray:
@@ -263,10 +265,10 @@ class SimilaritySearch:
         if mode != "brute" and len(lo):
             if mode == "fast":
                 budget_n = max(CLIP_BUDGET, 2 * n_matches) if budget is None else count(budget, "budget")
-                order, coarse = self._coarse_order(q, rows_idx, None if budget_n < n_matches else budget_n)
+                order, coarse = self._coarse_order(q, rows_idx)
                 bounded = order[:budget_n]
             else:  # likely matches first: the K-th best falls fast
-                order, _ = self._coarse_order(q, rows_idx, n_matches)
+                order, _ = self._coarse_order(q, rows_idx)
                 bounded = order
             rows[bounded] = box_rows(q, self._low[rows_idx[bounded]], self._high[rows_idx[bounded]])
             rows[bounded, 0] = _costs(q[0], self.features[lo[bounded]])  # the path's first and last cells
@@ -291,17 +293,14 @@ class SimilaritySearch:
                            cells=int(cells), brute_cells=int(m * (hi - lo).sum()))  # fmt: skip
         return table
 
-    def _coarse_order(self, q: np.ndarray, rows_idx: np.ndarray, keep: int | None) -> tuple[np.ndarray, np.ndarray]:
+    def _coarse_order(self, q: np.ndarray, rows_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The searchable documents ``rows_idx`` in increasing normalised DTW cost of the query's and their block
-        means (:attr:`coarse`), and those costs. With ``keep``, only the ``keep`` best are certain to be costed
-        and in order (the others are abandoned early, inf, last)."""
-        y, c_lo, c_hi = self.coarse
+        means (:attr:`coarse`), and those costs: every cell (:func:`mocapviz.match.pruned.range_costs`; on blocks
+        of 6 frames a cell costs less than a bound would save)."""
+        _, c_lo, c_hi = self.coarse
         qc = self._coarse_query(q)
         lo, hi = c_lo[rows_idx], c_hi[rows_idx]
-        prune = keep is not None and keep < len(lo)
-        costs, _, _ = _whole_costs(qc, y, lo, hi, np.arange(len(lo)), np.zeros(len(lo)), np.zeros((len(lo), len(qc))),
-                                   keep if prune else 1, prune, -1)  # fmt: skip
-        costs = costs / (len(qc) + hi - lo)
+        costs = range_costs(qc, self._coarse_t, lo, hi, COARSE_CHUNK) / (len(qc) + hi - lo)
         return np.argsort(costs, kind="stable"), costs
 
     # ------------------------------------------------------------------------ stretches
