@@ -76,7 +76,7 @@ def _align(q, qt, x, a, b, rest, limit, end_cost, end_start, work, work_s):  # p
     of a column's rows next to the previous column's live ones are computed together first, feature by feature
     over the rows (a loop the compiler vectorises: several times faster than cell by cell), each the same sum in
     the same order as :func:`_local`'s: the same bits; rows reached further down are computed one by one."""
-    m, d = q.shape
+    m = q.shape[0]
     prev = work[0]
     cur = work[1]
     local = work[2]

@@ -45,7 +45,7 @@ from ..db.hits import hit_table
 from ..errors import ParameterError
 from ..features import numeric_features, numeric_of
 from ..features.numeric import NUMERIC_SETS, default_pca
-from ..match.bounds import box_rows, range_of, row_bounds
+from ..match.bounds import box_rows, diagonal_costs, range_of, row_bounds, whole_rows
 from ..match.pruned import range_costs, search_ranges
 from ..match.time_warping import dtw, select_matches, shortest_match
 from ..motion import Motion
@@ -61,6 +61,7 @@ POOL_SECONDS = 0.2  # ... chosen by DTW on the means of 0.2 s blocks of frames (
 WINDOW_SPEED = 2.0  # fast mode, stretches: windows fit a match from 1/2 to 2 x the query's speed ...
 WINDOW_PAD = 0.5  # ... plus this share of the query on both sides; and windows around the
 COARSE_CANDIDATES = 3  # ... 3 K best matches of subsequence DTW on the coarse database
+UPPER_SLACK = 1e-9  # whole clips: the straight paths' K-th cost, relative slack against rounding (see clips)
 COARSE_CHUNK = 4096  # whole clips: block means whose local costs are computed at once (query blocks x this, float64)
 
 
@@ -256,27 +257,29 @@ class SimilaritySearch:
         t0 = time.perf_counter()
         rows_idx = self._ranges(own, exclude_document, candidates)
         lo, hi = self._lo[rows_idx], self._hi[rows_idx]
-        m = len(q)
+        m, limit = len(q), _limit(limit)
         bound = np.zeros(len(lo))
         rows = np.zeros((len(lo), m))
         order = np.arange(len(lo))
-        budget_n = -1
+        budget_n, ub_cells = -1, 0
         coarse = None
         if mode != "brute" and len(lo):
             if mode == "fast":
                 budget_n = max(CLIP_BUDGET, 2 * n_matches) if budget is None else count(budget, "budget")
                 order, coarse = self._coarse_order(q, rows_idx)
                 bounded = order[:budget_n]
+                head = bounded
             else:  # likely matches first: the K-th best falls fast
                 order, _ = self._coarse_order(q, rows_idx)
                 bounded = order
-            rows[bounded] = box_rows(q, self._low[rows_idx[bounded]], self._high[rows_idx[bounded]])
-            rows[bounded, 0] = _costs(q[0], self.features[lo[bounded]])  # the path's first and last cells
-            if m > 1:
-                rows[bounded, -1] = _costs(q[-1], self.features[hi[bounded] - 1])
-            bound = rows.sum(axis=1) / (m + hi - lo)
+                head = order[: max(CLIP_BUDGET, 2 * n_matches)]
+            if len(head) >= n_matches:  # K documents cost no more than their K-th least straight path
+                ub = diagonal_costs(q, self.features, lo[head], hi[head]) / (m + hi[head] - lo[head])
+                limit = min(limit, np.partition(ub, n_matches - 1)[n_matches - 1] * (1 + UPPER_SLACK))
+                ub_cells = int(np.maximum(m, hi[head] - lo[head]).sum())
+            rows, bound = whole_rows(q, self.features, lo, hi, self._low[rows_idx], self._high[rows_idx], bounded)
         costs, aligned, cells = _whole_costs(q, self.features, lo, hi, order, bound, rows, n_matches, mode != "brute",
-                                             budget_n, _limit(limit))  # fmt: skip
+                                             budget_n, limit)  # fmt: skip
         norm = costs / (m + hi - lo)
         found = np.flatnonzero(np.isfinite(norm))
         found = found[np.lexsort((self._doc_ids[rows_idx[found]], norm[found]))][:n_matches]
@@ -290,7 +293,7 @@ class SimilaritySearch:
             table["path"] = [dtw(q, self.features[a:b])[1] if np.isfinite(c) else None
                              for a, b, c in zip(lo[found], hi[found], costs[found])]  # fmt: skip
         table.attrs.update(mode=mode, query_frames=m, ms=ms, documents=len(lo), aligned=int(aligned),
-                           cells=int(cells), brute_cells=int(m * (hi - lo).sum()))  # fmt: skip
+                           cells=int(cells) + ub_cells, brute_cells=int(m * (hi - lo).sum()))  # fmt: skip
         return table
 
     def _coarse_order(self, q: np.ndarray, rows_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -615,11 +618,6 @@ def _whole_costs(q, x, lo, hi, order, bound, rows, n_matches: int, prune: bool, 
 def _limit(limit) -> float:
     """A search's starting limit (:func:`mocapviz.match.pruned.search_ranges`): ``limit`` as a float, inf for None."""
     return np.inf if limit is None else number(limit, "limit", 0.0)
-
-
-def _costs(frame: np.ndarray, frames: np.ndarray) -> np.ndarray:
-    """Euclidean distances (n,) float64 of one feature vector to n others."""
-    return np.sqrt(((frames.astype(np.float64) - frame.astype(np.float64)) ** 2).sum(axis=1))
 
 
 def _windows(nb: np.ndarray, m: int, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
