@@ -38,6 +38,7 @@ import weakref
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
 
+import numba
 import numpy as np
 import pandas as pd
 
@@ -258,12 +259,11 @@ class SimilaritySearch:
         rows_idx = self._ranges(own, exclude_document, candidates)
         lo, hi = self._lo[rows_idx], self._hi[rows_idx]
         m, limit = len(q), _limit(limit)
-        bound = np.zeros(len(lo))
-        rows = np.zeros((len(lo), m))
-        order = np.arange(len(lo))
         budget_n, ub_cells = -1, 0
         coarse = None
-        if mode != "brute" and len(lo):
+        if mode == "brute" or not len(lo):
+            order, bound, rows = np.arange(len(lo)), np.zeros(len(lo)), np.zeros((len(lo), m))
+        else:
             if mode == "fast":
                 budget_n = max(CLIP_BUDGET, 2 * n_matches) if budget is None else count(budget, "budget")
                 order, coarse = self._coarse_order(q, rows_idx)
@@ -646,16 +646,33 @@ def _merge(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return a[new], np.maximum.reduceat(b, np.flatnonzero(new))
 
 
-def _pooled(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+@numba.njit(cache=True)
+def _pooled(x, lo, hi, size):  # pragma: no cover - compiled
     """Means of consecutive blocks of ``size`` frames inside every range [lo, hi) of x (the last block of a range
-    may be shorter). Returns the block means (N', d) float32 and each range's [lo', hi') rows among them."""
-    firsts = [np.arange(a, b, size) for a, b in zip(lo, hi)]
-    counts = np.array([len(f) for f in firsts], dtype=np.int64)
-    starts = np.concatenate(firsts)
-    stops = np.concatenate([np.r_[f[1:], b] for f, b in zip(firsts, hi)])
-    total = np.zeros((len(x) + 1, x.shape[1]))
-    np.cumsum(x, axis=0, dtype=np.float64, out=total[1:])
-    sums = total[stops] - total[starts]
-    means = (sums / (stops - starts)[:, None]).astype(np.float32)
+    may be shorter), each the difference of two float64 prefix sums of x's frames (``np.cumsum`` from frame 0, in
+    its order) over the block's frames, as float32. Returns the block means (N', d) float32 and each range's
+    [lo', hi') rows among them."""
+    d = x.shape[1]
+    counts = (hi - lo + size - 1) // size
     ends = np.cumsum(counts)
+    means = np.empty((ends[-1] if len(ends) else 0, d), np.float32)
+    total = np.zeros(d)  # the prefix sum of frames 0..k-1
+    start = np.zeros(d)
+    k = 0
+    row = 0
+    for r in range(len(lo)):
+        for a in range(lo[r], hi[r], size):
+            b = min(a + size, hi[r])
+            while k < a:
+                for t in range(d):
+                    total[t] += np.float64(x[k, t])
+                k += 1
+            start[:] = total
+            while k < b:
+                for t in range(d):
+                    total[t] += np.float64(x[k, t])
+                k += 1
+            for t in range(d):
+                means[row, t] = np.float32((total[t] - start[t]) / (b - a))
+            row += 1
     return means, ends - counts, ends
