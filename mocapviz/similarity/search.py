@@ -17,9 +17,12 @@ Three modes, one answer where they agree:
   to a document's bounding box (LB_Keogh's envelope with the whole document as envelope), each document frame's
   distance to the query's box (whole clips: every document frame is on the path), the path's first and last
   cells (LB_Kim), and, for stretches, the query frames' k nearest database frames (a document without a
-  neighbour of query frame i is at least the k-th neighbour's distance away from it).
+  neighbour of query frame i is at least the k-th neighbour's distance away from it). Whole clips also start
+  from an upper bound: the K-th least cost of the straight path (:func:`mocapviz.match.bounds.diagonal_costs`)
+  among the first documents in coarse order, a cost K documents are known to reach.
 - ``"fast"``: exact DTW on a few candidates only. Whole clips: the ``budget`` documents of least DTW cost on the
-  block means of 0.2 s (``POOL_SECONDS``; 1/36 of the cells at 6 frames a block). Stretches: windows around every
+  block means of 0.2 s (``POOL_SECONDS``; 1/36 of the cells at 6 frames a block; every cell, by
+  :func:`mocapviz.match.pruned.range_costs`), aligned with exact mode's bounds and pruning. Stretches: windows around every
   kNN neighbour of a query frame (wide enough for a match from half to twice the query's speed) and around the
   3 K best matches of subsequence DTW on the block means, merged, aligned with the exact mode's pruning. The
   costs returned are exact; what can be missed is measured: recall of exact DTW's top K in ``mocapviz reproduce
