@@ -8,6 +8,8 @@ import dataclasses
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from mocapviz import MocapFormatError, ParameterError
 from mocapviz.cli import main
@@ -267,3 +269,62 @@ def test_column_local_costs_are_the_cell_by_cell_ones():
         for first, stop in ((0, 37), (5, 6), (11, 30)):
             _column(qt, x, j, first, stop, out)
             assert all(out[i] == _local(q, x, i, j) for i in range(first, stop))
+
+
+# ============================================================================ whole clips in under a millisecond (issue 43)
+@st.composite
+def _pairs(draw):
+    """A random query (2..12 frames) and 1..5 ranges of random frames (1..12 each), d = 1..6, float32."""
+    d = draw(st.integers(1, 6))
+    m = draw(st.integers(2, 12))
+    lengths = draw(st.lists(st.integers(1, 12), min_size=1, max_size=5))
+    seed = draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    scale = draw(st.sampled_from([1e-3, 1.0, 50.0]))
+    q = (rng.normal(size=(m, d)) * scale).astype(np.float32)
+    x = (rng.normal(size=(sum(lengths), d)) * scale).astype(np.float32)
+    hi = np.cumsum(lengths).astype(np.int64)
+    return q, x, hi - np.asarray(lengths, dtype=np.int64), hi
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_pairs(), st.integers(1, 7))
+def test_whole_range_kernels_and_bounds_agree_with_dtw(pair, chunk):
+    """On random pairs: range_costs (every cell, documents' local costs computed together) is match.dtw's cost to
+    the last bit; the straight path's cost (diagonal_costs) is no less than it, and the row bounds (whole_rows,
+    LB_Kim + the range's box) no more; search_ranges' whole kernel with a limit at the straight path's cost
+    returns the same cost."""
+    from mocapviz.match.bounds import diagonal_costs, whole_rows
+    from mocapviz.match.pruned import range_costs, search_ranges
+    from mocapviz.similarity.search import _box, _boxes
+
+    q, x, lo, hi = pair
+    ref = np.array([dtw(q, x[a:b])[0] for a, b in zip(lo, hi)])
+    got = range_costs(q, np.ascontiguousarray(x.T, dtype=np.float64), lo, hi, chunk)
+    assert np.array_equal(got, ref)
+    upper = diagonal_costs(q, x, lo, hi)
+    assert (upper >= ref).all()
+    low, high = _boxes(x, lo, hi)
+    rows, bound = whole_rows(q, x, lo, hi, low, high, np.arange(len(lo)))
+    norm = len(q) + hi - lo
+    assert (bound <= ref / norm * (1 + 1e-12)).all()
+    np.testing.assert_allclose(bound, rows.sum(axis=1) / norm, rtol=1e-12)
+    first, _, costs, _, _ = search_ranges(q, x, lo, hi, np.argsort(bound), bound, rows, len(lo), True, 1, True, -1,
+                                          float(np.max(upper / norm)) * (1 + 1e-9), *_box(q))  # fmt: skip
+    assert np.array_equal(costs[np.argsort(first)], ref)
+
+
+def test_fast_clips_recall_brute_forces_top_10_on_the_real_clips(search, hdm05_db30):
+    """Fast mode (coarse order, straight-path limit, whole-range kernel) on every 7th of the 287 HDM05 clips: its
+    costs are brute mode's costs of the same documents to the last bit, and it returns brute force's top 10 but
+    for a few documents in a thousand (the benchmark measures it over all 287 clips: 0.999)."""
+    docs = sorted(hdm05_db30.documents["doc_id"].tolist())[::7]
+    recalled = 0
+    for doc in docs:
+        brute = search.clips(doc, n_matches=len(search.documents), mode="brute", exclude_document=True)
+        fast = search.clips(doc, n_matches=10, mode="fast", exclude_document=True)
+        cost = brute.set_index("doc_id")["cost"]
+        assert np.array_equal(fast["cost"].to_numpy(), cost[fast["doc_id"]].to_numpy()), doc
+        recalled += len(set(fast["doc_id"]) & set(brute["doc_id"].head(10)))
+        assert fast.attrs["cells"] < brute.attrs["cells"]
+    assert recalled / (10 * len(docs)) >= 0.99

@@ -103,3 +103,111 @@ def box_rows(q, low, high):  # pragma: no cover - compiled
                     s += (v - high[r, t]) ** 2
             out[r, i] = np.sqrt(s)
     return out
+
+
+@numba.njit(cache=True)
+def diagonal_costs(q, x, lo, hi):  # pragma: no cover - compiled
+    """Per range, the cost of the straight warping path from (0, lo) to (m - 1, hi - 1): an upper bound of the
+    whole-range DTW cost (DTW takes the least cost over every path, this is one of them).
+
+    Parameters
+    ----------
+    q : np.ndarray [shape=(m, d)]
+        The query's features (feature units).
+    x : np.ndarray [shape=(N, d)]
+        The database's features.
+    lo, hi : np.ndarray [shape=(R,)], int
+        Ranges [lo, hi) of x, non-empty.
+
+    Returns
+    -------
+    np.ndarray [shape=(R,)], float64
+        The sum of the local Euclidean costs of the max(m, n) cells (round(k (m-1) / (L-1)), lo + round(k (n-1) /
+        (L-1))), k = 0..L-1, L = max(m, n): a warping path (each step moves one frame on the longer side, zero or
+        one on the other), so no less than :func:`~mocapviz.match.dtw`'s cost of the range.
+
+    Examples
+    --------
+    >>> q = np.array([[0.0], [1.0], [2.0]])
+    >>> x = np.array([[0.0], [2.0], [0.0], [1.0], [1.0], [2.0]])
+    >>> diagonal_costs(q, x, np.array([0, 2]), np.array([2, 6])).tolist()  # cells (0,0) (1,1) (2,1); (0,0) (1,1) (1,2) (2,3)
+    [1.0, 0.0]
+    """
+    n_r, m, d = lo.shape[0], q.shape[0], q.shape[1]
+    out = np.empty(n_r)
+    for r in range(n_r):
+        n = hi[r] - lo[r]
+        steps = max(m, n) - 1
+        total = 0.0
+        for k in range(steps + 1):
+            i = (2 * k * (m - 1) + steps) // (2 * steps) if steps else 0
+            j = (2 * k * (n - 1) + steps) // (2 * steps) if steps else 0
+            s = 0.0
+            for t in range(d):
+                diff = np.float64(q[i, t]) - np.float64(x[lo[r] + j, t])
+                s += diff * diff
+            total += np.sqrt(s)
+        out[r] = total
+    return out
+
+
+@numba.njit(cache=True)
+def whole_rows(q, x, lo, hi, low, high, which):  # pragma: no cover - compiled
+    """The row bounds and lower bounds of whole-range DTW (:func:`mocapviz.match.pruned.search_ranges`, whole task)
+    for the ranges ``which``: each query frame's distance to the range's box (:func:`box_rows`), the first and
+    last rows the exact cost of the path's first and last cells (LB_Kim: every path starts at (0, lo) and ends at
+    (m - 1, hi - 1)).
+
+    Parameters
+    ----------
+    q : np.ndarray [shape=(m, d)]
+        The query's features (feature units).
+    x : np.ndarray [shape=(N, d)]
+        The database's features.
+    lo, hi : np.ndarray [shape=(R,)], int
+        Ranges [lo, hi) of x.
+    low, high : np.ndarray [shape=(R, d)]
+        Per range the least and greatest value of every feature.
+    which : np.ndarray [shape=(W,)], int
+        The ranges bounded (the others get 0).
+
+    Returns
+    -------
+    rows : np.ndarray [shape=(R, m)], float64
+        Per range and query frame a lower bound of the local cost of any cell of that row on a path.
+    bound : np.ndarray [shape=(R,)], float64
+        rows.sum(axis=1) / (m + hi - lo): a lower bound of the range's normalised DTW cost.
+
+    Examples
+    --------
+    >>> q = np.array([[0.0], [3.0]])
+    >>> x = np.array([[1.0], [2.0], [5.0]])
+    >>> rows, bound = whole_rows(q, x, np.array([0]), np.array([3]), np.array([[1.0]]), np.array([[5.0]]),
+    ...                          np.array([0]))
+    >>> rows.tolist(), bound.tolist()  # |0 - 1| (first cell), |3 - 5| (last cell); (1 + 2) / (2 + 3)
+    ([[1.0, 2.0]], [0.6])
+    """
+    n_r, m, d = lo.shape[0], q.shape[0], q.shape[1]
+    rows = np.zeros((n_r, m))
+    bound = np.zeros(n_r)
+    for r in which:
+        for i in range(m):
+            s = 0.0
+            for t in range(d):
+                v = np.float64(q[i, t])
+                if v < low[r, t]:
+                    s += (low[r, t] - v) ** 2
+                elif v > high[r, t]:
+                    s += (v - high[r, t]) ** 2
+            rows[r, i] = np.sqrt(s)
+        for i, j in ((0, lo[r]), (m - 1, hi[r] - 1)):
+            s = 0.0
+            for t in range(d):
+                diff = np.float64(q[i, t]) - np.float64(x[j, t])
+                s += diff * diff
+            rows[r, i] = np.sqrt(s)
+        total = 0.0
+        for i in range(m):
+            total += rows[r, i]
+        bound[r] = total / (m + hi[r] - lo[r])
+    return rows, bound

@@ -7,7 +7,8 @@ Cost model: :mod:`mocapviz.match.time_warping`'s "basic" step set (diagonal, nex
 adding the local Euclidean cost of the cell entered), so costs and matches are those of :func:`~mocapviz.match.dtw`
 and :func:`~mocapviz.match.subsequence_dtw`, to the last bit.
 
-Two tasks, one kernel (:func:`_align`, column by column over the database frames of one range):
+Two tasks, a kernel each (:func:`_align_whole` and :func:`_align`, column by column over the database frames of one
+range):
 
 - *whole*: DTW of the query against a whole range (path from its first to its last frame), ranked by the
   normalised cost cost / (m + n) (query frames m, range frames n).
@@ -62,20 +63,20 @@ def _column(qt, x, j, first, stop, out):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _align(q, qt, x, a, b, rest, limit, whole, end_cost, end_start, work, work_s):  # pragma: no cover - compiled
-    """Pruned DTW of query q (m, d) against frames x[a:b], column by column (qt: q.T as float64, (d, m)).
+def _align(q, qt, x, a, b, rest, limit, end_cost, end_start, work, work_s):  # pragma: no cover - compiled
+    """Pruned subsequence DTW of query q (m, d) against frames x[a:b] (a match starts anywhere), column by column
+    (qt: q.T as float64, (d, m)); the whole task has its own kernel, :func:`_align_whole`.
 
     rest (m,): rest[i] = a lower bound of the cost still to come after query row i (0 for the last row).
-    limit: cells whose accumulated cost + rest exceed it are dropped (``whole``: compared to the raw cost).
-    whole: True = the path starts at (0, a) and ends at (m - 1, b - 1); False = subsequence DTW (starts anywhere).
+    limit: cells whose accumulated cost + rest exceed it are dropped.
     end_cost, end_start (b - a,): written with the accumulated cost of the last query row at every frame (inf
-    where dropped) and the frame where that alignment starts (stretches only; -1 where none).
+    where dropped) and the frame where that alignment starts (-1 where none).
     work (3, m) float64, work_s (2, m) int64: scratch rows, reused from range to range (no allocation per range).
     Returns the number of cells whose local cost was computed (those with a live predecessor). The local costs
     of a column's rows next to the previous column's live ones are computed together first, feature by feature
     over the rows (a loop the compiler vectorises: several times faster than cell by cell), each the same sum in
     the same order as :func:`_local`'s: the same bits; rows reached further down are computed one by one."""
-    m, d = q.shape
+    m = q.shape[0]
     prev = work[0]
     cur = work[1]
     local = work[2]
@@ -85,7 +86,7 @@ def _align(q, qt, x, a, b, rest, limit, whole, end_cost, end_start, work, work_s
     cells = 0
     for j in range(a, b):
         lo_c, hi_c = m, -1
-        first = lo_p if whole and j > a else 0
+        first = 0
         ahead = min(hi_p + 1, m - 1)  # rows first..ahead: local costs computed before the column's recursion
         if ahead > first:
             _column(qt, x, j, first, ahead + 1, local)
@@ -98,10 +99,7 @@ def _align(q, qt, x, a, b, rest, limit, whole, end_cost, end_start, work, work_s
             best = np.inf
             arg = -1
             if i == 0:
-                if not whole or j == a:
-                    best, arg = 0.0, 3
-                elif lo_p == 0 and hi_p >= 0:
-                    best, arg = prev[0], 2
+                best, arg = 0.0, 3
             else:
                 if lo_p <= i - 1 <= hi_p and prev[i - 1] < best:
                     best, arg = prev[i - 1], 0
@@ -136,15 +134,77 @@ def _align(q, qt, x, a, b, rest, limit, whole, end_cost, end_start, work, work_s
         else:
             end_cost[j - a] = np.inf
             end_start[j - a] = -1
-        if hi_c < 0 and whole:
-            for t in range(j + 1, b):
-                end_cost[t - a] = np.inf
-                end_start[t - a] = -1
-            return cells
         prev, cur = cur, prev
         prev_s, cur_s = cur_s, prev_s
         lo_p, hi_p = (lo_c, hi_c) if hi_c >= 0 else (0, -1)
     return cells
+
+
+@numba.njit(cache=True)
+def _align_whole(q, qt, x, a, b, rest, limit, work):  # pragma: no cover - compiled
+    """Pruned DTW of query q (m, d) against the whole range x[a:b] (path from (0, a) to (m - 1, b - 1)), column by
+    column: :func:`_align`'s recursion and cells for the *whole* task, without its bookkeeping of where a match
+    starts (a whole range's match starts at its first frame), so that its inner loop is a few instructions a cell.
+
+    rest (m,): rest[i] = a lower bound of the cost still to come after query row i; limit: cells whose raw cost
+    + rest exceed it are dropped. work (3, m) float64: scratch rows. Returns the DTW cost (inf when every path was
+    dropped) and the number of cells whose local cost was computed: the same cells and bits as :func:`_align`
+    (the local costs of a column's rows next to the previous column's live ones computed together first, by
+    :func:`_column`; rows reached further down one by one)."""
+    m = q.shape[0]
+    prev = work[0]
+    cur = work[1]
+    local = work[2]
+    cells = 0
+    # the first column: the path enters at (0, a) and goes down
+    up = 0.0
+    hi_p = -1
+    for i in range(m):
+        v = up + _local(q, x, i, a)
+        cells += 1
+        if v + rest[i] > limit:
+            break
+        cur[i] = v
+        hi_p = i
+        up = v
+    if hi_p < 0:
+        return np.inf, cells
+    lo_p = 0
+    prev, cur = cur, prev
+    for j in range(a + 1, b):
+        ahead = min(hi_p + 1, m - 1)  # rows lo_p..ahead have a live neighbour in the previous column
+        _column(qt, x, j, lo_p, ahead + 1, local)
+        cells += ahead + 1 - lo_p
+        lo_c, hi_c = m, -1
+        up = np.inf
+        diag = np.inf  # prev[i - 1]
+        for i in range(lo_p, ahead + 1):
+            left = prev[i] if i <= hi_p else np.inf
+            best = min(diag, up, left)
+            diag = left
+            v = best + local[i]
+            if v + rest[i] > limit:
+                v = np.inf
+            if v < np.inf:
+                lo_c = min(lo_c, i)
+                hi_c = i
+            cur[i] = v
+            up = v
+        i = ahead + 1
+        while i < m and up < np.inf:  # below the previous column's live rows: only the cell above leads here
+            cells += 1
+            v = up + _local(q, x, i, j)
+            if v + rest[i] > limit:
+                break
+            cur[i] = v
+            hi_c = i
+            up = v
+            i += 1
+        if hi_c < 0:
+            return np.inf, cells
+        prev, cur = cur, prev
+        lo_p, hi_p = lo_c, hi_c
+    return (prev[m - 1] if hi_p == m - 1 else np.inf), cells
 
 
 @numba.njit(cache=True)
@@ -298,24 +358,90 @@ def search_ranges(q, x, lo, hi, order, bound, rows, n_matches, whole, min_length
         if budget >= 0 and aligned >= budget:
             break
         n = hi[r] - lo[r]
-        if buf_c.shape[0] < n:
-            buf_c = np.empty(n)
-            buf_s = np.empty(n, dtype=np.int64)
         norm = m + n if whole else 1
         limit = best[n_matches - 1] * norm if prune else np.inf
         if whole and prune and _box_bound(x, lo[r], hi[r], qmin, qmax) > limit:
             continue
         if prune:
             _rest(rows[r], rest)
-        cells += _align(q, qt, x, lo[r], hi[r], rest, limit, whole, buf_c, buf_s, work, work_s)
         aligned += 1
         if whole:
-            least = buf_c[n - 1]
+            least, c = _align_whole(q, qt, x, lo[r], hi[r], rest, limit, work)
+            cells += c
             if least < np.inf:
                 out_s, out_e, out_c, n_out = _append(out_s, out_e, out_c, n_out, lo[r], hi[r] - 1, least)
         else:
+            if buf_c.shape[0] < n:
+                buf_c = np.empty(n)
+                buf_s = np.empty(n, dtype=np.int64)
+            cells += _align(q, qt, x, lo[r], hi[r], rest, limit, buf_c, buf_s, work, work_s)
             out_s, out_e, out_c, n_out, least = _local_minima(buf_c[:n], buf_s[:n], lo[r], min_length, out_s, out_e,
                                                               out_c, n_out)  # fmt: skip
         if least < np.inf:
             _insert(best, least / norm)
     return out_s[:n_out], out_e[:n_out], out_c[:n_out], aligned, cells
+
+
+@numba.njit(cache=True)
+def range_costs(q, xt, lo, hi, chunk):  # pragma: no cover
+    """Whole-range DTW costs of the query against every range [lo[r], hi[r]), brute force (every cell), with the
+    local costs of consecutive ranges computed together: short ranges (e.g. the block means of fast mode's coarse
+    pass) cost a few nanoseconds a cell instead of a column kernel's fixed cost per column.
+
+    Compiled (numba): every argument must be given, positionally, with the dtype shown.
+
+    Parameters
+    ----------
+    q : np.ndarray [shape=(m, d)], float32
+        The query's features.
+    xt : np.ndarray [shape=(d, N)], float64
+        The database's features, feature-major (``x.T`` as float64: the local costs are then a loop over frames
+        that the compiler vectorises, each the sum of :func:`_local`, in its order: the same bits).
+    lo, hi : np.ndarray [shape=(R,)], int64
+        The ranges [lo, hi) of the frames, sorted by lo, disjoint, non-empty.
+    chunk : int
+        Frames whose local costs are held at once (m x chunk float64; a longer range is one chunk of its own).
+
+    Returns
+    -------
+    np.ndarray [shape=(R,)], float64
+        The DTW cost (path from the range's first to its last frame, :func:`~mocapviz.match.dtw`'s cost model) of
+        each range: :func:`search_ranges`' whole costs without pruning, to the last bit.
+    """
+    m, d = q.shape
+    n_r = lo.shape[0]
+    out = np.empty(n_r)
+    col = np.empty(m)
+    r0 = 0
+    while r0 < n_r:
+        r1 = r0 + 1  # ranges r0..r1-1 make one chunk of frames [lo[r0], hi[r1 - 1])
+        while r1 < n_r and hi[r1] - lo[r0] <= chunk:
+            r1 += 1
+        a, b = lo[r0], hi[r1 - 1]
+        local = np.zeros((m, b - a))
+        for i in range(m):
+            row = local[i]
+            for t in range(d):
+                v = np.float64(q[i, t])
+                xs = xt[t, a:b]
+                for j in range(b - a):
+                    diff = v - xs[j]
+                    row[j] += diff * diff
+            for j in range(b - a):
+                row[j] = np.sqrt(row[j])
+        for r in range(r0, r1):
+            s = lo[r] - a
+            col[0] = local[0, s]
+            for i in range(1, m):
+                col[i] = col[i - 1] + local[i, s]
+            for j in range(s + 1, hi[r] - a):
+                diag = col[0]
+                col[0] = diag + local[0, j]
+                for i in range(1, m):
+                    left = col[i]
+                    best = min(diag, col[i - 1], left)
+                    col[i] = best + local[i, j]
+                    diag = left
+            out[r] = col[m - 1]
+        r0 = r1
+    return out

@@ -17,9 +17,12 @@ Three modes, one answer where they agree:
   to a document's bounding box (LB_Keogh's envelope with the whole document as envelope), each document frame's
   distance to the query's box (whole clips: every document frame is on the path), the path's first and last
   cells (LB_Kim), and, for stretches, the query frames' k nearest database frames (a document without a
-  neighbour of query frame i is at least the k-th neighbour's distance away from it).
+  neighbour of query frame i is at least the k-th neighbour's distance away from it). Whole clips also start
+  from an upper bound: the K-th least cost of the straight path (:func:`mocapviz.match.bounds.diagonal_costs`)
+  among the first documents in coarse order, a cost K documents are known to reach.
 - ``"fast"``: exact DTW on a few candidates only. Whole clips: the ``budget`` documents of least DTW cost on the
-  block means of 0.2 s (``POOL_SECONDS``; 1/36 of the cells at 6 frames a block). Stretches: windows around every
+  block means of 0.2 s (``POOL_SECONDS``; 1/36 of the cells at 6 frames a block; every cell, by
+  :func:`mocapviz.match.pruned.range_costs`), aligned with exact mode's bounds and pruning. Stretches: windows around every
   kNN neighbour of a query frame (wide enough for a match from half to twice the query's speed) and around the
   3 K best matches of subsequence DTW on the block means, merged, aligned with the exact mode's pruning. The
   costs returned are exact; what can be missed is measured: recall of exact DTW's top K in ``mocapviz reproduce
@@ -38,6 +41,7 @@ import weakref
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
 
+import numba
 import numpy as np
 import pandas as pd
 
@@ -45,8 +49,8 @@ from ..db.hits import hit_table
 from ..errors import ParameterError
 from ..features import numeric_features, numeric_of
 from ..features.numeric import NUMERIC_SETS, default_pca
-from ..match.bounds import box_rows, range_of, row_bounds
-from ..match.pruned import search_ranges
+from ..match.bounds import box_rows, diagonal_costs, range_of, row_bounds, whole_rows
+from ..match.pruned import range_costs, search_ranges
 from ..match.time_warping import dtw, select_matches, shortest_match
 from ..motion import Motion
 from ..validation import MIN_LENGTH, count, frame_span, number, one_of
@@ -61,6 +65,8 @@ POOL_SECONDS = 0.2  # ... chosen by DTW on the means of 0.2 s blocks of frames (
 WINDOW_SPEED = 2.0  # fast mode, stretches: windows fit a match from 1/2 to 2 x the query's speed ...
 WINDOW_PAD = 0.5  # ... plus this share of the query on both sides; and windows around the
 COARSE_CANDIDATES = 3  # ... 3 K best matches of subsequence DTW on the coarse database
+UPPER_SLACK = 1e-9  # whole clips: the straight paths' K-th cost, relative slack against rounding (see clips)
+COARSE_CHUNK = 4096  # whole clips: block means whose local costs are computed at once (query blocks x this, float64)
 
 
 def _mode(mode) -> str:
@@ -146,7 +152,7 @@ class SimilaritySearch:
             if index.n_frames != len(self.features) or not np.array_equal(index.valid, valid):
                 raise ParameterError("index must be a KnnIndex over the searchable frames of the numeric set")
             self._index = index
-        self._coarse = None
+        self._coarse = self._coarse_t = None
         rate = db.typical_fps
         self.pool = max(1, round(POOL_SECONDS * rate))
 
@@ -156,6 +162,7 @@ class SimilaritySearch:
         (N', d) float32, and each document's [lo, hi) rows in it (built on first use)."""
         if self._coarse is None:
             self._coarse = _pooled(self.features, self._lo, self._hi, self.pool)
+            self._coarse_t = np.ascontiguousarray(self._coarse[0].T, dtype=np.float64)  # for range_costs
         return self._coarse
 
     def _coarse_query(self, q: np.ndarray) -> np.ndarray:
@@ -254,27 +261,28 @@ class SimilaritySearch:
         t0 = time.perf_counter()
         rows_idx = self._ranges(own, exclude_document, candidates)
         lo, hi = self._lo[rows_idx], self._hi[rows_idx]
-        m = len(q)
-        bound = np.zeros(len(lo))
-        rows = np.zeros((len(lo), m))
-        order = np.arange(len(lo))
-        budget_n = -1
+        m, limit = len(q), _limit(limit)
+        budget_n, ub_cells = -1, 0
         coarse = None
-        if mode != "brute" and len(lo):
+        if mode == "brute" or not len(lo):
+            order, bound, rows = np.arange(len(lo)), np.zeros(len(lo)), np.zeros((len(lo), m))
+        else:
             if mode == "fast":
                 budget_n = max(CLIP_BUDGET, 2 * n_matches) if budget is None else count(budget, "budget")
-                order, coarse = self._coarse_order(q, rows_idx, None if budget_n < n_matches else budget_n)
+                order, coarse = self._coarse_order(q, rows_idx)
                 bounded = order[:budget_n]
+                head = bounded
             else:  # likely matches first: the K-th best falls fast
-                order, _ = self._coarse_order(q, rows_idx, n_matches)
+                order, _ = self._coarse_order(q, rows_idx)
                 bounded = order
-            rows[bounded] = box_rows(q, self._low[rows_idx[bounded]], self._high[rows_idx[bounded]])
-            rows[bounded, 0] = _costs(q[0], self.features[lo[bounded]])  # the path's first and last cells
-            if m > 1:
-                rows[bounded, -1] = _costs(q[-1], self.features[hi[bounded] - 1])
-            bound = rows.sum(axis=1) / (m + hi - lo)
+                head = order[: max(CLIP_BUDGET, 2 * n_matches)]
+            if len(head) >= n_matches:  # K documents cost no more than their K-th least straight path
+                ub = diagonal_costs(q, self.features, lo[head], hi[head]) / (m + hi[head] - lo[head])
+                limit = min(limit, np.partition(ub, n_matches - 1)[n_matches - 1] * (1 + UPPER_SLACK))
+                ub_cells = int(np.maximum(m, hi[head] - lo[head]).sum())
+            rows, bound = whole_rows(q, self.features, lo, hi, self._low[rows_idx], self._high[rows_idx], bounded)
         costs, aligned, cells = _whole_costs(q, self.features, lo, hi, order, bound, rows, n_matches, mode != "brute",
-                                             budget_n, _limit(limit))  # fmt: skip
+                                             budget_n, limit)  # fmt: skip
         norm = costs / (m + hi - lo)
         found = np.flatnonzero(np.isfinite(norm))
         found = found[np.lexsort((self._doc_ids[rows_idx[found]], norm[found]))][:n_matches]
@@ -288,20 +296,17 @@ class SimilaritySearch:
             table["path"] = [dtw(q, self.features[a:b])[1] if np.isfinite(c) else None
                              for a, b, c in zip(lo[found], hi[found], costs[found])]  # fmt: skip
         table.attrs.update(mode=mode, query_frames=m, ms=ms, documents=len(lo), aligned=int(aligned),
-                           cells=int(cells), brute_cells=int(m * (hi - lo).sum()))  # fmt: skip
+                           cells=int(cells) + ub_cells, brute_cells=int(m * (hi - lo).sum()))  # fmt: skip
         return table
 
-    def _coarse_order(self, q: np.ndarray, rows_idx: np.ndarray, keep: int | None) -> tuple[np.ndarray, np.ndarray]:
+    def _coarse_order(self, q: np.ndarray, rows_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The searchable documents ``rows_idx`` in increasing normalised DTW cost of the query's and their block
-        means (:attr:`coarse`), and those costs. With ``keep``, only the ``keep`` best are certain to be costed
-        and in order (the others are abandoned early, inf, last)."""
-        y, c_lo, c_hi = self.coarse
+        means (:attr:`coarse`), and those costs: every cell (:func:`mocapviz.match.pruned.range_costs`; on blocks
+        of 6 frames a cell costs less than a bound would save)."""
+        _, c_lo, c_hi = self.coarse
         qc = self._coarse_query(q)
         lo, hi = c_lo[rows_idx], c_hi[rows_idx]
-        prune = keep is not None and keep < len(lo)
-        costs, _, _ = _whole_costs(qc, y, lo, hi, np.arange(len(lo)), np.zeros(len(lo)), np.zeros((len(lo), len(qc))),
-                                   keep if prune else 1, prune, -1)  # fmt: skip
-        costs = costs / (len(qc) + hi - lo)
+        costs = range_costs(qc, self._coarse_t, lo, hi, COARSE_CHUNK) / (len(qc) + hi - lo)
         return np.argsort(costs, kind="stable"), costs
 
     # ------------------------------------------------------------------------ stretches
@@ -618,11 +623,6 @@ def _limit(limit) -> float:
     return np.inf if limit is None else number(limit, "limit", 0.0)
 
 
-def _costs(frame: np.ndarray, frames: np.ndarray) -> np.ndarray:
-    """Euclidean distances (n,) float64 of one feature vector to n others."""
-    return np.sqrt(((frames.astype(np.float64) - frame.astype(np.float64)) ** 2).sum(axis=1))
-
-
 def _windows(nb: np.ndarray, m: int, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Fast mode's windows: around every neighbour f of query frame i the frames a match through (i, f) can span
     at 1/WINDOW_SPEED to WINDOW_SPEED x the query's speed, padded by WINDOW_PAD x m, clipped to its document,
@@ -649,16 +649,33 @@ def _merge(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return a[new], np.maximum.reduceat(b, np.flatnonzero(new))
 
 
-def _pooled(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+@numba.njit(cache=True)
+def _pooled(x, lo, hi, size):  # pragma: no cover - compiled
     """Means of consecutive blocks of ``size`` frames inside every range [lo, hi) of x (the last block of a range
-    may be shorter). Returns the block means (N', d) float32 and each range's [lo', hi') rows among them."""
-    firsts = [np.arange(a, b, size) for a, b in zip(lo, hi)]
-    counts = np.array([len(f) for f in firsts], dtype=np.int64)
-    starts = np.concatenate(firsts)
-    stops = np.concatenate([np.r_[f[1:], b] for f, b in zip(firsts, hi)])
-    total = np.zeros((len(x) + 1, x.shape[1]))
-    np.cumsum(x, axis=0, dtype=np.float64, out=total[1:])
-    sums = total[stops] - total[starts]
-    means = (sums / (stops - starts)[:, None]).astype(np.float32)
+    may be shorter), each the difference of two float64 prefix sums of x's frames (``np.cumsum`` from frame 0, in
+    its order) over the block's frames, as float32. Returns the block means (N', d) float32 and each range's
+    [lo', hi') rows among them."""
+    d = x.shape[1]
+    counts = (hi - lo + size - 1) // size
     ends = np.cumsum(counts)
+    means = np.empty((ends[-1] if len(ends) else 0, d), np.float32)
+    total = np.zeros(d)  # the prefix sum of frames 0..k-1
+    start = np.zeros(d)
+    k = 0
+    row = 0
+    for r in range(len(lo)):
+        for a in range(lo[r], hi[r], size):
+            b = min(a + size, hi[r])
+            while k < a:
+                for t in range(d):
+                    total[t] += np.float64(x[k, t])
+                k += 1
+            start[:] = total
+            while k < b:
+                for t in range(d):
+                    total[t] += np.float64(x[k, t])
+                k += 1
+            for t in range(d):
+                means[row, t] = np.float32((total[t] - start[t]) / (b - a))
+            row += 1
     return means, ends - counts, ends
