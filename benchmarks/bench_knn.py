@@ -109,7 +109,8 @@ def build_engines(features: np.ndarray, repeats: int) -> tuple[dict, list[dict]]
     from mocapviz.similarity.knn import KnnIndex
 
     engines, rows = {}, []
-    for engine, label in (("ckdtree", "ours: KnnIndex(engine='ckdtree')"),
+    for engine, label in (("kdtree", "ours: KnnIndex(engine='kdtree'), numba, float32 points, leafsize 64"),
+                          ("ckdtree", "scipy cKDTree: KnnIndex(engine='ckdtree'), float64, leafsize 16 (before)"),
                           ("brute", "brute force: KnnIndex(engine='brute')")):  # fmt: skip
         index, times, rss = _build_timed(lambda engine=engine: KnnIndex(features, engine=engine), repeats)
         rows.append({"engine": label, "build_s": statistics.median(times), "runs_s": times,
@@ -168,10 +169,12 @@ def bench_queries(features: np.ndarray, engines: dict, quick: bool, repeats: int
         queries = features[rng.choice(len(features), n_queries[k], replace=False)].astype(np.float64)
         sample = queries[:n_brute]
         d_ref, i_ref = engines["brute"](sample, k)
-        d, i = engines["ckdtree"](sample, k)
-        bad = _disagreements(features, sample, d, i, d_ref, i_ref)
-        notes.append(f"k={k}: ours and brute force on {n_brute} queries: "
-                     + ("identical (up to exact ties)" if not bad else f"{bad} ENTRIES DIFFER"))  # fmt: skip
+        bad = 0
+        for engine in ("kdtree", "ckdtree"):
+            d, i = engines[engine](sample, k)
+            bad += (wrong := _disagreements(features, sample, d, i, d_ref, i_ref))
+            notes.append(f"k={k}: KnnIndex(engine='{engine}') and brute force on {n_brute} queries: "
+                         + ("identical (up to exact ties)" if not wrong else f"{wrong} ENTRIES DIFFER"))  # fmt: skip
         if "pykdtree" in engines:
             d_p, i_p = engines["pykdtree"](sample, k)
             bad_p = _disagreements(features, sample, d_p.astype(np.float64), i_p.astype(np.int64), d_ref, i_ref)
@@ -179,13 +182,17 @@ def bench_queries(features: np.ndarray, engines: dict, quick: bool, repeats: int
                          + ("identical (up to exact ties)" if not bad_p else f"{bad_p} entries differ by > 1e-5 "
                             "or beyond a tie (float32 rounding)"))  # fmt: skip
         # (name, engine, batched options, batch, single-query options or None)
-        variants = [("ours (ckdtree), all cores", "ckdtree", {}, queries, {"threads": 1}),
-                    ("ours (ckdtree), 1 thread", "ckdtree", {"threads": 1}, queries, None),
-                    (f"ours (ckdtree), eps = {EPS}, all cores", "ckdtree", {"eps": EPS}, queries,
+        variants = [("ours (kdtree), all cores", "kdtree", {}, queries, {"threads": 1}),
+                    ("ours (kdtree), 1 thread", "kdtree", {"threads": 1}, queries, None),
+                    (f"ours (kdtree), eps = {EPS}, all cores", "kdtree", {"eps": EPS}, queries,
                      {"eps": EPS, "threads": 1}),
+                    ("scipy cKDTree (engine='ckdtree', before), all cores", "ckdtree", {}, queries, {"threads": 1}),
+                    ("scipy cKDTree (engine='ckdtree', before), 1 thread", "ckdtree", {"threads": 1}, queries, None),
+                    (f"scipy cKDTree (engine='ckdtree', before), eps = {EPS}, all cores", "ckdtree", {"eps": EPS},
+                     queries, {"eps": EPS, "threads": 1}),
                     ("numpy brute force, all cores", "brute", {}, sample, {"threads": 1})]  # fmt: skip
         if "pykdtree" in engines:
-            variants.insert(3, ("pykdtree, all cores", "pykdtree", {}, queries, {}))
+            variants.insert(6, ("pykdtree, all cores", "pykdtree", {}, queries, {}))
         runs = {name: [] for name, *_ in variants}
         for _ in range(repeats):
             for name, engine, options, q, _ in variants:
