@@ -40,9 +40,16 @@ def _grow(a, n):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
+def _swap(points, perm, i, j):  # pragma: no cover - compiled
+    for c in range(points.shape[1]):
+        points[i, c], points[j, c] = points[j, c], points[i, c]
+    perm[i], perm[j] = perm[j], perm[i]
+
+
+@numba.njit(cache=True, nogil=True)
 def _build(points, leafsize):  # pragma: no cover - compiled
-    """Nodes of the tree over points (M, d): perm (M,) (leaf order), start, stop, left, right (-1 for a leaf),
-    lo, hi (n_nodes, d) tight boxes, and the depth."""
+    """Nodes of the tree over points (M, d), whose rows it puts in leaf order (in place): perm (M,) (the original
+    row of each), start, stop, left, right (-1 for a leaf), lo, hi (n_nodes, d) tight boxes, and the depth."""
     m, d = points.shape
     perm = np.arange(m)
     cap = max(16, 4 * (m // max(leafsize, 1)) + 16)
@@ -63,11 +70,11 @@ def _build(points, leafsize):  # pragma: no cover - compiled
         depth = max(depth, lev)
         a, b = start[node], stop[node]
         for j in range(d):
-            lo[node, j] = points[perm[a], j]
-            hi[node, j] = points[perm[a], j]
+            lo[node, j] = points[a, j]
+            hi[node, j] = points[a, j]
         for p in range(a + 1, b):
             for j in range(d):
-                v = points[perm[p], j]
+                v = points[p, j]
                 if v < lo[node, j]:
                     lo[node, j] = v
                 elif v > hi[node, j]:
@@ -81,17 +88,17 @@ def _build(points, leafsize):  # pragma: no cover - compiled
         split = min(lo[node, dim] + 0.5 * width, hi[node, dim])  # min: rounding between two neighbouring floats
         i, j = a, b - 1  # partition: coordinate < split to the left
         while i <= j:
-            if points[perm[i], dim] < split:
+            if points[i, dim] < split:
                 i += 1
             else:
-                perm[i], perm[j] = perm[j], perm[i]
+                _swap(points, perm, i, j)
                 j -= 1
         if i == a:  # sliding midpoint: every point at or above the midpoint; the lowest alone to the left
             low = a
             for p in range(a + 1, b):
-                if points[perm[p], dim] < points[perm[low], dim]:
+                if points[p, dim] < points[low, dim]:
                     low = p
-            perm[a], perm[low] = perm[low], perm[a]
+            _swap(points, perm, a, low)
             i = a + 1
         if n_nodes + 2 > len(start):
             cap = 2 * len(start)
@@ -125,22 +132,22 @@ class KdTree:
     """
 
     def __init__(self, data: np.ndarray, leafsize: int):
-        perm, self.start, self.stop, self.left, self.right, self.lo, self.hi, depth = _build(data, leafsize)
+        self.points = _working_copy(data)
+        perm, self.start, self.stop, self.left, self.right, self.lo, self.hi, depth = _build(self.points, leafsize)
         self.perm, self.depth = perm, int(depth)
-        self.points = _leaf_ordered(data, perm)
         self.nbytes = sum(a.nbytes for a in (self.points, self.perm, self.start, self.stop, self.left, self.right,
                                              self.lo, self.hi))  # fmt: skip
 
 
-def _leaf_ordered(data: np.ndarray, perm: np.ndarray, rows: int = 1 << 20) -> np.ndarray:
-    """``data[perm]`` as float32 when that loses nothing (F15E is float32), else float64; copied ``rows`` at a time
-    so that no float64 copy of the whole is made on the way."""
+def _working_copy(data: np.ndarray, rows: int = 1 << 20) -> np.ndarray:
+    """A copy of data (M, d) to build the tree in: float32 when that loses nothing (F15E is float32), else
+    float64; converted ``rows`` at a time so that no other whole copy is made on the way."""
     out = np.empty(data.shape, dtype=np.float32)
-    for a in range(0, len(perm), rows):
-        part = data[perm[a : a + rows]]
+    for a in range(0, len(data), rows):
+        part = data[a : a + rows]
         out[a : a + rows] = part
         if not np.array_equal(out[a : a + rows], part):
-            return np.ascontiguousarray(data[perm])
+            return np.array(data, dtype=np.float64)
     return out
 
 
