@@ -1,12 +1,14 @@
 """kNN benchmark (Krüger, Tautges, Weber & Zinke 2010, Table 1 and §5.3) on F15E features of >= 1M frames.
 
-(a) Build time and memory of the search structures: ``mocapviz.similarity.knn.KnnIndex`` (scipy cKDTree), the brute-force
-    engine (a float64 copy), and pykdtree (PyPI, OpenMP kd-tree, float32) when it is installed.
-(b) 16-NN and 256-NN per query, exact, batched queries over all cores: ours against numpy brute force
+(a) Build time and memory of the search structures: ``mocapviz.similarity.knn.KnnIndex`` with its engines "kdtree"
+    (ours, numba: :mod:`mocapviz.similarity.kdtree`, the default), "ckdtree" (scipy cKDTree, the default before
+    issue 43) and "brute" (a float64 copy), and pykdtree (PyPI, OpenMP kd-tree, float32) when it is installed.
+(b) 16-NN and 256-NN per query, exact, batched queries over all cores: ours ("kdtree"), and scipy's cKDTree
+    beside it, against numpy brute force
     (``KnnIndex(engine="brute")``: scipy ``cdist`` + ``argpartition``, chunked, threads; on a sample of the
     queries) and against pykdtree, the fastest other engine found (faiss-cpu has no exact search faster than
     its flat index, which is brute force with BLAS). Ours single-threaded and eps = 0.5 beside them. Before
-    timing, ours and brute force must agree on the sampled queries (up to exact ties). Queries: random
+    timing, ours, cKDTree and brute force must agree on the sampled queries (up to exact ties). Queries: random
     database frames. Each figure: median of ``repeats`` runs of the whole batch; the engines alternate
     within a repeat so that they see the same machine state. CPU ms/query (process time of all threads per
     query) is printed too: it is less disturbed by other processes than wall time. Beside these batched
@@ -352,8 +354,9 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print()
     print(table_build(build_rows))
     print()
-    print("Structure MB: ours = float64 copy of the features + tree permutation and its inverse + nodes (72 B each) "
-          "+ frame map (`KnnIndex.nbytes`); brute = the float64 copy; pykdtree = float32 data + permutation "
+    print("Structure MB (`KnnIndex.nbytes`): ours (kdtree) = the points in leaf order (float32: F15E is float32) + "
+          "permutation + nodes (children, row range and tight box, float64) + frame map; cKDTree = float64 copy of "
+          "the features + tree permutation and its inverse + nodes (72 B each) + frame map; brute = the float64 copy; pykdtree = float32 data + permutation "
           "(nodes not counted). RSS growth: resident memory after the first build minus before (includes allocator "
           "slack; pykdtree's float32 copy was made before and is not in it).")  # fmt: skip
     print()
