@@ -1,12 +1,14 @@
 """kNN benchmark (Krüger, Tautges, Weber & Zinke 2010, Table 1 and §5.3) on F15E features of >= 1M frames.
 
-(a) Build time and memory of the search structures: ``mocapviz.similarity.knn.KnnIndex`` (scipy cKDTree), the brute-force
-    engine (a float64 copy), and pykdtree (PyPI, OpenMP kd-tree, float32) when it is installed.
-(b) 16-NN and 256-NN per query, exact, batched queries over all cores: ours against numpy brute force
+(a) Build time and memory of the search structures: ``mocapviz.similarity.knn.KnnIndex`` with its engines "kdtree"
+    (ours, numba: :mod:`mocapviz.similarity.kdtree`, the default), "ckdtree" (scipy cKDTree, the default before
+    issue 43) and "brute" (a float64 copy), and pykdtree (PyPI, OpenMP kd-tree, float32) when it is installed.
+(b) 16-NN and 256-NN per query, exact, batched queries over all cores: ours ("kdtree"), and scipy's cKDTree
+    beside it, against numpy brute force
     (``KnnIndex(engine="brute")``: scipy ``cdist`` + ``argpartition``, chunked, threads; on a sample of the
     queries) and against pykdtree, the fastest other engine found (faiss-cpu has no exact search faster than
     its flat index, which is brute force with BLAS). Ours single-threaded and eps = 0.5 beside them. Before
-    timing, ours and brute force must agree on the sampled queries (up to exact ties). Queries: random
+    timing, ours, cKDTree and brute force must agree on the sampled queries (up to exact ties). Queries: random
     database frames. Each figure: median of ``repeats`` runs of the whole batch; the engines alternate
     within a repeat so that they see the same machine state. CPU ms/query (process time of all threads per
     query) is printed too: it is less disturbed by other processes than wall time. Beside these batched
@@ -109,7 +111,8 @@ def build_engines(features: np.ndarray, repeats: int) -> tuple[dict, list[dict]]
     from mocapviz.similarity.knn import KnnIndex
 
     engines, rows = {}, []
-    for engine, label in (("ckdtree", "ours: KnnIndex(engine='ckdtree')"),
+    for engine, label in (("kdtree", "ours: KnnIndex(engine='kdtree'), numba, float32 points, leafsize 64"),
+                          ("ckdtree", "scipy cKDTree: KnnIndex(engine='ckdtree'), float64, leafsize 16 (before)"),
                           ("brute", "brute force: KnnIndex(engine='brute')")):  # fmt: skip
         index, times, rss = _build_timed(lambda engine=engine: KnnIndex(features, engine=engine), repeats)
         rows.append({"engine": label, "build_s": statistics.median(times), "runs_s": times,
@@ -168,10 +171,12 @@ def bench_queries(features: np.ndarray, engines: dict, quick: bool, repeats: int
         queries = features[rng.choice(len(features), n_queries[k], replace=False)].astype(np.float64)
         sample = queries[:n_brute]
         d_ref, i_ref = engines["brute"](sample, k)
-        d, i = engines["ckdtree"](sample, k)
-        bad = _disagreements(features, sample, d, i, d_ref, i_ref)
-        notes.append(f"k={k}: ours and brute force on {n_brute} queries: "
-                     + ("identical (up to exact ties)" if not bad else f"{bad} ENTRIES DIFFER"))  # fmt: skip
+        bad = 0
+        for engine in ("kdtree", "ckdtree"):
+            d, i = engines[engine](sample, k)
+            bad += (wrong := _disagreements(features, sample, d, i, d_ref, i_ref))
+            notes.append(f"k={k}: KnnIndex(engine='{engine}') and brute force on {n_brute} queries: "
+                         + ("identical (up to exact ties)" if not wrong else f"{wrong} ENTRIES DIFFER"))  # fmt: skip
         if "pykdtree" in engines:
             d_p, i_p = engines["pykdtree"](sample, k)
             bad_p = _disagreements(features, sample, d_p.astype(np.float64), i_p.astype(np.int64), d_ref, i_ref)
@@ -179,13 +184,17 @@ def bench_queries(features: np.ndarray, engines: dict, quick: bool, repeats: int
                          + ("identical (up to exact ties)" if not bad_p else f"{bad_p} entries differ by > 1e-5 "
                             "or beyond a tie (float32 rounding)"))  # fmt: skip
         # (name, engine, batched options, batch, single-query options or None)
-        variants = [("ours (ckdtree), all cores", "ckdtree", {}, queries, {"threads": 1}),
-                    ("ours (ckdtree), 1 thread", "ckdtree", {"threads": 1}, queries, None),
-                    (f"ours (ckdtree), eps = {EPS}, all cores", "ckdtree", {"eps": EPS}, queries,
+        variants = [("ours (kdtree), all cores", "kdtree", {}, queries, {"threads": 1}),
+                    ("ours (kdtree), 1 thread", "kdtree", {"threads": 1}, queries, None),
+                    (f"ours (kdtree), eps = {EPS}, all cores", "kdtree", {"eps": EPS}, queries,
                      {"eps": EPS, "threads": 1}),
+                    ("scipy cKDTree (engine='ckdtree', before), all cores", "ckdtree", {}, queries, {"threads": 1}),
+                    ("scipy cKDTree (engine='ckdtree', before), 1 thread", "ckdtree", {"threads": 1}, queries, None),
+                    (f"scipy cKDTree (engine='ckdtree', before), eps = {EPS}, all cores", "ckdtree", {"eps": EPS},
+                     queries, {"eps": EPS, "threads": 1}),
                     ("numpy brute force, all cores", "brute", {}, sample, {"threads": 1})]  # fmt: skip
         if "pykdtree" in engines:
-            variants.insert(3, ("pykdtree, all cores", "pykdtree", {}, queries, {}))
+            variants.insert(6, ("pykdtree, all cores", "pykdtree", {}, queries, {}))
         runs = {name: [] for name, *_ in variants}
         for _ in range(repeats):
             for name, engine, options, q, _ in variants:
@@ -345,8 +354,9 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print()
     print(table_build(build_rows))
     print()
-    print("Structure MB: ours = float64 copy of the features + tree permutation and its inverse + nodes (72 B each) "
-          "+ frame map (`KnnIndex.nbytes`); brute = the float64 copy; pykdtree = float32 data + permutation "
+    print("Structure MB (`KnnIndex.nbytes`): ours (kdtree) = the points in leaf order (float32: F15E is float32) + "
+          "permutation + nodes (children, row range and tight box, float64) + frame map; cKDTree = float64 copy of "
+          "the features + tree permutation and its inverse + nodes (72 B each) + frame map; brute = the float64 copy; pykdtree = float32 data + permutation "
           "(nodes not counted). RSS growth: resident memory after the first build minus before (includes allocator "
           "slack; pykdtree's float32 copy was made before and is not in it).")  # fmt: skip
     print()

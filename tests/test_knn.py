@@ -45,9 +45,10 @@ def queries(db, features) -> np.ndarray:
     return np.concatenate([own, mirrored[rng.choice(len(mirrored), 100, replace=False)]])
 
 
-@pytest.fixture(scope="module")
-def tree(features) -> KnnIndex:
-    return KnnIndex(features)
+@pytest.fixture(scope="module", params=["kdtree", "ckdtree"])
+def tree(features, request) -> KnnIndex:
+    """Each kd-tree engine: mocapviz's own (the default) and scipy's."""
+    return KnnIndex(features, engine=request.param)
 
 
 @pytest.fixture(scope="module")
@@ -173,7 +174,7 @@ def test_a_large_copy_is_a_memory_mapped_file_with_the_same_answers(tree, featur
     monkeypatch.setattr(knn, "SPILL_BYTES", 0)
     monkeypatch.setattr(knn, "_COPY_ROWS", 1000)  # several blocks
     monkeypatch.setenv("MOCAPVIZ_HOME", str(tmp_path))
-    spilled = KnnIndex(features)
+    spilled = KnnIndex(features, engine="ckdtree")
     assert isinstance(spilled._structure[0].data.base, np.memmap)  # the tree searches the mapped file, no copy
     for k in (1, 16):
         np.testing.assert_array_equal(spilled.query(queries, k)[1], tree.query(queries, k)[1])
@@ -187,9 +188,10 @@ def test_a_large_copy_is_a_memory_mapped_file_with_the_same_answers(tree, featur
 def test_nbytes_and_build_time(tree, brute, features):
     n = len(features)
     assert tree.n_frames == tree.n_indexed == n and tree.dim == 15
-    assert tree.nbytes > n * 15 * 8 + n * 8 and brute.nbytes >= n * 15 * 8
+    point_bytes = 4 if tree.engine == "kdtree" else 8  # "kdtree" keeps float32 features as float32
+    assert tree.nbytes > n * 15 * point_bytes + n * 8 and brute.nbytes >= n * 15 * 8
     assert tree.build_seconds > 0
-    assert "ckdtree" in repr(tree)
+    assert tree.engine in repr(tree)
 
 
 # ============================================================================ fat-graph base poses
@@ -325,12 +327,13 @@ def test_per_query_exclusion_equals_an_index_without_those_frames(db, tree, feat
         tree.query(queries[:3], 4, exclude=ranges[:2])
 
 
-def test_single_queries_are_the_rows_of_the_batch_on_every_path(features, queries):
+@pytest.mark.parametrize("engine", ["kdtree", "ckdtree"])
+def test_single_queries_are_the_rows_of_the_batch_on_every_path(features, queries, engine):
     """A single query (its own short path: no leaf ordering, one thread, no frame mapping when every frame is
     indexed) returns exactly the batch's row, distances to the bit, with or without a valid mask."""
     valid = np.ones(len(features), dtype=bool)
     valid[::3] = False
-    for index in (KnnIndex(features), KnnIndex(features, valid=valid)):
+    for index in (KnnIndex(features, engine), KnnIndex(features, engine, valid=valid)):
         for k in (1, 16):
             d, i = index.query(queries, k)  # >= 64 queries: searched in the tree's leaf order
             for r in (0, 7, 250):

@@ -543,7 +543,7 @@ def test_knn_ties_across_the_kth_neighbour_go_to_the_first_frame(single, shardin
     shared = starts[(features[starts] == features[starts - 1]).all(axis=1)]
     assert len(shared) > 10
     first = [int(np.flatnonzero((features == features[f]).all(axis=1))[0]) for f in shared]
-    for engine in ("ckdtree", "brute"):
+    for engine in ("kdtree", "ckdtree", "brute"):
         assert KnnIndex(features, engine=engine).query(features[shared], 1)[1][:, 0].tolist() == first
     for sharded in shardings.values():
         assert sharded.knn(features[shared], k=1)[1][:, 0].tolist() == first

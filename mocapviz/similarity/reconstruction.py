@@ -239,7 +239,7 @@ class PosePrior:
         For the Fp sets (default :func:`mocapviz.features.numeric.default_pca` of ``db``, fitted when first needed, on
         all frames whatever ``valid`` says: the paper fits one reference PCA for every search).
     engine : str
-        KnnIndex engine ("ckdtree" or "brute").
+        KnnIndex engine ("kdtree", "ckdtree" or "brute": the same neighbours).
 
     Attributes
     ----------
@@ -252,7 +252,7 @@ class PosePrior:
         ``valid`` not a bool mask over the frames, or selecting no frame.
     """
 
-    def __init__(self, db: MotionDB, valid=None, pca: PCAModel | None = None, engine: str = "ckdtree",
+    def __init__(self, db: MotionDB, valid=None, pca: PCAModel | None = None, engine: str = "kdtree",
                  _shared: dict | None = None):  # fmt: skip
         if not isinstance(db, MotionDB):
             raise ParameterError(f"db must be a MotionDB; got {type(db).__name__}")
