@@ -17,6 +17,7 @@ dashboard refuses (:func:`mocapviz.app.refusal`): :func:`_with_origin` adds the 
 
 from __future__ import annotations
 
+import asyncio
 import html
 import importlib
 import re
@@ -68,7 +69,8 @@ class Client:
 
         _register_models()
         _with_origin()
-        self.loop = IOLoop(make_current=False)
+        asyncio.set_event_loop(asyncio.new_event_loop())  # this thread's own (Bokeh's client asks for the current one)
+        self.loop = IOLoop.current()
         self.session = pull_session(url=url, io_loop=self.loop)
         self.doc = self.session.document
         self._found: dict = {}
@@ -158,6 +160,7 @@ class Client:
     def close(self) -> None:
         self.session.close()
         self.loop.close(all_fds=True)
+        asyncio.set_event_loop(None)
 
 
 def _player_shows(client: Client, name: str, n_frames: int) -> bool:
@@ -255,33 +258,59 @@ def _server_processes(pid: int) -> list:
     return [root, *root.children(recursive=True)]
 
 
-def run_load(url: str, pid: int, queries: list, n: int, chromium=None, chromium_args=(), browser_rounds: int = 3,
-             min_rounds: int = 1) -> Load:
-    """``n`` simulated sessions, each running :func:`protocol_round` of ``queries[i % len(queries)]`` over and over,
-    while one Chromium runs :func:`dashboard_sessions.session_round` ``browser_rounds`` times one after the other
-    (of ``queries[0]``; none without ``chromium``); the simulated sessions stop once the browser is done and each
-    ran ``min_rounds`` rounds. The server (process ``pid`` and its children) is sampled every second meanwhile."""
-    import psutil
+PER_PROCESS = 4  # simulated sessions per worker process: each reads its sessions' patches in Python, under one GIL
 
-    load = Load()
-    done = threading.Event()
+
+def _simulate(url: str, queries: list, first: int, count: int, done, min_rounds: int, out) -> None:
+    """Sessions ``first .. first + count - 1`` (one thread each) of :func:`run_load`, in a worker process: each runs
+    :func:`protocol_round` of ``queries[i % len(queries)]`` until ``done`` is set and it ran ``min_rounds`` rounds, or
+    until its first error; puts (seconds per kind, rounds, errors) on ``out``."""
+    _register_models()  # imported before any session is timed
+    _with_origin()
+    seconds, errors, rounds = {kind: [] for kind in KINDS}, [], [0]
     lock = threading.Lock()
 
-    def simulate(i: int) -> None:
+    def session(i: int) -> None:
         q, ran = queries[i % len(queries)], 0
         while ran < min_rounds or not done.is_set():
-            seconds = {kind: [] for kind in KINDS}
+            mine = {kind: [] for kind in KINDS}
             try:
-                protocol_round(url, q, seconds)
+                protocol_round(url, q, mine)
             except Exception as exc:  # noqa: BLE001 - reported by the caller
                 with lock:
-                    load.errors.append(f"simulated session {i} ({q.name}): {type(exc).__name__}: {exc}")
+                    errors.append(f"simulated session {i} ({q.name}): {type(exc).__name__}: {exc}")
                 return
             ran += 1
             with lock:
-                load.rounds += 1
+                rounds[0] += 1
                 for kind in KINDS:
-                    load.simulated[kind].extend(seconds[kind])
+                    seconds[kind].extend(mine[kind])
+
+    threads = [threading.Thread(target=session, args=(i,), name=f"simulated-{i}") for i in range(first, first + count)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    out.put((seconds, rounds[0], errors))
+
+
+def run_load(url: str, pid: int, queries: list, n: int, chromium=None, chromium_args=(), browser_rounds: int = 3,
+             min_rounds: int = 1) -> Load:
+    """``n`` simulated sessions, each running :func:`protocol_round` of ``queries[i % len(queries)]`` over and over
+    (:data:`PER_PROCESS` per worker process), while one Chromium runs :func:`dashboard_sessions.session_round`
+    ``browser_rounds`` times one after the other (of ``queries[0]``; none without ``chromium``); the simulated
+    sessions stop once the browser is done and each ran ``min_rounds`` rounds. The server (process ``pid`` and its
+    children) is sampled every second meanwhile."""
+    import multiprocessing
+
+    import psutil
+
+    load = Load()
+    spawn = multiprocessing.get_context("spawn")
+    done, out = spawn.Event(), spawn.Queue()
+    groups = [(first, min(PER_PROCESS, n - first)) for first in range(0, n, PER_PROCESS)]
+    workers = [spawn.Process(target=_simulate, args=(url, queries, first, count, done, min_rounds, out),
+                             name=f"simulated-{first}") for first, count in groups]  # fmt: skip
 
     def sample() -> None:
         procs = _server_processes(pid)
@@ -298,9 +327,8 @@ def run_load(url: str, pid: int, queries: list, n: int, chromium=None, chromium_
     sampler = threading.Thread(target=sample, name="server-sampler")
     sampler.start()
     t0 = time.perf_counter()
-    threads = [threading.Thread(target=simulate, args=(i,), name=f"simulated-{i}") for i in range(n)]
-    for t in threads:
-        t.start()
+    for w in workers:
+        w.start()
     try:
         if chromium is not None:
             load.browser = Rounds()
@@ -311,8 +339,14 @@ def run_load(url: str, pid: int, queries: list, n: int, chromium=None, chromium_
                     load.browser.seconds[kind].extend(rounds.seconds[kind])
     finally:
         done.set()
-        for t in threads:
-            t.join()
+        for _ in workers:
+            seconds, rounds, errors = out.get(timeout=2 * TIMEOUT_S)  # a round left at most TIMEOUT_S per answer
+            load.rounds += rounds
+            load.errors.extend(errors)
+            for kind in KINDS:
+                load.simulated[kind].extend(seconds[kind])
+        for w in workers:
+            w.join()
         load.wall_s = time.perf_counter() - t0
         stopped.set()
         sampler.join()
