@@ -77,6 +77,10 @@ def measure(url: str, pid: int, queries: list, sessions, browser_rounds: int) ->
                 values = load.browser.seconds[kind] if who == "browser" else load.simulated[kind]
                 rows.append({**common, "step": kind, "who": who, "n": len(values),
                              "p50_s": load.p(who, kind, 50), "p95_s": load.p(who, kind, 95)})
+        log(f"N = {n}: browser p95 " + ", ".join(f"{k} {load.p('browser', k, 95):.2f}" for k in KINDS)
+            + ("; simulated p95 " + ", ".join(f"{k} {load.p('simulated', k, 95):.2f}" for k in KINDS) if n else "")
+            + f"; {load.rounds} rounds; server CPU mean {common['cpu_mean_pct']:.0f} %, peak RSS "
+            f"{common['rss_max_mb']:.0f} MB; load {common['load']}")  # each N as it ends: a long run may be cut
     return rows
 
 
