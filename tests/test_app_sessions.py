@@ -9,10 +9,6 @@ Chromium.
   with 8 sessions open and after they closed go to build/test-artifacts/dashboard/timings.json; RSS with 8 sessions
   is at most 1.5 times that with one (the features, indexes and kd-trees are the server's, not the sessions'), and
   once they closed no dashboard of theirs is left in the server's memory.
-- A real browser beside 8 simulated sessions (Bokeh's WebSocket protocol, tests/protocol_sessions.py): every answer
-  the session's own and right; the browser's p50 / p95 per step go to timings.json as sessions_8_p50_s /
-  sessions_8_p95_s (those of the 8 browsers above as browsers_8_*), the simulated sessions' p95 and the server's CPU
-  and RSS beside them.
 - The job queue: a second session's job waits its turn (its place shown), Cancel stops a running job within seconds,
   closing a session stops its job.
 """
@@ -23,7 +19,6 @@ import re
 import shutil
 import time
 
-import numpy as np
 import pytest
 from browser_helpers import open_dashboard, open_tab, record_figures, record_first_answer, record_timing
 from dashboard_sessions import KINDS, queries_of, rss_mb, run_sessions
@@ -74,43 +69,14 @@ def test_eight_sessions_get_their_own_answers_and_share_the_servers_memory(serve
     eight = run_sessions(chromium, CHROMIUM_ARGS, url, queries, hold=lambda: rss.update(eight_sessions=rss_mb(pid)))
     assert not eight.errors, "\n".join(eight.errors)
     assert all(len(eight.seconds[kind]) == len(queries) for kind in KINDS)
-    record_figures("browsers_8_p50_s", {k: eight.percentile(k, 50) for k in KINDS}, "s, median over 8 browser sessions")
-    record_figures("browsers_8_p95_s", {k: eight.percentile(k, 95) for k in KINDS},
-                   "s, 95th percentile, 8 browser sessions (the browsers share the server's 2 cores)")
+    record_figures("sessions_8_p50_s", {k: eight.percentile(k, 50) for k in KINDS}, "s, median over 8 sessions")
+    record_figures("sessions_8_p95_s", {k: eight.percentile(k, 95) for k in KINDS}, "s, 95th percentile, 8 sessions")
 
     # 2 s after the last session was dropped: no dashboard of theirs in the server's memory (no reference kept)
     _log_until(log, ALL_GONE, times=2)
     rss["closed"] = rss_mb(pid)
     record_figures("server_rss_mb", rss, "MB resident (VmRSS) of the mocapviz serve process")
     assert rss["eight_sessions"] <= RSS_RATIO * rss["one_session"], rss
-
-
-BROWSER_ROUNDS = 3  # rounds of the real browser beside the simulated sessions (its p95 is over these)
-
-
-def test_a_browser_beside_eight_simulated_sessions(served, chromium):
-    """8 sessions driven at the protocol level (tests/protocol_sessions.py, no browser each) run the scripted round in
-    a loop while one Chromium runs it BROWSER_ROUNDS times: every answer of every session is its own query's, with
-    the library's hit count (a simulated session fails on the first answer that is not); the browser's seconds per
-    step are recorded as sessions_8_p95_s (reported, never asserted), with the simulated sessions' and the server's
-    CPU and RSS."""
-    from protocol_sessions import run_load
-
-    url, pid, _, db = served
-    queries = queries_of(db, DOCS)
-    load = run_load(url, pid, queries, 8, chromium, CHROMIUM_ARGS, browser_rounds=BROWSER_ROUNDS)
-    assert not load.errors, "\n".join(load.errors)
-    assert not load.browser.errors, "\n".join(load.browser.errors)
-    assert load.rounds >= 8 and all(len(load.browser.seconds[kind]) == BROWSER_ROUNDS for kind in KINDS)
-    record_figures("sessions_8_p50_s", {k: load.p("browser", k, 50) for k in KINDS},
-                   "s, median of a real browser's steps beside 8 simulated sessions (protocol level)")
-    record_figures("sessions_8_p95_s", {k: load.p("browser", k, 95) for k in KINDS},
-                   "s, 95th percentile of a real browser's steps beside 8 simulated sessions (protocol level)")
-    record_figures("simulated_8_p95_s", {k: load.p("simulated", k, 95) for k in KINDS},
-                   "s, 95th percentile of the 8 simulated sessions' steps (beside one browser)")
-    record_figures("server_load_8", {"cpu_mean_pct": np.mean(load.cpu), "cpu_max_pct": np.max(load.cpu),
-                                     "rss_max_mb": np.max(load.rss_mb), "simulated_rounds": load.rounds},
-                   "the server with 8 simulated sessions and a browser: CPU % of one core (1 s samples), peak RSS MB")
 
 
 def _status(page, css: str) -> str:
