@@ -151,6 +151,24 @@ def run_sessions(chromium: Path, args: list, url: str, queries: list, hold=lambd
     return rounds
 
 
+def queries_of(db, docs) -> list[Query]:
+    """One query per document of ``docs`` (one per session), with the hit counts the library gives for it: the
+    relational query's count of the page's default query of the whole clip, the Describe page's example with
+    K = 1, 2, 3, 4, 1, ... in turn."""
+    from mocapviz.app.backend import Backend
+    from mocapviz.app.pages import describe, relational
+
+    backend = Backend(db)
+    out = []
+    for i, doc in enumerate(docs):
+        row = db.document(doc)
+        n, k = int(row["n_frames"]), 1 + i % 4
+        found = describe.search(backend, describe.EXAMPLE, "2005", k)
+        hits = relational.search(backend, relational.first_query(backend, doc))  # what the page's Run shows
+        out.append(Query(doc, str(row["name"]), n, len(hits), str(row["label"]), k, len(found)))
+    return out
+
+
 def rss_mb(pid: int) -> float:
     """The resident set size of process ``pid`` (MB), from /proc."""
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():

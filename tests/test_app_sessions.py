@@ -21,13 +21,12 @@ import time
 
 import pytest
 from browser_helpers import open_dashboard, open_tab, record_figures, record_first_answer, record_timing
-from dashboard_sessions import KINDS, Query, rss_mb, run_sessions
+from dashboard_sessions import KINDS, queries_of, rss_mb, run_sessions
 
 from conftest import CHROMIUM_ARGS
 from mocapviz import MotionDB
-from mocapviz.app.backend import Backend
 from mocapviz.app.jobs import POLL_S
-from mocapviz.app.pages import describe, relational, statistics
+from mocapviz.app.pages import statistics
 
 pytestmark = pytest.mark.slow  # minutes on a loaded 2-core machine: 8 browser sessions and their server
 
@@ -47,19 +46,6 @@ def served(sample_db, serve_dashboard, tmp_path_factory):
     return url, serve_dashboard.pid_of(url), serve_dashboard.log_of(url), MotionDB.open(copy)
 
 
-def _queries(db) -> list[Query]:
-    """One query per session, with the hit counts the library gives for it."""
-    backend = Backend(db)
-    out = []
-    for i, doc in enumerate(DOCS):
-        row = db.document(doc)
-        n, k = int(row["n_frames"]), 1 + i % 4
-        found = describe.search(backend, describe.EXAMPLE, "2005", k)
-        hits = relational.search(backend, relational.first_query(backend, doc))  # what the page's Run shows
-        out.append(Query(doc, str(row["name"]), n, len(hits), str(row["label"]), k, len(found)))
-    return out
-
-
 def _log_until(log, pattern: str, times: int = 1, timeout: float = WAIT_S) -> str:
     """The server's log once it matches ``pattern`` ``times`` times (fails after ``timeout`` seconds)."""
     deadline = time.monotonic() + timeout
@@ -71,7 +57,7 @@ def _log_until(log, pattern: str, times: int = 1, timeout: float = WAIT_S) -> st
 
 def test_eight_sessions_get_their_own_answers_and_share_the_servers_memory(served, chromium):
     url, pid, log, db = served
-    queries = _queries(db)
+    queries = queries_of(db, DOCS)
     rss = {"started": rss_mb(pid)}
 
     alone = run_sessions(chromium, CHROMIUM_ARGS, url, queries[:1], hold=lambda: rss.update(one_session=rss_mb(pid)))
