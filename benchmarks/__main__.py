@@ -16,7 +16,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 NAMES = ("io", "dask", "relational", "knn", "match", "search", "templates", "scaling", "startup", "descriptions",
-         "integrity", "dashboard", "engine", "audit", "sessions")
+         "integrity", "dashboard", "engine", "audit")
 
 
 class _Tee(io.TextIOBase):
@@ -62,7 +62,6 @@ def main(argv=None) -> int:
         bench_relational,
         bench_scaling,
         bench_search,
-        bench_sessions,
         bench_startup,
         bench_templates,
         report,
@@ -76,8 +75,7 @@ def main(argv=None) -> int:
                              ("match", bench_match), ("search", bench_search), ("templates", bench_templates),
                              ("scaling", bench_scaling), ("startup", bench_startup),
                              ("descriptions", bench_descriptions), ("integrity", bench_integrity),
-                             ("dashboard", bench_dashboard), ("engine", bench_engine), ("audit", bench_audit),
-                             ("sessions", bench_sessions))},
+                             ("dashboard", bench_dashboard), ("engine", bench_engine), ("audit", bench_audit))},
     }  # fmt: skip
     status = 0
     for name in args.only or NAMES:

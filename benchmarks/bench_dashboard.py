@@ -53,6 +53,7 @@ DATABASE = BenchDB("dashboard-30hz", fps=30.0, min_frames=0)  # the shared archi
 QUERIES = 20  # clips (or classes) per kind of answer; 5 with --quick
 LONG_S = 10.0  # the LNG queries are takes of at least this many seconds; the baseline matches their first LONG_S
 TARGET_S = 1.0
+LEARN_ALL_S = 5.0  # learning from hundreds of examples "in a few seconds" (issue 43)
 SEED = 0
 
 
@@ -62,10 +63,22 @@ def _seconds(fn, *args) -> float:
     return time.perf_counter() - t0
 
 
-def _row(kind: str, what: str, times: list[float], note: str = "") -> dict:
+def _row(kind: str, what: str, times: list[float], note: str = "", target_s: float = TARGET_S) -> dict:
     t = np.asarray(times, dtype=np.float64)
     return {"kind": kind, "what": what, "queries": len(t), "median_s": float(np.median(t)),
-            "p95_s": float(np.percentile(t, 95)), "max_s": float(t.max()), "note": note}  # fmt: skip
+            "p95_s": float(np.percentile(t, 95)), "max_s": float(t.max()), "note": note, "target_s": target_s}  # fmt: skip
+
+
+def _meets(row: dict) -> str:
+    """The target column: "—" for a baseline, else whether every answer (or the 95th percentile) is within the
+    row's target (1 s for an answer, LEARN_ALL_S for learning a whole class)."""
+    target = row["target_s"]
+    if row["what"].startswith("baseline"):
+        return "—"
+    say = "" if target == TARGET_S else f"<= {target:g} s: "
+    if row["max_s"] <= target:
+        return say + "yes"
+    return say + f"p95 {'yes' if row['p95_s'] <= target else 'NO'}, max NO"
 
 
 def _answers(backend, n_queries: int) -> list[dict]:
@@ -128,7 +141,7 @@ def _answers(backend, n_queries: int) -> list[dict]:
     t0 = time.perf_counter()
     learn_class(db, label, values=values)
     rows.append(_row("template", f"learn from all {n} examples of the biggest class ({label})",
-                     [time.perf_counter() - t0]))  # fmt: skip
+                     [time.perf_counter() - t0], target_s=LEARN_ALL_S))  # fmt: skip
 
     log("descriptions")
     rows.append(_row("describe", "each shipped description, K = 20", [
@@ -210,9 +223,7 @@ def main(quick: bool = False, repeats: int = 3, out_dir: Path | None = None) -> 
     print()
     print(markdown("| answer | what | queries | median s | p95 s | max s | <= 1 s |", "|---|---|---:|---:|---:|---:|---|",
                    [[r["kind"], r["what"], str(r["queries"]), _f(r["median_s"]), _f(r["p95_s"]), _f(r["max_s"]),
-                     "—" if r["what"].startswith("baseline") else ("yes" if r["max_s"] <= TARGET_S else
-                                                                    f"p95 {'yes' if r['p95_s'] <= TARGET_S else 'NO'}, max NO")]
-                    for r in rows]))  # fmt: skip
+                     _meets(r)] for r in rows]))  # fmt: skip
     print()
     csv = (out_dir or REPO / "benchmarks" / "results") / f"dashboard{'-quick' if quick else ''}.csv"
     write_results_csv(csv, {"answers": table}, info)

@@ -37,7 +37,6 @@ SECTIONS = (
     ("dashboard", "The dashboard's answers on every shared archive at 30 Hz (bench_dashboard)"),
     ("engine", "Engine overhead: every use case through Engine(db) vs the library function it wraps (bench_engine)"),
     ("audit", "Audit of a collection: index self-join vs brute-force subsequence DTW and STUMPY (bench_audit)"),
-    ("sessions", "The server's capacity: simulated sessions and one browser (bench_sessions)"),
 )
 NOT_RUN = "not run: "  # how the line of a section with no figures begins
 
