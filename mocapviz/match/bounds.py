@@ -90,19 +90,25 @@ def box_rows(q, low, high):  # pragma: no cover - compiled
         No frame of the range is nearer the query frame than its box (LB_Keogh's envelope distance with the whole
         range as the envelope).
     """
-    n_r, m, d = low.shape[0], q.shape[0], q.shape[1]
+    n_r, m = low.shape[0], q.shape[0]
     out = np.empty((n_r, m))
     for r in range(n_r):
         for i in range(m):
-            s = 0.0
-            for t in range(d):
-                v = np.float64(q[i, t])
-                if v < low[r, t]:
-                    s += (low[r, t] - v) ** 2
-                elif v > high[r, t]:
-                    s += (v - high[r, t]) ** 2
-            out[r, i] = np.sqrt(s)
+            out[r, i] = _box_distance(q[i], low[r], high[r])
     return out
+
+
+@numba.njit(cache=True, inline="always")
+def _box_distance(v, low, high):  # pragma: no cover - compiled
+    """The Euclidean distance of the point ``v`` (d,) to the box [low, high] (d,), float64."""
+    s = 0.0
+    for t in range(v.shape[0]):
+        x = np.float64(v[t])
+        if x < low[t]:
+            s += (low[t] - x) ** 2
+        elif x > high[t]:
+            s += (x - high[t]) ** 2
+    return np.sqrt(s)
 
 
 @numba.njit(cache=True)
@@ -192,14 +198,7 @@ def whole_rows(q, x, lo, hi, low, high, which):  # pragma: no cover - compiled
     bound = np.zeros(n_r)
     for r in which:
         for i in range(m):
-            s = 0.0
-            for t in range(d):
-                v = np.float64(q[i, t])
-                if v < low[r, t]:
-                    s += (low[r, t] - v) ** 2
-                elif v > high[r, t]:
-                    s += (v - high[r, t]) ** 2
-            rows[r, i] = np.sqrt(s)
+            rows[r, i] = _box_distance(q[i], low[r], high[r])
         for i, j in ((0, lo[r]), (m - 1, hi[r] - 1)):
             s = 0.0
             for t in range(d):
