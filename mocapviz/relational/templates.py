@@ -857,6 +857,14 @@ def _set_bits(v):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
+def _frame_work(m):  # pragma: no cover
+    """The work arrays of :func:`_bounded_frame` for a template of m rows: total (m + 1), entry, enter_first,
+    window, prev, prev_first, acc, start (m each)."""
+    return (np.empty(m + 1), np.empty(m), np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64), np.empty(m),
+            np.empty(m, dtype=np.int64), np.empty(m), np.empty(m, dtype=np.int64))  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
 def _bounded_run(frames, values, care, cared, docs, max_rows, cost, first):  # pragma: no cover
     """The documents ``docs`` ((r, 2) [start, stop) frames) of :func:`_bounded_costs`, written into ``cost`` /
     ``first``. A frame's cost against template row i is its mismatches on the row's cared-for features (``care``;
@@ -864,10 +872,7 @@ def _bounded_run(frames, values, care, cared, docs, max_rows, cost, first):  # p
     a run of r <= max_rows rows i - r + 1 .. i on frame j, entered from frame j - 1 at row i - r (diagonally) or at
     row i - r + 1 (that row held), or started at row 0; each cell of the run pays its cost."""
     m = values.shape[0]
-    total, entry, enter_first = np.empty(m + 1), np.empty(m), np.empty(m, dtype=np.int64)
-    window = np.empty(m, dtype=np.int64)
-    prev, prev_first = np.empty(m), np.empty(m, dtype=np.int64)
-    acc, start = np.empty(m), np.empty(m, dtype=np.int64)
+    total, entry, enter_first, window, prev, prev_first, acc, start = _frame_work(m)
     for d in range(len(docs)):
         for j in range(docs[d, 0], docs[d, 1]):
             _bounded_frame(frames, values, care, cared, j, j > docs[d, 0], True, max_rows, total, entry, enter_first,
@@ -930,10 +935,7 @@ def _latest_run_starts(frames, values, care, cared, bounds, costs, max_rows, lea
     less one, at which an alignment fixed to begin on the end frame covers the whole template at no more than
     ``costs[h]`` (+ :data:`TIE`) over at least ``least`` frames (:func:`_tight_starts`)."""
     m = values.shape[0]
-    total, entry, enter_first = np.empty(m + 1), np.empty(m), np.empty(m, dtype=np.int64)
-    window = np.empty(m, dtype=np.int64)
-    prev, prev_first = np.empty(m), np.empty(m, dtype=np.int64)
-    acc, start = np.empty(m), np.empty(m, dtype=np.int64)
+    total, entry, enter_first, window, prev, prev_first, acc, start = _frame_work(m)
     steps = np.empty(len(costs), dtype=np.int64)
     for h in range(len(costs)):
         a, b = bounds[h], bounds[h + 1]
@@ -1128,10 +1130,7 @@ def _run_bounds(codes, runs, run_lengths, run_offsets, documents, values, care, 
     step (:func:`_bounded_frame`) with the run's code as the frame and at most its
     frames times ``max_rows`` rows on it; the least cost of the last row over the runs."""
     m = values.shape[0]
-    total, entry, enter_first = np.empty(m + 1), np.empty(m), np.empty(m, dtype=np.int64)
-    window = np.empty(m, dtype=np.int64)
-    prev, prev_first = np.empty(m), np.empty(m, dtype=np.int64)
-    acc, start = np.empty(m), np.empty(m, dtype=np.int64)
+    total, entry, enter_first, window, prev, prev_first, acc, start = _frame_work(m)
     for d in range(len(documents)):
         a, b = run_offsets[documents[d]], run_offsets[documents[d] + 1]
         best = np.inf
