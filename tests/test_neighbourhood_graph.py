@@ -15,6 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from mocapviz import MotionDB
+from mocapviz.errors import ParameterError
 from mocapviz.features.numeric import numeric_features
 from mocapviz.match import lng
 from mocapviz.match.neighbourhood_graph import reached_neighbourhoods
@@ -119,3 +120,11 @@ def test_the_search_stops_after_the_first_block_no_path_goes_through(demo):
     np.testing.assert_array_equal(f[:rows], f_all[:rows])
     assert (f[rows:] == -1).all() and np.isinf(d[rows:]).all()
     assert lng(q, index, k=64, starts=starts).empty and lng(q, index, k=64, starts=starts, early_stop=False).empty
+
+
+def test_a_k_above_the_indexed_frames_is_refused_before_anything_is_allocated():
+    """k beyond the index's frames is a ParameterError naming k (as ``KnnIndex.query`` refuses it), raised before the
+    (m, k) arrays are made: k = 10^8 on a 30-frame query would be 22 GiB (the CLI's bad-value test found it)."""
+    x = np.arange(40.0)[:, None]
+    with pytest.raises(ParameterError, match="k"):
+        reached_neighbourhoods(x[:30], KnnIndex(x), k=100_000_000)

@@ -114,7 +114,8 @@ def reached_neighbourhoods(query, knn_index, k: int, radius: float | None = None
     if exclude is not None:
         exclude = np.asarray(exclude, dtype=np.int64).reshape(-1)[:2]
     doc_starts = _check_document_starts(starts, knn_index.n_frames)
-    d = np.full((len(q), k), np.inf)
+    k = count(k, "k", 1, knn_index.n_indexed, "the number of indexed frames")  # as the index refuses it, before the
+    d = np.full((len(q), k), np.inf)  # (m, k) arrays are made
     f = np.full((len(q), k), -1, dtype=np.int64)
     a, size, front, front_docs = 0, FIRST_ROWS, None, None
     while a < len(q):
